@@ -1,0 +1,246 @@
+//! Analysis of a linear model under the thesis' road noise: discretization (RK4 and exact
+//! zero-order hold), stationary covariances, and the output standard deviations of Eq 4.27.
+//!
+//! All functions are allocation-free and work for `f32` and `f64` (they compute in `f64`).
+
+use crate::linalg::{discrete_lyapunov, expm_with_integral, integrate, spectral_radius};
+use crate::model::{broadcast, LinearModel};
+use crate::{Error, Real, Result};
+use nalgebra::{SMatrix, SVector};
+
+/// Zero-order-hold discretization over `dt` seconds (exact for an input held constant over
+/// the interval): `x(k+1) = Φ x(k) + Γ u(k)`, `Φ = e^{A dt}`, `Γ = ∫₀^dt e^{Aτ} dτ B`.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] when `dt` is not finite and > 0.
+pub fn zoh<T: Real, const N: usize, const M: usize>(
+    model: &LinearModel<T, N, M>,
+    dt: T,
+) -> Result<(SMatrix<T, N, N>, SMatrix<T, N, M>)> {
+    crate::error::check_positive("dt", dt)?;
+    let a = model.a().map(|v| v.to_f64());
+    let b = model.b().map(|v| v.to_f64());
+    let (phi, psi) = expm_with_integral(&a, dt.to_f64());
+    Ok((phi.map(T::of), (psi * b).map(T::of)))
+}
+
+/// The discrete map of the classical fourth-order Runge–Kutta method (the thesis'
+/// integrator, Ch. III.C) over `dt` seconds in `substeps` equal steps, with the input held.
+///
+/// For a linear system with a held input, one RK4 step of length `h` is exactly
+/// `x ← R(hA) x + h S(hA) B u` with `R(Z) = I + Z + Z²/2 + Z³/6 + Z⁴/24` and
+/// `S(Z) = I + Z/2 + Z²/6 + Z³/24`; composing `substeps` of them gives `(Φ, Γ)`. Applying
+/// this map is RK4 (to rounding), at the cost of one matrix–vector product per sample.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] when `dt` is not finite and > 0 or `substeps == 0`.
+pub fn rk4_map<T: Real, const N: usize, const M: usize>(
+    model: &LinearModel<T, N, M>,
+    dt: T,
+    substeps: usize,
+) -> Result<(SMatrix<T, N, N>, SMatrix<T, N, M>)> {
+    crate::error::check_positive("dt", dt)?;
+    if substeps == 0 {
+        return Err(Error::InvalidArgument { arg: "substeps", expected: "at least 1 (or None for automatic)" });
+    }
+    let a = model.a().map(|v| v.to_f64());
+    let b = model.b().map(|v| v.to_f64());
+    let h = dt.to_f64() / substeps as f64;
+    let eye = SMatrix::<f64, N, N>::identity();
+    let z = a * h;
+    let z2 = z * z;
+    let z3 = z2 * z;
+    let r = eye + z + z2 * 0.5 + z3 * (1.0 / 6.0) + z3 * z * (1.0 / 24.0);
+    let s = (eye + z * 0.5 + z2 * (1.0 / 6.0) + z3 * (1.0 / 24.0)) * h;
+    let step_gamma = s * b;
+    let mut phi = eye;
+    let mut gamma = SMatrix::<f64, N, M>::zeros();
+    for _ in 0..substeps {
+        gamma = r * gamma + step_gamma;
+        phi = r * phi;
+    }
+    Ok((phi.map(T::of), gamma.map(T::of)))
+}
+
+/// The number of RK4 sub-steps per sample that vehid uses when none is given: enough that
+/// `h ρ(A) ≤ 1/2` for the fastest pole `ρ(A)` (the thesis' half car at `dt = 0.05` s has
+/// `dt ρ ≈ 3.3`, beyond RK4's stability limit of about 2.79 on the real axis).
+pub fn auto_substeps<T: Real, const N: usize, const M: usize>(model: &LinearModel<T, N, M>, dt: T) -> usize {
+    let need = libm::ceil(spectral_radius(model.a()) * dt.to_f64() / 0.5);
+    if need.is_finite() && need >= 1.0 {
+        (need as usize).min(100_000)
+    } else {
+        1
+    }
+}
+
+/// Stationary covariance of the sampled system `x(k+1) = Φ x(k) + Γ u(k)` with
+/// `u(k) ~ N(0, diag(road_sigma²))`: the solution of `P = Φ P Φᵀ + Γ Σ_u Γᵀ`.
+///
+/// # Errors
+/// [`Error::Unstable`] when `Φ` has a pole on or outside the unit circle;
+/// [`Error::InvalidArgument`] / [`Error::Shape`] for bad `road_sigma`.
+pub fn discrete_stationary_cov<T: Real, const N: usize, const M: usize>(
+    phi: &SMatrix<T, N, N>,
+    gamma: &SMatrix<T, N, M>,
+    road_sigma: &[T],
+) -> Result<SMatrix<T, N, N>> {
+    let su = broadcast::<T, M>("road_sigma", road_sigma)?;
+    let phi = phi.map(|v| v.to_f64());
+    let g = gamma.map(|v| v.to_f64());
+    let s = SMatrix::<f64, M, M>::from_fn(|i, j| if i == j { su[i].to_f64().powi(2) } else { 0.0 });
+    let c = g * s * g.transpose();
+    discrete_lyapunov(&phi, &c)
+        .map(|p| p.map(T::of))
+        .ok_or(Error::Unstable { what: "the stationary covariance" })
+}
+
+/// Standard deviation of each state under road noise held over intervals of `hold` seconds
+/// (Eq 4.27): `σ_i² = (T σ_u²/π) ∫₀^∞ |H_i(ω)|² sinc²(ωT/2) dω`, `H(s) = (sI − A)⁻¹ B`.
+///
+/// The held white noise has a triangular autocorrelation (Eq 4.25), the output of a moving
+/// average of length `T` over white noise of intensity `σ_u² T`. The frequency integral is
+/// evaluated in closed form in the time domain: with `Ψ(t) = ∫₀ᵗ e^{Aτ} dτ` and `Γ = Ψ(T) B`,
+/// `Σ = (1/T) [∫₀ᵀ Ψ(t) B S Bᵀ Ψ(t)ᵀ dt + ∫₀^∞ e^{As} Γ S Γᵀ e^{Aᵀs} ds]`, `S = diag(σ_u²)`;
+/// the first integral by Gauss–Legendre quadrature, the second by doubling.
+///
+/// Thesis (Eq 4.28), quarter car: `σ/σ_u = [0.386, 1.84, 0.402, 1.03]`. This is the
+/// continuous-time (random-phase) standard deviation, not the variance at the sample
+/// instants of the discretized system ([`discrete_stationary_cov`]).
+///
+/// # Errors
+/// [`Error::Unstable`] for a model that is not asymptotically stable;
+/// [`Error::InvalidArgument`] / [`Error::Shape`] for bad `road_sigma` or `hold`.
+pub fn output_std<T: Real, const N: usize, const M: usize>(
+    model: &LinearModel<T, N, M>,
+    road_sigma: &[T],
+    hold: T,
+) -> Result<SVector<T, N>> {
+    crate::error::check_positive("hold", hold)?;
+    let su = broadcast::<T, M>("road_sigma", road_sigma)?;
+    let a = model.a().map(|v| v.to_f64());
+    let b = model.b().map(|v| v.to_f64());
+    let t = hold.to_f64();
+    let s = SMatrix::<f64, M, M>::from_fn(|i, j| if i == j { su[i].to_f64().powi(2) } else { 0.0 });
+    let panels = 2 + libm::ceil(spectral_radius(&a) * t) as usize;
+    let first = integrate(t, panels.min(10_000), |tau| {
+        let g = expm_with_integral(&a, tau).1 * b;
+        g * s * g.transpose()
+    });
+    let (phi_t, psi_t) = expm_with_integral(&a, t);
+    let gamma = psi_t * b;
+    let c = gamma * s * gamma.transpose();
+    // ∫₀^∞ e^{As} C e^{Aᵀs} ds = Σ_k Φᵏ (∫₀ᵀ e^{As} C e^{Aᵀs} ds) Φᵏᵀ, Φ = e^{AT}.
+    let piece = integrate(t, panels.min(10_000), |tau| {
+        let e = expm_with_integral(&a, tau).0;
+        e * c * e.transpose()
+    });
+    let tail = discrete_lyapunov(&phi_t, &piece).ok_or(Error::Unstable { what: "the output standard deviation" })?;
+    let cov = (first + tail) / t;
+    if cov.iter().any(|v| !v.is_finite()) {
+        return Err(Error::Unstable { what: "the output standard deviation" });
+    }
+    Ok(SVector::<T, N>::from_fn(|i, _| T::of(libm::sqrt(cov[(i, i)].max(0.0)))))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::{HalfCar, QuarterCar};
+
+    #[test]
+    fn output_std_matches_eq_4_28() {
+        let car = QuarterCar::<f64>::thesis().model();
+        let sd = output_std(&car, &[1.0], 0.05).unwrap();
+        for (got, printed) in sd.iter().zip([0.386, 1.84, 0.402, 1.03]) {
+            assert!((got / printed - 1.0).abs() < 0.005, "{got} vs {printed}");
+        }
+        // Linear in σ_u.
+        let sd2 = output_std(&car, &[0.1], 0.05).unwrap();
+        assert!((sd2 - sd * 0.1).norm() < 1e-12);
+    }
+
+    #[test]
+    fn output_std_equals_frequency_domain_integral() {
+        // Independent evaluation of Eq 4.27 as printed: (T σ²/π) ∫ |H_i(jω)|² sinc²(ωT/2) dω,
+        // with H from a complex solve at each frequency (trapezoid on a log grid + tail).
+        let car = QuarterCar::<f64>::thesis().model();
+        let t = 0.05;
+        let a = nalgebra::Matrix4::from_fn(|i, j| nalgebra::Complex::new(car.a()[(i, j)], 0.0));
+        let b = nalgebra::Vector4::from_fn(|i, _| nalgebra::Complex::new(car.b()[(i, 0)], 0.0));
+        let h = |w: f64| {
+            let m = nalgebra::Matrix4::<nalgebra::Complex<f64>>::identity() * nalgebra::Complex::new(0.0, w) - a;
+            m.lu().solve(&b).unwrap()
+        };
+        let sinc2 = |w: f64| {
+            let x = w * t / 2.0;
+            if x == 0.0 { 1.0 } else { (x.sin() / x).powi(2) }
+        };
+        let mut acc = [0.0; 4];
+        let (lo, hi, steps) = (1e-4f64, 1e5f64, 400_000);
+        let mut prev_w = 0.0;
+        let mut prev = {
+            let v = h(0.0);
+            [v[0].norm_sqr(), v[1].norm_sqr(), v[2].norm_sqr(), v[3].norm_sqr()]
+        };
+        for k in 0..=steps {
+            let w = lo * (hi / lo).powf(k as f64 / steps as f64);
+            let v = h(w);
+            let cur = [v[0].norm_sqr(), v[1].norm_sqr(), v[2].norm_sqr(), v[3].norm_sqr()];
+            for i in 0..4 {
+                acc[i] += 0.5 * (prev[i] * sinc2(prev_w) + cur[i] * sinc2(w)) * (w - prev_w);
+            }
+            prev = cur;
+            prev_w = w;
+        }
+        let sd = output_std(&car, &[1.0], t).unwrap();
+        for i in 0..4 {
+            let freq = (t / core::f64::consts::PI * acc[i]).sqrt();
+            assert!((freq / sd[i] - 1.0).abs() < 2e-3, "state {i}: {freq} vs {}", sd[i]);
+        }
+    }
+
+    #[test]
+    fn rk4_map_equals_stagewise_rk4() {
+        let car = HalfCar::<f64>::thesis().model();
+        let (dt, sub) = (0.05, 7);
+        let (phi, gamma) = rk4_map(&car, dt, sub).unwrap();
+        let x0 = SVector::<f64, 8>::from_fn(|i, _| (i as f64 * 0.37).sin());
+        let u = nalgebra::Vector2::new(0.3, -0.2);
+        let f = |x: &SVector<f64, 8>| car.a() * x + car.b() * u;
+        let h = dt / sub as f64;
+        let mut x = x0;
+        for _ in 0..sub {
+            let k1 = f(&x);
+            let k2 = f(&(x + k1 * (h / 2.0)));
+            let k3 = f(&(x + k2 * (h / 2.0)));
+            let k4 = f(&(x + k3 * h));
+            x += (k1 + k2 * 2.0 + k3 * 2.0 + k4) * (h / 6.0);
+        }
+        assert!((phi * x0 + gamma * u - x).norm() < 1e-13);
+    }
+
+    #[test]
+    fn rk4_converges_to_exact_zoh() {
+        for sub in [400usize] {
+            let car = HalfCar::<f64>::thesis().model();
+            let (pe, ge) = zoh(&car, 0.05).unwrap();
+            let (pr, gr) = rk4_map(&car, 0.05, sub).unwrap();
+            assert!((pe - pr).abs().max() < 1e-8 && (ge - gr).abs().max() < 1e-8);
+        }
+        // Plain RK4 at the thesis' step is unstable for the half car's fast poles.
+        let car = HalfCar::<f64>::thesis().model();
+        let (p1, _) = rk4_map(&car, 0.05, 1).unwrap();
+        assert!(crate::linalg::spectral_radius(&p1) > 1.0);
+        assert!(auto_substeps(&car, 0.05) >= 2);
+    }
+
+    #[test]
+    fn unstable_model_is_an_error() {
+        let mut a = *QuarterCar::<f64>::thesis().model().a();
+        a[(3, 3)] = 100.0;
+        let m = crate::model::LinearModel::new(a, nalgebra::Vector4::new(0.0, 90.0, 0.0, 0.0), &[1, 3]).unwrap();
+        assert!(matches!(output_std(&m, &[1.0], 0.05), Err(Error::Unstable { .. })));
+        assert!(matches!(output_std(&m, &[1.0], 0.0), Err(Error::InvalidArgument { arg: "hold", .. })));
+    }
+}

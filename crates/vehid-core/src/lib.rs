@@ -1,0 +1,43 @@
+//! # vehid-core
+//!
+//! Online identification of a land vehicle's suspension dynamics, after J. H. Kessler,
+//! *Adaptive Modeling of the Dynamics of Autonomous Land Vehicles* (NPS, 1986).
+//!
+//! From measured samples of the state `r(k) = x(k) + w(k)` and of its derivative
+//! `z(k) = ẋ(k) + v(k)` the identifiers estimate the unknown rows of the continuous-time
+//! matrix `A` of `ẋ = A x + B u` (Eq 2.2–2.4), where `B` is known and the road input `u`
+//! is never measured.
+//!
+//! Modules, one per concept:
+//! - [`model`]: linear models, the quarter car (Eq 3.11) and the half car (Eq 6.1–6.6);
+//! - [`sim`]: a seeded simulator with every noise source of the thesis (Ch. III.C);
+//! - [`analysis`]: discretization, stationary covariances, Eq 4.27 output standard deviations;
+//! - [`metrics`]: the parameter error measure ξ (Eq 3.17) and sensor SNR (Eq 4.31);
+//! - [`identify`]: batch least squares, the Kalman-filter identifier, stochastic gradient.
+//!
+//! Everything is generic over the scalar ([`Real`]: `f32` or `f64`) and over the dimensions
+//! (const generics). The per-sample paths allocate nothing.
+//!
+//! ## Features
+//! - `std` (default): implements `std::error::Error`; enables `alloc` and faer-based QR.
+//! - `alloc`: whole-run simulation, stored-sample least squares, dynamic row counts.
+//! - neither: `#![no_std]`, for microcontrollers; models, streaming simulator and the
+//!   recursive identifiers are all available.
+#![cfg_attr(not(feature = "std"), no_std)]
+#![deny(missing_docs)]
+
+#[cfg(feature = "alloc")]
+extern crate alloc;
+
+pub mod analysis;
+mod error;
+pub mod identify;
+pub mod linalg;
+pub mod metrics;
+pub mod model;
+mod scalar;
+pub mod sim;
+
+pub use error::{Error, Result};
+pub use nalgebra;
+pub use scalar::Real;

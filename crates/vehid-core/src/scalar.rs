@@ -1,0 +1,39 @@
+use nalgebra::RealField;
+
+/// The scalar types vehid computes in: `f32` and `f64`.
+///
+/// A thin extension of [`nalgebra::RealField`] with exact conversions from and to `f64`, so
+/// that constants and seeded noise (always drawn in `f64`) are the same numbers in both
+/// precisions.
+pub trait Real: RealField + Copy + Default + core::fmt::Debug + Send + Sync + 'static {
+    /// Converts an `f64` constant (rounding to nearest for `f32`).
+    fn of(x: f64) -> Self;
+    /// Converts to `f64` (exact for both implementations).
+    fn to_f64(self) -> f64;
+    /// `true` when the value is neither NaN nor infinite.
+    fn finite(self) -> bool {
+        self.to_f64().is_finite()
+    }
+}
+
+impl Real for f64 {
+    #[inline(always)]
+    fn of(x: f64) -> Self {
+        x
+    }
+    #[inline(always)]
+    fn to_f64(self) -> f64 {
+        self
+    }
+}
+
+impl Real for f32 {
+    #[inline(always)]
+    fn of(x: f64) -> Self {
+        x as f32
+    }
+    #[inline(always)]
+    fn to_f64(self) -> f64 {
+        self as f64
+    }
+}
