@@ -88,7 +88,7 @@ pub fn discrete_stationary_cov<T: Real, const N: usize, const M: usize>(
     let su = broadcast::<T, M>("road_sigma", road_sigma)?;
     let phi = phi.map(|v| v.to_f64());
     let g = gamma.map(|v| v.to_f64());
-    let s = SMatrix::<f64, M, M>::from_fn(|i, j| if i == j { su[i].to_f64().powi(2) } else { 0.0 });
+    let s = SMatrix::<f64, M, M>::from_fn(|i, j| if i == j { { let s = su[i].to_f64(); s * s } } else { 0.0 });
     let c = g * s * g.transpose();
     discrete_lyapunov(&phi, &c)
         .map(|p| p.map(T::of))
@@ -121,7 +121,7 @@ pub fn output_std<T: Real, const N: usize, const M: usize>(
     let a = model.a().map(|v| v.to_f64());
     let b = model.b().map(|v| v.to_f64());
     let t = hold.to_f64();
-    let s = SMatrix::<f64, M, M>::from_fn(|i, j| if i == j { su[i].to_f64().powi(2) } else { 0.0 });
+    let s = SMatrix::<f64, M, M>::from_fn(|i, j| if i == j { { let s = su[i].to_f64(); s * s } } else { 0.0 });
     let panels = 2 + libm::ceil(spectral_radius(&a) * t) as usize;
     let first = integrate(t, panels.min(10_000), |tau| {
         let g = expm_with_integral(&a, tau).1 * b;
