@@ -1,1 +1,118 @@
+//! Python bindings for vehid-core: the `vehid._vehid` extension module.
+//!
+//! A thin layer: arguments are converted and checked for shape here, everything else
+//! (domains, numerics) is the core's, and every core `Error` becomes a `VehidError` (a
+//! `ValueError`) carrying the core's message, which names the argument. Sizes known only at
+//! run time reach the const-generic core through the dispatch tables in [`dispatch`].
 
+use pyo3::prelude::*;
+use vehid_core::sim::Method;
+
+mod convert;
+mod dispatch;
+mod model;
+mod sim;
+
+pyo3::create_exception!(
+    vehid,
+    VehidError,
+    pyo3::exceptions::PyValueError,
+    "A value passed to vehid is invalid (wrong shape, non-finite, out of its domain) or a \
+     computation cannot be done on it (e.g. an unstable model has no stationary variance). \
+     Subclass of ValueError; the message names the argument."
+);
+
+/// Maps a core error to `VehidError` with the core's message.
+pub(crate) fn core_err(e: vehid_core::Error) -> PyErr {
+    VehidError::new_err(e.to_string())
+}
+
+/// Parses a `method=` string.
+pub(crate) fn method_arg(method: &str) -> PyResult<Method> {
+    match method {
+        "rk4" => Ok(Method::Rk4),
+        "exact" => Ok(Method::Exact),
+        other => Err(VehidError::new_err(format!(
+            "unknown `method` {other:?}: expected one of \"rk4\", \"exact\""
+        ))),
+    }
+}
+
+pub(crate) fn method_name(m: Method) -> &'static str {
+    match m {
+        Method::Rk4 => "rk4",
+        Method::Exact => "exact",
+    }
+}
+
+/// Eq 3.17 / 6.10: ξ = Σ ((θ − θ̂)/θ)² over the entries whose true value is non-zero.
+/// `theta` and `theta_hat` are arrays of the same shape. A non-finite estimate gives inf.
+#[pyfunction]
+fn xi(theta: &Bound<'_, PyAny>, theta_hat: &Bound<'_, PyAny>) -> PyResult<f64> {
+    let t = convert::array(theta, "theta")?;
+    let h = convert::array(theta_hat, "theta_hat")?;
+    if t.shape != h.shape {
+        return Err(VehidError::new_err(format!(
+            "`theta_hat` has shape {} but `theta` has shape {}: they must match",
+            convert::shape_str(&h.shape),
+            convert::shape_str(&t.shape)
+        )));
+    }
+    vehid_core::metrics::xi(&t.data, &h.data).map_err(core_err)
+}
+
+/// Eq 4.31: signal-to-noise ratio 20 log10(signal_std / noise_std) in dB. Scalars give a
+/// float; arrays (or an array and a scalar) give an array of the array's shape.
+#[pyfunction]
+fn snr_db<'py>(
+    py: Python<'py>,
+    signal_std: &Bound<'py, PyAny>,
+    noise_std: &Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyAny>> {
+    use numpy::IntoPyArray;
+    let s = convert::array(signal_std, "signal_std")?;
+    let n = convert::array(noise_std, "noise_std")?;
+    let shape = if s.shape == n.shape || n.shape.is_empty() {
+        s.shape.clone()
+    } else if s.shape.is_empty() {
+        n.shape.clone()
+    } else {
+        return Err(VehidError::new_err(format!(
+            "`noise_std` has shape {} but `signal_std` has shape {}: pass equal shapes or a scalar",
+            convert::shape_str(&n.shape),
+            convert::shape_str(&s.shape)
+        )));
+    };
+    if s.data.is_empty() || n.data.is_empty() {
+        // Empty arrays: an empty result of the array's shape.
+        let arr = numpy::ndarray::ArrayD::<f64>::zeros(shape);
+        return Ok(arr.into_pyarray(py).into_any());
+    }
+    let len = s.data.len().max(n.data.len());
+    let pick = |v: &[f64], i: usize| if v.len() == 1 { v[0] } else { v[i] };
+    let out = (0..len)
+        .map(|i| vehid_core::metrics::snr_db(pick(&s.data, i), pick(&n.data, i)))
+        .collect::<vehid_core::Result<Vec<f64>>>()
+        .map_err(core_err)?;
+    if shape.is_empty() {
+        return Ok(out[0].into_pyobject(py)?.into_any());
+    }
+    let arr = numpy::ndarray::ArrayD::from_shape_vec(shape, out)
+        .map_err(|e| VehidError::new_err(format!("internal shape error: {e}")))?;
+    Ok(arr.into_pyarray(py).into_any())
+}
+
+/// vehid's compiled core: models, simulator, metrics.
+#[pymodule]
+fn _vehid(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("VehidError", m.py().get_type::<VehidError>())?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add_class::<model::PyLinearModel>()?;
+    m.add_class::<model::PyQuarterCar>()?;
+    m.add_class::<model::PyHalfCar>()?;
+    m.add_class::<sim::PySimulator>()?;
+    m.add_class::<sim::PyRun>()?;
+    m.add_function(wrap_pyfunction!(xi, m)?)?;
+    m.add_function(wrap_pyfunction!(snr_db, m)?)?;
+    Ok(())
+}

@@ -1,0 +1,91 @@
+//! Python → Rust argument conversion and validation. Nothing numerical happens here: values
+//! are converted to `f64` (NumPy's `asarray(x, dtype=float)` semantics, so ints, lists and
+//! non-contiguous arrays are accepted), shapes are checked, and every failure becomes a
+//! `VehidError` that names the argument.
+
+use crate::VehidError;
+use numpy::{AllowTypeChange, PyArrayLikeDyn, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+
+/// A float64 array copied out of Python, row-major (C order) whatever its strides were.
+pub struct Array {
+    pub shape: Vec<usize>,
+    pub data: Vec<f64>,
+}
+
+/// `"(2, 4)"`, the way NumPy prints a shape.
+pub fn shape_str(shape: &[usize]) -> String {
+    match shape {
+        [one] => format!("({one},)"),
+        _ => format!("({})", shape.iter().map(|d| d.to_string()).collect::<Vec<_>>().join(", ")),
+    }
+}
+
+/// Converts any array-like to float64, copying it in row-major order.
+pub fn array(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Array> {
+    let arr: PyArrayLikeDyn<'_, f64, AllowTypeChange> = obj.extract().map_err(|e: PyErr| {
+        VehidError::new_err(format!("`{arg}` must be a float array or convertible to one: {e}"))
+    })?;
+    let shape = arr.shape().to_vec();
+    let data: Vec<f64> = arr.as_array().iter().copied().collect();
+    Ok(Array { shape, data })
+}
+
+/// Fails with a message naming `arg` when a value is NaN or infinite.
+pub fn finite(arg: &str, data: &[f64]) -> PyResult<()> {
+    match data.iter().position(|v| !v.is_finite()) {
+        Some(i) => Err(VehidError::new_err(format!(
+            "`{arg}` holds a non-finite value (NaN or inf) at index {i}: pass finite numbers"
+        ))),
+        None => Ok(()),
+    }
+}
+
+/// A 2-D array of the given shape (`None` accepts any size along that axis).
+pub fn matrix(
+    obj: &Bound<'_, PyAny>,
+    arg: &str,
+    rows: Option<usize>,
+    cols: Option<usize>,
+) -> PyResult<(usize, usize, Vec<f64>)> {
+    let a = array(obj, arg)?;
+    let ok = a.shape.len() == 2
+        && rows.is_none_or(|r| a.shape[0] == r)
+        && cols.is_none_or(|c| a.shape[1] == c);
+    if !ok {
+        let want = |d: Option<usize>, name: &str| d.map_or(name.to_string(), |v| v.to_string());
+        return Err(VehidError::new_err(format!(
+            "`{arg}` must have shape ({}, {}), got {}",
+            want(rows, "rows"),
+            want(cols, "cols"),
+            shape_str(&a.shape)
+        )));
+    }
+    Ok((a.shape[0], a.shape[1], a.data))
+}
+
+/// A scalar or a 1-D sequence of values (one per component); the core checks the count and
+/// the domain.
+pub fn values(obj: Option<&Bound<'_, PyAny>>, arg: &str, default: f64) -> PyResult<Vec<f64>> {
+    let Some(obj) = obj else { return Ok(vec![default]) };
+    let a = array(obj, arg)?;
+    match a.shape.len() {
+        0 | 1 => Ok(a.data),
+        _ => Err(VehidError::new_err(format!(
+            "`{arg}` must be a scalar or a 1-D sequence, got shape {}",
+            shape_str(&a.shape)
+        ))),
+    }
+}
+
+/// A non-negative integer that fits a `u64`.
+pub fn uint(v: i128, arg: &str) -> PyResult<u64> {
+    u64::try_from(v)
+        .map_err(|_| VehidError::new_err(format!("`{arg}` must be an integer in 0..2**64, got {v}")))
+}
+
+/// A non-negative integer that fits a `usize`.
+pub fn size(v: i128, arg: &str) -> PyResult<usize> {
+    usize::try_from(v)
+        .map_err(|_| VehidError::new_err(format!("`{arg}` must be a non-negative integer, got {v}")))
+}

@@ -1,0 +1,208 @@
+//! `Simulator` and `Run`.
+
+use crate::convert::{size, uint, values};
+use crate::dispatch::{dispatch_nm, simulator_nm, SimDyn, SimParams};
+use crate::model::{to_array2, PyLinearModel};
+use crate::{core_err, method_arg, method_name};
+use numpy::{IntoPyArray, PyArray1, PyArray2};
+use pyo3::exceptions::PyMemoryError;
+use pyo3::prelude::*;
+use vehid_core::sim::Method;
+
+/// One stretch of a simulation: every field is a float64 array with the sample index first.
+#[pyclass(name = "Run", module = "vehid._vehid", frozen)]
+pub struct PyRun {
+    /// Sample times t_k = k·dt, s, (N,).
+    #[pyo3(get)]
+    t: Py<PyArray1<f64>>,
+    /// True state x(k), (N, n).
+    #[pyo3(get)]
+    x: Py<PyArray2<f64>>,
+    /// True derivative ẋ(k) = A x(k) + B u(k), (N, n).
+    #[pyo3(get)]
+    xdot: Py<PyArray2<f64>>,
+    /// Road input u(k), held until the next sample, (N, m).
+    #[pyo3(get)]
+    u: Py<PyArray2<f64>>,
+    /// Measured state r(k) = x(k) + w(k), (N, n).
+    #[pyo3(get)]
+    r: Py<PyArray2<f64>>,
+    /// Measured derivative z(k) = ẋ(k) + v(k), (N, n).
+    #[pyo3(get)]
+    z: Py<PyArray2<f64>>,
+    len: usize,
+    n_states: usize,
+    n_inputs: usize,
+}
+
+#[pymethods]
+impl PyRun {
+    /// Number of states n.
+    #[getter]
+    fn n_states(&self) -> usize {
+        self.n_states
+    }
+
+    /// Number of inputs m.
+    #[getter]
+    fn n_inputs(&self) -> usize {
+        self.n_inputs
+    }
+
+    fn __len__(&self) -> usize {
+        self.len
+    }
+
+    fn __repr__(&self) -> String {
+        format!("Run(samples={}, n_states={}, n_inputs={})", self.len, self.n_states, self.n_inputs)
+    }
+}
+
+/// A seeded simulator of `ẋ = A x + B u` with the thesis' noise sources (Ch. III.C).
+///
+/// `road_sigma` (per input), `state_noise` and `deriv_noise` (per state) are scalars or one
+/// value per component. `method` is "rk4" (sub-stepped, `substeps=None` chooses from the
+/// fastest pole) or "exact" (zero-order hold). `pulses` is a list of
+/// `(start_sample, width_samples, amplitude)`. `instrumentation=True` reads the derivative of
+/// each kinematic row from the velocity sensor (Eq 4.37–4.39). `run(n)` continues the stream.
+#[pyclass(name = "Simulator", module = "vehid._vehid")]
+pub struct PySimulator {
+    inner: Box<dyn SimDyn>,
+    model: Py<PyLinearModel>,
+    dt: f64,
+    seed: u64,
+    method: Method,
+    n_states: usize,
+    n_inputs: usize,
+}
+
+#[pymethods]
+impl PySimulator {
+    #[new]
+    #[pyo3(signature = (model, dt = 0.05, road_sigma = None, ic_sigma = 0.0, state_noise = None,
+                        deriv_noise = None, seed = 1, substeps = None, method = "rk4", pulses = None,
+                        instrumentation = false))]
+    #[allow(clippy::too_many_arguments)]
+    fn py_new(
+        model: Bound<'_, PyLinearModel>,
+        dt: f64,
+        road_sigma: Option<&Bound<'_, PyAny>>,
+        ic_sigma: f64,
+        state_noise: Option<&Bound<'_, PyAny>>,
+        deriv_noise: Option<&Bound<'_, PyAny>>,
+        seed: i128,
+        substeps: Option<i128>,
+        method: &str,
+        pulses: Option<Vec<(i128, i128, f64)>>,
+        instrumentation: bool,
+    ) -> PyResult<Self> {
+        let p = SimParams {
+            dt,
+            road_sigma: values(road_sigma, "road_sigma", 0.1)?,
+            ic_sigma,
+            state_noise: values(state_noise, "state_noise", 0.0)?,
+            deriv_noise: values(deriv_noise, "deriv_noise", 0.005)?,
+            substeps: substeps.map(|s| size(s, "substeps")).transpose()?,
+            method: method_arg(method)?,
+            pulses: pulses
+                .unwrap_or_default()
+                .into_iter()
+                .map(|(s, w, a)| Ok((uint(s, "pulses")?, uint(w, "pulses")?, a)))
+                .collect::<PyResult<_>>()?,
+            instrumentation,
+            seed: uint(seed, "seed")?,
+        };
+        let d = &model.get().data;
+        let inner = dispatch_nm!(d.n, d.m, simulator_nm(d, &p)).map_err(core_err)?;
+        Ok(Self {
+            inner,
+            dt,
+            seed: p.seed,
+            method: p.method,
+            n_states: d.n,
+            n_inputs: d.m,
+            model: model.unbind(),
+        })
+    }
+
+    /// Simulates `n` more samples (the GIL is released meanwhile) and returns them as a Run.
+    fn run(&mut self, py: Python<'_>, n: i128) -> PyResult<PyRun> {
+        let n = size(n, "n")?;
+        let inner = &mut self.inner;
+        let run = py.detach(|| inner.run(n)).map_err(|_| {
+            PyMemoryError::new_err(format!("run({n}) needs more memory than can be allocated"))
+        })?;
+        let (len, ns, ni) = (run.len(), run.n_states, run.n_inputs);
+        Ok(PyRun {
+            t: run.t.into_pyarray(py).unbind(),
+            x: to_array2(py, len, ns, run.x)?.unbind(),
+            xdot: to_array2(py, len, ns, run.xdot)?.unbind(),
+            u: to_array2(py, len, ni, run.u)?.unbind(),
+            r: to_array2(py, len, ns, run.r)?.unbind(),
+            z: to_array2(py, len, ns, run.z)?.unbind(),
+            len,
+            n_states: ns,
+            n_inputs: ni,
+        })
+    }
+
+    /// RK4 sub-steps per sample (0 for the exact method).
+    #[getter]
+    fn substeps(&self) -> usize {
+        self.inner.substeps()
+    }
+
+    /// Sample interval, s.
+    #[getter]
+    fn dt(&self) -> f64 {
+        self.dt
+    }
+
+    /// The seed.
+    #[getter]
+    fn seed(&self) -> u64 {
+        self.seed
+    }
+
+    /// "rk4" or "exact".
+    #[getter]
+    fn method(&self) -> &'static str {
+        method_name(self.method)
+    }
+
+    /// The model simulated.
+    #[getter]
+    fn model(&self, py: Python<'_>) -> Py<PyLinearModel> {
+        self.model.clone_ref(py)
+    }
+
+    /// Samples produced so far (the index of the next one).
+    #[getter]
+    fn samples(&self) -> u64 {
+        self.inner.samples()
+    }
+
+    /// Number of states n.
+    #[getter]
+    fn n_states(&self) -> usize {
+        self.n_states
+    }
+
+    /// Number of inputs m.
+    #[getter]
+    fn n_inputs(&self) -> usize {
+        self.n_inputs
+    }
+
+    fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
+        let model = self.model.bind(py).repr()?;
+        Ok(format!(
+            "Simulator({model}, dt={:?}, method='{}', substeps={}, seed={}, samples={})",
+            self.dt,
+            method_name(self.method),
+            self.inner.substeps(),
+            self.seed,
+            self.inner.samples()
+        ))
+    }
+}
