@@ -42,11 +42,10 @@ pub enum Error {
         /// Number of states `n`.
         n: usize,
     },
-    /// The data do not excite every direction of an unknown row: its regressor matrix has
-    /// rank `rank` < `needed`. More (or richer) samples are required.
+    /// The data do not excite every state direction: the regressor matrix (shared by every
+    /// unknown row, since `H = I ⊗ xᵀ`) has rank `rank` < `needed`, so every unknown row
+    /// lacks excitation. More (or richer) samples are required.
     RankDeficient {
-        /// The row of `A` (0-based) that lacks excitation.
-        row: usize,
         /// Numerical rank found.
         rank: usize,
         /// Rank required (the number of states).
@@ -96,10 +95,11 @@ impl fmt::Display for Error {
                 f,
                 "`{arg}` names row {row}, but rows must be distinct and in 0..{n} (0-based)"
             ),
-            Error::RankDeficient { row, rank, needed } => write!(
+            Error::RankDeficient { rank, needed } => write!(
                 f,
-                "row {row} of A lacks excitation: its regressors have rank {rank} < {needed}; \
-                 use more samples, a nonzero initial state, or a richer input"
+                "every unknown row of A lacks excitation: the measured states span only {rank} of \
+                 {needed} directions (they share the regressors x(k)); use more samples, a nonzero \
+                 initial state, or a richer input"
             ),
             Error::Singular { what } => write!(f, "{what} is singular or not positive definite"),
             Error::Unstable { what } => write!(

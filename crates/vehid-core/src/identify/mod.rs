@@ -1,2 +1,180 @@
-//! Identifiers of the unknown rows of `A` (Ch. II–V): batch least squares (Eq 2.14), the
-//! Kalman-filter identifier (Eq 4.3–4.7), and stochastic gradient (Eq 2.56, 5.2–5.18).
+//! Identifiers of the unknown rows of `A` (Ch. II–V of the thesis).
+//!
+//! | identifier | equations | file |
+//! |---|---|---|
+//! | [`BatchLeastSquares`] (std), [`LsAccumulator`] | Eq 2.14, 3.4 | `least_squares.rs` |
+//! | [`KalmanIdentifier`] (decoupled rows), [`SharedKalmanIdentifier`], [`FullKalmanIdentifier`] | Eq 4.3–4.7, 4.35–4.36, 6.16–6.18 | `kalman.rs` |
+//! | [`StochasticGradient`] | Eq 2.56, 5.2–5.18 | `gradient.rs` |
+//!
+//! All of them regress the measured derivative of each unknown row on the measured state:
+//! `z_i(k) = r(k)ᵀ θ_i + ε_i(k)` (Eq 2.2–2.4 with `H = I ⊗ xᵀ`). Every per-sample update is
+//! allocation-free and transactional: a rejected sample (NaN, inf, a numerically singular
+//! step) returns an error and leaves the identifier exactly as it was.
+//!
+//! # Storage
+//! Each identifier is generic over a [`Store`]: [`Fixed<K>`] keeps the `K` unknown rows in
+//! arrays (no allocation at all; the form for embedded use and the aliases
+//! [`KalmanIdentifier`], [`StochasticGradient`], ...), [`Dynamic`] keeps them in `Vec`s sized
+//! at construction (requires `alloc`; the form the Python bindings use, so that one
+//! monomorphization per state count serves any number of unknown rows). The numerics are
+//! the same code for both.
+
+mod gradient;
+mod kalman;
+mod least_squares;
+
+pub use gradient::{Gain, GradientCore, StochasticGradient};
+#[cfg(feature = "alloc")]
+pub use gradient::StochasticGradientVec;
+pub use kalman::{
+    CovarianceForm, FullKalmanIdentifier, KalmanFull, KalmanOptions, KalmanRows, KalmanShared, KalmanIdentifier,
+    RowIdentifier, SharedKalmanIdentifier,
+};
+#[cfg(feature = "alloc")]
+pub use kalman::{FullKalmanIdentifierVec, KalmanIdentifierVec, SharedKalmanIdentifierVec};
+pub use least_squares::LsAccumulator;
+#[cfg(feature = "std")]
+pub use least_squares::BatchLeastSquares;
+
+use crate::{Error, Real, Result};
+use nalgebra::{SMatrix, SVector};
+
+/// A flat, fixed-length buffer: an array (`[X; K]`, `[[X; K]; K]`) or, with `alloc`, a `Vec`.
+pub trait Flat<X>: Clone + core::fmt::Debug {
+    /// A buffer of `len` copies of `x`.
+    ///
+    /// # Errors
+    /// [`Error::Shape`] when a fixed-size buffer cannot hold exactly `len` elements.
+    fn filled(arg: &'static str, len: usize, x: X) -> Result<Self>;
+    /// The elements.
+    fn flat(&self) -> &[X];
+    /// The elements, mutably.
+    fn flat_mut(&mut self) -> &mut [X];
+}
+
+impl<X: Copy + core::fmt::Debug, const K: usize> Flat<X> for [X; K] {
+    fn filled(arg: &'static str, len: usize, x: X) -> Result<Self> {
+        if len != K {
+            return Err(Error::Shape { arg, expected: K, got: len });
+        }
+        Ok([x; K])
+    }
+    fn flat(&self) -> &[X] {
+        self
+    }
+    fn flat_mut(&mut self) -> &mut [X] {
+        self
+    }
+}
+
+impl<X: Copy + core::fmt::Debug, const K: usize> Flat<X> for [[X; K]; K] {
+    fn filled(arg: &'static str, len: usize, x: X) -> Result<Self> {
+        if len != K * K {
+            return Err(Error::Shape { arg, expected: K * K, got: len });
+        }
+        Ok([[x; K]; K])
+    }
+    fn flat(&self) -> &[X] {
+        self.as_flattened()
+    }
+    fn flat_mut(&mut self) -> &mut [X] {
+        self.as_flattened_mut()
+    }
+}
+
+#[cfg(feature = "alloc")]
+impl<X: Copy + core::fmt::Debug> Flat<X> for alloc::vec::Vec<X> {
+    fn filled(_arg: &'static str, len: usize, x: X) -> Result<Self> {
+        Ok(alloc::vec![x; len])
+    }
+    fn flat(&self) -> &[X] {
+        self
+    }
+    fn flat_mut(&mut self) -> &mut [X] {
+        self
+    }
+}
+
+/// Where an identifier keeps its per-row state: [`Fixed<K>`] or [`Dynamic`].
+pub trait Store<T: Real, const N: usize>: Clone + core::fmt::Debug {
+    /// Row indices (`K`).
+    type Rows: Flat<usize>;
+    /// One value per row (`K`).
+    type Scalars: Flat<T>;
+    /// One `N`-vector per row (`K`).
+    type Vecs: Flat<SVector<T, N>>;
+    /// One decoupled filter per row (`K`).
+    type Filters: Flat<RowIdentifier<T, N>>;
+    /// One value per pair of rows (`K²`).
+    type PairScalars: Flat<T>;
+    /// One `N`-vector per pair of rows (`K²`).
+    type PairVecs: Flat<SVector<T, N>>;
+    /// One `N × N` block per pair of rows (`K²`).
+    type Blocks: Flat<SMatrix<T, N, N>>;
+}
+
+/// Fixed storage for exactly `K` unknown rows: plain arrays, no allocation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Fixed<const K: usize>;
+
+impl<T: Real, const N: usize, const K: usize> Store<T, N> for Fixed<K> {
+    type Rows = [usize; K];
+    type Scalars = [T; K];
+    type Vecs = [SVector<T, N>; K];
+    type Filters = [RowIdentifier<T, N>; K];
+    type PairScalars = [[T; K]; K];
+    type PairVecs = [[SVector<T, N>; K]; K];
+    type Blocks = [[SMatrix<T, N, N>; K]; K];
+}
+
+/// Heap storage sized at construction for any number of unknown rows (requires `alloc`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Dynamic;
+
+#[cfg(feature = "alloc")]
+impl<T: Real, const N: usize> Store<T, N> for Dynamic {
+    type Rows = alloc::vec::Vec<usize>;
+    type Scalars = alloc::vec::Vec<T>;
+    type Vecs = alloc::vec::Vec<SVector<T, N>>;
+    type Filters = alloc::vec::Vec<RowIdentifier<T, N>>;
+    type PairScalars = alloc::vec::Vec<T>;
+    type PairVecs = alloc::vec::Vec<SVector<T, N>>;
+    type Blocks = alloc::vec::Vec<SMatrix<T, N, N>>;
+}
+
+/// Validates a row list against `N` (distinct, in range, at least one) and copies it.
+pub(crate) fn rows_buffer<R: Flat<usize>, const N: usize>(rows: &[usize]) -> Result<R> {
+    let set = crate::model::RowSet::<N>::new(rows)?;
+    let mut out = R::filled("unknown_rows", rows.len(), 0)?;
+    // Keep the caller's order: innovations and θ follow it.
+    out.flat_mut().copy_from_slice(rows);
+    debug_assert_eq!(set.len(), rows.len());
+    Ok(out)
+}
+
+/// Expands one value or one value per row to `k` values.
+pub(crate) fn per_row<T: Real>(arg: &'static str, v: &[T], k: usize, i: usize) -> Result<T> {
+    match v.len() {
+        1 => Ok(v[0]),
+        n if n == k => Ok(v[i]),
+        n => Err(Error::Shape { arg, expected: k, got: n }),
+    }
+}
+
+/// Checks a sample: `x` and `z` finite.
+#[inline]
+pub(crate) fn check_sample<T: Real, const N: usize>(x: &SVector<T, N>, z: &SVector<T, N>) -> Result<()> {
+    if let Some(index) = x.iter().position(|v| !v.finite()) {
+        return Err(Error::NonFinite { arg: "r_k", index });
+    }
+    if let Some(index) = z.iter().position(|v| !v.finite()) {
+        return Err(Error::NonFinite { arg: "z_k", index });
+    }
+    Ok(())
+}
+
+/// The error for an update whose arithmetic would overflow: the identifier is left unchanged.
+pub(crate) const OVERFLOW: Error = Error::InvalidArgument {
+    arg: "r_k",
+    expected: "sample values small enough that the update stays finite (rescale the units)",
+};

@@ -1,0 +1,934 @@
+//! The Kalman-filter identifier (Eq 4.3–4.7): recursive weighted least squares on
+//! `z(k) = H_r(k) θ + ε(k)`, `H = I ⊗ xᵀ` restricted to the unknown rows,
+//! `R = R_v + B R_u Bᵀ` (the unmeasured road input is measurement noise on the rows it
+//! enters), `P(0) = p0 I`, `θ̂(0) = 0` unless a prior is given.
+//!
+//! Three forms that the algebra makes equal where their assumptions hold:
+//! - [`KalmanRows`] (`rows`): Eq 6.16–6.18, one scalar-output filter per unknown row
+//!   ([`RowIdentifier`]), each with its own `p0` and `r`. Exactly the full filter when `R` is
+//!   diagonal and `P(0)` block diagonal. Rows can retire once identified.
+//! - [`KalmanShared`] (`shared`): one `N × N` matrix `Q` with `P_i = r_i Q` for every row,
+//!   valid when `r_i / p0_i` is the same on every row. The cheapest form.
+//! - [`KalmanFull`] (`full`): the stacked filter with a general (non-diagonal) `R`, its
+//!   covariance kept as `K × K` blocks of `N × N`.
+//!
+//! After `k` samples the estimate is the least-squares solution with the prior as extra
+//! rows: `θ̂_i = argmin Σ_k (z_i − xᵀθ)²/r_i + (θ − θ̂_i(0))ᵀ P_i(0)⁻¹ (θ − θ̂_i(0))`
+//! (thesis-notes §8). So the estimate depends on `r_i / p0_i` only; the ratio decides
+//! whether the prior or the data wins in weakly excited directions.
+//!
+//! **Reinitialization (Eq 4.35–4.36).** With `e(k) = z − H θ̂(k−1)` on the unknown rows, when
+//! `10 Σ|e_i(k)| > Σ_j P_jj(k)` the diagonal of `P` is multiplied by 10 and `R` doubled.
+//!
+//! # Memory (Table I of the thesis: 352 bytes for the 4-state identifier, 2800 for the 8-state)
+//! `size_of::<KalmanIdentifier<f32, 4, 2>>()` is 216 bytes and
+//! `size_of::<KalmanIdentifier<f32, 8, 4>>()` is 1240 bytes (each row: θ, the full `P` and
+//! `r`, plus the row indices, options and counters); the shared form needs 144 and 456.
+//! Both are within the thesis' 352 and 2800 bytes. These figures are asserted in the tests.
+
+use super::{check_sample, per_row, rows_buffer, Dynamic, Fixed, Flat, Store, OVERFLOW};
+use crate::error::{check_finite, check_nonneg, check_positive};
+use crate::linalg::{cholesky_in_place, cholesky_solve, symmetrize};
+use crate::{Error, Real, Result};
+use nalgebra::{SMatrix, SVector};
+
+/// How the covariance is propagated after a measurement.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum CovarianceForm {
+    /// `P ← P − P x xᵀ P / (xᵀ P x + r)` (Eq 4.6), evaluated as `P − u uᵀ` with
+    /// `u = P x / √s`, which keeps `P` exactly symmetric.
+    #[default]
+    Standard,
+    /// Joseph's form `P ← (I − g xᵀ) P (I − g xᵀ)ᵀ + r g gᵀ`, positive semi-definite by
+    /// construction (slower; for `f32` over very long runs).
+    Joseph,
+}
+
+/// Options common to the Kalman identifiers.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct KalmanOptions<T> {
+    /// Covariance update form.
+    pub form: CovarianceForm,
+    /// Apply the reinitialization rule of Eq 4.36.
+    pub reinit: bool,
+    /// `rows` form only: a row stops updating once `tr P_i` falls below this value
+    /// (0 = never). A reinitialization brings retired rows back.
+    pub retire_below: T,
+}
+
+impl<T: Real> Default for KalmanOptions<T> {
+    fn default() -> Self {
+        Self { form: CovarianceForm::Standard, reinit: false, retire_below: T::zero() }
+    }
+}
+
+impl<T: Real> KalmanOptions<T> {
+    fn validate(&self) -> Result<()> {
+        check_nonneg("retire_below", self.retire_below)
+    }
+}
+
+/// One decoupled scalar-output filter for one row of `A` (Eq 6.16–6.18):
+/// `g = P x / (xᵀ P x + r)`, `θ ← θ + g (z − xᵀ θ)`, `P ← (I − g xᵀ) P`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RowIdentifier<T: Real, const N: usize> {
+    theta: SVector<T, N>,
+    p: SMatrix<T, N, N>,
+    r: T,
+    retired: bool,
+}
+
+/// The planned update of one row, computed before anything is changed.
+#[derive(Debug, Clone, Copy)]
+struct Step<T: Real, const N: usize> {
+    active: bool,
+    /// `u = P x / √s`
+    u: SVector<T, N>,
+    /// `g e = P x e / s`
+    ge: SVector<T, N>,
+}
+
+impl<T: Real, const N: usize> Step<T, N> {
+    fn idle() -> Self {
+        Self { active: false, u: SVector::zeros(), ge: SVector::zeros() }
+    }
+}
+
+impl<T: Real, const N: usize> RowIdentifier<T, N> {
+    /// A row filter with `θ̂(0) = 0`, `P(0) = p0 I` and measurement variance `r`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for `p0` not finite and > 0 or `r` not finite and ≥ 0.
+    pub fn new(p0: T, r: T) -> Result<Self> {
+        check_positive("p0", p0)?;
+        check_nonneg("r", r)?;
+        Ok(Self { theta: SVector::zeros(), p: SMatrix::identity() * p0, r, retired: false })
+    }
+
+    /// A row filter with a prior mean `theta0` and a full prior covariance `p0`.
+    ///
+    /// # Errors
+    /// [`Error::NonFinite`] for NaN/inf; [`Error::Singular`] when `p0` is not symmetric
+    /// positive definite; [`Error::InvalidArgument`] for a bad `r`.
+    pub fn with_prior(theta0: SVector<T, N>, p0: SMatrix<T, N, N>, r: T) -> Result<Self> {
+        check_finite("theta0", theta0.as_slice())?;
+        check_finite("p0", p0.as_slice())?;
+        check_nonneg("r", r)?;
+        if (p0 - p0.transpose()).abs().max() > T::default_epsilon() * T::of(16.0) * p0.abs().max() {
+            return Err(Error::Singular { what: "p0 (it must be symmetric positive definite)" });
+        }
+        let mut l = p0;
+        if !cholesky_in_place(l.as_mut_slice(), N) {
+            return Err(Error::Singular { what: "p0 (it must be symmetric positive definite)" });
+        }
+        let mut p = p0;
+        symmetrize(&mut p);
+        Ok(Self { theta: theta0, p, r, retired: false })
+    }
+
+    /// Current estimate `θ̂_i` of the row.
+    pub fn theta(&self) -> &SVector<T, N> {
+        &self.theta
+    }
+
+    /// Current covariance `P_i`.
+    pub fn p(&self) -> &SMatrix<T, N, N> {
+        &self.p
+    }
+
+    /// Measurement variance `r_i` in use (doubled by each reinitialization).
+    pub fn r(&self) -> T {
+        self.r
+    }
+
+    /// `true` once the row has retired (stopped updating).
+    pub fn retired(&self) -> bool {
+        self.retired
+    }
+
+    /// One update with the derivative measurement `z` of this row (Eq 6.16–6.18); returns
+    /// the innovation `z − xᵀ θ̂(k−1)`.
+    ///
+    /// # Errors
+    /// [`Error::NonFinite`] for NaN/inf input, [`Error::Singular`] when `xᵀ P x + r ≤ 0`
+    /// (the covariance lost positive definiteness), an overflow error for values so large the
+    /// update would not be finite. The filter is unchanged after an error.
+    pub fn update(&mut self, x: &SVector<T, N>, z: T, form: CovarianceForm) -> Result<T> {
+        if let Some(index) = x.iter().position(|v| !v.finite()) {
+            return Err(Error::NonFinite { arg: "r_k", index });
+        }
+        if !z.finite() {
+            return Err(Error::NonFinite { arg: "z_k", index: 0 });
+        }
+        let e = z - self.theta.dot(x);
+        let step = self.plan(x, e)?;
+        self.apply(&step, x, form);
+        Ok(e)
+    }
+
+    /// Computes the update for innovation `e` without changing anything.
+    #[inline(always)]
+    fn plan(&self, x: &SVector<T, N>, e: T) -> Result<Step<T, N>> {
+        if self.retired {
+            return Ok(Step::idle());
+        }
+        let px = self.p * x;
+        let s = x.dot(&px) + self.r;
+        // Rounding level of xᵀPx: with r = 0 (noise-free data) a direction the data already
+        // determine has xᵀPx at this level, and the sample adds nothing.
+        let floor = T::default_epsilon() * T::of(4.0 * N as f64) * x.abs().sum() * px.abs().sum();
+        if !(s.finite() && e.finite()) {
+            return Err(OVERFLOW);
+        }
+        if self.r == T::zero() && s <= floor {
+            // Noise-free data and a collapsed covariance along x: nothing left to learn there.
+            return Ok(Step::idle());
+        }
+        if !(s > T::zero()) {
+            return Err(Error::Singular {
+                what: "the innovation variance xᵀPx + r (P lost positive definiteness: use the \
+                       Joseph form, f64, or reinitialization)",
+            });
+        }
+        let inv_s = T::one() / s;
+        let u = px * inv_s.sqrt();
+        let ge = px * (e * inv_s);
+        // Everything the update writes is bounded by these two sums: finite sums, finite update.
+        let bound = (u.abs().sum() * u.abs().sum()) + ge.abs().sum();
+        if !bound.finite() {
+            return Err(OVERFLOW);
+        }
+        Ok(Step { active: true, u, ge })
+    }
+
+    /// Applies a planned update.
+    #[inline(always)]
+    fn apply(&mut self, step: &Step<T, N>, x: &SVector<T, N>, form: CovarianceForm) {
+        if !step.active {
+            return;
+        }
+        self.theta += step.ge;
+        match form {
+            CovarianceForm::Standard => {
+                // P − u uᵀ: u_i u_j = u_j u_i exactly, so P stays exactly symmetric.
+                for j in 0..N {
+                    let uj = step.u[j];
+                    for i in 0..N {
+                        self.p[(i, j)] -= step.u[i] * uj;
+                    }
+                }
+            }
+            CovarianceForm::Joseph => {
+                // g = P x / s = u / √s; here recovered as u * (u·x ... ) — recompute directly.
+                let px = self.p * x;
+                let s = x.dot(&px) + self.r;
+                let g = px / s;
+                let a = SMatrix::<T, N, N>::identity() - g * x.transpose();
+                self.p = a * self.p * a.transpose() + g * g.transpose() * self.r;
+                symmetrize(&mut self.p);
+            }
+        }
+    }
+
+    /// Reinitialization (Eq 4.36): `P_jj ← 10 P_jj`, `r ← 2 r`; un-retires the row.
+    fn reinitialize(&mut self) {
+        for j in 0..N {
+            self.p[(j, j)] *= T::of(10.0);
+        }
+        self.r *= T::of(2.0);
+        self.retired = false;
+    }
+}
+
+/// The decoupled (`rows`) Kalman-filter identifier over a [`Store`]; see [`KalmanIdentifier`]
+/// for the allocation-free form.
+#[derive(Debug, Clone)]
+pub struct KalmanRows<T: Real, const N: usize, S: Store<T, N>> {
+    rows: S::Rows,
+    filters: S::Filters,
+    opts: KalmanOptions<T>,
+    reinit_count: u32,
+    samples: u64,
+}
+
+/// The Kalman-filter identifier for `K` unknown rows of an `N`-state model, decoupled rows
+/// (Eq 6.16–6.18), no allocation.
+///
+/// # Examples
+/// ```
+/// use vehid_core::identify::KalmanIdentifier;
+/// use vehid_core::model::QuarterCar;
+/// let car = QuarterCar::<f64>::thesis();
+/// let r = car.model().row_noise_var::<2>(0.1, 0.005)?;
+/// let mut id = KalmanIdentifier::<f64, 4, 2>::new(car.unknown_rows(), 1000.0, r)?;
+/// let x = nalgebra::Vector4::new(0.01, 0.2, 0.02, -0.1);
+/// let z = car.model().a() * x;
+/// let e = id.update(&x, &z)?;          // innovations of rows 1 and 3
+/// assert_eq!(e.len(), 2);
+/// let theta = id.theta();              // SMatrix<f64, 2, 4>
+/// # let _ = theta;
+/// # Ok::<(), vehid_core::Error>(())
+/// ```
+pub type KalmanIdentifier<T, const N: usize, const K: usize> = KalmanRows<T, N, Fixed<K>>;
+
+/// [`KalmanRows`] with heap storage, for a number of rows known only at run time.
+#[cfg(feature = "alloc")]
+pub type KalmanIdentifierVec<T, const N: usize> = KalmanRows<T, N, Dynamic>;
+
+impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
+    /// Builds the identifier for the given 0-based unknown rows, with `P_i(0) = p0_i I`
+    /// (`p0`: one value or one per row) and measurement variances `r` (one or one per row).
+    ///
+    /// # Errors
+    /// [`Error::BadRow`] for bad rows, [`Error::Shape`] for wrong lengths,
+    /// [`Error::InvalidArgument`] for `p0 ≤ 0`, `r < 0`, non-finite values.
+    pub fn from_slices(rows: &[usize], p0: &[T], r: &[T], opts: KalmanOptions<T>) -> Result<Self> {
+        opts.validate()?;
+        let rows_buf: S::Rows = rows_buffer::<_, N>(rows)?;
+        let k = rows.len();
+        let mut filters = S::Filters::filled("unknown_rows", k, RowIdentifier::new(T::one(), T::zero())?)?;
+        for (i, f) in filters.flat_mut().iter_mut().enumerate() {
+            *f = RowIdentifier::new(per_row("p0", p0, k, i)?, per_row("r", r, k, i)?)?;
+        }
+        Ok(Self { rows: rows_buf, filters, opts, reinit_count: 0, samples: 0 })
+    }
+
+    /// Builds the identifier from prepared row filters (e.g. with full prior covariances
+    /// from [`RowIdentifier::with_prior`]).
+    ///
+    /// # Errors
+    /// [`Error::BadRow`] / [`Error::Shape`] when rows and filters do not match.
+    pub fn from_filters(rows: &[usize], filters: &[RowIdentifier<T, N>], opts: KalmanOptions<T>) -> Result<Self> {
+        opts.validate()?;
+        if rows.len() != filters.len() {
+            return Err(Error::Shape { arg: "filters", expected: rows.len(), got: filters.len() });
+        }
+        let rows_buf: S::Rows = rows_buffer::<_, N>(rows)?;
+        let mut buf = S::Filters::filled("unknown_rows", rows.len(), filters[0])?;
+        buf.flat_mut().copy_from_slice(filters);
+        Ok(Self { rows: rows_buf, filters: buf, opts, reinit_count: 0, samples: 0 })
+    }
+
+    /// The unknown rows (0-based), in the order of θ and of the innovations.
+    pub fn rows(&self) -> &[usize] {
+        self.rows.flat()
+    }
+
+    /// The per-row filters.
+    pub fn filters(&self) -> &[RowIdentifier<T, N>] {
+        self.filters.flat()
+    }
+
+    /// The options in use.
+    pub fn options(&self) -> &KalmanOptions<T> {
+        &self.opts
+    }
+
+    /// Number of reinitializations so far (Eq 4.36).
+    pub fn reinit_count(&self) -> u32 {
+        self.reinit_count
+    }
+
+    /// Number of samples accepted.
+    pub fn samples(&self) -> u64 {
+        self.samples
+    }
+
+    /// Estimate of unknown row `i` (in the order of [`KalmanRows::rows`]).
+    pub fn theta_row(&self, i: usize) -> &SVector<T, N> {
+        self.filters.flat()[i].theta()
+    }
+
+    /// Writes θ̂ row-major (`K × N`) into `out`.
+    ///
+    /// # Errors
+    /// [`Error::Shape`] for a wrong length.
+    pub fn theta_into(&self, out: &mut [T]) -> Result<()> {
+        let k = self.rows.flat().len();
+        if out.len() != k * N {
+            return Err(Error::Shape { arg: "out", expected: k * N, got: out.len() });
+        }
+        for (i, f) in self.filters.flat().iter().enumerate() {
+            out[i * N..(i + 1) * N].copy_from_slice(f.theta.as_slice());
+        }
+        Ok(())
+    }
+
+    /// `tr P = Σ_i tr P_i`, the quantity Eq 4.36 compares with the innovations.
+    pub fn trace(&self) -> T {
+        self.filters.flat().iter().fold(T::zero(), |acc, f| acc + f.p.trace())
+    }
+
+    /// Retires row `i` by hand (it stops updating until the next reinitialization).
+    pub fn retire(&mut self, i: usize) {
+        if let Some(f) = self.filters.flat_mut().get_mut(i) {
+            f.retired = true;
+        }
+    }
+
+    /// One sample: the measured state `x` (= `r(k)`) and derivative `z`; writes the
+    /// innovations `e_i = z_row − xᵀ θ̂_i(k−1)` into `e` (one per row). No allocation.
+    ///
+    /// # Errors
+    /// [`Error::NonFinite`] for NaN/inf; [`Error::Singular`] when a row's covariance lost
+    /// positive definiteness; [`Error::Shape`] for a wrong `e` length. The identifier is
+    /// unchanged after any error.
+    pub fn update_into(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
+        check_sample(x, z)?;
+        let rows = self.rows.flat();
+        let filters = self.filters.flat_mut();
+        let k = rows.len();
+        if e.len() != k {
+            return Err(Error::Shape { arg: "e", expected: k, got: e.len() });
+        }
+        // Plan every row, then apply: a failure on any row changes nothing.
+        let mut steps = [Step::<T, N>::idle(); N];
+        for i in 0..k {
+            let ei = z[rows[i]] - filters[i].theta.dot(x);
+            e[i] = ei;
+            steps[i] = filters[i].plan(x, ei)?;
+        }
+        let mut trace = T::zero();
+        let mut abs_e = T::zero();
+        for i in 0..k {
+            let f = &mut filters[i];
+            f.apply(&steps[i], x, self.opts.form);
+            let tr = f.p.trace();
+            trace += tr;
+            abs_e += e[i].abs();
+            if self.opts.retire_below > T::zero() && tr < self.opts.retire_below {
+                f.retired = true;
+            }
+        }
+        self.samples += 1;
+        if self.opts.reinit && T::of(10.0) * abs_e > trace {
+            for f in filters.iter_mut() {
+                f.reinitialize();
+            }
+            self.reinit_count += 1;
+        }
+        Ok(())
+    }
+}
+
+impl<T: Real, const N: usize, const K: usize> KalmanRows<T, N, Fixed<K>> {
+    /// The thesis' identifier: rows, `P(0) = p0 I` on every row, one `r` per row (Eq 4.7;
+    /// see [`crate::model::LinearModel::row_noise_var`]).
+    ///
+    /// # Errors
+    /// As [`KalmanRows::from_slices`].
+    pub fn new(rows: [usize; K], p0: T, r: [T; K]) -> Result<Self> {
+        Self::from_slices(&rows, &[p0], &r, KalmanOptions::default())
+    }
+
+    /// One sample; returns the innovations. See [`KalmanRows::update_into`].
+    ///
+    /// # Errors
+    /// As [`KalmanRows::update_into`].
+    #[inline]
+    pub fn update(&mut self, x: &SVector<T, N>, z: &SVector<T, N>) -> Result<SVector<T, K>> {
+        let mut e = SVector::<T, K>::zeros();
+        self.update_into(x, z, e.as_mut_slice())?;
+        Ok(e)
+    }
+
+    /// The estimate θ̂ of the unknown rows (`K × N`).
+    pub fn theta(&self) -> SMatrix<T, K, N> {
+        SMatrix::<T, K, N>::from_fn(|i, j| self.filters[i].theta[j])
+    }
+}
+
+/// Shared-covariance Kalman identifier over a [`Store`] (`P_i = r_i Q`); see
+/// [`SharedKalmanIdentifier`].
+#[derive(Debug, Clone)]
+pub struct KalmanShared<T: Real, const N: usize, S: Store<T, N>> {
+    rows: S::Rows,
+    theta: S::Vecs,
+    r: S::Scalars,
+    q: SMatrix<T, N, N>,
+    opts: KalmanOptions<T>,
+    reinit_count: u32,
+    samples: u64,
+}
+
+/// The shared-covariance form: one `N × N` matrix for all `K` rows, no allocation. Valid
+/// (equal to the decoupled rows) when `r_i / p0_i` is the same on every row.
+pub type SharedKalmanIdentifier<T, const N: usize, const K: usize> = KalmanShared<T, N, Fixed<K>>;
+
+/// [`KalmanShared`] with heap storage.
+#[cfg(feature = "alloc")]
+pub type SharedKalmanIdentifierVec<T, const N: usize> = KalmanShared<T, N, Dynamic>;
+
+impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
+    /// Builds the shared form from per-row `p0` and `r` (one value or one per row).
+    ///
+    /// # Errors
+    /// As [`KalmanRows::from_slices`], plus [`Error::InvalidArgument`] when `r_i / p0_i`
+    /// differs between rows (the shared form would then be a different filter; use `rows`),
+    /// or when every `r_i` is zero (the common ratio must be > 0) and `retire_below` is set.
+    pub fn from_slices(rows: &[usize], p0: &[T], r: &[T], opts: KalmanOptions<T>) -> Result<Self> {
+        opts.validate()?;
+        if opts.retire_below > T::zero() {
+            return Err(Error::InvalidArgument { arg: "retire_below", expected: "0: retiring rows needs mode='rows'" });
+        }
+        let rows_buf: S::Rows = rows_buffer::<_, N>(rows)?;
+        let k = rows.len();
+        let mut rv = S::Scalars::filled("r", k, T::zero())?;
+        let mut ratio = None;
+        for i in 0..k {
+            let p = per_row("p0", p0, k, i)?;
+            let ri = per_row("r", r, k, i)?;
+            check_positive("p0", p)?;
+            check_positive("r", ri)?;
+            let c = ri / p;
+            match ratio {
+                None => ratio = Some(c),
+                Some(c0) if (c - c0).abs() <= T::of(1e-12) * c0 => {}
+                Some(_) => {
+                    return Err(Error::InvalidArgument {
+                        arg: "r",
+                        expected: "the same r/p0 on every row for mode='shared' (use mode='rows' otherwise)",
+                    })
+                }
+            }
+            rv.flat_mut()[i] = ri;
+        }
+        let c = ratio.unwrap_or(T::one());
+        let theta = S::Vecs::filled("unknown_rows", k, SVector::zeros())?;
+        Ok(Self { rows: rows_buf, theta, r: rv, q: SMatrix::identity() / c, opts, reinit_count: 0, samples: 0 })
+    }
+
+    /// The unknown rows (0-based).
+    pub fn rows(&self) -> &[usize] {
+        self.rows.flat()
+    }
+
+    /// The shared normalized covariance `Q` (`P_i = r_i Q`).
+    pub fn q(&self) -> &SMatrix<T, N, N> {
+        &self.q
+    }
+
+    /// Measurement variance of row `i`.
+    pub fn r(&self, i: usize) -> T {
+        self.r.flat()[i]
+    }
+
+    /// Covariance of row `i`: `r_i Q`.
+    pub fn p(&self, i: usize) -> SMatrix<T, N, N> {
+        self.q * self.r.flat()[i]
+    }
+
+    /// Estimate of unknown row `i`.
+    pub fn theta_row(&self, i: usize) -> &SVector<T, N> {
+        &self.theta.flat()[i]
+    }
+
+    /// Number of reinitializations so far.
+    pub fn reinit_count(&self) -> u32 {
+        self.reinit_count
+    }
+
+    /// Number of samples accepted.
+    pub fn samples(&self) -> u64 {
+        self.samples
+    }
+
+    /// `tr P = Σ_i r_i tr Q`.
+    pub fn trace(&self) -> T {
+        self.q.trace() * self.r.flat().iter().fold(T::zero(), |a, r| a + *r)
+    }
+
+    /// Writes θ̂ row-major (`K × N`) into `out`.
+    ///
+    /// # Errors
+    /// [`Error::Shape`] for a wrong length.
+    pub fn theta_into(&self, out: &mut [T]) -> Result<()> {
+        let k = self.rows.flat().len();
+        if out.len() != k * N {
+            return Err(Error::Shape { arg: "out", expected: k * N, got: out.len() });
+        }
+        for (i, t) in self.theta.flat().iter().enumerate() {
+            out[i * N..(i + 1) * N].copy_from_slice(t.as_slice());
+        }
+        Ok(())
+    }
+
+    /// One sample; innovations into `e`. No allocation.
+    ///
+    /// # Errors
+    /// As [`KalmanRows::update_into`].
+    pub fn update_into(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
+        check_sample(x, z)?;
+        let rows = self.rows.flat();
+        let k = rows.len();
+        if e.len() != k {
+            return Err(Error::Shape { arg: "e", expected: k, got: e.len() });
+        }
+        let qx = self.q * x;
+        let s = x.dot(&qx) + T::one();
+        if !s.finite() {
+            return Err(OVERFLOW);
+        }
+        if !(s > T::zero()) {
+            return Err(Error::Singular { what: "the shared covariance (1 + xᵀQx ≤ 0)" });
+        }
+        let inv_s = T::one() / s;
+        let g = qx * inv_s;
+        let u = qx * inv_s.sqrt();
+        let theta = self.theta.flat_mut();
+        let mut abs_e = T::zero();
+        for i in 0..k {
+            e[i] = z[rows[i]] - theta[i].dot(x);
+            abs_e += e[i].abs();
+        }
+        if !((u.abs().sum() * u.abs().sum()) + g.abs().sum() * abs_e).finite() {
+            return Err(OVERFLOW);
+        }
+        for i in 0..k {
+            theta[i] += g * e[i];
+        }
+        match self.opts.form {
+            CovarianceForm::Standard => {
+                for j in 0..N {
+                    for i in 0..N {
+                        self.q[(i, j)] -= u[i] * u[j];
+                    }
+                }
+            }
+            CovarianceForm::Joseph => {
+                let a = SMatrix::<T, N, N>::identity() - g * x.transpose();
+                self.q = a * self.q * a.transpose() + g * g.transpose();
+                symmetrize(&mut self.q);
+            }
+        }
+        self.samples += 1;
+        if self.opts.reinit && T::of(10.0) * abs_e > self.trace() {
+            // P_i' = P_i + 9 diag(P_i), r_i' = 2 r_i  =>  Q' = (Q + 9 diag Q) / 2.
+            for j in 0..N {
+                self.q[(j, j)] *= T::of(10.0);
+            }
+            self.q *= T::of(0.5);
+            for r in self.r.flat_mut() {
+                *r *= T::of(2.0);
+            }
+            self.reinit_count += 1;
+        }
+        Ok(())
+    }
+}
+
+impl<T: Real, const N: usize, const K: usize> KalmanShared<T, N, Fixed<K>> {
+    /// The shared form with `P(0) = p0 I` on every row and one `r` per row (all `r_i / p0`
+    /// equal, i.e. all `r_i` equal here).
+    ///
+    /// # Errors
+    /// As [`KalmanShared::from_slices`].
+    pub fn new(rows: [usize; K], p0: T, r: [T; K]) -> Result<Self> {
+        Self::from_slices(&rows, &[p0], &r, KalmanOptions::default())
+    }
+
+    /// One sample; returns the innovations.
+    ///
+    /// # Errors
+    /// As [`KalmanShared::update_into`].
+    #[inline]
+    pub fn update(&mut self, x: &SVector<T, N>, z: &SVector<T, N>) -> Result<SVector<T, K>> {
+        let mut e = SVector::<T, K>::zeros();
+        self.update_into(x, z, e.as_mut_slice())?;
+        Ok(e)
+    }
+
+    /// The estimate θ̂ (`K × N`).
+    pub fn theta(&self) -> SMatrix<T, K, N> {
+        SMatrix::<T, K, N>::from_fn(|i, j| self.theta[i][j])
+    }
+}
+
+/// The stacked (`full`) Kalman identifier over a [`Store`], general `R`; see
+/// [`FullKalmanIdentifier`].
+#[derive(Debug, Clone)]
+pub struct KalmanFull<T: Real, const N: usize, S: Store<T, N>> {
+    rows: S::Rows,
+    theta: S::Vecs,
+    /// Covariance blocks `P_ij` (`K × K` of `N × N`, row-major).
+    p: S::Blocks,
+    /// Measurement covariance `R` (`K × K`, row-major).
+    r: S::PairScalars,
+    /// Scratch: `c_ij = P_ij x`.
+    c: S::PairVecs,
+    /// Scratch: gain columns `w_il` (block `i`, column `l`).
+    w: S::PairVecs,
+    /// Scratch: Cholesky factor of `S`.
+    s: S::PairScalars,
+    opts: KalmanOptions<T>,
+    reinit_count: u32,
+    samples: u64,
+}
+
+/// The stacked Kalman identifier of Eq 4.3–4.7 with a general `K × K` measurement
+/// covariance `R`, no allocation. Its covariance is `(K·N) × (K·N)`, kept as blocks.
+pub type FullKalmanIdentifier<T, const N: usize, const K: usize> = KalmanFull<T, N, Fixed<K>>;
+
+/// [`KalmanFull`] with heap storage.
+#[cfg(feature = "alloc")]
+pub type FullKalmanIdentifierVec<T, const N: usize> = KalmanFull<T, N, Dynamic>;
+
+impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
+    /// Builds the stacked filter: `P(0)` block diagonal with `p0_i I` (`p0`: one value or
+    /// one per row) and `R` a full symmetric positive semi-definite `K × K` matrix
+    /// (row-major, `K²` values).
+    ///
+    /// # Errors
+    /// As [`KalmanRows::from_slices`], plus [`Error::Shape`] / [`Error::Singular`] for an `R`
+    /// of the wrong size or not symmetric with a non-negative diagonal.
+    pub fn from_slices(rows: &[usize], p0: &[T], r: &[T], opts: KalmanOptions<T>) -> Result<Self> {
+        opts.validate()?;
+        if opts.retire_below > T::zero() {
+            return Err(Error::InvalidArgument { arg: "retire_below", expected: "0: retiring rows needs mode='rows'" });
+        }
+        let rows_buf: S::Rows = rows_buffer::<_, N>(rows)?;
+        let k = rows.len();
+        if r.len() != k * k {
+            return Err(Error::Shape { arg: "r", expected: k * k, got: r.len() });
+        }
+        check_finite("r", r)?;
+        for i in 0..k {
+            check_nonneg("r", r[i * k + i])?;
+            for j in 0..i {
+                if (r[i * k + j] - r[j * k + i]).abs() > T::default_epsilon() * T::of(16.0) * (r[i * k + i] + r[j * k + j]) {
+                    return Err(Error::Singular { what: "r (it must be a symmetric covariance matrix)" });
+                }
+            }
+        }
+        let mut p = S::Blocks::filled("p0", k * k, SMatrix::zeros())?;
+        for i in 0..k {
+            let v = per_row("p0", p0, k, i)?;
+            check_positive("p0", v)?;
+            p.flat_mut()[i * k + i] = SMatrix::identity() * v;
+        }
+        let mut rbuf = S::PairScalars::filled("r", k * k, T::zero())?;
+        rbuf.flat_mut().copy_from_slice(r);
+        Ok(Self {
+            rows: rows_buf,
+            theta: S::Vecs::filled("unknown_rows", k, SVector::zeros())?,
+            p,
+            r: rbuf,
+            c: S::PairVecs::filled("unknown_rows", k * k, SVector::zeros())?,
+            w: S::PairVecs::filled("unknown_rows", k * k, SVector::zeros())?,
+            s: S::PairScalars::filled("unknown_rows", k * k, T::zero())?,
+            opts,
+            reinit_count: 0,
+            samples: 0,
+        })
+    }
+
+    /// Replaces the prior covariance by a full `(K·N) × (K·N)` matrix (row-major).
+    ///
+    /// # Errors
+    /// [`Error::Shape`] for a wrong size; [`Error::Singular`] when it is not symmetric
+    /// positive definite (checked by a Cholesky factorization).
+    #[cfg(feature = "alloc")]
+    pub fn set_p0(&mut self, p0: &[T]) -> Result<()> {
+        let k = self.rows.flat().len();
+        let kn = k * N;
+        if p0.len() != kn * kn {
+            return Err(Error::Shape { arg: "p0", expected: kn * kn, got: p0.len() });
+        }
+        check_finite("p0", p0)?;
+        let mut l = alloc::vec::Vec::from(p0);
+        for i in 0..kn {
+            for j in 0..i {
+                if (p0[i * kn + j] - p0[j * kn + i]).abs() > T::default_epsilon() * T::of(16.0) * (p0[i * kn + i] + p0[j * kn + j]) {
+                    return Err(Error::Singular { what: "p0 (it must be symmetric positive definite)" });
+                }
+            }
+        }
+        if !cholesky_in_place(&mut l, kn) {
+            return Err(Error::Singular { what: "p0 (it must be symmetric positive definite)" });
+        }
+        let p = self.p.flat_mut();
+        for bi in 0..k {
+            for bj in 0..k {
+                p[bi * k + bj] = SMatrix::from_fn(|a, b| p0[(bi * N + a) * kn + bj * N + b]);
+            }
+        }
+        Ok(())
+    }
+
+    /// The unknown rows (0-based).
+    pub fn rows(&self) -> &[usize] {
+        self.rows.flat()
+    }
+
+    /// Covariance block `P_ij`.
+    pub fn p_block(&self, i: usize, j: usize) -> &SMatrix<T, N, N> {
+        let k = self.rows.flat().len();
+        &self.p.flat()[i * k + j]
+    }
+
+    /// Measurement covariance entry `R_ij`.
+    pub fn r(&self, i: usize, j: usize) -> T {
+        let k = self.rows.flat().len();
+        self.r.flat()[i * k + j]
+    }
+
+    /// Estimate of unknown row `i`.
+    pub fn theta_row(&self, i: usize) -> &SVector<T, N> {
+        &self.theta.flat()[i]
+    }
+
+    /// Number of reinitializations so far.
+    pub fn reinit_count(&self) -> u32 {
+        self.reinit_count
+    }
+
+    /// Number of samples accepted.
+    pub fn samples(&self) -> u64 {
+        self.samples
+    }
+
+    /// `tr P`.
+    pub fn trace(&self) -> T {
+        let k = self.rows.flat().len();
+        (0..k).fold(T::zero(), |a, i| a + self.p.flat()[i * k + i].trace())
+    }
+
+    /// Writes θ̂ row-major (`K × N`) into `out`.
+    ///
+    /// # Errors
+    /// [`Error::Shape`] for a wrong length.
+    pub fn theta_into(&self, out: &mut [T]) -> Result<()> {
+        let k = self.rows.flat().len();
+        if out.len() != k * N {
+            return Err(Error::Shape { arg: "out", expected: k * N, got: out.len() });
+        }
+        for (i, t) in self.theta.flat().iter().enumerate() {
+            out[i * N..(i + 1) * N].copy_from_slice(t.as_slice());
+        }
+        Ok(())
+    }
+
+    /// One sample of the stacked filter (Eq 4.3–4.6); innovations into `e`. No allocation.
+    ///
+    /// `S = H P Hᵀ + R` with `(H P Hᵀ)_ij = xᵀ P_ij x`; the gain block of row `i` is
+    /// `W_i = C_i S⁻¹`, `C_i = [P_i1 x, …, P_iK x]`; `θ_i += W_i e`, `P_ij −= W_i C_jᵀ`.
+    ///
+    /// # Errors
+    /// As [`KalmanRows::update_into`]; [`Error::Singular`] when `S` is not positive definite.
+    pub fn update_into(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
+        check_sample(x, z)?;
+        let rows = self.rows.flat();
+        let k = rows.len();
+        if e.len() != k {
+            return Err(Error::Shape { arg: "e", expected: k, got: e.len() });
+        }
+        let theta = self.theta.flat_mut();
+        let p = self.p.flat_mut();
+        let c = self.c.flat_mut();
+        let w = self.w.flat_mut();
+        let s = self.s.flat_mut();
+        let r = self.r.flat();
+        let mut abs_e = T::zero();
+        for i in 0..k {
+            e[i] = z[rows[i]] - theta[i].dot(x);
+            abs_e += e[i].abs();
+        }
+        for ij in 0..k * k {
+            c[ij] = p[ij] * x;
+        }
+        for i in 0..k {
+            for j in 0..=i {
+                let v = x.dot(&c[i * k + j]) + r[i * k + j];
+                s[i * k + j] = v;
+                s[j * k + i] = v;
+            }
+        }
+        if s.iter().any(|v| !v.finite()) || !abs_e.finite() {
+            return Err(OVERFLOW);
+        }
+        if !cholesky_in_place(s, k) {
+            return Err(Error::Singular { what: "the innovation covariance H P Hᵀ + R" });
+        }
+        // W_i = C_i S⁻¹, row by row of C_i: solve S w = (c_i1[a], …, c_iK[a]).
+        let mut bound = T::zero();
+        let mut col = [T::zero(); N];
+        for i in 0..k {
+            for a in 0..N {
+                let buf = &mut col[..k.min(N)];
+                for l in 0..k {
+                    buf[l] = c[i * k + l][a];
+                }
+                cholesky_solve(s, k, buf);
+                for l in 0..k {
+                    w[i * k + l][a] = buf[l];
+                    bound += buf[l].abs() * (abs_e + c[i * k + l][a].abs() * T::of(k as f64));
+                }
+            }
+        }
+        if !bound.finite() {
+            return Err(OVERFLOW);
+        }
+        // Apply: nothing above changed the identifier's state.
+        for i in 0..k {
+            for l in 0..k {
+                theta[i] += w[i * k + l] * e[l];
+            }
+        }
+        for i in 0..k {
+            for j in i..k {
+                let mut d = SMatrix::<T, N, N>::zeros();
+                for l in 0..k {
+                    d += w[i * k + l] * c[j * k + l].transpose();
+                }
+                p[i * k + j] -= d;
+                if i == j {
+                    symmetrize(&mut p[i * k + i]);
+                } else {
+                    p[j * k + i] = p[i * k + j].transpose();
+                }
+            }
+        }
+        self.samples += 1;
+        let trace = (0..k).fold(T::zero(), |a, i| a + p[i * k + i].trace());
+        if self.opts.reinit && T::of(10.0) * abs_e > trace {
+            for i in 0..k {
+                for j in 0..N {
+                    p[i * k + i][(j, j)] *= T::of(10.0);
+                }
+            }
+            for v in self.r.flat_mut() {
+                *v *= T::of(2.0);
+            }
+            self.reinit_count += 1;
+        }
+        Ok(())
+    }
+}
+
+impl<T: Real, const N: usize, const K: usize> KalmanFull<T, N, Fixed<K>> {
+    /// The stacked filter with `P(0) = p0 I` and a full `R` (`K × K`).
+    ///
+    /// # Errors
+    /// As [`KalmanFull::from_slices`].
+    pub fn new(rows: [usize; K], p0: T, r: SMatrix<T, K, K>) -> Result<Self> {
+        Self::from_slices(&rows, &[p0], r.transpose().as_slice(), KalmanOptions::default())
+    }
+
+    /// One sample; returns the innovations.
+    ///
+    /// # Errors
+    /// As [`KalmanFull::update_into`].
+    pub fn update(&mut self, x: &SVector<T, N>, z: &SVector<T, N>) -> Result<SVector<T, K>> {
+        let mut e = SVector::<T, K>::zeros();
+        self.update_into(x, z, e.as_mut_slice())?;
+        Ok(e)
+    }
+
+    /// The estimate θ̂ (`K × N`).
+    pub fn theta(&self) -> SMatrix<T, K, N> {
+        SMatrix::<T, K, N>::from_fn(|i, j| self.theta[i][j])
+    }
+}
+
+#[cfg(test)]
+mod tests;

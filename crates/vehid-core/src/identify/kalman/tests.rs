@@ -1,0 +1,422 @@
+use super::*;
+use crate::identify::{BatchLeastSquares, Gain, LsAccumulator, StochasticGradient};
+use crate::metrics::xi;
+use crate::model::{HalfCar, QuarterCar};
+use crate::sim::{SimConfig, Simulator};
+use nalgebra::{Vector4, Vector6};
+
+type V4 = SVector<f64, 4>;
+
+fn quarter_samples(seed: u64, n: usize, cfg: SimConfig<f64, 4, 1>) -> Vec<(V4, V4)> {
+    let mut sim = Simulator::new(QuarterCar::thesis().model(), cfg, seed).unwrap();
+    (0..n).map(|_| sim.next_sample()).map(|s| (s.r, s.z)).collect()
+}
+
+fn road(seed: u64, n: usize) -> Vec<(V4, V4)> {
+    quarter_samples(seed, n, SimConfig::new(0.05).road_sigma(0.1).ic_sigma(0.1).deriv_noise(0.005))
+}
+
+fn rel_diff(a: &[f64], b: &[f64]) -> f64 {
+    let scale = b.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    a.iter().zip(b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs())) / scale
+}
+
+/// θ̂ from faer's QR on the least-squares problem with the prior as extra rows:
+/// `[x_kᵀ/√r; I/√p0] θ = [z_k/√r; 0]` (independent of every code path of the filter).
+fn ls_with_prior(data: &[(V4, V4)], row: usize, p0: f64, r: f64) -> Vec<f64> {
+    use faer::linalg::solvers::SolveLstsq;
+    let l = data.len();
+    let a = faer::Mat::<f64>::from_fn(l + 4, 4, |i, j| {
+        if i < l {
+            data[i].0[j] / r.sqrt()
+        } else if i - l == j {
+            1.0 / p0.sqrt()
+        } else {
+            0.0
+        }
+    });
+    let b = faer::Mat::<f64>::from_fn(l + 4, 1, |i, _| if i < l { data[i].1[row] / r.sqrt() } else { 0.0 });
+    let sol = a.qr().solve_lstsq(&b);
+    (0..4).map(|j| sol[(j, 0)]).collect()
+}
+
+#[test]
+fn recursive_filter_equals_least_squares_with_prior_rows() {
+    let data = road(1, 3000);
+    let model = QuarterCar::<f64>::thesis().model();
+    let r: [f64; 2] = model.row_noise_var(0.1, 0.005).unwrap();
+    let mut id = KalmanIdentifier::<f64, 4, 2>::new([1, 3], 1000.0, r).unwrap();
+    for (x, z) in &data {
+        id.update(x, z).unwrap();
+    }
+    for (i, row) in [1usize, 3].iter().enumerate() {
+        let expect = ls_with_prior(&data, *row, 1000.0, r[i]);
+        let got: Vec<f64> = id.theta().row(i).iter().copied().collect();
+        let d = rel_diff(&got, &expect);
+        assert!(d < 1e-9, "row {row}: relative difference {d:e}");
+    }
+}
+
+#[test]
+fn rows_shared_and_full_agree_where_the_algebra_says_so() {
+    let data = road(2, 4000);
+    // Equal r/p0 on both rows: shared = rows. Diagonal R, block-diagonal P(0): full = rows.
+    let r = [0.3, 0.3];
+    let opts = KalmanOptions::default();
+    let mut rows = KalmanIdentifier::<f64, 4, 2>::new([1, 3], 1000.0, r).unwrap();
+    let mut shared = SharedKalmanIdentifier::<f64, 4, 2>::new([1, 3], 1000.0, r).unwrap();
+    let mut full = FullKalmanIdentifier::<f64, 4, 2>::from_slices(&[1, 3], &[1000.0], &[0.3, 0.0, 0.0, 0.3], opts).unwrap();
+    for (x, z) in &data {
+        let a = rows.update(x, z).unwrap();
+        let b = shared.update(x, z).unwrap();
+        let c = full.update(x, z).unwrap();
+        assert!((a - b).abs().max() <= 1e-10 * a.abs().max().max(1.0));
+        assert!((a - c).abs().max() <= 1e-10 * a.abs().max().max(1.0));
+    }
+    let t = rows.theta();
+    let scale = t.abs().max();
+    assert!((t - shared.theta()).abs().max() < 1e-10 * scale);
+    assert!((t - full.theta()).abs().max() < 1e-10 * scale);
+    // Covariances agree too, and the full filter's off-diagonal blocks stay zero.
+    for i in 0..2 {
+        let p = rows.filters()[i].p();
+        assert!((p - shared.p(i)).abs().max() < 1e-10 * p.abs().max());
+        assert!((p - full.p_block(i, i)).abs().max() < 1e-10 * p.abs().max());
+    }
+    assert!(full.p_block(0, 1).abs().max() == 0.0);
+    // Different r per row (the thesis' R) in rows mode = full mode with that diagonal R.
+    let model = QuarterCar::<f64>::thesis().model();
+    let r: [f64; 2] = model.row_noise_var(0.1, 0.005).unwrap();
+    let mut rows = KalmanIdentifier::<f64, 4, 2>::new([1, 3], 1000.0, r).unwrap();
+    let mut full = FullKalmanIdentifier::<f64, 4, 2>::from_slices(&[1, 3], &[1000.0], &[r[0], 0.0, 0.0, r[1]], opts).unwrap();
+    for (x, z) in &data {
+        rows.update(x, z).unwrap();
+        full.update(x, z).unwrap();
+    }
+    for i in 0..2 {
+        let a = rows.theta().row(i).clone_owned();
+        let b = full.theta().row(i).clone_owned();
+        assert!((a - b).abs().max() < 1e-10 * a.abs().max(), "row {i}");
+    }
+    // Shared refuses unequal ratios.
+    assert!(SharedKalmanIdentifier::<f64, 4, 2>::new([1, 3], 1000.0, r).is_err());
+}
+
+#[test]
+fn full_filter_with_correlated_r_equals_generalized_least_squares() {
+    // Instrumentation-style correlated errors: R = [[a, c], [c, b]]. Closed form:
+    // (R⁻¹ ⊗ Σ x xᵀ + I/p0) θ = Σ (R⁻¹ ⊗ x) z, solved by faer's LU on the 8 × 8 system.
+    use faer::linalg::solvers::Solve;
+    let data = road(3, 2000);
+    let (ra, rb, rc, p0) = (0.5, 0.2, 0.15, 100.0);
+    let mut full = FullKalmanIdentifier::<f64, 4, 2>::from_slices(&[1, 3], &[p0], &[ra, rc, rc, rb], KalmanOptions::default()).unwrap();
+    for (x, z) in &data {
+        full.update(x, z).unwrap();
+    }
+    let det = ra * rb - rc * rc;
+    let ri = [[rb / det, -rc / det], [-rc / det, ra / det]];
+    let rows = [1usize, 3];
+    let mut a = faer::Mat::<f64>::zeros(8, 8);
+    let mut b = faer::Mat::<f64>::zeros(8, 1);
+    for (x, z) in &data {
+        for i in 0..2 {
+            for j in 0..2 {
+                for p in 0..4 {
+                    for q in 0..4 {
+                        a[(i * 4 + p, j * 4 + q)] += ri[i][j] * x[p] * x[q];
+                    }
+                    b[(i * 4 + p, 0)] += ri[i][j] * x[p] * z[rows[j]];
+                }
+            }
+        }
+    }
+    for d in 0..8 {
+        a[(d, d)] += 1.0 / p0;
+    }
+    let sol = a.partial_piv_lu().solve(&b);
+    let expect: Vec<f64> = (0..8).map(|i| sol[(i, 0)]).collect();
+    let mut got = vec![0.0; 8];
+    full.theta_into(&mut got).unwrap();
+    assert!(rel_diff(&got, &expect) < 1e-9, "{:e}", rel_diff(&got, &expect));
+}
+
+#[test]
+fn noise_free_initial_condition_excitation_is_exact() {
+    // Eq 2.8: n linearly independent noise-free samples determine θ.
+    let car = QuarterCar::<f64>::thesis();
+    let data = quarter_samples(4, 60, SimConfig::new(0.05).ic_sigma(0.1));
+    let mut ls = BatchLeastSquares::<f64, 4>::new(&car.unknown_rows()).unwrap();
+    for (x, z) in data.iter().take(4) {
+        ls.push(x, z).unwrap();
+    }
+    let theta = ls.solve().unwrap();
+    let truth = car.theta().transpose();
+    assert!(rel_diff(&theta, truth.as_slice().iter().copied().collect::<Vec<_>>().as_slice()) < 1e-9);
+    // The memory-bounded accumulator agrees.
+    let mut acc = LsAccumulator::<f64, 4, Fixed<2>>::new([1, 3]).unwrap();
+    for (x, z) in data.iter().take(4) {
+        acc.push(x, z).unwrap();
+    }
+    assert!((acc.solve().unwrap() - car.theta()).abs().max() < 1e-7 * 140.0);
+    // Kalman identifier with r = 0 (no noise): ξ < 1e-8.
+    let mut kf = KalmanIdentifier::<f64, 4, 2>::new([1, 3], 1000.0, [0.0, 0.0]).unwrap();
+    for (x, z) in &data {
+        kf.update(x, z).unwrap();
+    }
+    let th = kf.theta();
+    let xi_v = xi(car.theta().transpose().as_slice(), th.transpose().as_slice()).unwrap();
+    assert!(xi_v < 1e-8, "ξ = {xi_v:e}");
+}
+
+#[test]
+fn too_few_samples_is_rank_deficient_not_nan() {
+    let car = QuarterCar::<f64>::thesis();
+    let data = quarter_samples(4, 3, SimConfig::new(0.05).ic_sigma(0.1));
+    let mut ls = BatchLeastSquares::<f64, 4>::new(&car.unknown_rows()).unwrap();
+    for (x, z) in &data {
+        ls.push(x, z).unwrap();
+    }
+    assert!(matches!(ls.solve(), Err(Error::RankDeficient { rank: 3, needed: 4 })));
+    // A direction never excited: the same state repeated.
+    let mut ls = BatchLeastSquares::<f64, 4>::new(&[1]).unwrap();
+    for _ in 0..10 {
+        ls.push(&data[0].0, &data[0].1).unwrap();
+    }
+    assert!(matches!(ls.solve(), Err(Error::RankDeficient { rank: 1, .. })));
+    let mut acc = LsAccumulator::<f64, 4, Fixed<1>>::new([1]).unwrap();
+    for _ in 0..10 {
+        acc.push(&data[0].0, &data[0].1).unwrap();
+    }
+    assert!(matches!(acc.solve(), Err(Error::RankDeficient { .. })));
+}
+
+#[test]
+fn rejected_samples_leave_the_identifier_unchanged() {
+    let data = road(5, 50);
+    let mut id = KalmanIdentifier::<f64, 4, 2>::from_slices(
+        &[1, 3],
+        &[1000.0],
+        &[81.0, 2.5e-5],
+        KalmanOptions { reinit: true, ..Default::default() },
+    )
+    .unwrap();
+    let mut sg = StochasticGradient::<f64, 4, 2>::new([1, 3], Gain::Venter { p: 0.51 }, 0.4).unwrap();
+    let mut full = FullKalmanIdentifier::<f64, 4, 2>::new([1, 3], 1000.0, nalgebra::Matrix2::new(81.0, 0.0, 0.0, 2.5e-5)).unwrap();
+    for (x, z) in &data {
+        id.update(x, z).unwrap();
+        sg.update(x, z).unwrap();
+        full.update(x, z).unwrap();
+    }
+    let (before, sg_before, full_before) = (id.clone(), sg.clone(), full.clone());
+    let (x, z) = data[0];
+    let mut bad_x = x;
+    bad_x[2] = f64::NAN;
+    let mut bad_z = z;
+    bad_z[3] = f64::INFINITY;
+    let huge = Vector4::repeat(1e300);
+    assert!(matches!(id.update(&bad_x, &z), Err(Error::NonFinite { arg: "r_k", index: 2 })));
+    assert!(matches!(id.update(&x, &bad_z), Err(Error::NonFinite { arg: "z_k", index: 3 })));
+    assert!(id.update(&huge, &huge).is_err());
+    assert!(sg.update(&bad_x, &z).is_err() && sg.update(&huge, &huge).is_err());
+    assert!(full.update(&x, &bad_z).is_err() && full.update(&huge, &huge).is_err());
+    assert_eq!(id.theta(), before.theta());
+    assert_eq!(id.filters(), before.filters());
+    assert_eq!((id.samples(), id.reinit_count()), (before.samples(), before.reinit_count()));
+    assert_eq!(sg.theta(), sg_before.theta());
+    assert_eq!(sg.samples(), sg_before.samples());
+    assert_eq!(full.theta(), full_before.theta());
+    assert_eq!(full.p_block(0, 1), full_before.p_block(0, 1));
+}
+
+#[test]
+fn bad_settings_are_clear_errors() {
+    type K = KalmanIdentifier<f64, 4, 2>;
+    assert!(matches!(K::new([1, 3], 0.0, [1.0, 1.0]), Err(Error::InvalidArgument { arg: "p0", .. })));
+    assert!(matches!(K::new([1, 3], f64::NAN, [1.0, 1.0]), Err(Error::InvalidArgument { arg: "p0", .. })));
+    assert!(matches!(K::new([1, 3], 1.0, [-1.0, 1.0]), Err(Error::InvalidArgument { arg: "r", .. })));
+    assert!(matches!(K::new([1, 4], 1.0, [1.0, 1.0]), Err(Error::BadRow { row: 4, .. })));
+    assert!(matches!(K::new([3, 3], 1.0, [1.0, 1.0]), Err(Error::BadRow { row: 3, .. })));
+    assert!(matches!(
+        K::from_slices(&[1, 3], &[1.0, 2.0, 3.0], &[1.0], KalmanOptions::default()),
+        Err(Error::Shape { arg: "p0", expected: 2, got: 3 })
+    ));
+    assert!(matches!(
+        K::from_slices(&[1], &[1.0], &[1.0], KalmanOptions::default()),
+        Err(Error::Shape { arg: "unknown_rows", expected: 2, got: 1 })
+    ));
+    type G = StochasticGradient<f64, 4, 2>;
+    for p in [0.5, 1.01, f64::NAN] {
+        assert!(matches!(G::new([1, 3], Gain::Venter { p }, 1.0), Err(Error::InvalidArgument { arg: "p", .. })));
+    }
+    assert!(matches!(G::new([1, 3], Gain::Venter { p: 1.0 }, 0.0), Err(Error::InvalidArgument { arg: "h", .. })));
+    assert!(matches!(
+        G::new([1, 3], Gain::Ljung { lambda0: 1.5, lambda_init: 0.95 }, 1.0),
+        Err(Error::InvalidArgument { arg: "lambda0", .. })
+    ));
+    assert!(matches!(
+        G::from_slices(&[1, 3], Gain::Lyapunov, &[1.0, 2.0, 3.0], &[0.0], 1),
+        Err(Error::Shape { arg: "h", expected: 8, got: 3 })
+    ));
+    assert!(matches!(
+        G::from_slices(&[1, 3], Gain::Lyapunov, &[1.0], &[0.0], 0),
+        Err(Error::InvalidArgument { arg: "spacing", .. })
+    ));
+    let not_spd = SMatrix::<f64, 4, 4>::from_diagonal(&Vector4::new(1.0, 1.0, -1.0, 1.0));
+    assert!(matches!(RowIdentifier::with_prior(V4::zeros(), not_spd, 1.0), Err(Error::Singular { .. })));
+}
+
+#[test]
+fn memory_fits_the_thesis_budget() {
+    // Table I: 352 bytes (4-state), 2800 bytes (8-state, decoupled).
+    eprintln!(
+        "sizes: {} {} {} {} {} {}",
+        core::mem::size_of::<KalmanIdentifier<f32, 4, 2>>(),
+        core::mem::size_of::<KalmanIdentifier<f32, 8, 4>>(),
+        core::mem::size_of::<SharedKalmanIdentifier<f32, 4, 2>>(),
+        core::mem::size_of::<SharedKalmanIdentifier<f32, 8, 4>>(),
+        core::mem::size_of::<StochasticGradient<f32, 4, 2>>(),
+        core::mem::size_of::<KalmanIdentifier<f64, 4, 2>>(),
+    );
+    let q = core::mem::size_of::<KalmanIdentifier<f32, 4, 2>>();
+    let h = core::mem::size_of::<KalmanIdentifier<f32, 8, 4>>();
+    assert!(q <= 352, "{q}");
+    assert!(h <= 2800, "{h}");
+    assert_eq!(q, 216, "update the figure in the module docs");
+    assert_eq!(h, 1240, "update the figure in the module docs");
+    assert_eq!(core::mem::size_of::<SharedKalmanIdentifier<f32, 4, 2>>(), 144);
+    assert_eq!(core::mem::size_of::<SharedKalmanIdentifier<f32, 8, 4>>(), 456);
+    assert_eq!(core::mem::size_of::<StochasticGradient<f32, 4, 2>>(), 192);
+}
+
+#[test]
+fn f32_long_run_keeps_covariance_symmetric_positive_definite() {
+    let car = QuarterCar::<f32>::thesis();
+    let cfg = SimConfig::<f32, 4, 1>::new(0.05).road_sigma(0.1).ic_sigma(0.1).deriv_noise(0.005);
+    let mut sim = Simulator::new(car.model(), cfg, 6).unwrap();
+    let r: [f32; 2] = car.model().row_noise_var(0.1, 0.005).unwrap();
+    let mut id = KalmanIdentifier::<f32, 4, 2>::new([1, 3], 1000.0, r).unwrap();
+    for _ in 0..1_000_000 {
+        let s = sim.next_sample();
+        id.update(&s.r, &s.z).unwrap();
+    }
+    for f in id.filters() {
+        let p = f.p();
+        assert_eq!(*p, p.transpose(), "exactly symmetric");
+        let mut l = *p;
+        assert!(crate::linalg::cholesky_in_place(l.as_mut_slice(), 4), "positive definite: {p}");
+        assert!(f.theta().iter().all(|v| v.is_finite()));
+    }
+    let th = id.theta();
+    let xi_v = xi(car.theta().transpose().as_slice(), th.transpose().as_slice()).unwrap();
+    assert!(xi_v < 0.08, "f32 over 10⁶ samples converges: ξ = {xi_v}");
+}
+
+#[test]
+fn half_car_prior_regimes() {
+    // thesis-notes §8: after 20,000 road-noise samples the smallest eigenvalue of Σ x xᵀ is
+    // about 5e-3, so r/p0 decides whether the prior or the data wins in that direction. The
+    // LS-with-prior solution shrinks the estimate along an eigenvector v with eigenvalue λ by
+    // λ / (λ + r/p0) (from exact data): ≈ 1 when r/p0 ≪ λ (data win), ≈ 0 when r/p0 ≫ λ.
+    let half = HalfCar::<f64>::thesis();
+    let model = half.model();
+    let cfg = SimConfig::<f64, 8, 2>::new(0.05).road_sigma(0.1);
+    let mut sim = Simulator::new(model.clone(), cfg, 7).unwrap();
+    let data: Vec<_> = (0..20_000).map(|_| sim.next_sample()).collect();
+    let mut gram = SMatrix::<f64, 8, 8>::zeros();
+    for s in &data {
+        gram += s.x * s.x.transpose();
+    }
+    let eig = gram.symmetric_eigen();
+    let (imin, lmin) = eig.eigenvalues.iter().enumerate().fold((0, f64::MAX), |b, (i, &l)| if l < b.1 { (i, l) } else { b });
+    assert!(lmin > 1e-4 && lmin < 1e-1, "smallest eigenvalue {lmin:e}");
+    let v = eig.eigenvectors.column(imin).clone_owned();
+    // Body row (index 2 of the unknown rows, A row 5) carries no road input: r = σ_v² only.
+    let truth = half.theta().row(2).transpose();
+    let along = |ratio: f64| {
+        let mut id = KalmanIdentifier::<f64, 8, 4>::new([1, 3, 5, 7], 1.0, [ratio; 4]).unwrap();
+        for s in &data {
+            id.update(&s.x, &s.xdot).unwrap(); // exact data: only the prior biases
+        }
+        id.theta().row(2).transpose().dot(&v) / truth.dot(&v)
+    };
+    let data_wins = along(lmin * 1e-3);
+    let prior_wins = along(lmin * 1e3);
+    let predicted = |ratio: f64| lmin / (lmin + ratio);
+    if truth.dot(&v).abs() > 1e-3 * truth.norm() {
+        assert!((data_wins - predicted(lmin * 1e-3)).abs() < 1e-3, "{data_wins}");
+        assert!((prior_wins - predicted(lmin * 1e3)).abs() < 1e-3, "{prior_wins}");
+    }
+    assert!(data_wins > 0.99 && prior_wins < 0.01, "data {data_wins}, prior {prior_wins}");
+}
+
+#[test]
+fn joseph_form_matches_standard_form() {
+    let data = road(8, 2000);
+    let mut a = KalmanIdentifier::<f64, 4, 2>::new([1, 3], 1000.0, [0.5, 0.01]).unwrap();
+    let mut b = KalmanIdentifier::<f64, 4, 2>::from_slices(
+        &[1, 3],
+        &[1000.0],
+        &[0.5, 0.01],
+        KalmanOptions { form: CovarianceForm::Joseph, ..Default::default() },
+    )
+    .unwrap();
+    for (x, z) in &data {
+        a.update(x, z).unwrap();
+        b.update(x, z).unwrap();
+    }
+    assert!((a.theta() - b.theta()).abs().max() < 1e-8 * a.theta().abs().max());
+}
+
+#[test]
+fn retired_rows_stop_and_reinit_brings_them_back() {
+    let data = road(9, 3000);
+    let mut id = KalmanIdentifier::<f64, 4, 2>::from_slices(
+        &[1, 3],
+        &[1000.0],
+        &[81.0, 2.5e-5],
+        KalmanOptions { retire_below: 1e-2, ..Default::default() },
+    )
+    .unwrap();
+    for (x, z) in &data {
+        id.update(x, z).unwrap();
+    }
+    eprintln!("traces after 3000: {} {}", id.filters()[0].p().trace(), id.filters()[1].p().trace());
+    assert!(id.filters()[1].retired(), "the body row (r = 2.5e-5) retires");
+    assert!(!id.filters()[0].retired(), "the wheel row (r = 81) is still learning");
+    let frozen = *id.theta_row(1);
+    for (x, z) in data.iter().take(100) {
+        id.update(x, z).unwrap();
+    }
+    assert_eq!(*id.theta_row(1), frozen);
+    id.filters.flat_mut()[1].reinitialize();
+    assert!(!id.filters()[1].retired());
+}
+
+#[test]
+fn dynamic_storage_equals_fixed_storage() {
+    let data = road(10, 500);
+    let mut fixed = KalmanIdentifier::<f64, 4, 2>::new([1, 3], 1000.0, [81.0, 2.5e-5]).unwrap();
+    let mut dynamic = KalmanIdentifierVec::<f64, 4>::from_slices(&[1, 3], &[1000.0], &[81.0, 2.5e-5], KalmanOptions::default()).unwrap();
+    let mut e = [0.0; 2];
+    for (x, z) in &data {
+        let ef = fixed.update(x, z).unwrap();
+        dynamic.update_into(x, z, &mut e).unwrap();
+        assert_eq!(ef.as_slice(), &e);
+    }
+    let mut out = [0.0; 8];
+    dynamic.theta_into(&mut out).unwrap();
+    assert_eq!(fixed.theta().transpose().as_slice(), &out);
+    // Any K works in the dynamic form: one unknown row of a 6-state model equals Fixed<1>.
+    let a = SMatrix::<f64, 6, 6>::from_fn(|i, j| if i == j { -1.0 - i as f64 } else if j == i + 1 { 0.5 } else { 0.0 });
+    let model = crate::model::LinearModel::new(a, Vector6::repeat(1.0), &[2]).unwrap();
+    let mut sim = Simulator::new(model, SimConfig::new(0.05).road_sigma(0.3), 1).unwrap();
+    let mut one = KalmanIdentifierVec::<f64, 6>::from_slices(&[2], &[100.0], &[0.09], KalmanOptions::default()).unwrap();
+    let mut fixed_one = KalmanIdentifier::<f64, 6, 1>::new([2], 100.0, [0.09]).unwrap();
+    let mut e = [0.0];
+    for _ in 0..2000 {
+        let s = sim.next_sample();
+        one.update_into(&s.r, &s.z, &mut e).unwrap();
+        assert_eq!(fixed_one.update(&s.r, &s.z).unwrap()[0], e[0]);
+    }
+    assert_eq!(one.theta_row(0), &fixed_one.theta().row(0).transpose());
+}

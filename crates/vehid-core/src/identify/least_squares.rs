@@ -1,0 +1,248 @@
+//! Batch least squares (Eq 2.14, 3.4): `θ̂_i = (Xᵀ X)⁻¹ Xᵀ z_i` for each unknown row `i`,
+//! with `X` the stacked measured states `r(k)ᵀ`.
+//!
+//! - [`BatchLeastSquares`] (std) stores every sample and solves with a column-pivoted QR
+//!   factorization of `X` (faer): no squaring of the condition number, and a rank check
+//!   that turns missing excitation into [`Error::RankDeficient`] instead of a NaN.
+//!   Memory grows with the data (the thesis' objection: about 1 MB for its runs).
+//! - [`LsAccumulator`] keeps only `Σ x xᵀ` and `Σ x z_i` (memory-bounded, no allocation) and
+//!   solves the normal equations by Cholesky when asked.
+//!
+//! Unbiased when the state is measured without noise; biased (attenuated) by state noise
+//! (Eq 2.20), which the thesis shows is devastating (Fig 3-5).
+
+use super::{check_sample, rows_buffer, Fixed, Flat, Store};
+use crate::linalg::{cholesky_in_place, cholesky_solve};
+use crate::{Error, Real, Result};
+use nalgebra::{SMatrix, SVector};
+
+/// Running normal equations `Σ x xᵀ`, `Σ x z_i` for the unknown rows; no allocation.
+#[derive(Debug, Clone)]
+pub struct LsAccumulator<T: Real, const N: usize, S: Store<T, N> = Fixed<1>> {
+    rows: S::Rows,
+    gram: SMatrix<T, N, N>,
+    xz: S::Vecs,
+    samples: u64,
+}
+
+impl<T: Real, const N: usize, S: Store<T, N>> LsAccumulator<T, N, S> {
+    /// An empty accumulator for the given 0-based unknown rows.
+    ///
+    /// # Errors
+    /// [`Error::BadRow`] / [`Error::Shape`] for bad rows.
+    pub fn from_rows(rows: &[usize]) -> Result<Self> {
+        let rows_buf: S::Rows = rows_buffer::<_, N>(rows)?;
+        Ok(Self {
+            rows: rows_buf,
+            gram: SMatrix::zeros(),
+            xz: S::Vecs::filled("unknown_rows", rows.len(), SVector::zeros())?,
+            samples: 0,
+        })
+    }
+
+    /// Adds one sample (measured state `x`, measured derivative `z`). No allocation.
+    ///
+    /// # Errors
+    /// [`Error::NonFinite`] for NaN/inf (the accumulator is then unchanged).
+    pub fn push(&mut self, x: &SVector<T, N>, z: &SVector<T, N>) -> Result<()> {
+        check_sample(x, z)?;
+        let rows = self.rows.flat();
+        let xz = self.xz.flat_mut();
+        for (acc, &r) in xz.iter_mut().zip(rows) {
+            *acc += x * z[r];
+        }
+        self.gram += x * x.transpose();
+        self.samples += 1;
+        Ok(())
+    }
+
+    /// Number of samples accumulated.
+    pub fn samples(&self) -> u64 {
+        self.samples
+    }
+
+    /// The unknown rows (0-based).
+    pub fn rows(&self) -> &[usize] {
+        self.rows.flat()
+    }
+
+    /// Solves the normal equations; θ̂ row-major (`K × N`) into `out`.
+    ///
+    /// # Errors
+    /// [`Error::RankDeficient`] when `Σ x xᵀ` is numerically singular (pivot below
+    /// `N·ε` times the largest diagonal); [`Error::Shape`] for a wrong `out` length.
+    pub fn solve_into(&self, out: &mut [T]) -> Result<()> {
+        let k = self.rows.flat().len();
+        if out.len() != k * N {
+            return Err(Error::Shape { arg: "out", expected: k * N, got: out.len() });
+        }
+        let g = self.gram.map(|v| v.to_f64());
+        let scale = (0..N).fold(0.0f64, |m, i| m.max(g[(i, i)]));
+        let mut l = g;
+        let ok = scale > 0.0 && cholesky_in_place(l.as_mut_slice(), N);
+        // Pivots of the factor below the threshold mean a direction without excitation.
+        let tol = (N as f64) * f64::EPSILON * scale;
+        let rank = if ok { (0..N).filter(|&i| l[(i, i)] * l[(i, i)] > tol).count() } else { 0 };
+        if !ok || rank < N {
+            return Err(Error::RankDeficient { rank: rank.min(N - 1), needed: N });
+        }
+        // nalgebra is column-major: the in-place factor is used consistently as its transpose,
+        // which for a symmetric matrix is the same factorization.
+        for (i, xz) in self.xz.flat().iter().enumerate() {
+            let mut b: [f64; N] = core::array::from_fn(|j| xz[j].to_f64());
+            cholesky_solve(l.as_slice(), N, &mut b);
+            for j in 0..N {
+                out[i * N + j] = T::of(b[j]);
+            }
+        }
+        Ok(())
+    }
+}
+
+impl<T: Real, const N: usize, const K: usize> LsAccumulator<T, N, Fixed<K>> {
+    /// An empty accumulator for `K` unknown rows.
+    ///
+    /// # Errors
+    /// As [`LsAccumulator::from_rows`].
+    pub fn new(rows: [usize; K]) -> Result<Self> {
+        Self::from_rows(&rows)
+    }
+
+    /// Solves the normal equations (`K × N`).
+    ///
+    /// # Errors
+    /// As [`LsAccumulator::solve_into`].
+    pub fn solve(&self) -> Result<SMatrix<T, K, N>> {
+        let mut out = SMatrix::<T, N, K>::zeros();
+        self.solve_into(out.as_mut_slice())?;
+        Ok(out.transpose())
+    }
+}
+
+/// Batch least squares over stored samples, solved by column-pivoted QR (faer); requires
+/// `std`. Works for any number of unknown rows (run-time sized).
+///
+/// # Examples
+/// ```
+/// use vehid_core::identify::BatchLeastSquares;
+/// use vehid_core::model::QuarterCar;
+/// use vehid_core::sim::{SimConfig, Simulator};
+/// let car = QuarterCar::<f64>::thesis();
+/// let mut sim = Simulator::new(car.model(), SimConfig::new(0.05).ic_sigma(0.1), 3)?;
+/// let mut ls = BatchLeastSquares::<f64, 4>::new(&car.unknown_rows())?;
+/// for _ in 0..4 {
+///     let s = sim.next_sample();
+///     ls.push(&s.r, &s.z)?;
+/// }
+/// let theta = ls.solve()?;   // 2 × 4, row-major: exact from n = 4 noise-free samples (Eq 2.8)
+/// assert!((theta[0] - car.theta()[(0, 0)]).abs() < 1e-8 * 140.0);
+/// # Ok::<(), vehid_core::Error>(())
+/// ```
+#[cfg(feature = "std")]
+#[derive(Debug, Clone)]
+pub struct BatchLeastSquares<T: Real, const N: usize> {
+    rows: std::vec::Vec<usize>,
+    /// Stored measured states, row-major (`samples × N`).
+    x: std::vec::Vec<T>,
+    /// Stored derivative measurements of the unknown rows (`samples × K`).
+    z: std::vec::Vec<T>,
+}
+
+#[cfg(feature = "std")]
+impl<T: Real, const N: usize> BatchLeastSquares<T, N> {
+    /// An empty batch for the given 0-based unknown rows.
+    ///
+    /// # Errors
+    /// [`Error::BadRow`] / [`Error::InvalidArgument`] for bad rows.
+    pub fn new(rows: &[usize]) -> Result<Self> {
+        let rows: std::vec::Vec<usize> = rows_buffer::<_, N>(rows)?;
+        Ok(Self { rows, x: std::vec::Vec::new(), z: std::vec::Vec::new() })
+    }
+
+    /// The unknown rows (0-based).
+    pub fn rows(&self) -> &[usize] {
+        &self.rows
+    }
+
+    /// Number of stored samples.
+    pub fn samples(&self) -> usize {
+        self.x.len() / N.max(1)
+    }
+
+    /// Bytes of sample storage in use (the thesis' objection to batch least squares).
+    pub fn storage_bytes(&self) -> usize {
+        (self.x.capacity() + self.z.capacity()) * core::mem::size_of::<T>()
+    }
+
+    /// Stores one sample.
+    ///
+    /// # Errors
+    /// [`Error::NonFinite`] for NaN/inf (nothing is stored then).
+    pub fn push(&mut self, x: &SVector<T, N>, z: &SVector<T, N>) -> Result<()> {
+        check_sample(x, z)?;
+        self.x.extend_from_slice(x.as_slice());
+        self.z.extend(self.rows.iter().map(|&r| z[r]));
+        Ok(())
+    }
+
+    /// Stores many samples at once: `x` and `z` row-major (`len × N`).
+    ///
+    /// # Errors
+    /// [`Error::Shape`] when the lengths disagree; [`Error::NonFinite`] naming the first bad
+    /// value (nothing is stored then).
+    pub fn extend(&mut self, x: &[T], z: &[T]) -> Result<()> {
+        if x.len() % N != 0 || x.len() != z.len() {
+            return Err(Error::Shape { arg: "z", expected: x.len(), got: z.len() });
+        }
+        crate::error::check_finite("r", x)?;
+        crate::error::check_finite("z", z)?;
+        self.x.extend_from_slice(x);
+        for sample in z.chunks_exact(N) {
+            self.z.extend(self.rows.iter().map(|&r| sample[r]));
+        }
+        Ok(())
+    }
+
+    /// Solves Eq 2.14 by column-pivoted QR; θ̂ row-major (`K × N`).
+    ///
+    /// # Errors
+    /// [`Error::RankDeficient`] when the stored states do not span all `N` directions
+    /// (fewer than `N` samples, or an unexcited direction): the diagonal of `R` falls below
+    /// `max(L, N)·ε·|R₀₀|`.
+    pub fn solve(&self) -> Result<std::vec::Vec<T>> {
+        use faer::linalg::solvers::SolveLstsq;
+        let l = self.samples();
+        let k = self.rows.len();
+        if l < N {
+            return Err(Error::RankDeficient { rank: l, needed: N });
+        }
+        let xm = faer::Mat::<f64>::from_fn(l, N, |i, j| self.x[i * N + j].to_f64());
+        let zm = faer::Mat::<f64>::from_fn(l, k, |i, j| self.z[i * k + j].to_f64());
+        let qr = xm.col_piv_qr();
+        let r = qr.R();
+        let r00 = r[(0, 0)].abs();
+        let tol = (l.max(N) as f64) * f64::EPSILON * r00;
+        let rank = (0..N).filter(|&i| r[(i, i)].abs() > tol).count();
+        if r00 == 0.0 || rank < N {
+            return Err(Error::RankDeficient { rank, needed: N });
+        }
+        let sol = qr.solve_lstsq(&zm);
+        let mut out = std::vec![T::zero(); k * N];
+        for i in 0..k {
+            for j in 0..N {
+                let v = sol[(j, i)];
+                if !v.is_finite() {
+                    return Err(Error::RankDeficient { rank: N - 1, needed: N });
+                }
+                out[i * N + j] = T::of(v);
+            }
+        }
+        Ok(out)
+    }
+
+    /// Drops the stored samples (keeps the rows).
+    pub fn clear(&mut self) {
+        self.x.clear();
+        self.z.clear();
+    }
+}
