@@ -37,6 +37,7 @@ test-rust:
 test-python: develop
 	$(VBIN)/python -m pytest -q tests
 	$(VBIN)/python -m mypy.stubtest vehid._vehid
+	$(VBIN)/python -m mypy python/vehid
 
 clean:
 	rm -f python/vehid/*.so python/vehid/*.pyd

@@ -68,6 +68,7 @@ impl PyLinearModel {
 
     fn sampled_cov_vec(
         &self,
+        py: Python<'_>,
         road_sigma: Option<&Bound<'_, PyAny>>,
         dt: f64,
         method: &str,
@@ -77,7 +78,7 @@ impl PyLinearModel {
         let method = method_arg(method)?;
         let substeps = substeps.map(|s| size(s, "substeps")).transpose()?;
         let d = &self.data;
-        dispatch_nm!(d.n, d.m, sampled_cov_nm(d, &road, dt, method, substeps)).map_err(core_err)
+        py.detach(|| dispatch_nm!(d.n, d.m, sampled_cov_nm(d, &road, dt, method, substeps))).map_err(core_err)
     }
 }
 
@@ -227,7 +228,7 @@ impl PyLinearModel {
         method: &str,
         substeps: Option<i128>,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        let v = self.sampled_cov_vec(road_sigma, dt, method, substeps)?;
+        let v = self.sampled_cov_vec(py, road_sigma, dt, method, substeps)?;
         to_array2(py, self.data.n, self.data.n, v)
     }
 
@@ -243,7 +244,7 @@ impl PyLinearModel {
         substeps: Option<i128>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let n = self.data.n;
-        let v = self.sampled_cov_vec(road_sigma, dt, method, substeps)?;
+        let v = self.sampled_cov_vec(py, road_sigma, dt, method, substeps)?;
         Ok(to_array1(py, (0..n).map(|i| v[i * n + i].max(0.0).sqrt()).collect()))
     }
 

@@ -113,7 +113,8 @@ impl PySimulator {
             seed: uint(seed, "seed")?,
         };
         let d = &model.get().data;
-        let inner = dispatch_nm!(d.n, d.m, simulator_nm(d, &p)).map_err(core_err)?;
+        // Discretizing can take a while (explicit `substeps` are not capped): GIL released.
+        let inner = model.py().detach(|| dispatch_nm!(d.n, d.m, simulator_nm(d, &p))).map_err(core_err)?;
         Ok(Self {
             inner,
             dt,

@@ -1,0 +1,38 @@
+"""vehid: online identification of land-vehicle suspension dynamics.
+
+After J. H. Kessler, *Adaptive Modeling of the Dynamics of Autonomous Land Vehicles*
+(NPS, 1986). The numerics live in the Rust crate ``vehid-core``; this package is its
+Python face.
+
+>>> import vehid
+>>> car = vehid.QuarterCar()
+>>> car.n_states, car.n_inputs, car.unknown_rows
+(4, 1, (1, 3))
+>>> run = vehid.Simulator(car, seed=1).run(1000)
+>>> run.x.shape
+(1000, 4)
+"""
+
+from ._vehid import (
+    HalfCar,
+    LinearModel,
+    QuarterCar,
+    Run,
+    Simulator,
+    VehidError,
+    __version__,
+    snr_db,
+    xi,
+)
+
+__all__ = [
+    "HalfCar",
+    "LinearModel",
+    "QuarterCar",
+    "Run",
+    "Simulator",
+    "VehidError",
+    "__version__",
+    "snr_db",
+    "xi",
+]

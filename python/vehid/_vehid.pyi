@@ -1,0 +1,172 @@
+"""Type stub of the compiled extension ``vehid._vehid`` (hand-written; kept honest by
+``python -m mypy.stubtest vehid._vehid``)."""
+
+from typing import Literal, Optional, Sequence, Tuple, Union, final, overload
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from typing_extensions import disjoint_base
+
+__version__: str
+__all__ = [
+    "VehidError",
+    "__version__",
+    "LinearModel",
+    "QuarterCar",
+    "HalfCar",
+    "Simulator",
+    "Run",
+    "xi",
+    "snr_db",
+]
+
+_Floats = Union[float, ArrayLike]
+_Method = Literal["rk4", "exact"]
+
+class VehidError(ValueError):
+    """A value passed to vehid is invalid, or a computation cannot be done on it."""
+
+@disjoint_base
+class LinearModel:
+    """A continuous-time linear model ``ẋ = A x + B u`` (Eq 2.1), 1..16 states, 1..4 inputs."""
+
+    def __new__(
+        cls,
+        a: ArrayLike,
+        b: ArrayLike,
+        unknown_rows: Sequence[int],
+        structural_zeros: Optional[Sequence[Tuple[int, int]]] = None,
+    ) -> LinearModel: ...
+    @property
+    def n_states(self) -> int: ...
+    @property
+    def n_inputs(self) -> int: ...
+    @property
+    def a(self) -> NDArray[np.float64]: ...
+    @property
+    def b(self) -> NDArray[np.float64]: ...
+    @property
+    def unknown_rows(self) -> Tuple[int, ...]: ...
+    @property
+    def theta(self) -> NDArray[np.float64]: ...
+    @property
+    def structural_zeros(self) -> NDArray[np.bool_]: ...
+    def poles(self) -> NDArray[np.complex128]: ...
+    def output_std(self, road_sigma: Optional[_Floats] = None, hold: float = 0.05) -> NDArray[np.float64]: ...
+    def row_noise_var(
+        self, road_sigma: Optional[_Floats] = None, deriv_noise: Optional[_Floats] = None
+    ) -> NDArray[np.float64]: ...
+    def sampled_cov(
+        self,
+        road_sigma: Optional[_Floats] = None,
+        dt: float = 0.05,
+        method: _Method = "rk4",
+        substeps: Optional[int] = None,
+    ) -> NDArray[np.float64]: ...
+    def sampled_std(
+        self,
+        road_sigma: Optional[_Floats] = None,
+        dt: float = 0.05,
+        method: _Method = "rk4",
+        substeps: Optional[int] = None,
+    ) -> NDArray[np.float64]: ...
+    def a_hat(self, theta_hat: ArrayLike) -> NDArray[np.float64]: ...
+    def physical(self, theta_hat: ArrayLike, **known: float) -> dict[str, float]: ...
+
+@final
+class QuarterCar(LinearModel):
+    """The quarter car of Eq 3.8–3.13 (defaults: the thesis' values)."""
+
+    def __new__(
+        cls, M: float = 10.0, m: float = 1.0, k1: float = 90.0, k2: float = 50.0, b: float = 40.0
+    ) -> QuarterCar: ...
+    @property
+    def params(self) -> dict[str, float]: ...
+
+@final
+class HalfCar(LinearModel):
+    """The half car of Eq 6.1–6.8 (defaults: the thesis' values)."""
+
+    def __new__(
+        cls,
+        k11: float = 100.0,
+        k21: float = 100.0,
+        k12: float = 40.0,
+        k22: float = 40.0,
+        b1: float = 60.0,
+        b2: float = 60.0,
+        m1: float = 1.0,
+        m2: float = 1.0,
+        M: float = 20.0,
+        J: float = 60.0,
+        l1: float = 2.0,
+        l2: float = 1.0,
+    ) -> HalfCar: ...
+    @property
+    def params(self) -> dict[str, float]: ...
+    @property
+    def wheelbase(self) -> float: ...
+
+@final
+class Run:
+    """One stretch of a simulation; arrays have the sample index first."""
+
+    @property
+    def t(self) -> NDArray[np.float64]: ...
+    @property
+    def x(self) -> NDArray[np.float64]: ...
+    @property
+    def xdot(self) -> NDArray[np.float64]: ...
+    @property
+    def u(self) -> NDArray[np.float64]: ...
+    @property
+    def r(self) -> NDArray[np.float64]: ...
+    @property
+    def z(self) -> NDArray[np.float64]: ...
+    @property
+    def n_states(self) -> int: ...
+    @property
+    def n_inputs(self) -> int: ...
+    def __len__(self) -> int: ...
+
+@final
+class Simulator:
+    """A seeded simulator of ``ẋ = A x + B u`` with the thesis' noise sources."""
+
+    def __new__(
+        cls,
+        model: LinearModel,
+        dt: float = 0.05,
+        road_sigma: Optional[_Floats] = None,
+        ic_sigma: float = 0.0,
+        state_noise: Optional[_Floats] = None,
+        deriv_noise: Optional[_Floats] = None,
+        seed: int = 1,
+        substeps: Optional[int] = None,
+        method: _Method = "rk4",
+        pulses: Optional[Sequence[Tuple[int, int, float]]] = None,
+        instrumentation: bool = False,
+    ) -> Simulator: ...
+    def run(self, n: int) -> Run: ...
+    @property
+    def substeps(self) -> int: ...
+    @property
+    def dt(self) -> float: ...
+    @property
+    def seed(self) -> int: ...
+    @property
+    def method(self) -> _Method: ...
+    @property
+    def model(self) -> LinearModel: ...
+    @property
+    def samples(self) -> int: ...
+    @property
+    def n_states(self) -> int: ...
+    @property
+    def n_inputs(self) -> int: ...
+
+def xi(theta: ArrayLike, theta_hat: ArrayLike) -> float: ...
+@overload
+def snr_db(signal_std: float, noise_std: float) -> float: ...
+@overload
+def snr_db(signal_std: ArrayLike, noise_std: ArrayLike) -> Union[float, NDArray[np.float64]]: ...
