@@ -21,9 +21,10 @@
 //! `10 Σ|e_i(k)| > Σ_j P_jj(k)` the diagonal of `P` is multiplied by 10 and `R` doubled.
 //!
 //! # Memory (Table I of the thesis: 352 bytes for the 4-state identifier, 2800 for the 8-state)
-//! `size_of::<KalmanIdentifier<f32, 4, 2>>()` is 216 bytes and
-//! `size_of::<KalmanIdentifier<f32, 8, 4>>()` is 1240 bytes (each row: θ, the full `P` and
-//! `r`, plus the row indices, options and counters); the shared form needs 144 and 456.
+//! `size_of::<KalmanIdentifier<f32, 4, 2>>()` is 264 bytes and
+//! `size_of::<KalmanIdentifier<f32, 8, 4>>()` is 1400 bytes (each row: θ, the full `P`, `r`
+//! and an `N + 2` scratch for the transactional update, plus the row indices, options and
+//! counters); the shared form needs 144 and 456.
 //! Both are within the thesis' 352 and 2800 bytes. These figures are asserted in the tests.
 
 use super::{check_sample, per_row, rows_buffer, Dynamic, Fixed, Flat, Store, OVERFLOW};
@@ -76,22 +77,6 @@ pub struct RowIdentifier<T: Real, const N: usize> {
     p: SMatrix<T, N, N>,
     r: T,
     retired: bool,
-}
-
-/// The planned update of one row, computed before anything is changed.
-#[derive(Debug, Clone, Copy)]
-struct Step<T: Real, const N: usize> {
-    active: bool,
-    /// `u = P x / √s`
-    u: SVector<T, N>,
-    /// `g e = P x e / s`
-    ge: SVector<T, N>,
-}
-
-impl<T: Real, const N: usize> Step<T, N> {
-    fn idle() -> Self {
-        Self { active: false, u: SVector::zeros(), ge: SVector::zeros() }
-    }
 }
 
 impl<T: Real, const N: usize> RowIdentifier<T, N> {
@@ -161,28 +146,31 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
             return Err(Error::NonFinite { arg: "z_k", index: 0 });
         }
         let e = z - self.theta.dot(x);
-        let step = self.plan(x, e)?;
-        self.apply(&step, x, form);
+        let mut px = SVector::zeros();
+        let (c, d) = self.plan(x, e, &mut px)?;
+        self.apply(x, &px, c, d, form);
         Ok(e)
     }
 
-    /// Computes the update for innovation `e` without changing anything.
+    /// Computes `P x` into `px` and returns `(c, d) = (e/s, 1/√s)` with `s = xᵀPx + r`, or
+    /// `d = 0` when this row takes no step. Changes nothing.
     #[inline(always)]
-    fn plan(&self, x: &SVector<T, N>, e: T) -> Result<Step<T, N>> {
+    fn plan(&self, x: &SVector<T, N>, e: T, px: &mut SVector<T, N>) -> Result<(T, T)> {
         if self.retired {
-            return Ok(Step::idle());
+            return Ok((T::zero(), T::zero()));
         }
-        let px = self.p * x;
-        let s = x.dot(&px) + self.r;
-        // Rounding level of xᵀPx: with r = 0 (noise-free data) a direction the data already
-        // determine has xᵀPx at this level, and the sample adds nothing.
-        let floor = T::default_epsilon() * T::of(4.0 * N as f64) * x.abs().sum() * px.abs().sum();
-        if !(s.finite() && e.finite()) {
+        self.p.mul_to(x, px);
+        let s = x.dot(px) + self.r;
+        if !s.finite() {
             return Err(OVERFLOW);
         }
-        if self.r == T::zero() && s <= floor {
-            // Noise-free data and a collapsed covariance along x: nothing left to learn there.
-            return Ok(Step::idle());
+        if self.r == T::zero() {
+            // Noise-free data and a covariance collapsed along x (xᵀPx at rounding level):
+            // nothing is left to learn in that direction.
+            let floor = T::default_epsilon() * T::of(4.0 * N as f64) * x.abs().sum() * px.abs().sum();
+            if s <= floor {
+                return Ok((T::zero(), T::zero()));
+            }
         }
         if !(s > T::zero()) {
             return Err(Error::Singular {
@@ -191,38 +179,35 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
             });
         }
         let inv_s = T::one() / s;
-        let u = px * inv_s.sqrt();
-        let ge = px * (e * inv_s);
-        // Everything the update writes is bounded by these two sums: finite sums, finite update.
-        let bound = (u.abs().sum() * u.abs().sum()) + ge.abs().sum();
-        if !bound.finite() {
+        let c = e * inv_s;
+        // The θ step is P x e / s; the covariance step u uᵀ (u = P x / √s) is bounded by the
+        // largest eigenvalue of P, so it cannot overflow for a finite P.
+        if !(px.abs().sum() * c.abs()).finite() {
             return Err(OVERFLOW);
         }
-        Ok(Step { active: true, u, ge })
+        Ok((c, inv_s.sqrt()))
     }
 
-    /// Applies a planned update.
+    /// Applies a planned update: `θ += P x c`, `P −= u uᵀ` with `u = P x d`.
     #[inline(always)]
-    fn apply(&mut self, step: &Step<T, N>, x: &SVector<T, N>, form: CovarianceForm) {
-        if !step.active {
+    fn apply(&mut self, x: &SVector<T, N>, px: &SVector<T, N>, c: T, d: T, form: CovarianceForm) {
+        if d == T::zero() {
             return;
         }
-        self.theta += step.ge;
+        self.theta.axpy(c, px, T::one());
         match form {
             CovarianceForm::Standard => {
-                // P − u uᵀ: u_i u_j = u_j u_i exactly, so P stays exactly symmetric.
+                // u_i u_j = u_j u_i exactly, so P stays exactly symmetric.
+                let u = px * d;
                 for j in 0..N {
-                    let uj = step.u[j];
+                    let uj = u[j];
                     for i in 0..N {
-                        self.p[(i, j)] -= step.u[i] * uj;
+                        self.p[(i, j)] -= u[i] * uj;
                     }
                 }
             }
             CovarianceForm::Joseph => {
-                // g = P x / s = u / √s; here recovered as u * (u·x ... ) — recompute directly.
-                let px = self.p * x;
-                let s = x.dot(&px) + self.r;
-                let g = px / s;
+                let g = px * (d * d);
                 let a = SMatrix::<T, N, N>::identity() - g * x.transpose();
                 self.p = a * self.p * a.transpose() + g * g.transpose() * self.r;
                 symmetrize(&mut self.p);
@@ -246,6 +231,10 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
 pub struct KalmanRows<T: Real, const N: usize, S: Store<T, N>> {
     rows: S::Rows,
     filters: S::Filters,
+    /// Scratch: `P_i x` of the sample being processed.
+    px: S::Vecs,
+    /// Scratch: `(e_i / s_i, 1/√s_i)` of the sample being processed.
+    cd: S::Vecs2,
     opts: KalmanOptions<T>,
     reinit_count: u32,
     samples: u64,
@@ -290,7 +279,20 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         for (i, f) in filters.flat_mut().iter_mut().enumerate() {
             *f = RowIdentifier::new(per_row("p0", p0, k, i)?, per_row("r", r, k, i)?)?;
         }
-        Ok(Self { rows: rows_buf, filters, opts, reinit_count: 0, samples: 0 })
+        Self::assemble(rows_buf, filters, opts)
+    }
+
+    fn assemble(rows: S::Rows, filters: S::Filters, opts: KalmanOptions<T>) -> Result<Self> {
+        let k = rows.flat().len();
+        Ok(Self {
+            rows,
+            filters,
+            px: S::Vecs::filled("unknown_rows", k, SVector::zeros())?,
+            cd: S::Vecs2::filled("unknown_rows", k, nalgebra::Vector2::zeros())?,
+            opts,
+            reinit_count: 0,
+            samples: 0,
+        })
     }
 
     /// Builds the identifier from prepared row filters (e.g. with full prior covariances
@@ -306,7 +308,7 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         let rows_buf: S::Rows = rows_buffer::<_, N>(rows)?;
         let mut buf = S::Filters::filled("unknown_rows", rows.len(), filters[0])?;
         buf.flat_mut().copy_from_slice(filters);
-        Ok(Self { rows: rows_buf, filters: buf, opts, reinit_count: 0, samples: 0 })
+        Self::assemble(rows_buf, buf, opts)
     }
 
     /// The unknown rows (0-based), in the order of θ and of the innovations.
@@ -382,30 +384,35 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
             return Err(Error::Shape { arg: "e", expected: k, got: e.len() });
         }
         // Plan every row, then apply: a failure on any row changes nothing.
-        let mut steps = [Step::<T, N>::idle(); N];
+        let px = self.px.flat_mut();
+        let cd = self.cd.flat_mut();
         for i in 0..k {
             let ei = z[rows[i]] - filters[i].theta.dot(x);
             e[i] = ei;
-            steps[i] = filters[i].plan(x, ei)?;
+            let (c, d) = filters[i].plan(x, ei, &mut px[i])?;
+            cd[i] = nalgebra::Vector2::new(c, d);
         }
-        let mut trace = T::zero();
-        let mut abs_e = T::zero();
         for i in 0..k {
-            let f = &mut filters[i];
-            f.apply(&steps[i], x, self.opts.form);
-            let tr = f.p.trace();
-            trace += tr;
-            abs_e += e[i].abs();
-            if self.opts.retire_below > T::zero() && tr < self.opts.retire_below {
-                f.retired = true;
-            }
+            filters[i].apply(x, &px[i], cd[i][0], cd[i][1], self.opts.form);
         }
         self.samples += 1;
-        if self.opts.reinit && T::of(10.0) * abs_e > trace {
-            for f in filters.iter_mut() {
-                f.reinitialize();
+        if self.opts.reinit || self.opts.retire_below > T::zero() {
+            let mut trace = T::zero();
+            let mut abs_e = T::zero();
+            for i in 0..k {
+                let tr = filters[i].p.trace();
+                trace += tr;
+                abs_e += e[i].abs();
+                if self.opts.retire_below > T::zero() && tr < self.opts.retire_below {
+                    filters[i].retired = true;
+                }
             }
-            self.reinit_count += 1;
+            if self.opts.reinit && T::of(10.0) * abs_e > trace {
+                for f in filters.iter_mut() {
+                    f.reinitialize();
+                }
+                self.reinit_count += 1;
+            }
         }
         Ok(())
     }
@@ -581,7 +588,7 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
             e[i] = z[rows[i]] - theta[i].dot(x);
             abs_e += e[i].abs();
         }
-        if !((u.abs().sum() * u.abs().sum()) + g.abs().sum() * abs_e).finite() {
+        if !(qx.abs().sum() * inv_s * abs_e).finite() {
             return Err(OVERFLOW);
         }
         for i in 0..k {

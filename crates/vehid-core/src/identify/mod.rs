@@ -103,6 +103,8 @@ pub trait Store<T: Real, const N: usize>: Clone + core::fmt::Debug {
     type Scalars: Flat<T>;
     /// One `N`-vector per row (`K`).
     type Vecs: Flat<SVector<T, N>>;
+    /// One pair of values per row (`K`).
+    type Vecs2: Flat<nalgebra::Vector2<T>>;
     /// One decoupled filter per row (`K`).
     type Filters: Flat<RowIdentifier<T, N>>;
     /// One value per pair of rows (`K²`).
@@ -121,6 +123,7 @@ impl<T: Real, const N: usize, const K: usize> Store<T, N> for Fixed<K> {
     type Rows = [usize; K];
     type Scalars = [T; K];
     type Vecs = [SVector<T, N>; K];
+    type Vecs2 = [nalgebra::Vector2<T>; K];
     type Filters = [RowIdentifier<T, N>; K];
     type PairScalars = [[T; K]; K];
     type PairVecs = [[SVector<T, N>; K]; K];
@@ -136,6 +139,7 @@ impl<T: Real, const N: usize> Store<T, N> for Dynamic {
     type Rows = alloc::vec::Vec<usize>;
     type Scalars = alloc::vec::Vec<T>;
     type Vecs = alloc::vec::Vec<SVector<T, N>>;
+    type Vecs2 = alloc::vec::Vec<nalgebra::Vector2<T>>;
     type Filters = alloc::vec::Vec<RowIdentifier<T, N>>;
     type PairScalars = alloc::vec::Vec<T>;
     type PairVecs = alloc::vec::Vec<SVector<T, N>>;
