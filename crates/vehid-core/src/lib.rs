@@ -41,3 +41,8 @@ pub mod sim;
 pub use error::{Error, Result};
 pub use nalgebra;
 pub use scalar::Real;
+
+/// The README's Rust examples, compiled and run as doctests so they cannot rot.
+#[cfg(all(doctest, feature = "std"))]
+#[doc = include_str!("../../../README.md")]
+pub struct ReadmeDoctests;
