@@ -22,7 +22,7 @@ $(VENV)/.installed:
 # A stale extension module in python/vehid/ would shadow the fresh build: remove it first.
 develop: venv
 	rm -f python/vehid/*.so python/vehid/*.pyd
-	VIRTUAL_ENV="$(abspath $(VENV))" $(VBIN)/maturin develop --release --quiet
+	env -u CONDA_PREFIX VIRTUAL_ENV="$(abspath $(VENV))" $(VBIN)/maturin develop --release --quiet
 
 demo: develop
 	$(VBIN)/vehid demo

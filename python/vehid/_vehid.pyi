@@ -52,20 +52,20 @@ class LinearModel:
     @property
     def structural_zeros(self) -> NDArray[np.bool_]: ...
     def poles(self) -> NDArray[np.complex128]: ...
-    def output_std(self, road_sigma: Optional[_Floats] = None, hold: float = 0.05) -> NDArray[np.float64]: ...
+    def output_std(self, road_sigma: _Floats = 1.0, hold: float = 0.05) -> NDArray[np.float64]: ...
     def row_noise_var(
-        self, road_sigma: Optional[_Floats] = None, deriv_noise: Optional[_Floats] = None
+        self, road_sigma: _Floats = 0.1, deriv_noise: _Floats = 0.005
     ) -> NDArray[np.float64]: ...
     def sampled_cov(
         self,
-        road_sigma: Optional[_Floats] = None,
+        road_sigma: _Floats = 0.1,
         dt: float = 0.05,
         method: _Method = "rk4",
         substeps: Optional[int] = None,
     ) -> NDArray[np.float64]: ...
     def sampled_std(
         self,
-        road_sigma: Optional[_Floats] = None,
+        road_sigma: _Floats = 0.1,
         dt: float = 0.05,
         method: _Method = "rk4",
         substeps: Optional[int] = None,
@@ -137,10 +137,10 @@ class Simulator:
         cls,
         model: LinearModel,
         dt: float = 0.05,
-        road_sigma: Optional[_Floats] = None,
+        road_sigma: _Floats = 0.1,
         ic_sigma: float = 0.0,
-        state_noise: Optional[_Floats] = None,
-        deriv_noise: Optional[_Floats] = None,
+        state_noise: _Floats = 0.0,
+        deriv_noise: _Floats = 0.005,
         seed: int = 1,
         substeps: Optional[int] = None,
         method: _Method = "rk4",

@@ -187,7 +187,7 @@ impl PyLinearModel {
     /// Eq 4.27: standard deviation of each state (continuous time, every instant alike) under
     /// road noise of standard deviation `road_sigma` (scalar or one per input) held for
     /// `hold` seconds. (n,).
-    #[pyo3(signature = (road_sigma = None, hold = 0.05))]
+    #[pyo3(signature = (road_sigma = None, hold = 0.05), text_signature = "(self, road_sigma=1.0, hold=0.05)")]
     fn output_std<'py>(
         &self,
         py: Python<'py>,
@@ -202,7 +202,10 @@ impl PyLinearModel {
 
     /// Diagonal of R_v + B R_u Bᵀ on the unknown rows (Eq 4.7), (len(unknown_rows),).
     /// `road_sigma`: scalar or one per input; `deriv_noise`: scalar or one per state.
-    #[pyo3(signature = (road_sigma = None, deriv_noise = None))]
+    #[pyo3(
+        signature = (road_sigma = None, deriv_noise = None),
+        text_signature = "(self, road_sigma=0.1, deriv_noise=0.005)"
+    )]
     fn row_noise_var<'py>(
         &self,
         py: Python<'py>,
@@ -219,7 +222,10 @@ impl PyLinearModel {
     /// Stationary covariance (n, n) of the state at the sample instants of the discretized
     /// system `x(k+1) = Φ x(k) + Γ u(k)` that `Simulator` steps (`method` "rk4" or "exact",
     /// `substeps` as for `Simulator`).
-    #[pyo3(signature = (road_sigma = None, dt = 0.05, method = "rk4", substeps = None))]
+    #[pyo3(
+        signature = (road_sigma = None, dt = 0.05, method = "rk4", substeps = None),
+        text_signature = "(self, road_sigma=0.1, dt=0.05, method='rk4', substeps=None)"
+    )]
     fn sampled_cov<'py>(
         &self,
         py: Python<'py>,
@@ -234,7 +240,10 @@ impl PyLinearModel {
 
     /// Standard deviation (n,) of each state at the sample instants (square root of the
     /// diagonal of `sampled_cov`): what a long simulation's `run.x.std(axis=0)` estimates.
-    #[pyo3(signature = (road_sigma = None, dt = 0.05, method = "rk4", substeps = None))]
+    #[pyo3(
+        signature = (road_sigma = None, dt = 0.05, method = "rk4", substeps = None),
+        text_signature = "(self, road_sigma=0.1, dt=0.05, method='rk4', substeps=None)"
+    )]
     fn sampled_std<'py>(
         &self,
         py: Python<'py>,

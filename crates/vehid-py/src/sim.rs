@@ -81,7 +81,10 @@ impl PySimulator {
     #[new]
     #[pyo3(signature = (model, dt = 0.05, road_sigma = None, ic_sigma = 0.0, state_noise = None,
                         deriv_noise = None, seed = 1, substeps = None, method = "rk4", pulses = None,
-                        instrumentation = false))]
+                        instrumentation = false),
+           text_signature = "(model, dt=0.05, road_sigma=0.1, ic_sigma=0.0, state_noise=0.0, \
+                             deriv_noise=0.005, seed=1, substeps=None, method='rk4', pulses=None, \
+                             instrumentation=False)")]
     #[allow(clippy::too_many_arguments)]
     fn py_new(
         model: Bound<'_, PyLinearModel>,
