@@ -10,7 +10,7 @@
 //! their number small; all per-(N, M) work is in five functions.
 
 use numpy::Complex64;
-use vehid_core::analysis::{auto_substeps, discrete_stationary_cov, output_std, rk4_map, zoh};
+use vehid_core::analysis::{discrete_stationary_cov, output_std};
 use vehid_core::model::LinearModel;
 use vehid_core::nalgebra::SMatrix;
 use vehid_core::sim::{per_component, Method, Pulse, Run, SimConfig, Simulator};
@@ -181,7 +181,8 @@ pub fn row_noise_var_nm<const N: usize, const M: usize>(
 }
 
 /// Stationary covariance (`n × n`, row-major) of the state at the sample instants of the
-/// discretized system the simulator uses, and the RK4 sub-steps used (0 for exact).
+/// discretized system a `Simulator` with these settings steps: its own `(Φ, Γ)` (so the
+/// sub-step choice and the RK4 stability check are the simulator's, not repeated here).
 pub fn sampled_cov_nm<const N: usize, const M: usize>(
     d: &ModelData,
     road_sigma: &[f64],
@@ -189,15 +190,12 @@ pub fn sampled_cov_nm<const N: usize, const M: usize>(
     method: Method,
     substeps: Option<usize>,
 ) -> Result<Vec<f64>> {
-    let model = d.model::<N, M>()?;
-    let (phi, gamma) = match method {
-        Method::Exact => zoh(&model, dt)?,
-        Method::Rk4 => {
-            let sub = substeps.unwrap_or_else(|| auto_substeps(&model, dt));
-            rk4_map(&model, dt, sub)?
-        }
-    };
-    let p = discrete_stationary_cov(&phi, &gamma, road_sigma)?;
+    let mut cfg = SimConfig::<f64, N, M>::new(dt);
+    cfg.method = method;
+    cfg.substeps = substeps;
+    let sim = Simulator::new(d.model::<N, M>()?, cfg, 0)?;
+    let (phi, gamma) = sim.transition();
+    let p = discrete_stationary_cov(phi, gamma, road_sigma)?;
     Ok((0..N * N).map(|k| p[(k / N, k % N)]).collect())
 }
 
