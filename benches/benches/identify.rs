@@ -1,0 +1,139 @@
+//! ns per sample update of every identifier, quarter car (4 states) and half car (8 states),
+//! f32 and f64, plus batch least squares per sample and the simulator's throughput.
+//!
+//! Run: `cargo bench -p vehid-benches --bench identify` (about 2 minutes). Inputs are seeded
+//! simulations cycled through, so the filters see realistic, converging data.
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use std::hint::black_box;
+use std::time::Duration;
+use vehid_core::identify::{
+    BatchLeastSquares, FullKalmanIdentifier, Gain, KalmanIdentifier, LsAccumulator, SharedKalmanIdentifier,
+    StochasticGradient,
+};
+use vehid_core::model::{HalfCar, LinearModel, QuarterCar};
+use vehid_core::nalgebra::SVector;
+use vehid_core::sim::{Method, SimConfig, Simulator};
+use vehid_core::Real;
+
+const LEN: usize = 4096;
+
+fn samples<T: Real, const N: usize, const M: usize>(model: LinearModel<T, N, M>) -> Vec<(SVector<T, N>, SVector<T, N>)> {
+    let cfg = SimConfig::new(T::of(0.05)).road_sigma(T::of(0.1)).ic_sigma(T::of(0.1)).deriv_noise(T::of(0.005));
+    let mut sim = Simulator::new(model, cfg, 42).unwrap();
+    (0..LEN).map(|_| sim.next_sample()).map(|s| (s.r, s.z)).collect()
+}
+
+/// Benchmarks `update` over the cycled samples.
+fn bench_updates<T: Real, const N: usize>(
+    c: &mut Criterion,
+    group: &str,
+    data: &[(SVector<T, N>, SVector<T, N>)],
+    mut update: impl FnMut(&SVector<T, N>, &SVector<T, N>),
+    name: &str,
+) {
+    let mut g = c.benchmark_group(group);
+    g.throughput(Throughput::Elements(1));
+    let mut i = 0usize;
+    g.bench_function(name, |b| {
+        b.iter(|| {
+            let (x, z) = &data[i];
+            i = (i + 1) & (LEN - 1);
+            update(black_box(x), black_box(z));
+        })
+    });
+    g.finish();
+}
+
+macro_rules! kalman_benches {
+    ($c:expr, $t:ty, $label:literal) => {{
+        let q = QuarterCar::<$t>::thesis();
+        let h = HalfCar::<$t>::thesis();
+        let qd = samples(q.model());
+        let hd = samples(h.model());
+        let rq: [$t; 2] = q.model().row_noise_var(0.1 as $t, 0.005 as $t).unwrap();
+        let rh: [$t; 4] = h.model().row_noise_var(0.1 as $t, 0.005 as $t).unwrap();
+        let group = concat!("update_", $label);
+
+        let mut id = KalmanIdentifier::<$t, 4, 2>::new(q.unknown_rows(), 1000.0, rq).unwrap();
+        bench_updates($c, group, &qd, |x, z| { let _ = black_box(id.update(x, z)); }, "quarter/kalman_rows");
+        let mut id = KalmanIdentifier::<$t, 8, 4>::new(h.unknown_rows(), 1000.0, rh).unwrap();
+        bench_updates($c, group, &hd, |x, z| { let _ = black_box(id.update(x, z)); }, "half/kalman_rows");
+
+        let mut id = SharedKalmanIdentifier::<$t, 4, 2>::new(q.unknown_rows(), 1000.0, [1.0; 2]).unwrap();
+        bench_updates($c, group, &qd, |x, z| { let _ = black_box(id.update(x, z)); }, "quarter/kalman_shared");
+        let mut id = SharedKalmanIdentifier::<$t, 8, 4>::new(h.unknown_rows(), 1000.0, [1.0; 4]).unwrap();
+        bench_updates($c, group, &hd, |x, z| { let _ = black_box(id.update(x, z)); }, "half/kalman_shared");
+
+        let rfull = vehid_core::nalgebra::SMatrix::<$t, 2, 2>::from_diagonal(&rq.into());
+        let mut id = FullKalmanIdentifier::<$t, 4, 2>::new(q.unknown_rows(), 1000.0, rfull).unwrap();
+        bench_updates($c, group, &qd, |x, z| { let _ = black_box(id.update(x, z)); }, "quarter/kalman_full");
+        let rfull = vehid_core::nalgebra::SMatrix::<$t, 4, 4>::from_diagonal(&rh.into());
+        let mut id = FullKalmanIdentifier::<$t, 8, 4>::new(h.unknown_rows(), 1000.0, rfull).unwrap();
+        bench_updates($c, group, &hd, |x, z| { let _ = black_box(id.update(x, z)); }, "half/kalman_full");
+
+        for (gname, gain) in [
+            ("venter", Gain::Venter { p: 0.51 as $t }),
+            ("lyapunov", Gain::Lyapunov),
+            ("ljung", Gain::Ljung { lambda0: 0.99 as $t, lambda_init: 0.95 as $t }),
+        ] {
+            let mut id = StochasticGradient::<$t, 4, 2>::new(q.unknown_rows(), gain, 0.4).unwrap();
+            bench_updates($c, group, &qd, |x, z| { let _ = black_box(id.update(x, z)); }, &format!("quarter/sg_{gname}"));
+            let mut id = StochasticGradient::<$t, 8, 4>::new(h.unknown_rows(), gain, 0.4).unwrap();
+            bench_updates($c, group, &hd, |x, z| { let _ = black_box(id.update(x, z)); }, &format!("half/sg_{gname}"));
+        }
+
+        let mut acc = LsAccumulator::<$t, 4, vehid_core::identify::Fixed<2>>::new(q.unknown_rows()).unwrap();
+        bench_updates($c, group, &qd, |x, z| { let _ = black_box(acc.push(x, z)); }, "quarter/ls_accumulate");
+    }};
+}
+
+fn identifiers(c: &mut Criterion) {
+    kalman_benches!(c, f64, "f64");
+    kalman_benches!(c, f32, "f32");
+}
+
+fn batch_least_squares(c: &mut Criterion) {
+    let q = QuarterCar::<f64>::thesis();
+    let data = samples(q.model());
+    let mut g = c.benchmark_group("batch_ls_f64");
+    for n in [1_000usize, 4_096] {
+        g.throughput(Throughput::Elements(n as u64));
+        g.bench_with_input(BenchmarkId::new("quarter/push_and_solve", n), &n, |b, &n| {
+            b.iter(|| {
+                let mut ls = BatchLeastSquares::<f64, 4>::new(&q.unknown_rows()).unwrap();
+                for (x, z) in &data[..n] {
+                    ls.push(x, z).unwrap();
+                }
+                black_box(ls.solve().unwrap())
+            })
+        });
+    }
+    g.finish();
+}
+
+fn simulator(c: &mut Criterion) {
+    let mut g = c.benchmark_group("simulate_f64");
+    g.throughput(Throughput::Elements(1));
+    for (name, method) in [("rk4", Method::Rk4), ("exact", Method::Exact)] {
+        let mut cfg = SimConfig::<f64, 4, 1>::new(0.05).road_sigma(0.1).deriv_noise(0.005);
+        cfg.method = method;
+        let mut sim = Simulator::new(QuarterCar::thesis().model(), cfg, 1).unwrap();
+        g.bench_function(format!("quarter/{name}"), |b| b.iter(|| black_box(sim.next_sample())));
+        let mut cfg = SimConfig::<f64, 8, 2>::new(0.05).road_sigma(0.1).deriv_noise(0.005);
+        cfg.method = method;
+        let mut sim = Simulator::new(HalfCar::thesis().model(), cfg, 1).unwrap();
+        g.bench_function(format!("half/{name}"), |b| b.iter(|| black_box(sim.next_sample())));
+    }
+    g.finish();
+}
+
+fn config() -> Criterion {
+    Criterion::default()
+        .warm_up_time(Duration::from_millis(300))
+        .measurement_time(Duration::from_millis(1200))
+        .sample_size(30)
+}
+
+criterion_group! { name = benches; config = config(); targets = identifiers, batch_least_squares, simulator }
+criterion_main!(benches);
