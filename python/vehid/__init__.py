@@ -14,11 +14,14 @@ Python face.
 """
 
 from ._vehid import (
+    BatchLeastSquares,
     HalfCar,
+    KalmanIdentifier,
     LinearModel,
     QuarterCar,
     Run,
     Simulator,
+    StochasticGradient,
     VehidError,
     __version__,
     snr_db,
@@ -26,11 +29,14 @@ from ._vehid import (
 )
 
 __all__ = [
+    "BatchLeastSquares",
     "HalfCar",
+    "KalmanIdentifier",
     "LinearModel",
     "QuarterCar",
     "Run",
     "Simulator",
+    "StochasticGradient",
     "VehidError",
     "__version__",
     "snr_db",

@@ -19,9 +19,7 @@ use vehid_core::nalgebra::{SMatrix, SVector};
 use vehid_core::{Error, Result};
 
 /// What the Python classes need from any recursive identifier, over run-time sizes.
-pub trait Ident: Send {
-    /// Number of unknown rows.
-    fn k(&self) -> usize;
+pub trait Ident: Send + Sync {
     /// One sample (`x`, `z` of length n); innovations into `e` (length k).
     fn update(&mut self, x: &[f64], z: &[f64], e: &mut [f64]) -> Result<()>;
     /// Every sample of row-major `r`, `z` (`len × n`); θ row-major appended to `hist` every
@@ -42,7 +40,7 @@ pub trait Ident: Send {
 }
 
 /// The per-`N` view of a core identifier that [`Adapter`] turns into an [`Ident`].
-trait Core<const N: usize>: Send {
+trait Core<const N: usize>: Send + Sync {
     fn step(&mut self, x: &SVector<f64, N>, z: &SVector<f64, N>, e: &mut [f64]) -> Result<()>;
     fn theta_into(&self, out: &mut [f64]) -> Result<()>;
     fn rows_len(&self) -> usize;
@@ -56,10 +54,6 @@ trait Core<const N: usize>: Send {
 struct Adapter<C, const N: usize>(C);
 
 impl<C: Core<N>, const N: usize> Ident for Adapter<C, N> {
-    fn k(&self) -> usize {
-        self.0.rows_len()
-    }
-
     fn update(&mut self, x: &[f64], z: &[f64], e: &mut [f64]) -> Result<()> {
         if x.len() != N {
             return Err(Error::Shape { arg: "r_k", expected: N, got: x.len() });
@@ -346,7 +340,7 @@ fn gradient_n<const N: usize>(s: &GradientSpec) -> Result<Box<dyn Ident>> {
 }
 
 /// Batch least squares over run-time sizes.
-pub trait Batch: Send {
+pub trait Batch: Send + Sync {
     fn extend(&mut self, r: &[f64], z: &[f64]) -> Result<()>;
     fn solve(&self) -> Result<Vec<f64>>;
     fn samples(&self) -> usize;
@@ -521,7 +515,6 @@ impl PyKalmanIdentifier {
     #[pyo3(signature = (model, p0 = None, r = None, *, road_sigma = None, deriv_noise = None, reinit = false, mode = "rows", joseph = false, retire_below = 0.0))]
     #[allow(clippy::too_many_arguments)]
     fn py_new(
-        py: Python<'_>,
         model: &Bound<'_, PyLinearModel>,
         p0: Option<&Bound<'_, PyAny>>,
         r: Option<&Bound<'_, PyAny>>,
@@ -570,7 +563,7 @@ impl PyKalmanIdentifier {
             (None, rs, dn) if rs.is_some() || dn.is_some() => {
                 let rs = crate::convert::values(rs, "road_sigma", 0.0)?;
                 let dn = crate::convert::values(dn, "deriv_noise", 0.0)?;
-                m.row_noise_var_vec(py, &rs, &dn)?
+                m.row_noise_var_vec(&rs, &dn)?
             }
             (None, None, None) => {
                 return Err(VehidError::new_err(

@@ -10,6 +10,7 @@ use vehid_core::sim::Method;
 
 mod convert;
 mod dispatch;
+mod identify;
 mod model;
 mod sim;
 
@@ -102,7 +103,7 @@ fn snr_db<'py>(
     Ok(arr.into_pyarray(py).into_any())
 }
 
-/// vehid's compiled core: models, simulator, metrics.
+/// vehid's compiled core: models, simulator, identifiers, metrics.
 #[pymodule]
 fn _vehid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("VehidError", m.py().get_type::<VehidError>())?;
@@ -112,6 +113,9 @@ fn _vehid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<model::PyHalfCar>()?;
     m.add_class::<sim::PySimulator>()?;
     m.add_class::<sim::PyRun>()?;
+    m.add_class::<identify::PyKalmanIdentifier>()?;
+    m.add_class::<identify::PyStochasticGradient>()?;
+    m.add_class::<identify::PyBatchLeastSquares>()?;
     m.add_function(wrap_pyfunction!(xi, m)?)?;
     m.add_function(wrap_pyfunction!(snr_db, m)?)?;
     Ok(())

@@ -59,6 +59,12 @@ impl PyLinearModel {
         Self { data, kind }
     }
 
+    /// Eq 4.7 per-row variances for already converted noise levels.
+    pub(crate) fn row_noise_var_vec(&self, road: &[f64], deriv: &[f64]) -> PyResult<Vec<f64>> {
+        let d = &self.data;
+        dispatch_nm!(d.n, d.m, row_noise_var_nm(d, road, deriv)).map_err(core_err)
+    }
+
     fn theta_hat_arg(&self, theta_hat: &Bound<'_, PyAny>) -> PyResult<Vec<f64>> {
         let (k, n) = (self.data.rows.len(), self.data.n);
         let (_, _, v) = matrix(theta_hat, "theta_hat", Some(k), Some(n))?;

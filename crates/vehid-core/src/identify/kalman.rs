@@ -27,7 +27,9 @@
 //! counters); the shared form needs 144 and 456.
 //! Both are within the thesis' 352 and 2800 bytes. These figures are asserted in the tests.
 
-use super::{check_sample, per_row, rows_buffer, Dynamic, Fixed, Flat, Store, OVERFLOW};
+#[cfg(feature = "alloc")]
+use super::Dynamic;
+use super::{check_sample, per_row, rows_buffer, Fixed, Flat, Store, OVERFLOW};
 use crate::error::{check_finite, check_nonneg, check_positive};
 use crate::linalg::{cholesky_in_place, cholesky_solve, symmetrize};
 use crate::{Error, Real, Result};
