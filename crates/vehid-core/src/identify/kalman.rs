@@ -31,7 +31,7 @@
 use super::Dynamic;
 use super::{check_sample, per_row, rows_buffer, Fixed, Flat, Store, OVERFLOW};
 use crate::error::{check_finite, check_nonneg, check_positive};
-use crate::linalg::{cholesky_in_place, cholesky_solve, symmetrize};
+use crate::linalg::{axpy, cholesky_in_place, cholesky_solve, mat_vec, sym_downdate, symmetrize};
 use crate::{Error, Real, Result};
 use nalgebra::{SMatrix, SVector};
 
@@ -161,7 +161,7 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
         if self.retired {
             return Ok((T::zero(), T::zero()));
         }
-        self.p.mul_to(x, px);
+        mat_vec(&self.p, x, px);
         let s = x.dot(px) + self.r;
         if !s.finite() {
             return Err(OVERFLOW);
@@ -196,18 +196,9 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
         if d == T::zero() {
             return;
         }
-        self.theta.axpy(c, px, T::one());
+        axpy(&mut self.theta, c, px);
         match form {
-            CovarianceForm::Standard => {
-                // u_i u_j = u_j u_i exactly, so P stays exactly symmetric.
-                let u = px * d;
-                for j in 0..N {
-                    let uj = u[j];
-                    for i in 0..N {
-                        self.p[(i, j)] -= u[i] * uj;
-                    }
-                }
-            }
+            CovarianceForm::Standard => sym_downdate(&mut self.p, &(px * d)),
             CovarianceForm::Joseph => {
                 let g = px * (d * d);
                 let a = SMatrix::<T, N, N>::identity() - g * x.transpose();
@@ -573,7 +564,8 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
         if e.len() != k {
             return Err(Error::Shape { arg: "e", expected: k, got: e.len() });
         }
-        let qx = self.q * x;
+        let mut qx = SVector::<T, N>::zeros();
+        mat_vec(&self.q, x, &mut qx);
         let s = x.dot(&qx) + T::one();
         if !s.finite() {
             return Err(OVERFLOW);
@@ -594,16 +586,10 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
             return Err(OVERFLOW);
         }
         for i in 0..k {
-            theta[i] += g * e[i];
+            axpy(&mut theta[i], e[i], &g);
         }
         match self.opts.form {
-            CovarianceForm::Standard => {
-                for j in 0..N {
-                    for i in 0..N {
-                        self.q[(i, j)] -= u[i] * u[j];
-                    }
-                }
-            }
+            CovarianceForm::Standard => sym_downdate(&mut self.q, &u),
             CovarianceForm::Joseph => {
                 let a = SMatrix::<T, N, N>::identity() - g * x.transpose();
                 self.q = a * self.q * a.transpose() + g * g.transpose();
