@@ -10,10 +10,13 @@
 //!
 //! Modules, one per concept:
 //! - [`model`]: linear models, the quarter car (Eq 3.11) and the half car (Eq 6.1–6.6);
-//! - [`sim`]: a seeded simulator with every noise source of the thesis (Ch. III.C);
+//! - [`sim`]: a seeded simulator with every noise source of the thesis (Ch. III.C), and a
+//!   road simulator for two axles on one road driven at a speed profile (Ch. VI.D);
+//! - [`sampler`]: distance-triggered sampling that pairs rear- and front-axle samples (Eq 6.12–6.14);
 //! - [`analysis`]: discretization, stationary covariances, Eq 4.27 output standard deviations;
 //! - [`metrics`]: the parameter error measure ξ (Eq 3.17) and sensor SNR (Eq 4.31);
-//! - [`identify`]: batch least squares, the Kalman-filter identifier, stochastic gradient.
+//! - [`identify`]: batch least squares, the Kalman-filter identifier, stochastic gradient,
+//!   and the two-axle identifier (thesis' Eq 6.14 and road cancellation).
 //!
 //! Everything is generic over the scalar ([`Real`]: `f32` or `f64`) and over the dimensions
 //! (const generics). The per-sample paths allocate nothing.
@@ -35,6 +38,7 @@ pub mod identify;
 pub mod linalg;
 pub mod metrics;
 pub mod model;
+pub mod sampler;
 mod scalar;
 pub mod sim;
 

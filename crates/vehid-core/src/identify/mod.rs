@@ -5,6 +5,7 @@
 //! | [`BatchLeastSquares`] (std), [`LsAccumulator`] | Eq 2.14, 3.4 | `least_squares.rs` |
 //! | [`KalmanIdentifier`] (decoupled rows), [`SharedKalmanIdentifier`], [`FullKalmanIdentifier`] | Eq 4.3–4.7, 4.35–4.36, 6.16–6.18 | `kalman.rs` |
 //! | [`StochasticGradient`] | Eq 2.56, 5.2–5.18 | `gradient.rs` |
+//! | [`TwoAxleIdentifier`] (two axles on one road: plain, Eq 6.14, road cancellation) | Eq 6.9, 6.12–6.14 | `two_axle.rs` |
 //!
 //! All of them regress the measured derivative of each unknown row on the measured state:
 //! `z_i(k) = r(k)ᵀ θ_i + ε_i(k)` (Eq 2.2–2.4 with `H = I ⊗ xᵀ`). Every per-sample update is
@@ -22,6 +23,7 @@
 mod gradient;
 mod kalman;
 mod least_squares;
+mod two_axle;
 
 pub use gradient::{Gain, GradientCore, StochasticGradient};
 #[cfg(feature = "alloc")]
@@ -33,6 +35,9 @@ pub use kalman::{
 #[cfg(feature = "alloc")]
 pub use kalman::{FullKalmanIdentifierVec, KalmanIdentifierVec, SharedKalmanIdentifierVec};
 pub use least_squares::LsAccumulator;
+pub use two_axle::{Past, TwoAxle, TwoAxleConfig, TwoAxleIdentifier, WheelMethod};
+#[cfg(feature = "alloc")]
+pub use two_axle::TwoAxleIdentifierVec;
 #[cfg(feature = "std")]
 pub use least_squares::BatchLeastSquares;
 

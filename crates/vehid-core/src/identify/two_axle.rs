@@ -1,0 +1,493 @@
+//! Two axles on one road (Ch. VI.D, thesis-notes §3): identifying the wheel rows when the
+//! rear wheel meets the front wheel's road one wheelbase later.
+//!
+//! Samples are taken every `spacing` metres (`Δ`, see [`crate::sampler::AxleSampler`]), and
+//! `d = L / Δ` (`L = l1 + l2`), so the rear input at sample `k` is the front input at sample
+//! `k − d`: `u2(k) = u1(k − d)` (Eq 6.9). With `ρ = b42 / b21` (rear over front entry of `B`)
+//! the wheel rows can be identified three ways ([`WheelMethod`]):
+//!
+//! - **`None`**: the plain decoupled rows (Eq 6.16–6.18) with `r = σ_v² + b² σ_u²` (Eq 4.7).
+//!   The rear input is correlated with the state, so the rear row is biased (Fig 6-8).
+//! - **`Thesis`** (Eq 6.12–6.14): the front row's innovation `e1(k) = z2 − xᵀθ̂_2 ≈ b21 u1(k)`
+//!   estimates the road, and the rear row's innovation becomes
+//!   `e2(k) = z4(k) − x(k)ᵀθ̂_4 − ρ·e1(k − d)`. The rear row keeps the variance of Eq 4.7
+//!   (as the thesis did: the subtracted innovation carries the front row's own estimation
+//!   error). The rear row is not updated before its first pair.
+//! - **`Cancel`** (road cancellation): `z4(k) − ρ z2(k − d) = a4ᵀ x(k) − ρ a2ᵀ x(k − d)
+//!   + v4(k) − ρ v2(k − d)`: the road input cancels exactly. One recursive least squares on
+//!   the regressor `[x(k); −ρ x(k − d)]` estimates both wheel rows jointly (`2N` parameters,
+//!   `[a4; a2]`) with the noise variance `σ_v² (1 + ρ²)` and no road term. The direct
+//!   front-row equation `z2(k) = a2ᵀ x(k) + b21 u1(k) + v2(k)` is added as a second source,
+//!   weighted by its own variance `σ_v² + b21² σ_u²` (optional, [`TwoAxleConfig::direct_front`]).
+//!
+//! The other unknown rows (the half car's body rows) are the plain Kalman rows
+//! ([`KalmanRows`]); rows without an input have `r = σ_v²`.
+//!
+//! Each sample is identified by its road-point (grid) index; [`TwoAxle::update_into`] with
+//! `grid = None` takes the next one. A ring of the last `d` samples (a fixed array `[_; C]`,
+//! or a `Vec`) holds what the pairing needs. Nothing here uses the time between samples.
+
+use super::{check_sample, KalmanOptions, KalmanRows, RowIdentifier, Store};
+use crate::error::{check_nonneg, check_positive};
+use crate::model::{LinearModel, RowSet};
+use crate::sampler::RingStore;
+use crate::{Error, Real, Result};
+use nalgebra::{SMatrix, SVector};
+
+use super::{CovarianceForm, Fixed};
+#[cfg(feature = "alloc")]
+use super::Dynamic;
+
+/// How the wheel rows are identified.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum WheelMethod {
+    /// Plain decoupled rows (Eq 6.16–6.18): biased on the rear row by the correlated input.
+    None,
+    /// The thesis' innovation subtraction (Eq 6.12–6.14).
+    Thesis,
+    /// Road cancellation: the joint regression in which the shared road input cancels.
+    #[default]
+    Cancel,
+}
+
+/// Settings of a [`TwoAxle`] identifier: method, prior and noise levels (each equation's
+/// variance is derived from the noise levels).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TwoAxleConfig<T> {
+    /// How the wheel rows are identified.
+    pub method: WheelMethod,
+    /// `P(0)` on the wheel rows (`p0 I`; the thesis: 1000).
+    pub p0_wheel: T,
+    /// `P(0)` on the other unknown rows (the thesis' 8-state study used 8).
+    pub p0_body: T,
+    /// Road standard deviation σ_u, m.
+    pub road_sigma: T,
+    /// Derivative measurement noise σ_v (every component), state units per second.
+    pub deriv_noise: T,
+    /// `Cancel` only: also use the direct front-row equation, weighted by its variance.
+    pub direct_front: bool,
+}
+
+impl<T: Real> TwoAxleConfig<T> {
+    /// `p0` on every row, the direct front equation on.
+    pub fn new(method: WheelMethod, p0: T, road_sigma: T, deriv_noise: T) -> Self {
+        Self { method, p0_wheel: p0, p0_body: p0, road_sigma, deriv_noise, direct_front: true }
+    }
+
+    fn validate(&self) -> Result<()> {
+        check_positive("p0", self.p0_wheel)?;
+        check_positive("p0", self.p0_body)?;
+        check_nonneg("road_sigma", self.road_sigma)?;
+        check_nonneg("deriv_noise", self.deriv_noise)
+    }
+}
+
+/// One remembered sample of the ring: its grid index, measured state `r(k)`, front-row
+/// derivative `z2(k)` and front-row innovation `e1(k)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Past<T: Real, const N: usize> {
+    /// Grid (road-point) index.
+    pub grid: u64,
+    /// Measured state `r(k)`.
+    pub x: SVector<T, N>,
+    /// Measured derivative of the front wheel row, `z2(k)`.
+    pub z_front: T,
+    /// Front-row innovation `e1(k) = z2(k) − r(k)ᵀ θ̂_2(k−1)` (Eq 6.13).
+    pub e_front: T,
+    /// `false` for an empty slot.
+    pub valid: bool,
+}
+
+/// The two-axle identifier over a body-row [`Store`] `S` and a ring storage `B`; see
+/// [`TwoAxleIdentifier`] (no allocation) and `TwoAxleIdentifierVec` (heap).
+///
+/// `P` must be `2 N` (the joint regression of the `Cancel` method; checked at construction).
+#[derive(Debug, Clone)]
+pub struct TwoAxle<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<T, N>>> {
+    model: LinearModel<T, N, 2>,
+    rows: RowSet<N>,
+    cfg: TwoAxleConfig<T>,
+    front_row: usize,
+    rear_row: usize,
+    ratio: T,
+    d: usize,
+    r_front: T,
+    r_rear: T,
+    r_cancel: T,
+    direct_scale: T,
+    front: RowIdentifier<T, N>,
+    rear: RowIdentifier<T, N>,
+    joint: RowIdentifier<T, P>,
+    body: Option<KalmanRows<T, N, S>>,
+    ring: B,
+    last_grid: Option<u64>,
+    samples: u64,
+    paired: u64,
+}
+
+/// The two-axle identifier with fixed storage: `N` states, `P = 2N` joint parameters, `KB`
+/// body rows (unknown rows other than the two wheel rows), a ring of `C ≥ d` samples. No
+/// allocation. The thesis' half car: `TwoAxleIdentifier<f64, 8, 16, 2, C>`.
+///
+/// # Examples
+/// ```
+/// use vehid_core::identify::{TwoAxleConfig, TwoAxleIdentifier, WheelMethod};
+/// use vehid_core::model::HalfCar;
+/// use vehid_core::sim::{RoadConfig, RoadSimulator, SimConfig};
+/// let car = HalfCar::<f64>::thesis();
+/// let road = RoadConfig::new(0.3, car.wheelbase());         // d = 3 m / 0.3 m = 10
+/// let cfg = SimConfig::new(0.05).road_sigma(0.1).deriv_noise(0.005);
+/// let mut sim = RoadSimulator::<f64, 8, 16>::new(car.model(), cfg, road, 1)?;
+/// let id_cfg = TwoAxleConfig::new(WheelMethod::Cancel, 1000.0, 0.1, 0.005);
+/// let mut id = TwoAxleIdentifier::<f64, 8, 16, 2, 16>::new(&car.model(), 10, id_cfg)?;
+/// for _ in 0..2000 {
+///     let s = sim.next_sample(6.0)?;                        // 6 m/s: one sample per 0.3 m
+///     id.update(&s.r, &s.z)?;
+/// }
+/// let theta = id.theta::<4>()?;                             // rows 1, 3, 5, 7 of A
+/// assert!((theta[(0, 0)] / car.theta()[(0, 0)] - 1.0).abs() < 0.1);
+/// # Ok::<(), vehid_core::Error>(())
+/// ```
+pub type TwoAxleIdentifier<T, const N: usize, const P: usize, const KB: usize, const C: usize> =
+    TwoAxle<T, N, P, Fixed<KB>, [Past<T, N>; C]>;
+
+/// [`TwoAxle`] with heap storage (any number of body rows, any `d`).
+#[cfg(feature = "alloc")]
+pub type TwoAxleIdentifierVec<T, const N: usize, const P: usize> = TwoAxle<T, N, P, Dynamic, alloc::vec::Vec<Past<T, N>>>;
+
+/// The wheel rows: the unknown row each input enters (exactly one each).
+fn wheel_rows<T: Real, const N: usize>(model: &LinearModel<T, N, 2>) -> Result<(usize, usize)> {
+    const BAD: Error = Error::InvalidArgument {
+        arg: "b",
+        expected: "two inputs (front, rear road), each entering exactly one unknown row of its own \
+                   (the front and rear wheel rows), as in the half car",
+    };
+    let b = model.b();
+    let only = |col: usize| -> Result<usize> {
+        let mut found = None;
+        for i in 0..N {
+            if b[(i, col)] != T::zero() {
+                if found.is_some() {
+                    return Err(BAD);
+                }
+                found = Some(i);
+            }
+        }
+        found.ok_or(BAD)
+    };
+    let (f, r) = (only(0)?, only(1)?);
+    let rows = model.unknown_rows();
+    if f == r || !rows.contains(f) || !rows.contains(r) {
+        return Err(BAD);
+    }
+    Ok((f, r))
+}
+
+impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<T, N>>> TwoAxle<T, N, P, S, B> {
+    /// Builds the identifier for a 2-input model (front and rear road) whose inputs each
+    /// enter one unknown row, with `d` road points (samples) between the axles.
+    ///
+    /// Variances (per equation, from the noise levels): front and rear rows
+    /// `σ_v² + b² σ_u²` (Eq 4.7); the cancelled equation `σ_v² (1 + ρ²)`; the other rows
+    /// `σ_v² + Σ_j (B_ij σ_u)²`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for `p0 ≤ 0`, negative noise levels, `d = 0`, or a `B` that
+    /// is not two wheel inputs; [`Error::Shape`] when `P ≠ 2N` or when a fixed body store
+    /// does not hold exactly the other unknown rows; [`Error::Capacity`] when the ring holds
+    /// fewer than `d` samples.
+    pub fn new(model: &LinearModel<T, N, 2>, d: usize, cfg: TwoAxleConfig<T>) -> Result<Self> {
+        cfg.validate()?;
+        if P != 2 * N {
+            return Err(Error::Shape { arg: "P (joint parameters, must be 2N)", expected: 2 * N, got: P });
+        }
+        if d == 0 {
+            return Err(Error::InvalidArgument { arg: "d", expected: "at least 1 road point between the axles" });
+        }
+        let (front_row, rear_row) = wheel_rows(model)?;
+        let b = model.b();
+        let (b21, b42) = (b[(front_row, 0)], b[(rear_row, 1)]);
+        let ratio = b42 / b21;
+        let sv2 = cfg.deriv_noise * cfg.deriv_noise;
+        let su2 = cfg.road_sigma * cfg.road_sigma;
+        let r_front = sv2 + b21 * b21 * su2;
+        let r_rear = sv2 + b42 * b42 * su2;
+        let r_cancel = sv2 * (T::one() + ratio * ratio);
+        let direct_scale = if r_front > T::zero() { (r_cancel / r_front).sqrt() } else { T::one() };
+        let mut body_rows = [0usize; N];
+        let mut body_r = [T::zero(); N];
+        let mut nb = 0;
+        for &row in model.unknown_rows().as_slice() {
+            if row != front_row && row != rear_row {
+                body_rows[nb] = row;
+                let mut v = sv2;
+                for j in 0..2 {
+                    v += b[(row, j)] * b[(row, j)] * su2;
+                }
+                body_r[nb] = v;
+                nb += 1;
+            }
+        }
+        let body = if nb > 0 {
+            Some(KalmanRows::from_slices(&body_rows[..nb], &[cfg.p0_body], &body_r[..nb], KalmanOptions::default())?)
+        } else {
+            None
+        };
+        let empty = Past { grid: 0, x: SVector::zeros(), z_front: T::zero(), e_front: T::zero(), valid: false };
+        let ring = B::with_len("TwoAxle ring capacity C (samples between the axles, d)", d, empty)?;
+        Ok(Self {
+            model: model.clone(),
+            rows: model.unknown_rows(),
+            cfg,
+            front_row,
+            rear_row,
+            ratio,
+            d,
+            r_front,
+            r_rear,
+            r_cancel,
+            direct_scale,
+            front: RowIdentifier::new(cfg.p0_wheel, r_front)?,
+            rear: RowIdentifier::new(cfg.p0_wheel, r_rear)?,
+            joint: RowIdentifier::new(cfg.p0_wheel, r_cancel)?,
+            body,
+            ring,
+            last_grid: None,
+            samples: 0,
+            paired: 0,
+        })
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &TwoAxleConfig<T> {
+        &self.cfg
+    }
+
+    /// The wheel rows `(front, rear)` (0-based rows of `A`; the half car's 1 and 3).
+    pub fn wheel_rows(&self) -> (usize, usize) {
+        (self.front_row, self.rear_row)
+    }
+
+    /// `ρ = b42 / b21`.
+    pub fn ratio(&self) -> T {
+        self.ratio
+    }
+
+    /// Road points between the axles, `d`.
+    pub fn delay(&self) -> usize {
+        self.d
+    }
+
+    /// Variances `(front, rear, cancelled)` of the wheel equations.
+    pub fn wheel_variances(&self) -> (T, T, T) {
+        (self.r_front, self.r_rear, self.r_cancel)
+    }
+
+    /// Samples accepted.
+    pub fn samples(&self) -> u64 {
+        self.samples
+    }
+
+    /// Samples that found their partner `d` road points earlier.
+    pub fn paired(&self) -> u64 {
+        self.paired
+    }
+
+    /// The joint filter of the `Cancel` method (parameters `[a_rear; a_front]`).
+    pub fn joint(&self) -> &RowIdentifier<T, P> {
+        &self.joint
+    }
+
+    /// The unknown rows (0-based), in the order of θ and of the innovations.
+    pub fn rows(&self) -> &[usize] {
+        self.rows.as_slice()
+    }
+
+    /// The current estimate of row `row` of `A` (a 0-based row index of `A`); the known
+    /// row itself for a row that is not unknown.
+    pub fn theta_row(&self, row: usize) -> SVector<T, N> {
+        if row == self.front_row || row == self.rear_row {
+            let front = row == self.front_row;
+            return match self.cfg.method {
+                WheelMethod::Cancel => {
+                    let off = if front { N } else { 0 };
+                    SVector::from_fn(|j, _| self.joint.theta()[off + j])
+                }
+                _ => *if front { self.front.theta() } else { self.rear.theta() },
+            };
+        }
+        if let Some(body) = &self.body {
+            if let Some(i) = body.rows().iter().position(|&r| r == row) {
+                return *body.theta_row(i);
+            }
+        }
+        self.model.a().row(row.min(N - 1)).transpose()
+    }
+
+    /// Writes θ̂ (the unknown rows, `K × N` row-major, in the model's order) into `out`.
+    ///
+    /// # Errors
+    /// [`Error::Shape`] for a wrong length.
+    pub fn theta_into(&self, out: &mut [T]) -> Result<()> {
+        let rows = self.rows;
+        let k = rows.len();
+        if out.len() != k * N {
+            return Err(Error::Shape { arg: "out", expected: k * N, got: out.len() });
+        }
+        for (i, &row) in rows.as_slice().iter().enumerate() {
+            out[i * N..(i + 1) * N].copy_from_slice(self.theta_row(row).as_slice());
+        }
+        Ok(())
+    }
+
+    /// θ̂ as a `K × N` matrix (the half car: `K = 4`, rows 1, 3, 5, 7).
+    ///
+    /// # Errors
+    /// [`Error::Shape`] when `K` is not the number of unknown rows.
+    pub fn theta<const K: usize>(&self) -> Result<SMatrix<T, K, N>> {
+        let rows = self.rows;
+        if rows.len() != K {
+            return Err(Error::Shape { arg: "K", expected: rows.len(), got: K });
+        }
+        let mut m = SMatrix::<T, K, N>::zeros();
+        for (i, &row) in rows.as_slice().iter().enumerate() {
+            m.set_row(i, &self.theta_row(row).transpose());
+        }
+        Ok(m)
+    }
+
+    /// `Â`: the model's `A` with the unknown rows replaced by their estimates.
+    pub fn a_hat(&self) -> SMatrix<T, N, N> {
+        let mut a = *self.model.a();
+        for &row in self.rows.as_slice() {
+            a.set_row(row, &self.theta_row(row).transpose());
+        }
+        a
+    }
+
+    /// The next sample, on the road point after the previous one. See
+    /// [`TwoAxle::update_into`].
+    ///
+    /// # Errors
+    /// As [`TwoAxle::update_into`].
+    pub fn update_next(&mut self, r: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<bool> {
+        self.update_into(r, z, None, e)
+    }
+
+    /// One sample: measured state `r(k)` and derivative `z(k)` taken on road point `grid`
+    /// (`None`: the point after the previous sample's; from [`crate::sampler::Trigger::grid`]
+    /// when odometry jumped). Writes one innovation per unknown row into `e` (model order;
+    /// for the wheel rows the innovation of the equation used, 0 when a row took no step) and
+    /// returns whether the sample was paired with the one `d` road points earlier. No
+    /// allocation.
+    ///
+    /// # Errors
+    /// [`Error::NonFinite`] for NaN/inf; [`Error::InvalidArgument`] (argument `grid`) for a
+    /// grid index not after the previous one; [`Error::Shape`] for a wrong `e` length;
+    /// [`Error::Singular`] / overflow as [`RowIdentifier::update`]. The identifier is
+    /// unchanged after any error.
+    pub fn update_into(&mut self, r: &SVector<T, N>, z: &SVector<T, N>, grid: Option<u64>, e: &mut [T]) -> Result<bool> {
+        check_sample(r, z)?;
+        let rows = self.rows;
+        if e.len() != rows.len() {
+            return Err(Error::Shape { arg: "e", expected: rows.len(), got: e.len() });
+        }
+        let grid = match (grid, self.last_grid) {
+            (None, None) => 0,
+            (None, Some(g)) => g.checked_add(1).ok_or(Error::InvalidArgument { arg: "grid", expected: "a grid index < 2^64 − 1" })?,
+            (Some(g), Some(last)) if g <= last => {
+                return Err(Error::InvalidArgument { arg: "grid", expected: "road-point indices increasing from sample to sample" })
+            }
+            (Some(g), _) => g,
+        };
+        let d = self.d as u64;
+        let cap = self.ring.slots().len() as u64;
+        let past = if grid >= d {
+            let p = self.ring.slots()[((grid - d) % cap) as usize];
+            (p.valid && p.grid == grid - d).then_some(p)
+        } else {
+            None
+        };
+        let (zf, zr) = (z[self.front_row], z[self.rear_row]);
+        let form = CovarianceForm::Standard;
+        // Plan on copies; commit only when every step succeeded.
+        let mut front = self.front;
+        let mut rear = self.rear;
+        let mut joint = None;
+        let (e_front, e_rear);
+        match self.cfg.method {
+            WheelMethod::None => {
+                e_front = front.update(r, zf, form)?;
+                e_rear = rear.update(r, zr, form)?;
+            }
+            WheelMethod::Thesis => {
+                e_front = front.update(r, zf, form)?;
+                e_rear = match past {
+                    Some(p) => rear.update(r, zr - self.ratio * p.e_front, form)?,
+                    None => T::zero(),
+                };
+            }
+            WheelMethod::Cancel => {
+                let mut j = self.joint;
+                let th = j.theta();
+                e_front = zf - (0..N).fold(T::zero(), |a, i| a + th[N + i] * r[i]);
+                e_rear = match past {
+                    Some(p) => {
+                        let h = SVector::<T, P>::from_fn(|i, _| if i < N { r[i] } else { -self.ratio * p.x[i - N] });
+                        j.update(&h, zr - self.ratio * p.z_front, form)?
+                    }
+                    None => T::zero(),
+                };
+                if self.cfg.direct_front && self.direct_scale > T::zero() {
+                    let h = SVector::<T, P>::from_fn(|i, _| if i < N { T::zero() } else { r[i - N] * self.direct_scale });
+                    j.update(&h, zf * self.direct_scale, form)?;
+                }
+                joint = Some(j);
+            }
+        }
+        let mut eb = [T::zero(); N];
+        if let Some(body) = &mut self.body {
+            let k = body.rows().len();
+            body.update_into(r, z, &mut eb[..k])?;
+        }
+        // Commit.
+        match joint {
+            Some(j) => self.joint = j,
+            None => {
+                self.front = front;
+                self.rear = rear;
+            }
+        }
+        let mut ib = 0;
+        for (i, &row) in rows.as_slice().iter().enumerate() {
+            e[i] = if row == self.front_row {
+                e_front
+            } else if row == self.rear_row {
+                e_rear
+            } else {
+                ib += 1;
+                eb[ib - 1]
+            };
+        }
+        self.ring.slots_mut()[(grid % cap) as usize] = Past { grid, x: *r, z_front: zf, e_front, valid: true };
+        self.last_grid = Some(grid);
+        self.samples += 1;
+        if past.is_some() {
+            self.paired += 1;
+        }
+        Ok(past.is_some())
+    }
+}
+
+impl<T: Real, const N: usize, const P: usize, const KB: usize, const C: usize> TwoAxle<T, N, P, Fixed<KB>, [Past<T, N>; C]> {
+    /// One sample on the next road point; returns whether it was paired. See
+    /// [`TwoAxle::update_into`].
+    ///
+    /// # Errors
+    /// As [`TwoAxle::update_into`].
+    pub fn update(&mut self, r: &SVector<T, N>, z: &SVector<T, N>) -> Result<bool> {
+        let mut e = [T::zero(); N];
+        let k = self.rows.len();
+        self.update_into(r, z, None, &mut e[..k])
+    }
+}
