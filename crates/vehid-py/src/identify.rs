@@ -23,7 +23,8 @@ pub trait Ident: Send + Sync {
     /// One sample (`x`, `z` of length n); innovations into `e` (length k).
     fn update(&mut self, x: &[f64], z: &[f64], e: &mut [f64]) -> Result<()>;
     /// Every sample of row-major `r`, `z` (`len × n`); θ row-major appended to `hist` every
-    /// `every` samples (0: never). Stops at the first rejected sample, reporting its index.
+    /// `every` samples (0: never). All or nothing: at the first rejected sample the identifier
+    /// is restored to its state before the call and that sample's index is reported.
     fn fit(&mut self, r: &[f64], z: &[f64], every: usize, hist: &mut Vec<f64>) -> core::result::Result<(), (usize, Error)>;
     /// θ̂ row-major (`k × n`).
     fn theta(&self) -> Vec<f64>;
@@ -39,8 +40,9 @@ pub trait Ident: Send + Sync {
     fn samples(&self) -> u64;
 }
 
-/// The per-`N` view of a core identifier that [`Adapter`] turns into an [`Ident`].
-trait Core<const N: usize>: Send + Sync {
+/// The per-`N` view of a core identifier that [`Adapter`] turns into an [`Ident`]. `Clone`
+/// lets `fit` restore the state before a rejected call (a few kB at most, once per call).
+trait Core<const N: usize>: Send + Sync + Clone {
     fn step(&mut self, x: &SVector<f64, N>, z: &SVector<f64, N>, e: &mut [f64]) -> Result<()>;
     fn theta_into(&self, out: &mut [f64]) -> Result<()>;
     fn rows_len(&self) -> usize;
@@ -68,13 +70,18 @@ impl<C: Core<N>, const N: usize> Ident for Adapter<C, N> {
         let k = self.0.rows_len();
         let mut e = vec![0.0; k];
         let mut th = vec![0.0; k * N];
+        // A sample can pass the up-front checks (finite) and still be rejected by the update
+        // itself (overflow, a singular step) after earlier samples were applied: keep the
+        // state from before the call to put back then.
+        let before = self.0.clone();
         for (i, (x, zk)) in r.chunks_exact(N).zip(z.chunks_exact(N)).enumerate() {
-            self.0
-                .step(&SVector::from_column_slice(x), &SVector::from_column_slice(zk), &mut e)
-                .map_err(|err| (i, err))?;
-            if every > 0 && (i + 1) % every == 0 {
-                self.0.theta_into(&mut th).map_err(|err| (i, err))?;
-                hist.extend_from_slice(&th);
+            let mut step = self.0.step(&SVector::from_column_slice(x), &SVector::from_column_slice(zk), &mut e);
+            if step.is_ok() && every > 0 && (i + 1) % every == 0 {
+                step = self.0.theta_into(&mut th).map(|()| hist.extend_from_slice(&th));
+            }
+            if let Err(err) = step {
+                self.0 = before;
+                return Err((i, err));
             }
         }
         Ok(())
@@ -448,7 +455,9 @@ impl Recursive {
         let inner = &mut self.inner;
         let mut hist = Vec::with_capacity(if every > 0 { (len / every) * k * n } else { 0 });
         py.detach(|| inner.fit(&rd, &zd, every, &mut hist)).map_err(|(i, e)| {
-            VehidError::new_err(format!("sample {i} was rejected ({e}); the identifier holds the first {i} samples"))
+            VehidError::new_err(format!(
+                "sample {i} was rejected ({e}); the identifier is unchanged (none of the {len} samples were applied)"
+            ))
         })?;
         let rows = hist.len() / (k * n).max(1);
         Array3::from_shape_vec((rows, k, n), hist)
@@ -808,11 +817,20 @@ impl PyBatchLeastSquares {
         self.inner.extend(&x, &z).map_err(core_err)
     }
 
-    /// Stores every sample of `r`, `z` (samples, n) and solves; returns θ̂ (k, n).
+    /// Stores every sample of `r`, `z` (samples, n) and solves; returns θ̂ (k, n). Samples
+    /// that pass the checks (shape, finite) are stored even when the batch cannot be solved
+    /// yet (too few, unexcited): the VehidError then says so, and more samples complete it.
     fn fit<'py>(&mut self, py: Python<'py>, r: &Bound<'py, PyAny>, z: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        let (_, rd, zd) = samples_arg(r, z, self.model.n)?;
+        let (len, rd, zd) = samples_arg(r, z, self.model.n)?;
         self.inner.extend(&rd, &zd).map_err(core_err)?;
-        self.theta(py)
+        let inner = &self.inner;
+        let th = py.detach(|| inner.solve()).map_err(|e| {
+            VehidError::new_err(format!(
+                "{e}; the {len} samples were stored ({} in all): add more with update() or fit(), or clear()",
+                inner.samples()
+            ))
+        })?;
+        to_array2(py, self.model.rows.len(), self.model.n, th)
     }
 
     /// θ̂ (k, n) from the stored samples (solved on each access).
