@@ -18,7 +18,7 @@
 //! Size: `size_of::<StochasticGradient<f32, 4, 2>>()` is 192 bytes (θ, `h`, `Σ_w` and the
 //! gain state).
 
-use super::{check_sample, rows_buffer, Fixed, Flat, Store, OVERFLOW};
+use super::{check_sample, rows_buffer, Cost, Fixed, Flat, Store, OVERFLOW};
 use crate::error::{check_finite, check_nonneg, check_positive};
 use crate::{Error, Real, Result};
 use nalgebra::{SMatrix, SVector};
@@ -172,6 +172,20 @@ impl<T: Real, const N: usize, S: Store<T, N>> GradientCore<T, N, S> {
     /// Gradient steps taken (`k` of Eq 5.8).
     pub fn steps(&self) -> u64 {
         self.k
+    }
+
+    /// Arithmetic per gradient step and size: per row `e_i` (N mul, N add), `Σ_w θ_i`
+    /// (N² mul, N(N−1) add), the sum with `x e_i` (N mul, N add), `θ_i += γ h_i ∘ (...)`
+    /// (2N mul, N add); plus the gain (`k^(−p)`: one power, counted as a division here).
+    pub fn cost(&self) -> Cost {
+        let k = self.rows.flat().len();
+        Cost {
+            multiplications: k * (N * N + 4 * N),
+            additions: k * (N * N + 2 * N),
+            divisions: 1,
+            square_roots: 0,
+            bytes: core::mem::size_of_val(self) + self.theta.heap_bytes() + self.h.heap_bytes(),
+        }
     }
 
     /// The last gain value `γ(k)`.

@@ -29,7 +29,7 @@
 
 #[cfg(feature = "alloc")]
 use super::Dynamic;
-use super::{check_sample, per_row, rows_buffer, Fixed, Flat, Store, OVERFLOW};
+use super::{check_sample, per_row, rows_buffer, Cost, Fixed, Flat, Store, OVERFLOW};
 use crate::error::{check_finite, check_nonneg, check_positive};
 use crate::linalg::{axpy, cholesky_in_place, cholesky_solve, mat_vec, sym_downdate, symmetrize};
 use crate::{Error, Real, Result};
@@ -354,6 +354,21 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         self.filters.flat().iter().fold(T::zero(), |acc, f| acc + f.p.trace())
     }
 
+    /// Arithmetic per update (standard form, every row active) and size. Per row:
+    /// `e = z − xᵀθ` (N mul, N add), `P x` (N² mul, N(N−1) add), `s = xᵀPx + r` (N mul,
+    /// N add), `1/s`, `c = e/s` (1 mul), `√(1/s)`, `u = Px/√s` (N mul), `θ += c Px` (N mul,
+    /// N add), `P −= u uᵀ` (N² mul, N² add).
+    pub fn cost(&self) -> Cost {
+        let k = self.rows.flat().len();
+        Cost {
+            multiplications: k * (2 * N * N + 4 * N + 1),
+            additions: k * (2 * N * N + 2 * N),
+            divisions: k,
+            square_roots: k,
+            bytes: core::mem::size_of_val(self) + self.filters.heap_bytes() + self.px.heap_bytes(),
+        }
+    }
+
     /// Retires row `i` by hand (it stops updating until the next reinitialization).
     pub fn retire(&mut self, i: usize) {
         if let Some(f) = self.filters.flat_mut().get_mut(i) {
@@ -536,6 +551,20 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
     /// `tr P = Σ_i r_i tr Q`.
     pub fn trace(&self) -> T {
         self.q.trace() * self.r.flat().iter().fold(T::zero(), |a, r| a + *r)
+    }
+
+    /// Arithmetic per update (standard form) and size: `Q x` (N² mul, N(N−1) add),
+    /// `s = 1 + xᵀQx` (N mul, N add), `1/s`, `√(1/s)`, `g`, `u` (2N mul), per row `e_i`
+    /// and `θ_i += g e_i` (2N mul, 2N add), `Q −= u uᵀ` (N² mul, N² add).
+    pub fn cost(&self) -> Cost {
+        let k = self.rows.flat().len();
+        Cost {
+            multiplications: 2 * N * N + 3 * N + k * 2 * N,
+            additions: 2 * N * N + k * 2 * N,
+            divisions: 1,
+            square_roots: 1,
+            bytes: core::mem::size_of_val(self) + self.theta.heap_bytes(),
+        }
     }
 
     /// Writes θ̂ row-major (`K × N`) into `out`.
@@ -786,6 +815,24 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
     pub fn trace(&self) -> T {
         let k = self.rows.flat().len();
         (0..k).fold(T::zero(), |a, i| a + self.p.flat()[i * k + i].trace())
+    }
+
+    /// Arithmetic per update and size: `c_ij = P_ij x` (K² N² mul), `S` (K(K+1)/2 · N),
+    /// Cholesky of `S` and `K·N` triangular solves (about K³/3 + K²N mul), `θ` (K² N) and
+    /// the upper blocks of `P` (K(K+1)/2 · K N² mul). Counted to leading order.
+    pub fn cost(&self) -> Cost {
+        let k = self.rows.flat().len();
+        let mul = k * k * N * N + k * (k + 1) / 2 * N + k * k * k / 3 + 2 * k * k * N + k * k * N + k * (k + 1) / 2 * k * N * N;
+        Cost {
+            multiplications: mul,
+            additions: mul,
+            divisions: k * N * 2 + k,
+            square_roots: k,
+            bytes: core::mem::size_of_val(self)
+                + self.p.heap_bytes()
+                + self.c.heap_bytes()
+                + self.w.heap_bytes(),
+        }
     }
 
     /// Writes θ̂ row-major (`K × N`) into `out`.

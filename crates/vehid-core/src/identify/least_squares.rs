@@ -11,7 +11,7 @@
 //! Unbiased when the state is measured without noise; biased (attenuated) by state noise
 //! (Eq 2.20), which the thesis shows is devastating (Fig 3-5).
 
-use super::{check_sample, rows_buffer, Fixed, Flat, Store};
+use super::{check_sample, rows_buffer, Cost, Fixed, Flat, Store};
 use crate::linalg::{cholesky_in_place, cholesky_solve};
 use crate::{Error, Real, Result};
 use nalgebra::{SMatrix, SVector};
@@ -59,6 +59,19 @@ impl<T: Real, const N: usize, S: Store<T, N>> LsAccumulator<T, N, S> {
     /// Number of samples accumulated.
     pub fn samples(&self) -> u64 {
         self.samples
+    }
+
+    /// Arithmetic per accumulated sample (`x xᵀ`: N² mul and add; `x z_i`: K N mul and add)
+    /// and size. The solve (a Cholesky factorization, once) is not included.
+    pub fn cost(&self) -> Cost {
+        let k = self.rows.flat().len();
+        Cost {
+            multiplications: N * N + k * N,
+            additions: N * N + k * N,
+            divisions: 0,
+            square_roots: 0,
+            bytes: core::mem::size_of_val(self) + self.xz.heap_bytes(),
+        }
     }
 
     /// The unknown rows (0-based).

@@ -289,6 +289,20 @@ fn memory_fits_the_thesis_budget() {
 }
 
 #[test]
+fn cost_reports_size_and_arithmetic() {
+    let q = KalmanIdentifier::<f32, 4, 2>::new([1, 3], 1000.0, [1.0, 1.0]).unwrap();
+    let c = q.cost();
+    assert_eq!(c.bytes, core::mem::size_of::<KalmanIdentifier<f32, 4, 2>>());
+    // Independent count for N = 4, K = 2: per row 2·16 + 16 + 1 = 49 mul, 2·16 + 8 = 40 add.
+    assert_eq!((c.multiplications, c.additions, c.divisions, c.square_roots), (98, 80, 2, 2));
+    let v = KalmanIdentifierVec::<f32, 4>::from_slices(&[1, 3], &[1000.0], &[1.0], KalmanOptions::default()).unwrap();
+    assert!(v.cost().bytes > core::mem::size_of_val(&v), "heap rows are counted");
+    assert_eq!(v.cost().flops(), c.flops());
+    let s = SharedKalmanIdentifier::<f32, 4, 2>::new([1, 3], 1000.0, [1.0, 1.0]).unwrap();
+    assert!(s.cost().flops() < c.flops(), "shared is the cheapest form");
+}
+
+#[test]
 fn f32_long_run_keeps_covariance_symmetric_positive_definite() {
     let car = QuarterCar::<f32>::thesis();
     let cfg = SimConfig::<f32, 4, 1>::new(0.05).road_sigma(0.1).ic_sigma(0.1).deriv_noise(0.005);
