@@ -8,6 +8,17 @@ use crate::model::{broadcast, LinearModel};
 use crate::{Error, Real, Result};
 use nalgebra::{SMatrix, SVector};
 
+/// The error for a transition matrix that overflows: `dt` is far too long for the model's
+/// time constants (or `A` has entries near the floating-point limit).
+const TRANSITION_OVERFLOW: Error = Error::InvalidArgument {
+    arg: "dt",
+    expected: "a sample interval short enough for the model that e^{A dt} stays finite \
+               (check dt and the magnitude of A)",
+};
+
+/// Most RK4 sub-steps per sample accepted (the automatic count is capped at the same value).
+pub const MAX_SUBSTEPS: usize = 100_000;
+
 /// Zero-order-hold discretization over `dt` seconds (exact for an input held constant over
 /// the interval): `x(k+1) = Φ x(k) + Γ u(k)`, `Φ = e^{A dt}`, `Γ = ∫₀^dt e^{Aτ} dτ B`.
 ///
@@ -21,7 +32,11 @@ pub fn zoh<T: Real, const N: usize, const M: usize>(
     let a = model.a().map(|v| v.to_f64());
     let b = model.b().map(|v| v.to_f64());
     let (phi, psi) = expm_with_integral(&a, dt.to_f64());
-    Ok((phi.map(T::of), (psi * b).map(T::of)))
+    let gamma = psi * b;
+    if phi.iter().chain(gamma.iter()).any(|v| !v.is_finite()) {
+        return Err(TRANSITION_OVERFLOW);
+    }
+    Ok((phi.map(T::of), gamma.map(T::of)))
 }
 
 /// The discrete map of the classical fourth-order Runge–Kutta method (the thesis'
@@ -40,8 +55,11 @@ pub fn rk4_map<T: Real, const N: usize, const M: usize>(
     substeps: usize,
 ) -> Result<(SMatrix<T, N, N>, SMatrix<T, N, M>)> {
     crate::error::check_positive("dt", dt)?;
-    if substeps == 0 {
-        return Err(Error::InvalidArgument { arg: "substeps", expected: "at least 1 (or None for automatic)" });
+    if substeps == 0 || substeps > MAX_SUBSTEPS {
+        return Err(Error::InvalidArgument {
+            arg: "substeps",
+            expected: "between 1 and 100000 (or None for automatic)",
+        });
     }
     let a = model.a().map(|v| v.to_f64());
     let b = model.b().map(|v| v.to_f64());
@@ -59,6 +77,9 @@ pub fn rk4_map<T: Real, const N: usize, const M: usize>(
         gamma = r * gamma + step_gamma;
         phi = r * phi;
     }
+    if phi.iter().chain(gamma.iter()).any(|v| !v.is_finite()) {
+        return Err(TRANSITION_OVERFLOW);
+    }
     Ok((phi.map(T::of), gamma.map(T::of)))
 }
 
@@ -68,7 +89,7 @@ pub fn rk4_map<T: Real, const N: usize, const M: usize>(
 pub fn auto_substeps<T: Real, const N: usize, const M: usize>(model: &LinearModel<T, N, M>, dt: T) -> usize {
     let need = libm::ceil(spectral_radius(model.a()) * dt.to_f64() / 0.5);
     if need.is_finite() && need >= 1.0 {
-        (need as usize).min(100_000)
+        (need as usize).min(MAX_SUBSTEPS)
     } else {
         1
     }
@@ -233,6 +254,14 @@ mod tests {
         let (p1, _) = rk4_map(&car, 0.05, 1).unwrap();
         assert!(crate::linalg::spectral_radius(&p1) > 1.0);
         assert!(auto_substeps(&car, 0.05) >= 2);
+    }
+
+    #[test]
+    fn overflowing_discretization_names_dt_and_substeps_are_capped() {
+        let car = QuarterCar::<f64>::thesis().model();
+        assert!(matches!(zoh(&car, 1e300), Err(Error::InvalidArgument { arg: "dt", .. })));
+        assert!(matches!(rk4_map(&car, 1e300, 3), Err(Error::InvalidArgument { arg: "dt", .. })));
+        assert!(matches!(rk4_map(&car, 0.05, MAX_SUBSTEPS + 1), Err(Error::InvalidArgument { arg: "substeps", .. })));
     }
 
     #[test]

@@ -276,18 +276,27 @@ impl<T: Real, const N: usize, const M: usize> LinearModel<T, N, M> {
 
     /// The poles (eigenvalues of `A`, rad/s), sorted by real part then imaginary part.
     /// Eq 3.14 (quarter car) and Eq 6.8 (half car) list the thesis' values.
+    ///
+    /// # Errors
+    /// [`Error::Singular`] when the Schur iteration does not converge within 1000 sweeps
+    /// per eigenvalue (pathological, e.g. near-overflowing entries).
     #[cfg(feature = "alloc")]
-    pub fn poles(&self) -> [nalgebra::Complex<T>; N] {
+    pub fn poles(&self) -> Result<[nalgebra::Complex<T>; N]> {
         let d = nalgebra::DMatrix::<T>::from_fn(N, N, |i, j| self.a[(i, j)]);
-        let ev = d.complex_eigenvalues();
+        let schur = nalgebra::linalg::Schur::try_new(d, T::default_epsilon(), 1000 * N.max(1))
+            .ok_or(Error::Singular { what: "A for the eigenvalue iteration (it did not converge)" })?;
+        let ev = schur.complex_eigenvalues();
         let mut out = [nalgebra::Complex::new(T::zero(), T::zero()); N];
         for (o, e) in out.iter_mut().zip(ev.iter()) {
+            if !(e.re.finite() && e.im.finite()) {
+                return Err(Error::Singular { what: "A for the eigenvalue iteration (non-finite result)" });
+            }
             *o = *e;
         }
         out.sort_by(|p, q| {
             (p.re, p.im).partial_cmp(&(q.re, q.im)).unwrap_or(core::cmp::Ordering::Equal)
         });
-        out
+        Ok(out)
     }
 }
 
@@ -748,7 +757,7 @@ mod tests {
     #[cfg(feature = "alloc")]
     #[test]
     fn quarter_car_poles_match_eq_3_14() {
-        let poles = QuarterCar::<f64>::thesis().model().poles();
+        let poles = QuarterCar::<f64>::thesis().model().poles().unwrap();
         // Eq 3.14, printed to three significant figures, sorted by real part.
         assert_poles(&poles, &[(-40.6, 0.0), (-1.90, 0.0), (-0.727, -2.30), (-0.727, 2.30)], 3);
     }
@@ -756,7 +765,7 @@ mod tests {
     #[cfg(feature = "alloc")]
     #[test]
     fn half_car_poles_match_eq_6_8() {
-        let poles = HalfCar::<f64>::thesis().model().poles();
+        let poles = HalfCar::<f64>::thesis().model().poles().unwrap();
         assert_poles(
             &poles,
             &[

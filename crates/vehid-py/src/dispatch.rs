@@ -201,7 +201,7 @@ pub fn sampled_cov_nm<const N: usize, const M: usize>(
 
 /// Poles, sorted as the core sorts them.
 pub fn poles_n<const N: usize>(d: &ModelData) -> Result<Vec<Complex64>> {
-    Ok(d.model_a::<N>()?.poles().iter().map(|p| Complex64::new(p.re, p.im)).collect())
+    Ok(d.model_a::<N>()?.poles()?.iter().map(|p| Complex64::new(p.re, p.im)).collect())
 }
 
 /// The true unknown rows, row-major.
