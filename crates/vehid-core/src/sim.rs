@@ -468,8 +468,8 @@ struct Step<T: Real, const N: usize> {
 /// **Integration.** Between events (samples, cell boundaries under either wheel) the input
 /// is constant and the state advances by the exact or RK4 transition for that step length
 /// (`SimConfig::method`; the RK4 sub-step count is at least the automatic one for each step
-/// length, `SimConfig::substeps` acts as a minimum). Transitions are cached for the last two
-/// step lengths, so a constant speed computes them once. `SimConfig::dt` and pulses are not
+/// length, `SimConfig::substeps` acts as a minimum). Transitions are cached for the three
+/// most recently used step lengths, so a constant speed computes them once. `SimConfig::dt` and pulses are not
 /// used.
 ///
 /// `C` is the road memory in cells: at least `d + 2` with `d = ⌊L / Δ⌋`.
@@ -502,7 +502,7 @@ pub struct RoadSimulator<T: Real, const N: usize, const C: usize> {
     o: T,
     heights: [T; C],
     rear_h: T,
-    steps: [Option<Step<T, N>>; 2],
+    steps: [Option<Step<T, N>>; 3],
     k: u64,
     rng_road: Xoshiro256PlusPlus,
     rng_w: Xoshiro256PlusPlus,
@@ -571,7 +571,7 @@ impl<T: Real, const N: usize, const C: usize> RoadSimulator<T, N, C> {
             o: T::zero(),
             heights,
             rear_h,
-            steps: [None; 2],
+            steps: [None; 3],
             k: 0,
             rng_road,
             rng_w,
@@ -629,9 +629,13 @@ impl<T: Real, const N: usize, const C: usize> RoadSimulator<T, N, C> {
 
     /// The transition over `tau` seconds with the input held, cached.
     fn step(&mut self, tau: f64) -> Result<Step<T, N>> {
-        for s in self.steps.iter().flatten() {
-            if s.tau == tau {
-                return Ok(*s);
+        for i in 0..self.steps.len() {
+            if let Some(s) = self.steps[i] {
+                if s.tau == tau {
+                    // Most recently used first.
+                    self.steps[..=i].rotate_right(1);
+                    return Ok(s);
+                }
             }
         }
         let dt = T::of(tau);
@@ -643,7 +647,7 @@ impl<T: Real, const N: usize, const C: usize> RoadSimulator<T, N, C> {
             }
         };
         let s = Step { tau, phi, gamma };
-        self.steps[1] = self.steps[0];
+        self.steps.rotate_right(1);
         self.steps[0] = Some(s);
         Ok(s)
     }

@@ -30,7 +30,7 @@
 use super::{check_sample, KalmanOptions, KalmanRows, RowIdentifier, Store};
 use crate::error::{check_nonneg, check_positive};
 use crate::model::{LinearModel, RowSet};
-use crate::sampler::RingStore;
+use crate::sampler::{RingStore, Trigger};
 use crate::{Error, Real, Result};
 use nalgebra::{SMatrix, SVector};
 
@@ -387,6 +387,20 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
     /// [`Error::Singular`] / overflow as [`RowIdentifier::update`]. The identifier is
     /// unchanged after any error.
     pub fn update_into(&mut self, r: &SVector<T, N>, z: &SVector<T, N>, grid: Option<u64>, e: &mut [T]) -> Result<bool> {
+        self.step(r, z, grid, true, e)
+    }
+
+    /// One sample taken on a [`Trigger`] of an [`crate::sampler::AxleSampler`]: its grid
+    /// index is used, and the sample is paired only when the sampler paired it (its road
+    /// points within the sampler's tolerance). Otherwise as [`TwoAxle::update_into`].
+    ///
+    /// # Errors
+    /// As [`TwoAxle::update_into`].
+    pub fn update_trigger(&mut self, r: &SVector<T, N>, z: &SVector<T, N>, trigger: &Trigger<T>, e: &mut [T]) -> Result<bool> {
+        self.step(r, z, Some(trigger.grid), trigger.pair.is_some(), e)
+    }
+
+    fn step(&mut self, r: &SVector<T, N>, z: &SVector<T, N>, grid: Option<u64>, allow_pair: bool, e: &mut [T]) -> Result<bool> {
         check_sample(r, z)?;
         let rows = self.rows;
         if e.len() != rows.len() {
@@ -402,7 +416,7 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
         };
         let d = self.d as u64;
         let cap = self.ring.slots().len() as u64;
-        let past = if grid >= d {
+        let past = if allow_pair && grid >= d {
             let p = self.ring.slots()[((grid - d) % cap) as usize];
             (p.valid && p.grid == grid - d).then_some(p)
         } else {
