@@ -3,18 +3,44 @@
 Subcommands:
 
 * ``simulate``: simulate the quarter or half car and write a CSV run;
-* ``demo``: a quarter-car run compared with the analytic standard deviations.
+* ``identify``: read such a CSV run (a file or ``-`` for stdin), identify the unknown rows of
+  A, and print them, the physical constants and, when the file carries the true values, ξ;
+* ``demo``: a quarter-car run compared with the analytic standard deviations;
+* ``reproduce``: a stub for now (issue 5).
+
+User errors (a missing file, bad columns or cells, too few samples, a value vehid rejects)
+print one line on stderr and exit with status 2.
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
+import json
+import math
+import os
+import re
 import sys
-from typing import IO, Callable, Iterator, List, Optional, Sequence
+import warnings
+from dataclasses import dataclass
+from typing import IO, Any, Callable, Dict, Iterator, List, Optional, Sequence, Union
 
 import numpy as np
+from numpy.typing import NDArray
 
-from . import HalfCar, LinearModel, QuarterCar, Run, Simulator, VehidError, __version__
+from . import (
+    BatchLeastSquares,
+    HalfCar,
+    KalmanIdentifier,
+    LinearModel,
+    QuarterCar,
+    Run,
+    Simulator,
+    StochasticGradient,
+    VehidError,
+    __version__,
+    xi,
+)
 
 #: Samples simulated per call to ``Simulator.run`` when a run is split into chunks.
 CHUNK = 100_000
@@ -22,6 +48,12 @@ CHUNK = 100_000
 PROGRESS_ABOVE = 200_000
 
 MODELS: dict[str, Callable[[], LinearModel]] = {"quarter": QuarterCar, "half": HalfCar}
+#: What ``vehid identify`` calls each model in its messages.
+MODEL_NAMES = {"quarter": "quarter car", "half": "half car"}
+
+
+class CliError(Exception):
+    """A user error the command line reports in one line (exit status 2)."""
 
 
 def run_chunks(
@@ -109,6 +141,307 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
+# --- identify -------------------------------------------------------------------------
+
+
+@dataclass
+class CsvLayout:
+    """Where the columns ``identify`` needs are in a CSV run."""
+
+    names: List[str]
+    x: List[int]
+    dx: List[int]
+    has_truth: bool
+
+
+_COLUMN = re.compile(r"^(t|x|dx|true_x|true_dx|u)(\d*)$")
+
+
+def csv_layout(header: str, model: LinearModel, name: str, source: str) -> CsvLayout:
+    """Checks the header of a CSV run against ``model`` (called ``name`` on the command line)."""
+    n, m = model.n_states, model.n_inputs
+    names = [c.strip() for c in header.strip().split(",")]
+    expected = f"t, x1..x{n}, dx1..dx{n} (as `vehid simulate` writes)"
+    if names == [""]:
+        raise CliError(f"{source}: empty header line; expected the columns {expected}")
+    seen: Dict[str, int] = {}
+    parsed: List[tuple[str, int]] = []
+    for i, col in enumerate(names):
+        match = _COLUMN.match(col)
+        ok = match is not None and (match.group(1) == "t") == (match.group(2) == "")
+        if match is None or not ok or match.group(2).startswith("0"):
+            raise CliError(f"{source}: unknown column {col!r} (column {i + 1}); expected {expected}")
+        if col in seen:
+            raise CliError(f"{source}: column {col!r} appears twice (columns {seen[col] + 1} and {i + 1})")
+        seen[col] = i
+        parsed.append((match.group(1), int(match.group(2) or 0)))
+    states = max((idx for kind, idx in parsed if kind == "x"), default=0)
+    if states not in (0, n):
+        other = {4: "quarter", 8: "half"}.get(states)
+        hint = f": use --model {other}" if other else ""
+        raise CliError(f"{source} has {states} states (x1..x{states}) but the {MODEL_NAMES[name]} has {n}{hint}")
+    need = ["t"] + [f"x{i}" for i in range(1, n + 1)] + [f"dx{i}" for i in range(1, n + 1)]
+    missing = [c for c in need if c not in seen]
+    if missing:
+        raise CliError(f"{source}: missing column(s) {', '.join(missing)}; expected {expected}")
+    for col, (kind, idx) in zip(names, parsed):
+        if kind != "t" and idx > (m if kind == "u" else n):
+            raise CliError(f"{source}: column {col!r} does not fit the {MODEL_NAMES[name]} ({n} states, {m} inputs)")
+    return CsvLayout(
+        names=names,
+        x=[seen[f"x{i}"] for i in range(1, n + 1)],
+        dx=[seen[f"dx{i}"] for i in range(1, n + 1)],
+        has_truth=all(f"true_x{i}" in seen for i in range(1, n + 1)),
+    )
+
+
+def _cell_error(lines: List[str], first_line: int, layout: CsvLayout, source: str, fallback: str) -> CliError:
+    """Finds the first bad line of a chunk that numpy refused, for a message with its place."""
+    width = len(layout.names)
+    for i, line in enumerate(lines):
+        if not line.strip():
+            continue
+        cells = line.rstrip("\r\n").split(",")
+        where = f"{source}, line {first_line + i}"
+        if len(cells) != width:
+            return CliError(f"{where}: {len(cells)} cells, but the header has {width} columns")
+        for name, cell in zip(layout.names, cells):
+            try:
+                float(cell)
+            except ValueError:
+                return CliError(f"{where}, column {name!r}: {cell.strip()!r} is not a number")
+    return CliError(f"{source}: {fallback}")
+
+
+def read_chunks(
+    stream: IO[str], layout: CsvLayout, source: str, chunk: int, first_line: int = 2
+) -> Iterator[tuple[NDArray[np.float64], NDArray[np.float64], int]]:
+    """Parses the data lines of a CSV run ``chunk`` lines at a time; yields ``(r, z, chars)``:
+    measured states and derivatives (samples, n) and the characters read for them."""
+    line_no = first_line
+    while True:
+        lines = list(itertools.islice(stream, chunk))
+        if not lines:
+            return
+        chars = sum(map(len, lines))
+        if any(line.strip() for line in lines):
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("error")
+                    data = np.loadtxt(lines, delimiter=",", ndmin=2, comments=None, dtype=np.float64)
+            except (ValueError, Warning) as e:
+                raise _cell_error(lines, line_no, layout, source, str(e)) from None
+            if data.shape[1] != len(layout.names):
+                raise _cell_error(lines, line_no, layout, source, "wrong number of cells")
+            r = np.ascontiguousarray(data[:, layout.x])
+            z = np.ascontiguousarray(data[:, layout.dx])
+            bad = ~(np.isfinite(r).all(axis=1) & np.isfinite(z).all(axis=1))
+            if bad.any():
+                row = int(np.argmax(bad))
+                data_lines = [i for i, line in enumerate(lines) if line.strip()]
+                col = next(c for c in layout.x + layout.dx if not np.isfinite(data[row, c]))
+                cell = lines[data_lines[row]].split(",")[col].strip()
+                raise CliError(
+                    f"{source}, line {line_no + data_lines[row]}, column {layout.names[col]!r}: "
+                    f"{cell!r} is not a finite number (drop or repair that sample)"
+                )
+            yield r, z, chars
+        line_no += len(lines)
+
+
+def parse_floats(text: str) -> Union[float, List[float]]:
+    """``"1000"`` -> 1000.0; ``"1000,8"`` -> [1000.0, 8.0] (one value per unknown row)."""
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number or comma-separated numbers, got {text!r}") from None
+    return values[0] if len(values) == 1 else values
+
+
+def positive_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive mass in kg, got {text!r}")
+    return v
+
+
+Identifier = Union[KalmanIdentifier, StochasticGradient, BatchLeastSquares]
+
+
+def make_identifier(args: argparse.Namespace, model: LinearModel) -> Identifier:
+    if args.method == "kalman":
+        return KalmanIdentifier(
+            model,
+            p0=args.p0,
+            road_sigma=args.road_sigma,
+            deriv_noise=args.deriv_noise,
+            mode=args.mode,
+            reinit=args.reinit,
+        )
+    if args.method == "sg":
+        return StochasticGradient(model, gain=args.gain, h=args.h)
+    return BatchLeastSquares(model)
+
+
+def method_options(args: argparse.Namespace) -> Dict[str, Any]:
+    """The settings that shaped the estimate, for the report."""
+    if args.method == "kalman":
+        return {"p0": args.p0, "road_sigma": args.road_sigma, "deriv_noise": args.deriv_noise,
+                "mode": args.mode, "reinit": args.reinit}
+    if args.method == "sg":
+        return {"gain": args.gain, "h": 1.0 if args.h is None else args.h}
+    return {}
+
+
+def known_masses(args: argparse.Namespace) -> Dict[str, float]:
+    return {"m": args.m} if args.model == "quarter" else {"m1": args.m1, "m2": args.m2}
+
+
+@dataclass
+class Progress:
+    """Progress lines on stderr for long inputs (more than :data:`PROGRESS_ABOVE` samples,
+    known from the file size or seen so far on a stream)."""
+
+    out: IO[str]
+    source: str
+    size: Optional[int]
+    chars: int = 0
+    samples: int = 0
+
+    def step(self, samples: int, chars: int) -> None:
+        self.samples += samples
+        self.chars += chars
+        if self.size and self.chars:
+            estimate = self.samples * self.size / self.chars
+            if estimate > PROGRESS_ABOVE:
+                pct = min(100, 100 * self.chars // self.size)
+                print(f"vehid: identified {self.samples} samples ({pct}% of {self.source})", file=self.out, flush=True)
+        elif self.samples > PROGRESS_ABOVE:
+            print(f"vehid: identified {self.samples} samples", file=self.out, flush=True)
+
+
+#: Units of the physical constants, by name without the axle digit.
+UNITS = {"M": "kg", "m": "kg", "k": "N/m", "b": "N s/m", "J": "kg m^2", "l": "m"}
+
+
+def _finite_or_none(v: float) -> Optional[float]:
+    return v if math.isfinite(v) else None
+
+
+def _json_array(a: NDArray[np.float64]) -> Any:
+    return [[_finite_or_none(float(v)) for v in row] for row in a]
+
+
+def cmd_identify(args: argparse.Namespace) -> int:
+    model = MODELS[args.model]()
+    n = model.n_states
+    source = "<stdin>" if args.file == "-" else args.file
+    ident = make_identifier(args, model)  # option errors before any reading
+    try:
+        stream: IO[str] = (
+            sys.stdin if args.file == "-" else open(args.file, encoding="utf-8")
+        )
+    except FileNotFoundError:
+        raise CliError(f"{args.file}: no such file") from None
+    except IsADirectoryError:
+        raise CliError(f"{args.file}: is a directory, not a CSV file") from None
+    except OSError as e:
+        raise CliError(f"{args.file}: cannot open ({e.strerror})") from None
+    size = None
+    if args.file != "-":
+        try:
+            size = os.fstat(stream.fileno()).st_size
+        except OSError:
+            size = None
+    progress = Progress(sys.stderr, source, size)
+    batches: List[tuple[NDArray[np.float64], NDArray[np.float64]]] = []
+    try:
+        header = stream.readline()
+        if not header:
+            raise CliError(f"{source}: empty file; expected a CSV run with a header line (vehid simulate -o FILE)")
+        layout = csv_layout(header, model, args.model, source)
+        progress.chars = len(header)
+        for r, z, chars in read_chunks(stream, layout, source, CHUNK):
+            if isinstance(ident, BatchLeastSquares):
+                batches.append((r, z))  # solved once, at the end
+            else:
+                ident.fit(r, z)
+            progress.step(len(r), chars)
+    except UnicodeDecodeError:
+        raise CliError(f"{source}: not a text (UTF-8) CSV file") from None
+    finally:
+        if stream is not sys.stdin:
+            stream.close()
+    samples = progress.samples
+    if samples < n:
+        raise CliError(
+            f"{source} has {samples} sample{'s' if samples != 1 else ''}; the {MODEL_NAMES[args.model]} "
+            f"needs at least {n} (one per state), and many more for a useful estimate"
+        )
+    if isinstance(ident, BatchLeastSquares):
+        theta = ident.fit(np.concatenate([b[0] for b in batches]), np.concatenate([b[1] for b in batches]))
+    else:
+        theta = ident.theta
+    known = known_masses(args)
+    physical: Optional[Dict[str, float]] = None
+    physical_error: Optional[str] = None
+    try:
+        physical = model.physical(theta, **known)
+    except VehidError as e:
+        physical_error = str(e)
+    true_theta = model.theta if layout.has_truth else None
+    xi_value = xi(true_theta, theta) if true_theta is not None else None
+    rows = list(model.unknown_rows)
+    if args.json:
+        report = {
+            "source": source,
+            "model": args.model,
+            "method": args.method,
+            "options": method_options(args),
+            "samples": samples,
+            "unknown_rows": rows,
+            "theta": _json_array(theta),
+            "known": known,
+            "physical": physical,
+            "physical_error": physical_error,
+            "true_theta": None if true_theta is None else _json_array(true_theta),
+            "xi": None if xi_value is None else _finite_or_none(xi_value),
+        }
+        print(json.dumps(report, allow_nan=False))
+        return 0
+    opts = ", ".join(f"{k} {v}" for k, v in method_options(args).items())
+    print(f"{source}: {samples} samples, {MODEL_NAMES[args.model]} ({n} states), method {args.method}"
+          + (f" ({opts})" if opts else ""))
+    print()
+    width = max(12, max(len(f"{v:.6g}") for v in theta.ravel()) + 2)
+    print("identified rows of A (0-based)" + (", and the true rows" if true_theta is not None else "") + ":")
+    for i, row in enumerate(rows):
+        print(f"  row {row}  " + "".join(f"{v:{width}.6g}" for v in theta[i]))
+        if true_theta is not None:
+            print(f"  true   " + "".join(f"{v:{width}.6g}" for v in true_theta[i]))
+    print()
+    given = ", ".join(f"{k} = {v:g} kg" for k, v in known.items())
+    if physical is not None:
+        print(f"physical constants (known: {given}):")
+        for k, v in physical.items():
+            print(f"  {k:3s} = {v:<12.6g} {UNITS.get(k.rstrip('0123456789'), '')}".rstrip())
+    else:
+        print(f"physical constants (known: {given}): not available: {physical_error}")
+    if xi_value is not None:
+        print()
+        print(f"xi (Eq 3.17, vs the thesis {MODEL_NAMES[args.model]}) = {xi_value:.6g}")
+    return 0
+
+
+def cmd_reproduce(args: argparse.Namespace) -> int:
+    # STUB: issue 5 fills this in (the thesis figures and tables into --out).
+    print("vehid reproduce: not implemented yet (issue 5)", file=sys.stderr)
+    return 2
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="vehid", description="Online identification of vehicle suspension dynamics (Kessler 1986)."
@@ -129,9 +462,47 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("-o", "--output", required=True, metavar="FILE", help="CSV file to write, '-' for stdout")
     sim.set_defaults(func=cmd_simulate)
 
+    ident = sub.add_parser(
+        "identify",
+        help="identify the unknown rows of A from a CSV run",
+        description="Reads a CSV run written by `vehid simulate` (columns t, x1..xn, dx1..dxn; "
+        "optional true_x.., true_dx.., u..), identifies the unknown rows of A and prints them, the "
+        "physical constants and, when the file carries the true values, xi (Eq 3.17) against the "
+        "thesis model.",
+    )
+    ident.add_argument("file", metavar="FILE", help="CSV run, '-' for stdin")
+    ident.add_argument("--model", choices=sorted(MODELS), required=True, help="quarter (4 states) or half (8 states)")
+    ident.add_argument("--method", choices=["kalman", "ls", "sg"], default="kalman",
+                       help="kalman (Eq 4.3-4.7, default), ls (batch least squares, Eq 2.14), sg (stochastic gradient)")
+    ident.add_argument("--p0", type=parse_floats, default=1000.0, metavar="P0",
+                       help="kalman: prior covariance P(0), one value or one per unknown row, comma-separated (default 1000)")
+    ident.add_argument("--road-sigma", type=float, default=0.1,
+                       help="kalman: road input std sigma_u, m, for R (Eq 4.7) (default 0.1)")
+    ident.add_argument("--deriv-noise", type=float, default=0.005,
+                       help="kalman: derivative noise std sigma_v, for R (default 0.005)")
+    ident.add_argument("--mode", choices=["rows", "shared", "full"], default="rows",
+                       help="kalman: decoupled rows (default), one shared covariance (needs the same R and P0 on "
+                       "every row, e.g. --road-sigma 0), or the full stacked filter")
+    ident.add_argument("--reinit", action="store_true", help="kalman: reinitialize by Eq 4.36")
+    ident.add_argument("--gain", choices=["venter", "lyapunov", "ljung"], default="venter",
+                       help="sg: gain sequence (default venter)")
+    ident.add_argument("--h", type=parse_floats, default=None, metavar="H",
+                       help="sg: weights, one value, one per unknown row or one per parameter, comma-separated (default 1)")
+    ident.add_argument("--m", type=positive_float, default=1.0, help="quarter: known wheel mass m, kg (default 1)")
+    ident.add_argument("--m1", type=positive_float, default=1.0, help="half: known front wheel mass m1, kg (default 1)")
+    ident.add_argument("--m2", type=positive_float, default=1.0, help="half: known rear wheel mass m2, kg (default 1)")
+    ident.add_argument("--json", action="store_true", help="print one JSON object instead of text")
+    ident.set_defaults(func=cmd_identify)
+
     demo = sub.add_parser("demo", help="quarter-car run vs the analytic standard deviations")
     demo.add_argument("--n", type=int, default=40_000, help="number of samples (default 40000)")
     demo.set_defaults(func=cmd_demo)
+
+    rep = sub.add_parser("reproduce", help="reproduce the thesis' figures (not implemented yet: issue 5)")
+    rep.add_argument("--quick", action="store_true", help=argparse.SUPPRESS)
+    rep.add_argument("--out", default="report/", help=argparse.SUPPRESS)
+    rep.add_argument("--only", default=None, help=argparse.SUPPRESS)
+    rep.set_defaults(func=cmd_reproduce)
     return parser
 
 
@@ -143,7 +514,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     try:
         func: Callable[[argparse.Namespace], int] = args.func
         return func(args)
-    except VehidError as e:
+    except (VehidError, CliError) as e:
         print(f"vehid: error: {e}", file=sys.stderr)
         return 2
     except BrokenPipeError:

@@ -1,0 +1,272 @@
+"""`vehid identify` (and the `reproduce` stub): CSV in, identified rows, constants and ξ out.
+
+Expected numbers come from the Python API run on the same simulation (the CSV text round
+trip is exact), so the command line must give exactly what the library gives.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any, List
+
+import numpy as np
+import pytest
+
+import vehid
+from vehid import cli
+
+
+def simulate(path: Path, model: str = "quarter", n: int = 3000, seed: int = 2) -> Path:
+    assert cli.main(["simulate", "--model", model, "--n", str(n), "--seed", str(seed), "-o", str(path)]) == 0
+    return path
+
+
+def run_of(model: vehid.LinearModel, n: int, seed: int) -> vehid.Run:
+    return vehid.Simulator(model, road_sigma=0.1, deriv_noise=0.005, seed=seed).run(n)
+
+
+def physical_or_none(model: vehid.LinearModel, theta: Any, **known: float) -> Any:
+    try:
+        return model.physical(theta, **known)
+    except vehid.VehidError:
+        return None
+
+
+def identify_json(capsys: pytest.CaptureFixture[str], *argv: str) -> Any:
+    capsys.readouterr()
+    assert cli.main(["identify", *argv, "--json"]) == 0
+    out = capsys.readouterr().out
+    assert len(out.strip().splitlines()) == 1  # one JSON object
+    return json.loads(out)
+
+
+def fails(capsys: pytest.CaptureFixture[str], argv: List[str], *words: str) -> str:
+    capsys.readouterr()
+    assert cli.main(argv) == 2
+    captured = capsys.readouterr()
+    err = captured.err
+    assert captured.out == ""
+    assert err.startswith("vehid: error: ") and err.count("\n") == 1, err
+    for word in words:
+        assert word in err, (word, err)
+    return err
+
+
+@pytest.fixture(scope="module")
+def quarter_csv(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return simulate(tmp_path_factory.mktemp("runs") / "quarter.csv", "quarter", 3000, seed=2)
+
+
+def test_text_report(quarter_csv: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert cli.main(["identify", str(quarter_csv), "--model", "quarter"]) == 0
+    out = capsys.readouterr().out
+    assert "3000 samples, quarter car (4 states), method kalman" in out
+    assert "  row 1 " in out and "  row 3 " in out and "  true " in out
+    assert "physical constants (known: m = 1 kg)" in out
+    car = vehid.QuarterCar()
+    kf = vehid.KalmanIdentifier(car, p0=1000.0, road_sigma=0.1, deriv_noise=0.005)
+    run = run_of(car, 3000, 2)
+    kf.fit(run.r, run.z)
+    assert f"xi (Eq 3.17, vs the thesis quarter car) = {vehid.xi(car.theta, kf.theta):.6g}" in out
+
+
+@pytest.mark.parametrize("chunk", [7, 1000, 100_000])
+def test_kalman_equals_the_library_in_any_chunking(
+    quarter_csv: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, chunk: int
+) -> None:
+    monkeypatch.setattr(cli, "CHUNK", chunk)
+    car = vehid.QuarterCar()
+    report = identify_json(capsys, str(quarter_csv), "--model", "quarter", "--p0", "500", "--road-sigma", "0.2")
+    run = run_of(car, 3000, 2)
+    kf = vehid.KalmanIdentifier(car, p0=500.0, road_sigma=0.2, deriv_noise=0.005)
+    kf.fit(run.r, run.z)
+    assert np.array_equal(np.array(report["theta"]), kf.theta)
+    assert report["samples"] == 3000 and report["unknown_rows"] == [1, 3]
+    assert report["xi"] == vehid.xi(car.theta, kf.theta)
+    assert report["true_theta"] == car.theta.tolist()
+    assert report["options"] == {"p0": 500.0, "road_sigma": 0.2, "deriv_noise": 0.005, "mode": "rows", "reinit": False}
+    assert report["physical"] == physical_or_none(car, kf.theta, m=1.0)
+
+
+def test_every_method_and_mode(quarter_csv: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    car = vehid.QuarterCar()
+    run = run_of(car, 3000, 2)
+    ls = identify_json(capsys, str(quarter_csv), "--model", "quarter", "--method", "ls")
+    assert np.array_equal(np.array(ls["theta"]), vehid.BatchLeastSquares(car).fit(run.r, run.z))
+    sg = identify_json(capsys, str(quarter_csv), "--model", "quarter", "--method", "sg", "--gain", "ljung", "--h", "0.1,1")
+    ref = vehid.StochasticGradient(car, gain="ljung", h=[0.1, 1.0])
+    ref.fit(run.r, run.z)
+    assert np.array_equal(np.array(sg["theta"]), ref.theta) and sg["options"] == {"gain": "ljung", "h": [0.1, 1.0]}
+    for extra in (["--mode", "full"], ["--mode", "shared", "--road-sigma", "0"], ["--reinit"], ["--p0", "1000,8"]):
+        report = identify_json(capsys, str(quarter_csv), "--model", "quarter", *extra)
+        assert np.isfinite(report["xi"]), extra
+    shared = identify_json(capsys, str(quarter_csv), "--model", "quarter", "--mode", "shared", "--road-sigma", "0")
+    ref2 = vehid.KalmanIdentifier(car, p0=1000.0, road_sigma=0.0, deriv_noise=0.005, mode="shared")
+    ref2.fit(run.r, run.z)
+    assert np.array_equal(np.array(shared["theta"]), ref2.theta)
+
+
+def test_half_car_and_known_masses(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = simulate(tmp_path / "half.csv", "half", 2000, seed=5)
+    half = vehid.HalfCar()
+    report = identify_json(capsys, str(path), "--model", "half", "--method", "ls", "--m1", "1.5", "--m2", "0.5")
+    run = run_of(half, 2000, 5)
+    theta = vehid.BatchLeastSquares(half).fit(run.r, run.z)
+    assert np.array_equal(np.array(report["theta"]), theta)
+    assert report["known"] == {"m1": 1.5, "m2": 0.5} and report["unknown_rows"] == [1, 3, 5, 7]
+    assert report["xi"] == vehid.xi(half.theta, theta)
+    assert report["physical"] == physical_or_none(half, theta, m1=1.5, m2=0.5)
+
+
+def test_unconverged_constants_are_reported_not_fatal(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = simulate(tmp_path / "short.csv", "quarter", 200, seed=1)
+    car = vehid.QuarterCar()
+    run = run_of(car, 200, 1)
+    kf = vehid.KalmanIdentifier(car, road_sigma=0.1, deriv_noise=0.005)
+    kf.fit(run.r, run.z)
+    with pytest.raises(vehid.VehidError):
+        car.physical(kf.theta, m=1.0)  # this short run gives rows with no positive constants
+    assert cli.main(["identify", str(path), "--model", "quarter"]) == 0
+    out = capsys.readouterr().out
+    assert "not available: cannot recover" in out and "xi (Eq 3.17" in out
+    report = identify_json(capsys, str(path), "--model", "quarter")
+    assert report["physical"] is None and "cannot recover" in report["physical_error"]
+
+
+def test_stdin_and_no_truth_columns(
+    quarter_csv: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    lines = quarter_csv.read_text().splitlines()
+    # Keep only t, x1..x4, dx1..dx4: no true values, so no ξ.
+    short = "\n".join(",".join(line.split(",")[:9]) for line in lines) + "\n"
+    monkeypatch.setattr(sys, "stdin", io.StringIO(short))
+    report = identify_json(capsys, "-", "--model", "quarter")
+    assert report["source"] == "<stdin>" and report["xi"] is None and report["true_theta"] is None
+    monkeypatch.setattr(sys, "stdin", io.StringIO(short))
+    assert cli.main(["identify", "-", "--model", "quarter"]) == 0
+    out = capsys.readouterr().out
+    assert "xi" not in out and "true" not in out and "row 3" in out
+
+
+def test_columns_in_any_order_and_crlf(quarter_csv: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    rows = [line.split(",") for line in quarter_csv.read_text().splitlines()]
+    order = list(reversed(range(len(rows[0]))))
+    path = tmp_path / "reordered.csv"
+    path.write_bytes("".join(",".join(r[i] for i in order) + "\r\n" for r in rows).encode())
+    a = identify_json(capsys, str(quarter_csv), "--model", "quarter")
+    b = identify_json(capsys, str(path), "--model", "quarter")
+    assert a["theta"] == b["theta"] and a["xi"] == b["xi"]
+
+
+def test_progress_on_long_inputs(
+    quarter_csv: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(cli, "CHUNK", 1000)
+    monkeypatch.setattr(cli, "PROGRESS_ABOVE", 2000)
+    assert cli.main(["identify", str(quarter_csv), "--model", "quarter"]) == 0
+    err = capsys.readouterr().err.splitlines()
+    assert err[-1] == f"vehid: identified 3000 samples (100% of {quarter_csv})", err
+    assert len(err) == 3
+    monkeypatch.setattr(sys, "stdin", io.StringIO(quarter_csv.read_text()))
+    assert cli.main(["identify", "-", "--model", "quarter"]) == 0
+    assert capsys.readouterr().err.splitlines() == ["vehid: identified 3000 samples"]
+    monkeypatch.setattr(cli, "PROGRESS_ABOVE", 5000)
+    assert cli.main(["identify", str(quarter_csv), "--model", "quarter"]) == 0
+    assert capsys.readouterr().err == ""
+
+
+def test_user_errors(quarter_csv: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    q = ["--model", "quarter"]
+    fails(capsys, ["identify", str(tmp_path / "nope.csv"), *q], "nope.csv: no such file")
+    fails(capsys, ["identify", str(tmp_path), *q], "is a directory")
+    header, *data = quarter_csv.read_text().splitlines(keepends=True)
+
+    def write(name: str, text: str) -> str:
+        path = tmp_path / name
+        path.write_text(text)
+        return str(path)
+
+    fails(capsys, ["identify", write("empty.csv", ""), *q], "empty file")
+    fails(capsys, ["identify", write("blank.csv", "\n1,2\n"), *q], "empty header")
+    fails(capsys, ["identify", write("header.csv", header), *q], "has 0 samples", "at least 4")
+    fails(capsys, ["identify", write("three.csv", header + "".join(data[:3])), *q], "has 3 samples")
+    fails(capsys, ["identify", write("bad.csv", header.replace("dx4", "speed") + data[0]), *q],
+          "unknown column 'speed'")
+    cols = header.strip().split(",")
+    no_dx4 = ",".join(c for c in cols if c != "dx4") + "\n"
+    fails(capsys, ["identify", write("nodx4.csv", no_dx4), *q], "missing column(s) dx4")
+    fails(capsys, ["identify", write("dup.csv", header.strip() + ",x2\n"), *q], "'x2' appears twice")
+    fails(capsys, ["identify", write("u.csv", header.strip() + ",u2\n"), *q], "'u2' does not fit")
+    fails(capsys, ["identify", write("x0.csv", "t,x0\n"), *q], "unknown column 'x0'")
+    bad_cell = data[10].split(",")
+    bad_cell[3] = "abc"
+    text = header + "".join(data[:10]) + ",".join(bad_cell) + "".join(data[11:20])
+    fails(capsys, ["identify", write("cell.csv", text), *q], "line 12, column 'x3': 'abc' is not a number")
+    text = header + "".join(data[:5]) + data[5].rsplit(",", 1)[0] + "\n"
+    fails(capsys, ["identify", write("short_row.csv", text), *q], "line 7: 17 cells, but the header has 18 columns")
+    nan_cell = data[4].split(",")
+    nan_cell[6] = "nan"
+    text = header + "".join(data[:4]) + ",".join(nan_cell) + "".join(data[5:20])
+    fails(capsys, ["identify", write("nan.csv", text), *q], "line 6, column 'dx2': 'nan' is not a finite number")
+    # A NaN in a column identify does not use is no obstacle.
+    nan_t = data[4].split(",")
+    nan_t[0] = "nan"
+    report = identify_json(capsys, write("nan_t.csv", header + "".join(data[:4]) + ",".join(nan_t) + "".join(data[5:])),
+                           *q)
+    assert report["samples"] == 3000
+    (tmp_path / "binary.csv").write_bytes(b"\xff\xfe\x00garbage")
+    fails(capsys, ["identify", str(tmp_path / "binary.csv"), *q], "not a text")
+
+
+def test_wrong_model_for_the_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = simulate(tmp_path / "half.csv", "half", 50)
+    fails(capsys, ["identify", str(path), "--model", "quarter"], "has 8 states", "use --model half")
+
+
+def test_values_vehid_rejects(quarter_csv: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    q = [str(quarter_csv), "--model", "quarter"]
+    fails(capsys, ["identify", *q, "--p0", "-1"], "`p0`")
+    fails(capsys, ["identify", *q, "--road-sigma", "-0.1"], "`road_sigma`")
+    fails(capsys, ["identify", *q, "--p0", "1,2,3"], "`p0`")
+    fails(capsys, ["identify", *q, "--mode", "shared"], "mode='shared'")
+    fails(capsys, ["identify", *q, "--method", "sg", "--h", "nan"], "`h`")
+    # Batch least squares on too little excitation: vehid's own error, exit 2.
+    rows = quarter_csv.read_text().splitlines(keepends=True)
+    path = quarter_csv.parent / "still.csv"
+    path.write_text(rows[0] + rows[1] * 6)  # one state six times: rank 1
+    fails(capsys, ["identify", str(path), "--model", "quarter", "--method", "ls"], "lacks excitation")
+
+
+def test_option_errors_exit_2(quarter_csv: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    for bad in (["--m", "-1"], ["--m1", "nan"], ["--p0", "x"], ["--method", "rls"]):
+        with pytest.raises(SystemExit) as info:
+            cli.main(["identify", str(quarter_csv), "--model", "quarter", *bad])
+        assert info.value.code == 2
+        assert "Traceback" not in capsys.readouterr().err
+
+
+def test_reproduce_is_a_stub(capsys: pytest.CaptureFixture[str]) -> None:
+    assert cli.main(["reproduce"]) == 2
+    assert capsys.readouterr().err == "vehid reproduce: not implemented yet (issue 5)\n"
+    assert cli.main(["reproduce", "--quick", "--out", "x/", "--only", "4-2"]) == 2
+
+
+def test_pipe_between_processes_without_tracebacks(tmp_path: Path) -> None:
+    vehid_cmd = [sys.executable, "-m", "vehid"]
+    sim = subprocess.Popen([*vehid_cmd, "simulate", "--model", "quarter", "--n", "2000", "-o", "-"],
+                           stdout=subprocess.PIPE)
+    done = subprocess.run([*vehid_cmd, "identify", "-", "--model", "quarter"], stdin=sim.stdout,
+                          capture_output=True, text=True, timeout=120)
+    assert sim.stdout is not None
+    sim.stdout.close()
+    assert sim.wait(timeout=120) == 0
+    assert done.returncode == 0, done.stderr
+    assert "2000 samples" in done.stdout and "xi (Eq 3.17" in done.stdout
+    missing = subprocess.run([*vehid_cmd, "identify", str(tmp_path / "none.csv"), "--model", "half"],
+                             capture_output=True, text=True, timeout=120)
+    assert missing.returncode == 2 and missing.stdout == ""
+    assert missing.stderr == f"vehid: error: {tmp_path / 'none.csv'}: no such file\n"
