@@ -14,6 +14,7 @@ Python face.
 """
 
 from ._vehid import (
+    AxleSampler,
     BatchLeastSquares,
     HalfCar,
     KalmanIdentifier,
@@ -22,6 +23,7 @@ from ._vehid import (
     Run,
     Simulator,
     StochasticGradient,
+    TwoAxleIdentifier,
     VehidError,
     __version__,
     snr_db,
@@ -29,6 +31,7 @@ from ._vehid import (
 )
 
 __all__ = [
+    "AxleSampler",
     "BatchLeastSquares",
     "HalfCar",
     "KalmanIdentifier",
@@ -37,6 +40,7 @@ __all__ = [
     "Run",
     "Simulator",
     "StochasticGradient",
+    "TwoAxleIdentifier",
     "VehidError",
     "__version__",
     "snr_db",

@@ -12,7 +12,9 @@ mod convert;
 mod dispatch;
 mod identify;
 mod model;
+mod reproduce;
 mod sim;
+mod two_axle;
 
 pyo3::create_exception!(
     vehid,
@@ -116,7 +118,10 @@ fn _vehid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<identify::PyKalmanIdentifier>()?;
     m.add_class::<identify::PyStochasticGradient>()?;
     m.add_class::<identify::PyBatchLeastSquares>()?;
+    m.add_class::<two_axle::PyTwoAxleIdentifier>()?;
+    m.add_class::<two_axle::PyAxleSampler>()?;
     m.add_function(wrap_pyfunction!(xi, m)?)?;
     m.add_function(wrap_pyfunction!(snr_db, m)?)?;
+    m.add_function(wrap_pyfunction!(reproduce::reproduce_json, m)?)?;
     Ok(())
 }

@@ -30,6 +30,9 @@ pub struct PyRun {
     /// Measured derivative z(k) = ẋ(k) + v(k), (N, n).
     #[pyo3(get)]
     z: Py<PyArray2<f64>>,
+    /// Distance travelled, m, (N,), when the simulator was given speed=/spacing=/road=; else None.
+    #[pyo3(get)]
+    s: Option<Py<PyArray1<f64>>>,
     len: usize,
     n_states: usize,
     n_inputs: usize,
@@ -65,9 +68,19 @@ impl PyRun {
 /// fastest pole) or "exact" (zero-order hold). `pulses` is a list of
 /// `(start_sample, width_samples, amplitude)`. `instrumentation=True` reads the derivative of
 /// each kinematic row from the velocity sensor (Eq 4.37–4.39). `run(n)` continues the stream.
+///
+/// Two axles on one road (half car, Ch. VI.D): give `speed` (m/s: a scalar, or one value per
+/// sample — the speed over the road interval after that sample; a 0 entry is a stop of `dt`
+/// seconds on the road point reached, before its sample, and produces no sample), `spacing` (m between samples, default 0.3) and/or `road`
+/// ("white": one road, the rear axle meets the front axle's road wheelbase/spacing samples
+/// later; "independent": independent roads, Fig 6-7). Samples are then taken every `spacing`
+/// metres (irregular in time when the speed varies), the road is a white height per `spacing`
+/// metres held over distance, and `run.s` is the distance travelled.
 #[pyclass(name = "Simulator", module = "vehid._vehid")]
 pub struct PySimulator {
     inner: Box<dyn SimDyn>,
+    road: Option<(f64, &'static str)>,
+    left: Option<usize>,
     model: Py<PyLinearModel>,
     dt: f64,
     seed: u64,
@@ -81,10 +94,10 @@ impl PySimulator {
     #[new]
     #[pyo3(signature = (model, dt = 0.05, road_sigma = None, ic_sigma = 0.0, state_noise = None,
                         deriv_noise = None, seed = 1, substeps = None, method = "rk4", pulses = None,
-                        instrumentation = false),
+                        instrumentation = false, speed = None, spacing = None, road = None),
            text_signature = "(model, dt=0.05, road_sigma=0.1, ic_sigma=0.0, state_noise=0.0, \
                              deriv_noise=0.005, seed=1, substeps=None, method='rk4', pulses=None, \
-                             instrumentation=False)")]
+                             instrumentation=False, speed=None, spacing=None, road=None)")]
     #[allow(clippy::too_many_arguments)]
     fn py_new(
         model: Bound<'_, PyLinearModel>,
@@ -98,6 +111,9 @@ impl PySimulator {
         method: &str,
         pulses: Option<Vec<(i128, i128, f64)>>,
         instrumentation: bool,
+        speed: Option<&Bound<'_, PyAny>>,
+        spacing: Option<f64>,
+        road: Option<&str>,
     ) -> PyResult<Self> {
         let p = SimParams {
             dt,
@@ -116,9 +132,27 @@ impl PySimulator {
             seed: uint(seed, "seed")?,
         };
         let d = &model.get().data;
+        if speed.is_some() || spacing.is_some() || road.is_some() {
+            let (spacing, road) = (spacing.unwrap_or(0.3), road.unwrap_or("white"));
+            let rs = crate::two_axle::road_simulator(model.get(), &p, speed, spacing, road)?;
+            let road_name = if road == "white" { "white" } else { "independent" };
+            return Ok(Self {
+                left: rs.samples_left(),
+                inner: Box::new(rs),
+                road: Some((spacing, road_name)),
+                dt: p.dt,
+                seed: p.seed,
+                method: p.method,
+                n_states: d.n,
+                n_inputs: d.m,
+                model: model.unbind(),
+            });
+        }
         // Discretizing can take a while (explicit `substeps` are not capped): GIL released.
         let inner = model.py().detach(|| dispatch_nm!(d.n, d.m, simulator_nm(d, &p))).map_err(core_err)?;
         Ok(Self {
+            road: None,
+            left: None,
             inner,
             dt,
             seed: p.seed,
@@ -132,12 +166,22 @@ impl PySimulator {
     /// Simulates `n` more samples (the GIL is released meanwhile) and returns them as a Run.
     fn run(&mut self, py: Python<'_>, n: i128) -> PyResult<PyRun> {
         let n = size(n, "n")?;
+        if let Some(left) = self.left {
+            if n > left {
+                return Err(crate::VehidError::new_err(format!(
+                    "run({n}) needs {n} more samples but the `speed` profile has only {left} non-zero entries left"
+                )));
+            }
+            self.left = Some(left - n);
+        }
         let inner = &mut self.inner;
         let run = py.detach(|| inner.run(n)).map_err(|_| {
             PyMemoryError::new_err(format!("run({n}) needs more memory than can be allocated"))
         })?;
         let (len, ns, ni) = (run.len(), run.n_states, run.n_inputs);
+        let s = self.road.is_some().then(|| run.s.into_pyarray(py).unbind());
         Ok(PyRun {
+            s,
             t: run.t.into_pyarray(py).unbind(),
             x: to_array2(py, len, ns, run.x)?.unbind(),
             xdot: to_array2(py, len, ns, run.xdot)?.unbind(),
@@ -160,6 +204,18 @@ impl PySimulator {
     #[getter]
     fn dt(&self) -> f64 {
         self.dt
+    }
+
+    /// Sample spacing (m) for a road simulation (speed=/spacing=/road=), else None.
+    #[getter]
+    fn spacing(&self) -> Option<f64> {
+        self.road.map(|r| r.0)
+    }
+
+    /// "white" or "independent" for a road simulation, else None.
+    #[getter]
+    fn road(&self) -> Option<&'static str> {
+        self.road.map(|r| r.1)
     }
 
     /// The seed.
