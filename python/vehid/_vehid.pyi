@@ -19,6 +19,8 @@ __all__ = [
     "KalmanIdentifier",
     "StochasticGradient",
     "BatchLeastSquares",
+    "TwoAxleIdentifier",
+    "AxleSampler",
     "xi",
     "snr_db",
 ]
