@@ -3,6 +3,11 @@
 #   make develop  build the extension (release) into .venv, editable
 #   make demo     simulate the quarter car and compare with the analytic standard deviations
 #   make test     Rust tests, no_std build, benches compile, pytest, stub check
+#   make install-check  `pip install .` into a fresh venv in a temp dir (the pyproject backend
+#                 builds through maturin), then `vehid --help` and `vehid simulate | vehid
+#                 identify`, which must report xi (slow: a full release build; not in `test`)
+#   make bench-python   Python-level overhead of KalmanIdentifier.update()/fit() against the
+#                 budgets (RUST_NS=<ns per sample from `cargo bench`> to compare with a measured figure)
 #   make clean    remove build products and the venv
 
 PYTHON ?= python3
@@ -10,7 +15,7 @@ VENV   := .venv
 VBIN   := $(VENV)/bin
 CARGO  ?= cargo
 
-.PHONY: venv develop demo test test-rust test-python clean
+.PHONY: venv develop demo test test-rust test-python install-check bench-python clean
 
 venv: $(VENV)/.installed
 
@@ -38,6 +43,24 @@ test-python: develop
 	$(VBIN)/python -m pytest -q tests
 	$(VBIN)/python -m mypy.stubtest vehid._vehid
 	$(VBIN)/python -m mypy python/vehid
+
+# Exactly what a user does on a clean machine; run from a temp dir so that the source tree's
+# python/vehid cannot be imported instead of the installed package.
+install-check:
+	@set -eu; tmp=$$(mktemp -d); trap 'rm -rf "$$tmp"' EXIT; \
+	echo "install-check: pip install . into $$tmp/venv"; \
+	$(PYTHON) -m venv "$$tmp/venv"; \
+	env -u CONDA_PREFIX -u VIRTUAL_ENV "$$tmp/venv/bin/python" -m pip install --quiet "$(CURDIR)"; \
+	cd "$$tmp"; \
+	"$$tmp/venv/bin/vehid" --help > /dev/null; \
+	out=$$("$$tmp/venv/bin/vehid" simulate --model quarter --n 2000 -o - | "$$tmp/venv/bin/vehid" identify - --model quarter); \
+	echo "$$out"; \
+	case "$$out" in *"xi (Eq 3.17"*) echo "install-check: ok";; \
+	  *) echo "install-check: FAILED: no xi in the output of vehid identify" >&2; exit 1;; esac
+
+RUST_NS ?=
+bench-python: develop
+	$(VBIN)/python benches/python/overhead.py $(if $(RUST_NS),--rust-ns $(RUST_NS))
 
 clean:
 	rm -f python/vehid/*.so python/vehid/*.pyd
