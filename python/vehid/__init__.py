@@ -29,6 +29,7 @@ from ._vehid import (
     snr_db,
     xi,
 )
+from . import reproduce
 
 __all__ = [
     "AxleSampler",
@@ -43,6 +44,7 @@ __all__ = [
     "TwoAxleIdentifier",
     "VehidError",
     "__version__",
+    "reproduce",
     "snr_db",
     "xi",
 ]

@@ -342,3 +342,14 @@ class AxleSampler:
     def position(self) -> float: ...
     @property
     def samples(self) -> int: ...
+
+def reproduce_json(
+    quick: bool = False,
+    only: Optional[Sequence[str]] = None,
+    seed: int = 1986,
+    seeds: Optional[int] = None,
+    max_iterations: Optional[int] = None,
+    threads: Optional[int] = None,
+    tables: bool = True,
+    progress: bool = False,
+) -> str: ...

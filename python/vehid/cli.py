@@ -6,7 +6,7 @@ Subcommands:
 * ``identify``: read such a CSV run (a file or ``-`` for stdin), identify the unknown rows of
   A, and print them, the physical constants and, when the file carries the true values, ξ;
 * ``demo``: a quarter-car run compared with the analytic standard deviations;
-* ``reproduce``: a stub for now (issue 5).
+* ``reproduce``: the thesis' figures and tables, regenerated, into a report (``vehid.reproduce``).
 
 User errors (a missing file, bad columns or cells, too few samples, a value vehid rejects)
 print one line on stderr and exit with status 2.
@@ -437,9 +437,9 @@ def cmd_identify(args: argparse.Namespace) -> int:
 
 
 def cmd_reproduce(args: argparse.Namespace) -> int:
-    # STUB: issue 5 fills this in (the thesis figures and tables into --out).
-    print("vehid reproduce: not implemented yet (issue 5)", file=sys.stderr)
-    return 2
+    from .reproduce import command
+
+    return command(args)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -498,10 +498,16 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--n", type=int, default=40_000, help="number of samples (default 40000)")
     demo.set_defaults(func=cmd_demo)
 
-    rep = sub.add_parser("reproduce", help="reproduce the thesis' figures (not implemented yet: issue 5)")
-    rep.add_argument("--quick", action="store_true", help=argparse.SUPPRESS)
-    rep.add_argument("--out", default="report/", help=argparse.SUPPRESS)
-    rep.add_argument("--only", default=None, help=argparse.SUPPRESS)
+    rep = sub.add_parser(
+        "reproduce",
+        help="reproduce the thesis' figures and tables into a report",
+        description="Runs the thesis' simulation study (every figure of Ch. III-VI, Monte Carlo over seeds), "
+        "writes one PNG per figure (with the plot extra: pip install vehid[plot]) and report/index.md + index.html "
+        "comparing each thesis claim with vehid's measurement, and prints the report's path.",
+    )
+    from .reproduce import add_arguments as _reproduce_arguments
+
+    _reproduce_arguments(rep)
     rep.set_defaults(func=cmd_reproduce)
     return parser
 

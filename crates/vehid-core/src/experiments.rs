@@ -762,9 +762,9 @@ pub static EXPERIMENTS: &[Experiment] = &[
 /// Options of a reproduction run.
 #[derive(Debug, Clone)]
 pub struct RunOptions {
-    /// Quick mode: 3 seeds and at most [`QUICK_ITERATIONS`] iterations per curve.
+    /// Quick mode: 5 seeds and at most [`QUICK_ITERATIONS`] iterations per curve.
     pub quick: bool,
-    /// Seeds per curve (default 3 quick, 16 full).
+    /// Seeds per curve (default 5 quick, 16 full).
     pub seeds: Option<usize>,
     /// Cap on the iterations of every curve (on top of quick mode's cap).
     pub max_iterations: Option<usize>,
@@ -1308,7 +1308,7 @@ pub fn select(only: &[String]) -> crate::Result<Vec<&'static Experiment>> {
 pub fn run(opts: &RunOptions, progress: &(dyn Fn(Progress<'_>) + Sync)) -> crate::Result<Report> {
     let start = std::time::Instant::now();
     let exps = select(&opts.only)?;
-    let seeds = opts.seeds.unwrap_or(if opts.quick { 3 } else { 16 }).max(1);
+    let seeds = opts.seeds.unwrap_or(if opts.quick { 5 } else { 16 }).max(1);
     let threads = opts
         .threads
         .unwrap_or_else(|| std::thread::available_parallelism().map(|n| n.get()).unwrap_or(2))

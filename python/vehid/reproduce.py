@@ -1,0 +1,356 @@
+"""``vehid reproduce``: the thesis' simulation study, regenerated, with a report.
+
+The experiments (one per figure of Ch. III–VI, with the captions' noise levels) and the
+runner live in Rust (``vehid_core::experiments``); this module renders what the runner
+measured: one PNG per figure (ξ_k against iterations, log scale, median and 10–90 % band
+over seeds; needs the optional ``vehid[plot]`` extra, i.e. matplotlib) and
+``index.md`` / ``index.html`` with, per figure, the thesis' claim and vehid's measured
+counterpart marked *agrees* or *differs*, and the tables for Eq 4.28, Eq 4.32, Eq 4.34 and
+Table I. Every number in the report is computed by the run.
+
+>>> data = run(quick=True, only=["3-5"], seeds=2, max_iterations=100, tables=False)
+>>> data["figures"][0]["id"], len(data["figures"][0]["curves"])
+('3-5', 4)
+"""
+
+from __future__ import annotations
+
+import argparse
+import html
+import importlib
+import json
+import math
+import sys
+import time
+from pathlib import Path
+from typing import Any, Dict, List, Optional, Sequence, Tuple
+
+from ._vehid import reproduce_json
+
+__all__ = ["run", "write_report", "add_arguments", "command"]
+
+Json = Dict[str, Any]
+
+
+def run(
+    quick: bool = False,
+    only: Optional[Sequence[str]] = None,
+    seed: int = 1986,
+    seeds: Optional[int] = None,
+    max_iterations: Optional[int] = None,
+    threads: Optional[int] = None,
+    tables: bool = True,
+    progress: bool = False,
+) -> Json:
+    """Runs the reproduction (GIL released) and returns the runner's report as a dict.
+
+    ``quick``: 5 seeds and at most 10,000 iterations per curve (full: 16 seeds, the thesis'
+    iterations). ``only``: figure ids such as ``["4-2", "4-5"]``. ``progress``: a progress
+    line on stderr. Non-finite numbers come back as ``float('inf')`` / ``nan``.
+    """
+    text = reproduce_json(
+        quick=quick,
+        only=list(only) if only else None,
+        seed=seed,
+        seeds=seeds,
+        max_iterations=max_iterations,
+        threads=threads,
+        tables=tables,
+        progress=progress,
+    )
+    data: Json = json.loads(text)
+    for fig in data["figures"]:
+        for c in fig["curves"]:
+            for key in ("median", "p10", "p90", "final_xi", "settle", "reach", "min_xi", "argmin", "reinits"):
+                c[key] = [_num(v) for v in c[key]]
+    return data
+
+
+def _num(v: Any) -> float:
+    if v is None:
+        return math.nan
+    if v == "inf":
+        return math.inf
+    if v == "-inf":
+        return -math.inf
+    return float(v)
+
+
+def _fmt(v: float) -> str:
+    if math.isnan(v):
+        return "n/a"
+    if math.isinf(v):
+        return "∞"
+    if v != 0 and (abs(v) >= 1e5 or abs(v) < 1e-3):
+        return f"{v:.2e}"
+    if abs(v) >= 10:
+        return f"{v:.1f}"
+    return f"{v:.3g}"
+
+
+def _median(xs: List[float]) -> float:
+    v = sorted(x for x in xs if not math.isnan(x))
+    if not v:
+        return math.nan
+    n = len(v)
+    return v[n // 2] if n % 2 else 0.5 * (v[n // 2 - 1] + v[n // 2])
+
+
+def _sigmas(c: Json) -> str:
+    s = f"σ_ic={c['ic']:g}, σ_u={c['road']:g}, σ_w={c['state']:g}, σ_v={c['deriv']:g}"
+    if c["pulse_width"]:
+        s += f", pulse {c['pulse_width']} cycles"
+    return s
+
+
+def _load_pyplot() -> Any:
+    try:
+        mpl = importlib.import_module("matplotlib")
+        mpl.use("Agg")
+        return importlib.import_module("matplotlib.pyplot")
+    except ImportError:
+        return None
+
+
+def _plot_figure(plt: Any, fig: Json, path: Path) -> None:
+    f, ax = plt.subplots(figsize=(7.5, 4.6))
+    fid = fig["id"]
+    if fid == "4-7":
+        # Eq 4.25: triangular autocorrelation of the held road noise, T = 0.05 s.
+        t = 0.05
+        taus = [t * (i / 50.0 - 2.0) for i in range(201)]
+        ax.plot(taus, [max(0.0, 1.0 - abs(tau) / t) for tau in taus], color="C0")
+        ax.set_xlabel("τ, s")
+        ax.set_ylabel("R_u(τ) / σ_u²")
+    else:
+        k = fig["k"]
+        for i, c in enumerate(fig["curves"]):
+            med = [v if math.isfinite(v) and v > 0 else math.nan for v in c["median"]]
+            lo = [v if math.isfinite(v) and v > 0 else math.nan for v in c["p10"]]
+            hi = [v if math.isfinite(v) and v > 0 else math.nan for v in c["p90"]]
+            color = f"C{i}"
+            ax.plot(k, med, color=color, lw=1.4, label=f"{c['label']}: {_sigmas(c)}")
+            ax.fill_between(k, lo, hi, color=color, alpha=0.18, lw=0)
+        ax.axhline(0.08, color="k", ls="--", lw=0.8, label="ξ = 0.08 (acceptable)")
+        ax.set_yscale("log")
+        ax.set_xlabel("iterations k")
+        ax.set_ylabel("ξ_k (Eq 3.17)")
+        ax.legend(fontsize=7, loc="best")
+        ax.grid(True, which="both", alpha=0.25)
+    ax.set_title(f"Fig {fid}: {fig['title']}\nvehid, median and 10–90 % band over {fig['seeds']} seeds", fontsize=9)
+    f.tight_layout()
+    f.savefig(path, dpi=110)
+    plt.close(f)
+
+
+def _mark(agrees: bool) -> str:
+    return "*agrees*" if agrees else "*differs*"
+
+
+def _claim_rows(data: Json) -> Tuple[List[Tuple[str, Json]], List[Tuple[str, Json]]]:
+    ok: List[Tuple[str, Json]] = []
+    bad: List[Tuple[str, Json]] = []
+    for fig in data["figures"]:
+        for v in fig["verdicts"]:
+            (ok if v["agrees"] else bad).append((f"Fig {fig['id']}", v))
+    for t in data["tables"]:
+        for r in t["rows"]:
+            item = {"claim": f"{r['label']}: {r['thesis']}", "measured": r["vehid"], "agrees": r["agrees"], "note": r["note"]}
+            (ok if r["agrees"] else bad).append((t["title"].split(":")[0], item))
+    return ok, bad
+
+
+def _md_cell(s: str) -> str:
+    return s.replace("|", "\\|").replace("\n", " ")
+
+
+def write_report(data: Json, out: Path, command: str = "vehid reproduce") -> Path:
+    """Writes the PNGs, ``index.md`` and ``index.html`` into ``out``; returns index.md's path."""
+    out.mkdir(parents=True, exist_ok=True)
+    plt = _load_pyplot()
+    images: Dict[str, str] = {}
+    if plt is not None:
+        for fig in data["figures"]:
+            if fig["skipped"] is None and (fig["curves"] or fig["id"] == "4-7"):
+                name = f"fig-{fig['id']}.png"
+                _plot_figure(plt, fig, out / name)
+                images[fig["id"]] = name
+    ok, bad = _claim_rows(data)
+    skipped = [f for f in data["figures"] if f["skipped"]]
+    mode = "quick" if data["quick"] else "full"
+    seeds = max((f["seeds"] for f in data["figures"]), default=0)
+    head = (
+        f"Generated by `{command}` ({mode} mode: {seeds} seeds per curve, base seed {data['base_seed']}, "
+        f"{data['threads']} threads, runner wall time {data['seconds']:.1f} s)."
+    )
+    plots = (
+        "Figures: ξ_k against iterations on a log axis, median over seeds (line) and 10–90 % band (shaded)."
+        if plt is not None
+        else "matplotlib is not installed (`pip install vehid[plot]`): the report has no images; "
+        "every number below is still computed."
+    )
+
+    md: List[str] = ["# vehid reproduces Kessler (1986), Ch. III–VI", "", head, plots, ""]
+    md += [
+        "## Summary",
+        "",
+        f"{len(ok)} claims and table rows *agree*, {len(bad)} *differ*, {len(skipped)} figures skipped.",
+        "",
+        "### Claims vehid confirms",
+        "",
+    ]
+    md += [
+        f"- {w}: {_md_cell(v['claim'])} — {_md_cell(v['measured'])}" + (f" ({_md_cell(v['note'])})" if v["note"] else "")
+        for w, v in ok
+    ] or ["- none"]
+    md += ["", "### Claims vehid does not confirm", ""]
+    md += [f"- {w}: {_md_cell(v['claim'])} — {_md_cell(v['measured'])}. {_md_cell(v['note'])}" for w, v in bad] or ["- none"]
+    if skipped:
+        md += ["", "### Not run", ""]
+        md += [f"- Fig {f['id']} ({f['title']}): {f['skipped']}" for f in skipped]
+    md += ["", "## Figures", ""]
+    for fig in data["figures"]:
+        md += [f"### Fig {fig['id']}: {fig['title']}", ""]
+        if fig["skipped"]:
+            md += [f"Skipped: {fig['skipped']}.", ""]
+            continue
+        if fig["id"] in images:
+            md += [f"![Fig {fig['id']}]({images[fig['id']]})", ""]
+        if fig["curves"]:
+            iters = fig["iterations"]
+            note = "" if iters == fig["thesis_iterations"] else f" (the table's full run: {fig['thesis_iterations']})"
+            md += [f"{iters} iterations{note}, {fig['seeds']} seeds.", ""]
+            md += ["| curve | σ_ic | σ_u | σ_w | σ_v | identifier | median ξ at end [10–90 %] |", "|---|---|---|---|---|---|---|"]
+            for c in fig["curves"]:
+                fin = c["final_xi"]
+                lo, hi = c["p10"][-1], c["p90"][-1]
+                label = c["label"] + (f" (pulse {c['pulse_width']})" if c["pulse_width"] else "")
+                md.append(
+                    f"| {_md_cell(label)} | {c['ic']:g} | {c['road']:g} | {c['state']:g} | {c['deriv']:g} | "
+                    f"`{_md_cell(c['ident'])}` | {_fmt(_median(fin))} [{_fmt(lo)}, {_fmt(hi)}] |"
+                )
+            md.append("")
+        if fig["verdicts"]:
+            md += ["| thesis | vehid | verdict | explanation |", "|---|---|---|---|"]
+            for v in fig["verdicts"]:
+                md.append(f"| {_md_cell(v['claim'])} | {_md_cell(v['measured'])} | {_mark(v['agrees'])} | {_md_cell(v['note'])} |")
+            md.append("")
+        md += [f"Assumptions: {fig['assumptions']}", ""]
+    md += ["## Tables", ""]
+    for t in data["tables"]:
+        md += [f"### {t['title']}", "", t["method"] + ".", "", "| | thesis | vehid | verdict | explanation |", "|---|---|---|---|---|"]
+        for r in t["rows"]:
+            md.append(f"| {_md_cell(r['label'])} | {_md_cell(r['thesis'])} | {_md_cell(r['vehid'])} | {_mark(r['agrees'])} | {_md_cell(r['note'])} |")
+        md.append("")
+    index_md = out / "index.md"
+    index_md.write_text("\n".join(md), encoding="utf-8")
+    (out / "index.html").write_text(_html(data, images, head, plots, ok, bad, skipped), encoding="utf-8")
+    (out / "report.json").write_text(json.dumps(data, default=str), encoding="utf-8")
+    return index_md
+
+
+def _html(
+    data: Json,
+    images: Dict[str, str],
+    head: str,
+    plots: str,
+    ok: List[Tuple[str, Json]],
+    bad: List[Tuple[str, Json]],
+    skipped: List[Json],
+) -> str:
+    e = html.escape
+
+    def mark(a: bool) -> str:
+        return '<em class="ok">agrees</em>' if a else '<em class="bad">differs</em>'
+
+    h: List[str] = [
+        "<!doctype html><html><head><meta charset='utf-8'><title>vehid reproduces Kessler (1986)</title>",
+        "<style>body{font-family:sans-serif;max-width:1000px;margin:auto;padding:1em}"
+        "table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #ccc;padding:3px 6px;font-size:90%}"
+        ".ok{color:#176117}.bad{color:#a01b1b}img{max-width:100%}</style></head><body>",
+        "<h1>vehid reproduces Kessler (1986), Ch. III–VI</h1>",
+        f"<p>{e(head)}<br>{e(plots)}</p>",
+        f"<h2>Summary</h2><p>{len(ok)} claims and table rows agree, {len(bad)} differ, {len(skipped)} figures skipped.</p>",
+        "<h3>Claims vehid confirms</h3><ul>",
+    ]
+    h += [f"<li>{e(w)}: {e(v['claim'])} — {e(v['measured'])}" + (f" ({e(v['note'])})" if v["note"] else "") + "</li>" for w, v in ok]
+    h += ["</ul><h3>Claims vehid does not confirm</h3><ul>"]
+    h += [f"<li>{e(w)}: {e(v['claim'])} — {e(v['measured'])}. {e(v['note'])}</li>" for w, v in bad]
+    h += ["</ul>"]
+    if skipped:
+        h += ["<h3>Not run</h3><ul>"] + [f"<li>Fig {e(f['id'])}: {e(f['skipped'])}</li>" for f in skipped] + ["</ul>"]
+    h += ["<h2>Figures</h2>"]
+    for fig in data["figures"]:
+        h.append(f"<h3>Fig {e(fig['id'])}: {e(fig['title'])}</h3>")
+        if fig["skipped"]:
+            h.append(f"<p>Skipped: {e(fig['skipped'])}.</p>")
+            continue
+        if fig["id"] in images:
+            h.append(f"<img src='{e(images[fig['id']])}' alt='Fig {e(fig['id'])}'>")
+        if fig["verdicts"]:
+            h.append("<table><tr><th>thesis</th><th>vehid</th><th>verdict</th><th>explanation</th></tr>")
+            for v in fig["verdicts"]:
+                h.append(f"<tr><td>{e(v['claim'])}</td><td>{e(v['measured'])}</td><td>{mark(v['agrees'])}</td><td>{e(v['note'])}</td></tr>")
+            h.append("</table>")
+        h.append(f"<p><small>Assumptions: {e(fig['assumptions'])}</small></p>")
+    h.append("<h2>Tables</h2>")
+    for t in data["tables"]:
+        h.append(f"<h3>{e(t['title'])}</h3><p><small>{e(t['method'])}</small></p>")
+        h.append("<table><tr><th></th><th>thesis</th><th>vehid</th><th>verdict</th><th>explanation</th></tr>")
+        for r in t["rows"]:
+            h.append(
+                f"<tr><td>{e(r['label'])}</td><td>{e(r['thesis'])}</td><td>{e(r['vehid'])}</td>"
+                f"<td>{mark(r['agrees'])}</td><td>{e(r['note'])}</td></tr>"
+            )
+        h.append("</table>")
+    h.append("</body></html>")
+    return "\n".join(h)
+
+
+def _positive_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {v}")
+    return v
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The ``vehid reproduce`` options."""
+    p.add_argument("--quick", action="store_true", help="5 seeds, at most 10,000 iterations per curve (under 2 minutes)")
+    p.add_argument("--out", default="report/", help="output directory (default report/)")
+    p.add_argument("--only", default=None, metavar="IDS", help="comma-separated figure ids, e.g. 4-2,4-5 (default: all)")
+    p.add_argument("--seed", type=int, default=1986, help="base seed (default 1986)")
+    p.add_argument("--seeds", type=_positive_int, default=None, help="seeds per curve (default 5 quick, 16 full)")
+    p.add_argument("--max-iterations", type=_positive_int, default=None, help="cap the iterations of every curve")
+    p.add_argument("--threads", type=_positive_int, default=None, help="worker threads (default: all cores)")
+    p.add_argument("--no-tables", action="store_true", help="skip Eq 4.28/4.32/4.34 and Table I")
+    p.add_argument("--quiet", action="store_true", help="no progress line")
+
+
+def command(args: argparse.Namespace) -> int:
+    """Runs ``vehid reproduce`` with parsed arguments; prints the report's path."""
+    only = [s.strip() for s in args.only.split(",") if s.strip()] if args.only else None
+    t0 = time.perf_counter()
+    data = run(
+        quick=args.quick,
+        only=only,
+        seed=args.seed,
+        seeds=args.seeds,
+        max_iterations=args.max_iterations,
+        threads=args.threads,
+        tables=not args.no_tables,
+        progress=not args.quiet,
+    )
+    argv = ["vehid", "reproduce"] + (["--quick"] if args.quick else []) + (["--only", args.only] if args.only else [])
+    path = write_report(data, Path(args.out), " ".join(argv))
+    ok, bad = _claim_rows(data)
+    if not args.quiet:
+        print(
+            f"reproduce: {len(ok)} agree, {len(bad)} differ, in {time.perf_counter() - t0:.1f} s",
+            file=sys.stderr,
+        )
+    print(path)
+    return 0
