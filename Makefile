@@ -1,7 +1,7 @@
 # Developer entry points. Assumes only python3, cargo and access to PyPI / crates.io.
 #   make venv     .venv with maturin, numpy, pytest, mypy (from PyPI)
 #   make develop  build the extension (release) into .venv, editable
-#   make demo     simulate the quarter car and compare with the analytic standard deviations
+#   make demo     build with the plot extra (matplotlib), reproduce the thesis (--quick) into report/, print its path
 #   make test     Rust tests, no_std build, benches compile, pytest, stub check
 #   make install-check  `pip install .` into a fresh venv in a temp dir (the pyproject backend
 #                 builds through maturin), then `vehid --help` and `vehid simulate | vehid
@@ -29,8 +29,11 @@ develop: venv
 	rm -f python/vehid/*.so python/vehid/*.pyd
 	env -u CONDA_PREFIX VIRTUAL_ENV="$(abspath $(VENV))" $(VBIN)/maturin develop --release --quiet
 
+# The plot extra (vehid[plot] = matplotlib) into the same venv, then the quick reproduction.
 demo: develop
-	$(VBIN)/vehid demo
+	$(VBIN)/python -m pip install --quiet matplotlib
+	$(VBIN)/vehid reproduce --quick --out report/
+	@echo "report: $(abspath report/index.html) (and report/index.md)"
 
 test: test-rust test-python
 
