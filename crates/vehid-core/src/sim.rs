@@ -503,6 +503,8 @@ pub struct RoadSimulator<T: Real, const N: usize, const C: usize> {
     heights: [T; C],
     rear_h: T,
     steps: [Option<Step<T, N>>; 3],
+    /// `ρ(A)`, for the RK4 sub-step count of each step length (as [`auto_substeps`]).
+    rho: f64,
     k: u64,
     rng_road: Xoshiro256PlusPlus,
     rng_w: Xoshiro256PlusPlus,
@@ -543,6 +545,7 @@ impl<T: Real, const N: usize, const C: usize> RoadSimulator<T, N, C> {
         for (i, kin) in kinematic.iter_mut().enumerate() {
             *kin = model.kinematic_source(i);
         }
+        let rho = crate::linalg::spectral_radius(model.a());
         let [mut rng_ic, mut rng_road, rng_w, rng_v] = streams(seed);
         let x = SVector::<T, N>::from_fn(|_, _| normal::<T>(&mut rng_ic) * cfg.ic_sigma);
         let mut heights = [T::zero(); C];
@@ -572,6 +575,7 @@ impl<T: Real, const N: usize, const C: usize> RoadSimulator<T, N, C> {
             heights,
             rear_h,
             steps: [None; 3],
+            rho,
             k: 0,
             rng_road,
             rng_w,
@@ -642,7 +646,10 @@ impl<T: Real, const N: usize, const C: usize> RoadSimulator<T, N, C> {
         let (phi, gamma) = match self.cfg.method {
             Method::Exact => zoh(&self.model, dt)?,
             Method::Rk4 => {
-                let sub = auto_substeps(&self.model, dt).max(self.cfg.substeps.unwrap_or(1));
+                // auto_substeps' rule with ρ(A) computed once.
+                let need = libm::ceil(self.rho * tau / 0.5);
+                let auto = if need.is_finite() && need >= 1.0 { (need as usize).min(100_000) } else { 1 };
+                let sub = auto.max(self.cfg.substeps.unwrap_or(1));
                 rk4_map(&self.model, dt, sub)?
             }
         };
