@@ -1,4 +1,4 @@
-"""`vehid identify` (and the `reproduce` stub): CSV in, identified rows, constants and ξ out.
+"""`vehid identify`: CSV in, identified rows, physical constants and ξ out.
 
 Expected numbers come from the Python API run on the same simulation (the CSV text round
 trip is exact), so the command line must give exactly what the library gives.
@@ -247,12 +247,6 @@ def test_option_errors_exit_2(quarter_csv: Path, capsys: pytest.CaptureFixture[s
             cli.main(["identify", str(quarter_csv), "--model", "quarter", *bad])
         assert info.value.code == 2
         assert "Traceback" not in capsys.readouterr().err
-
-
-def test_reproduce_is_a_stub(capsys: pytest.CaptureFixture[str]) -> None:
-    assert cli.main(["reproduce"]) == 2
-    assert capsys.readouterr().err == "vehid reproduce: not implemented yet (issue 5)\n"
-    assert cli.main(["reproduce", "--quick", "--out", "x/", "--only", "4-2"]) == 2
 
 
 def test_pipe_between_processes_without_tracebacks(tmp_path: Path) -> None:
