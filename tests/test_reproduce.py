@@ -55,9 +55,11 @@ def test_reproduce_numbers_follow_the_seed(tmp_path: Path, capsys: pytest.Captur
 
 
 def test_reproduce_run_api_and_errors() -> None:
-    data = vehid.reproduce.run(quick=True, only=["4-7", "6-9"], seeds=1, max_iterations=10, tables=False)
+    data = vehid.reproduce.run(quick=True, only=["4-7", "6-9"], seeds=1, max_iterations=50, tables=False)
     ids = [f["id"] for f in data["figures"]]
     assert ids == ["4-7", "6-9"]
+    assert data["figures"][0]["curves"] == []  # analytic figure
+    assert len(data["figures"][1]["curves"]) == 3 and data["figures"][1]["skipped"] is None
     with pytest.raises(ValueError, match="only"):
         vehid.reproduce.run(quick=True, only=["9-9"], tables=False)
 

@@ -19,6 +19,7 @@ fn quick(seed: u64, only: &[&str], max_iterations: usize) -> Report {
 
 #[test]
 fn the_table_covers_every_figure_of_chapters_3_to_6() {
+    assert!(EXPERIMENTS.iter().all(|e| e.needs.is_none()), "every figure runs");
     let ids: Vec<&str> = EXPERIMENTS.iter().map(|e| e.id).collect();
     let mut want = vec![];
     for (ch, lo, hi) in [(3, 2, 7), (4, 1, 9), (5, 1, 4), (6, 2, 9)] {
@@ -29,7 +30,7 @@ fn the_table_covers_every_figure_of_chapters_3_to_6() {
     assert_eq!(ids, want);
     for e in EXPERIMENTS {
         // Every caption's four σ are non-negative and every curve-carrying figure has claims
-        // (4-7 is analytic; 6-8/6-9 wait for issue 6).
+        // (4-7 is analytic).
         for c in e.curves {
             assert!(c.ic >= 0.0 && c.road >= 0.0 && c.state >= 0.0 && c.deriv >= 0.0, "{}", e.id);
         }
@@ -69,10 +70,11 @@ fn one_figure_per_chapter_runs_and_the_numbers_follow_the_seed() {
 }
 
 #[test]
-fn issue_6_figures_are_skipped_with_a_reason() {
-    let r = quick(1, &["6-8", "6-9"], 100);
+fn one_road_figures_run_with_the_two_axle_identifier() {
+    let r = quick(1, &["6-8", "6-9"], 300);
     for f in &r.figures {
-        assert!(f.skipped.as_deref().unwrap().contains("issue 6"));
+        assert!(f.skipped.is_none(), "Fig {}", f.experiment.id);
+        assert!(f.curves.iter().all(|c| c.final_xi.iter().all(|v| v.is_finite())), "Fig {}", f.experiment.id);
     }
 }
 
