@@ -1,4 +1,5 @@
-"""Randomized garbage against every identifier: constructors, update, fit, properties.
+"""Randomized garbage against every identifier (and the axle sampler): constructors, update,
+fit, properties.
 
 Each call must either succeed or raise VehidError / ValueError / TypeError / OverflowError.
 Anything else fails, above all pyo3's ``PanicException`` (a ``BaseException``, so it would
@@ -276,3 +277,50 @@ def test_batch_least_squares_keeps_unsolvable_samples_and_says_so() -> None:
     with pytest.raises(vehid.VehidError, match="not finite"):
         ls.fit(np.zeros((5, 4)), bad)  # rejected up front: nothing is stored
     assert same_state(before, state(ls))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_two_axle_identifier_and_sampler_survive_garbage(seed: int) -> None:
+    g = Garbage(100 + seed)
+    run = sample_run(HALF, 300, seed)
+    calls = 0
+    while calls < CALLS_PER_SEED:
+        kw: dict[str, Any] = {}
+        for key, good in (("spacing", 0.3), ("method", g.pick(["none", "thesis", "cancel"])), ("p0", 1000.0),
+                          ("road_sigma", 0.1), ("deriv_noise", 0.005), ("p0_body", 8.0), ("wheelbase", 3.0),
+                          ("direct_front", True)):
+            if g.rng.random() < 0.4:
+                kw[key] = g.value(8, 4, good)
+        model = HALF if g.rng.random() < 0.8 else g.pick([CAR, THREE, None, "half"])
+        ok, ident = attempt(vehid.TwoAxleIdentifier, model, **kw)
+        calls += 1
+        if ok:
+            for _ in range(int(g.rng.integers(1, 15))):
+                calls += 1
+                before = state(ident)
+                if g.rng.random() < 0.5:
+                    i = int(g.rng.integers(len(run)))
+                    args: Tuple[Any, ...] = (g.value(8, 4, run.r[i]), g.value(8, 4, run.z[i]))
+                    ok, _ = attempt(ident.update, *args)
+                else:
+                    lo = int(g.rng.integers(len(run)))
+                    hi = lo + int(g.rng.integers(0, 40))
+                    r = run.r[lo:hi].copy()
+                    if len(r) and g.rng.random() < 0.3:
+                        r[int(g.rng.integers(len(r))):] *= g.pick([1e150, 1e200, 1e300])
+                    args = (g.value(8, 4, r), g.value(8, 4, run.z[lo:hi]))
+                    ok, _ = attempt(ident.fit, *args)
+                if not ok:
+                    assert same_state(before, state(ident)), f"rejected call changed TwoAxleIdentifier: {describe(args)}"
+                for name in ("theta", "a_hat", "method", "delay", "spacing", "wheelbase", "wheel_variances",
+                             "samples", "paired", "model"):
+                    attempt(getattr, ident, name)
+        ok, sampler = attempt(vehid.AxleSampler, *[g.value(1, 1, v) for v in (3.0, 0.3, 0.01)][: int(g.rng.integers(0, 4))])
+        calls += 1
+        if ok:
+            for _ in range(int(g.rng.integers(1, 10))):
+                calls += 1
+                method, arity = g.pick([("feed", 1), ("advance", 2), ("time_to_next", 1), ("reset", 1)])
+                attempt(getattr(sampler, method), *[g.value(1, 1, float(g.rng.normal() * 10)) for _ in range(arity)])
+                attempt(getattr, sampler, g.pick(["distance_to_next", "delay", "spacing", "wheelbase", "tolerance",
+                                                  "position", "samples"]))
