@@ -23,6 +23,7 @@ __all__ = [
     "AxleSampler",
     "xi",
     "snr_db",
+    "reproduce_json",
 ]
 
 _Floats = Union[float, ArrayLike]
