@@ -148,10 +148,8 @@ def test_physical_needs_the_right_known_values() -> None:
 
 
 def test_unknown_keywords_are_type_errors() -> None:
-    # speed=, spacing=, road= belong to a later version.
-    for kw in ("speed", "spacing", "road"):
-        with pytest.raises(TypeError):
-            vehid.Simulator(HALF, **{kw: 1.0})
+    with pytest.raises(TypeError):
+        vehid.Simulator(HALF, velocity=6.0)  # type: ignore[call-arg]
     with pytest.raises(TypeError):
         vehid.QuarterCar(J=1.0)  # type: ignore[call-arg]
     with pytest.raises(TypeError):
