@@ -98,7 +98,7 @@ def _median(xs: List[float]) -> float:
 
 def _sigmas(c: Json) -> str:
     s = f"σ_ic={c['ic']:g}, σ_u={c['road']:g}, σ_w={c['state']:g}, σ_v={c['deriv']:g}"
-    if c["pulse_width"]:
+    if c["pulse_width"] and "pulse" not in c["label"]:
         s += f", pulse {c['pulse_width']} cycles"
     return s
 
