@@ -1588,7 +1588,9 @@ fn sensitivity(base_seed: u64, seeds: usize, quick: bool) -> crate::Result<Table
     for i in 0..4 {
         let col: Vec<f64> = e.iter().map(|r| r[i]).collect();
         let m = means[i];
-        let ok = if EQ_4_34[i] < 0.01 { m.abs() < 0.05 } else { m > EQ_4_34[i] / 3.0 && m < EQ_4_34[i] * 3.0 };
+        // Agreement: within a factor 2 (the thesis' figure is a mean of 3 runs, so its own
+        // spread is large); a value printed as ≈ 0 agrees with anything below 0.01.
+        let ok = if EQ_4_34[i] < 0.01 { m.abs() < 0.01 } else { m > EQ_4_34[i] / 2.0 && m < EQ_4_34[i] * 2.0 };
         t.rows.push(TableRow {
             label: names[i].into(),
             thesis: fmt_num(EQ_4_34[i]),
@@ -1598,7 +1600,10 @@ fn sensitivity(base_seed: u64, seeds: usize, quick: bool) -> crate::Result<Table
                 String::new()
             } else {
                 format!(
-                    "outside a factor 3 of the thesis (the thesis averaged 3 runs; per-seed spread is large){}",
+                    "outside a factor 2 of the thesis. The thesis averaged only 3 runs and the per-seed \
+                     spread of ξ at 8000 iterations is large; what holds is the conclusion it drew: \
+                     position sensors (about 20 dB SNR) bias far more than the wheel-velocity sensor \
+                     (33 dB){}",
                     if same_order { "; the ranking of the four elements matches" } else { "" }
                 )
             },
