@@ -27,7 +27,12 @@ pub fn array(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Array> {
         VehidError::new_err(format!("`{arg}` must be a float array or convertible to one: {e}"))
     })?;
     let shape = arr.shape().to_vec();
-    let data: Vec<f64> = arr.as_array().iter().copied().collect();
+    // Contiguous C-order input (the common case) is one block copy; anything else is walked
+    // in logical row-major order.
+    let data: Vec<f64> = match arr.as_slice() {
+        Ok(slice) => slice.to_vec(),
+        Err(_) => arr.as_array().iter().copied().collect(),
+    };
     Ok(Array { shape, data })
 }
 
