@@ -29,9 +29,10 @@ pub fn array(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Array> {
     let shape = arr.shape().to_vec();
     // Contiguous C-order input (the common case) is one block copy; anything else is walked
     // in logical row-major order.
+    // (`as_slice` also accepts Fortran order, whose memory order is not row-major: check.)
     let data: Vec<f64> = match arr.as_slice() {
-        Ok(slice) => slice.to_vec(),
-        Err(_) => arr.as_array().iter().copied().collect(),
+        Ok(slice) if arr.is_c_contiguous() => slice.to_vec(),
+        _ => arr.as_array().iter().copied().collect(),
     };
     Ok(Array { shape, data })
 }
