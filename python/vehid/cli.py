@@ -30,6 +30,7 @@ from numpy.typing import NDArray
 
 from . import (
     BatchLeastSquares,
+    TwoAxleIdentifier,
     HalfCar,
     KalmanIdentifier,
     LinearModel,
@@ -73,26 +74,36 @@ def run_chunks(
             print(f"vehid: simulated {done}/{n} samples ({100 * done // n}%)", file=progress, flush=True)
 
 
-def csv_header(n_states: int, n_inputs: int) -> List[str]:
-    """Column names: ``t, x1..xn, dx1..dxn, true_x1.., true_dx1.., u1..``."""
+def csv_header(n_states: int, n_inputs: int, distance: bool = False) -> List[str]:
+    """Column names: ``t, x1..xn, dx1..dxn, true_x1.., true_dx1.., u1..`` and, for a run
+    sampled by distance (``--speed``), ``s`` (m travelled) last."""
     cols = ["t"]
     cols += [f"x{i}" for i in range(1, n_states + 1)]
     cols += [f"dx{i}" for i in range(1, n_states + 1)]
     cols += [f"true_x{i}" for i in range(1, n_states + 1)]
     cols += [f"true_dx{i}" for i in range(1, n_states + 1)]
     cols += [f"u{j}" for j in range(1, n_inputs + 1)]
+    if distance:
+        cols.append("s")
     return cols
 
 
-def write_csv_rows(out: IO[str], run: Run) -> None:
+def write_csv_rows(out: IO[str], run: Run, distance: bool = False) -> None:
     """Appends the samples of ``run`` in the column order of :func:`csv_header`."""
-    data = np.column_stack([run.t, run.r, run.z, run.x, run.xdot, run.u])
+    cols = [run.t, run.r, run.z, run.x, run.xdot, run.u]
+    if distance:
+        cols.append(run.s)
+    data = np.column_stack(cols)
     # repr() of a Python float is the shortest text that reads back to the same float64.
     out.writelines(",".join(map(repr, row)) + "\n" for row in data.tolist())
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
     model = MODELS[args.model]()
+    distance = args.speed is not None
+    road_kw: Dict[str, Any] = {}
+    if distance:
+        road_kw = {"speed": args.speed, "spacing": args.spacing, "road": args.road}
     sim = Simulator(
         model,
         dt=args.dt,
@@ -102,13 +113,14 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         deriv_noise=args.deriv_noise,
         seed=args.seed,
         method=args.method,
+        **road_kw,
     )
     to_stdout = args.output == "-"
     out: IO[str] = sys.stdout if to_stdout else open(args.output, "w", encoding="ascii", newline="\n")
     try:
-        out.write(",".join(csv_header(model.n_states, model.n_inputs)) + "\n")
+        out.write(",".join(csv_header(model.n_states, model.n_inputs, distance)) + "\n")
         for run in run_chunks(sim, args.n, progress=sys.stderr):
-            write_csv_rows(out, run)
+            write_csv_rows(out, run, distance)
         out.flush()
     finally:
         if not to_stdout:
@@ -154,7 +166,7 @@ class CsvLayout:
     has_truth: bool
 
 
-_COLUMN = re.compile(r"^(t|x|dx|true_x|true_dx|u)(\d*)$")
+_COLUMN = re.compile(r"^(t|s|x|dx|true_x|true_dx|u)(\d*)$")
 
 
 def csv_layout(header: str, model: LinearModel, name: str, source: str) -> CsvLayout:
@@ -168,7 +180,7 @@ def csv_layout(header: str, model: LinearModel, name: str, source: str) -> CsvLa
     parsed: List[tuple[str, int]] = []
     for i, col in enumerate(names):
         match = _COLUMN.match(col)
-        ok = match is not None and (match.group(1) == "t") == (match.group(2) == "")
+        ok = match is not None and (match.group(1) in ("t", "s")) == (match.group(2) == "")
         if match is None or not ok or match.group(2).startswith("0"):
             raise CliError(f"{source}: unknown column {col!r} (column {i + 1}); expected {expected}")
         if col in seen:
@@ -185,7 +197,7 @@ def csv_layout(header: str, model: LinearModel, name: str, source: str) -> CsvLa
     if missing:
         raise CliError(f"{source}: missing column(s) {', '.join(missing)}; expected {expected}")
     for col, (kind, idx) in zip(names, parsed):
-        if kind != "t" and idx > (m if kind == "u" else n):
+        if kind not in ("t", "s") and idx > (m if kind == "u" else n):
             raise CliError(f"{source}: column {col!r} does not fit the {MODEL_NAMES[name]} ({n} states, {m} inputs)")
     return CsvLayout(
         names=names,
@@ -268,7 +280,7 @@ def positive_float(text: str) -> float:
     return v
 
 
-Identifier = Union[KalmanIdentifier, StochasticGradient, BatchLeastSquares]
+Identifier = Union[KalmanIdentifier, StochasticGradient, BatchLeastSquares, TwoAxleIdentifier]
 
 
 def make_identifier(args: argparse.Namespace, model: LinearModel) -> Identifier:
@@ -283,6 +295,20 @@ def make_identifier(args: argparse.Namespace, model: LinearModel) -> Identifier:
         )
     if args.method == "sg":
         return StochasticGradient(model, gain=args.gain, h=args.h)
+    if args.method == "two-axle":
+        if args.model != "half":
+            raise CliError("--method two-axle needs --model half (two axles on one road)")
+        p0 = args.p0 if isinstance(args.p0, float) else args.p0[0] if len(args.p0) == 1 else None
+        if p0 is None:
+            raise CliError("--method two-axle takes one --p0 value (the body rows' prior is the thesis' 8)")
+        return TwoAxleIdentifier(
+            model,
+            spacing=args.spacing,
+            method=args.wheel_method,
+            p0=p0,
+            road_sigma=args.road_sigma,
+            deriv_noise=args.deriv_noise,
+        )
     return BatchLeastSquares(model)
 
 
@@ -293,6 +319,9 @@ def method_options(args: argparse.Namespace) -> Dict[str, Any]:
                 "mode": args.mode, "reinit": args.reinit}
     if args.method == "sg":
         return {"gain": args.gain, "h": 1.0 if args.h is None else args.h}
+    if args.method == "two-axle":
+        return {"p0": args.p0, "road_sigma": args.road_sigma, "deriv_noise": args.deriv_noise,
+                "spacing": args.spacing, "wheel_method": args.wheel_method}
     return {}
 
 
@@ -459,6 +488,12 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--deriv-noise", type=float, default=0.005, help="derivative noise std sigma_v (default 0.005)")
     sim.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
     sim.add_argument("--method", choices=["rk4", "exact"], default="rk4", help="integrator (default rk4)")
+    sim.add_argument("--speed", type=float, default=None,
+                     help="half car on one road: drive at this speed, m/s, sampling every --spacing metres "
+                          "(adds the distance column s)")
+    sim.add_argument("--spacing", type=float, default=0.3, help="with --speed: metres between samples (default 0.3)")
+    sim.add_argument("--road", choices=["white", "independent"], default="white",
+                     help="with --speed: one road under both axles (white) or independent inputs (Fig 6-7)")
     sim.add_argument("-o", "--output", required=True, metavar="FILE", help="CSV file to write, '-' for stdout")
     sim.set_defaults(func=cmd_simulate)
 
@@ -472,8 +507,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ident.add_argument("file", metavar="FILE", help="CSV run, '-' for stdin")
     ident.add_argument("--model", choices=sorted(MODELS), required=True, help="quarter (4 states) or half (8 states)")
-    ident.add_argument("--method", choices=["kalman", "ls", "sg"], default="kalman",
-                       help="kalman (Eq 4.3-4.7, default), ls (batch least squares, Eq 2.14), sg (stochastic gradient)")
+    ident.add_argument("--method", choices=["kalman", "ls", "sg", "two-axle"], default="kalman",
+                       help="kalman (Eq 4.3-4.7, default), ls (batch least squares, Eq 2.14), sg (stochastic "
+                            "gradient), two-axle (half car on one road, samples every --spacing metres)")
+    ident.add_argument("--spacing", type=float, default=0.3,
+                       help="two-axle: metres between samples, as simulated (default 0.3)")
+    ident.add_argument("--wheel-method", choices=["none", "thesis", "cancel"], default="cancel",
+                       help="two-axle: wheel rows by plain rows, Eq 6.14, or road cancellation (default)")
     ident.add_argument("--p0", type=parse_floats, default=1000.0, metavar="P0",
                        help="kalman: prior covariance P(0), one value or one per unknown row, comma-separated (default 1000)")
     ident.add_argument("--road-sigma", type=float, default=0.1,
