@@ -92,6 +92,8 @@ def write_csv_rows(out: IO[str], run: Run, distance: bool = False) -> None:
     """Appends the samples of ``run`` in the column order of :func:`csv_header`."""
     cols = [run.t, run.r, run.z, run.x, run.xdot, run.u]
     if distance:
+        if run.s is None:
+            raise CliError("this run was not sampled by distance (no `s`): pass --speed")
         cols.append(run.s)
     data = np.column_stack(cols)
     # repr() of a Python float is the shortest text that reads back to the same float64.
