@@ -8,6 +8,10 @@
 #                 identify`, which must report xi (slow: a full release build; not in `test`)
 #   make bench-python   Python-level overhead of KalmanIdentifier.update()/fit() against the
 #                 budgets (RUST_NS=<ns per sample from `cargo bench`> to compare with a measured figure)
+#   make bench-peers    the same quarter-car data through filterpy, padasip, statsmodels, numpy
+#                 (RLS loop, lstsq), vehid (update/fit) and a plain C loop (benches/peers/rls.c):
+#                 agreement of θ first, then ns/sample and ratios; the peers live in their own
+#                 .venv-peers (never vehid dependencies) with a vehid wheel built for it
 #   make clean    remove build products and the venv
 
 PYTHON ?= python3
@@ -15,7 +19,7 @@ VENV   := .venv
 VBIN   := $(VENV)/bin
 CARGO  ?= cargo
 
-.PHONY: venv develop demo test test-rust test-python install-check bench-python clean
+.PHONY: venv develop demo test test-rust test-python install-check bench-python bench-peers clean
 
 venv: $(VENV)/.installed
 
@@ -65,8 +69,24 @@ RUST_NS ?=
 bench-python: develop
 	$(VBIN)/python benches/python/overhead.py $(if $(RUST_NS),--rust-ns $(RUST_NS))
 
+PEERS_VENV := .venv-peers
+PEERS_PKGS := filterpy padasip statsmodels numpy
+
+$(PEERS_VENV)/.installed:
+	$(PYTHON) -m venv $(PEERS_VENV)
+	$(PEERS_VENV)/bin/python -m pip install --quiet $(PEERS_PKGS)
+	touch $@
+
+# vehid goes into .venv-peers as a freshly built wheel (not editable: `maturin develop` would
+# write its .so into python/vehid, shared with .venv).
+bench-peers: venv $(PEERS_VENV)/.installed
+	rm -rf target/peers-wheel
+	env -u CONDA_PREFIX $(VBIN)/maturin build --release --quiet -o target/peers-wheel
+	$(PEERS_VENV)/bin/python -m pip install --quiet --force-reinstall --no-deps target/peers-wheel/vehid-*.whl
+	$(PEERS_VENV)/bin/python benches/peers/run_peers.py --json target/peers/peers.json
+
 clean:
 	rm -f python/vehid/*.so python/vehid/*.pyd
-	rm -rf $(VENV) dist .pytest_cache .mypy_cache
+	rm -rf $(VENV) $(PEERS_VENV) dist .pytest_cache .mypy_cache
 	find python tests -name __pycache__ -type d -prune -exec rm -rf {} +
 	$(CARGO) clean
