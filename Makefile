@@ -12,6 +12,9 @@
 #                 (RLS loop, lstsq), vehid (update/fit) and a plain C loop (benches/peers/rls.c):
 #                 agreement of θ first, then ns/sample and ratios; the peers live in their own
 #                 .venv-peers (never vehid dependencies) with a vehid wheel built for it
+#   make bench-check    regression gate: instructions per update under valgrind's callgrind
+#                 (release build) against benches/callgrind_baseline.json; fails on > 5 % growth
+#   make bench-check-update  rewrite that baseline deliberately (see below)
 #   make clean    remove build products and the venv
 
 PYTHON ?= python3
@@ -19,7 +22,7 @@ VENV   := .venv
 VBIN   := $(VENV)/bin
 CARGO  ?= cargo
 
-.PHONY: venv develop demo test test-rust test-python install-check bench-python bench-peers clean
+.PHONY: venv develop demo test test-rust test-python install-check bench-python bench-peers bench-check bench-check-update clean
 
 venv: $(VENV)/.installed
 
@@ -84,6 +87,17 @@ bench-peers: venv $(PEERS_VENV)/.installed
 	env -u CONDA_PREFIX $(VBIN)/maturin build --release --quiet -o target/peers-wheel
 	$(PEERS_VENV)/bin/python -m pip install --quiet --force-reinstall --no-deps target/peers-wheel/vehid-*.whl
 	$(PEERS_VENV)/bin/python benches/peers/run_peers.py --json target/peers/peers.json
+
+# Instruction counts are deterministic for a given binary and input, so the gate is stable on a
+# noisy machine. To change the baseline deliberately (a change meant to cost more, a speed-up
+# to keep, a new rustc or valgrind): `make bench-check-update`, read the old -> new counts it
+# prints, and commit benches/callgrind_baseline.json with the change, saying why.
+# (benches/callgrind_check.py's docstring has the details; --bench NAME limits it to one bench.)
+bench-check:
+	$(PYTHON) benches/callgrind_check.py
+
+bench-check-update:
+	$(PYTHON) benches/callgrind_check.py --update
 
 clean:
 	rm -f python/vehid/*.so python/vehid/*.pyd

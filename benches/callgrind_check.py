@@ -1,0 +1,221 @@
+"""Regression gate on instructions per update, counted by valgrind's callgrind.
+
+Wall-clock benches drift on a shared machine; the number of instructions a given binary
+executes on a given input does not. For each key bench this script runs
+``target/release/count_updates BENCH N`` and ``... BENCH 0`` under
+``valgrind --tool=callgrind``, takes ``(Ir(N) − Ir(0)) / N`` as the instructions per update
+(the 0 run subtracts process start-up and the seeded data generation), and compares it with
+the checked-in ``benches/callgrind_baseline.json``. It fails (exit 1) when any count is more than
+5 % above its baseline (or a bench has no baseline); a count more than 5 % *below* passes with a
+hint to update the baseline so that the gain is kept.
+
+Usage::
+
+    make bench-check                              # build (release) and check every bench
+    python3 benches/callgrind_check.py            # the same
+    python3 benches/callgrind_check.py --bench quarter_rows --bench half_rows
+    python3 benches/callgrind_check.py --update   # rewrite the baseline (deliberately!)
+
+Updating the baseline deliberately: when a change is *meant* to cost more instructions (a new
+check, a more robust form) or has made things faster, run ``make bench-check-update`` (that is
+``python3 benches/callgrind_check.py --update``), look at the printed old → new counts, and
+commit ``benches/callgrind_baseline.json`` together with the change, saying why in the commit
+message. The counts depend on the compiler (rustc version, target, release profile) and the
+valgrind version, both recorded in the baseline: after a toolchain upgrade, re-baseline in a
+commit of its own. ``--update`` with ``--bench`` rewrites only those entries.
+
+The comparison itself (:func:`compare`) is a pure function, unit-tested by
+``tests/test_bench_check.py`` against doctored baselines.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Dict, List, Mapping, Optional, Sequence
+
+ROOT = Path(__file__).resolve().parent.parent
+BASELINE = Path(__file__).resolve().parent / "callgrind_baseline.json"
+BINARY = ROOT / "target" / "release" / "count_updates"
+TOLERANCE = 0.05
+N_UPDATES = 20_000
+# The key benches (names of count_updates); criterion's counterparts in parentheses.
+BENCHES = [
+    "quarter_rows",       # update_f64/quarter/kalman_rows
+    "half_rows",          # update_f64/half/kalman_rows
+    "quarter_shared",     # update_f64/quarter/kalman_shared
+    "half_shared",        # update_f64/half/kalman_shared
+    "quarter_sg_venter",  # update_f64/quarter/sg_venter
+    "quarter_sim_exact",  # simulate_f64/quarter/exact
+]
+
+
+@dataclass
+class Row:
+    """One bench's verdict."""
+
+    bench: str
+    baseline: Optional[float]
+    measured: Optional[float]
+    status: str  # "ok", "faster", "REGRESSION", "NO BASELINE", "not measured"
+
+    @property
+    def ratio(self) -> Optional[float]:
+        if self.baseline is None or self.measured is None or self.baseline == 0:
+            return None
+        return self.measured / self.baseline
+
+    @property
+    def failed(self) -> bool:
+        return self.status in ("REGRESSION", "NO BASELINE")
+
+
+def compare(measured: Mapping[str, float], baseline: Mapping[str, float], tolerance: float = TOLERANCE) -> List[Row]:
+    """Compares instructions per update with the baseline counts.
+
+    A bench fails when its count exceeds ``baseline × (1 + tolerance)`` or has no baseline;
+    it is ``"faster"`` (a pass) below ``baseline × (1 − tolerance)``. Baseline entries that were
+    not measured are listed as ``"not measured"`` (a pass: ``--bench`` selects a subset).
+    """
+    rows = []
+    for bench, value in measured.items():
+        base = baseline.get(bench)
+        if base is None:
+            status = "NO BASELINE"
+        elif value > base * (1.0 + tolerance):
+            status = "REGRESSION"
+        elif value < base * (1.0 - tolerance):
+            status = "faster"
+        else:
+            status = "ok"
+        rows.append(Row(bench, base, value, status))
+    for bench, base in baseline.items():
+        if bench not in measured:
+            rows.append(Row(bench, base, None, "not measured"))
+    return rows
+
+
+def passed(rows: Sequence[Row]) -> bool:
+    return not any(r.failed for r in rows)
+
+
+def format_table(rows: Sequence[Row], tolerance: float = TOLERANCE) -> str:
+    lines = [f"{'bench':<20} {'baseline':>10} {'measured':>10} {'ratio':>7}  verdict (fail above +{tolerance:.0%})"]
+    for r in rows:
+        base = "—" if r.baseline is None else f"{r.baseline:.1f}"
+        meas = "—" if r.measured is None else f"{r.measured:.1f}"
+        ratio = "—" if r.ratio is None else f"{r.ratio:.3f}"
+        hint = "  (consider --update to keep the gain)" if r.status == "faster" else ""
+        lines.append(f"{r.bench:<20} {base:>10} {meas:>10} {ratio:>7}  {r.status}{hint}")
+    return "\n".join(lines)
+
+
+# ---- measuring ----------------------------------------------------------------------------
+
+def instructions(binary: Path, bench: str, n: int) -> int:
+    """Total instructions (Ir) of ``binary bench n`` under callgrind."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "callgrind.out"
+        cmd = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", str(binary), bench, str(n)]
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+        if proc.returncode != 0:
+            raise RuntimeError(f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stderr[-2000:]}")
+        text = out.read_text()
+    m = re.search(r"^(?:summary|totals):\s*(\d+)", text, re.MULTILINE)
+    if m is None:
+        raise RuntimeError(f"no summary line in the callgrind output of {bench}")
+    return int(m.group(1))
+
+
+def per_update(binary: Path, bench: str, n: int) -> float:
+    """Instructions per update: (Ir(n) − Ir(0)) / n."""
+    return (instructions(binary, bench, n) - instructions(binary, bench, 0)) / n
+
+
+def build() -> None:
+    cargo = os.environ.get("CARGO", "cargo")
+    subprocess.run([cargo, "build", "--quiet", "--release", "-p", "vehid-benches", "--bin", "count_updates"],
+                   cwd=ROOT, check=True)
+
+
+def toolchain() -> Dict[str, str]:
+    def first_line(cmd: List[str]) -> str:
+        try:
+            return subprocess.run(cmd, capture_output=True, text=True, check=True).stdout.strip().splitlines()[0]
+        except (OSError, subprocess.CalledProcessError, IndexError):
+            return "?"
+
+    return {"rustc": first_line(["rustc", "--version"]), "valgrind": first_line(["valgrind", "--version"])}
+
+
+def load_baseline(path: Path) -> dict:
+    if not path.exists():
+        return {"counts": {}}
+    return json.loads(path.read_text())
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--bench", action="append", choices=BENCHES, help="only this bench (repeatable)")
+    ap.add_argument("--baseline", type=Path, default=BASELINE, help=f"baseline file (default {BASELINE.relative_to(ROOT)})")
+    ap.add_argument("--n", type=int, default=None, help=f"updates per run (default: the baseline's, else {N_UPDATES})")
+    ap.add_argument("--tolerance", type=float, default=None, help=f"allowed growth (default: the baseline's, else {TOLERANCE})")
+    ap.add_argument("--update", action="store_true", help="rewrite the baseline with the measured counts")
+    ap.add_argument("--no-build", action="store_true", help="use the existing target/release/count_updates")
+    ap.add_argument("--binary", type=Path, default=BINARY, help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+
+    if shutil.which("valgrind") is None:
+        print("callgrind_check: valgrind is not installed", file=sys.stderr)
+        return 2
+    if not args.no_build:
+        build()
+    base = load_baseline(args.baseline)
+    n = args.n or int(base.get("n_updates", N_UPDATES))
+    tolerance = args.tolerance if args.tolerance is not None else float(base.get("tolerance", TOLERANCE))
+    tools = toolchain()
+    if not args.update:
+        for key, value in base.get("toolchain", {}).items():
+            if tools.get(key) != value:
+                print(f"note: baseline made with {key} {value!r}, now {tools.get(key)!r}: counts may differ "
+                      f"for that reason alone (re-baseline in a commit of its own)")
+
+    benches = args.bench or BENCHES
+    measured = {b: per_update(args.binary, b, n) for b in benches}
+    rows = compare(measured, base.get("counts", {}), tolerance)
+    print(f"instructions per update under callgrind ({n} updates, minus a 0-update run)")
+    print(format_table(rows, tolerance))
+
+    if args.update:
+        counts = dict(base.get("counts", {}))
+        counts.update({b: round(v, 2) for b, v in measured.items()})
+        new = {
+            "about": "Instructions per update (callgrind Ir) of target/release/count_updates; "
+                     "checked by benches/callgrind_check.py (make bench-check), rewritten by --update.",
+            "n_updates": n,
+            "tolerance": tolerance,
+            "toolchain": tools,
+            "counts": {b: counts[b] for b in sorted(counts)},
+        }
+        args.baseline.write_text(json.dumps(new, indent=2) + "\n")
+        print(f"baseline rewritten: {args.baseline}")
+        return 0
+    if passed(rows):
+        print("bench-check: ok")
+        return 0
+    print("bench-check: FAILED (a count grew by more than "
+          f"{tolerance:.0%}, or has no baseline); if intended, see --update in the docstring", file=sys.stderr)
+    return 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

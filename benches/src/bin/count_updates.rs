@@ -1,0 +1,131 @@
+//! A fixed number of updates of one key identifier on seeded data, for instruction counting
+//! under callgrind (`benches/callgrind_check.py`, `make bench-check`).
+//!
+//! Run: `cargo run -q --release -p vehid-benches --bin count_updates -- BENCH N`
+//! with `BENCH` one of the names printed by `count_updates --list`. The input (4096 seeded
+//! samples of the thesis quarter or half car, the same settings as the criterion benches) is
+//! generated whatever `N` is, so the instructions of `N` updates are the count with `N` minus
+//! the count with `N = 0`. The bench's state is printed at the end so that nothing is
+//! optimized away.
+
+use std::hint::black_box;
+use std::process::ExitCode;
+use vehid_core::identify::{Gain, KalmanIdentifier, SharedKalmanIdentifier, StochasticGradient};
+use vehid_core::model::{HalfCar, LinearModel, QuarterCar};
+use vehid_core::nalgebra::SVector;
+use vehid_core::sim::{Method, SimConfig, Simulator};
+
+const LEN: usize = 4096;
+
+/// The benches: name and what one update is.
+const BENCHES: [(&str, &str); 6] = [
+    ("quarter_rows", "KalmanIdentifier<f64, 4, 2> (rows) update"),
+    ("half_rows", "KalmanIdentifier<f64, 8, 4> (rows) update"),
+    ("quarter_shared", "SharedKalmanIdentifier<f64, 4, 2> update"),
+    ("half_shared", "SharedKalmanIdentifier<f64, 8, 4> update"),
+    ("quarter_sg_venter", "StochasticGradient<f64, 4, 2> (Venter, p = 0.51) update"),
+    ("quarter_sim_exact", "Simulator<f64, 4, 1> (exact discretization) next_sample"),
+];
+
+type Data<const N: usize> = Vec<(SVector<f64, N>, SVector<f64, N>)>;
+
+fn samples<const N: usize, const M: usize>(model: LinearModel<f64, N, M>) -> vehid_core::Result<Data<N>> {
+    let cfg = SimConfig::new(0.05).road_sigma(0.1).ic_sigma(0.1).deriv_noise(0.005);
+    let mut sim = Simulator::new(model, cfg, 42)?;
+    Ok((0..LEN).map(|_| sim.next_sample()).map(|s| (s.r, s.z)).collect())
+}
+
+/// Runs `n` updates cycling through `data`; returns a checksum of the results.
+fn cycle<const N: usize, O>(data: &Data<N>, n: usize, mut update: impl FnMut(&SVector<f64, N>, &SVector<f64, N>) -> O) -> usize {
+    let mut done = 0usize;
+    for k in 0..n {
+        let (x, z) = &data[k & (LEN - 1)];
+        black_box(update(black_box(x), black_box(z)));
+        done += 1;
+    }
+    done
+}
+
+fn run(bench: &str, n: usize) -> vehid_core::Result<String> {
+    let q = QuarterCar::<f64>::thesis();
+    let h = HalfCar::<f64>::thesis();
+    Ok(match bench {
+        "quarter_rows" => {
+            let data = samples(q.model())?;
+            let r: [f64; 2] = q.model().row_noise_var(0.1, 0.005)?;
+            let mut id = KalmanIdentifier::<f64, 4, 2>::new(q.unknown_rows(), 1000.0, r)?;
+            cycle(&data, n, |x, z| id.update(x, z).is_ok());
+            format!("{:?}", id.theta())
+        }
+        "half_rows" => {
+            let data = samples(h.model())?;
+            let r: [f64; 4] = h.model().row_noise_var(0.1, 0.005)?;
+            let mut id = KalmanIdentifier::<f64, 8, 4>::new(h.unknown_rows(), 1000.0, r)?;
+            cycle(&data, n, |x, z| id.update(x, z).is_ok());
+            format!("{:?}", id.theta())
+        }
+        "quarter_shared" => {
+            let data = samples(q.model())?;
+            let mut id = SharedKalmanIdentifier::<f64, 4, 2>::new(q.unknown_rows(), 1000.0, [1.0; 2])?;
+            cycle(&data, n, |x, z| id.update(x, z).is_ok());
+            format!("{:?}", id.theta())
+        }
+        "half_shared" => {
+            let data = samples(h.model())?;
+            let mut id = SharedKalmanIdentifier::<f64, 8, 4>::new(h.unknown_rows(), 1000.0, [1.0; 4])?;
+            cycle(&data, n, |x, z| id.update(x, z).is_ok());
+            format!("{:?}", id.theta())
+        }
+        "quarter_sg_venter" => {
+            let data = samples(q.model())?;
+            let mut id = StochasticGradient::<f64, 4, 2>::new(q.unknown_rows(), Gain::Venter { p: 0.51 }, 0.4)?;
+            cycle(&data, n, |x, z| id.update(x, z).is_ok());
+            format!("{:?}", id.theta())
+        }
+        "quarter_sim_exact" => {
+            // Same settings as the criterion bench simulate_f64/quarter/exact; the data set is
+            // generated anyway so that the N = 0 run has the same setup.
+            let _data = black_box(samples(q.model())?);
+            let mut cfg = SimConfig::<f64, 4, 1>::new(0.05).road_sigma(0.1).deriv_noise(0.005);
+            cfg.method = Method::Exact;
+            let mut sim = Simulator::new(q.model(), cfg, 1)?;
+            let mut last = SVector::<f64, 4>::zeros();
+            for _ in 0..n {
+                last = black_box(sim.next_sample()).r;
+            }
+            format!("{last:?}")
+        }
+        _ => unreachable!("main checks the name against BENCHES"),
+    })
+}
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    if args.first().map(String::as_str) == Some("--list") {
+        for (name, what) in BENCHES {
+            println!("{name}\t{what}");
+        }
+        return ExitCode::SUCCESS;
+    }
+    let (bench, n) = match (args.first(), args.get(1).map(|s| s.parse::<usize>())) {
+        (Some(b), Some(Ok(n))) if args.len() == 2 => (b.clone(), n),
+        _ => {
+            eprintln!("usage: count_updates BENCH N   (or --list)");
+            return ExitCode::from(2);
+        }
+    };
+    if !BENCHES.iter().any(|(name, _)| *name == bench) {
+        eprintln!("count_updates: unknown bench {bench:?} (see --list)");
+        return ExitCode::from(2);
+    }
+    match run(&bench, n) {
+        Ok(state) => {
+            println!("{bench} {n} {state}");
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("count_updates: {e}");
+            ExitCode::from(2)
+        }
+    }
+}
