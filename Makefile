@@ -12,6 +12,9 @@
 #                 (RLS loop, lstsq), vehid (update/fit) and a plain C loop (benches/peers/rls.c):
 #                 agreement of θ first, then ns/sample and ratios; the peers live in their own
 #                 .venv-peers (never vehid dependencies) with a vehid wheel built for it
+#   make bench-budgets  every budget of benches/budgets.toml (refreshes the criterion benches they
+#                 use and the Python overhead figures) with the measured figure and the ratio to
+#                 the plain C loop; reports, does not fail (STRICT=1: fail on a miss)
 #   make bench-check    regression gate: instructions per update under valgrind's callgrind
 #                 (release build) against benches/callgrind_baseline.json; fails on > 5 % growth
 #   make bench-check-update  rewrite that baseline deliberately (see below)
@@ -22,7 +25,7 @@ VENV   := .venv
 VBIN   := $(VENV)/bin
 CARGO  ?= cargo
 
-.PHONY: venv develop demo test test-rust test-python install-check bench-python bench-peers bench-check bench-check-update clean
+.PHONY: venv develop demo test test-rust test-python install-check bench-python bench-peers bench-budgets bench-check bench-check-update clean
 
 venv: $(VENV)/.installed
 
@@ -87,6 +90,13 @@ bench-peers: venv $(PEERS_VENV)/.installed
 	env -u CONDA_PREFIX $(VBIN)/maturin build --release --quiet -o target/peers-wheel
 	$(PEERS_VENV)/bin/python -m pip install --quiet --force-reinstall --no-deps target/peers-wheel/vehid-*.whl
 	$(PEERS_VENV)/bin/python benches/peers/run_peers.py --json target/peers/peers.json
+
+BUDGET_BENCHES := update_f64/(quarter|half)/kalman_(rows|shared)|simulate_f64/quarter/
+STRICT ?=
+bench-budgets: develop
+	$(CARGO) bench -p vehid-benches --bench identify -- '$(BUDGET_BENCHES)'
+	$(VBIN)/python benches/python/overhead.py --json target/bench/python_overhead.json
+	$(VBIN)/python benches/check_budgets.py $(if $(STRICT),--strict)
 
 # Instruction counts are deterministic for a given binary and input, so the gate is stable on a
 # noisy machine. To change the baseline deliberately (a change meant to cost more, a speed-up

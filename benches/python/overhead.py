@@ -8,15 +8,18 @@ Measures with ``time.perf_counter`` over repeats, on the thesis quarter car:
   ``update_f64/quarter/kalman_rows`` time of ``cargo bench -p vehid-benches --bench identify``),
   or an assumed 50 ns when not given, and the output says which.
 
-Run: ``make bench-python`` or ``.venv/bin/python benches/python/overhead.py [--rust-ns 40]``.
+Run: ``make bench-python`` or ``.venv/bin/python benches/python/overhead.py [--rust-ns 40]``;
+``--json PATH`` also writes the figures (``make bench-budgets`` reads them).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import statistics
 import sys
 import time
+from pathlib import Path
 from typing import Callable, List
 
 import numpy as np
@@ -54,6 +57,8 @@ def main(argv: List[str] | None = None) -> int:
     parser.add_argument("--n", type=int, default=1_000_000, help="samples for fit() (default 1000000)")
     parser.add_argument("--calls", type=int, default=100_000, help="update() calls per repeat (default 100000)")
     parser.add_argument("--repeats", type=int, default=7, help="repeats; the best is reported (default 7)")
+    parser.add_argument("--json", type=Path, default=None,
+                        help="also write the figures here (read by benches/check_budgets.py)")
     args = parser.parse_args(argv)
 
     car = vehid.QuarterCar()
@@ -133,6 +138,14 @@ def main(argv: List[str] | None = None) -> int:
           f"{min(copy_ns):.2f} ns per sample")
     print(f"Rust:     {rust_ns:7.2f} ns per sample  ({rust_src})")
     print(f"fit()/Rust = {ratio:.2f}   budget <= {FIT_BUDGET_RATIO:g}: {ok(ratio <= FIT_BUDGET_RATIO)}")
+    if args.json is not None:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps({
+            "vehid": vehid.__version__, "n": args.n, "calls": calls, "repeats": args.repeats,
+            "update_us_best": min(upd), "update_us_median": statistics.median(upd),
+            "fit_ns_best": min(fit_ns), "fit_ns_median": statistics.median(fit_ns),
+        }, indent=2) + "\n")
+        print(f"figures written to {args.json}")
     return 0
 
 
