@@ -18,7 +18,7 @@
 //! Size: `size_of::<StochasticGradient<f32, 4, 2>>()` is 192 bytes (θ, `h`, `Σ_w` and the
 //! gain state).
 
-use super::{check_sample, rows_buffer, Cost, Fixed, Flat, Store, OVERFLOW};
+use super::{check_sample, rows_into, rows_buffer, Cost, Fixed, Flat, Store, OVERFLOW};
 use crate::error::{check_finite, check_nonneg, check_positive};
 use crate::{Error, Real, Result};
 use nalgebra::{SMatrix, SVector};
@@ -154,14 +154,7 @@ impl<T: Real, const N: usize, S: Store<T, N>> GradientCore<T, N, S> {
     /// # Errors
     /// [`Error::Shape`] for a wrong length.
     pub fn theta_into(&self, out: &mut [T]) -> Result<()> {
-        let k = self.rows.flat().len();
-        if out.len() != k * N {
-            return Err(Error::Shape { arg: "out", expected: k * N, got: out.len() });
-        }
-        for (i, t) in self.theta.flat().iter().enumerate() {
-            out[i * N..(i + 1) * N].copy_from_slice(t.as_slice());
-        }
-        Ok(())
+        rows_into(self.theta.flat(), out)
     }
 
     /// Samples seen (including the ones skipped by the spacing).

@@ -29,7 +29,7 @@
 
 #[cfg(feature = "alloc")]
 use super::Dynamic;
-use super::{check_sample, per_row, rows_buffer, Cost, Fixed, Flat, Store, OVERFLOW};
+use super::{check_sample, rows_into, per_row, rows_buffer, Cost, Fixed, Flat, Store, OVERFLOW};
 use crate::error::{check_finite, check_nonneg, check_positive};
 use crate::linalg::{axpy, cholesky_in_place, cholesky_solve, mat_vec, sym_downdate, symmetrize};
 use crate::{Error, Real, Result};
@@ -572,14 +572,7 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
     /// # Errors
     /// [`Error::Shape`] for a wrong length.
     pub fn theta_into(&self, out: &mut [T]) -> Result<()> {
-        let k = self.rows.flat().len();
-        if out.len() != k * N {
-            return Err(Error::Shape { arg: "out", expected: k * N, got: out.len() });
-        }
-        for (i, t) in self.theta.flat().iter().enumerate() {
-            out[i * N..(i + 1) * N].copy_from_slice(t.as_slice());
-        }
-        Ok(())
+        rows_into(self.theta.flat(), out)
     }
 
     /// One sample; innovations into `e`. No allocation.
@@ -840,14 +833,7 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
     /// # Errors
     /// [`Error::Shape`] for a wrong length.
     pub fn theta_into(&self, out: &mut [T]) -> Result<()> {
-        let k = self.rows.flat().len();
-        if out.len() != k * N {
-            return Err(Error::Shape { arg: "out", expected: k * N, got: out.len() });
-        }
-        for (i, t) in self.theta.flat().iter().enumerate() {
-            out[i * N..(i + 1) * N].copy_from_slice(t.as_slice());
-        }
-        Ok(())
+        rows_into(self.theta.flat(), out)
     }
 
     /// One sample of the stacked filter (Eq 4.3–4.6); innovations into `e`. No allocation.

@@ -204,6 +204,18 @@ pub(crate) fn per_row<T: Real>(arg: &'static str, v: &[T], k: usize, i: usize) -
     }
 }
 
+/// Writes per-row estimates row-major (`K × N`) into `out`.
+pub(crate) fn rows_into<T: Real, const N: usize>(theta: &[SVector<T, N>], out: &mut [T]) -> Result<()> {
+    let k = theta.len();
+    if out.len() != k * N {
+        return Err(Error::Shape { arg: "out", expected: k * N, got: out.len() });
+    }
+    for (chunk, t) in out.chunks_exact_mut(N).zip(theta) {
+        chunk.copy_from_slice(t.as_slice());
+    }
+    Ok(())
+}
+
 /// Checks a sample: `x` and `z` finite.
 #[inline]
 pub(crate) fn check_sample<T: Real, const N: usize>(x: &SVector<T, N>, z: &SVector<T, N>) -> Result<()> {
