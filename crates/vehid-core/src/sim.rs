@@ -217,6 +217,34 @@ fn streams(seed: u64) -> [Xoshiro256PlusPlus; 4] {
     ]
 }
 
+/// The sensors of Ch. III.C: `r = x + w`, `z = ẋ + v` (one draw per component, `w` first),
+/// and in instrumentation mode (Eq 4.37–4.39) a kinematic row read from its state's sensor.
+fn measure<T: Real, const N: usize, const M: usize>(
+    cfg: &SimConfig<T, N, M>,
+    kinematic: &[Option<usize>; N],
+    rng_w: &mut Xoshiro256PlusPlus,
+    rng_v: &mut Xoshiro256PlusPlus,
+    x: &SVector<T, N>,
+    xdot: &SVector<T, N>,
+) -> (SVector<T, N>, SVector<T, N>) {
+    let mut r = *x;
+    for i in 0..N {
+        r[i] += normal::<T>(rng_w) * cfg.state_noise[i];
+    }
+    let mut z = *xdot;
+    for i in 0..N {
+        z[i] += normal::<T>(rng_v) * cfg.deriv_noise[i];
+    }
+    if cfg.instrumentation {
+        for i in 0..N {
+            if let Some(j) = kinematic[i] {
+                z[i] = r[j];
+            }
+        }
+    }
+    (r, z)
+}
+
 #[inline]
 fn normal<T: Real>(rng: &mut Xoshiro256PlusPlus) -> T {
     let v: f64 = StandardNormal.sample(rng);
@@ -332,23 +360,7 @@ impl<T: Real, const N: usize, const M: usize> Simulator<T, N, M> {
     fn sample_with_input(&mut self, u: SVector<T, M>) -> Sample<T, N, M> {
         let x = self.x;
         let xdot = self.model.a() * x + self.model.b() * u;
-        let mut w = SVector::<T, N>::zeros();
-        for i in 0..N {
-            w[i] = normal::<T>(&mut self.rng_w) * self.cfg.state_noise[i];
-        }
-        let mut v = SVector::<T, N>::zeros();
-        for i in 0..N {
-            v[i] = normal::<T>(&mut self.rng_v) * self.cfg.deriv_noise[i];
-        }
-        let r = x + w;
-        let mut z = xdot + v;
-        if self.cfg.instrumentation {
-            for i in 0..N {
-                if let Some(j) = self.kinematic[i] {
-                    z[i] = r[j];
-                }
-            }
-        }
+        let (r, z) = measure(&self.cfg, &self.kinematic, &mut self.rng_w, &mut self.rng_v, &x, &xdot);
         let t = T::of(self.k as f64 * self.cfg.dt.to_f64());
         let s = Sample { k: self.k, t, x, xdot, u, r, z };
         self.x = self.phi * x + self.gamma * u;
@@ -747,23 +759,7 @@ impl<T: Real, const N: usize, const C: usize> RoadSimulator<T, N, C> {
         let u = self.input();
         let x = self.x;
         let xdot = self.model.a() * x + self.model.b() * u;
-        let mut w = SVector::<T, N>::zeros();
-        for i in 0..N {
-            w[i] = normal::<T>(&mut self.rng_w) * self.cfg.state_noise[i];
-        }
-        let mut v = SVector::<T, N>::zeros();
-        for i in 0..N {
-            v[i] = normal::<T>(&mut self.rng_v) * self.cfg.deriv_noise[i];
-        }
-        let r = x + w;
-        let mut z = xdot + v;
-        if self.cfg.instrumentation {
-            for i in 0..N {
-                if let Some(j) = self.kinematic[i] {
-                    z[i] = r[j];
-                }
-            }
-        }
+        let (r, z) = measure(&self.cfg, &self.kinematic, &mut self.rng_w, &mut self.rng_v, &x, &xdot);
         let s = RoadSample { k: self.k, t: T::of(self.t), s: self.distance(), x, xdot, u, r, z };
         self.k += 1;
         s
