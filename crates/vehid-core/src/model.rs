@@ -484,20 +484,7 @@ fn scale_ls<T: Real>(v: &[T], y: impl Iterator<Item = T>, what: &'static str) ->
 /// 1, 3, 5, 7: 32 parameters, 4 of them structurally zero (row 1 at x2, ẋ2; row 3 at x1, ẋ1).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct HalfCar<T> {
-    /// Front tyre stiffness `k11`, N/m.
-    k11: T,
-    /// Rear tyre stiffness `k21`, N/m.
-    k21: T,
-    k12: T,
-    k22: T,
-    b1: T,
-    b2: T,
-    m1: T,
-    m2: T,
-    m_body: T,
-    j: T,
-    l1: T,
-    l2: T,
+    p: HalfCarParams<T>,
 }
 
 /// The physical constants of a [`HalfCar`], in the order of the thesis (Eq 6.1–6.6).
@@ -529,42 +516,37 @@ pub struct HalfCarParams<T> {
     pub l2: T,
 }
 
+impl<T: Real> HalfCarParams<T> {
+    /// The constants with their thesis names (`M` is the body mass, `J` the pitch inertia),
+    /// in the order of Eq 6.1–6.6.
+    pub fn named(&self) -> [(&'static str, T); 12] {
+        [
+            ("k11", self.k11),
+            ("k21", self.k21),
+            ("k12", self.k12),
+            ("k22", self.k22),
+            ("b1", self.b1),
+            ("b2", self.b2),
+            ("m1", self.m1),
+            ("m2", self.m2),
+            ("M", self.m_body),
+            ("J", self.j),
+            ("l1", self.l1),
+            ("l2", self.l2),
+        ]
+    }
+}
+
 impl<T: Real> HalfCar<T> {
     /// Builds the half car from its constants.
     ///
     /// # Errors
     /// [`Error::InvalidArgument`] naming the first constant that is not finite and > 0.
     pub fn new(p: HalfCarParams<T>) -> Result<Self> {
-        for (name, v) in [
-            ("k11", p.k11),
-            ("k21", p.k21),
-            ("k12", p.k12),
-            ("k22", p.k22),
-            ("b1", p.b1),
-            ("b2", p.b2),
-            ("m1", p.m1),
-            ("m2", p.m2),
-            ("M", p.m_body),
-            ("J", p.j),
-            ("l1", p.l1),
-            ("l2", p.l2),
-        ] {
+        for (name, v) in p.named() {
             check_positive(name, v)?;
         }
-        Ok(Self {
-            k11: p.k11,
-            k21: p.k21,
-            k12: p.k12,
-            k22: p.k22,
-            b1: p.b1,
-            b2: p.b2,
-            m1: p.m1,
-            m2: p.m2,
-            m_body: p.m_body,
-            j: p.j,
-            l1: p.l1,
-            l2: p.l2,
-        })
+        Ok(Self { p })
     }
 
     /// The thesis' values (Ch. VI.A): k11 = k21 = 100, k12 = k22 = 40, b1 = b2 = 60,
@@ -572,42 +554,31 @@ impl<T: Real> HalfCar<T> {
     pub fn thesis() -> Self {
         let c = T::of;
         Self {
-            k11: c(100.0),
-            k21: c(100.0),
-            k12: c(40.0),
-            k22: c(40.0),
-            b1: c(60.0),
-            b2: c(60.0),
-            m1: c(1.0),
-            m2: c(1.0),
-            m_body: c(20.0),
-            j: c(60.0),
-            l1: c(2.0),
-            l2: c(1.0),
+            p: HalfCarParams {
+                k11: c(100.0),
+                k21: c(100.0),
+                k12: c(40.0),
+                k22: c(40.0),
+                b1: c(60.0),
+                b2: c(60.0),
+                m1: c(1.0),
+                m2: c(1.0),
+                m_body: c(20.0),
+                j: c(60.0),
+                l1: c(2.0),
+                l2: c(1.0),
+            },
         }
     }
 
     /// The constants.
     pub fn params(&self) -> HalfCarParams<T> {
-        HalfCarParams {
-            k11: self.k11,
-            k21: self.k21,
-            k12: self.k12,
-            k22: self.k22,
-            b1: self.b1,
-            b2: self.b2,
-            m1: self.m1,
-            m2: self.m2,
-            m_body: self.m_body,
-            j: self.j,
-            l1: self.l1,
-            l2: self.l2,
-        }
+        self.p
     }
 
     /// Wheelbase `L = l1 + l2`, m: the distance the rear wheel trails the front wheel.
     pub fn wheelbase(&self) -> T {
-        self.l1 + self.l2
+        self.p.l1 + self.p.l2
     }
 
     /// The unknown rows of `A` (0-based): the four acceleration rows.

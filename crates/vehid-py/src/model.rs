@@ -383,20 +383,7 @@ fn rows_repr(rows: &[usize]) -> String {
 }
 
 fn half_params_into(out: &Bound<'_, PyDict>, p: &HalfCarParams<f64>) -> PyResult<()> {
-    for (k, v) in [
-        ("k11", p.k11),
-        ("k21", p.k21),
-        ("k12", p.k12),
-        ("k22", p.k22),
-        ("b1", p.b1),
-        ("b2", p.b2),
-        ("m1", p.m1),
-        ("m2", p.m2),
-        ("M", p.m_body),
-        ("J", p.j),
-        ("l1", p.l1),
-        ("l2", p.l2),
-    ] {
+    for (k, v) in p.named() {
         out.set_item(k, v)?;
     }
     Ok(())
