@@ -392,6 +392,11 @@ impl<T: Real> QuarterCar<T> {
         self.b
     }
 
+    /// The constants with their thesis names (`M` body mass, `m` wheel mass).
+    pub fn named(&self) -> [(&'static str, T); 5] {
+        [("M", self.m_body), ("m", self.m_wheel), ("k1", self.k1), ("k2", self.k2), ("b", self.b)]
+    }
+
     /// The unknown rows of `A` (0-based): the wheel and body acceleration rows.
     pub fn unknown_rows(&self) -> [usize; 2] {
         [1, 3]

@@ -327,7 +327,7 @@ impl PyLinearModel {
                 };
                 let theta = SMatrix::<f64, 2, 4>::from_fn(|i, j| th[i * 4 + j]);
                 let car = QuarterCar::from_theta(&theta, known).map_err(core_err)?;
-                for (k, v) in [("M", car.m_body()), ("m", car.m_wheel()), ("k1", car.k1()), ("k2", car.k2()), ("b", car.b())] {
+                for (k, v) in car.named() {
                     out.set_item(k, v)?;
                 }
             }
@@ -410,7 +410,7 @@ impl PyQuarterCar {
     fn params<'py>(slf: PyRef<'py, Self>, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let out = PyDict::new(py);
         if let Kind::Quarter(c) = slf.as_super().kind {
-            for (k, v) in [("M", c.m_body()), ("m", c.m_wheel()), ("k1", c.k1()), ("k2", c.k2()), ("b", c.b())] {
+            for (k, v) in c.named() {
                 out.set_item(k, v)?;
             }
         }
