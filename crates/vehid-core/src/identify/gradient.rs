@@ -260,20 +260,6 @@ impl<T: Real, const N: usize, const K: usize> GradientCore<T, N, Fixed<K>> {
     pub fn new(rows: [usize; K], gain: Gain<T>, h: T) -> Result<Self> {
         Self::from_slices(&rows, gain, &[h], &[T::zero()], 1)
     }
-
-    /// One sample; returns the innovations.
-    ///
-    /// # Errors
-    /// As [`GradientCore::update_into`].
-    #[inline]
-    pub fn update(&mut self, x: &SVector<T, N>, z: &SVector<T, N>) -> Result<SVector<T, K>> {
-        let mut e = SVector::<T, K>::zeros();
-        self.update_into(x, z, e.as_mut_slice())?;
-        Ok(e)
-    }
-
-    /// The estimate θ̂ (`K × N`).
-    pub fn theta(&self) -> SMatrix<T, K, N> {
-        SMatrix::<T, K, N>::from_fn(|i, j| self.theta[i][j])
-    }
 }
+
+fixed_k_api!(GradientCore);

@@ -435,22 +435,6 @@ impl<T: Real, const N: usize, const K: usize> KalmanRows<T, N, Fixed<K>> {
     pub fn new(rows: [usize; K], p0: T, r: [T; K]) -> Result<Self> {
         Self::from_slices(&rows, &[p0], &r, KalmanOptions::default())
     }
-
-    /// One sample; returns the innovations. See [`KalmanRows::update_into`].
-    ///
-    /// # Errors
-    /// As [`KalmanRows::update_into`].
-    #[inline]
-    pub fn update(&mut self, x: &SVector<T, N>, z: &SVector<T, N>) -> Result<SVector<T, K>> {
-        let mut e = SVector::<T, K>::zeros();
-        self.update_into(x, z, e.as_mut_slice())?;
-        Ok(e)
-    }
-
-    /// The estimate θ̂ of the unknown rows (`K × N`).
-    pub fn theta(&self) -> SMatrix<T, K, N> {
-        SMatrix::<T, K, N>::from_fn(|i, j| self.filters[i].theta[j])
-    }
 }
 
 /// Shared-covariance Kalman identifier over a [`Store`] (`P_i = r_i Q`); see
@@ -642,22 +626,6 @@ impl<T: Real, const N: usize, const K: usize> KalmanShared<T, N, Fixed<K>> {
     /// As [`KalmanShared::from_slices`].
     pub fn new(rows: [usize; K], p0: T, r: [T; K]) -> Result<Self> {
         Self::from_slices(&rows, &[p0], &r, KalmanOptions::default())
-    }
-
-    /// One sample; returns the innovations.
-    ///
-    /// # Errors
-    /// As [`KalmanShared::update_into`].
-    #[inline]
-    pub fn update(&mut self, x: &SVector<T, N>, z: &SVector<T, N>) -> Result<SVector<T, K>> {
-        let mut e = SVector::<T, K>::zeros();
-        self.update_into(x, z, e.as_mut_slice())?;
-        Ok(e)
-    }
-
-    /// The estimate θ̂ (`K × N`).
-    pub fn theta(&self) -> SMatrix<T, K, N> {
-        SMatrix::<T, K, N>::from_fn(|i, j| self.theta[i][j])
     }
 }
 
@@ -941,22 +909,11 @@ impl<T: Real, const N: usize, const K: usize> KalmanFull<T, N, Fixed<K>> {
     pub fn new(rows: [usize; K], p0: T, r: SMatrix<T, K, K>) -> Result<Self> {
         Self::from_slices(&rows, &[p0], r.transpose().as_slice(), KalmanOptions::default())
     }
-
-    /// One sample; returns the innovations.
-    ///
-    /// # Errors
-    /// As [`KalmanFull::update_into`].
-    pub fn update(&mut self, x: &SVector<T, N>, z: &SVector<T, N>) -> Result<SVector<T, K>> {
-        let mut e = SVector::<T, K>::zeros();
-        self.update_into(x, z, e.as_mut_slice())?;
-        Ok(e)
-    }
-
-    /// The estimate θ̂ (`K × N`).
-    pub fn theta(&self) -> SMatrix<T, K, N> {
-        SMatrix::<T, K, N>::from_fn(|i, j| self.theta[i][j])
-    }
 }
+
+fixed_k_api!(KalmanRows);
+fixed_k_api!(KalmanShared);
+fixed_k_api!(KalmanFull);
 
 #[cfg(test)]
 mod tests;

@@ -20,6 +20,39 @@
 //! monomorphization per state count serves any number of unknown rows). The numerics are
 //! the same code for both.
 
+/// The fixed-size `update` (innovations as `SVector<T, K>`) and `theta` (`K × N`) of an
+/// identifier with [`Fixed<K>`] storage, from its `update_into` and `theta_into`.
+macro_rules! fixed_k_api {
+    ($ty:ident) => {
+        impl<T: crate::Real, const N: usize, const K: usize> $ty<T, N, crate::identify::Fixed<K>> {
+            /// One sample (measured state `x`, measured derivative `z`); returns the
+            /// innovations `e_i = z_row − xᵀ θ̂_i(k−1)` of the unknown rows. No allocation.
+            ///
+            /// # Errors
+            /// As `update_into`; the identifier is unchanged after an error.
+            #[inline]
+            pub fn update(
+                &mut self,
+                x: &nalgebra::SVector<T, N>,
+                z: &nalgebra::SVector<T, N>,
+            ) -> crate::Result<nalgebra::SVector<T, K>> {
+                let mut e = nalgebra::SVector::<T, K>::zeros();
+                self.update_into(x, z, e.as_mut_slice())?;
+                Ok(e)
+            }
+
+            /// The estimate θ̂ of the unknown rows (`K × N`).
+            pub fn theta(&self) -> nalgebra::SMatrix<T, K, N> {
+                // Row-major K × N is the column-major storage of its N × K transpose.
+                let mut t = nalgebra::SMatrix::<T, N, K>::zeros();
+                // The buffer has exactly K·N entries, so this cannot fail.
+                let _ = self.theta_into(t.as_mut_slice());
+                t.transpose()
+            }
+        }
+    };
+}
+
 mod gradient;
 mod kalman;
 mod least_squares;
