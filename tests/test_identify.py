@@ -4,7 +4,6 @@ Expected values come from an independent computation (numpy least squares with t
 extra rows, the thesis' printed structure), never from the code under test."""
 
 import threading
-import time
 
 import numpy as np
 import pytest
@@ -195,26 +194,8 @@ def test_fit_from_threads_gives_identical_results() -> None:
     assert ids[0].samples == 200_000
 
 
-def test_fit_releases_the_gil() -> None:
+def test_fit_releases_the_gil(assert_releases_gil) -> None:  # type: ignore[no-untyped-def]
     run = road_run(25_000)
     kf = vehid.KalmanIdentifier(CAR, p0=1000.0, road_sigma=0.1, deriv_noise=0.005)
-    calls = 40
-
-    def work() -> None:
-        for _ in range(calls):
-            kf.fit(run.r, run.z)
-
-    thread = threading.Thread(target=work)
-    t0 = time.perf_counter()
-    thread.start()
-    ticks = 0
-    while thread.is_alive():
-        ticks += 1
-        time.sleep(0)  # yields the GIL to the worker between ticks
-    elapsed = time.perf_counter() - t0
-    thread.join()
-    assert kf.samples == calls * 25_000
-    # Held inside fit(), the GIL would let this loop tick only between the worker's calls
-    # (about `calls` ticks); released, it spins all along.
-    assert elapsed > 0.01, "run too short to tell; raise the sample count"
-    assert ticks > 5 * calls, (ticks, elapsed)
+    assert_releases_gil(lambda: kf.fit(run.r, run.z), 40)
+    assert kf.samples == 40 * 25_000

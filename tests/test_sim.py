@@ -1,7 +1,5 @@
 """Simulator: shapes, reproducibility, streaming, noise, and long-run statistics."""
 
-import threading
-import time
 
 import numpy as np
 import pytest
@@ -122,25 +120,7 @@ def test_long_run_std_matches_sampled_analytic_half_rk4() -> None:
     stationary_check(vehid.HalfCar(), "rk4", seed=6)
 
 
-def test_run_releases_the_gil() -> None:
+def test_run_releases_the_gil(assert_releases_gil) -> None:  # type: ignore[no-untyped-def]
     sim = vehid.Simulator(vehid.HalfCar(), seed=1)
-    calls = 40
-
-    def work() -> None:
-        for _ in range(calls):
-            sim.run(25_000)
-
-    thread = threading.Thread(target=work)
-    t0 = time.perf_counter()
-    thread.start()
-    ticks = 0
-    while thread.is_alive():
-        ticks += 1
-        time.sleep(0)  # yields the GIL to the worker between ticks
-    elapsed = time.perf_counter() - t0
-    thread.join()
-    assert sim.samples == calls * 25_000
-    # Were the GIL held inside run(), this loop could tick only between the worker's calls
-    # (about `calls` ticks). Released, it spins all along: thousands of ticks per 0.1 s.
-    assert elapsed > 0.01, "run too short to tell; raise the sample count"
-    assert ticks > 5 * calls, (ticks, elapsed)
+    assert_releases_gil(lambda: sim.run(25_000), 40)
+    assert sim.samples == 40 * 25_000

@@ -1,0 +1,38 @@
+"""Shared test helpers."""
+
+import threading
+import time
+from typing import Callable
+
+import pytest
+
+
+def _assert_releases_gil(call: Callable[[], None], calls: int) -> None:
+    """Runs ``call`` ``calls`` times in a worker thread while this thread counts ticks.
+
+    Held inside ``call``, the GIL would let the counting loop tick only between the worker's
+    calls (about ``calls`` ticks); released, the loop spins all along (thousands of ticks per
+    0.1 s). So the assertion fails when the GIL is held.
+    """
+
+    def work() -> None:
+        for _ in range(calls):
+            call()
+
+    thread = threading.Thread(target=work)
+    t0 = time.perf_counter()
+    thread.start()
+    ticks = 0
+    while thread.is_alive():
+        ticks += 1
+        time.sleep(0)  # yields the GIL to the worker between ticks
+    elapsed = time.perf_counter() - t0
+    thread.join()
+    assert elapsed > 0.01, "run too short to tell; raise the sample count"
+    assert ticks > 5 * calls, (ticks, elapsed)
+
+
+@pytest.fixture
+def assert_releases_gil() -> Callable[[Callable[[], None], int], None]:
+    """``assert_releases_gil(call, calls)``: fails if ``call`` holds the GIL while it runs."""
+    return _assert_releases_gil
