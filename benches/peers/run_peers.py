@@ -1,8 +1,8 @@
-"""vehid against what users would otherwise use: the same quarter-car data through every peer.
+"""vehid against what users would otherwise use: the same quarter- and half-car data through every peer.
 
 Run: ``make bench-peers`` (creates ``.venv-peers`` with filterpy, padasip, statsmodels, numpy and
 a vehid wheel; the peers are never vehid dependencies), or, in such a venv,
-``python benches/peers/run_peers.py [--n 20000] [--json target/peers/peers.json]``.
+``python benches/peers/run_peers.py [--n 20000] [--half-n 10000] [--json target/peers/peers.json]``.
 
 Data: a seeded ``vehid.Simulator`` run of the thesis quarter car (dt 0.05, road_sigma 0.1,
 ic_sigma 0.1, deriv_noise 0.005, seed 1). Problem: for each unknown row i of A (rows 1 and 3),
@@ -31,9 +31,22 @@ set up to solve that same problem:
 First the agreement table: every peer's θ̂ against vehid's ``fit()``, as
 ``max_i ‖θ_peer,i − θ_vehid,i‖ / ‖θ_vehid,i‖`` (must be ≤ 1e-8). Only if all agree are the
 times measured and printed (best of several repeats, ns per sample = one update of both
-rows), with the ratio to vehid ``fit()`` and to the C loop, all in this one run. Exit status 1
-on a disagreement. ``--json`` also writes the figures (and the C reference on the half car and
-the shared form, used by ``benches/check_budgets.py``).
+rows), with the ratio to vehid ``fit()`` and to the C loop, all in this one run.
+
+Then the same two tables for the **half car** (``vehid.HalfCar()``, the thesis' values of
+Eq 6.1–6.8: 8 states, 2 road inputs, unknown rows 1, 3, 5, 7 as given by ``unknown_rows``,
+``r_i = row_noise_var(0.1, 0.005)[i]``), simulated with the same settings and seed and solved
+the same way by every peer above (``dim_x = n = 8``; each per-row peer runs 4 rows of 8
+parameters; ns per sample = one update of all 4 rows). The half-car peers are slow (filterpy,
+padasip and the numpy loop take 30–100 µs per sample, statsmodels 13–18 µs), so this table
+uses fewer samples: ``--half-n`` (default 10000, about 10 s; 0 skips it), printed in its
+header. Its agreement check also comes first and its times are printed only if every peer
+agrees.
+
+Exit status 1 on a disagreement (quarter or half car). ``--json`` also writes the figures:
+the quarter car under the top-level keys ``n``, ``seed``, ``peers``, ``vehid_theta``, the half
+car under ``half_car`` (same keys plus ``rows`` and ``r``), and the C reference on both cars
+and the shared form (``c_reference_ns``, used by ``benches/check_budgets.py``).
 """
 
 from __future__ import annotations
@@ -58,9 +71,13 @@ TOL = 1e-8
 P0 = 1000.0
 
 
+CARS = {"quarter": vehid.QuarterCar, "half": vehid.HalfCar}
+
+
 class Problem:
-    def __init__(self, n: int, seed: int) -> None:
-        self.car = vehid.QuarterCar()
+    def __init__(self, n: int, seed: int, car: str = "quarter") -> None:
+        self.name = car
+        self.car = CARS[car]()
         run = vehid.Simulator(self.car, dt=0.05, road_sigma=0.1, ic_sigma=0.1, deriv_noise=0.005, seed=seed).run(n)
         self.x = np.ascontiguousarray(run.r)
         self.z = np.ascontiguousarray(run.z)
@@ -160,7 +177,7 @@ def statsmodels_rls(pb: Problem) -> np.ndarray:
 
 PEERS: List[Tuple[str, str, Callable[[Problem], np.ndarray], int]] = [
     # (name, what is timed, function, timing repeats)
-    ("vehid fit()", "vehid.KalmanIdentifier.fit on (n, 4) arrays", vehid_fit, 15),
+    ("vehid fit()", "vehid.KalmanIdentifier.fit on (n, N) arrays", vehid_fit, 15),
     ("vehid update()", "one Python call per sample", vehid_update, 5),
     ("C loop (-O3 -march=native)", "rls.c via one ctypes call", c_loop, 15),
     ("numpy lstsq (batch)", "prior as extra rows, per row", numpy_lstsq, 7),
@@ -205,18 +222,8 @@ def best_ns(func: Callable[[], object], n: int, repeats: int) -> float:
     return best / n * 1e9
 
 
-def main(argv: Optional[List[str]] = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--n", type=int, default=20_000, help="samples (default 20000)")
-    ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--json", type=Path, default=None, help="also write the figures here")
-    args = ap.parse_args(argv)
-
-    pb = Problem(args.n, args.seed)
-    print(f"peers: quarter car, {args.n} samples (seed {args.seed}), rows {pb.rows}, p0 = {pb.p0:g}, "
-          f"r = [{', '.join(f'{v:.6g}' for v in pb.r)}]; Python {platform.python_version()}, "
-          f"numpy {np.__version__}, {platform.machine()}")
-
+def peer_table(pb: Problem) -> Tuple[Optional[Dict[str, dict]], np.ndarray]:
+    """Agreement, then (only if every peer agrees) times; prints both tables. None on a disagreement."""
     ref = vehid_fit(pb)
     results: Dict[str, dict] = {}
     print(f"\n1. agreement with vehid fit() (max over rows of |θ_peer − θ_vehid| / |θ_vehid|; tolerance {TOL:g})")
@@ -237,14 +244,15 @@ def main(argv: Optional[List[str]] = None) -> int:
         print(f"   {name:<28} {ver[:14]:<14} {err:11.2e}  {'agrees' if ok else 'DISAGREES'}")
     print("   vehid θ̂ =", np.array2string(ref, precision=6, max_line_width=120).replace("\n", "\n            "))
     if not all_ok:
-        print("\nnot every peer agrees with vehid: no times printed", file=sys.stderr)
-        return 1
+        print(f"\nnot every peer agrees with vehid on the {pb.name} car: no times printed", file=sys.stderr)
+        return None, ref
 
-    print(f"\n2. time per sample (one update of both rows), best of repeats, all measured in this run")
+    rows = "both rows" if len(pb.rows) == 2 else f"all {len(pb.rows)} rows"
+    print(f"\n2. time per sample (one update of {rows}), best of repeats, all measured in this run")
     for name, what, func, repeats in PEERS:
         if results[name]["status"] != "ok":
             continue
-        results[name]["ns_per_sample"] = best_ns(lambda: func(pb), args.n, repeats)
+        results[name]["ns_per_sample"] = best_ns(lambda: func(pb), pb.n, repeats)
         results[name]["repeats"] = repeats
     v = results["vehid fit()"]["ns_per_sample"]
     c = results["C loop (-O3 -march=native)"]["ns_per_sample"]
@@ -256,14 +264,50 @@ def main(argv: Optional[List[str]] = None) -> int:
             continue
         ns = res["ns_per_sample"]
         print(f"   {name:<28} {ns:12.1f} {ns / v:12.2f} {ns / c:10.2f}  {what} (best of {repeats})")
+    return results, ref
+
+
+def header(pb: Problem, seed: int) -> str:
+    inputs = f", {pb.car.n_inputs} inputs" if pb.car.n_inputs > 1 else ""
+    return (f"peers: {pb.name} car ({pb.x.shape[1]} states{inputs}), {pb.n} samples (seed {seed}), rows {pb.rows}, "
+            f"p0 = {pb.p0:g}, r = [{', '.join(f'{v:.6g}' for v in pb.r)}]; Python {platform.python_version()}, "
+            f"numpy {np.__version__}, {platform.machine()}")
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=20_000, help="quarter-car samples (default 20000)")
+    ap.add_argument("--half-n", type=int, default=10_000,
+                    help="half-car samples (default 10000; its peers are slow); 0 skips the half car")
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--json", type=Path, default=None, help="also write the figures here")
+    args = ap.parse_args(argv)
+
+    pb = Problem(args.n, args.seed)
+    print(header(pb, args.seed))
+    results, ref = peer_table(pb)
+    if results is None:
+        return 1
+
+    half: Optional[dict] = None
+    if args.half_n > 0:
+        hp = Problem(args.half_n, args.seed, "half")
+        print("\n" + header(hp, args.seed))
+        half_results, half_ref = peer_table(hp)
+        if half_results is None:
+            return 1
+        half = {"n": args.half_n, "seed": args.seed, "rows": hp.rows, "r": hp.r.tolist(), "peers": half_results,
+                "vehid_theta": half_ref.tolist()}
 
     if args.json is not None:
         ref_c = crls.reference_ns()
         print("\nC reference for the budgets (200000 samples, ns/sample): "
               + ", ".join(f"{k} {v:.2f}" for k, v in ref_c.items()))
         args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps({"n": args.n, "seed": args.seed, "peers": results, "c_reference_ns": ref_c,
-                                         "vehid_theta": ref.tolist()}, indent=2))
+        out = {"n": args.n, "seed": args.seed, "peers": results, "c_reference_ns": ref_c, "vehid_theta": ref.tolist()}
+        if half is not None:
+            out["half_car"] = half
+        args.json.write_text(json.dumps(out, indent=2))
         print(f"figures written to {args.json}")
     return 0
 
