@@ -49,6 +49,8 @@ test: test-rust test-python
 
 test-rust:
 	$(CARGO) test --workspace
+	# The AVX2 and portable updates must agree to the bit where it matters: optimized code.
+	$(CARGO) test --release -p vehid-core --lib vector_extensions_do_not_change_a_single_bit
 	$(CARGO) build -p vehid-core --no-default-features
 	$(CARGO) test --benches
 

@@ -15,6 +15,7 @@
 //! - [`sampler`]: distance-triggered sampling that pairs rear- and front-axle samples (Eq 6.12–6.14);
 //! - [`analysis`]: discretization, stationary covariances, Eq 4.27 output standard deviations;
 //! - [`metrics`]: the parameter error measure ξ (Eq 3.17) and sensor SNR (Eq 4.31);
+//! - [`simd`]: the run-time choice of vector instructions (results never depend on it);
 //! - [`identify`]: batch least squares, the Kalman-filter identifier, stochastic gradient,
 //!   and the two-axle identifier (thesis' Eq 6.14 and road cancellation).
 //!
@@ -43,6 +44,7 @@ pub mod model;
 pub mod sampler;
 mod scalar;
 pub mod sim;
+pub mod simd;
 
 pub use error::{Error, Result};
 pub use nalgebra;

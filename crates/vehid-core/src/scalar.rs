@@ -14,9 +14,15 @@ pub trait Real: RealField + Copy + Default + core::fmt::Debug + Send + Sync + 's
     fn finite(self) -> bool {
         self.to_f64().is_finite()
     }
+    /// The largest finite value.
+    fn biggest() -> Self;
 }
 
 impl Real for f64 {
+    #[inline(always)]
+    fn biggest() -> Self {
+        f64::MAX
+    }
     #[inline(always)]
     fn of(x: f64) -> Self {
         x
@@ -28,6 +34,10 @@ impl Real for f64 {
 }
 
 impl Real for f32 {
+    #[inline(always)]
+    fn biggest() -> Self {
+        f32::MAX
+    }
     #[inline(always)]
     fn of(x: f64) -> Self {
         x as f32

@@ -205,7 +205,7 @@ fn fig_4_8_r_chosen_too_small() {
         plain.push(run(seed, noise, 20_000, 1000, &mut p).at(20_000));
         re.push(run(seed, noise, 20_000, 1000, &mut r).at(20_000));
         fired.push(r.reinit_count() as f64);
-        let r_now = r.filters()[0].r();
+        let r_now = r.filter(0).r();
         assert!((r_now / small[0] - 2f64.powi(r.reinit_count() as i32)).abs() < 1e-9);
     }
     eprintln!(

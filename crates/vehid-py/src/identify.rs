@@ -126,10 +126,10 @@ impl<const N: usize> Core<N> for KalmanIdentifierVec<f64, N> {
         self.rows().len()
     }
     fn covariance(&self) -> Vec<f64> {
-        self.filters().iter().flat_map(|f| row_major(f.p()).collect::<Vec<_>>()).collect()
+        (0..self.rows().len()).flat_map(|i| row_major(self.filter(i).p()).collect::<Vec<_>>()).collect()
     }
     fn r(&self) -> Vec<f64> {
-        self.filters().iter().map(|f| f.r()).collect()
+        (0..self.rows().len()).map(|i| self.filter(i).r()).collect()
     }
     fn trace(&self) -> f64 {
         KalmanIdentifierVec::trace(self)

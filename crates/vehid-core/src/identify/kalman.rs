@@ -21,14 +21,16 @@
 //! `10 Σ|e_i(k)| > Σ_j P_jj(k)` the diagonal of `P` is multiplied by 10 and `R` doubled.
 //!
 //! # Memory (Table I of the thesis: 352 bytes for the 4-state identifier, 2800 for the 8-state)
-//! `size_of::<KalmanIdentifier<f32, 4, 2>>()` is 264 bytes and
-//! `size_of::<KalmanIdentifier<f32, 8, 4>>()` is 1400 bytes (each row: θ, the full `P`, `r`
-//! and an `N + 2` scratch for the transactional update, plus the row indices, options and
+//! `size_of::<KalmanIdentifier<f32, 4, 2>>()` is 304 bytes and
+//! `size_of::<KalmanIdentifier<f32, 8, 4>>()` is 1464 bytes (the rows side by side: θ, the
+//! covariances as `N × N` lanes of which the upper triangle is used, `r`, and the planned
+//! step of one sample for the transactional update, plus the row indices, options and
 //! counters); the shared form needs 144 and 456.
 //! Both are within the thesis' 352 and 2800 bytes. These figures are asserted in the tests.
 
 #[cfg(feature = "alloc")]
 use super::Dynamic;
+use super::lanes::{finite_probe, is_fin, lane_sum, tree_sum, RowGroup};
 use super::{check_sample, rows_into, per_row, rows_buffer, Cost, Fixed, Flat, Store, OVERFLOW};
 use crate::error::{check_finite, check_nonneg, check_positive};
 use crate::linalg::{axpy, cholesky_in_place, cholesky_solve, mat_vec, sym_downdate, symmetrize};
@@ -38,8 +40,9 @@ use nalgebra::{SMatrix, SVector};
 /// How the covariance is propagated after a measurement.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum CovarianceForm {
-    /// `P ← P − P x xᵀ P / (xᵀ P x + r)` (Eq 4.6), evaluated as `P − u uᵀ` with
-    /// `u = P x / √s`, which keeps `P` exactly symmetric.
+    /// `P ← P − P x xᵀ P / (xᵀ P x + r)` (Eq 4.6), kept exactly symmetric: [`KalmanRows`]
+    /// and [`KalmanShared`] update only the upper triangle (`P_ab −= (Px)_a (Px)_b / s`,
+    /// `a ≤ b`) and mirror it; [`RowIdentifier`] evaluates `P − u uᵀ` with `u = P x / √s`.
     #[default]
     Standard,
     /// Joseph's form `P ← (I − g xᵀ) P (I − g xᵀ)ᵀ + r g gᵀ`, positive semi-definite by
@@ -111,6 +114,11 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
         let mut p = p0;
         symmetrize(&mut p);
         Ok(Self { theta: theta0, p, r, retired: false })
+    }
+
+    /// A filter from its state (no checks: the parts come from a valid filter).
+    pub(crate) fn from_parts(theta: SVector<T, N>, p: SMatrix<T, N, N>, r: T, retired: bool) -> Self {
+        Self { theta, p, r, retired }
     }
 
     /// Current estimate `θ̂_i` of the row.
@@ -207,27 +215,19 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
             }
         }
     }
-
-    /// Reinitialization (Eq 4.36): `P_jj ← 10 P_jj`, `r ← 2 r`; un-retires the row.
-    fn reinitialize(&mut self) {
-        for j in 0..N {
-            self.p[(j, j)] *= T::of(10.0);
-        }
-        self.r *= T::of(2.0);
-        self.retired = false;
-    }
 }
 
 /// The decoupled (`rows`) Kalman-filter identifier over a [`Store`]; see [`KalmanIdentifier`]
 /// for the allocation-free form.
+///
+/// The row filters are kept side by side in lanes ([`super::lanes`]): one update treats all
+/// rows at once with vector instructions, and only the upper triangle of each `P` is stored.
 #[derive(Debug, Clone)]
 pub struct KalmanRows<T: Real, const N: usize, S: Store<T, N>> {
     rows: S::Rows,
-    filters: S::Filters,
-    /// Scratch: `P_i x` of the sample being processed.
-    px: S::Vecs,
-    /// Scratch: `(e_i / s_i, 1/√s_i)` of the sample being processed.
-    cd: S::Vecs2,
+    groups: S::Groups,
+    /// The planned step of the sample being processed, one per group.
+    scratch: S::Scratches,
     opts: KalmanOptions<T>,
     reinit_count: u32,
     samples: u64,
@@ -268,24 +268,34 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         opts.validate()?;
         let rows_buf: S::Rows = rows_buffer::<_, N>(rows)?;
         let k = rows.len();
-        let mut filters = S::Filters::filled("unknown_rows", k, RowIdentifier::new(T::one(), T::zero())?)?;
-        for (i, f) in filters.flat_mut().iter_mut().enumerate() {
-            *f = RowIdentifier::new(per_row("p0", p0, k, i)?, per_row("r", r, k, i)?)?;
+        let mut s = Self::empty(rows_buf, opts)?;
+        for i in 0..k {
+            let f = RowIdentifier::new(per_row("p0", p0, k, i)?, per_row("r", r, k, i)?)?;
+            s.set_filter(i, &f);
         }
-        Self::assemble(rows_buf, filters, opts)
+        Ok(s)
     }
 
-    fn assemble(rows: S::Rows, filters: S::Filters, opts: KalmanOptions<T>) -> Result<Self> {
+    /// Rows set, every lane padding.
+    fn empty(rows: S::Rows, opts: KalmanOptions<T>) -> Result<Self> {
         let k = rows.flat().len();
+        let lanes = <S::Group as RowGroup<T, N>>::LANES;
+        let n_groups = k.div_ceil(lanes);
         Ok(Self {
             rows,
-            filters,
-            px: S::Vecs::filled("unknown_rows", k, SVector::zeros())?,
-            cd: S::Vecs2::filled("unknown_rows", k, nalgebra::Vector2::zeros())?,
+            groups: S::Groups::filled("unknown_rows", n_groups, S::Group::padding())?,
+            scratch: S::Scratches::filled("unknown_rows", n_groups, S::Group::scratch())?,
             opts,
             reinit_count: 0,
             samples: 0,
         })
+    }
+
+    /// Puts the filter of unknown row `i`.
+    fn set_filter(&mut self, i: usize, f: &RowIdentifier<T, N>) {
+        let lanes = <S::Group as RowGroup<T, N>>::LANES;
+        let zrow = self.rows.flat()[i];
+        self.groups.flat_mut()[i / lanes].set_lane(i % lanes, zrow, f);
     }
 
     /// Builds the identifier from prepared row filters (e.g. with full prior covariances
@@ -299,9 +309,11 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
             return Err(Error::Shape { arg: "filters", expected: rows.len(), got: filters.len() });
         }
         let rows_buf: S::Rows = rows_buffer::<_, N>(rows)?;
-        let mut buf = S::Filters::filled("unknown_rows", rows.len(), filters[0])?;
-        buf.flat_mut().copy_from_slice(filters);
-        Self::assemble(rows_buf, buf, opts)
+        let mut s = Self::empty(rows_buf, opts)?;
+        for (i, f) in filters.iter().enumerate() {
+            s.set_filter(i, f);
+        }
+        Ok(s)
     }
 
     /// The unknown rows (0-based), in the order of θ and of the innovations.
@@ -309,9 +321,13 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         self.rows.flat()
     }
 
-    /// The per-row filters.
-    pub fn filters(&self) -> &[RowIdentifier<T, N>] {
-        self.filters.flat()
+    /// The filter of unknown row `i` (θ̂_i, P_i, r_i, retired), assembled from the lanes.
+    ///
+    /// # Panics
+    /// When `i` is not below the number of unknown rows.
+    pub fn filter(&self, i: usize) -> RowIdentifier<T, N> {
+        let lanes = <S::Group as RowGroup<T, N>>::LANES;
+        self.groups.flat()[i / lanes].lane(i % lanes)
     }
 
     /// The options in use.
@@ -330,8 +346,12 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
     }
 
     /// Estimate of unknown row `i` (in the order of [`KalmanRows::rows`]).
-    pub fn theta_row(&self, i: usize) -> &SVector<T, N> {
-        self.filters.flat()[i].theta()
+    ///
+    /// # Panics
+    /// When `i` is not below the number of unknown rows.
+    pub fn theta_row(&self, i: usize) -> SVector<T, N> {
+        let lanes = <S::Group as RowGroup<T, N>>::LANES;
+        self.groups.flat()[i / lanes].theta_lane(i % lanes)
     }
 
     /// Writes θ̂ row-major (`K × N`) into `out`.
@@ -343,36 +363,44 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         if out.len() != k * N {
             return Err(Error::Shape { arg: "out", expected: k * N, got: out.len() });
         }
-        for (i, f) in self.filters.flat().iter().enumerate() {
-            out[i * N..(i + 1) * N].copy_from_slice(f.theta.as_slice());
+        for (i, chunk) in out.chunks_exact_mut(N).enumerate() {
+            chunk.copy_from_slice(self.theta_row(i).as_slice());
         }
         Ok(())
     }
 
+    /// `tr P_i` of unknown row `i`.
+    fn trace_row(&self, i: usize) -> T {
+        let lanes = <S::Group as RowGroup<T, N>>::LANES;
+        self.groups.flat()[i / lanes].trace_lane(i % lanes)
+    }
+
     /// `tr P = Σ_i tr P_i`, the quantity Eq 4.36 compares with the innovations.
     pub fn trace(&self) -> T {
-        self.filters.flat().iter().fold(T::zero(), |acc, f| acc + f.p.trace())
+        (0..self.rows.flat().len()).fold(T::zero(), |acc, i| acc + self.trace_row(i))
     }
 
     /// Arithmetic per update (standard form, every row active) and size. Per row:
     /// `e = z − xᵀθ` (N mul, N add), `P x` (N² mul, N(N−1) add), `s = xᵀPx + r` (N mul,
-    /// N add), `1/s`, `c = e/s` (1 mul), `√(1/s)`, `u = Px/√s` (N mul), `θ += c Px` (N mul,
-    /// N add), `P −= u uᵀ` (N² mul, N² add).
+    /// N add), `1/s`, `c = e/s` (1 mul), `g = Px/s` (N mul), `θ += c Px` (N mul, N add),
+    /// the upper triangle of `P −= Px gᵀ` (N(N+1)/2 mul and add).
     pub fn cost(&self) -> Cost {
         let k = self.rows.flat().len();
+        let tri = N * (N + 1) / 2;
         Cost {
-            multiplications: k * (2 * N * N + 4 * N + 1),
-            additions: k * (2 * N * N + 2 * N),
+            multiplications: k * (N * N + 4 * N + 1 + tri),
+            additions: k * (N * N + 2 * N + tri),
             divisions: k,
-            square_roots: k,
-            bytes: core::mem::size_of_val(self) + self.filters.heap_bytes() + self.px.heap_bytes(),
+            square_roots: 0,
+            bytes: core::mem::size_of_val(self) + self.groups.heap_bytes() + self.scratch.heap_bytes(),
         }
     }
 
     /// Retires row `i` by hand (it stops updating until the next reinitialization).
     pub fn retire(&mut self, i: usize) {
-        if let Some(f) = self.filters.flat_mut().get_mut(i) {
-            f.retired = true;
+        let lanes = <S::Group as RowGroup<T, N>>::LANES;
+        if i < self.rows.flat().len() {
+            self.groups.flat_mut()[i / lanes].retire_lane(i % lanes);
         }
     }
 
@@ -384,45 +412,78 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
     /// positive definiteness; [`Error::Shape`] for a wrong `e` length. The identifier is
     /// unchanged after any error.
     pub fn update_into(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
-        check_sample(x, z)?;
-        let rows = self.rows.flat();
-        let filters = self.filters.flat_mut();
-        let k = rows.len();
+        let k = self.rows.flat().len();
         if e.len() != k {
             return Err(Error::Shape { arg: "e", expected: k, got: e.len() });
         }
-        // Plan every row, then apply: a failure on any row changes nothing.
-        let px = self.px.flat_mut();
-        let cd = self.cd.flat_mut();
-        for i in 0..k {
-            let ei = z[rows[i]] - filters[i].theta.dot(x);
-            e[i] = ei;
-            let (c, d) = filters[i].plan(x, ei, &mut px[i])?;
-            cd[i] = nalgebra::Vector2::new(c, d);
+        // AVX2 pays only when a group of lanes fills a 256-bit register (four f64 rows);
+        // narrower groups are faster in the portable build, which fits them exactly.
+        let wide = <S::Group as RowGroup<T, N>>::LANES * core::mem::size_of::<T>() >= 32;
+        #[cfg(all(feature = "std", target_arch = "x86_64"))]
+        if wide && crate::simd::avx2() {
+            // SAFETY: the CPU supports AVX2 (checked at run time by `simd::avx2`).
+            return unsafe { self.step_avx2(x, z, e) };
         }
-        for i in 0..k {
-            filters[i].apply(x, &px[i], cd[i][0], cd[i][1], self.opts.form);
+        let _ = wide;
+        self.step(x, z, e)
+    }
+
+    /// [`Self::step`] compiled for AVX2 (same arithmetic, wider registers).
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
+    #[target_feature(enable = "avx2")]
+    fn step_avx2(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
+        self.step(x, z, e)
+    }
+
+    /// The update: plan every group, then apply (a failure anywhere changes nothing).
+    #[inline(always)]
+    fn step(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
+        let k = e.len();
+        let lanes = <S::Group as RowGroup<T, N>>::LANES;
+        let probe = finite_probe(x, z);
+        let mut ok = probe == T::zero();
+        let groups = self.groups.flat_mut();
+        let scratch = self.scratch.flat_mut();
+        for (g, (grp, sc)) in groups.iter().zip(scratch.iter_mut()).enumerate() {
+            let lo = g * lanes;
+            let hi = (lo + lanes).min(k);
+            ok &= grp.plan(x, z, &mut e[lo..hi], sc);
+        }
+        if !ok {
+            check_sample(x, z)?;
+            for (grp, sc) in groups.iter().zip(scratch.iter()) {
+                grp.check(sc)?;
+            }
+            return Err(OVERFLOW);
+        }
+        for (grp, sc) in groups.iter_mut().zip(scratch.iter()) {
+            grp.apply(x, sc, self.opts.form);
         }
         self.samples += 1;
         if self.opts.reinit || self.opts.retire_below > T::zero() {
-            let mut trace = T::zero();
-            let mut abs_e = T::zero();
-            for i in 0..k {
-                let tr = filters[i].p.trace();
-                trace += tr;
-                abs_e += e[i].abs();
-                if self.opts.retire_below > T::zero() && tr < self.opts.retire_below {
-                    filters[i].retired = true;
-                }
-            }
-            if self.opts.reinit && T::of(10.0) * abs_e > trace {
-                for f in filters.iter_mut() {
-                    f.reinitialize();
-                }
-                self.reinit_count += 1;
-            }
+            self.after_step(e);
         }
         Ok(())
+    }
+
+    /// Retirement and the reinitialization rule (Eq 4.36) after an accepted sample.
+    fn after_step(&mut self, e: &[T]) {
+        let mut trace = T::zero();
+        let mut abs_e = T::zero();
+        for (i, ei) in e.iter().enumerate() {
+            let tr = self.trace_row(i);
+            trace += tr;
+            abs_e += ei.abs();
+            if self.opts.retire_below > T::zero() && tr < self.opts.retire_below {
+                self.retire(i);
+            }
+        }
+        if self.opts.reinit && T::of(10.0) * abs_e > trace {
+            for g in self.groups.flat_mut() {
+                g.reinitialize();
+            }
+            self.reinit_count += 1;
+        }
     }
 }
 
@@ -538,15 +599,17 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
     }
 
     /// Arithmetic per update (standard form) and size: `Q x` (N² mul, N(N−1) add),
-    /// `s = 1 + xᵀQx` (N mul, N add), `1/s`, `√(1/s)`, `g`, `u` (2N mul), per row `e_i`
-    /// and `θ_i += g e_i` (2N mul, 2N add), `Q −= u uᵀ` (N² mul, N² add).
+    /// `s = 1 + xᵀQx` (N mul, N add), `1/s`, `g = Qx/s` (N mul), per row `e_i` and
+    /// `θ_i += g e_i` (2N mul, 2N add), the upper triangle of `Q −= (Qx) gᵀ` (N(N+1)/2 mul
+    /// and add).
     pub fn cost(&self) -> Cost {
         let k = self.rows.flat().len();
+        let tri = N * (N + 1) / 2;
         Cost {
-            multiplications: 2 * N * N + 3 * N + k * 2 * N,
-            additions: 2 * N * N + k * 2 * N,
+            multiplications: N * N + 2 * N + tri + k * 2 * N,
+            additions: N * N + tri + k * 2 * N,
             divisions: 1,
-            square_roots: 1,
+            square_roots: 0,
             bytes: core::mem::size_of_val(self) + self.theta.heap_bytes(),
         }
     }
@@ -564,57 +627,121 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
     /// # Errors
     /// As [`KalmanRows::update_into`].
     pub fn update_into(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
-        check_sample(x, z)?;
-        let rows = self.rows.flat();
-        let k = rows.len();
+        let k = self.rows.flat().len();
         if e.len() != k {
             return Err(Error::Shape { arg: "e", expected: k, got: e.len() });
         }
-        let mut qx = SVector::<T, N>::zeros();
-        mat_vec(&self.q, x, &mut qx);
-        let s = x.dot(&qx) + T::one();
-        if !s.finite() {
-            return Err(OVERFLOW);
+        // AVX2 pays when a state vector fills a 256-bit register (the half car in f64).
+        let wide = N * core::mem::size_of::<T>() >= 32;
+        #[cfg(all(feature = "std", target_arch = "x86_64"))]
+        if wide && crate::simd::avx2() {
+            // SAFETY: the CPU supports AVX2 (checked at run time by `simd::avx2`).
+            return unsafe { self.step_avx2(x, z, e) };
         }
-        if !(s > T::zero()) {
-            return Err(Error::Singular { what: "the shared covariance (1 + xᵀQx ≤ 0)" });
+        let _ = wide;
+        self.step(x, z, e)
+    }
+
+    /// [`Self::step`] compiled for AVX2 (same arithmetic, wider registers).
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
+    #[target_feature(enable = "avx2")]
+    fn step_avx2(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
+        self.step(x, z, e)
+    }
+
+    /// The update: `g = Q x / s`, `s = 1 + xᵀQx`; `θ_i += g e_i`; the upper triangle of
+    /// `Q −= (Q x) gᵀ`, mirrored into the lower one (so `Q` stays exactly symmetric).
+    #[inline(always)]
+    fn step(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
+        let probe = finite_probe(x, z);
+        // Q x: column j scaled by x_j, the columns summed pairwise.
+        let mut cols = [[T::zero(); N]; N];
+        for (j, col) in cols.iter_mut().enumerate() {
+            for a in 0..N {
+                col[a] = self.q[(a, j)] * x[j];
+            }
         }
+        let qx = lane_sum(cols);
+        let mut xqx = [T::zero(); N];
+        for a in 0..N {
+            xqx[a] = qx[a] * x[a];
+        }
+        let s = tree_sum(xqx) + T::one();
         let inv_s = T::one() / s;
-        let g = qx * inv_s;
-        let u = qx * inv_s.sqrt();
+        let rows = self.rows.flat();
         let theta = self.theta.flat_mut();
         let mut abs_e = T::zero();
-        for i in 0..k {
-            e[i] = z[rows[i]] - theta[i].dot(x);
+        for i in 0..e.len() {
+            let mut xt = [T::zero(); N];
+            for a in 0..N {
+                xt[a] = theta[i][a] * x[a];
+            }
+            e[i] = z[rows[i]] - tree_sum(xt);
             abs_e += e[i].abs();
         }
-        if !(qx.abs().sum() * inv_s * abs_e).finite() {
+        let mut g = [T::zero(); N];
+        let mut ag = [T::zero(); N];
+        for a in 0..N {
+            g[a] = qx[a] * inv_s;
+            ag[a] = g[a].abs();
+        }
+        let step = tree_sum(ag) * abs_e;
+        let ok = (probe == T::zero()) & (s > T::zero()) & (s <= T::biggest()) & is_fin(step);
+        if !ok {
+            check_sample(x, z)?;
+            if !s.finite() {
+                return Err(OVERFLOW);
+            }
+            if !(s > T::zero()) {
+                return Err(Error::Singular { what: "the shared covariance (1 + xᵀQx ≤ 0)" });
+            }
             return Err(OVERFLOW);
         }
-        for i in 0..k {
-            axpy(&mut theta[i], e[i], &g);
+        for i in 0..e.len() {
+            for a in 0..N {
+                theta[i][a] += g[a] * e[i];
+            }
         }
         match self.opts.form {
-            CovarianceForm::Standard => sym_downdate(&mut self.q, &u),
-            CovarianceForm::Joseph => {
-                let a = SMatrix::<T, N, N>::identity() - g * x.transpose();
-                self.q = a * self.q * a.transpose() + g * g.transpose();
-                symmetrize(&mut self.q);
+            CovarianceForm::Standard => {
+                for b in 0..N {
+                    for a in 0..=b {
+                        let v = self.q[(a, b)] - qx[a] * g[b];
+                        self.q[(a, b)] = v;
+                        self.q[(b, a)] = v;
+                    }
+                }
             }
+            CovarianceForm::Joseph => self.joseph(x, &g),
         }
         self.samples += 1;
         if self.opts.reinit && T::of(10.0) * abs_e > self.trace() {
-            // P_i' = P_i + 9 diag(P_i), r_i' = 2 r_i  =>  Q' = (Q + 9 diag Q) / 2.
-            for j in 0..N {
-                self.q[(j, j)] *= T::of(10.0);
-            }
-            self.q *= T::of(0.5);
-            for r in self.r.flat_mut() {
-                *r *= T::of(2.0);
-            }
-            self.reinit_count += 1;
+            self.reinitialize();
         }
         Ok(())
+    }
+
+    /// Joseph's form for the shared covariance: `Q ← (I − g xᵀ) Q (I − g xᵀ)ᵀ + g gᵀ`.
+    #[inline(never)]
+    fn joseph(&mut self, x: &SVector<T, N>, g: &[T; N]) {
+        let g = SVector::<T, N>::from_column_slice(g);
+        let a = SMatrix::<T, N, N>::identity() - g * x.transpose();
+        self.q = a * self.q * a.transpose() + g * g.transpose();
+        symmetrize(&mut self.q);
+    }
+
+    /// Eq 4.36 for the shared form: `P_i' = P_i + 9 diag(P_i)`, `r_i' = 2 r_i`, so
+    /// `Q' = (Q + 9 diag Q) / 2`.
+    #[cold]
+    fn reinitialize(&mut self) {
+        for j in 0..N {
+            self.q[(j, j)] *= T::of(10.0);
+        }
+        self.q *= T::of(0.5);
+        for r in self.r.flat_mut() {
+            *r *= T::of(2.0);
+        }
+        self.reinit_count += 1;
     }
 }
 

@@ -55,6 +55,7 @@ macro_rules! fixed_k_api {
 
 mod gradient;
 mod kalman;
+pub mod lanes;
 mod least_squares;
 mod two_axle;
 
@@ -76,6 +77,7 @@ pub use two_axle::TwoAxleIdentifierVec;
 pub use least_squares::BatchLeastSquares;
 
 use crate::{Error, Real, Result};
+use lanes::RowGroup;
 use nalgebra::{SMatrix, SVector};
 
 /// The arithmetic of one sample update and the identifier's size, for comparison with the
@@ -175,10 +177,12 @@ pub trait Store<T: Real, const N: usize>: Clone + core::fmt::Debug {
     type Scalars: Flat<T>;
     /// One `N`-vector per row (`K`).
     type Vecs: Flat<SVector<T, N>>;
-    /// One pair of values per row (`K`).
-    type Vecs2: Flat<nalgebra::Vector2<T>>;
-    /// One decoupled filter per row (`K`).
-    type Filters: Flat<RowIdentifier<T, N>>;
+    /// The decoupled row filters, side by side in groups of lanes ([`lanes::RowLanes`]).
+    type Group: RowGroup<T, N>;
+    /// The groups (`⌈K / lanes⌉`).
+    type Groups: Flat<Self::Group>;
+    /// One planned step per group.
+    type Scratches: Flat<<Self::Group as RowGroup<T, N>>::Scratch>;
     /// One value per pair of rows (`K²`).
     type PairScalars: Flat<T>;
     /// One `N`-vector per pair of rows (`K²`).
@@ -186,6 +190,10 @@ pub trait Store<T: Real, const N: usize>: Clone + core::fmt::Debug {
     /// One `N × N` block per pair of rows (`K²`).
     type Blocks: Flat<SMatrix<T, N, N>>;
 }
+
+/// Lanes per group of [`Dynamic`] row filters: one AVX2 register of `f64` on x86-64, one
+/// 128-bit register elsewhere (NEON). [`Fixed<K>`] keeps all `K` rows in one group.
+pub const DYNAMIC_LANES: usize = if cfg!(target_arch = "x86_64") { 4 } else { 2 };
 
 /// Fixed storage for exactly `K` unknown rows: plain arrays, no allocation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -195,8 +203,9 @@ impl<T: Real, const N: usize, const K: usize> Store<T, N> for Fixed<K> {
     type Rows = [usize; K];
     type Scalars = [T; K];
     type Vecs = [SVector<T, N>; K];
-    type Vecs2 = [nalgebra::Vector2<T>; K];
-    type Filters = [RowIdentifier<T, N>; K];
+    type Group = lanes::RowLanes<T, N, K>;
+    type Groups = [lanes::RowLanes<T, N, K>; 1];
+    type Scratches = [lanes::LaneScratch<T, N, K>; 1];
     type PairScalars = [[T; K]; K];
     type PairVecs = [[SVector<T, N>; K]; K];
     type Blocks = [[SMatrix<T, N, N>; K]; K];
@@ -211,8 +220,9 @@ impl<T: Real, const N: usize> Store<T, N> for Dynamic {
     type Rows = alloc::vec::Vec<usize>;
     type Scalars = alloc::vec::Vec<T>;
     type Vecs = alloc::vec::Vec<SVector<T, N>>;
-    type Vecs2 = alloc::vec::Vec<nalgebra::Vector2<T>>;
-    type Filters = alloc::vec::Vec<RowIdentifier<T, N>>;
+    type Group = lanes::RowLanes<T, N, DYNAMIC_LANES>;
+    type Groups = alloc::vec::Vec<lanes::RowLanes<T, N, DYNAMIC_LANES>>;
+    type Scratches = alloc::vec::Vec<lanes::LaneScratch<T, N, DYNAMIC_LANES>>;
     type PairScalars = alloc::vec::Vec<T>;
     type PairVecs = alloc::vec::Vec<SVector<T, N>>;
     type Blocks = alloc::vec::Vec<SMatrix<T, N, N>>;

@@ -318,7 +318,7 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
         }
         if let Some(body) = &self.body {
             if let Some(i) = body.rows().iter().position(|&r| r == row) {
-                return *body.theta_row(i);
+                return body.theta_row(i);
             }
         }
         self.model.a().row(row.min(N - 1)).transpose()
