@@ -21,11 +21,11 @@
 //! `10 Σ|e_i(k)| > Σ_j P_jj(k)` the diagonal of `P` is multiplied by 10 and `R` doubled.
 //!
 //! # Memory (Table I of the thesis: 352 bytes for the 4-state identifier, 2800 for the 8-state)
-//! `size_of::<KalmanIdentifier<f32, 4, 2>>()` is 304 bytes and
-//! `size_of::<KalmanIdentifier<f32, 8, 4>>()` is 1464 bytes (the rows side by side: θ, the
-//! covariances as `N × N` lanes of which the upper triangle is used, `r`, and the planned
-//! step of one sample for the transactional update, plus the row indices, options and
-//! counters); the shared form needs 144 and 456.
+//! `size_of::<KalmanIdentifier<f32, 4, 2>>()` is 248 bytes and
+//! `size_of::<KalmanIdentifier<f32, 8, 4>>()` is 1288 bytes (the rows side by side: θ, the
+//! covariances as `N × N` lanes of which the upper triangle is used, `r`, plus the row
+//! indices, options and counters; the planned step of a sample lives on the stack); the
+//! shared form needs 144 and 456.
 //! Both are within the thesis' 352 and 2800 bytes. These figures are asserted in the tests.
 
 #[cfg(feature = "alloc")]
@@ -226,7 +226,7 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
 pub struct KalmanRows<T: Real, const N: usize, S: Store<T, N>> {
     rows: S::Rows,
     groups: S::Groups,
-    /// The planned step of the sample being processed, one per group.
+    /// The planned step of the sample being processed, one per group (empty for one group).
     scratch: S::Scratches,
     opts: KalmanOptions<T>,
     reinit_count: u32,
@@ -284,7 +284,7 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         Ok(Self {
             rows,
             groups: S::Groups::filled("unknown_rows", n_groups, S::Group::padding())?,
-            scratch: S::Scratches::filled("unknown_rows", n_groups, S::Group::scratch())?,
+            scratch: S::Scratches::filled("unknown_rows", if n_groups > 1 { n_groups } else { 0 }, S::Group::scratch())?,
             opts,
             reinit_count: 0,
             samples: 0,
@@ -443,6 +443,19 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         let probe = finite_probe(x, z);
         let mut ok = probe == T::zero();
         let groups = self.groups.flat_mut();
+        if let [grp] = groups {
+            // One group (every Fixed<K> store, and up to DYNAMIC_LANES rows): the plan stays
+            // in registers instead of a round trip through memory.
+            let mut sc = S::Group::scratch();
+            ok &= grp.plan(x, z, e, &mut sc);
+            if !ok {
+                check_sample(x, z)?;
+                grp.check(&sc)?;
+                return Err(OVERFLOW);
+            }
+            grp.apply(x, &sc, self.opts.form);
+            return self.accepted(e);
+        }
         let scratch = self.scratch.flat_mut();
         for (g, (grp, sc)) in groups.iter().zip(scratch.iter_mut()).enumerate() {
             let lo = g * lanes;
@@ -459,6 +472,12 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         for (grp, sc) in groups.iter_mut().zip(scratch.iter()) {
             grp.apply(x, sc, self.opts.form);
         }
+        self.accepted(e)
+    }
+
+    /// Counts an applied sample and runs retirement and reinitialization if enabled.
+    #[inline(always)]
+    fn accepted(&mut self, e: &[T]) -> Result<()> {
         self.samples += 1;
         if self.opts.reinit || self.opts.retire_below > T::zero() {
             self.after_step(e);
@@ -649,8 +668,8 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
         self.step(x, z, e)
     }
 
-    /// The update: `g = Q x / s`, `s = 1 + xᵀQx`; `θ_i += g e_i`; the upper triangle of
-    /// `Q −= (Q x) gᵀ`, mirrored into the lower one (so `Q` stays exactly symmetric).
+    /// The update: `g = Q x / s`, `s = 1 + xᵀQx`; `θ_i += g e_i`; `Q −= (Q x) gᵀ` with
+    /// entry `(a, b)` taken from the upper triangle (so `Q` stays exactly symmetric).
     #[inline(always)]
     fn step(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
         let probe = finite_probe(x, z);
@@ -704,11 +723,12 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
         }
         match self.opts.form {
             CovarianceForm::Standard => {
+                // Whole columns (vector stores that the next sample's loads can forward),
+                // entry (a, b) and (b, a) both get Q_ab − (Qx)_min (g)_max: the same number.
                 for b in 0..N {
-                    for a in 0..=b {
-                        let v = self.q[(a, b)] - qx[a] * g[b];
-                        self.q[(a, b)] = v;
-                        self.q[(b, a)] = v;
+                    for a in 0..N {
+                        let v = if a <= b { qx[a] * g[b] } else { qx[b] * g[a] };
+                        self.q[(a, b)] -= v;
                     }
                 }
             }

@@ -40,6 +40,18 @@ pub(crate) fn lane_sum<T: Real, const L: usize, const M: usize>(mut a: [[T; L]; 
     }
 }
 
+/// `Σ_b v[b] x_b` for each lane (`v[b]` a lane vector), summed pairwise in a fixed order.
+#[inline(always)]
+pub(crate) fn lane_dot<T: Real, const L: usize, const N: usize>(v: &[[T; L]; N], x: &SVector<T, N>) -> [T; L] {
+    let mut t = [[T::zero(); L]; N];
+    for b in 0..N {
+        for k in 0..L {
+            t[b][k] = v[b][k] * x[b];
+        }
+    }
+    lane_sum(t)
+}
+
 /// `a[0] + … + a[M−1]`, summed pairwise in a fixed order.
 #[inline(always)]
 pub(crate) fn tree_sum<T: Real, const M: usize>(a: [T; M]) -> T {
@@ -80,10 +92,13 @@ pub struct LaneScratch<T: Real, const N: usize, const L: usize> {
     w: [T; L],
     /// `s = xᵀ P x + r`.
     s: [T; L],
+    /// `xᵀ θ`.
+    xth: [T; L],
     /// `Σ_a (P x)_a c`: finite exactly when the θ step is.
     step: [T; L],
-    /// The lane takes a step.
-    go: [bool; L],
+    /// 1 when the lane takes a step, 0 when not (a number, so that the lanes stay in
+    /// vector registers).
+    go: [T; L],
 }
 
 /// `L` decoupled row filters stored side by side. Lanes `used..L` are padding (a
@@ -98,8 +113,8 @@ pub struct RowLanes<T: Real, const N: usize, const L: usize> {
     r: [T; L],
     /// Index into `z` of each lane's row (0 for padding).
     zrow: [usize; L],
-    /// Lane steps (used and not retired).
-    active: [bool; L],
+    /// 1 when the lane steps (used and not retired), else 0.
+    active: [T; L],
     used: usize,
     any_r_zero: bool,
 }
@@ -156,7 +171,7 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
             }
             let floor = T::default_epsilon() * T::of(4.0 * N as f64) * ax * tree_sum(ap);
             if self.r[k] == T::zero() && sc.s[k] <= floor {
-                sc.go[k] = false;
+                sc.go[k] = T::zero();
             }
         }
     }
@@ -165,7 +180,7 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
     #[inline(never)]
     fn joseph(&mut self, x: &SVector<T, N>, sc: &LaneScratch<T, N, L>) {
         for k in 0..self.used {
-            if !sc.go[k] {
+            if sc.go[k] == T::zero() {
                 continue;
             }
             let f = self.lane(k);
@@ -196,7 +211,7 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
             p,
             r: [T::one(); L],
             zrow: [0; L],
-            active: [false; L],
+            active: [T::zero(); L],
             used: 0,
             any_r_zero: false,
         }
@@ -208,8 +223,9 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
             c: [T::zero(); L],
             w: [T::zero(); L],
             s: [T::zero(); L],
+            xth: [T::zero(); L],
             step: [T::zero(); L],
-            go: [false; L],
+            go: [T::zero(); L],
         }
     }
 
@@ -222,7 +238,7 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
         }
         self.r[k] = f.r();
         self.zrow[k] = zrow;
-        self.active[k] = !f.retired();
+        self.active[k] = if f.retired() { T::zero() } else { T::one() };
         self.used = self.used.max(k + 1);
         self.any_r_zero = (0..self.used).any(|i| self.r[i] == T::zero());
     }
@@ -235,7 +251,7 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
                 p[(b, a)] = self.p[a][b][k];
             }
         }
-        RowIdentifier::from_parts(self.theta_lane(k), p, self.r[k], !self.active[k])
+        RowIdentifier::from_parts(self.theta_lane(k), p, self.r[k], self.active[k] == T::zero())
     }
 
     fn theta_lane(&self, k: usize) -> SVector<T, N> {
@@ -251,7 +267,7 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
     }
 
     fn retire_lane(&mut self, k: usize) {
-        self.active[k] = false;
+        self.active[k] = T::zero();
     }
 
     fn reinitialize(&mut self) {
@@ -260,7 +276,7 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
                 self.p[a][a][k] *= T::of(10.0);
             }
             self.r[k] *= T::of(2.0);
-            self.active[k] = true;
+            self.active[k] = T::one();
         }
     }
 
@@ -268,42 +284,33 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
     fn plan(&self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T], sc: &mut Self::Scratch) -> bool {
         // P x from the upper triangle, lane by lane, each sum pairwise.
         for a in 0..N {
-            let mut t = [[T::zero(); L]; N];
+            let mut col = [[T::zero(); L]; N];
             for b in 0..N {
-                let pab = if a <= b { &self.p[a][b] } else { &self.p[b][a] };
-                for k in 0..L {
-                    t[b][k] = pab[k] * x[b];
-                }
+                col[b] = if a <= b { self.p[a][b] } else { self.p[b][a] };
             }
-            sc.px[a] = lane_sum(t);
+            sc.px[a] = lane_dot(&col, x);
         }
-        // xᵀ P x and xᵀ θ.
-        let mut xpx = [[T::zero(); L]; N];
-        let mut xth = [[T::zero(); L]; N];
-        for a in 0..N {
-            for k in 0..L {
-                xpx[a][k] = sc.px[a][k] * x[a];
-                xth[a][k] = self.theta[a][k] * x[a];
-            }
-        }
-        let xpx = lane_sum(xpx);
-        let xth = lane_sum(xth);
-        let mut ok = true;
+        // xᵀ P x and xᵀ θ (each stored at once: the compiler then keeps the lanes together).
+        sc.s = lane_dot(&sc.px, x);
+        sc.xth = lane_dot(&self.theta, x);
         let mut ek = [T::zero(); L];
         for k in 0..L {
-            ek[k] = z[self.zrow[k]] - xth[k];
-            let s = xpx[k] + self.r[k];
-            sc.s[k] = s;
-            sc.go[k] = self.active[k];
+            // `zrow` is always in range; `get` keeps the lanes free of a panic branch, which
+            // would stop the compiler from keeping them in one vector register.
+            let zk = z.as_slice().get(self.zrow[k]).copied().unwrap_or_else(T::zero);
+            ek[k] = zk - sc.xth[k];
+            sc.s[k] += self.r[k];
         }
+        sc.go = self.active;
         if self.any_r_zero {
             self.collapsed_lanes(x, sc);
         }
+        let mut ok = true;
         for k in 0..L {
             let s = sc.s[k];
             let inv = T::one() / s;
-            let go = sc.go[k];
-            // An active lane needs 0 < s < inf.
+            let go = sc.go[k] != T::zero();
+            // A lane that steps needs 0 < s < inf.
             ok &= !go | ((s > T::zero()) & (s <= T::biggest()));
             sc.w[k] = if go { inv } else { T::zero() };
             sc.c[k] = if go { ek[k] * inv } else { T::zero() };
@@ -326,7 +333,7 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
     #[cold]
     fn check(&self, sc: &Self::Scratch) -> crate::Result<()> {
         for k in 0..self.used {
-            if !sc.go[k] {
+            if sc.go[k] == T::zero() {
                 continue;
             }
             if !sc.s[k].finite() {
