@@ -157,8 +157,10 @@ pub trait RowGroup<T: Real, const N: usize>: Copy + core::fmt::Debug + PartialEq
 impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
     /// Lanes with `r = 0` whose `s = xᵀPx` is at rounding level take no step: noise-free
     /// data and a covariance collapsed along `x`, nothing is left to learn in that direction.
+    /// Returns the new step flags. (The arguments are copies: a reference into the plan
+    /// would keep the whole plan in memory on the fast path too.)
     #[inline(never)]
-    fn collapsed_lanes(&self, x: &SVector<T, N>, sc: &mut LaneScratch<T, N, L>) {
+    fn collapsed_lanes(&self, x: &SVector<T, N>, px: [[T; L]; N], s: [T; L], mut go: [T; L]) -> [T; L] {
         let mut ax = [T::zero(); N];
         for a in 0..N {
             ax[a] = x[a].abs();
@@ -167,18 +169,19 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
         for k in 0..L {
             let mut ap = [T::zero(); N];
             for a in 0..N {
-                ap[a] = sc.px[a][k].abs();
+                ap[a] = px[a][k].abs();
             }
             let floor = T::default_epsilon() * T::of(4.0 * N as f64) * ax * tree_sum(ap);
-            if self.r[k] == T::zero() && sc.s[k] <= floor {
-                sc.go[k] = T::zero();
+            if self.r[k] == T::zero() && s[k] <= floor {
+                go[k] = T::zero();
             }
         }
+        go
     }
 
     /// Joseph's form, lane by lane: `P ← (I − g xᵀ) P (I − g xᵀ)ᵀ + r g gᵀ`, `g = P x / s`.
     #[inline(never)]
-    fn joseph(&mut self, x: &SVector<T, N>, sc: &LaneScratch<T, N, L>) {
+    fn joseph(&mut self, x: &SVector<T, N>, sc: LaneScratch<T, N, L>) {
         for k in 0..self.used {
             if sc.go[k] == T::zero() {
                 continue;
@@ -303,7 +306,7 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
         }
         sc.go = self.active;
         if self.any_r_zero {
-            self.collapsed_lanes(x, sc);
+            sc.go = self.collapsed_lanes(x, sc.px, sc.s, sc.go);
         }
         let mut ok = true;
         for k in 0..L {
@@ -376,7 +379,7 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
                     }
                 }
             }
-            CovarianceForm::Joseph => self.joseph(x, sc),
+            CovarianceForm::Joseph => self.joseph(x, *sc),
         }
     }
 }

@@ -181,8 +181,8 @@ pub trait Store<T: Real, const N: usize>: Clone + core::fmt::Debug {
     type Group: RowGroup<T, N>;
     /// The groups (`⌈K / lanes⌉`).
     type Groups: Flat<Self::Group>;
-    /// One planned step per group when there is more than one group (else empty: a single
-    /// group plans in registers).
+    /// One planned step per group, for the identifiers that plan through memory (several
+    /// groups, or a group with too many covariance entries to keep in registers).
     type Scratches: Flat<<Self::Group as RowGroup<T, N>>::Scratch>;
     /// One value per pair of rows (`K²`).
     type PairScalars: Flat<T>;
@@ -206,7 +206,7 @@ impl<T: Real, const N: usize, const K: usize> Store<T, N> for Fixed<K> {
     type Vecs = [SVector<T, N>; K];
     type Group = lanes::RowLanes<T, N, K>;
     type Groups = [lanes::RowLanes<T, N, K>; 1];
-    type Scratches = [lanes::LaneScratch<T, N, K>; 0];
+    type Scratches = [lanes::LaneScratch<T, N, K>; 1];
     type PairScalars = [[T; K]; K];
     type PairVecs = [[SVector<T, N>; K]; K];
     type Blocks = [[SMatrix<T, N, N>; K]; K];
