@@ -72,3 +72,15 @@ def test_reads_criterion_estimates(tmp_path):
     (d / "estimates.json").write_text(json.dumps({"mean": {"point_estimate": 20.5}, "slope": None}))
     assert cb.criterion_ns("update_f64/quarter_kalman_rows", tmp_path)["ns"] == 20.5
     assert cb.criterion_ns("update_f64/nothing", tmp_path) is None
+
+
+def test_best_of_several_criterion_runs(tmp_path):
+    for run, ns in (("1", 26.0), ("2", 21.0), ("3", 23.0)):
+        d = tmp_path / run / "update_f64" / "quarter_kalman_rows" / "new"
+        d.mkdir(parents=True)
+        (d / "estimates.json").write_text(json.dumps({"mean": {"point_estimate": ns}, "slope": None}))
+    roots = [tmp_path / r for r in ("1", "2", "3", "missing")]
+    best = cb.best_criterion_ns("update_f64/quarter_kalman_rows", roots)
+    assert best["ns"] == 21.0 and "best of 3 runs" in best["from"] and "1.24" in best["from"]
+    assert cb.best_criterion_ns("update_f64/quarter_kalman_rows", roots[1:2])["ns"] == 21.0
+    assert cb.best_criterion_ns("update_f64/nothing", roots) is None
