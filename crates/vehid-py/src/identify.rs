@@ -12,7 +12,8 @@ use numpy::ndarray::{Array1, Array3};
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3};
 use pyo3::prelude::*;
 use vehid_core::identify::{
-    BatchLeastSquares, CovarianceForm, FullKalmanIdentifierVec, Gain, KalmanIdentifierVec, KalmanOptions, RowIdentifier,
+    BatchLeastSquares, CovarianceForm, Dynamic, FullKalmanIdentifierVec, Gain, KalmanOptions, KalmanRows, RowIdentifier,
+    DYNAMIC_LANES,
     SharedKalmanIdentifierVec, StochasticGradientVec,
 };
 use vehid_core::nalgebra::{SMatrix, SVector};
@@ -115,12 +116,12 @@ fn row_major<const N: usize>(p: &SMatrix<f64, N, N>) -> impl Iterator<Item = f64
     (0..N * N).map(move |i| p[(i / N, i % N)])
 }
 
-impl<const N: usize> Core<N> for KalmanIdentifierVec<f64, N> {
+impl<const N: usize, const L: usize> Core<N> for KalmanRows<f64, N, Dynamic<L>> {
     fn step(&mut self, x: &SVector<f64, N>, z: &SVector<f64, N>, e: &mut [f64]) -> Result<()> {
         self.update_into(x, z, e)
     }
     fn theta_into(&self, out: &mut [f64]) -> Result<()> {
-        KalmanIdentifierVec::theta_into(self, out)
+        KalmanRows::theta_into(self, out)
     }
     fn rows_len(&self) -> usize {
         self.rows().len()
@@ -132,13 +133,13 @@ impl<const N: usize> Core<N> for KalmanIdentifierVec<f64, N> {
         (0..self.rows().len()).map(|i| self.filter(i).r()).collect()
     }
     fn trace(&self) -> f64 {
-        KalmanIdentifierVec::trace(self)
+        KalmanRows::trace(self)
     }
     fn reinit_count(&self) -> u32 {
-        KalmanIdentifierVec::reinit_count(self)
+        KalmanRows::reinit_count(self)
     }
     fn samples(&self) -> u64 {
-        KalmanIdentifierVec::samples(self)
+        KalmanRows::samples(self)
     }
 }
 
@@ -259,32 +260,38 @@ pub enum Mode {
     Full,
 }
 
+/// The decoupled-rows identifier with its rows in groups of `L` lanes.
+fn rows_core<const N: usize, const L: usize>(s: &KalmanSpec) -> Result<Box<dyn Ident>> {
+    let k = s.rows.len();
+    let core = match &s.p0 {
+        P0::PerRow(p0) => KalmanRows::<f64, N, Dynamic<L>>::from_slices(&s.rows, p0, &s.r, s.opts)?,
+        P0::RowMatrices(m) => {
+            let filters = (0..k)
+                .map(|i| {
+                    let p = SMatrix::<f64, N, N>::from_fn(|a, b| m[i * N * N + a * N + b]);
+                    let r = vehid_core_per_row(&s.r, k, i)?;
+                    RowIdentifier::with_prior(SVector::zeros(), p, r)
+                })
+                .collect::<Result<Vec<_>>>()?;
+            KalmanRows::<f64, N, Dynamic<L>>::from_filters(&s.rows, &filters, s.opts)?
+        }
+        P0::Full(_) => {
+            return Err(Error::InvalidArgument {
+                arg: "p0",
+                expected: "a scalar, one value per row, or one (n, n) matrix per row for mode='rows' \
+                           (a full (k·n, k·n) matrix needs mode='full')",
+            })
+        }
+    };
+    Ok(Box::new(Adapter::<_, N>(core)))
+}
+
 fn kalman_n<const N: usize>(s: &KalmanSpec) -> Result<Box<dyn Ident>> {
     let k = s.rows.len();
     Ok(match s.mode {
-        Mode::Rows => {
-            let core = match &s.p0 {
-                P0::PerRow(p0) => KalmanIdentifierVec::<f64, N>::from_slices(&s.rows, p0, &s.r, s.opts)?,
-                P0::RowMatrices(m) => {
-                    let filters = (0..k)
-                        .map(|i| {
-                            let p = SMatrix::<f64, N, N>::from_fn(|a, b| m[i * N * N + a * N + b]);
-                            let r = vehid_core_per_row(&s.r, k, i)?;
-                            RowIdentifier::with_prior(SVector::zeros(), p, r)
-                        })
-                        .collect::<Result<Vec<_>>>()?;
-                    KalmanIdentifierVec::<f64, N>::from_filters(&s.rows, &filters, s.opts)?
-                }
-                P0::Full(_) => {
-                    return Err(Error::InvalidArgument {
-                        arg: "p0",
-                        expected: "a scalar, one value per row, or one (n, n) matrix per row for mode='rows' \
-                                   (a full (k·n, k·n) matrix needs mode='full')",
-                    })
-                }
-            };
-            Box::new(Adapter::<_, N>(core))
-        }
+        // One or two rows: groups of two lanes (no padding lanes); more: the default groups.
+        Mode::Rows if k <= 2 => rows_core::<N, 2>(s)?,
+        Mode::Rows => rows_core::<N, DYNAMIC_LANES>(s)?,
         Mode::Shared => {
             let P0::PerRow(p0) = &s.p0 else {
                 return Err(Error::InvalidArgument {

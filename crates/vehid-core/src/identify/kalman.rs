@@ -258,6 +258,11 @@ pub type KalmanIdentifier<T, const N: usize, const K: usize> = KalmanRows<T, N, 
 #[cfg(feature = "alloc")]
 pub type KalmanIdentifierVec<T, const N: usize> = KalmanRows<T, N, Dynamic>;
 
+/// [`KalmanRows`] with heap storage in groups of two lanes: the faster form for one or two
+/// unknown rows (see [`Dynamic`]).
+#[cfg(feature = "alloc")]
+pub type KalmanIdentifierVec2<T, const N: usize> = KalmanRows<T, N, Dynamic<2>>;
+
 impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
     /// Builds the identifier for the given 0-based unknown rows, with `P_i(0) = p0_i I`
     /// (`p0`: one value or one per row) and measurement variances `r` (one or one per row).

@@ -452,16 +452,21 @@ fn several_lane_groups_equal_one_and_reject_as_a_whole() {
     let r = [0.01, 100.0, 100.0, 2.5e-3, 0.02, 2.5e-3];
     let mut fixed = KalmanIdentifier::<f64, 8, 6>::new(rows, 1000.0, r).unwrap();
     let mut dynamic = KalmanIdentifierVec::<f64, 8>::from_slices(&rows, &[1000.0], &r, KalmanOptions::default()).unwrap();
+    let mut pairs = KalmanIdentifierVec2::<f64, 8>::from_slices(&rows, &[1000.0], &r, KalmanOptions::default()).unwrap();
     assert!(dynamic.groups.len() > 1 && dynamic.scratch.len() == dynamic.groups.len(), "several groups");
-    let mut e = [0.0; 6];
+    assert_eq!(pairs.groups.len(), 3, "three groups of two lanes");
+    let (mut e, mut e2) = ([0.0; 6], [0.0; 6]);
     let mut last = None;
     for _ in 0..3000 {
         let s = sim.next_sample();
         let ef = fixed.update(&s.r, &s.z).unwrap();
         dynamic.update_into(&s.r, &s.z, &mut e).unwrap();
+        pairs.update_into(&s.r, &s.z, &mut e2).unwrap();
         assert_eq!(ef.as_slice(), &e);
+        assert_eq!(e, e2);
         last = Some(s);
     }
+    assert!((0..6).all(|i| pairs.filter(i) == fixed.filter(i)), "two-lane groups: the same bits");
     let mut a = [0.0; 48];
     dynamic.theta_into(&mut a).unwrap();
     assert_eq!(fixed.theta().transpose().as_slice(), &a);
