@@ -37,6 +37,33 @@ use crate::linalg::{axpy, cholesky_in_place, cholesky_solve, mat_vec, sym_downda
 use crate::{Error, Real, Result};
 use nalgebra::{SMatrix, SVector};
 
+/// Gives an identifier with an `#[inline(always)] fn step(&mut self, x, z, e) -> Result<()>`
+/// its AVX2 copy `step_avx2` and `dispatch`, which runs that copy when `wide` (where it
+/// measured faster) and the CPU has AVX2 (x86-64 with `std`), else the portable `step`.
+/// Both copies compute the same bits (no FMA, fixed summation order; tested).
+macro_rules! avx2_step {
+    () => {
+        /// [`Self::step`] compiled for AVX2 (same arithmetic, wider registers).
+        #[cfg(all(feature = "std", target_arch = "x86_64"))]
+        #[target_feature(enable = "avx2")]
+        fn step_avx2(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
+            self.step(x, z, e)
+        }
+
+        /// Runs [`Self::step`] in its AVX2 copy when `wide` and the CPU has AVX2, else portable.
+        #[inline(always)]
+        fn dispatch(&mut self, wide: bool, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
+            #[cfg(all(feature = "std", target_arch = "x86_64"))]
+            if wide && crate::simd::avx2() {
+                // SAFETY: the CPU supports AVX2 (checked at run time by `simd::avx2`).
+                return unsafe { self.step_avx2(x, z, e) };
+            }
+            let _ = wide;
+            self.step(x, z, e)
+        }
+    };
+}
+
 /// How the covariance is propagated after a measurement.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum CovarianceForm {
@@ -425,21 +452,10 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         // AVX2 pays only when a group of lanes fills a 256-bit register (four f64 rows);
         // narrower groups are faster in the portable build, which fits them exactly.
         let wide = <S::Group as RowGroup<T, N>>::LANES * core::mem::size_of::<T>() >= 32;
-        #[cfg(all(feature = "std", target_arch = "x86_64"))]
-        if wide && crate::simd::avx2() {
-            // SAFETY: the CPU supports AVX2 (checked at run time by `simd::avx2`).
-            return unsafe { self.step_avx2(x, z, e) };
-        }
-        let _ = wide;
-        self.step(x, z, e)
+        self.dispatch(wide, x, z, e)
     }
 
-    /// [`Self::step`] compiled for AVX2 (same arithmetic, wider registers).
-    #[cfg(all(feature = "std", target_arch = "x86_64"))]
-    #[target_feature(enable = "avx2")]
-    fn step_avx2(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
-        self.step(x, z, e)
-    }
+    avx2_step!();
 
     /// The update: plan every group, then apply (a failure anywhere changes nothing).
     #[inline(always)]
@@ -663,21 +679,10 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
         // AVX2 pays for the half car in f64 (two 256-bit registers per column); for the
         // quarter car the portable build is faster (measured: 18.8 against 20.5 ns).
         let wide = N * core::mem::size_of::<T>() > 32;
-        #[cfg(all(feature = "std", target_arch = "x86_64"))]
-        if wide && crate::simd::avx2() {
-            // SAFETY: the CPU supports AVX2 (checked at run time by `simd::avx2`).
-            return unsafe { self.step_avx2(x, z, e) };
-        }
-        let _ = wide;
-        self.step(x, z, e)
+        self.dispatch(wide, x, z, e)
     }
 
-    /// [`Self::step`] compiled for AVX2 (same arithmetic, wider registers).
-    #[cfg(all(feature = "std", target_arch = "x86_64"))]
-    #[target_feature(enable = "avx2")]
-    fn step_avx2(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
-        self.step(x, z, e)
-    }
+    avx2_step!();
 
     /// The update: `g = Q x / s`, `s = 1 + xᵀQx`; `θ_i += g e_i`; `Q −= (Q x) gᵀ` with
     /// entry `(a, b)` taken from the upper triangle (so `Q` stays exactly symmetric).
