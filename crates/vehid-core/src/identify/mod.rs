@@ -19,6 +19,12 @@
 //! at construction (requires `alloc`; the form the Python bindings use, so that one
 //! monomorphization per state count serves any number of unknown rows). The numerics are
 //! the same code for both.
+//!
+//! # Speed
+//! The decoupled rows of [`KalmanRows`] are stored side by side in lanes ([`lanes`]), so one
+//! update treats all rows at once with vector instructions; on x86-64 with `std` the rows and
+//! shared updates also have an AVX2 copy chosen at run time ([`crate::simd`]). Every path
+//! computes the same bits. Measured figures and how to reproduce them: `benches/README.md`.
 
 /// The fixed-size `update` (innovations as `SVector<T, K>`) and `theta` (`K × N`) of an
 /// identifier with [`Fixed<K>`] storage, from its `update_into` and `theta_into`.
