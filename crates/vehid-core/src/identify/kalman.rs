@@ -706,13 +706,14 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
         let rows = self.rows.flat();
         let theta = self.theta.flat_mut();
         let mut abs_e = T::zero();
-        for i in 0..e.len() {
+        // Zipped (no bounds checks: they would split the loop the compiler vectorizes).
+        for ((th, ei), &row) in theta.iter().zip(e.iter_mut()).zip(rows) {
             let mut xt = [T::zero(); N];
             for a in 0..N {
-                xt[a] = theta[i][a] * x[a];
+                xt[a] = th[a] * x[a];
             }
-            e[i] = z[rows[i]] - tree_sum(xt);
-            abs_e += e[i].abs();
+            *ei = z.as_slice().get(row).copied().unwrap_or_else(T::zero) - tree_sum(xt);
+            abs_e += ei.abs();
         }
         let mut g = [T::zero(); N];
         let mut ag = [T::zero(); N];
@@ -732,9 +733,9 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
             }
             return Err(OVERFLOW);
         }
-        for i in 0..e.len() {
+        for (th, &ei) in theta.iter_mut().zip(e.iter()) {
             for a in 0..N {
-                theta[i][a] += g[a] * e[i];
+                th[a] += g[a] * ei;
             }
         }
         match self.opts.form {
