@@ -58,6 +58,8 @@ N_UPDATES = 20_000
 BENCHES = [
     "quarter_rows",       # update_f64/quarter/kalman_rows
     "half_rows",          # update_f64/half/kalman_rows
+    "quarter_rows_vec",   # update_f64/quarter/kalman_rows_vec (Python's quarter car)
+    "half_rows_vec",      # update_f64/half/kalman_rows_vec (Python's half car)
     "quarter_shared",     # update_f64/quarter/kalman_shared
     "half_shared",        # update_f64/half/kalman_shared
     "quarter_sg_venter",  # update_f64/quarter/sg_venter

@@ -8,8 +8,8 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Through
 use std::hint::black_box;
 use std::time::Duration;
 use vehid_core::identify::{
-    BatchLeastSquares, FullKalmanIdentifier, Gain, KalmanIdentifier, LsAccumulator, SharedKalmanIdentifier,
-    StochasticGradient,
+    BatchLeastSquares, FullKalmanIdentifier, Gain, KalmanIdentifier, KalmanIdentifierVec, KalmanIdentifierVec2,
+    KalmanOptions, LsAccumulator, SharedKalmanIdentifier, StochasticGradient,
 };
 use vehid_core::model::{HalfCar, LinearModel, QuarterCar};
 use vehid_core::nalgebra::SVector;
@@ -59,6 +59,14 @@ macro_rules! kalman_benches {
         bench_updates($c, group, &qd, |x, z| { let _ = black_box(id.update(x, z)); }, "quarter/kalman_rows");
         let mut id = KalmanIdentifier::<$t, 8, 4>::new(h.unknown_rows(), 1000.0, rh).unwrap();
         bench_updates($c, group, &hd, |x, z| { let _ = black_box(id.update(x, z)); }, "half/kalman_rows");
+
+        // The heap forms the Python bindings use (two lanes for the quarter car's two rows).
+        let mut id = KalmanIdentifierVec2::<$t, 4>::from_slices(&q.unknown_rows(), &[1000.0], &rq, KalmanOptions::default()).unwrap();
+        let mut e = [0.0 as $t; 2];
+        bench_updates($c, group, &qd, |x, z| { let _ = black_box(id.update_into(x, z, &mut e)); }, "quarter/kalman_rows_vec");
+        let mut id = KalmanIdentifierVec::<$t, 8>::from_slices(&h.unknown_rows(), &[1000.0], &rh, KalmanOptions::default()).unwrap();
+        let mut e = [0.0 as $t; 4];
+        bench_updates($c, group, &hd, |x, z| { let _ = black_box(id.update_into(x, z, &mut e)); }, "half/kalman_rows_vec");
 
         let mut id = SharedKalmanIdentifier::<$t, 4, 2>::new(q.unknown_rows(), 1000.0, [1.0; 2]).unwrap();
         bench_updates($c, group, &qd, |x, z| { let _ = black_box(id.update(x, z)); }, "quarter/kalman_shared");

@@ -10,7 +10,10 @@
 
 use std::hint::black_box;
 use std::process::ExitCode;
-use vehid_core::identify::{Gain, KalmanIdentifier, SharedKalmanIdentifier, StochasticGradient};
+use vehid_core::identify::{
+    Gain, KalmanIdentifier, KalmanIdentifierVec, KalmanIdentifierVec2, KalmanOptions, SharedKalmanIdentifier,
+    StochasticGradient,
+};
 use vehid_core::model::{HalfCar, LinearModel, QuarterCar};
 use vehid_core::nalgebra::SVector;
 use vehid_core::sim::{Method, SimConfig, Simulator};
@@ -18,9 +21,11 @@ use vehid_core::sim::{Method, SimConfig, Simulator};
 const LEN: usize = 4096;
 
 /// The benches: name and what one update is.
-const BENCHES: [(&str, &str); 6] = [
+const BENCHES: [(&str, &str); 8] = [
     ("quarter_rows", "KalmanIdentifier<f64, 4, 2> (rows) update"),
     ("half_rows", "KalmanIdentifier<f64, 8, 4> (rows) update"),
+    ("quarter_rows_vec", "KalmanIdentifierVec2<f64, 4> (rows, heap, two lanes: Python's quarter car) update_into"),
+    ("half_rows_vec", "KalmanIdentifierVec<f64, 8> (rows, heap: Python's half car) update_into"),
     ("quarter_shared", "SharedKalmanIdentifier<f64, 4, 2> update"),
     ("half_shared", "SharedKalmanIdentifier<f64, 8, 4> update"),
     ("quarter_sg_venter", "StochasticGradient<f64, 4, 2> (Venter, p = 0.51) update"),
@@ -63,6 +68,22 @@ fn run(bench: &str, n: usize) -> vehid_core::Result<String> {
             let mut id = KalmanIdentifier::<f64, 8, 4>::new(h.unknown_rows(), 1000.0, r)?;
             cycle(&data, n, |x, z| id.update(x, z).is_ok());
             format!("{:?}", id.theta())
+        }
+        "quarter_rows_vec" => {
+            let data = samples(q.model())?;
+            let r: [f64; 2] = q.model().row_noise_var(0.1, 0.005)?;
+            let mut id = KalmanIdentifierVec2::<f64, 4>::from_slices(&q.unknown_rows(), &[1000.0], &r, KalmanOptions::default())?;
+            let mut e = [0.0; 2];
+            cycle(&data, n, |x, z| id.update_into(x, z, &mut e).is_ok());
+            format!("{:?}", id.theta_row(0))
+        }
+        "half_rows_vec" => {
+            let data = samples(h.model())?;
+            let r: [f64; 4] = h.model().row_noise_var(0.1, 0.005)?;
+            let mut id = KalmanIdentifierVec::<f64, 8>::from_slices(&h.unknown_rows(), &[1000.0], &r, KalmanOptions::default())?;
+            let mut e = [0.0; 4];
+            cycle(&data, n, |x, z| id.update_into(x, z, &mut e).is_ok());
+            format!("{:?}", id.theta_row(0))
         }
         "quarter_shared" => {
             let data = samples(q.model())?;
