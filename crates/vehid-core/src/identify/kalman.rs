@@ -324,11 +324,23 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         })
     }
 
+    /// The group holding unknown row `i`, and the row's lane in it.
+    fn group(&self, i: usize) -> (&S::Group, usize) {
+        let lanes = <S::Group as RowGroup<T, N>>::LANES;
+        (&self.groups.flat()[i / lanes], i % lanes)
+    }
+
+    /// [`Self::group`], mutably.
+    fn group_mut(&mut self, i: usize) -> (&mut S::Group, usize) {
+        let lanes = <S::Group as RowGroup<T, N>>::LANES;
+        (&mut self.groups.flat_mut()[i / lanes], i % lanes)
+    }
+
     /// Puts the filter of unknown row `i`.
     fn set_filter(&mut self, i: usize, f: &RowIdentifier<T, N>) {
-        let lanes = <S::Group as RowGroup<T, N>>::LANES;
         let zrow = self.rows.flat()[i];
-        self.groups.flat_mut()[i / lanes].set_lane(i % lanes, zrow, f);
+        let (g, k) = self.group_mut(i);
+        g.set_lane(k, zrow, f);
     }
 
     /// Builds the identifier from prepared row filters (e.g. with full prior covariances
@@ -359,8 +371,8 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
     /// # Panics
     /// When `i` is not below the number of unknown rows.
     pub fn filter(&self, i: usize) -> RowIdentifier<T, N> {
-        let lanes = <S::Group as RowGroup<T, N>>::LANES;
-        self.groups.flat()[i / lanes].lane(i % lanes)
+        let (g, k) = self.group(i);
+        g.lane(k)
     }
 
     /// The options in use.
@@ -383,8 +395,8 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
     /// # Panics
     /// When `i` is not below the number of unknown rows.
     pub fn theta_row(&self, i: usize) -> SVector<T, N> {
-        let lanes = <S::Group as RowGroup<T, N>>::LANES;
-        self.groups.flat()[i / lanes].theta_lane(i % lanes)
+        let (g, k) = self.group(i);
+        g.theta_lane(k)
     }
 
     /// Writes θ̂ row-major (`K × N`) into `out`.
@@ -404,8 +416,8 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
 
     /// `tr P_i` of unknown row `i`.
     fn trace_row(&self, i: usize) -> T {
-        let lanes = <S::Group as RowGroup<T, N>>::LANES;
-        self.groups.flat()[i / lanes].trace_lane(i % lanes)
+        let (g, k) = self.group(i);
+        g.trace_lane(k)
     }
 
     /// `tr P = Σ_i tr P_i`, the quantity Eq 4.36 compares with the innovations.
@@ -431,9 +443,9 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
 
     /// Retires row `i` by hand (it stops updating until the next reinitialization).
     pub fn retire(&mut self, i: usize) {
-        let lanes = <S::Group as RowGroup<T, N>>::LANES;
         if i < self.rows.flat().len() {
-            self.groups.flat_mut()[i / lanes].retire_lane(i % lanes);
+            let (g, k) = self.group_mut(i);
+            g.retire_lane(k);
         }
     }
 
