@@ -2,10 +2,13 @@
 //!
 //! On x86-64 with the `std` feature, [`crate::identify::KalmanRows`] and
 //! [`crate::identify::KalmanShared`] run their update in a copy compiled for AVX2 when the
-//! CPU has it (checked once, then cached by the standard library). Elsewhere (other
-//! architectures, `no_std`, or after [`set_vector_extensions`]`(false)`) they run the
-//! portable build, which uses whatever the compile target enables (SSE2 on plain x86-64,
-//! NEON on aarch64; `-C target-cpu=native` gives more).
+//! CPU has it (checked once, then cached by the standard library) and the model is wide
+//! enough for it to pay, as measured: row groups that fill a 256-bit register (four `f64`
+//! rows: the half car, the heap forms with four lanes) and the shared form for more than four
+//! `f64` states. Otherwise (narrower models, other architectures, `no_std`, or after
+//! [`set_vector_extensions`]`(false)`) they run the portable build, which uses whatever the
+//! compile target enables (SSE2 on plain x86-64, NEON on aarch64; `-C target-cpu=native`
+//! gives more).
 //!
 //! The choice never changes a result: the kernels use no fused multiply-add and sum in a
 //! fixed order, so every path computes bit-identical estimates (tested).
