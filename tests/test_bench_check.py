@@ -7,28 +7,14 @@ a build slowed by 10 % would look like — and passes against the checked-in one
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import shutil
-import sys
-from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
-SCRIPT = ROOT / "benches" / "callgrind_check.py"
+from bench_scripts import ROOT, load  # tests/ is on sys.path under pytest
 
-
-def load():
-    spec = importlib.util.spec_from_file_location("callgrind_check", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["callgrind_check"] = mod
-    spec.loader.exec_module(mod)
-    return mod
-
-
-cc = load()
+cc = load("callgrind_check")
 MEASURED = {"quarter_rows": 473.3, "half_rows": 2191.1, "quarter_sim_exact": 681.8}
 
 

@@ -5,28 +5,14 @@ Not a timed test: the figures are fed in; `make bench-budgets` measures them.
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
 import tomllib
-from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
-SCRIPT = ROOT / "benches" / "check_budgets.py"
+from bench_scripts import ROOT, load  # tests/ is on sys.path under pytest
 
-
-def load():
-    spec = importlib.util.spec_from_file_location("check_budgets", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["check_budgets"] = mod
-    spec.loader.exec_module(mod)
-    return mod
-
-
-cb = load()
+cb = load("check_budgets")
 BUDGETS = {b["name"]: b for b in tomllib.loads((ROOT / "benches" / "budgets.toml").read_text())["budget"]}
 C_NS = {"quarter_rows": 25.0, "half_rows": 100.0, "quarter_shared": 10.0, "half_shared": 40.0}
 
