@@ -18,7 +18,9 @@ use vehid_core::Real;
 
 const LEN: usize = 4096;
 
-fn samples<T: Real, const N: usize, const M: usize>(model: LinearModel<T, N, M>) -> Vec<(SVector<T, N>, SVector<T, N>)> {
+fn samples<T: Real, const N: usize, const M: usize>(
+    model: LinearModel<T, N, M>,
+) -> Vec<(SVector<T, N>, SVector<T, N>)> {
     let cfg = SimConfig::new(T::of(0.05)).road_sigma(T::of(0.1)).ic_sigma(T::of(0.1)).deriv_noise(T::of(0.005));
     let mut sim = Simulator::new(model, cfg, 42).unwrap();
     (0..LEN).map(|_| sim.next_sample()).map(|s| (s.r, s.z)).collect()
@@ -56,29 +58,97 @@ macro_rules! kalman_benches {
         let group = concat!("update_", $label);
 
         let mut id = KalmanIdentifier::<$t, 4, 2>::new(q.unknown_rows(), 1000.0, rq).unwrap();
-        bench_updates($c, group, &qd, |x, z| { let _ = black_box(id.update(x, z)); }, "quarter/kalman_rows");
+        bench_updates(
+            $c,
+            group,
+            &qd,
+            |x, z| {
+                let _ = black_box(id.update(x, z));
+            },
+            "quarter/kalman_rows",
+        );
         let mut id = KalmanIdentifier::<$t, 8, 4>::new(h.unknown_rows(), 1000.0, rh).unwrap();
-        bench_updates($c, group, &hd, |x, z| { let _ = black_box(id.update(x, z)); }, "half/kalman_rows");
+        bench_updates(
+            $c,
+            group,
+            &hd,
+            |x, z| {
+                let _ = black_box(id.update(x, z));
+            },
+            "half/kalman_rows",
+        );
 
         // The heap forms the Python bindings use (two lanes for the quarter car's two rows).
-        let mut id = KalmanIdentifierVec2::<$t, 4>::from_slices(&q.unknown_rows(), &[1000.0], &rq, KalmanOptions::default()).unwrap();
+        let mut id =
+            KalmanIdentifierVec2::<$t, 4>::from_slices(&q.unknown_rows(), &[1000.0], &rq, KalmanOptions::default())
+                .unwrap();
         let mut e = [0.0 as $t; 2];
-        bench_updates($c, group, &qd, |x, z| { let _ = black_box(id.update_into(x, z, &mut e)); }, "quarter/kalman_rows_vec");
-        let mut id = KalmanIdentifierVec::<$t, 8>::from_slices(&h.unknown_rows(), &[1000.0], &rh, KalmanOptions::default()).unwrap();
+        bench_updates(
+            $c,
+            group,
+            &qd,
+            |x, z| {
+                let _ = black_box(id.update_into(x, z, &mut e));
+            },
+            "quarter/kalman_rows_vec",
+        );
+        let mut id =
+            KalmanIdentifierVec::<$t, 8>::from_slices(&h.unknown_rows(), &[1000.0], &rh, KalmanOptions::default())
+                .unwrap();
         let mut e = [0.0 as $t; 4];
-        bench_updates($c, group, &hd, |x, z| { let _ = black_box(id.update_into(x, z, &mut e)); }, "half/kalman_rows_vec");
+        bench_updates(
+            $c,
+            group,
+            &hd,
+            |x, z| {
+                let _ = black_box(id.update_into(x, z, &mut e));
+            },
+            "half/kalman_rows_vec",
+        );
 
         let mut id = SharedKalmanIdentifier::<$t, 4, 2>::new(q.unknown_rows(), 1000.0, [1.0; 2]).unwrap();
-        bench_updates($c, group, &qd, |x, z| { let _ = black_box(id.update(x, z)); }, "quarter/kalman_shared");
+        bench_updates(
+            $c,
+            group,
+            &qd,
+            |x, z| {
+                let _ = black_box(id.update(x, z));
+            },
+            "quarter/kalman_shared",
+        );
         let mut id = SharedKalmanIdentifier::<$t, 8, 4>::new(h.unknown_rows(), 1000.0, [1.0; 4]).unwrap();
-        bench_updates($c, group, &hd, |x, z| { let _ = black_box(id.update(x, z)); }, "half/kalman_shared");
+        bench_updates(
+            $c,
+            group,
+            &hd,
+            |x, z| {
+                let _ = black_box(id.update(x, z));
+            },
+            "half/kalman_shared",
+        );
 
         let rfull = vehid_core::nalgebra::SMatrix::<$t, 2, 2>::from_diagonal(&rq.into());
         let mut id = FullKalmanIdentifier::<$t, 4, 2>::new(q.unknown_rows(), 1000.0, rfull).unwrap();
-        bench_updates($c, group, &qd, |x, z| { let _ = black_box(id.update(x, z)); }, "quarter/kalman_full");
+        bench_updates(
+            $c,
+            group,
+            &qd,
+            |x, z| {
+                let _ = black_box(id.update(x, z));
+            },
+            "quarter/kalman_full",
+        );
         let rfull = vehid_core::nalgebra::SMatrix::<$t, 4, 4>::from_diagonal(&rh.into());
         let mut id = FullKalmanIdentifier::<$t, 8, 4>::new(h.unknown_rows(), 1000.0, rfull).unwrap();
-        bench_updates($c, group, &hd, |x, z| { let _ = black_box(id.update(x, z)); }, "half/kalman_full");
+        bench_updates(
+            $c,
+            group,
+            &hd,
+            |x, z| {
+                let _ = black_box(id.update(x, z));
+            },
+            "half/kalman_full",
+        );
 
         for (gname, gain) in [
             ("venter", Gain::Venter { p: 0.51 as $t }),
@@ -86,13 +156,37 @@ macro_rules! kalman_benches {
             ("ljung", Gain::Ljung { lambda0: 0.99 as $t, lambda_init: 0.95 as $t }),
         ] {
             let mut id = StochasticGradient::<$t, 4, 2>::new(q.unknown_rows(), gain, 0.4).unwrap();
-            bench_updates($c, group, &qd, |x, z| { let _ = black_box(id.update(x, z)); }, &format!("quarter/sg_{gname}"));
+            bench_updates(
+                $c,
+                group,
+                &qd,
+                |x, z| {
+                    let _ = black_box(id.update(x, z));
+                },
+                &format!("quarter/sg_{gname}"),
+            );
             let mut id = StochasticGradient::<$t, 8, 4>::new(h.unknown_rows(), gain, 0.4).unwrap();
-            bench_updates($c, group, &hd, |x, z| { let _ = black_box(id.update(x, z)); }, &format!("half/sg_{gname}"));
+            bench_updates(
+                $c,
+                group,
+                &hd,
+                |x, z| {
+                    let _ = black_box(id.update(x, z));
+                },
+                &format!("half/sg_{gname}"),
+            );
         }
 
         let mut acc = LsAccumulator::<$t, 4, vehid_core::identify::Fixed<2>>::new(q.unknown_rows()).unwrap();
-        bench_updates($c, group, &qd, |x, z| { let _ = black_box(acc.push(x, z)); }, "quarter/ls_accumulate");
+        bench_updates(
+            $c,
+            group,
+            &qd,
+            |x, z| {
+                let _ = black_box(acc.push(x, z));
+            },
+            "quarter/ls_accumulate",
+        );
     }};
 }
 

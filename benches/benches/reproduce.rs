@@ -49,10 +49,7 @@ fn reproduce_quick(c: &mut Criterion) {
 }
 
 fn config() -> Criterion {
-    Criterion::default()
-        .warm_up_time(Duration::from_secs(1))
-        .measurement_time(Duration::from_secs(8))
-        .sample_size(10)
+    Criterion::default().warm_up_time(Duration::from_secs(1)).measurement_time(Duration::from_secs(8)).sample_size(10)
 }
 
 criterion_group! { name = benches; config = config(); targets = reproduce_quick }

@@ -41,7 +41,11 @@ fn samples<const N: usize, const M: usize>(model: LinearModel<f64, N, M>) -> veh
 }
 
 /// Runs `n` updates cycling through `data`; returns a checksum of the results.
-fn cycle<const N: usize, O>(data: &Data<N>, n: usize, mut update: impl FnMut(&SVector<f64, N>, &SVector<f64, N>) -> O) -> usize {
+fn cycle<const N: usize, O>(
+    data: &Data<N>,
+    n: usize,
+    mut update: impl FnMut(&SVector<f64, N>, &SVector<f64, N>) -> O,
+) -> usize {
     let mut done = 0usize;
     for k in 0..n {
         let (x, z) = &data[k & (LEN - 1)];
@@ -72,7 +76,12 @@ fn run(bench: &str, n: usize) -> vehid_core::Result<String> {
         "quarter_rows_vec" => {
             let data = samples(q.model())?;
             let r: [f64; 2] = q.model().row_noise_var(0.1, 0.005)?;
-            let mut id = KalmanIdentifierVec2::<f64, 4>::from_slices(&q.unknown_rows(), &[1000.0], &r, KalmanOptions::default())?;
+            let mut id = KalmanIdentifierVec2::<f64, 4>::from_slices(
+                &q.unknown_rows(),
+                &[1000.0],
+                &r,
+                KalmanOptions::default(),
+            )?;
             let mut e = [0.0; 2];
             cycle(&data, n, |x, z| id.update_into(x, z, &mut e).is_ok());
             format!("{:?}", id.theta_row(0))
@@ -80,7 +89,8 @@ fn run(bench: &str, n: usize) -> vehid_core::Result<String> {
         "half_rows_vec" => {
             let data = samples(h.model())?;
             let r: [f64; 4] = h.model().row_noise_var(0.1, 0.005)?;
-            let mut id = KalmanIdentifierVec::<f64, 8>::from_slices(&h.unknown_rows(), &[1000.0], &r, KalmanOptions::default())?;
+            let mut id =
+                KalmanIdentifierVec::<f64, 8>::from_slices(&h.unknown_rows(), &[1000.0], &r, KalmanOptions::default())?;
             let mut e = [0.0; 4];
             cycle(&data, n, |x, z| id.update_into(x, z, &mut e).is_ok());
             format!("{:?}", id.theta_row(0))

@@ -109,11 +109,18 @@ pub fn discrete_stationary_cov<T: Real, const N: usize, const M: usize>(
     let su = broadcast::<T, M>("road_sigma", road_sigma)?;
     let phi = phi.map(|v| v.to_f64());
     let g = gamma.map(|v| v.to_f64());
-    let s = SMatrix::<f64, M, M>::from_fn(|i, j| if i == j { { let s = su[i].to_f64(); s * s } } else { 0.0 });
+    let s = SMatrix::<f64, M, M>::from_fn(|i, j| {
+        if i == j {
+            {
+                let s = su[i].to_f64();
+                s * s
+            }
+        } else {
+            0.0
+        }
+    });
     let c = g * s * g.transpose();
-    discrete_lyapunov(&phi, &c)
-        .map(|p| p.map(T::of))
-        .ok_or(Error::Unstable { what: "the stationary covariance" })
+    discrete_lyapunov(&phi, &c).map(|p| p.map(T::of)).ok_or(Error::Unstable { what: "the stationary covariance" })
 }
 
 /// Standard deviation of each state under road noise held over intervals of `hold` seconds
@@ -142,7 +149,16 @@ pub fn output_std<T: Real, const N: usize, const M: usize>(
     let a = model.a().map(|v| v.to_f64());
     let b = model.b().map(|v| v.to_f64());
     let t = hold.to_f64();
-    let s = SMatrix::<f64, M, M>::from_fn(|i, j| if i == j { { let s = su[i].to_f64(); s * s } } else { 0.0 });
+    let s = SMatrix::<f64, M, M>::from_fn(|i, j| {
+        if i == j {
+            {
+                let s = su[i].to_f64();
+                s * s
+            }
+        } else {
+            0.0
+        }
+    });
     let panels = 2 + libm::ceil(spectral_radius(&a) * t) as usize;
     let first = integrate(t, panels.min(10_000), |tau| {
         let g = expm_with_integral(&a, tau).1 * b;
@@ -195,7 +211,11 @@ mod tests {
         };
         let sinc2 = |w: f64| {
             let x = w * t / 2.0;
-            if x == 0.0 { 1.0 } else { (x.sin() / x).powi(2) }
+            if x == 0.0 {
+                1.0
+            } else {
+                (x.sin() / x).powi(2)
+            }
         };
         let mut acc = [0.0; 4];
         let (lo, hi, steps) = (1e-4f64, 1e5f64, 400_000);

@@ -83,18 +83,15 @@ impl fmt::Display for Error {
             Error::InvalidArgument { arg, expected } => {
                 write!(f, "invalid `{arg}`: expected {expected}")
             }
-            Error::NonFinite { arg, index } => write!(
-                f,
-                "`{arg}` holds a non-finite value (NaN or inf) at index {index}: pass finite numbers"
-            ),
-            Error::Shape { arg, expected, got } => write!(
-                f,
-                "`{arg}` has {got} elements but {expected} are needed: check its shape"
-            ),
-            Error::BadRow { arg, row, n } => write!(
-                f,
-                "`{arg}` names row {row}, but rows must be distinct and in 0..{n} (0-based)"
-            ),
+            Error::NonFinite { arg, index } => {
+                write!(f, "`{arg}` holds a non-finite value (NaN or inf) at index {index}: pass finite numbers")
+            }
+            Error::Shape { arg, expected, got } => {
+                write!(f, "`{arg}` has {got} elements but {expected} are needed: check its shape")
+            }
+            Error::BadRow { arg, row, n } => {
+                write!(f, "`{arg}` names row {row}, but rows must be distinct and in 0..{n} (0-based)")
+            }
             Error::RankDeficient { rank, needed } => write!(
                 f,
                 "every unknown row of A lacks excitation: the measured states span only {rank} of \
@@ -102,15 +99,13 @@ impl fmt::Display for Error {
                  initial state, or a richer input"
             ),
             Error::Singular { what } => write!(f, "{what} is singular or not positive definite"),
-            Error::Unstable { what } => write!(
-                f,
-                "{what} does not exist: the model has a pole with non-negative real part"
-            ),
+            Error::Unstable { what } => {
+                write!(f, "{what} does not exist: the model has a pole with non-negative real part")
+            }
             Error::NotIdentifiable { what } => write!(f, "cannot recover {what}"),
-            Error::Capacity { arg, needed, capacity } => write!(
-                f,
-                "`{arg}` needs a capacity of {needed} but has {capacity}: raise the const-generic capacity"
-            ),
+            Error::Capacity { arg, needed, capacity } => {
+                write!(f, "`{arg}` needs a capacity of {needed} but has {capacity}: raise the const-generic capacity")
+            }
         }
     }
 }

@@ -16,7 +16,8 @@
 
 use crate::analysis::output_std;
 use crate::identify::{
-    Gain, KalmanIdentifier, KalmanOptions, LsAccumulator, StochasticGradient, TwoAxleConfig, TwoAxleIdentifier, WheelMethod,
+    Gain, KalmanIdentifier, KalmanOptions, LsAccumulator, StochasticGradient, TwoAxleConfig, TwoAxleIdentifier,
+    WheelMethod,
 };
 use crate::metrics::{snr_db, xi};
 use crate::model::{HalfCar, LinearModel, QuarterCar};
@@ -818,7 +819,15 @@ pub struct RunOptions {
 
 impl Default for RunOptions {
     fn default() -> Self {
-        Self { quick: false, seeds: None, max_iterations: None, base_seed: 1986, threads: None, only: vec![], tables: true }
+        Self {
+            quick: false,
+            seeds: None,
+            max_iterations: None,
+            base_seed: 1986,
+            threads: None,
+            only: vec![],
+            tables: true,
+        }
     }
 }
 
@@ -1071,7 +1080,10 @@ fn make_ident<const N: usize, const M: usize, const K: usize>(
             Box::new(Sg::<N, K>(StochasticGradient::from_slices(&rows, g, &hs, &snv, 1)?, false))
         }
         Ident::TwoAxle { .. } => {
-            return Err(crate::Error::InvalidArgument { arg: "ident", expected: "a one-road model for the two-axle identifier" })
+            return Err(crate::Error::InvalidArgument {
+                arg: "ident",
+                expected: "a one-road model for the two-axle identifier",
+            })
         }
     })
 }
@@ -1151,7 +1163,11 @@ fn run_one_road(exp: &Experiment, curve: &Curve, grid: &[u64], seed: u64) -> cra
     let car = HalfCar::<f64>::thesis();
     let model = car.model();
     let mode = if curve.label.starts_with("independent") { RoadMode::Independent } else { RoadMode::White };
-    let cfg = SimConfig::<f64, 8, 2>::new(DT).ic_sigma(curve.ic).road_sigma(curve.road).state_noise(curve.state).deriv_noise(curve.deriv);
+    let cfg = SimConfig::<f64, 8, 2>::new(DT)
+        .ic_sigma(curve.ic)
+        .road_sigma(curve.road)
+        .state_noise(curve.state)
+        .deriv_noise(curve.deriv);
     let spacing = ROAD_SPEED * DT;
     let road = RoadConfig::new(spacing, spacing * ROAD_DELAY as f64).mode(mode);
     let mut sim = RoadSimulator::<f64, 8, 16>::new(model.clone(), cfg, road, seed)?;
@@ -1277,7 +1293,10 @@ fn evaluate(claim: &ThesisClaim, curves: &[CurveResult], n: usize, quick: bool) 
             let m = median(&curves[curve].settle);
             let truncated = m.is_infinite() && (n as f64) < iters;
             let note = if truncated {
-                format!("lower bound only: the run ({n} iterations) is shorter than the claim{}", if quick { " (quick mode)" } else { "" })
+                format!(
+                    "lower bound only: the run ({n} iterations) is shorter than the claim{}",
+                    if quick { " (quick mode)" } else { "" }
+                )
             } else if m < iters {
                 format!("vehid settles below {level} sooner than the thesis reports; the thesis' curve is one realization (its plateaus are seed-dependent) — see the 10–90 % band")
             } else {
@@ -1288,7 +1307,11 @@ fn evaluate(claim: &ThesisClaim, curves: &[CurveResult], n: usize, quick: bool) 
         Claim::ReachesWithin { curve, level, iters } => {
             let m = median(&curves[curve].reach);
             let ok = m <= iters;
-            let note = if ok { String::new() } else { format!("vehid's median first crossing of {level} comes later than the thesis' {iters}") };
+            let note = if ok {
+                String::new()
+            } else {
+                format!("vehid's median first crossing of {level} comes later than the thesis' {iters}")
+            };
             (format!("median first iteration with ξ < {level}: {}", iters_text(m, n)), ok, note)
         }
         Claim::EndsAbove { curve, level } => {
@@ -1301,7 +1324,11 @@ fn evaluate(claim: &ThesisClaim, curves: &[CurveResult], n: usize, quick: bool) 
             let vals: Vec<f64> = order.iter().map(|&i| end(i)).collect();
             let ok = vals.windows(2).all(|w| w[0] <= w[1]);
             let txt = vals.iter().map(|v| fmt_num(*v)).collect::<Vec<_>>().join(" ≤ ");
-            let note = if ok { String::new() } else { "the median ordering at the end of the run is not monotone".to_string() };
+            let note = if ok {
+                String::new()
+            } else {
+                "the median ordering at the end of the run is not monotone".to_string()
+            };
             (format!("median ξ at {n}, in the claimed order: {txt}"), ok, note)
         }
         Claim::MinimumNear { curve, lo, hi } => {
@@ -1315,7 +1342,8 @@ fn evaluate(claim: &ThesisClaim, curves: &[CurveResult], n: usize, quick: bool) 
             let r: Vec<f64> = curves[a].final_xi.iter().zip(&curves[b].final_xi).map(|(x, y)| x / y).collect();
             let m = median(&r);
             let ok = m >= lo && m <= hi;
-            let note = if ok { String::new() } else { format!("the ratio is outside [{}, {}]", fmt_num(lo), fmt_num(hi)) };
+            let note =
+                if ok { String::new() } else { format!("the ratio is outside [{}, {}]", fmt_num(lo), fmt_num(hi)) };
             (format!("median ξ ratio (curve {} / curve {}) at {n}: {}", a + 1, b + 1, fmt_num(m)), ok, note)
         }
         Claim::Difference { a, b, lo, hi } => {
@@ -1325,14 +1353,23 @@ fn evaluate(claim: &ThesisClaim, curves: &[CurveResult], n: usize, quick: bool) 
             let note = if ok {
                 String::new()
             } else {
-                format!("the difference is outside [{}, {}]{}", fmt_num(lo), fmt_num(hi), if n < 40_000 { " (run shorter than the thesis' 40,000)" } else { "" })
+                format!(
+                    "the difference is outside [{}, {}]{}",
+                    fmt_num(lo),
+                    fmt_num(hi),
+                    if n < 40_000 { " (run shorter than the thesis' 40,000)" } else { "" }
+                )
             };
             (format!("median ξ difference (curve {} − curve {}) at {n}: {}", a + 1, b + 1, fmt_num(m)), ok, note)
         }
         Claim::BestBetween { lo, hi } => {
-            let (best, bi) = (0..curves.len()).map(|i| (end(i), i)).fold((f64::INFINITY, 0), |acc, x| if x.0 < acc.0 { x } else { acc });
+            let (best, bi) =
+                (0..curves.len())
+                    .map(|i| (end(i), i))
+                    .fold((f64::INFINITY, 0), |acc, x| if x.0 < acc.0 { x } else { acc });
             let ok = best > lo && best < hi;
-            let note = if ok { String::new() } else { format!("best curve outside ({}, {})", fmt_num(lo), fmt_num(hi)) };
+            let note =
+                if ok { String::new() } else { format!("best curve outside ({}, {})", fmt_num(lo), fmt_num(hi)) };
             (format!("best median ξ at {n}: {} ({})", fmt_num(best), curve_name(&curves[bi].curve, bi)), ok, note)
         }
         Claim::LowestMinimum { a } => {
@@ -1372,7 +1409,12 @@ pub fn select(only: &[String]) -> crate::Result<Vec<&'static Experiment>> {
     for id in only {
         match EXPERIMENTS.iter().find(|e| e.id == id.trim()) {
             Some(e) => out.push(e),
-            None => return Err(crate::Error::InvalidArgument { arg: "only", expected: "figure ids of Ch. III–VI such as 4-2 (3-2 … 3-7, 4-1 … 4-9, 5-1 … 5-4, 6-2 … 6-9)" }),
+            None => {
+                return Err(crate::Error::InvalidArgument {
+                    arg: "only",
+                    expected: "figure ids of Ch. III–VI such as 4-2 (3-2 … 3-7, 4-1 … 4-9, 5-1 … 5-4, 6-2 … 6-9)",
+                })
+            }
         }
     }
     Ok(out)
@@ -1387,10 +1429,8 @@ pub fn run(opts: &RunOptions, progress: &(dyn Fn(Progress<'_>) + Sync)) -> crate
     let start = std::time::Instant::now();
     let exps = select(&opts.only)?;
     let seeds = opts.seeds.unwrap_or(if opts.quick { 5 } else { 16 }).max(1);
-    let threads = opts
-        .threads
-        .unwrap_or_else(|| std::thread::available_parallelism().map(|n| n.get()).unwrap_or(2))
-        .clamp(1, 64);
+    let threads =
+        opts.threads.unwrap_or_else(|| std::thread::available_parallelism().map(|n| n.get()).unwrap_or(2)).clamp(1, 64);
     let iters_of = |e: &Experiment| {
         let mut n = e.iterations;
         if opts.quick {
@@ -1442,7 +1482,15 @@ pub fn run(opts: &RunOptions, progress: &(dyn Fn(Progress<'_>) + Sync)) -> crate
     for (fi, e) in exps.iter().enumerate() {
         let n = iters_of(e);
         if let Some(why) = e.needs {
-            figures.push(FigureResult { experiment: e, k: vec![], iterations: 0, seeds, curves: vec![], verdicts: vec![], skipped: Some(why.to_string()) });
+            figures.push(FigureResult {
+                experiment: e,
+                k: vec![],
+                iterations: 0,
+                seeds,
+                curves: vec![],
+                verdicts: vec![],
+                skipped: Some(why.to_string()),
+            });
             continue;
         }
         let mut curves = vec![];
@@ -1456,13 +1504,28 @@ pub fn run(opts: &RunOptions, progress: &(dyn Fn(Progress<'_>) + Sync)) -> crate
             curves.push(summarize(*curve, &traces, &grids[fi]));
         }
         let verdicts = e.claims.iter().map(|c| evaluate(c, &curves, n, opts.quick)).collect();
-        figures.push(FigureResult { experiment: e, k: grids[fi].clone(), iterations: n, seeds, curves, verdicts, skipped: None });
+        figures.push(FigureResult {
+            experiment: e,
+            k: grids[fi].clone(),
+            iterations: n,
+            seeds,
+            curves,
+            verdicts,
+            skipped: None,
+        });
     }
     let tables = match table_out {
         Some(t) => t?,
         None => vec![],
     };
-    Ok(Report { quick: opts.quick, base_seed: opts.base_seed, threads, seconds: start.elapsed().as_secs_f64(), figures, tables })
+    Ok(Report {
+        quick: opts.quick,
+        base_seed: opts.base_seed,
+        threads,
+        seconds: start.elapsed().as_secs_f64(),
+        figures,
+        tables,
+    })
 }
 
 // ------------------------------------------------------------------ tables
@@ -1629,10 +1692,12 @@ fn time_updates<const N: usize, const M: usize>(
     let mut cfg = SimConfig::<f64, N, M>::new(DT).deriv_noise(0.005);
     cfg.road_sigma = SVector::from(road);
     let mut sim = Simulator::new(model, cfg, 7)?;
-    let samples: Vec<(SVector<f64, N>, SVector<f64, N>)> = (0..n).map(|_| {
-        let s = sim.next_sample();
-        (s.r, s.z)
-    }).collect();
+    let samples: Vec<(SVector<f64, N>, SVector<f64, N>)> = (0..n)
+        .map(|_| {
+            let s = sim.next_sample();
+            (s.r, s.z)
+        })
+        .collect();
     let t0 = std::time::Instant::now();
     for (r, z) in &samples {
         update(core::hint::black_box(r), core::hint::black_box(z));
@@ -1651,12 +1716,19 @@ fn table_one(quick: bool) -> crate::Result<Table> {
     })?;
     let mut rh = [0.0; 4];
     h.model().row_noise_var_into(&[0.1, 0.0], &[0.005], &mut rh)?;
-    let mut k8 = KalmanIdentifier::<f64, 8, 4>::from_slices(&[1, 3, 5, 7], &[1000.0, 1000.0, 8.0, 8.0], &rh, KalmanOptions::default())?;
+    let mut k8 = KalmanIdentifier::<f64, 8, 4>::from_slices(
+        &[1, 3, 5, 7],
+        &[1000.0, 1000.0, 8.0, 8.0],
+        &rh,
+        KalmanOptions::default(),
+    )?;
     let ns8 = time_updates(h.model(), [0.1, 0.0], n / 2, |r, z| {
         let _ = k8.update(r, z);
     })?;
     let (c4, c8) = (k4.cost(), k8.cost());
-    let ops = |c: &crate::identify::Cost| format!("{} / {} / {} (+ {} √)", c.multiplications, c.additions, c.divisions, c.square_roots);
+    let ops = |c: &crate::identify::Cost| {
+        format!("{} / {} / {} (+ {} √)", c.multiplications, c.additions, c.divisions, c.square_roots)
+    };
     // Thesis: Table I (4-state, 6 measurements) and Ch. VI.E (8-state, 4 × per row).
     let (t4, t8) = ((256usize, 178usize, 2usize), (4 * 270usize, 4 * 255usize, 4 * 8usize));
     let within3 = |a: usize, b: usize| a * 3 >= b && b * 3 >= a;

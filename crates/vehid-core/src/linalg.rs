@@ -28,10 +28,7 @@ pub fn inf_norm<T: Real, const N: usize>(a: &SMatrix<T, N, N>) -> T {
 /// The second matrix gives the zero-order-hold input matrix `Γ = (∫₀ᵗ e^{Aτ}dτ) B`. The
 /// doubling rule `Ψ(2s) = (I + e^{As}) Ψ(s)` keeps the pair consistent; accuracy is a few
 /// units of the scalar's epsilon times the condition of the exponential.
-pub fn expm_with_integral<T: Real, const N: usize>(
-    a: &SMatrix<T, N, N>,
-    t: T,
-) -> (SMatrix<T, N, N>, SMatrix<T, N, N>) {
+pub fn expm_with_integral<T: Real, const N: usize>(a: &SMatrix<T, N, N>, t: T) -> (SMatrix<T, N, N>, SMatrix<T, N, N>) {
     let norm = inf_norm(a).to_f64() * t.to_f64().abs();
     let mut squarings = 0u32;
     let mut scaled = norm;
@@ -87,19 +84,11 @@ pub fn spectral_radius<T: Real, const N: usize>(a: &SMatrix<T, N, N>) -> f64 {
 }
 
 /// 8-point Gauss–Legendre nodes on [-1, 1].
-const GL8_X: [f64; 4] = [
-    0.183_434_642_495_649_8,
-    0.525_532_409_916_329,
-    0.796_666_477_413_626_7,
-    0.960_289_856_497_536_3,
-];
+const GL8_X: [f64; 4] =
+    [0.183_434_642_495_649_8, 0.525_532_409_916_329, 0.796_666_477_413_626_7, 0.960_289_856_497_536_3];
 /// 8-point Gauss–Legendre weights matching [`GL8_X`].
-const GL8_W: [f64; 4] = [
-    0.362_683_783_378_362,
-    0.313_706_645_877_887_3,
-    0.222_381_034_453_374_5,
-    0.101_228_536_290_376_3,
-];
+const GL8_W: [f64; 4] =
+    [0.362_683_783_378_362, 0.313_706_645_877_887_3, 0.222_381_034_453_374_5, 0.101_228_536_290_376_3];
 
 /// `∫₀^len f(s) ds` by composite 8-point Gauss–Legendre over `panels` equal panels.
 pub fn integrate<T: Real, const R: usize, const C: usize>(

@@ -50,11 +50,14 @@ pub fn xi_rows<T: Real>(theta: &[T], theta_hat: &[T], n: usize, out: &mut [T]) -
         return Err(Error::Shape { arg: "theta", expected: out.len() * n, got: theta.len() });
     }
     for (i, o) in out.iter_mut().enumerate() {
-        *o = xi(&theta[i * n..(i + 1) * n], theta_hat.get(i * n..(i + 1) * n).ok_or(Error::Shape {
-            arg: "theta_hat",
-            expected: theta.len(),
-            got: theta_hat.len(),
-        })?)?;
+        *o = xi(
+            &theta[i * n..(i + 1) * n],
+            theta_hat.get(i * n..(i + 1) * n).ok_or(Error::Shape {
+                arg: "theta_hat",
+                expected: theta.len(),
+                got: theta_hat.len(),
+            })?,
+        )?;
     }
     Ok(())
 }

@@ -32,10 +32,7 @@ impl<const N: usize> RowSet<N> {
     /// for an empty list.
     pub fn new(rows: &[usize]) -> Result<Self> {
         if rows.is_empty() {
-            return Err(Error::InvalidArgument {
-                arg: "unknown_rows",
-                expected: "at least one row of A to identify",
-            });
+            return Err(Error::InvalidArgument { arg: "unknown_rows", expected: "at least one row of A to identify" });
         }
         let mut mask = [false; N];
         for &r in rows {
@@ -293,9 +290,7 @@ impl<T: Real, const N: usize, const M: usize> LinearModel<T, N, M> {
             }
             *o = *e;
         }
-        out.sort_by(|p, q| {
-            (p.re, p.im).partial_cmp(&(q.re, q.im)).unwrap_or(core::cmp::Ordering::Equal)
-        });
+        out.sort_by(|p, q| (p.re, p.im).partial_cmp(&(q.re, q.im)).unwrap_or(core::cmp::Ordering::Equal));
         Ok(out)
     }
 }
@@ -834,7 +829,10 @@ mod tests {
     #[test]
     fn constants_are_validated() {
         assert!(matches!(QuarterCar::new(10.0, 0.0, 90.0, 50.0, 40.0), Err(Error::InvalidArgument { arg: "m", .. })));
-        assert!(matches!(QuarterCar::new(f64::NAN, 1.0, 90.0, 50.0, 40.0), Err(Error::InvalidArgument { arg: "M", .. })));
+        assert!(matches!(
+            QuarterCar::new(f64::NAN, 1.0, 90.0, 50.0, 40.0),
+            Err(Error::InvalidArgument { arg: "M", .. })
+        ));
         let mut p = HalfCar::<f64>::thesis().params();
         p.j = -1.0;
         assert!(matches!(HalfCar::new(p), Err(Error::InvalidArgument { arg: "J", .. })));
@@ -855,7 +853,8 @@ mod tests {
         a[(2, 3)] = f64::INFINITY;
         assert!(matches!(LinearModel::new(a, *car.b(), &[1]), Err(Error::NonFinite { arg: "a", index: 11 })));
         let half = HalfCar::<f64>::thesis().model();
-        let zeros = (0..8).flat_map(|r| (0..8).map(move |c| (r, c))).filter(|&(r, c)| half.is_structural_zero(r, c)).count();
+        let zeros =
+            (0..8).flat_map(|r| (0..8).map(move |c| (r, c))).filter(|&(r, c)| half.is_structural_zero(r, c)).count();
         assert_eq!(zeros, 4);
     }
 

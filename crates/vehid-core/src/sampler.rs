@@ -189,14 +189,25 @@ impl<T: Real, const C: usize> AxleSampler<T, C> {
         if residual > tolerance {
             return Err(Error::InvalidArgument {
                 arg: "spacing",
-                expected: "a spacing that divides the wheelbase to within the tolerance (|d·spacing − wheelbase| ≤ tolerance)",
+                expected:
+                    "a spacing that divides the wheelbase to within the tolerance (|d·spacing − wheelbase| ≤ tolerance)",
             });
         }
         if d > C {
             return Err(Error::Capacity { arg: "AxleSampler capacity C", needed: d, capacity: C });
         }
         let empty = Slot { grid: 0, sample: 0, position: T::zero(), valid: false };
-        Ok(Self { wheelbase, spacing, tolerance, d, origin: T::zero(), s: T::zero(), next_grid: 0, samples: 0, ring: [empty; C] })
+        Ok(Self {
+            wheelbase,
+            spacing,
+            tolerance,
+            d,
+            origin: T::zero(),
+            s: T::zero(),
+            next_grid: 0,
+            samples: 0,
+            ring: [empty; C],
+        })
     }
 
     /// Road points between the axles, `d = round(L / Δ)`.

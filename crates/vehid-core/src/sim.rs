@@ -704,7 +704,8 @@ impl<T: Real, const N: usize, const C: usize> RoadSimulator<T, N, C> {
         if front {
             self.j += 1;
             self.o = T::zero();
-            self.heights[self.j.rem_euclid(C as i64) as usize] = normal::<T>(&mut self.rng_road) * self.cfg.road_sigma[0];
+            self.heights[self.j.rem_euclid(C as i64) as usize] =
+                normal::<T>(&mut self.rng_road) * self.cfg.road_sigma[0];
         } else {
             self.o = self.e;
         }
@@ -1000,10 +1001,7 @@ mod tests {
         assert!(big < 1.0);
         let mut one = cfg;
         one.substeps = Some(1);
-        assert!(matches!(
-            Simulator::new(model, one, 1),
-            Err(Error::InvalidArgument { arg: "substeps", .. })
-        ));
+        assert!(matches!(Simulator::new(model, one, 1), Err(Error::InvalidArgument { arg: "substeps", .. })));
     }
 
     #[test]
@@ -1030,8 +1028,14 @@ mod tests {
         assert!(matches!(bad(SimConfig::new(0.0)), Error::InvalidArgument { arg: "dt", .. }));
         assert!(matches!(bad(SimConfig::new(f64::NAN)), Error::InvalidArgument { arg: "dt", .. }));
         assert!(matches!(bad(SimConfig::new(0.05).road_sigma(-1.0)), Error::InvalidArgument { arg: "road_sigma", .. }));
-        assert!(matches!(bad(SimConfig::new(0.05).ic_sigma(f64::INFINITY)), Error::InvalidArgument { arg: "ic_sigma", .. }));
-        assert!(matches!(bad(SimConfig::new(0.05).deriv_noise(-0.1)), Error::InvalidArgument { arg: "deriv_noise", .. }));
+        assert!(matches!(
+            bad(SimConfig::new(0.05).ic_sigma(f64::INFINITY)),
+            Error::InvalidArgument { arg: "ic_sigma", .. }
+        ));
+        assert!(matches!(
+            bad(SimConfig::new(0.05).deriv_noise(-0.1)),
+            Error::InvalidArgument { arg: "deriv_noise", .. }
+        ));
         let mut zero_sub = SimConfig::new(0.05);
         zero_sub.substeps = Some(0);
         assert!(matches!(bad(zero_sub), Error::InvalidArgument { arg: "substeps", .. }));

@@ -226,7 +226,8 @@ fn fig_5_1_venter_gradient_is_far_slower_than_kalman() {
         let mut k = kalman(1000.0, correct_r(Noise { deriv: 0.005, ..noise }), false);
         // Eq 5.10: wheel-row weights one tenth of the body-row weights.
         let h = [0.4, 0.4, 0.4, 0.4, 4.0, 4.0, 4.0, 4.0];
-        let mut g = StochasticGradient::<f64, 4, 2>::from_slices(&[1, 3], Gain::Venter { p: 0.51 }, &h, &[0.0], 1).unwrap();
+        let mut g =
+            StochasticGradient::<f64, 4, 2>::from_slices(&[1, 3], Gain::Venter { p: 0.51 }, &h, &[0.0], 1).unwrap();
         kf.push(run(seed, noise, 40_000, 1000, &mut k).at(40_000));
         sg.push(run(seed, noise, 40_000, 1000, &mut g).at(40_000));
     }

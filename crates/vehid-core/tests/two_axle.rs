@@ -222,12 +222,12 @@ fn sampler_pairs_everything_when_fed_finely_and_schedules_exactly() {
 
 #[test]
 fn sampler_errors_and_reset() {
-    assert!(matches!(
-        AxleSampler::<f64, 8>::new(3.0, 0.3, 0.01),
-        Err(Error::Capacity { needed: 10, capacity: 8, .. })
-    ));
+    assert!(matches!(AxleSampler::<f64, 8>::new(3.0, 0.3, 0.01), Err(Error::Capacity { needed: 10, capacity: 8, .. })));
     assert!(matches!(AxleSampler::<f64, 16>::new(3.0, 0.7, 0.01), Err(Error::InvalidArgument { arg: "spacing", .. })));
-    assert!(matches!(AxleSampler::<f64, 16>::new(3.0, 0.3, -1.0), Err(Error::InvalidArgument { arg: "tolerance", .. })));
+    assert!(matches!(
+        AxleSampler::<f64, 16>::new(3.0, 0.3, -1.0),
+        Err(Error::InvalidArgument { arg: "tolerance", .. })
+    ));
     assert!(matches!(AxleSampler::<f64, 16>::new(0.0, 0.3, 0.0), Err(Error::InvalidArgument { arg: "wheelbase", .. })));
     assert!(matches!(AxleSampler::<f64, 16>::new(3.0, 7.0, 10.0), Err(Error::InvalidArgument { arg: "spacing", .. })));
     let mut s = AxleSampler::<f32, 16>::new(3.0, 0.3, 0.01).unwrap();
@@ -391,7 +391,7 @@ fn varying_speed(seed: u64, n: usize, method: WheelMethod) -> ([f64; 4], f64, f6
             v = 0.0;
         }
         v += (target - v).clamp(-3.0 * dt_odo, 3.0 * dt_odo); // ±3 m/s² ramps
-        // The vehicle moves; its odometry (the simulator's distance) goes to the sampler.
+                                                              // The vehicle moves; its odometry (the simulator's distance) goes to the sampler.
         sim.advance(v, dt_odo).unwrap();
         let trig = sampler.feed_distance(sim.distance()).unwrap();
         if let Some(t) = trig {
@@ -411,7 +411,9 @@ fn varying_speed(seed: u64, n: usize, method: WheelMethod) -> ([f64; 4], f64, f6
 }
 
 fn varying_speed_claim(seeds: u64, n: usize) {
-    let runs = over_seeds(seeds, |seed| (varying_speed(seed, n, WheelMethod::Cancel), varying_speed(seed, n, WheelMethod::None)));
+    let runs = over_seeds(seeds, |seed| {
+        (varying_speed(seed, n, WheelMethod::Cancel), varying_speed(seed, n, WheelMethod::None))
+    });
     let mut wheel: Vec<f64> = runs.iter().map(|r| r.0 .0[0] + r.0 .0[1]).collect();
     let mut none: Vec<f64> = runs.iter().map(|r| r.1 .0[0] + r.1 .0[1]).collect();
     let worst_pair = runs.iter().map(|r| r.0 .2).fold(0.0, f64::max);

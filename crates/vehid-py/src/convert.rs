@@ -23,9 +23,9 @@ pub fn shape_str(shape: &[usize]) -> String {
 
 /// Converts any array-like to float64, copying it in row-major order.
 pub fn array(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Array> {
-    let arr: PyArrayLikeDyn<'_, f64, AllowTypeChange> = obj.extract().map_err(|e: PyErr| {
-        VehidError::new_err(format!("`{arg}` must be a float array or convertible to one: {e}"))
-    })?;
+    let arr: PyArrayLikeDyn<'_, f64, AllowTypeChange> = obj
+        .extract()
+        .map_err(|e: PyErr| VehidError::new_err(format!("`{arg}` must be a float array or convertible to one: {e}")))?;
     let shape = arr.shape().to_vec();
     // Contiguous C-order input (the common case) is one block copy; anything else is walked
     // in logical row-major order.
@@ -55,9 +55,7 @@ pub fn matrix(
     cols: Option<usize>,
 ) -> PyResult<(usize, usize, Vec<f64>)> {
     let a = array(obj, arg)?;
-    let ok = a.shape.len() == 2
-        && rows.is_none_or(|r| a.shape[0] == r)
-        && cols.is_none_or(|c| a.shape[1] == c);
+    let ok = a.shape.len() == 2 && rows.is_none_or(|r| a.shape[0] == r) && cols.is_none_or(|c| a.shape[1] == c);
     if !ok {
         let want = |d: Option<usize>, name: &str| d.map_or(name.to_string(), |v| v.to_string());
         return Err(VehidError::new_err(format!(
@@ -86,12 +84,10 @@ pub fn values(obj: Option<&Bound<'_, PyAny>>, arg: &str, default: f64) -> PyResu
 
 /// A non-negative integer that fits a `u64`.
 pub fn uint(v: i128, arg: &str) -> PyResult<u64> {
-    u64::try_from(v)
-        .map_err(|_| VehidError::new_err(format!("`{arg}` must be an integer in 0..2**64, got {v}")))
+    u64::try_from(v).map_err(|_| VehidError::new_err(format!("`{arg}` must be an integer in 0..2**64, got {v}")))
 }
 
 /// A non-negative integer that fits a `usize`.
 pub fn size(v: i128, arg: &str) -> PyResult<usize> {
-    usize::try_from(v)
-        .map_err(|_| VehidError::new_err(format!("`{arg}` must be a non-negative integer, got {v}")))
+    usize::try_from(v).map_err(|_| VehidError::new_err(format!("`{arg}` must be a non-negative integer, got {v}")))
 }

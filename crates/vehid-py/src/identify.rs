@@ -12,9 +12,8 @@ use numpy::ndarray::{Array1, Array3};
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3};
 use pyo3::prelude::*;
 use vehid_core::identify::{
-    BatchLeastSquares, CovarianceForm, Dynamic, FullKalmanIdentifierVec, Gain, KalmanOptions, KalmanRows, RowIdentifier,
-    DYNAMIC_LANES,
-    SharedKalmanIdentifierVec, StochasticGradientVec,
+    BatchLeastSquares, CovarianceForm, Dynamic, FullKalmanIdentifierVec, Gain, KalmanOptions, KalmanRows,
+    RowIdentifier, SharedKalmanIdentifierVec, StochasticGradientVec, DYNAMIC_LANES,
 };
 use vehid_core::nalgebra::{SMatrix, SVector};
 use vehid_core::{Error, Result};
@@ -26,7 +25,13 @@ pub trait Ident: Send + Sync {
     /// Every sample of row-major `r`, `z` (`len × n`); θ row-major appended to `hist` every
     /// `every` samples (0: never). All or nothing: at the first rejected sample the identifier
     /// is restored to its state before the call and that sample's index is reported.
-    fn fit(&mut self, r: &[f64], z: &[f64], every: usize, hist: &mut Vec<f64>) -> core::result::Result<(), (usize, Error)>;
+    fn fit(
+        &mut self,
+        r: &[f64],
+        z: &[f64],
+        every: usize,
+        hist: &mut Vec<f64>,
+    ) -> core::result::Result<(), (usize, Error)>;
     /// θ̂ row-major (`k × n`).
     fn theta(&self) -> Vec<f64>;
     /// The covariance in the mode's own layout (see the Python docstrings).
@@ -67,7 +72,13 @@ impl<C: Core<N>, const N: usize> Ident for Adapter<C, N> {
         self.0.step(&SVector::from_column_slice(x), &SVector::from_column_slice(z), e)
     }
 
-    fn fit(&mut self, r: &[f64], z: &[f64], every: usize, hist: &mut Vec<f64>) -> core::result::Result<(), (usize, Error)> {
+    fn fit(
+        &mut self,
+        r: &[f64],
+        z: &[f64],
+        every: usize,
+        hist: &mut Vec<f64>,
+    ) -> core::result::Result<(), (usize, Error)> {
         let k = self.0.rows_len();
         let mut e = vec![0.0; k];
         let mut th = vec![0.0; k * N];
@@ -420,10 +431,7 @@ fn sample_arg(x: &Bound<'_, PyAny>, z: &Bound<'_, PyAny>, n: usize) -> PyResult<
     let za = array(z, "z_k")?;
     for (name, a) in [("r_k", &xa), ("z_k", &za)] {
         if a.shape != [n] {
-            return Err(VehidError::new_err(format!(
-                "`{name}` must have shape ({n},), got {}",
-                shape_str(&a.shape)
-            )));
+            return Err(VehidError::new_err(format!("`{name}` must have shape ({n},), got {}", shape_str(&a.shape))));
         }
     }
     Ok((xa.data, za.data))
@@ -441,7 +449,12 @@ impl Recursive {
         self.model.n
     }
 
-    fn update<'py>(&mut self, py: Python<'py>, r_k: &Bound<'py, PyAny>, z_k: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    fn update<'py>(
+        &mut self,
+        py: Python<'py>,
+        r_k: &Bound<'py, PyAny>,
+        z_k: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let (x, z) = sample_arg(r_k, z_k, self.n())?;
         let mut e = vec![0.0; self.rows.len()];
         self.inner.update(&x, &z, &mut e).map_err(core_err)?;
@@ -587,11 +600,7 @@ impl PyKalmanIdentifier {
                      `deriv_noise=` to compute them from the model (Eq 4.7)",
                 ))
             }
-            _ => {
-                return Err(VehidError::new_err(
-                    "give either `r=` or `road_sigma=`/`deriv_noise=`, not both",
-                ))
-            }
+            _ => return Err(VehidError::new_err("give either `r=` or `road_sigma=`/`deriv_noise=`, not both")),
         };
         let opts = KalmanOptions {
             form: if joseph { CovarianceForm::Joseph } else { CovarianceForm::Standard },
@@ -606,14 +615,25 @@ impl PyKalmanIdentifier {
     /// One sample: measured state `r_k` (n,) and derivative `z_k` (n,). Returns the
     /// innovations `z − x̂ᵀθ̂` of the unknown rows (k,). A rejected sample (NaN, inf, a
     /// numerically singular step) raises VehidError and leaves the identifier unchanged.
-    fn update<'py>(&mut self, py: Python<'py>, r_k: &Bound<'py, PyAny>, z_k: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    fn update<'py>(
+        &mut self,
+        py: Python<'py>,
+        r_k: &Bound<'py, PyAny>,
+        z_k: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         self.rec.update(py, r_k, z_k)
     }
 
     /// Runs every sample of `r`, `z` (samples, n) with the GIL released. Returns θ̂ recorded
     /// every `record_every` samples, shape (samples // record_every, k, n) (empty when 0).
     #[pyo3(signature = (r, z, record_every = 0))]
-    fn fit<'py>(&mut self, py: Python<'py>, r: &Bound<'py, PyAny>, z: &Bound<'py, PyAny>, record_every: i128) -> PyResult<Bound<'py, PyArray3<f64>>> {
+    fn fit<'py>(
+        &mut self,
+        py: Python<'py>,
+        r: &Bound<'py, PyAny>,
+        z: &Bound<'py, PyAny>,
+        record_every: i128,
+    ) -> PyResult<Bound<'py, PyArray3<f64>>> {
         self.rec.fit(py, r, z, record_every)
     }
 
@@ -754,14 +774,25 @@ impl PyStochasticGradient {
 
     /// One sample; returns the innovations (k,). A rejected sample leaves the identifier
     /// unchanged.
-    fn update<'py>(&mut self, py: Python<'py>, r_k: &Bound<'py, PyAny>, z_k: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    fn update<'py>(
+        &mut self,
+        py: Python<'py>,
+        r_k: &Bound<'py, PyAny>,
+        z_k: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         self.rec.update(py, r_k, z_k)
     }
 
     /// Runs every sample (GIL released); returns θ̂ every `record_every` samples,
     /// shape (samples // record_every, k, n).
     #[pyo3(signature = (r, z, record_every = 0))]
-    fn fit<'py>(&mut self, py: Python<'py>, r: &Bound<'py, PyAny>, z: &Bound<'py, PyAny>, record_every: i128) -> PyResult<Bound<'py, PyArray3<f64>>> {
+    fn fit<'py>(
+        &mut self,
+        py: Python<'py>,
+        r: &Bound<'py, PyAny>,
+        z: &Bound<'py, PyAny>,
+        record_every: i128,
+    ) -> PyResult<Bound<'py, PyArray3<f64>>> {
         self.rec.fit(py, r, z, record_every)
     }
 
@@ -796,7 +827,12 @@ impl PyStochasticGradient {
     }
 
     fn __repr__(&self) -> String {
-        format!("StochasticGradient(gain={:?}, unknown_rows={:?}, samples={})", self.gain, self.rec.rows, self.rec.inner.samples())
+        format!(
+            "StochasticGradient(gain={:?}, unknown_rows={:?}, samples={})",
+            self.gain,
+            self.rec.rows,
+            self.rec.inner.samples()
+        )
     }
 }
 
@@ -827,7 +863,12 @@ impl PyBatchLeastSquares {
     /// Stores every sample of `r`, `z` (samples, n) and solves; returns θ̂ (k, n). Samples
     /// that pass the checks (shape, finite) are stored even when the batch cannot be solved
     /// yet (too few, unexcited): the VehidError then says so, and more samples complete it.
-    fn fit<'py>(&mut self, py: Python<'py>, r: &Bound<'py, PyAny>, z: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    fn fit<'py>(
+        &mut self,
+        py: Python<'py>,
+        r: &Bound<'py, PyAny>,
+        z: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let (len, rd, zd) = samples_arg(r, z, self.model.n)?;
         self.inner.extend(&rd, &zd).map_err(core_err)?;
         let inner = &self.inner;

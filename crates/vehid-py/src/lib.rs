@@ -35,9 +35,7 @@ pub(crate) fn method_arg(method: &str) -> PyResult<Method> {
     match method {
         "rk4" => Ok(Method::Rk4),
         "exact" => Ok(Method::Exact),
-        other => Err(VehidError::new_err(format!(
-            "unknown `method` {other:?}: expected one of \"rk4\", \"exact\""
-        ))),
+        other => Err(VehidError::new_err(format!("unknown `method` {other:?}: expected one of \"rk4\", \"exact\""))),
     }
 }
 

@@ -2,8 +2,8 @@
 
 use crate::convert::{array, finite, matrix, shape_str, size, values};
 use crate::dispatch::{
-    a_hat_n, dispatch_n, dispatch_nm, new_model, output_std_nm, poles_n, row_noise_var_nm,
-    sampled_cov_nm, theta_n, ModelData, MAX_INPUTS, MAX_STATES,
+    a_hat_n, dispatch_n, dispatch_nm, new_model, output_std_nm, poles_n, row_noise_var_nm, sampled_cov_nm, theta_n,
+    ModelData, MAX_INPUTS, MAX_STATES,
 };
 use crate::{core_err, method_arg, VehidError};
 use numpy::ndarray::Array2;
@@ -38,7 +38,12 @@ fn to_array1<'py, T: numpy::Element>(py: Python<'py>, v: Vec<T>) -> Bound<'py, P
     v.into_pyarray(py)
 }
 
-pub(crate) fn to_array2<'py>(py: Python<'py>, rows: usize, cols: usize, v: Vec<f64>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+pub(crate) fn to_array2<'py>(
+    py: Python<'py>,
+    rows: usize,
+    cols: usize,
+    v: Vec<f64>,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
     Array2::from_shape_vec((rows, cols), v)
         .map(|a| a.into_pyarray(py))
         .map_err(|e| VehidError::new_err(format!("internal shape error: {e}")))
@@ -47,9 +52,8 @@ pub(crate) fn to_array2<'py>(py: Python<'py>, rows: usize, cols: usize, v: Vec<f
 fn rows_arg(v: Vec<i128>, arg: &str) -> PyResult<Vec<usize>> {
     v.into_iter()
         .map(|r| {
-            usize::try_from(r).map_err(|_| {
-                VehidError::new_err(format!("`{arg}` names row {r}, but rows must be 0-based (>= 0)"))
-            })
+            usize::try_from(r)
+                .map_err(|_| VehidError::new_err(format!("`{arg}` names row {r}, but rows must be 0-based (>= 0)")))
         })
         .collect()
 }
@@ -173,11 +177,7 @@ impl PyLinearModel {
     #[getter]
     fn structural_zeros<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<bool>>> {
         let d = &self.data;
-        let v: Vec<bool> = d
-            .rows
-            .iter()
-            .flat_map(|&r| (0..d.n).map(move |c| d.zeros.contains(&(r, c))))
-            .collect();
+        let v: Vec<bool> = d.rows.iter().flat_map(|&r| (0..d.n).map(move |c| d.zeros.contains(&(r, c)))).collect();
         Array2::from_shape_vec((d.rows.len(), d.n), v)
             .map(|a| a.into_pyarray(py))
             .map_err(|e| VehidError::new_err(format!("internal shape error: {e}")))
@@ -304,9 +304,8 @@ impl PyLinearModel {
                         allowed.join(", ")
                     )));
                 }
-                let val: f64 = v.extract().map_err(|_| {
-                    VehidError::new_err(format!("`{key}` must be a number (a mass in kg)"))
-                })?;
+                let val: f64 =
+                    v.extract().map_err(|_| VehidError::new_err(format!("`{key}` must be a number (a mass in kg)")))?;
                 given.push((key, val));
             }
         }

@@ -28,7 +28,8 @@ pub fn reproduce_json(
     tables: bool,
     progress: bool,
 ) -> PyResult<String> {
-    let opts = RunOptions { quick, seeds, max_iterations, base_seed: seed, threads, only: only.unwrap_or_default(), tables };
+    let opts =
+        RunOptions { quick, seeds, max_iterations, base_seed: seed, threads, only: only.unwrap_or_default(), tables };
     let last = Mutex::new(Instant::now() - Duration::from_secs(1));
     let report = py.detach(|| {
         let cb = |p: Progress<'_>| {

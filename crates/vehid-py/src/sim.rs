@@ -175,9 +175,9 @@ impl PySimulator {
             self.left = Some(left - n);
         }
         let inner = &mut self.inner;
-        let run = py.detach(|| inner.run(n)).map_err(|_| {
-            PyMemoryError::new_err(format!("run({n}) needs more memory than can be allocated"))
-        })?;
+        let run = py
+            .detach(|| inner.run(n))
+            .map_err(|_| PyMemoryError::new_err(format!("run({n}) needs more memory than can be allocated")))?;
         let (len, ns, ni) = (run.len(), run.n_states, run.n_inputs);
         let s = self.road.is_some().then(|| run.s.into_pyarray(py).unbind());
         Ok(PyRun {

@@ -47,7 +47,11 @@ pub enum Speeds {
     Constant(f64),
     /// Entry `i` is the speed (m/s) over the road interval after the next sample; a zero is a
     /// stop of `stop` seconds on the road point reached, before its sample (no sample). `next` is the first unused entry.
-    Profile { v: Vec<f64>, next: usize, stop: f64 },
+    Profile {
+        v: Vec<f64>,
+        next: usize,
+        stop: f64,
+    },
 }
 
 /// `Simulator(..., speed=, spacing=, road=)`: a [`RoadSimulator`] of the half car.
@@ -131,35 +135,36 @@ pub fn road_simulator(
         }
     };
     if !p.pulses.is_empty() {
-        return Err(VehidError::new_err("`pulses` are not supported with speed=/spacing=/road= (samples are by distance)"));
+        return Err(VehidError::new_err(
+            "`pulses` are not supported with speed=/spacing=/road= (samples are by distance)",
+        ));
     }
-    let speeds = match speed {
-        None => Speeds::Constant(6.0),
-        Some(obj) => {
-            let a = array(obj, "speed")?;
-            if let Some(i) = a.data.iter().position(|v| !(v.is_finite() && *v >= 0.0)) {
-                return Err(VehidError::new_err(format!(
-                    "`speed[{i}]` = {} is not a finite speed >= 0 (m/s)",
-                    a.data[i]
-                )));
-            }
-            match a.shape[..] {
-                [] if a.data[0] > 0.0 => Speeds::Constant(a.data[0]),
-                [] => {
-                    return Err(VehidError::new_err(
-                        "`speed` = 0: a stopped vehicle produces no samples (give a speed > 0 or a per-sample array)",
-                    ))
-                }
-                [_] => Speeds::Profile { v: a.data, next: 0, stop: p.dt },
-                _ => {
+    let speeds =
+        match speed {
+            None => Speeds::Constant(6.0),
+            Some(obj) => {
+                let a = array(obj, "speed")?;
+                if let Some(i) = a.data.iter().position(|v| !(v.is_finite() && *v >= 0.0)) {
                     return Err(VehidError::new_err(format!(
-                        "`speed` must be a scalar or a 1-D array (one speed per sample), got shape {}",
-                        shape_str(&a.shape)
-                    )))
+                        "`speed[{i}]` = {} is not a finite speed >= 0 (m/s)",
+                        a.data[i]
+                    )));
+                }
+                match a.shape[..] {
+                    [] if a.data[0] > 0.0 => Speeds::Constant(a.data[0]),
+                    [] => return Err(VehidError::new_err(
+                        "`speed` = 0: a stopped vehicle produces no samples (give a speed > 0 or a per-sample array)",
+                    )),
+                    [_] => Speeds::Profile { v: a.data, next: 0, stop: p.dt },
+                    _ => {
+                        return Err(VehidError::new_err(format!(
+                            "`speed` must be a scalar or a 1-D array (one speed per sample), got shape {}",
+                            shape_str(&a.shape)
+                        )))
+                    }
                 }
             }
-        }
-    };
+        };
     let wheelbase = wheelbase_of(model, None)?;
     let build = || -> Result<RoadSimulator<f64, 8, ROAD_CELLS>> {
         let mut cfg = SimConfig::<f64, 8, 2>::new(p.dt);
@@ -267,7 +272,12 @@ impl PyTwoAxleIdentifier {
     /// One sample on the next road point: measured state `r_k` (8,) and derivative `z_k` (8,).
     /// Returns the innovations of the unknown rows (4,) (0 for a wheel row that took no step).
     /// A rejected sample raises VehidError and leaves the identifier unchanged.
-    fn update<'py>(&mut self, py: Python<'py>, r_k: &Bound<'py, PyAny>, z_k: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    fn update<'py>(
+        &mut self,
+        py: Python<'py>,
+        r_k: &Bound<'py, PyAny>,
+        z_k: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let (x, z) = sample_vecs(r_k, z_k)?;
         let mut e = vec![0.0; 4];
         self.inner.update_into(&x, &z, None, &mut e).map_err(core_err)?;
@@ -299,9 +309,7 @@ impl PyTwoAxleIdentifier {
         });
         if let Err((i, err)) = res {
             self.inner = before;
-            return Err(VehidError::new_err(format!(
-                "sample {i} was rejected ({err}); the identifier is unchanged"
-            )));
+            return Err(VehidError::new_err(format!("sample {i} was rejected ({err}); the identifier is unchanged")));
         }
         Ok(())
     }

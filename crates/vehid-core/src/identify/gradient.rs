@@ -18,7 +18,7 @@
 //! Size: `size_of::<StochasticGradient<f32, 4, 2>>()` is 192 bytes (θ, `h`, `Σ_w` and the
 //! gain state).
 
-use super::{check_sample, rows_into, rows_buffer, Cost, Fixed, Flat, Store, OVERFLOW};
+use super::{check_sample, rows_buffer, rows_into, Cost, Fixed, Flat, Store, OVERFLOW};
 use crate::error::{check_finite, check_nonneg, check_positive};
 use crate::{Error, Real, Result};
 use nalgebra::{SMatrix, SVector};

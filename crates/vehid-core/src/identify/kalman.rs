@@ -28,10 +28,10 @@
 //! and counters); the shared form needs 144 and 456.
 //! Both are within the thesis' 352 and 2800 bytes. These figures are asserted in the tests.
 
+use super::lanes::{finite_probe, is_fin, lane_sum, tree_sum, RowGroup};
 #[cfg(feature = "alloc")]
 use super::Dynamic;
-use super::lanes::{finite_probe, is_fin, lane_sum, tree_sum, RowGroup};
-use super::{check_sample, rows_into, per_row, rows_buffer, Cost, Fixed, Flat, Store, OVERFLOW};
+use super::{check_sample, per_row, rows_buffer, rows_into, Cost, Fixed, Flat, Store, OVERFLOW};
 use crate::error::{check_finite, check_nonneg, check_positive};
 use crate::linalg::{axpy, cholesky_in_place, cholesky_solve, mat_vec, sym_downdate, symmetrize};
 use crate::{Error, Real, Result};
@@ -856,7 +856,9 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
         for i in 0..k {
             check_nonneg("r", r[i * k + i])?;
             for j in 0..i {
-                if (r[i * k + j] - r[j * k + i]).abs() > T::default_epsilon() * T::of(16.0) * (r[i * k + i] + r[j * k + j]) {
+                if (r[i * k + j] - r[j * k + i]).abs()
+                    > T::default_epsilon() * T::of(16.0) * (r[i * k + i] + r[j * k + j])
+                {
                     return Err(Error::Singular { what: "r (it must be a symmetric covariance matrix)" });
                 }
             }
@@ -899,7 +901,9 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
         let mut l = alloc::vec::Vec::from(p0);
         for i in 0..kn {
             for j in 0..i {
-                if (p0[i * kn + j] - p0[j * kn + i]).abs() > T::default_epsilon() * T::of(16.0) * (p0[i * kn + i] + p0[j * kn + j]) {
+                if (p0[i * kn + j] - p0[j * kn + i]).abs()
+                    > T::default_epsilon() * T::of(16.0) * (p0[i * kn + i] + p0[j * kn + j])
+                {
                     return Err(Error::Singular { what: "p0 (it must be symmetric positive definite)" });
                 }
             }
@@ -959,16 +963,18 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
     /// the upper blocks of `P` (K(K+1)/2 · K N² mul). Counted to leading order.
     pub fn cost(&self) -> Cost {
         let k = self.rows.flat().len();
-        let mul = k * k * N * N + k * (k + 1) / 2 * N + k * k * k / 3 + 2 * k * k * N + k * k * N + k * (k + 1) / 2 * k * N * N;
+        let mul = k * k * N * N
+            + k * (k + 1) / 2 * N
+            + k * k * k / 3
+            + 2 * k * k * N
+            + k * k * N
+            + k * (k + 1) / 2 * k * N * N;
         Cost {
             multiplications: mul,
             additions: mul,
             divisions: k * N * 2 + k,
             square_roots: k,
-            bytes: core::mem::size_of_val(self)
-                + self.p.heap_bytes()
-                + self.c.heap_bytes()
-                + self.w.heap_bytes(),
+            bytes: core::mem::size_of_val(self) + self.p.heap_bytes() + self.c.heap_bytes() + self.w.heap_bytes(),
         }
     }
 

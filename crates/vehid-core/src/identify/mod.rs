@@ -65,22 +65,22 @@ pub mod lanes;
 mod least_squares;
 mod two_axle;
 
-pub use gradient::{Gain, GradientCore, StochasticGradient};
 #[cfg(feature = "alloc")]
 pub use gradient::StochasticGradientVec;
+pub use gradient::{Gain, GradientCore, StochasticGradient};
 pub use kalman::{
-    CovarianceForm, FullKalmanIdentifier, KalmanFull, KalmanOptions, KalmanRows, KalmanShared, KalmanIdentifier,
+    CovarianceForm, FullKalmanIdentifier, KalmanFull, KalmanIdentifier, KalmanOptions, KalmanRows, KalmanShared,
     RowIdentifier, SharedKalmanIdentifier,
 };
 #[cfg(feature = "alloc")]
 pub use kalman::{FullKalmanIdentifierVec, KalmanIdentifierVec, KalmanIdentifierVec2, SharedKalmanIdentifierVec};
 pub use least_squares::LsAccumulator;
 
-pub use two_axle::{Past, TwoAxle, TwoAxleConfig, TwoAxleIdentifier, WheelMethod};
-#[cfg(feature = "alloc")]
-pub use two_axle::TwoAxleIdentifierVec;
 #[cfg(feature = "std")]
 pub use least_squares::BatchLeastSquares;
+#[cfg(feature = "alloc")]
+pub use two_axle::TwoAxleIdentifierVec;
+pub use two_axle::{Past, TwoAxle, TwoAxleConfig, TwoAxleIdentifier, WheelMethod};
 
 use crate::{Error, Real, Result};
 use lanes::RowGroup;

@@ -34,9 +34,9 @@ use crate::sampler::{RingStore, Trigger};
 use crate::{Error, Real, Result};
 use nalgebra::{SMatrix, SVector};
 
-use super::{CovarianceForm, Fixed};
 #[cfg(feature = "alloc")]
 use super::Dynamic;
+use super::{CovarianceForm, Fixed};
 
 /// How the wheel rows are identified.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -153,7 +153,8 @@ pub type TwoAxleIdentifier<T, const N: usize, const P: usize, const KB: usize, c
 
 /// [`TwoAxle`] with heap storage (any number of body rows, any `d`).
 #[cfg(feature = "alloc")]
-pub type TwoAxleIdentifierVec<T, const N: usize, const P: usize> = TwoAxle<T, N, P, Dynamic, alloc::vec::Vec<Past<T, N>>>;
+pub type TwoAxleIdentifierVec<T, const N: usize, const P: usize> =
+    TwoAxle<T, N, P, Dynamic, alloc::vec::Vec<Past<T, N>>>;
 
 /// The wheel rows: the unknown row each input enters (exactly one each).
 fn wheel_rows<T: Real, const N: usize>(model: &LinearModel<T, N, 2>) -> Result<(usize, usize)> {
@@ -386,7 +387,13 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
     /// grid index not after the previous one; [`Error::Shape`] for a wrong `e` length;
     /// [`Error::Singular`] / overflow as [`RowIdentifier::update`]. The identifier is
     /// unchanged after any error.
-    pub fn update_into(&mut self, r: &SVector<T, N>, z: &SVector<T, N>, grid: Option<u64>, e: &mut [T]) -> Result<bool> {
+    pub fn update_into(
+        &mut self,
+        r: &SVector<T, N>,
+        z: &SVector<T, N>,
+        grid: Option<u64>,
+        e: &mut [T],
+    ) -> Result<bool> {
         self.step(r, z, grid, true, e)
     }
 
@@ -396,11 +403,24 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
     ///
     /// # Errors
     /// As [`TwoAxle::update_into`].
-    pub fn update_trigger(&mut self, r: &SVector<T, N>, z: &SVector<T, N>, trigger: &Trigger<T>, e: &mut [T]) -> Result<bool> {
+    pub fn update_trigger(
+        &mut self,
+        r: &SVector<T, N>,
+        z: &SVector<T, N>,
+        trigger: &Trigger<T>,
+        e: &mut [T],
+    ) -> Result<bool> {
         self.step(r, z, Some(trigger.grid), trigger.pair.is_some(), e)
     }
 
-    fn step(&mut self, r: &SVector<T, N>, z: &SVector<T, N>, grid: Option<u64>, allow_pair: bool, e: &mut [T]) -> Result<bool> {
+    fn step(
+        &mut self,
+        r: &SVector<T, N>,
+        z: &SVector<T, N>,
+        grid: Option<u64>,
+        allow_pair: bool,
+        e: &mut [T],
+    ) -> Result<bool> {
         check_sample(r, z)?;
         let rows = self.rows;
         if e.len() != rows.len() {
@@ -408,9 +428,14 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
         }
         let grid = match (grid, self.last_grid) {
             (None, None) => 0,
-            (None, Some(g)) => g.checked_add(1).ok_or(Error::InvalidArgument { arg: "grid", expected: "a grid index < 2^64 − 1" })?,
+            (None, Some(g)) => {
+                g.checked_add(1).ok_or(Error::InvalidArgument { arg: "grid", expected: "a grid index < 2^64 − 1" })?
+            }
             (Some(g), Some(last)) if g <= last => {
-                return Err(Error::InvalidArgument { arg: "grid", expected: "road-point indices increasing from sample to sample" })
+                return Err(Error::InvalidArgument {
+                    arg: "grid",
+                    expected: "road-point indices increasing from sample to sample",
+                })
             }
             (Some(g), _) => g,
         };
@@ -453,7 +478,8 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
                     None => T::zero(),
                 };
                 if self.cfg.direct_front && self.direct_scale > T::zero() {
-                    let h = SVector::<T, P>::from_fn(|i, _| if i < N { T::zero() } else { r[i - N] * self.direct_scale });
+                    let h =
+                        SVector::<T, P>::from_fn(|i, _| if i < N { T::zero() } else { r[i - N] * self.direct_scale });
                     j.update(&h, zf * self.direct_scale, form)?;
                 }
                 joint = Some(j);
@@ -493,7 +519,9 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
     }
 }
 
-impl<T: Real, const N: usize, const P: usize, const KB: usize, const C: usize> TwoAxle<T, N, P, Fixed<KB>, [Past<T, N>; C]> {
+impl<T: Real, const N: usize, const P: usize, const KB: usize, const C: usize>
+    TwoAxle<T, N, P, Fixed<KB>, [Past<T, N>; C]>
+{
     /// One sample on the next road point; returns whether it was paired. See
     /// [`TwoAxle::update_into`].
     ///

@@ -65,7 +65,8 @@ fn rows_shared_and_full_agree_where_the_algebra_says_so() {
     let opts = KalmanOptions::default();
     let mut rows = KalmanIdentifier::<f64, 4, 2>::new([1, 3], 1000.0, r).unwrap();
     let mut shared = SharedKalmanIdentifier::<f64, 4, 2>::new([1, 3], 1000.0, r).unwrap();
-    let mut full = FullKalmanIdentifier::<f64, 4, 2>::from_slices(&[1, 3], &[1000.0], &[0.3, 0.0, 0.0, 0.3], opts).unwrap();
+    let mut full =
+        FullKalmanIdentifier::<f64, 4, 2>::from_slices(&[1, 3], &[1000.0], &[0.3, 0.0, 0.0, 0.3], opts).unwrap();
     for (x, z) in &data {
         let a = rows.update(x, z).unwrap();
         let b = shared.update(x, z).unwrap();
@@ -89,7 +90,8 @@ fn rows_shared_and_full_agree_where_the_algebra_says_so() {
     let model = QuarterCar::<f64>::thesis().model();
     let r: [f64; 2] = model.row_noise_var(0.1, 0.005).unwrap();
     let mut rows = KalmanIdentifier::<f64, 4, 2>::new([1, 3], 1000.0, r).unwrap();
-    let mut full = FullKalmanIdentifier::<f64, 4, 2>::from_slices(&[1, 3], &[1000.0], &[r[0], 0.0, 0.0, r[1]], opts).unwrap();
+    let mut full =
+        FullKalmanIdentifier::<f64, 4, 2>::from_slices(&[1, 3], &[1000.0], &[r[0], 0.0, 0.0, r[1]], opts).unwrap();
     for (x, z) in &data {
         rows.update(x, z).unwrap();
         full.update(x, z).unwrap();
@@ -110,7 +112,9 @@ fn full_filter_with_correlated_r_equals_generalized_least_squares() {
     use faer::linalg::solvers::Solve;
     let data = road(3, 2000);
     let (ra, rb, rc, p0) = (0.5, 0.2, 0.15, 100.0);
-    let mut full = FullKalmanIdentifier::<f64, 4, 2>::from_slices(&[1, 3], &[p0], &[ra, rc, rc, rb], KalmanOptions::default()).unwrap();
+    let mut full =
+        FullKalmanIdentifier::<f64, 4, 2>::from_slices(&[1, 3], &[p0], &[ra, rc, rc, rb], KalmanOptions::default())
+            .unwrap();
     for (x, z) in &data {
         full.update(x, z).unwrap();
     }
@@ -202,7 +206,8 @@ fn rejected_samples_leave_the_identifier_unchanged() {
     )
     .unwrap();
     let mut sg = StochasticGradient::<f64, 4, 2>::new([1, 3], Gain::Venter { p: 0.51 }, 0.4).unwrap();
-    let mut full = FullKalmanIdentifier::<f64, 4, 2>::new([1, 3], 1000.0, nalgebra::Matrix2::new(81.0, 0.0, 0.0, 2.5e-5)).unwrap();
+    let mut full =
+        FullKalmanIdentifier::<f64, 4, 2>::new([1, 3], 1000.0, nalgebra::Matrix2::new(81.0, 0.0, 0.0, 2.5e-5)).unwrap();
     for (x, z) in &data {
         id.update(x, z).unwrap();
         sg.update(x, z).unwrap();
@@ -344,7 +349,8 @@ fn half_car_prior_regimes() {
         gram += s.x * s.x.transpose();
     }
     let eig = gram.symmetric_eigen();
-    let (imin, lmin) = eig.eigenvalues.iter().enumerate().fold((0, f64::MAX), |b, (i, &l)| if l < b.1 { (i, l) } else { b });
+    let (imin, lmin) =
+        eig.eigenvalues.iter().enumerate().fold((0, f64::MAX), |b, (i, &l)| if l < b.1 { (i, l) } else { b });
     assert!(lmin > 1e-4 && lmin < 1e-1, "smallest eigenvalue {lmin:e}");
     let v = eig.eigenvectors.column(imin).clone_owned();
     // Body row (index 2 of the unknown rows, A row 5) carries no road input: r = σ_v² only.
@@ -416,7 +422,9 @@ fn retired_rows_stop_and_reinit_brings_them_back() {
 fn dynamic_storage_equals_fixed_storage() {
     let data = road(10, 500);
     let mut fixed = KalmanIdentifier::<f64, 4, 2>::new([1, 3], 1000.0, [81.0, 2.5e-5]).unwrap();
-    let mut dynamic = KalmanIdentifierVec::<f64, 4>::from_slices(&[1, 3], &[1000.0], &[81.0, 2.5e-5], KalmanOptions::default()).unwrap();
+    let mut dynamic =
+        KalmanIdentifierVec::<f64, 4>::from_slices(&[1, 3], &[1000.0], &[81.0, 2.5e-5], KalmanOptions::default())
+            .unwrap();
     let mut e = [0.0; 2];
     for (x, z) in &data {
         let ef = fixed.update(x, z).unwrap();
@@ -427,10 +435,19 @@ fn dynamic_storage_equals_fixed_storage() {
     dynamic.theta_into(&mut out).unwrap();
     assert_eq!(fixed.theta().transpose().as_slice(), &out);
     // Any K works in the dynamic form: one unknown row of a 6-state model equals Fixed<1>.
-    let a = SMatrix::<f64, 6, 6>::from_fn(|i, j| if i == j { -1.0 - i as f64 } else if j == i + 1 { 0.5 } else { 0.0 });
+    let a = SMatrix::<f64, 6, 6>::from_fn(|i, j| {
+        if i == j {
+            -1.0 - i as f64
+        } else if j == i + 1 {
+            0.5
+        } else {
+            0.0
+        }
+    });
     let model = crate::model::LinearModel::new(a, Vector6::repeat(1.0), &[2]).unwrap();
     let mut sim = Simulator::new(model, SimConfig::new(0.05).road_sigma(0.3), 1).unwrap();
-    let mut one = KalmanIdentifierVec::<f64, 6>::from_slices(&[2], &[100.0], &[0.09], KalmanOptions::default()).unwrap();
+    let mut one =
+        KalmanIdentifierVec::<f64, 6>::from_slices(&[2], &[100.0], &[0.09], KalmanOptions::default()).unwrap();
     let mut fixed_one = KalmanIdentifier::<f64, 6, 1>::new([2], 100.0, [0.09]).unwrap();
     let mut e = [0.0];
     for _ in 0..2000 {
@@ -451,8 +468,10 @@ fn several_lane_groups_equal_one_and_reject_as_a_whole() {
     let rows = [0, 1, 3, 5, 6, 7];
     let r = [0.01, 100.0, 100.0, 2.5e-3, 0.02, 2.5e-3];
     let mut fixed = KalmanIdentifier::<f64, 8, 6>::new(rows, 1000.0, r).unwrap();
-    let mut dynamic = KalmanIdentifierVec::<f64, 8>::from_slices(&rows, &[1000.0], &r, KalmanOptions::default()).unwrap();
-    let mut pairs = KalmanIdentifierVec2::<f64, 8>::from_slices(&rows, &[1000.0], &r, KalmanOptions::default()).unwrap();
+    let mut dynamic =
+        KalmanIdentifierVec::<f64, 8>::from_slices(&rows, &[1000.0], &r, KalmanOptions::default()).unwrap();
+    let mut pairs =
+        KalmanIdentifierVec2::<f64, 8>::from_slices(&rows, &[1000.0], &r, KalmanOptions::default()).unwrap();
     assert!(dynamic.groups.len() > 1 && dynamic.scratch.len() == dynamic.groups.len(), "several groups");
     assert_eq!(pairs.groups.len(), 3, "three groups of two lanes");
     let (mut e, mut e2) = ([0.0; 6], [0.0; 6]);
@@ -484,12 +503,15 @@ fn several_lane_groups_equal_one_and_reject_as_a_whole() {
 /// storage, and returns every estimate and covariance entry as bits.
 fn half_car_bits<T: Real>(n: usize) -> Vec<u64> {
     let car = HalfCar::<T>::thesis();
-    let cfg = SimConfig::<T, 8, 2>::new(T::of(0.05)).road_sigma(T::of(0.1)).ic_sigma(T::of(0.1)).deriv_noise(T::of(0.005));
+    let cfg =
+        SimConfig::<T, 8, 2>::new(T::of(0.05)).road_sigma(T::of(0.1)).ic_sigma(T::of(0.1)).deriv_noise(T::of(0.005));
     let mut sim = Simulator::new(car.model(), cfg, 17).unwrap();
     let rows = car.unknown_rows();
     let r = [T::of(100.0), T::of(100.0), T::of(0.01), T::of(0.01)];
     let mut fixed = KalmanIdentifier::<T, 8, 4>::new(rows, T::of(1000.0), r).unwrap();
-    let mut dynamic = KalmanIdentifierVec::<T, 8>::from_slices(&rows[..3], &[T::of(1000.0)], &r[..3], KalmanOptions::default()).unwrap();
+    let mut dynamic =
+        KalmanIdentifierVec::<T, 8>::from_slices(&rows[..3], &[T::of(1000.0)], &r[..3], KalmanOptions::default())
+            .unwrap();
     let mut shared = SharedKalmanIdentifier::<T, 8, 4>::new(rows, T::of(1000.0), [T::of(0.3); 4]).unwrap();
     let mut e = [T::zero(); 3];
     for _ in 0..n {
@@ -519,7 +541,9 @@ fn vector_extensions_do_not_change_a_single_bit() {
     // (quarter and half car) and, for the half car in f64, Fixed<4> and the shared form.
     let run = || {
         let data = road(21, 3000);
-        let mut q_dyn = KalmanIdentifierVec::<f64, 4>::from_slices(&[1, 3], &[1000.0], &[81.0, 2.5e-5], KalmanOptions::default()).unwrap();
+        let mut q_dyn =
+            KalmanIdentifierVec::<f64, 4>::from_slices(&[1, 3], &[1000.0], &[81.0, 2.5e-5], KalmanOptions::default())
+                .unwrap();
         let mut q_shared = SharedKalmanIdentifier::<f64, 4, 2>::new([1, 3], 1000.0, [0.3; 2]).unwrap();
         let mut e = [0.0; 2];
         for (x, z) in &data {
