@@ -8,8 +8,8 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Through
 use std::hint::black_box;
 use std::time::Duration;
 use vehid_core::identify::{
-    BatchLeastSquares, FullKalmanIdentifier, Gain, KalmanIdentifier, KalmanIdentifierVec, KalmanIdentifierVec2,
-    KalmanOptions, LsAccumulator, SharedKalmanIdentifier, StochasticGradient,
+    BatchLeastSquares, FullKalmanIdentifier, Gain, Identifier, KalmanIdentifier, KalmanIdentifierVec,
+    KalmanIdentifierVec2, KalmanOptions, LsAccumulator, SharedKalmanIdentifier, StochasticGradient,
 };
 use vehid_core::model::{HalfCar, LinearModel, QuarterCar};
 use vehid_core::nalgebra::SVector;
@@ -88,7 +88,7 @@ macro_rules! kalman_benches {
             group,
             &qd,
             |x, z| {
-                let _ = black_box(id.update_into(x, z, &mut e));
+                let _ = black_box(id.update_into(x.as_slice(), z.as_slice(), &[], &mut e));
             },
             "quarter/kalman_rows_vec",
         );
@@ -101,7 +101,7 @@ macro_rules! kalman_benches {
             group,
             &hd,
             |x, z| {
-                let _ = black_box(id.update_into(x, z, &mut e));
+                let _ = black_box(id.update_into(x.as_slice(), z.as_slice(), &[], &mut e));
             },
             "half/kalman_rows_vec",
         );

@@ -11,8 +11,8 @@
 use std::hint::black_box;
 use std::process::ExitCode;
 use vehid_core::identify::{
-    Gain, KalmanIdentifier, KalmanIdentifierVec, KalmanIdentifierVec2, KalmanOptions, SharedKalmanIdentifier,
-    StochasticGradient,
+    Gain, Identifier, KalmanIdentifier, KalmanIdentifierVec, KalmanIdentifierVec2, KalmanOptions,
+    SharedKalmanIdentifier, StochasticGradient,
 };
 use vehid_core::model::{HalfCar, LinearModel, QuarterCar};
 use vehid_core::nalgebra::SVector;
@@ -24,8 +24,11 @@ const LEN: usize = 4096;
 const BENCHES: [(&str, &str); 8] = [
     ("quarter_rows", "KalmanIdentifier<f64, 4, 2> (rows) update"),
     ("half_rows", "KalmanIdentifier<f64, 8, 4> (rows) update"),
-    ("quarter_rows_vec", "KalmanIdentifierVec2<f64, 4> (rows, heap, two lanes: Python's quarter car) update_into"),
-    ("half_rows_vec", "KalmanIdentifierVec<f64, 8> (rows, heap: Python's half car) update_into"),
+    (
+        "quarter_rows_vec",
+        "KalmanIdentifierVec2<f64, 4> (rows, heap, two lanes: Python's quarter car) Identifier::update_into (slices)",
+    ),
+    ("half_rows_vec", "KalmanIdentifierVec<f64, 8> (rows, heap: Python's half car) Identifier::update_into (slices)"),
     ("quarter_shared", "SharedKalmanIdentifier<f64, 4, 2> update"),
     ("half_shared", "SharedKalmanIdentifier<f64, 8, 4> update"),
     ("quarter_sg_venter", "StochasticGradient<f64, 4, 2> (Venter, p = 0.51) update"),
@@ -83,7 +86,7 @@ fn run(bench: &str, n: usize) -> vehid_core::Result<String> {
                 KalmanOptions::default(),
             )?;
             let mut e = [0.0; 2];
-            cycle(&data, n, |x, z| id.update_into(x, z, &mut e).is_ok());
+            cycle(&data, n, |x, z| id.update_into(x.as_slice(), z.as_slice(), &[], &mut e).is_ok());
             format!("{:?}", id.theta_row(0))
         }
         "half_rows_vec" => {
@@ -92,7 +95,7 @@ fn run(bench: &str, n: usize) -> vehid_core::Result<String> {
             let mut id =
                 KalmanIdentifierVec::<f64, 8>::from_slices(&h.unknown_rows(), &[1000.0], &r, KalmanOptions::default())?;
             let mut e = [0.0; 4];
-            cycle(&data, n, |x, z| id.update_into(x, z, &mut e).is_ok());
+            cycle(&data, n, |x, z| id.update_into(x.as_slice(), z.as_slice(), &[], &mut e).is_ok());
             format!("{:?}", id.theta_row(0))
         }
         "quarter_shared" => {

@@ -66,6 +66,28 @@ pub enum Error {
         /// Which constant cannot be recovered, and why.
         what: &'static str,
     },
+    /// An option string names no known choice; `expected` lists the choices.
+    UnknownOption {
+        /// Name of the argument.
+        arg: &'static str,
+        /// The accepted values, e.g. `"rows", "shared", "full"`.
+        expected: &'static str,
+    },
+    /// The operation does not exist for this kind of object (e.g. the covariance of an
+    /// identifier that keeps none).
+    Unsupported {
+        /// What was asked for.
+        what: &'static str,
+    },
+    /// A long computation was stopped on request (e.g. Ctrl-C); nothing was changed.
+    Interrupted,
+    /// Memory for a result sized by the caller could not be reserved.
+    OutOfMemory {
+        /// What was being allocated.
+        what: &'static str,
+        /// Bytes requested (`usize::MAX` when the size itself overflows).
+        bytes: usize,
+    },
     /// A fixed-capacity buffer is too small for the requested configuration.
     Capacity {
         /// Name of the argument or buffer.
@@ -103,6 +125,18 @@ impl fmt::Display for Error {
                 write!(f, "{what} does not exist: the model has a pole with non-negative real part")
             }
             Error::NotIdentifiable { what } => write!(f, "cannot recover {what}"),
+            Error::UnknownOption { arg, expected } => {
+                write!(f, "unknown `{arg}`: expected one of {expected}")
+            }
+            Error::Unsupported { what } => write!(f, "not available: {what}"),
+            Error::Interrupted => write!(f, "interrupted; nothing was changed"),
+            Error::OutOfMemory { what, bytes } => {
+                if *bytes == usize::MAX {
+                    write!(f, "{what} would need more memory than can be addressed")
+                } else {
+                    write!(f, "{what} needs {bytes} bytes, which could not be allocated")
+                }
+            }
             Error::Capacity { arg, needed, capacity } => {
                 write!(f, "`{arg}` needs a capacity of {needed} but has {capacity}: raise the const-generic capacity")
             }

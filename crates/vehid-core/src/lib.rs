@@ -33,12 +33,52 @@
 #[cfg(feature = "alloc")]
 extern crate alloc;
 
+/// Gives a unit enum of choices its option names: `NAMES`, `as_str`, `Display`, and
+/// `FromStr` whose error names the argument and lists the choices.
+macro_rules! option_names {
+    ($ty:ident, $arg:literal, { $v0:ident => $n0:literal $(, $v:ident => $n:literal)* $(,)? }) => {
+        impl $ty {
+            /// Every accepted name, in declaration order.
+            pub const NAMES: &'static [&'static str] = &[$n0 $(, $n)*];
+
+            /// The name of this choice (what `FromStr` accepts).
+            pub fn as_str(&self) -> &'static str {
+                match self {
+                    Self::$v0 => $n0,
+                    $(Self::$v => $n,)*
+                }
+            }
+        }
+
+        impl core::str::FromStr for $ty {
+            type Err = crate::Error;
+
+            fn from_str(s: &str) -> crate::Result<Self> {
+                match s {
+                    $n0 => Ok(Self::$v0),
+                    $($n => Ok(Self::$v),)*
+                    _ => Err(crate::Error::UnknownOption {
+                        arg: $arg,
+                        expected: concat!("\"", $n0, "\"" $(, ", \"", $n, "\"")*),
+                    }),
+                }
+            }
+        }
+
+        impl core::fmt::Display for $ty {
+            fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+                f.write_str(self.as_str())
+            }
+        }
+    };
+}
+
 pub mod analysis;
 mod error;
 #[cfg(feature = "std")]
 pub mod experiments;
 pub mod identify;
-pub mod linalg;
+pub(crate) mod linalg;
 pub mod metrics;
 pub mod model;
 pub mod sampler;

@@ -222,12 +222,6 @@ pub fn symmetrize<T: Real, const N: usize>(p: &mut SMatrix<T, N, N>) {
     }
 }
 
-/// `true` when every entry of a vector is finite.
-#[inline]
-pub fn all_finite<T: Real, const N: usize>(v: &SVector<T, N>) -> bool {
-    v.iter().all(|x| x.finite())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -473,7 +473,7 @@ fn two_axle_rejects_bad_input_and_stays_unchanged() {
     r[3] = f64::NAN;
     assert!(matches!(id.update(&r, &s.z), Err(Error::NonFinite { arg: "r_k", .. })));
     let mut e = [0.0; 4];
-    assert!(matches!(id.update_into(&s.r, &s.z, Some(3), &mut e), Err(Error::InvalidArgument { arg: "grid", .. })));
+    assert!(matches!(id.update_at(&s.r, &s.z, Some(3), &mut e), Err(Error::InvalidArgument { arg: "grid", .. })));
     assert_eq!(id.theta::<4>().unwrap(), before);
     assert_eq!(id.samples(), 50);
     assert_eq!(id.paired(), 40);

@@ -18,7 +18,10 @@
 //! Size: `size_of::<StochasticGradient<f32, 4, 2>>()` is 192 bytes (θ, `h`, `Σ_w` and the
 //! gain state).
 
-use super::{check_sample, rows_buffer, rows_into, Cost, Fixed, Flat, Store, OVERFLOW};
+use super::{
+    check_lengths, check_sample, fixed_theta, rows_buffer, rows_into, vector, Cost, Dims, Fixed, Flat, Identifier,
+    Store, OVERFLOW,
+};
 use crate::error::{check_finite, check_nonneg, check_positive};
 use crate::{Error, Real, Result};
 use nalgebra::{SMatrix, SVector};
@@ -42,7 +45,40 @@ pub enum Gain<T> {
     },
 }
 
+/// The name of a gain sequence, without its constants.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum GainKind {
+    /// Venter's gain (Eq 5.8).
+    #[default]
+    Venter,
+    /// The normalized (Lyapunov) gain (Eq 5.9).
+    Lyapunov,
+    /// Ljung's gain sequence with forgetting (Eq 5.15–5.18).
+    Ljung,
+}
+
+option_names!(GainKind, "gain", { Venter => "venter", Lyapunov => "lyapunov", Ljung => "ljung" });
+
 impl<T: Real> Gain<T> {
+    /// The gain of the given kind with its constants (each kind uses the ones it needs):
+    /// Venter's exponent `p`, Ljung's `lambda0` and `lambda_init`.
+    pub fn of_kind(kind: GainKind, p: T, lambda0: T, lambda_init: T) -> Self {
+        match kind {
+            GainKind::Venter => Gain::Venter { p },
+            GainKind::Lyapunov => Gain::Lyapunov,
+            GainKind::Ljung => Gain::Ljung { lambda0, lambda_init },
+        }
+    }
+
+    /// The kind of this gain.
+    pub fn kind(&self) -> GainKind {
+        match self {
+            Gain::Venter { .. } => GainKind::Venter,
+            Gain::Lyapunov => GainKind::Lyapunov,
+            Gain::Ljung { .. } => GainKind::Ljung,
+        }
+    }
+
     fn validate(&self) -> Result<()> {
         match *self {
             Gain::Venter { p } => {
@@ -192,7 +228,7 @@ impl<T: Real, const N: usize, S: Store<T, N>> GradientCore<T, N, S> {
     /// # Errors
     /// [`Error::NonFinite`] for NaN/inf, [`Error::Shape`] for a wrong `e` length, an overflow
     /// error when the step would not be finite. The identifier is unchanged after an error.
-    pub fn update_into(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
+    pub(crate) fn update_vec(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
         check_sample(x, z)?;
         let rows = self.rows.flat();
         let k = rows.len();
@@ -262,4 +298,46 @@ impl<T: Real, const N: usize, const K: usize> GradientCore<T, N, Fixed<K>> {
     }
 }
 
-fixed_k_api!(GradientCore);
+impl<T: Real, const N: usize, const K: usize> GradientCore<T, N, Fixed<K>> {
+    /// One sample; returns the innovations `e_i = z_row − xᵀ θ̂_i` of the unknown rows. No
+    /// allocation.
+    ///
+    /// # Errors
+    /// As [`Identifier::update_into`]; the identifier is unchanged after an error.
+    #[inline]
+    pub fn update(&mut self, x: &SVector<T, N>, z: &SVector<T, N>) -> Result<SVector<T, K>> {
+        let mut e = SVector::<T, K>::zeros();
+        self.update_vec(x, z, e.as_mut_slice())?;
+        Ok(e)
+    }
+
+    /// The estimate θ̂ of the unknown rows (`K × N`).
+    pub fn theta(&self) -> SMatrix<T, K, N> {
+        fixed_theta(self)
+    }
+}
+
+impl<T: Real, const N: usize, S: Store<T, N>> Identifier<T> for GradientCore<T, N, S> {
+    fn dims(&self) -> Dims {
+        let k = self.rows.flat().len();
+        Dims { states: N, inputs: 0, equations: k, params: k * N }
+    }
+
+    fn rows(&self) -> &[usize] {
+        self.rows.flat()
+    }
+
+    #[inline]
+    fn update_into(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
+        check_lengths(self.dims(), x, z, u, e)?;
+        self.update_vec(&vector(x), &vector(z), e)
+    }
+
+    fn params_into(&self, out: &mut [T]) -> Result<()> {
+        self.theta_into(out)
+    }
+
+    fn samples(&self) -> u64 {
+        self.samples
+    }
+}

@@ -11,7 +11,7 @@
 //! Unbiased when the state is measured without noise; biased (attenuated) by state noise
 //! (Eq 2.20), which the thesis shows is devastating (Fig 3-5).
 
-use super::{check_sample, rows_buffer, Cost, Fixed, Flat, Store};
+use super::{check_lengths, check_sample, rows_buffer, vector, Cost, Dims, Fixed, Flat, Identifier, Store};
 use crate::linalg::{cholesky_in_place, cholesky_solve};
 use crate::{Error, Real, Result};
 use nalgebra::{SMatrix, SVector};
@@ -257,5 +257,109 @@ impl<T: Real, const N: usize> BatchLeastSquares<T, N> {
     pub fn clear(&mut self) {
         self.x.clear();
         self.z.clear();
+    }
+}
+
+impl<T: Real, const N: usize, S: Store<T, N>> Identifier<T> for LsAccumulator<T, N, S> {
+    fn dims(&self) -> Dims {
+        let k = self.rows.flat().len();
+        Dims { states: N, inputs: 0, equations: k, params: k * N }
+    }
+
+    fn rows(&self) -> &[usize] {
+        self.rows.flat()
+    }
+
+    /// Accumulates the sample. A batch estimator has no running estimate to predict with,
+    /// so the innovations are NaN.
+    fn update_into(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
+        check_lengths(self.dims(), x, z, u, e)?;
+        self.push(&vector(x), &vector(z))?;
+        e.fill(T::of(f64::NAN));
+        Ok(())
+    }
+
+    /// Solves the normal equations ([`LsAccumulator::solve_into`]).
+    fn params_into(&self, out: &mut [T]) -> Result<()> {
+        self.solve_into(out)
+    }
+
+    fn samples(&self) -> u64 {
+        self.samples
+    }
+}
+
+#[cfg(feature = "std")]
+impl<T: Real, const N: usize> Identifier<T> for BatchLeastSquares<T, N> {
+    fn dims(&self) -> Dims {
+        let k = self.rows.len();
+        Dims { states: N, inputs: 0, equations: k, params: k * N }
+    }
+
+    fn rows(&self) -> &[usize] {
+        &self.rows
+    }
+
+    /// Stores the sample. A batch estimator has no running estimate to predict with, so the
+    /// innovations are NaN.
+    fn update_into(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
+        check_lengths(self.dims(), x, z, u, e)?;
+        self.push(&vector(x), &vector(z))?;
+        e.fill(T::of(f64::NAN));
+        Ok(())
+    }
+
+    /// Solves Eq 2.14 by QR ([`BatchLeastSquares::solve`]) over every stored sample.
+    fn params_into(&self, out: &mut [T]) -> Result<()> {
+        let k = self.rows.len();
+        if out.len() != k * N {
+            return Err(Error::Shape { arg: "out", expected: k * N, got: out.len() });
+        }
+        out.copy_from_slice(&self.solve()?);
+        Ok(())
+    }
+
+    fn samples(&self) -> u64 {
+        BatchLeastSquares::samples(self) as u64
+    }
+
+    /// Stores every sample; rolls back by truncating the stored samples (no copy of them).
+    fn fit<F>(&mut self, data: &super::Samples<'_, T>, mut each: F) -> core::result::Result<(), super::FitError>
+    where
+        Self: Sized + Clone,
+        F: FnMut(usize, &Self, &[T]) -> core::ops::ControlFlow<Error>,
+    {
+        use core::ops::ControlFlow;
+        let dims = self.dims();
+        data.check(dims).map_err(|error| super::FitError { sample: None, error })?;
+        let (xl, zl) = (self.x.len(), self.z.len());
+        let k = self.rows.len();
+        let need = data.len().saturating_mul(N + k);
+        if self.x.try_reserve(data.len().saturating_mul(N)).is_err()
+            || self.z.try_reserve(data.len().saturating_mul(k)).is_err()
+        {
+            return Err(super::FitError {
+                sample: None,
+                error: Error::OutOfMemory {
+                    what: "the stored samples of batch least squares",
+                    bytes: need.saturating_mul(core::mem::size_of::<T>()),
+                },
+            });
+        }
+        let nan = std::vec![T::of(f64::NAN); k];
+        for (i, (x, z, u)) in data.iter().enumerate() {
+            let step = match check_lengths(Dims { equations: 0, ..dims }, x, z, u, &[])
+                .and_then(|()| self.push(&vector(x), &vector(z)))
+            {
+                Ok(()) => each(i, self, &nan),
+                Err(err) => ControlFlow::Break(err),
+            };
+            if let ControlFlow::Break(error) = step {
+                self.x.truncate(xl);
+                self.z.truncate(zl);
+                return Err(super::FitError { sample: Some(i), error });
+            }
+        }
+        Ok(())
     }
 }

@@ -3,87 +3,66 @@
 //! | identifier | equations | file |
 //! |---|---|---|
 //! | [`BatchLeastSquares`] (std), [`LsAccumulator`] | Eq 2.14, 3.4 | `least_squares.rs` |
-//! | [`KalmanIdentifier`] (decoupled rows), [`SharedKalmanIdentifier`], [`FullKalmanIdentifier`] | Eq 4.3–4.7, 4.35–4.36, 6.16–6.18 | `kalman.rs` |
+//! | [`KalmanIdentifier`] (decoupled rows), [`SharedKalmanIdentifier`], [`FullKalmanIdentifier`] | Eq 4.3–4.7, 4.35–4.36, 6.16–6.18 | `kalman/` |
 //! | [`StochasticGradient`] | Eq 2.56, 5.2–5.18 | `gradient.rs` |
 //! | [`TwoAxleIdentifier`] (two axles on one road: plain, Eq 6.14, road cancellation) | Eq 6.9, 6.12–6.14 | `two_axle.rs` |
 //!
 //! All of them regress the measured derivative of each unknown row on the measured state:
-//! `z_i(k) = r(k)ᵀ θ_i + ε_i(k)` (Eq 2.2–2.4 with `H = I ⊗ xᵀ`). Every per-sample update is
-//! allocation-free and transactional: a rejected sample (NaN, inf, a numerically singular
-//! step) returns an error and leaves the identifier exactly as it was.
+//! `z_i(k) = r(k)ᵀ θ_i + ε_i(k)` (Eq 2.2–2.4 with `H = I ⊗ xᵀ`), and all of them implement
+//! one interface, [`Identifier`] (`interface.rs`): samples in through
+//! [`Identifier::update_into`], which allocates nothing and is transactional (a rejected
+//! sample — NaN, inf, a numerically singular step — returns an error and leaves the
+//! identifier exactly as it was), estimates out through caller buffers, and a transactional
+//! batch [`Identifier::fit`]. [`DynIdentifier`] (alloc) is its boxed form.
 //!
 //! # Storage
-//! Each identifier is generic over a [`Store`]: [`Fixed<K>`] keeps the `K` unknown rows in
-//! arrays (no allocation at all; the form for embedded use and the aliases
+//! Each identifier is generic over a [`Store`] (`store.rs`): [`Fixed<K>`] keeps the `K`
+//! unknown rows in arrays (no allocation at all; the form for embedded use and the aliases
 //! [`KalmanIdentifier`], [`StochasticGradient`], ...), [`Dynamic`] keeps them in `Vec`s sized
 //! at construction (requires `alloc`; the form the Python bindings use, so that one
 //! monomorphization per state count serves any number of unknown rows). The numerics are
 //! the same code for both.
 //!
 //! # Speed
-//! The decoupled rows of [`KalmanRows`] are stored side by side in lanes ([`lanes`]), so one
-//! update treats all rows at once with vector instructions; on x86-64 with `std` the rows and
-//! shared updates also have an AVX2 copy chosen at run time ([`crate::simd`]). Every path
-//! computes the same bits. Measured figures and how to reproduce them: `benches/README.md`.
-
-/// The fixed-size `update` (innovations as `SVector<T, K>`) and `theta` (`K × N`) of an
-/// identifier with [`Fixed<K>`] storage, from its `update_into` and `theta_into`.
-macro_rules! fixed_k_api {
-    ($ty:ident) => {
-        impl<T: crate::Real, const N: usize, const K: usize> $ty<T, N, crate::identify::Fixed<K>> {
-            /// One sample (measured state `x`, measured derivative `z`); returns the
-            /// innovations `e_i = z_row − xᵀ θ̂_i(k−1)` of the unknown rows. No allocation.
-            ///
-            /// # Errors
-            /// As `update_into`; the identifier is unchanged after an error.
-            #[inline]
-            pub fn update(
-                &mut self,
-                x: &nalgebra::SVector<T, N>,
-                z: &nalgebra::SVector<T, N>,
-            ) -> crate::Result<nalgebra::SVector<T, K>> {
-                let mut e = nalgebra::SVector::<T, K>::zeros();
-                self.update_into(x, z, e.as_mut_slice())?;
-                Ok(e)
-            }
-
-            /// The estimate θ̂ of the unknown rows (`K × N`).
-            pub fn theta(&self) -> nalgebra::SMatrix<T, K, N> {
-                // Row-major K × N is the column-major storage of its N × K transpose.
-                let mut t = nalgebra::SMatrix::<T, N, K>::zeros();
-                // The buffer has exactly K·N entries, so this cannot fail.
-                let _ = self.theta_into(t.as_mut_slice());
-                t.transpose()
-            }
-        }
-    };
-}
+//! The decoupled rows of [`KalmanRows`] are stored side by side in lanes (`kalman/lanes.rs`),
+//! so one update treats all rows at once with vector instructions; on x86-64 with `std` the
+//! rows and shared updates also have an AVX2 copy chosen at run time ([`crate::simd`]). Every
+//! path computes the same bits. Measured figures and how to reproduce them: `benches/README.md`.
 
 mod gradient;
+mod interface;
 mod kalman;
-pub mod lanes;
 mod least_squares;
+mod store;
 mod two_axle;
 
 #[cfg(feature = "alloc")]
 pub use gradient::StochasticGradientVec;
-pub use gradient::{Gain, GradientCore, StochasticGradient};
+pub use gradient::{Gain, GainKind, GradientCore, StochasticGradient};
+pub use interface::{Dims, FitError, Identifier, SampleIter, Samples, FIT_STACK_EQUATIONS};
+#[cfg(feature = "alloc")]
+pub use interface::{DynIdentifier, FitOptions};
+#[cfg(feature = "alloc")]
 pub use kalman::{
-    CovarianceForm, FullKalmanIdentifier, KalmanFull, KalmanIdentifier, KalmanOptions, KalmanRows, KalmanShared,
+    boxed_kalman, FullKalmanIdentifierVec, KalmanIdentifierVec, KalmanIdentifierVec2, KalmanSpec, Prior,
+    SharedKalmanIdentifierVec,
+};
+pub use kalman::{
+    CovarianceForm, FullKalmanIdentifier, KalmanFull, KalmanIdentifier, KalmanOptions, KalmanRows, KalmanShared, Mode,
     RowIdentifier, SharedKalmanIdentifier,
 };
-#[cfg(feature = "alloc")]
-pub use kalman::{FullKalmanIdentifierVec, KalmanIdentifierVec, KalmanIdentifierVec2, SharedKalmanIdentifierVec};
-pub use least_squares::LsAccumulator;
-
 #[cfg(feature = "std")]
 pub use least_squares::BatchLeastSquares;
+pub use least_squares::LsAccumulator;
+pub use store::{Dynamic, Fixed, Flat, Store, DYNAMIC_LANES};
 #[cfg(feature = "alloc")]
 pub use two_axle::TwoAxleIdentifierVec;
 pub use two_axle::{Past, TwoAxle, TwoAxleConfig, TwoAxleIdentifier, WheelMethod};
 
+pub(crate) use interface::{check_lengths, vector};
+pub(crate) use store::{per_row, rows_buffer, rows_into};
+
 use crate::{Error, Real, Result};
-use lanes::RowGroup;
 use nalgebra::{SMatrix, SVector};
 
 /// The arithmetic of one sample update and the identifier's size, for comparison with the
@@ -112,165 +91,6 @@ impl Cost {
     }
 }
 
-/// A flat, fixed-length buffer: an array (`[X; K]`, `[[X; K]; K]`) or, with `alloc`, a `Vec`.
-pub trait Flat<X>: Clone + core::fmt::Debug {
-    /// A buffer of `len` copies of `x`.
-    ///
-    /// # Errors
-    /// [`Error::Shape`] when a fixed-size buffer cannot hold exactly `len` elements.
-    fn filled(arg: &'static str, len: usize, x: X) -> Result<Self>;
-    /// The elements.
-    fn flat(&self) -> &[X];
-    /// The elements, mutably.
-    fn flat_mut(&mut self) -> &mut [X];
-    /// Bytes held on the heap (0 for arrays, which live inside the identifier).
-    fn heap_bytes(&self) -> usize {
-        0
-    }
-}
-
-impl<X: Copy + core::fmt::Debug, const K: usize> Flat<X> for [X; K] {
-    fn filled(arg: &'static str, len: usize, x: X) -> Result<Self> {
-        if len != K {
-            return Err(Error::Shape { arg, expected: K, got: len });
-        }
-        Ok([x; K])
-    }
-    fn flat(&self) -> &[X] {
-        self
-    }
-    fn flat_mut(&mut self) -> &mut [X] {
-        self
-    }
-}
-
-impl<X: Copy + core::fmt::Debug, const K: usize> Flat<X> for [[X; K]; K] {
-    fn filled(arg: &'static str, len: usize, x: X) -> Result<Self> {
-        if len != K * K {
-            return Err(Error::Shape { arg, expected: K * K, got: len });
-        }
-        Ok([[x; K]; K])
-    }
-    fn flat(&self) -> &[X] {
-        self.as_flattened()
-    }
-    fn flat_mut(&mut self) -> &mut [X] {
-        self.as_flattened_mut()
-    }
-}
-
-#[cfg(feature = "alloc")]
-impl<X: Copy + core::fmt::Debug> Flat<X> for alloc::vec::Vec<X> {
-    fn filled(_arg: &'static str, len: usize, x: X) -> Result<Self> {
-        Ok(alloc::vec![x; len])
-    }
-    fn heap_bytes(&self) -> usize {
-        self.capacity() * core::mem::size_of::<X>()
-    }
-    fn flat(&self) -> &[X] {
-        self
-    }
-    fn flat_mut(&mut self) -> &mut [X] {
-        self
-    }
-}
-
-/// Where an identifier keeps its per-row state: [`Fixed<K>`] or [`Dynamic`].
-pub trait Store<T: Real, const N: usize>: Clone + core::fmt::Debug {
-    /// Row indices (`K`).
-    type Rows: Flat<usize>;
-    /// One value per row (`K`).
-    type Scalars: Flat<T>;
-    /// One `N`-vector per row (`K`).
-    type Vecs: Flat<SVector<T, N>>;
-    /// The decoupled row filters, side by side in groups of lanes ([`lanes::RowLanes`]).
-    type Group: RowGroup<T, N>;
-    /// The groups (`⌈K / lanes⌉`).
-    type Groups: Flat<Self::Group>;
-    /// One planned step per group, for the identifiers that plan through memory (several
-    /// groups, or a group with too many covariance entries to keep in registers).
-    type Scratches: Flat<<Self::Group as RowGroup<T, N>>::Scratch>;
-    /// One value per pair of rows (`K²`).
-    type PairScalars: Flat<T>;
-    /// One `N`-vector per pair of rows (`K²`).
-    type PairVecs: Flat<SVector<T, N>>;
-    /// One `N × N` block per pair of rows (`K²`).
-    type Blocks: Flat<SMatrix<T, N, N>>;
-}
-
-/// Lanes per group of [`Dynamic`] row filters: one AVX2 register of `f64` on x86-64, one
-/// 128-bit register elsewhere (NEON). [`Fixed<K>`] keeps all `K` rows in one group.
-pub const DYNAMIC_LANES: usize = if cfg!(target_arch = "x86_64") { 4 } else { 2 };
-
-/// Fixed storage for exactly `K` unknown rows: plain arrays, no allocation.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Fixed<const K: usize>;
-
-impl<T: Real, const N: usize, const K: usize> Store<T, N> for Fixed<K> {
-    type Rows = [usize; K];
-    type Scalars = [T; K];
-    type Vecs = [SVector<T, N>; K];
-    type Group = lanes::RowLanes<T, N, K>;
-    type Groups = [lanes::RowLanes<T, N, K>; 1];
-    type Scratches = [lanes::LaneScratch<T, N, K>; 1];
-    type PairScalars = [[T; K]; K];
-    type PairVecs = [[SVector<T, N>; K]; K];
-    type Blocks = [[SMatrix<T, N, N>; K]; K];
-}
-
-/// Heap storage sized at construction for any number of unknown rows (requires `alloc`).
-///
-/// The decoupled rows of [`KalmanRows`] are kept in groups of `L` lanes (default
-/// [`DYNAMIC_LANES`]); rows are padded up to a multiple of `L`. For one or two rows `L = 2`
-/// is faster (measured, quarter car f64: 22.6 ns against 37–42 ns with four lanes of which
-/// two are padding); the Python bindings choose it then.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Dynamic<const L: usize = DYNAMIC_LANES>;
-
-#[cfg(feature = "alloc")]
-impl<T: Real, const N: usize, const L: usize> Store<T, N> for Dynamic<L> {
-    type Rows = alloc::vec::Vec<usize>;
-    type Scalars = alloc::vec::Vec<T>;
-    type Vecs = alloc::vec::Vec<SVector<T, N>>;
-    type Group = lanes::RowLanes<T, N, L>;
-    type Groups = alloc::vec::Vec<lanes::RowLanes<T, N, L>>;
-    type Scratches = alloc::vec::Vec<lanes::LaneScratch<T, N, L>>;
-    type PairScalars = alloc::vec::Vec<T>;
-    type PairVecs = alloc::vec::Vec<SVector<T, N>>;
-    type Blocks = alloc::vec::Vec<SMatrix<T, N, N>>;
-}
-
-/// Validates a row list against `N` (distinct, in range, at least one) and copies it.
-pub(crate) fn rows_buffer<R: Flat<usize>, const N: usize>(rows: &[usize]) -> Result<R> {
-    let set = crate::model::RowSet::<N>::new(rows)?;
-    let mut out = R::filled("unknown_rows", rows.len(), 0)?;
-    // Keep the caller's order: innovations and θ follow it.
-    out.flat_mut().copy_from_slice(rows);
-    debug_assert_eq!(set.len(), rows.len());
-    Ok(out)
-}
-
-/// Expands one value or one value per row to `k` values.
-pub(crate) fn per_row<T: Real>(arg: &'static str, v: &[T], k: usize, i: usize) -> Result<T> {
-    match v.len() {
-        1 => Ok(v[0]),
-        n if n == k => Ok(v[i]),
-        n => Err(Error::Shape { arg, expected: k, got: n }),
-    }
-}
-
-/// Writes per-row estimates row-major (`K × N`) into `out`.
-pub(crate) fn rows_into<T: Real, const N: usize>(theta: &[SVector<T, N>], out: &mut [T]) -> Result<()> {
-    let k = theta.len();
-    if out.len() != k * N {
-        return Err(Error::Shape { arg: "out", expected: k * N, got: out.len() });
-    }
-    for (chunk, t) in out.chunks_exact_mut(N).zip(theta) {
-        chunk.copy_from_slice(t.as_slice());
-    }
-    Ok(())
-}
-
 /// Checks a sample: `x` and `z` finite.
 #[inline]
 pub(crate) fn check_sample<T: Real, const N: usize>(x: &SVector<T, N>, z: &SVector<T, N>) -> Result<()> {
@@ -288,3 +108,12 @@ pub(crate) const OVERFLOW: Error = Error::InvalidArgument {
     arg: "r_k",
     expected: "sample values small enough that the update stays finite (rescale the units)",
 };
+
+/// `θ̂` of a fixed-size identifier as a `K × N` matrix (the estimate of every unknown row).
+pub(crate) fn fixed_theta<T: Real, const N: usize, const K: usize>(id: &impl Identifier<T>) -> SMatrix<T, K, N> {
+    // Row-major K × N is the column-major storage of its N × K transpose.
+    let mut t = SMatrix::<T, N, K>::zeros();
+    // The buffer has exactly K·N entries, the identifier's parameter count.
+    let _ = id.params_into(t.as_mut_slice());
+    t.transpose()
+}

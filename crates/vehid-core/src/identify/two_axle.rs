@@ -23,11 +23,11 @@
 //! The other unknown rows (the half car's body rows) are the plain Kalman rows
 //! ([`KalmanRows`]); rows without an input have `r = σ_v²`.
 //!
-//! Each sample is identified by its road-point (grid) index; [`TwoAxle::update_into`] with
+//! Each sample is identified by its road-point (grid) index; [`TwoAxle::update_at`] with
 //! `grid = None` takes the next one. A ring of the last `d` samples (a fixed array `[_; C]`,
 //! or a `Vec`) holds what the pairing needs. Nothing here uses the time between samples.
 
-use super::{check_sample, KalmanOptions, KalmanRows, RowIdentifier, Store};
+use super::{check_lengths, check_sample, vector, Dims, Identifier, KalmanOptions, KalmanRows, RowIdentifier, Store};
 use crate::error::{check_nonneg, check_positive};
 use crate::model::{LinearModel, RowSet};
 use crate::sampler::{RingStore, Trigger};
@@ -367,12 +367,12 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
     }
 
     /// The next sample, on the road point after the previous one. See
-    /// [`TwoAxle::update_into`].
+    /// [`TwoAxle::update_at`].
     ///
     /// # Errors
-    /// As [`TwoAxle::update_into`].
+    /// As [`TwoAxle::update_at`].
     pub fn update_next(&mut self, r: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<bool> {
-        self.update_into(r, z, None, e)
+        self.update_at(r, z, None, e)
     }
 
     /// One sample: measured state `r(k)` and derivative `z(k)` taken on road point `grid`
@@ -387,22 +387,16 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
     /// grid index not after the previous one; [`Error::Shape`] for a wrong `e` length;
     /// [`Error::Singular`] / overflow as [`RowIdentifier::update`]. The identifier is
     /// unchanged after any error.
-    pub fn update_into(
-        &mut self,
-        r: &SVector<T, N>,
-        z: &SVector<T, N>,
-        grid: Option<u64>,
-        e: &mut [T],
-    ) -> Result<bool> {
+    pub fn update_at(&mut self, r: &SVector<T, N>, z: &SVector<T, N>, grid: Option<u64>, e: &mut [T]) -> Result<bool> {
         self.step(r, z, grid, true, e)
     }
 
     /// One sample taken on a [`Trigger`] of an [`crate::sampler::AxleSampler`]: its grid
     /// index is used, and the sample is paired only when the sampler paired it (its road
-    /// points within the sampler's tolerance). Otherwise as [`TwoAxle::update_into`].
+    /// points within the sampler's tolerance). Otherwise as [`TwoAxle::update_at`].
     ///
     /// # Errors
-    /// As [`TwoAxle::update_into`].
+    /// As [`TwoAxle::update_at`].
     pub fn update_trigger(
         &mut self,
         r: &SVector<T, N>,
@@ -488,7 +482,7 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
         let mut eb = [T::zero(); N];
         if let Some(body) = &mut self.body {
             let k = body.rows().len();
-            body.update_into(r, z, &mut eb[..k])?;
+            body.update_vec(r, z, &mut eb[..k])?;
         }
         // Commit.
         match joint {
@@ -523,13 +517,40 @@ impl<T: Real, const N: usize, const P: usize, const KB: usize, const C: usize>
     TwoAxle<T, N, P, Fixed<KB>, [Past<T, N>; C]>
 {
     /// One sample on the next road point; returns whether it was paired. See
-    /// [`TwoAxle::update_into`].
+    /// [`TwoAxle::update_at`].
     ///
     /// # Errors
-    /// As [`TwoAxle::update_into`].
+    /// As [`TwoAxle::update_at`].
     pub fn update(&mut self, r: &SVector<T, N>, z: &SVector<T, N>) -> Result<bool> {
         let mut e = [T::zero(); N];
         let k = self.rows.len();
-        self.update_into(r, z, None, &mut e[..k])
+        self.update_at(r, z, None, &mut e[..k])
+    }
+}
+
+impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<T, N>>> Identifier<T>
+    for TwoAxle<T, N, P, S, B>
+{
+    fn dims(&self) -> Dims {
+        let k = self.rows.len();
+        Dims { states: N, inputs: 0, equations: k, params: k * N }
+    }
+
+    fn rows(&self) -> &[usize] {
+        self.rows.as_slice()
+    }
+
+    /// The sample on the road point after the previous one ([`TwoAxle::update_next`]).
+    fn update_into(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
+        check_lengths(self.dims(), x, z, u, e)?;
+        self.update_at(&vector(x), &vector(z), None, e).map(|_| ())
+    }
+
+    fn params_into(&self, out: &mut [T]) -> Result<()> {
+        self.theta_into(out)
+    }
+
+    fn samples(&self) -> u64 {
+        self.samples
     }
 }

@@ -1,8 +1,12 @@
+use super::lanes::RowGroup;
 use super::*;
+use crate::identify::*;
 use crate::identify::{BatchLeastSquares, Gain, LsAccumulator, StochasticGradient};
 use crate::metrics::xi;
 use crate::model::{HalfCar, QuarterCar};
 use crate::sim::{SimConfig, Simulator};
+use crate::Error;
+use nalgebra::{SMatrix, SVector};
 use nalgebra::{Vector4, Vector6};
 
 type V4 = SVector<f64, 4>;
@@ -428,7 +432,7 @@ fn dynamic_storage_equals_fixed_storage() {
     let mut e = [0.0; 2];
     for (x, z) in &data {
         let ef = fixed.update(x, z).unwrap();
-        dynamic.update_into(x, z, &mut e).unwrap();
+        dynamic.update_vec(x, z, &mut e).unwrap();
         assert_eq!(ef.as_slice(), &e);
     }
     let mut out = [0.0; 8];
@@ -452,7 +456,7 @@ fn dynamic_storage_equals_fixed_storage() {
     let mut e = [0.0];
     for _ in 0..2000 {
         let s = sim.next_sample();
-        one.update_into(&s.r, &s.z, &mut e).unwrap();
+        one.update_vec(&s.r, &s.z, &mut e).unwrap();
         assert_eq!(fixed_one.update(&s.r, &s.z).unwrap()[0], e[0]);
     }
     assert_eq!(one.theta_row(0), fixed_one.theta().row(0).transpose());
@@ -479,8 +483,8 @@ fn several_lane_groups_equal_one_and_reject_as_a_whole() {
     for _ in 0..3000 {
         let s = sim.next_sample();
         let ef = fixed.update(&s.r, &s.z).unwrap();
-        dynamic.update_into(&s.r, &s.z, &mut e).unwrap();
-        pairs.update_into(&s.r, &s.z, &mut e2).unwrap();
+        dynamic.update_vec(&s.r, &s.z, &mut e).unwrap();
+        pairs.update_vec(&s.r, &s.z, &mut e2).unwrap();
         assert_eq!(ef.as_slice(), &e);
         assert_eq!(e, e2);
         last = Some(s);
@@ -494,7 +498,7 @@ fn several_lane_groups_equal_one_and_reject_as_a_whole() {
     let mut z = s.z;
     z[7] = f64::NAN;
     let before: Vec<_> = (0..6).map(|i| dynamic.filter(i)).collect();
-    assert!(matches!(dynamic.update_into(&s.r, &z, &mut e), Err(Error::NonFinite { arg: "z_k", index: 7 })));
+    assert!(matches!(dynamic.update_vec(&s.r, &z, &mut e), Err(Error::NonFinite { arg: "z_k", index: 7 })));
     assert!((0..6).all(|i| dynamic.filter(i) == before[i]));
     assert_eq!(dynamic.samples(), 3000);
 }
@@ -517,7 +521,7 @@ fn half_car_bits<T: Real>(n: usize) -> Vec<u64> {
     for _ in 0..n {
         let s = sim.next_sample();
         fixed.update(&s.r, &s.z).unwrap();
-        dynamic.update_into(&s.r, &s.z, &mut e).unwrap();
+        dynamic.update_vec(&s.r, &s.z, &mut e).unwrap();
         shared.update(&s.r, &s.z).unwrap();
     }
     let mut out = Vec::new();
@@ -547,7 +551,7 @@ fn vector_extensions_do_not_change_a_single_bit() {
         let mut q_shared = SharedKalmanIdentifier::<f64, 4, 2>::new([1, 3], 1000.0, [0.3; 2]).unwrap();
         let mut e = [0.0; 2];
         for (x, z) in &data {
-            q_dyn.update_into(x, z, &mut e).unwrap();
+            q_dyn.update_vec(x, z, &mut e).unwrap();
             q_shared.update(x, z).unwrap();
         }
         let mut bits: Vec<u64> = q_shared.theta().iter().chain(q_shared.q().iter()).map(|v| v.to_bits()).collect();

@@ -14,8 +14,8 @@
 //! used. The AVX2 path of [`super::KalmanRows`] is therefore bit-identical to the portable
 //! one (tested).
 
-use super::kalman::{CovarianceForm, RowIdentifier};
-use super::OVERFLOW;
+use super::{CovarianceForm, RowIdentifier};
+use crate::identify::OVERFLOW;
 use crate::linalg::symmetrize;
 use crate::{Error, Real};
 use nalgebra::{SMatrix, SVector};
@@ -102,7 +102,7 @@ pub struct LaneScratch<T: Real, const N: usize, const L: usize> {
 }
 
 /// `L` decoupled row filters stored side by side. Lanes `used..L` are padding (a
-/// [`super::Dynamic`] store rounds the number of rows up to a multiple of `L`); padding never
+/// [`crate::identify::Dynamic`] store rounds the number of rows up to a multiple of `L`); padding never
 /// steps and never fails.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RowLanes<T: Real, const N: usize, const L: usize> {
@@ -120,7 +120,7 @@ pub struct RowLanes<T: Real, const N: usize, const L: usize> {
 }
 
 /// A group of row filters handled together (implemented by [`RowLanes`] for every lane
-/// count). An implementation detail of the stores, public only because [`super::Store`] names it.
+/// count). An implementation detail of the stores, public only because [`crate::identify::Store`] names it.
 pub trait RowGroup<T: Real, const N: usize>: Copy + core::fmt::Debug + PartialEq {
     /// Lanes per group.
     const LANES: usize;

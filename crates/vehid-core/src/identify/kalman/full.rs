@@ -1,0 +1,399 @@
+//! The stacked (`full`) form with a general `R`.
+
+use super::KalmanOptions;
+use crate::error::{check_finite, check_nonneg, check_positive};
+#[cfg(feature = "alloc")]
+use crate::identify::Dynamic;
+use crate::identify::{
+    check_lengths, check_sample, fixed_theta, per_row, rows_buffer, rows_into, vector, Cost, Dims, Fixed, Flat,
+    Identifier, Store, OVERFLOW,
+};
+use crate::linalg::{cholesky_in_place, cholesky_solve, symmetrize};
+use crate::{Error, Real, Result};
+use nalgebra::{SMatrix, SVector};
+/// The stacked (`full`) Kalman identifier over a [`Store`], general `R`; see
+/// [`FullKalmanIdentifier`].
+#[derive(Debug, Clone)]
+pub struct KalmanFull<T: Real, const N: usize, S: Store<T, N>> {
+    rows: S::Rows,
+    theta: S::Vecs,
+    /// Covariance blocks `P_ij` (`K × K` of `N × N`, row-major).
+    p: S::Blocks,
+    /// Measurement covariance `R` (`K × K`, row-major).
+    r: S::PairScalars,
+    /// Scratch: `c_ij = P_ij x`.
+    c: S::PairVecs,
+    /// Scratch: gain columns `w_il` (block `i`, column `l`).
+    w: S::PairVecs,
+    /// Scratch: Cholesky factor of `S`.
+    s: S::PairScalars,
+    opts: KalmanOptions<T>,
+    reinit_count: u32,
+    samples: u64,
+}
+
+/// The stacked Kalman identifier of Eq 4.3–4.7 with a general `K × K` measurement
+/// covariance `R`, no allocation. Its covariance is `(K·N) × (K·N)`, kept as blocks.
+pub type FullKalmanIdentifier<T, const N: usize, const K: usize> = KalmanFull<T, N, Fixed<K>>;
+
+/// [`KalmanFull`] with heap storage.
+#[cfg(feature = "alloc")]
+pub type FullKalmanIdentifierVec<T, const N: usize> = KalmanFull<T, N, Dynamic>;
+
+impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
+    /// Builds the stacked filter: `P(0)` block diagonal with `p0_i I` (`p0`: one value or
+    /// one per row) and `R` a symmetric positive semi-definite `K × K` matrix: the whole
+    /// matrix (row-major, `K²` values), or its diagonal (one value per row, or one value).
+    ///
+    /// # Errors
+    /// As [`KalmanRows::from_slices`], plus [`Error::Shape`] / [`Error::Singular`] for an `R`
+    /// of the wrong size or not symmetric with a non-negative diagonal.
+    pub fn from_slices(rows: &[usize], p0: &[T], r: &[T], opts: KalmanOptions<T>) -> Result<Self> {
+        opts.validate()?;
+        if opts.retire_below > T::zero() {
+            return Err(Error::InvalidArgument { arg: "retire_below", expected: "0: retiring rows needs mode='rows'" });
+        }
+        let rows_buf: S::Rows = rows_buffer::<_, N>(rows)?;
+        let k = rows.len();
+        // R: one variance (every row), one per row (diagonal R), or the whole K × K matrix.
+        let mut rbuf = S::PairScalars::filled("r", k * k, T::zero())?;
+        check_finite("r", r)?;
+        if r.len() == k * k {
+            rbuf.flat_mut().copy_from_slice(r);
+        } else if r.len() == 1 || r.len() == k {
+            for i in 0..k {
+                rbuf.flat_mut()[i * k + i] = per_row("r", r, k, i)?;
+            }
+        } else {
+            return Err(Error::Shape { arg: "r", expected: k * k, got: r.len() });
+        }
+        let rm = rbuf.flat();
+        for i in 0..k {
+            check_nonneg("r", rm[i * k + i])?;
+            for j in 0..i {
+                if (rm[i * k + j] - rm[j * k + i]).abs()
+                    > T::default_epsilon() * T::of(16.0) * (rm[i * k + i] + rm[j * k + j])
+                {
+                    return Err(Error::Singular { what: "r (it must be a symmetric covariance matrix)" });
+                }
+            }
+        }
+        // Positive semi-definite: R + ε tr(R) I must factor (a singular R, e.g. noise-free
+        // data, is fine; a negative eigenvalue would make every later sample fail).
+        let mut s_buf = S::PairScalars::filled("unknown_rows", k * k, T::zero())?;
+        {
+            let tr = (0..k).fold(T::zero(), |a, i| a + rm[i * k + i]);
+            let sb = s_buf.flat_mut();
+            sb.copy_from_slice(rm);
+            for i in 0..k {
+                sb[i * k + i] += T::default_epsilon() * T::of(64.0) * tr + T::of(1e-30);
+            }
+            if !cholesky_in_place(sb, k) {
+                return Err(Error::Singular {
+                    what: "r (it must be positive semi-definite: a covariance matrix has no negative eigenvalue)",
+                });
+            }
+            sb.fill(T::zero());
+        }
+        let mut p = S::Blocks::filled("p0", k * k, SMatrix::zeros())?;
+        for i in 0..k {
+            let v = per_row("p0", p0, k, i)?;
+            check_positive("p0", v)?;
+            p.flat_mut()[i * k + i] = SMatrix::identity() * v;
+        }
+        Ok(Self {
+            rows: rows_buf,
+            theta: S::Vecs::filled("unknown_rows", k, SVector::zeros())?,
+            p,
+            r: rbuf,
+            c: S::PairVecs::filled("unknown_rows", k * k, SVector::zeros())?,
+            w: S::PairVecs::filled("unknown_rows", k * k, SVector::zeros())?,
+            s: s_buf,
+            opts,
+            reinit_count: 0,
+            samples: 0,
+        })
+    }
+
+    /// Replaces the prior covariance by a full `(K·N) × (K·N)` matrix (row-major).
+    ///
+    /// # Errors
+    /// [`Error::Shape`] for a wrong size; [`Error::Singular`] when it is not symmetric
+    /// positive definite (checked by a Cholesky factorization).
+    #[cfg(feature = "alloc")]
+    pub fn set_p0(&mut self, p0: &[T]) -> Result<()> {
+        let k = self.rows.flat().len();
+        let kn = k * N;
+        if p0.len() != kn * kn {
+            return Err(Error::Shape { arg: "p0", expected: kn * kn, got: p0.len() });
+        }
+        check_finite("p0", p0)?;
+        let mut l = alloc::vec::Vec::from(p0);
+        for i in 0..kn {
+            for j in 0..i {
+                if (p0[i * kn + j] - p0[j * kn + i]).abs()
+                    > T::default_epsilon() * T::of(16.0) * (p0[i * kn + i] + p0[j * kn + j])
+                {
+                    return Err(Error::Singular { what: "p0 (it must be symmetric positive definite)" });
+                }
+            }
+        }
+        if !cholesky_in_place(&mut l, kn) {
+            return Err(Error::Singular { what: "p0 (it must be symmetric positive definite)" });
+        }
+        let p = self.p.flat_mut();
+        for bi in 0..k {
+            for bj in 0..k {
+                p[bi * k + bj] = SMatrix::from_fn(|a, b| p0[(bi * N + a) * kn + bj * N + b]);
+            }
+        }
+        Ok(())
+    }
+
+    /// The unknown rows (0-based).
+    pub fn rows(&self) -> &[usize] {
+        self.rows.flat()
+    }
+
+    /// Covariance block `P_ij`.
+    pub fn p_block(&self, i: usize, j: usize) -> &SMatrix<T, N, N> {
+        let k = self.rows.flat().len();
+        &self.p.flat()[i * k + j]
+    }
+
+    /// Measurement covariance entry `R_ij`.
+    pub fn r(&self, i: usize, j: usize) -> T {
+        let k = self.rows.flat().len();
+        self.r.flat()[i * k + j]
+    }
+
+    /// Estimate of unknown row `i`.
+    pub fn theta_row(&self, i: usize) -> &SVector<T, N> {
+        &self.theta.flat()[i]
+    }
+
+    /// Number of reinitializations so far.
+    pub fn reinit_count(&self) -> u32 {
+        self.reinit_count
+    }
+
+    /// Number of samples accepted.
+    pub fn samples(&self) -> u64 {
+        self.samples
+    }
+
+    /// `tr P`.
+    pub fn trace(&self) -> T {
+        let k = self.rows.flat().len();
+        (0..k).fold(T::zero(), |a, i| a + self.p.flat()[i * k + i].trace())
+    }
+
+    /// Arithmetic per update and size: `c_ij = P_ij x` (K² N² mul), `S` (K(K+1)/2 · N),
+    /// Cholesky of `S` and `K·N` triangular solves (about K³/3 + K²N mul), `θ` (K² N) and
+    /// the upper blocks of `P` (K(K+1)/2 · K N² mul). Counted to leading order.
+    pub fn cost(&self) -> Cost {
+        let k = self.rows.flat().len();
+        let mul = k * k * N * N
+            + k * (k + 1) / 2 * N
+            + k * k * k / 3
+            + 2 * k * k * N
+            + k * k * N
+            + k * (k + 1) / 2 * k * N * N;
+        Cost {
+            multiplications: mul,
+            additions: mul,
+            divisions: k * N * 2 + k,
+            square_roots: k,
+            bytes: core::mem::size_of_val(self) + self.p.heap_bytes() + self.c.heap_bytes() + self.w.heap_bytes(),
+        }
+    }
+
+    /// Writes θ̂ row-major (`K × N`) into `out`.
+    ///
+    /// # Errors
+    /// [`Error::Shape`] for a wrong length.
+    pub fn theta_into(&self, out: &mut [T]) -> Result<()> {
+        rows_into(self.theta.flat(), out)
+    }
+
+    /// One sample of the stacked filter (Eq 4.3–4.6); innovations into `e`. No allocation.
+    ///
+    /// `S = H P Hᵀ + R` with `(H P Hᵀ)_ij = xᵀ P_ij x`; the gain block of row `i` is
+    /// `W_i = C_i S⁻¹`, `C_i = [P_i1 x, …, P_iK x]`; `θ_i += W_i e`, `P_ij −= W_i C_jᵀ`.
+    ///
+    /// # Errors
+    /// As [`KalmanRows::update_into`]; [`Error::Singular`] when `S` is not positive definite.
+    pub(crate) fn update_vec(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
+        check_sample(x, z)?;
+        let rows = self.rows.flat();
+        let k = rows.len();
+        if e.len() != k {
+            return Err(Error::Shape { arg: "e", expected: k, got: e.len() });
+        }
+        let theta = self.theta.flat_mut();
+        let p = self.p.flat_mut();
+        let c = self.c.flat_mut();
+        let w = self.w.flat_mut();
+        let s = self.s.flat_mut();
+        let r = self.r.flat();
+        let mut abs_e = T::zero();
+        for i in 0..k {
+            e[i] = z[rows[i]] - theta[i].dot(x);
+            abs_e += e[i].abs();
+        }
+        for ij in 0..k * k {
+            c[ij] = p[ij] * x;
+        }
+        for i in 0..k {
+            for j in 0..=i {
+                let v = x.dot(&c[i * k + j]) + r[i * k + j];
+                s[i * k + j] = v;
+                s[j * k + i] = v;
+            }
+        }
+        if s.iter().any(|v| !v.finite()) || !abs_e.finite() {
+            return Err(OVERFLOW);
+        }
+        if !cholesky_in_place(s, k) {
+            return Err(Error::Singular { what: "the innovation covariance H P Hᵀ + R" });
+        }
+        // W_i = C_i S⁻¹, row by row of C_i: solve S w = (c_i1[a], …, c_iK[a]).
+        let mut bound = T::zero();
+        let mut col = [T::zero(); N];
+        for i in 0..k {
+            for a in 0..N {
+                let buf = &mut col[..k.min(N)];
+                for l in 0..k {
+                    buf[l] = c[i * k + l][a];
+                }
+                cholesky_solve(s, k, buf);
+                for l in 0..k {
+                    w[i * k + l][a] = buf[l];
+                    bound += buf[l].abs() * (abs_e + c[i * k + l][a].abs() * T::of(k as f64));
+                }
+            }
+        }
+        if !bound.finite() {
+            return Err(OVERFLOW);
+        }
+        // Apply: nothing above changed the identifier's state.
+        for i in 0..k {
+            for l in 0..k {
+                theta[i] += w[i * k + l] * e[l];
+            }
+        }
+        for i in 0..k {
+            for j in i..k {
+                let mut d = SMatrix::<T, N, N>::zeros();
+                for l in 0..k {
+                    d += w[i * k + l] * c[j * k + l].transpose();
+                }
+                p[i * k + j] -= d;
+                if i == j {
+                    symmetrize(&mut p[i * k + i]);
+                } else {
+                    p[j * k + i] = p[i * k + j].transpose();
+                }
+            }
+        }
+        self.samples += 1;
+        let trace = (0..k).fold(T::zero(), |a, i| a + p[i * k + i].trace());
+        if self.opts.reinit && T::of(10.0) * abs_e > trace {
+            for i in 0..k {
+                for j in 0..N {
+                    p[i * k + i][(j, j)] *= T::of(10.0);
+                }
+            }
+            for v in self.r.flat_mut() {
+                *v *= T::of(2.0);
+            }
+            self.reinit_count += 1;
+        }
+        Ok(())
+    }
+}
+
+impl<T: Real, const N: usize, const K: usize> KalmanFull<T, N, Fixed<K>> {
+    /// The stacked filter with `P(0) = p0 I` and a full `R` (`K × K`).
+    ///
+    /// # Errors
+    /// As [`KalmanFull::from_slices`].
+    pub fn new(rows: [usize; K], p0: T, r: SMatrix<T, K, K>) -> Result<Self> {
+        Self::from_slices(&rows, &[p0], r.transpose().as_slice(), KalmanOptions::default())
+    }
+}
+
+impl<T: Real, const N: usize, const K: usize> KalmanFull<T, N, Fixed<K>> {
+    /// One sample (measured state `x`, measured derivative `z`); returns the innovations
+    /// `e_i = z_row − xᵀ θ̂_i(k−1)` of the unknown rows. No allocation.
+    ///
+    /// # Errors
+    /// As [`Identifier::update_into`]; the identifier is unchanged after an error.
+    #[inline]
+    pub fn update(&mut self, x: &SVector<T, N>, z: &SVector<T, N>) -> Result<SVector<T, K>> {
+        let mut e = SVector::<T, K>::zeros();
+        self.update_vec(x, z, e.as_mut_slice())?;
+        Ok(e)
+    }
+
+    /// The estimate θ̂ of the unknown rows (`K × N`).
+    pub fn theta(&self) -> SMatrix<T, K, N> {
+        fixed_theta(self)
+    }
+}
+
+impl<T: Real, const N: usize, S: Store<T, N>> Identifier<T> for KalmanFull<T, N, S> {
+    fn dims(&self) -> Dims {
+        let k = self.rows.flat().len();
+        Dims { states: N, inputs: 0, equations: k, params: k * N }
+    }
+
+    fn rows(&self) -> &[usize] {
+        self.rows.flat()
+    }
+
+    #[inline]
+    fn update_into(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
+        check_lengths(self.dims(), x, z, u, e)?;
+        self.update_vec(&vector(x), &vector(z), e)
+    }
+
+    fn params_into(&self, out: &mut [T]) -> Result<()> {
+        self.theta_into(out)
+    }
+
+    fn samples(&self) -> u64 {
+        self.samples
+    }
+
+    /// The whole `(K·N) × (K·N)` matrix.
+    fn covariance_into(&self, out: &mut [T]) -> Result<()> {
+        let k = self.rows.flat().len();
+        let kn = k * N;
+        if out.len() != kn * kn {
+            return Err(Error::Shape { arg: "out", expected: kn * kn, got: out.len() });
+        }
+        for (idx, o) in out.iter_mut().enumerate() {
+            let (i, j) = (idx / kn, idx % kn);
+            *o = self.p_block(i / N, j / N)[(i % N, j % N)];
+        }
+        Ok(())
+    }
+
+    fn noise_into(&self, out: &mut [T]) -> Result<()> {
+        let k = self.rows.flat().len();
+        if out.len() != k * k {
+            return Err(Error::Shape { arg: "out", expected: k * k, got: out.len() });
+        }
+        out.copy_from_slice(self.r.flat());
+        Ok(())
+    }
+
+    fn trace(&self) -> Option<T> {
+        Some(KalmanFull::trace(self))
+    }
+
+    fn reinit_count(&self) -> u32 {
+        self.reinit_count
+    }
+}
