@@ -106,13 +106,17 @@ def test_reinit_is_counted_and_doubles_r() -> None:
 def test_batch_least_squares_is_exact_on_noise_free_initial_conditions() -> None:
     run = vehid.Simulator(CAR, road_sigma=0.0, ic_sigma=0.1, deriv_noise=0.0, seed=4).run(4)
     ls = vehid.BatchLeastSquares(CAR)
-    theta = ls.fit(run.r, run.z)
+    hist = ls.fit(run.r, run.z, record_every=1)
+    theta = ls.theta
+    assert np.array_equal(hist[-1], theta)  # the history: θ̂ on every prefix
+    assert np.isnan(hist[:3]).all()  # fewer than 4 samples: no estimate yet
     assert np.max(np.abs(theta - CAR.theta) / np.abs(CAR.theta)) < 1e-9
     assert ls.samples == 4 and ls.storage_bytes >= 4 * 6 * 8
     short = vehid.BatchLeastSquares(CAR)
-    with pytest.raises(vehid.VehidError, match="lacks excitation"):
-        short.fit(run.r[:3], run.z[:3])
+    short.fit(run.r[:3], run.z[:3])
     assert short.samples == 3  # stored; one more independent sample makes it solvable
+    with pytest.raises(vehid.VehidError, match="lacks excitation"):
+        short.theta
     short.update(run.r[3], run.z[3])
     assert np.allclose(short.theta, theta, rtol=1e-9)
 

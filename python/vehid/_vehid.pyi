@@ -16,6 +16,7 @@ __all__ = [
     "HalfCar",
     "Simulator",
     "Run",
+    "Identifier",
     "KalmanIdentifier",
     "StochasticGradient",
     "BatchLeastSquares",
@@ -185,8 +186,27 @@ class Simulator:
 _Mode = Literal["rows", "shared", "full"]
 _Gain = Literal["venter", "lyapunov", "ljung"]
 
+@disjoint_base
+class Identifier:
+    """The base class of every identifier: samples in, estimates out (not constructed directly)."""
+
+    def update(self, r_k: ArrayLike, z_k: ArrayLike, u_k: Optional[ArrayLike] = None) -> NDArray[np.float64]: ...
+    def fit(
+        self, r: ArrayLike, z: ArrayLike, u: Optional[ArrayLike] = None, record_every: int = 0
+    ) -> NDArray[np.float64]: ...
+    @property
+    def theta(self) -> NDArray[np.float64]: ...
+    @property
+    def params(self) -> NDArray[np.float64]: ...
+    @property
+    def a_hat(self) -> NDArray[np.float64]: ...
+    @property
+    def samples(self) -> int: ...
+    @property
+    def unknown_rows(self) -> list[int]: ...
+
 @final
-class KalmanIdentifier:
+class KalmanIdentifier(Identifier):
     """The Kalman-filter identifier (Eq 4.3–4.7): recursive weighted least squares."""
 
     def __new__(
@@ -198,16 +218,10 @@ class KalmanIdentifier:
         road_sigma: Optional[_Floats] = None,
         deriv_noise: Optional[_Floats] = None,
         reinit: bool = False,
-        mode: _Mode = "rows",
+        mode: str = "rows",
         joseph: bool = False,
         retire_below: float = 0.0,
     ) -> KalmanIdentifier: ...
-    def update(self, r_k: ArrayLike, z_k: ArrayLike) -> NDArray[np.float64]: ...
-    def fit(self, r: ArrayLike, z: ArrayLike, record_every: int = 0) -> NDArray[np.float64]: ...
-    @property
-    def theta(self) -> NDArray[np.float64]: ...
-    @property
-    def a_hat(self) -> NDArray[np.float64]: ...
     @property
     def covariance(self) -> NDArray[np.float64]: ...
     @property
@@ -217,20 +231,16 @@ class KalmanIdentifier:
     @property
     def reinit_count(self) -> int: ...
     @property
-    def samples(self) -> int: ...
-    @property
-    def unknown_rows(self) -> list[int]: ...
-    @property
     def mode(self) -> _Mode: ...
 
 @final
-class StochasticGradient:
+class StochasticGradient(Identifier):
     """The stochastic-gradient identifier (Eq 2.56, 5.2–5.18)."""
 
     def __new__(
         cls,
         model: LinearModel,
-        gain: _Gain = "venter",
+        gain: str = "venter",
         h: Optional[_Floats] = None,
         p: float = 0.51,
         *,
@@ -239,37 +249,17 @@ class StochasticGradient:
         lambda0: float = 0.99,
         lambda_init: float = 0.95,
     ) -> StochasticGradient: ...
-    def update(self, r_k: ArrayLike, z_k: ArrayLike) -> NDArray[np.float64]: ...
-    def fit(self, r: ArrayLike, z: ArrayLike, record_every: int = 0) -> NDArray[np.float64]: ...
-    @property
-    def theta(self) -> NDArray[np.float64]: ...
-    @property
-    def a_hat(self) -> NDArray[np.float64]: ...
-    @property
-    def samples(self) -> int: ...
     @property
     def gain(self) -> _Gain: ...
-    @property
-    def unknown_rows(self) -> list[int]: ...
 
 @final
-class BatchLeastSquares:
+class BatchLeastSquares(Identifier):
     """Batch least squares (Eq 2.14) by column-pivoted QR over stored samples."""
 
     def __new__(cls, model: LinearModel) -> BatchLeastSquares: ...
-    def update(self, r_k: ArrayLike, z_k: ArrayLike) -> None: ...
-    def fit(self, r: ArrayLike, z: ArrayLike) -> NDArray[np.float64]: ...
-    @property
-    def theta(self) -> NDArray[np.float64]: ...
-    @property
-    def a_hat(self) -> NDArray[np.float64]: ...
-    @property
-    def samples(self) -> int: ...
     @property
     def storage_bytes(self) -> int: ...
     def clear(self) -> None: ...
-    @property
-    def unknown_rows(self) -> list[int]: ...
 
 def xi(theta: ArrayLike, theta_hat: ArrayLike) -> float: ...
 @overload
@@ -281,14 +271,14 @@ _WheelMethod = Literal["none", "thesis", "cancel"]
 _Trigger = Tuple[int, int, float, Optional[Tuple[int, int, float]]]
 
 @final
-class TwoAxleIdentifier:
+class TwoAxleIdentifier(Identifier):
     """Half car on one road (Ch. VI.D): plain rows, Eq 6.14, or road cancellation."""
 
     def __new__(
         cls,
         model: LinearModel,
         spacing: float = 0.3,
-        method: _WheelMethod = "cancel",
+        method: str = "cancel",
         p0: float = 1000.0,
         road_sigma: float = 0.1,
         deriv_noise: float = 0.005,
@@ -297,12 +287,6 @@ class TwoAxleIdentifier:
         wheelbase: Optional[float] = None,
         direct_front: bool = True,
     ) -> TwoAxleIdentifier: ...
-    def update(self, r_k: ArrayLike, z_k: ArrayLike) -> NDArray[np.float64]: ...
-    def fit(self, r: ArrayLike, z: ArrayLike) -> None: ...
-    @property
-    def theta(self) -> NDArray[np.float64]: ...
-    @property
-    def a_hat(self) -> NDArray[np.float64]: ...
     @property
     def method(self) -> _WheelMethod: ...
     @property
@@ -313,8 +297,6 @@ class TwoAxleIdentifier:
     def wheelbase(self) -> float: ...
     @property
     def wheel_variances(self) -> Tuple[float, float, float]: ...
-    @property
-    def samples(self) -> int: ...
     @property
     def paired(self) -> int: ...
     @property

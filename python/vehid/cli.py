@@ -413,9 +413,8 @@ def cmd_identify(args: argparse.Namespace) -> int:
             f"needs at least {n} (one per state), and many more for a useful estimate"
         )
     if isinstance(ident, BatchLeastSquares):
-        theta = ident.fit(np.concatenate([b[0] for b in batches]), np.concatenate([b[1] for b in batches]))
-    else:
-        theta = ident.theta
+        ident.fit(np.concatenate([b[0] for b in batches]), np.concatenate([b[1] for b in batches]))
+    theta = ident.theta
     known = known_masses(args)
     physical: Optional[Dict[str, float]] = None
     physical_error: Optional[str] = None

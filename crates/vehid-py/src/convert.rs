@@ -4,7 +4,10 @@
 //! `VehidError` that names the argument.
 
 use crate::VehidError;
-use numpy::{AllowTypeChange, PyArrayLikeDyn, PyUntypedArrayMethods};
+use numpy::{
+    AllowTypeChange, PyArray2, PyArrayDescrMethods, PyArrayLikeDyn, PyArrayMethods, PyReadonlyArray2,
+    PyUntypedArrayMethods,
+};
 use pyo3::prelude::*;
 
 /// A float64 array copied out of Python, row-major (C order) whatever its strides were.
@@ -21,8 +24,28 @@ pub fn shape_str(shape: &[usize]) -> String {
     }
 }
 
+/// Refuses complex input (NumPy would silently drop the imaginary part).
+fn not_complex(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<()> {
+    let complex = if let Ok(a) = obj.cast::<numpy::PyUntypedArray>() {
+        a.dtype().kind() == b'c'
+    } else {
+        obj.is_instance_of::<pyo3::types::PyComplex>()
+            || obj.cast::<pyo3::types::PySequence>().is_ok_and(|s| {
+                s.try_iter()
+                    .is_ok_and(|mut it| it.any(|v| v.is_ok_and(|v| v.is_instance_of::<pyo3::types::PyComplex>())))
+            })
+    };
+    if complex {
+        return Err(VehidError::new_err(format!(
+            "`{arg}` holds complex numbers: pass real values (e.g. `x.real`, if the imaginary part is negligible)"
+        )));
+    }
+    Ok(())
+}
+
 /// Converts any array-like to float64, copying it in row-major order.
 pub fn array(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Array> {
+    not_complex(obj, arg)?;
     let arr: PyArrayLikeDyn<'_, f64, AllowTypeChange> = obj
         .extract()
         .map_err(|e: PyErr| VehidError::new_err(format!("`{arg}` must be a float array or convertible to one: {e}")))?;
@@ -90,4 +113,51 @@ pub fn uint(v: i128, arg: &str) -> PyResult<u64> {
 /// A non-negative integer that fits a `usize`.
 pub fn size(v: i128, arg: &str) -> PyResult<usize> {
     usize::try_from(v).map_err(|_| VehidError::new_err(format!("`{arg}` must be a non-negative integer, got {v}")))
+}
+
+/// A 2-D float64 table of samples (`rows × cols`, row-major): read in place when the input
+/// already is a C-contiguous float64 array (no copy, whatever its size), converted once
+/// otherwise (ints, lists, strided views, Fortran order).
+pub struct Table<'py> {
+    borrowed: Option<PyReadonlyArray2<'py, f64>>,
+    owned: Vec<f64>,
+    /// Number of rows (samples).
+    pub rows: usize,
+}
+
+impl<'py> Table<'py> {
+    /// Reads `obj` as a `(rows, cols)` table; `rows` is checked when given. `what` describes
+    /// the table in the shape error.
+    pub fn new(obj: &Bound<'py, PyAny>, arg: &str, rows: Option<usize>, cols: usize, what: &str) -> PyResult<Self> {
+        let shape_err = |got: &[usize]| {
+            let want = match rows {
+                Some(r) => format!("({r}, {cols})"),
+                None => format!("(samples, {cols})"),
+            };
+            VehidError::new_err(format!("`{arg}` must have shape {want} ({what}), got {}", shape_str(got)))
+        };
+        if let Ok(a) = obj.cast::<PyArray2<f64>>() {
+            let ro = a.try_readonly().map_err(|e| VehidError::new_err(format!("`{arg}` cannot be read: {e}")))?;
+            let shape = ro.shape().to_vec();
+            if shape[1] != cols || rows.is_some_and(|r| r != shape[0]) {
+                return Err(shape_err(&shape));
+            }
+            if ro.is_c_contiguous() && ro.as_slice().is_ok() {
+                return Ok(Self { rows: shape[0], borrowed: Some(ro), owned: Vec::new() });
+            }
+        }
+        let a = array(obj, arg)?;
+        if a.shape.len() != 2 || a.shape[1] != cols || rows.is_some_and(|r| r != a.shape[0]) {
+            return Err(shape_err(&a.shape));
+        }
+        Ok(Self { rows: a.shape[0], borrowed: None, owned: a.data })
+    }
+
+    /// The values, row-major.
+    pub fn data(&self) -> &[f64] {
+        match &self.borrowed {
+            Some(a) => a.as_slice().unwrap_or(&[]),
+            None => &self.owned,
+        }
+    }
 }

@@ -13,7 +13,7 @@ use numpy::Complex64;
 use vehid_core::analysis::{discrete_stationary_cov, output_std};
 use vehid_core::model::LinearModel;
 use vehid_core::nalgebra::SMatrix;
-use vehid_core::sim::{per_component, Method, Pulse, Run, SimConfig, Simulator};
+use vehid_core::sim::{Method, Pulse, Run, SimConfig, SimSettings, Simulator};
 use vehid_core::{Error, Result};
 
 /// Largest number of states and inputs a Python model may have.
@@ -227,41 +227,65 @@ pub struct SimParams {
     pub deriv_noise: Vec<f64>,
     pub substeps: Option<usize>,
     pub method: Method,
-    pub pulses: Vec<(u64, u64, f64)>,
+    pub pulses: Vec<Pulse<f64>>,
     pub instrumentation: bool,
     pub seed: u64,
 }
 
-/// The output arrays would not fit in memory (or their size overflows).
-#[derive(Debug)]
-pub struct TooLarge;
+impl SimParams {
+    /// The core's run-time settings.
+    pub fn settings(&self) -> SimSettings<'_, f64> {
+        SimSettings {
+            dt: self.dt,
+            road_sigma: &self.road_sigma,
+            ic_sigma: self.ic_sigma,
+            state_noise: &self.state_noise,
+            deriv_noise: &self.deriv_noise,
+            substeps: self.substeps,
+            method: self.method,
+            instrumentation: self.instrumentation,
+            pulses: &self.pulses,
+        }
+    }
+}
 
 /// A simulator of any size, behind one object-safe interface.
 pub trait SimDyn: Send + Sync {
     /// Runs `n` more samples (the stream continues from the previous call).
-    fn run(&mut self, n: usize) -> core::result::Result<Run<f64>, TooLarge>;
+    ///
+    /// # Errors
+    /// [`Error::OutOfMemory`] when the output does not fit; the simulator's own errors.
+    fn run(&mut self, n: usize) -> Result<Run<f64>>;
     /// RK4 sub-steps per sample (0 for the exact method).
     fn substeps(&self) -> usize;
     /// Samples produced so far (index of the next sample).
     fn samples(&self) -> u64;
 }
 
-fn reserve(v: &mut Vec<f64>, n: usize, width: usize) -> core::result::Result<(), TooLarge> {
-    let len = n.checked_mul(width).ok_or(TooLarge)?;
-    len.checked_mul(core::mem::size_of::<f64>()).filter(|b| *b <= isize::MAX as usize).ok_or(TooLarge)?;
-    v.try_reserve_exact(len).map_err(|_| TooLarge)
+/// An empty run with room for `n` samples, reserved fallibly (a size that cannot be
+/// allocated is an error, not an abort).
+pub fn reserve_run(n: usize, states: usize, inputs: usize, distance: bool) -> Result<Run<f64>> {
+    let mut out = Run::<f64> { n_states: states, n_inputs: inputs, ..Run::default() };
+    let bytes = n.checked_mul(1 + 4 * states + inputs + usize::from(distance)).and_then(|v| v.checked_mul(8));
+    let oom = Error::OutOfMemory { what: "the simulated run", bytes: bytes.unwrap_or(usize::MAX) };
+    if bytes.is_none_or(|b| b > isize::MAX as usize) {
+        return Err(oom);
+    }
+    let reserve = |v: &mut Vec<f64>, width: usize| v.try_reserve_exact(n * width).map_err(|_| oom.clone());
+    reserve(&mut out.t, 1)?;
+    for v in [&mut out.x, &mut out.xdot, &mut out.r, &mut out.z] {
+        reserve(v, states)?;
+    }
+    reserve(&mut out.u, inputs)?;
+    if distance {
+        reserve(&mut out.s, 1)?;
+    }
+    Ok(out)
 }
 
 impl<const N: usize, const M: usize> SimDyn for Simulator<f64, N, M> {
-    fn run(&mut self, n: usize) -> core::result::Result<Run<f64>, TooLarge> {
-        // The core's `Run::with_capacity` would abort on an impossible size; reserve
-        // fallibly instead and fill with the core's own `Run::push`.
-        let mut out = Run::<f64> { n_states: N, n_inputs: M, ..Run::default() };
-        reserve(&mut out.t, n, 1)?;
-        for v in [&mut out.x, &mut out.xdot, &mut out.r, &mut out.z] {
-            reserve(v, n, N)?;
-        }
-        reserve(&mut out.u, n, M)?;
+    fn run(&mut self, n: usize) -> Result<Run<f64>> {
+        let mut out = reserve_run(n, N, M, false)?;
         self.run_with(n, |s| out.push(s));
         Ok(out)
     }
@@ -277,17 +301,6 @@ impl<const N: usize, const M: usize> SimDyn for Simulator<f64, N, M> {
 
 /// Builds a simulator through the core's validation.
 pub fn simulator_nm<const N: usize, const M: usize>(d: &ModelData, p: &SimParams) -> Result<Box<dyn SimDyn>> {
-    let model = d.model::<N, M>()?;
-    let mut cfg = SimConfig::<f64, N, M>::new(p.dt);
-    cfg.road_sigma = per_component("road_sigma", &p.road_sigma)?;
-    cfg.ic_sigma = p.ic_sigma;
-    cfg.state_noise = per_component("state_noise", &p.state_noise)?;
-    cfg.deriv_noise = per_component("deriv_noise", &p.deriv_noise)?;
-    cfg.substeps = p.substeps;
-    cfg.method = p.method;
-    cfg.instrumentation = p.instrumentation;
-    for &(start, width, amplitude) in &p.pulses {
-        cfg = cfg.with_pulse(Pulse { start, width, amplitude })?;
-    }
-    Ok(Box::new(Simulator::new(model, cfg, p.seed)?))
+    let cfg = SimConfig::<f64, N, M>::from_settings(&p.settings())?;
+    Ok(Box::new(Simulator::new(d.model::<N, M>()?, cfg, p.seed)?))
 }

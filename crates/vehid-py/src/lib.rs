@@ -6,7 +6,6 @@
 //! run time reach the const-generic core through the dispatch tables in [`dispatch`].
 
 use pyo3::prelude::*;
-use vehid_core::sim::Method;
 
 mod convert;
 mod dispatch;
@@ -30,20 +29,10 @@ pub(crate) fn core_err(e: vehid_core::Error) -> PyErr {
     VehidError::new_err(e.to_string())
 }
 
-/// Parses a `method=` string.
-pub(crate) fn method_arg(method: &str) -> PyResult<Method> {
-    match method {
-        "rk4" => Ok(Method::Rk4),
-        "exact" => Ok(Method::Exact),
-        other => Err(VehidError::new_err(format!("unknown `method` {other:?}: expected one of \"rk4\", \"exact\""))),
-    }
-}
-
-pub(crate) fn method_name(m: Method) -> &'static str {
-    match m {
-        Method::Rk4 => "rk4",
-        Method::Exact => "exact",
-    }
+/// Parses an option string (`mode=`, `method=`, `gain=`, …) with the core's `FromStr`: the
+/// message names the argument, lists the choices and repeats what was given.
+pub(crate) fn option<T: core::str::FromStr<Err = vehid_core::Error>>(value: &str) -> PyResult<T> {
+    value.parse::<T>().map_err(|e| VehidError::new_err(format!("{e} (got {value:?})")))
 }
 
 /// Eq 3.17 / 6.10: ξ = Σ ((θ − θ̂)/θ)² over the entries whose true value is non-zero.
@@ -113,6 +102,7 @@ fn _vehid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<model::PyHalfCar>()?;
     m.add_class::<sim::PySimulator>()?;
     m.add_class::<sim::PyRun>()?;
+    m.add_class::<identify::PyIdentifier>()?;
     m.add_class::<identify::PyKalmanIdentifier>()?;
     m.add_class::<identify::PyStochasticGradient>()?;
     m.add_class::<identify::PyBatchLeastSquares>()?;

@@ -5,7 +5,7 @@ use crate::dispatch::{
     a_hat_n, dispatch_n, dispatch_nm, new_model, output_std_nm, poles_n, row_noise_var_nm, sampled_cov_nm, theta_n,
     ModelData, MAX_INPUTS, MAX_STATES,
 };
-use crate::{core_err, method_arg, VehidError};
+use crate::{core_err, option, VehidError};
 use numpy::ndarray::Array2;
 use numpy::{Complex64, IntoPyArray, PyArray1, PyArray2};
 use pyo3::exceptions::PyTypeError;
@@ -85,7 +85,7 @@ impl PyLinearModel {
         substeps: Option<i128>,
     ) -> PyResult<Vec<f64>> {
         let road = values(road_sigma, "road_sigma", 0.1)?;
-        let method = method_arg(method)?;
+        let method: vehid_core::sim::Method = option(method)?;
         let substeps = substeps.map(|s| size(s, "substeps")).transpose()?;
         let d = &self.data;
         py.detach(|| dispatch_nm!(d.n, d.m, sampled_cov_nm(d, &road, dt, method, substeps))).map_err(core_err)

@@ -1,13 +1,109 @@
 //! `Simulator` and `Run`.
 
-use crate::convert::{size, uint, values};
-use crate::dispatch::{dispatch_nm, simulator_nm, SimDyn, SimParams};
+use crate::convert::{array, shape_str, size, uint, values};
+use crate::dispatch::{dispatch_nm, reserve_run, simulator_nm, SimDyn, SimParams};
+use crate::identify::raise;
 use crate::model::{to_array2, PyLinearModel};
-use crate::{core_err, method_arg, method_name};
+use crate::two_axle::{half_dims, wheelbase_of};
+use crate::{core_err, option, VehidError};
 use numpy::{IntoPyArray, PyArray1, PyArray2};
-use pyo3::exceptions::PyMemoryError;
 use pyo3::prelude::*;
-use vehid_core::sim::Method;
+use vehid_core::sim::{Method, Pulse, RoadConfig, RoadMode, RoadSimulator, Run, SimConfig, SpeedProfile};
+use vehid_core::Result;
+
+/// Road memory of the Python road simulator, in road points per wheelbase (+2).
+pub const ROAD_CELLS: usize = 4096;
+
+/// `Simulator(..., speed=, spacing=, road=)`: a [`RoadSimulator`] of the half car with its
+/// speed profile (a constant, or one entry per sample with stops; the core runs it).
+pub struct RoadSim {
+    sim: RoadSimulator<f64, 8, ROAD_CELLS>,
+    /// Per-sample speeds, m/s (empty: the constant `speed`).
+    speeds: Vec<f64>,
+    speed: f64,
+    /// The first unused entry of `speeds`.
+    next: usize,
+    /// Length of a stop (a zero entry), s.
+    stop: f64,
+}
+
+impl SimDyn for RoadSim {
+    fn run(&mut self, n: usize) -> Result<Run<f64>> {
+        let mut profile = if self.speeds.is_empty() {
+            SpeedProfile::Constant(self.speed)
+        } else {
+            SpeedProfile::PerSample { speeds: &self.speeds, next: self.next, stop: self.stop }
+        };
+        // Check before reserving: a profile that cannot produce `n` samples is an error.
+        profile.validate()?;
+        if let Some(left) = profile.samples_left() {
+            if n > left {
+                return Err(vehid_core::Error::InvalidArgument {
+                    arg: "n",
+                    expected: "at most as many samples as the `speed` profile has non-zero entries left",
+                });
+            }
+        }
+        let mut out = reserve_run(n, 8, 2, true)?;
+        self.sim.run_profile(n, &mut profile, |s| out.push_road(s))?;
+        if let SpeedProfile::PerSample { next, .. } = profile {
+            self.next = next;
+        }
+        Ok(out)
+    }
+
+    fn substeps(&self) -> usize {
+        0
+    }
+
+    fn samples(&self) -> u64 {
+        self.sim.k()
+    }
+}
+
+/// Builds the road simulator for `Simulator(model, speed=..., spacing=..., road=...)`.
+fn road_simulator(
+    model: &PyLinearModel,
+    p: &SimParams,
+    speed: Option<&Bound<'_, PyAny>>,
+    spacing: f64,
+    road: RoadMode,
+) -> PyResult<RoadSim> {
+    half_dims(&model.data, "speed=/spacing=/road= (two axles on one road)")?;
+    if !p.pulses.is_empty() {
+        return Err(VehidError::new_err(
+            "`pulses` are not supported with speed=/spacing=/road= (samples are by distance)",
+        ));
+    }
+    let (speed, speeds) = match speed {
+        None => (6.0, vec![]),
+        Some(obj) => {
+            let a = array(obj, "speed")?;
+            match a.shape[..] {
+                [] => (a.data[0], vec![]),
+                [_] => (0.0, a.data),
+                _ => {
+                    return Err(VehidError::new_err(format!(
+                        "`speed` must be a scalar or a 1-D array (one speed per sample), got shape {}",
+                        shape_str(&a.shape)
+                    )))
+                }
+            }
+        }
+    };
+    let profile = if speeds.is_empty() {
+        SpeedProfile::Constant(speed)
+    } else {
+        SpeedProfile::PerSample { speeds: &speeds, next: 0, stop: p.dt }
+    };
+    profile.validate().map_err(core_err)?;
+    let wheelbase = wheelbase_of(model, None)?;
+    let build = || -> Result<RoadSimulator<f64, 8, ROAD_CELLS>> {
+        let cfg = SimConfig::<f64, 8, 2>::from_settings(&p.settings())?;
+        RoadSimulator::new(model.data.model::<8, 2>()?, cfg, RoadConfig::new(spacing, wheelbase).mode(road), p.seed)
+    };
+    Ok(RoadSim { sim: build().map_err(core_err)?, speeds, speed, next: 0, stop: p.dt })
+}
 
 /// One stretch of a simulation: every field is a float64 array with the sample index first.
 #[pyclass(name = "Run", module = "vehid._vehid", frozen)]
@@ -79,8 +175,7 @@ impl PyRun {
 #[pyclass(name = "Simulator", module = "vehid._vehid")]
 pub struct PySimulator {
     inner: Box<dyn SimDyn>,
-    road: Option<(f64, &'static str)>,
-    left: Option<usize>,
+    road: Option<(f64, RoadMode)>,
     model: Py<PyLinearModel>,
     dt: f64,
     seed: u64,
@@ -122,38 +217,26 @@ impl PySimulator {
             state_noise: values(state_noise, "state_noise", 0.0)?,
             deriv_noise: values(deriv_noise, "deriv_noise", 0.005)?,
             substeps: substeps.map(|s| size(s, "substeps")).transpose()?,
-            method: method_arg(method)?,
+            method: option(method)?,
             pulses: pulses
                 .unwrap_or_default()
                 .into_iter()
-                .map(|(s, w, a)| Ok((uint(s, "pulses")?, uint(w, "pulses")?, a)))
+                .map(|(s, w, a)| Ok(Pulse { start: uint(s, "pulses")?, width: uint(w, "pulses")?, amplitude: a }))
                 .collect::<PyResult<_>>()?,
             instrumentation,
             seed: uint(seed, "seed")?,
         };
         let d = &model.get().data;
-        if speed.is_some() || spacing.is_some() || road.is_some() {
-            let (spacing, road) = (spacing.unwrap_or(0.3), road.unwrap_or("white"));
-            let rs = crate::two_axle::road_simulator(model.get(), &p, speed, spacing, road)?;
-            let road_name = if road == "white" { "white" } else { "independent" };
-            return Ok(Self {
-                left: rs.samples_left(),
-                inner: Box::new(rs),
-                road: Some((spacing, road_name)),
-                dt: p.dt,
-                seed: p.seed,
-                method: p.method,
-                n_states: d.n,
-                n_inputs: d.m,
-                model: model.unbind(),
-            });
-        }
-        // Discretizing can take a while (explicit `substeps` are not capped): GIL released.
-        let inner = model.py().detach(|| dispatch_nm!(d.n, d.m, simulator_nm(d, &p))).map_err(core_err)?;
+        let (inner, road): (Box<dyn SimDyn>, _) = if speed.is_some() || spacing.is_some() || road.is_some() {
+            let (spacing, road) = (spacing.unwrap_or(0.3), option::<RoadMode>(road.unwrap_or("white"))?);
+            (Box::new(road_simulator(model.get(), &p, speed, spacing, road)?), Some((spacing, road)))
+        } else {
+            // Discretizing can take a while (explicit `substeps` are not capped): GIL released.
+            (model.py().detach(|| dispatch_nm!(d.n, d.m, simulator_nm(d, &p))).map_err(core_err)?, None)
+        };
         Ok(Self {
-            road: None,
-            left: None,
             inner,
+            road,
             dt,
             seed: p.seed,
             method: p.method,
@@ -164,20 +247,12 @@ impl PySimulator {
     }
 
     /// Simulates `n` more samples (the GIL is released meanwhile) and returns them as a Run.
+    /// A run too large for memory raises MemoryError; a speed profile with fewer than `n`
+    /// samples left raises VehidError (nothing is simulated then).
     fn run(&mut self, py: Python<'_>, n: i128) -> PyResult<PyRun> {
         let n = size(n, "n")?;
-        if let Some(left) = self.left {
-            if n > left {
-                return Err(crate::VehidError::new_err(format!(
-                    "run({n}) needs {n} more samples but the `speed` profile has only {left} non-zero entries left"
-                )));
-            }
-            self.left = Some(left - n);
-        }
         let inner = &mut self.inner;
-        let run = py
-            .detach(|| inner.run(n))
-            .map_err(|_| PyMemoryError::new_err(format!("run({n}) needs more memory than can be allocated")))?;
+        let run = py.detach(|| inner.run(n)).map_err(raise)?;
         let (len, ns, ni) = (run.len(), run.n_states, run.n_inputs);
         let s = self.road.is_some().then(|| run.s.into_pyarray(py).unbind());
         Ok(PyRun {
@@ -215,7 +290,7 @@ impl PySimulator {
     /// "white" or "independent" for a road simulation, else None.
     #[getter]
     fn road(&self) -> Option<&'static str> {
-        self.road.map(|r| r.1)
+        self.road.map(|r| r.1.as_str())
     }
 
     /// The seed.
@@ -227,7 +302,7 @@ impl PySimulator {
     /// "rk4" or "exact".
     #[getter]
     fn method(&self) -> &'static str {
-        method_name(self.method)
+        self.method.as_str()
     }
 
     /// The model simulated.
@@ -259,7 +334,7 @@ impl PySimulator {
         Ok(format!(
             "Simulator({model}, dt={:?}, method='{}', substeps={}, seed={}, samples={})",
             self.dt,
-            method_name(self.method),
+            self.method.as_str(),
             self.inner.substeps(),
             self.seed,
             self.inner.samples()

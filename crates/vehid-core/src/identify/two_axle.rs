@@ -50,6 +50,8 @@ pub enum WheelMethod {
     Cancel,
 }
 
+option_names!(WheelMethod, "method", { None => "none", Thesis => "thesis", Cancel => "cancel" });
+
 /// Settings of a [`TwoAxle`] identifier: method, prior and noise levels (each equation's
 /// variance is derived from the noise levels).
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -1,9 +1,9 @@
 //! Tests of the simulators.
 
 use super::*;
+use crate::model::{HalfCar, QuarterCar};
 use crate::Error;
 use nalgebra::SVector;
-use crate::model::{HalfCar, QuarterCar};
 
 fn quarter_sim(seed: u64, cfg: SimConfig<f64, 4, 1>) -> Simulator<f64, 4, 1> {
     Simulator::new(QuarterCar::thesis().model(), cfg, seed).unwrap()
