@@ -8,6 +8,8 @@
 #                 identify`, which must report xi (slow: a full release build; not in `test`)
 #   make bench-python   Python-level overhead of KalmanIdentifier.update()/fit() against the
 #                 budgets (RUST_NS=<ns per sample from `cargo bench`> to compare with a measured figure)
+#   make bench-fit      Python fit() against the Rust update (fixed and heap forms) on the same data,
+#                 in one run, with the ratio (budget 1.25x)
 #   make bench-peers    the same quarter-car data, then half-car data, through filterpy, padasip,
 #                 statsmodels, numpy (RLS loop, lstsq), vehid (update/fit) and a plain C loop
 #                 (benches/peers/rls.c): agreement of θ first, then ns/sample and ratios; the peers live in their own
@@ -25,7 +27,7 @@ VENV   := .venv
 VBIN   := $(VENV)/bin
 CARGO  ?= cargo
 
-.PHONY: venv develop demo test test-rust test-python install-check bench-python bench-peers bench-budgets bench-check bench-check-update clean
+.PHONY: venv develop demo test test-rust test-python install-check bench-python bench-fit bench-peers bench-budgets bench-check bench-check-update clean
 
 venv: $(VENV)/.installed
 
@@ -72,6 +74,11 @@ install-check:
 	echo "$$out"; \
 	case "$$out" in *"xi (Eq 3.17"*) echo "install-check: ok";; \
 	  *) echo "install-check: FAILED: no xi in the output of vehid identify" >&2; exit 1;; esac
+
+# Python fit() against the Rust update on the same data, in one run (issue 11: <= 1.25x).
+bench-fit: develop
+	$(CARGO) build -q --release -p vehid-benches --bin time_updates
+	$(VBIN)/python benches/python/fit_vs_rust.py
 
 RUST_NS ?=
 bench-python: develop

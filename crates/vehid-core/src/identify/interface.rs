@@ -432,22 +432,34 @@ where
                 bytes: need.saturating_mul(core::mem::size_of::<T>()),
             },
         })?;
+        // Countdowns, not `k % every`: a division per sample would cost more than the
+        // bookkeeping it guards.
         let check = opts.check_every;
-        let res = self.fit(data, |k, id, _| {
-            let done = k + 1;
-            if every > 0 && done % every == 0 {
-                let at = history.len();
-                history.resize(at + params, T::zero());
-                match id.params_into(&mut history[at..]) {
-                    Ok(()) => {}
-                    // Not identified yet (too few samples): recorded as NaN, as the estimate
-                    // does not exist.
-                    Err(Error::RankDeficient { .. }) => history[at..].fill(T::of(f64::NAN)),
-                    Err(e) => return ControlFlow::Break(e),
+        let (mut to_record, mut to_check) = (every, check);
+        let res = self.fit(data, |_, id, _| {
+            if every > 0 {
+                to_record -= 1;
+                if to_record == 0 {
+                    to_record = every;
+                    let at = history.len();
+                    history.resize(at + params, T::zero());
+                    match id.params_into(&mut history[at..]) {
+                        Ok(()) => {}
+                        // Not identified yet (too few samples): recorded as NaN, as the
+                        // estimate does not exist.
+                        Err(Error::RankDeficient { .. }) => history[at..].fill(T::of(f64::NAN)),
+                        Err(e) => return ControlFlow::Break(e),
+                    }
                 }
             }
-            if check > 0 && done % check == 0 && interrupt() {
-                return ControlFlow::Break(Error::Interrupted);
+            if check > 0 {
+                to_check -= 1;
+                if to_check == 0 {
+                    to_check = check;
+                    if interrupt() {
+                        return ControlFlow::Break(Error::Interrupted);
+                    }
+                }
             }
             ControlFlow::Continue(())
         });

@@ -1,0 +1,82 @@
+"""Python ``fit()`` against the Rust update, per sample, measured in one run (issue 11).
+
+For the quarter car and the half car (thesis values, decoupled Kalman rows, p0 = 1000, R
+from road σ 0.1 and derivative noise 0.005) on the same seeded data (dt 0.05 s, road σ 0.1,
+initial σ 0.1, seed 1), prints ns per sample of
+
+* ``rust fixed``: ``KalmanIdentifier<f64, N, K>::update``, the allocation-free form a Rust
+  user calls (``benches/src/bin/time_updates.rs``);
+* ``rust heap fit``: the heap form Python holds, through ``DynIdentifier::fit_dyn``;
+* ``python fit``: ``vehid.KalmanIdentifier(...).fit(run.r, run.z)``;
+
+and the ratio python / rust fixed (the budget: ≤ 1.25×). Best of ``--repeats`` passes each;
+the Rust and Python passes are interleaved so that a slow spell of the machine hits both.
+
+Run: ``make bench-fit`` (builds the release binary first) or
+``.venv/bin/python benches/python/fit_vs_rust.py [--n 1000000] [--repeats 7]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Dict, List
+
+import numpy as np
+
+import vehid
+
+ROOT = Path(__file__).resolve().parents[2]
+BUDGET = 1.25
+
+
+def rust(model: str, n: int, repeats: int, binary: Path) -> Dict[str, float]:
+    out = subprocess.run([str(binary), model, str(n), str(repeats)], capture_output=True, text=True, check=True)
+    return {line.split()[0]: float(line.split()[1]) for line in out.stdout.splitlines() if line.strip()}
+
+
+def python_fit(car: vehid.LinearModel, n: int, repeats: int) -> float:
+    run = vehid.Simulator(car, dt=0.05, road_sigma=0.1, ic_sigma=0.1, deriv_noise=0.005, seed=1).run(n)
+    r, z = np.ascontiguousarray(run.r), np.ascontiguousarray(run.z)
+    best = float("inf")
+    for _ in range(repeats):
+        kf = vehid.KalmanIdentifier(car, p0=1000.0, road_sigma=0.1, deriv_noise=0.005)
+        t0 = time.perf_counter()
+        kf.fit(r, z)
+        best = min(best, (time.perf_counter() - t0) * 1e9 / n)
+    return best
+
+
+def main(argv: List[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--n", type=int, default=1_000_000, help="samples (default 1000000)")
+    parser.add_argument("--repeats", type=int, default=7, help="passes per measurement; best kept (default 7)")
+    parser.add_argument("--rounds", type=int, default=3, help="interleaved Rust/Python rounds (default 3)")
+    parser.add_argument("--binary", type=Path, default=ROOT / "target" / "release" / "time_updates")
+    args = parser.parse_args(argv)
+    if not args.binary.exists():
+        print(f"fit_vs_rust: {args.binary} is missing: run `cargo build --release -p vehid-benches "
+              "--bin time_updates` (make bench-fit does)", file=sys.stderr)
+        return 2
+    worst = 0.0
+    print(f"ns per sample, best of {args.repeats} passes x {args.rounds} interleaved rounds, {args.n} samples")
+    print(f"{'model':8} {'rust fixed':>11} {'rust heap fit':>14} {'python fit':>11} {'python/fixed':>13}")
+    for name, car in (("quarter", vehid.QuarterCar()), ("half", vehid.HalfCar())):
+        fixed = heap = py = float("inf")
+        for _ in range(args.rounds):
+            r = rust(name, args.n, args.repeats, args.binary)
+            fixed, heap = min(fixed, r["fixed"]), min(heap, r["heap"])
+            py = min(py, python_fit(car, args.n, args.repeats))
+        ratio = py / fixed
+        worst = max(worst, ratio)
+        print(f"{name:8} {fixed:11.1f} {heap:14.1f} {py:11.1f} {ratio:12.2f}x")
+    verdict = "ok" if worst <= BUDGET else "OVER BUDGET"
+    print(f"budget: python fit within {BUDGET}x of the Rust update: {verdict} (worst {worst:.2f}x)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
