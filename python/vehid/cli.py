@@ -310,14 +310,20 @@ def resolve_layout(
     missing = [c for c in need if c not in index]
     if missing:
         if len(table.names) == 1 and table.kind == "csv":
-            raise CliError(f"{table.source}: the header is one column {table.names[0]!r}: is the file separated by "
-                           "a character other than , ; tab | or spaces? Pass it with --delimiter")
+            header = table.names[0]
+            shown = header if len(header) <= 40 else header[:37] + "..."
+            marks = [c for c in set(header) if not c.isalnum() and c not in "_.-+ \"'[]()"]
+            hint = ""
+            if marks:
+                mark = max(sorted(marks), key=header.count)
+                hint = f"; it seems separated by {mark!r} (--delimiter '{mark}')"
+            raise CliError(f"{table.source}, line {table.header_line}: the header is one column "
+                           f"{shown!r}{hint or ': pass the delimiter with --delimiter'}")
         found_x = max((int(c[1:]) for c in index if re.fullmatch(r"x\d+", c)), default=0)
-        if 0 < found_x < n and all(f"x{i}" in index for i in range(1, found_x + 1)):
-            other = {4: "quarter", 8: "half"}.get(found_x)
-            hint = f": use --model {other}" if other else ""
+        other = {4: "quarter", 8: "half"}.get(found_x)
+        if other and found_x < n and all(f"x{i}" in index for i in range(1, found_x + 1)):
             raise CliError(f"{table.source} has {found_x} states (x1..x{found_x}) but the {MODEL_NAMES[name]} "
-                           f"has {n}{hint}")
+                           f"has {n}: use --model {other}")
         shown = ", ".join(cols[c].describe() for c in missing[:4]) + (", ..." if len(missing) > 4 else "")
         unused = [repr(table.names[i]) for i in match.unknown]
         extra = f"; columns not used: {', '.join(unused[:6])}{', ...' if len(unused) > 6 else ''}" if unused else ""

@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import csv
 import importlib
+import io as _stdio
 import os
 import re
 import stat
@@ -256,8 +257,10 @@ class Match:
 
 
 def _is_index_column(name: str) -> bool:
-    """pandas' ``to_csv()`` index: an empty name, or ``Unnamed: 0`` after a round trip."""
-    return name.strip().strip('"') == "" or re.fullmatch(r"unnamed:_?\d+", normalize(name)) is not None
+    """pandas' index: an empty name (``to_csv()``), ``Unnamed: 0`` (after a round trip),
+    ``__index_level_0__`` (``to_parquet()``)."""
+    index = re.fullmatch(r"unnamed:_?\d+|__index_level_\d+__", normalize(name))
+    return name.strip().strip('"') == "" or index is not None
 
 
 def match_columns(
@@ -335,6 +338,8 @@ class Table:
     _consumed: int = 0
     #: The word for a sample's place in messages: "line" (CSV) or "row" (Parquet).
     unit: str = "line"
+    #: The line of the header (after comment lines); 0 for Parquet.
+    header_line: int = 0
 
     @property
     def consumed(self) -> int:
@@ -378,7 +383,7 @@ def open_table(path: str, delimiter: Optional[str] = None, stdin: Optional[IO[An
     if path == "-":
         stream = stdin if stdin is not None else sys.stdin
         raw: Any = getattr(stream, "buffer", stream)
-        if isinstance(raw.read(0), str):
+        if isinstance(raw, _stdio.TextIOBase):  # a text stream without bytes below (io.StringIO)
             raw = _TextAsBytes(raw)
         return _CsvTable(raw, "<stdin>", None, delimiter, close=False)
     try:
@@ -405,7 +410,7 @@ def _is_regular(mode: int) -> bool:
 class _TextAsBytes:
     """A text stream (``io.StringIO`` standing in for stdin) read as UTF-8 bytes."""
 
-    def __init__(self, text: IO[str]) -> None:
+    def __init__(self, text: Any) -> None:
         self.text = text
 
     def read1(self, n: int) -> bytes:
@@ -730,14 +735,17 @@ class _ParquetTable(Table):
     def _floats(self, array: Any, label: str) -> Tuple[NDArray[np.float64], NDArray[np.bool_]]:
         pa = self._pa
         kind = array.type
-        if pa.types.is_timestamp(kind) or pa.types.is_duration(kind):
-            scale = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}[kind.unit]
-            array = self._pc.multiply(self._pc.cast(array.cast(pa.int64()), pa.float64()), scale)
-        elif not (pa.types.is_integer(kind) or pa.types.is_floating(kind) or pa.types.is_decimal(kind)
-                  or pa.types.is_boolean(kind)):
-            raise TableError(f"{self.source}: column {label} holds {kind} values, not numbers")
         nulls = np.asarray(array.is_null().to_numpy(zero_copy_only=False), dtype=np.bool_)
-        values = self._pc.cast(array, pa.float64()).fill_null(float("nan"))
+        if pa.types.is_timestamp(kind) or pa.types.is_duration(kind):  # seconds (since the epoch)
+            scale = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}[kind.unit]
+            ticks = np.asarray(array.cast(pa.int64()).fill_null(0).to_numpy(zero_copy_only=False), dtype=np.int64)
+            seconds = ticks.astype(np.float64) * scale
+            seconds[nulls] = np.nan
+            return seconds, nulls
+        if not (pa.types.is_integer(kind) or pa.types.is_floating(kind) or pa.types.is_decimal(kind)
+                or pa.types.is_boolean(kind)):
+            raise TableError(f"{self.source}: column {label} holds {kind} values, not numbers")
+        values = self._pc.cast(array, pa.float64(), safe=False).fill_null(float("nan"))
         return np.asarray(values.to_numpy(zero_copy_only=False), dtype=np.float64), nulls
 
     def chunks(self, columns: Sequence[int], labels: Sequence[str], rows: int) -> Iterator[Chunk]:
