@@ -292,12 +292,11 @@ def match_columns(
             raise TableError(f"--columns {key}={value}: {where} has {len(found)} columns named {value!r} "
                              f"(columns {', '.join(str(i + 1) for i in found)})")
         index[target.name] = found[0]
-    mapped = set(index.values())
-    for col in columns:
+    for col in columns:  # a mapped column may serve again under its own name (one sensor, two quantities)
         if col.name in index:
             continue
         names = col.names()
-        found = [i for i, v in enumerate(norm) if v in names and i not in mapped]
+        found = [i for i, v in enumerate(norm) if v in names]
         if len(found) > 1:
             first, second = found[0], found[1]
             if norm[first] == norm[second]:
@@ -414,7 +413,8 @@ class _TextAsBytes:
         self.text = text
 
     def read1(self, n: int) -> bytes:
-        return self.text.read(n).encode("utf-8")
+        text: str = self.text.read(n)
+        return text.encode("utf-8")
 
 
 def _show(delimiter: Optional[str]) -> str:
