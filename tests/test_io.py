@@ -21,7 +21,6 @@ from typing import Any, Callable, Dict, List
 import numpy as np
 import pytest
 
-import vehid
 import vehid.io as vio
 from vehid import cli
 
@@ -370,7 +369,7 @@ def test_parquet_without_pyarrow_names_the_extra(
             raise ImportError(f"No module named {name!r}")
         return real(name, *args)
 
-    monkeypatch.setattr(vio.importlib, "import_module", no_pyarrow)
+    monkeypatch.setattr(importlib, "import_module", no_pyarrow)  # as vehid.io calls it
     path = tmp_path / "run.parquet"
     path.write_bytes(b"PAR1" + b"\x00" * 100 + b"PAR1")
     assert error_line(capsys, ["identify", str(path), "--model", "quarter"]) == (

@@ -51,7 +51,7 @@ import sys
 import warnings
 from dataclasses import dataclass, field
 from types import TracebackType
-from typing import IO, Any, Dict, Iterator, List, Mapping, Optional, Sequence, Tuple, Type
+from typing import Any, Dict, Iterator, List, Mapping, Optional, Sequence, Tuple, Type
 
 import numpy as np
 from numpy.typing import NDArray
@@ -375,7 +375,7 @@ def _open_error(path: str, e: OSError) -> TableError:
     return TableError(f"{path}: cannot open ({e.strerror or e})")
 
 
-def open_table(path: str, delimiter: Optional[str] = None, stdin: Optional[IO[Any]] = None) -> Table:
+def open_table(path: str, delimiter: Optional[str] = None, stdin: Any = None) -> Table:
     """Opens ``path`` (``"-"``: standard input, or ``stdin`` when given) as a :class:`Table`:
     Parquet when the file starts with Parquet's magic bytes, CSV otherwise. ``delimiter``:
     ``None`` to sniff, one character, or :data:`WHITESPACE`."""
