@@ -93,7 +93,7 @@ def test_kalman_equals_the_library_in_any_chunking(
     assert report["xi"] == pytest.approx(vehid.xi(car.theta, kf.theta), rel=1e-9)
     np.testing.assert_allclose(report["true_theta"], car.theta, rtol=1e-9)
     assert report["truth"]["source"] == "the file's true_* columns"
-    assert report["time"] == {"column": "'t' (time, s)", "start": 0.0, "end": pytest.approx(149.95),
+    assert report["time"] == {"column": "t", "start": 0.0, "end": pytest.approx(149.95),
                               "median_interval": pytest.approx(0.05), "gaps": 0}
     assert report["options"] == {"p0": 500.0, "road_sigma": 0.2, "deriv_noise": 0.005, "mode": "rows", "reinit": False}
     assert report["physical"] == physical_or_none(car, kf.theta, m=1.0)

@@ -397,8 +397,8 @@ class TimeCheck:
     """The time column: finite (the reader checks), strictly increasing across chunks; the
     median sample interval; steps longer than :data:`GAP_FACTOR` medians are warned about."""
 
-    def __init__(self, table: Table, label: str, warn: IO[str]) -> None:
-        self.table, self.label, self.warn = table, label, warn
+    def __init__(self, table: Table, name: str, label: str, warn: IO[str]) -> None:
+        self.table, self.name, self.label, self.warn = table, name, label, warn
         self.first: Optional[float] = None
         self.last: Optional[float] = None
         self.last_line = 0
@@ -440,7 +440,7 @@ class TimeCheck:
                   f"sample interval in all (the first {GAP_WARNINGS} shown)", file=self.warn)
 
     def report(self) -> Dict[str, Any]:
-        return {"column": self.label, "start": self.first, "end": self.last,
+        return {"column": self.name, "start": self.first, "end": self.last,
                 "median_interval": _finite_or_none(self.intervals.median()), "gaps": self.gaps}
 
 
@@ -676,6 +676,20 @@ def known_masses(args: argparse.Namespace) -> Dict[str, float]:
 UNITS = {"M": "kg", "m": "kg", "k": "N/m", "b": "N s/m", "J": "kg m^2", "l": "m"}
 
 
+def _seconds(v: Optional[float]) -> str:
+    """A time for people: 6 significant digits, but whole seconds and microseconds of a
+    timestamp since the epoch.
+
+    >>> _seconds(149.95000000000002), _seconds(1.7e9 + 0.05), _seconds(2.5e-7)
+    ('149.95', '1700000000.05', '2.5e-07')
+    """
+    if v is None:
+        return "?"
+    if abs(v) >= 1e6:
+        return f"{v:.6f}".rstrip("0").rstrip(".")
+    return f"{v:.6g}"
+
+
 def _finite_or_none(v: float) -> Optional[float]:
     return v if math.isfinite(v) else None
 
@@ -699,7 +713,9 @@ def cmd_identify(args: argparse.Namespace) -> int:
     with open_table(args.file, delimiter=args.delimiter) as table:
         source = table.source
         layout = resolve_layout(table, args.model, model, mapping, args.no_time, truth is None, sys.stderr)
-        time = TimeCheck(table, layout.labels[layout.t], sys.stderr) if layout.t is not None else None
+        time = None
+        if layout.t is not None:
+            time = TimeCheck(table, layout.used["t"], layout.labels[layout.t], sys.stderr)
         fit = TruthFit(n, model.n_inputs) if layout.true_x else None
         progress = Progress(sys.stderr, source, table.size)
         for chunk in table.chunks(layout.columns, layout.labels, CHUNK):
@@ -768,7 +784,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
         print("time: not read (--no-time)")
     else:
         gaps = f", {time.gaps} gap(s) longer than {GAP_FACTOR:g}x the median (see the warnings)" if time.gaps else ""
-        print(f"time: {time.label} from {time.first:.6g} to {time.last:.6g} s, median sample interval "
+        print(f"time: {time.label} from {_seconds(time.first)} to {_seconds(time.last)} s, median sample interval "
               f"{time.intervals.median():.6g} s{gaps}")
     print()
     shown = theta.ravel().tolist() + ([] if truth is None else truth.theta.ravel().tolist())

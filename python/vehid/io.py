@@ -50,6 +50,7 @@ import stat
 import sys
 import warnings
 from dataclasses import dataclass, field
+from itertools import repeat
 from types import TracebackType
 from typing import Any, Dict, Iterator, List, Mapping, Optional, Sequence, Tuple, Type
 
@@ -463,18 +464,19 @@ _BLANK_OR_COMMENT = re.compile(r"^\s*(#|$)")
 
 
 class _Lines:
-    """Numbered lines of a byte stream, read in blocks: a line longer than
-    :data:`MAX_LINE` or a NUL byte is an error, so memory stays bounded."""
+    """Numbered text lines of a byte stream, read and decoded a block at a time: a line
+    longer than :data:`MAX_LINE`, a NUL byte or a byte that is not UTF-8 is an error naming
+    its line, so memory stays bounded whatever the input."""
 
     def __init__(self, raw: Any, source: str) -> None:
         self.raw = raw
         self.source = source
-        self.buf: List[bytes] = []
-        self.tail = b""
+        self.buf: List[str] = []
+        self.tail = b""  # the start of a line whose end is not read yet
         self.eof = False
         self.first = True
         self.next_line = 1  # the number of buf[0]
-        self.consumed = 0
+        self.consumed = 0  # characters handed out (bytes, for ASCII), with the line breaks
 
     def _read(self) -> bytes:
         try:
@@ -483,6 +485,14 @@ class _Lines:
         except OSError as e:
             raise TableError(f"{self.source}: cannot read ({e.strerror or e})") from None
         return block
+
+    def _decode(self, data: bytes) -> str:
+        try:
+            return data.decode("utf-8")
+        except UnicodeDecodeError as e:
+            line = self.next_line + len(self.buf) + data.count(b"\n", 0, e.start)
+            raise TableError(f"{self.source}, line {line}: not a text (UTF-8) file (byte 0x{data[e.start]:02x}); "
+                             "save it as 'CSV UTF-8' or convert it (iconv -f LATIN1 -t UTF-8)") from None
 
     def fill(self) -> bool:
         """Reads one block into the buffer; False at the end of the input."""
@@ -499,7 +509,7 @@ class _Lines:
             block = self._check_start(block)
         if not block:
             if self.tail:
-                self.buf.append(self.tail)
+                self.buf.append(self._decode(self.tail))
                 self.tail = b""
             self.eof = True
             return False
@@ -507,9 +517,12 @@ class _Lines:
         if nul >= 0:
             line = self.next_line + len(self.buf) + (self.tail + block[:nul]).count(b"\n")
             raise TableError(f"{self.source}, line {line}: a NUL byte: not a text file (a CSV or Parquet file)")
-        parts = (self.tail + block).split(b"\n")
-        self.tail = parts.pop()
-        self.buf.extend(parts)
+        data = self.tail + block
+        cut = data.rfind(b"\n")
+        if cut >= 0:
+            self.buf.extend(self._decode(data[:cut]).split("\n"))
+            data = data[cut + 1 :]
+        self.tail = data
         if len(self.tail) > MAX_LINE:
             line = self.next_line + len(self.buf)
             raise TableError(f"{self.source}, line {line}: longer than {MAX_LINE >> 20} MiB without a line break: "
@@ -531,7 +544,7 @@ class _Lines:
                              "(gunzip -c FILE | vehid identify - ...)")
         return block
 
-    def take(self, k: int) -> Tuple[int, List[bytes]]:
+    def take(self, k: int) -> Tuple[int, List[str]]:
         """Up to ``k`` lines (without their line break) and the number of the first."""
         while len(self.buf) < k and self.fill():
             pass
@@ -542,23 +555,12 @@ class _Lines:
         self.consumed += sum(map(len, lines)) + len(lines)
         return first, lines
 
-    def peek(self, i: int) -> Optional[bytes]:
+    def peek(self, i: int) -> Optional[str]:
         """Line ``i`` ahead (0: the next one) without taking it, if it is in the first block."""
         while len(self.buf) <= i and not self.eof and len(self.buf) < 10_000:
             if not self.fill():
                 break
         return self.buf[i] if i < len(self.buf) else None
-
-
-def _decode(lines: List[bytes], first: int, source: str) -> List[str]:
-    joined = b"\n".join(lines)
-    try:
-        return joined.decode("utf-8").split("\n")
-    except UnicodeDecodeError as e:
-        line = first + joined.count(b"\n", 0, e.start)
-        byte = joined[e.start]
-        raise TableError(f"{source}, line {line}: not a text (UTF-8) file (byte 0x{byte:02x}); "
-                         "save it as 'CSV UTF-8' or convert it (iconv -f LATIN1 -t UTF-8)") from None
 
 
 class _CsvTable(Table):
@@ -592,7 +594,7 @@ class _CsvTable(Table):
                 raise TableError(f"{self.source}: {what}; expected a table with a header line "
                                  "(t, x1..xn, dx1..dxn, as vehid simulate -o FILE writes)")
             anything = True
-            (text,) = _decode(got, number, self.source)
+            text = got[0]
             if _BLANK_OR_COMMENT.match(text):
                 continue
             sep = re.fullmatch(r"\s*sep=(.)\s*", text)
@@ -606,9 +608,8 @@ class _CsvTable(Table):
             ahead = lines.peek(i)
             if ahead is None:
                 break
-            line = ahead.decode("utf-8", "replace")
-            if not _BLANK_OR_COMMENT.match(line):
-                sample = line
+            if not _BLANK_OR_COMMENT.match(ahead):
+                sample = ahead
                 break
         if given is None:
             self.delimiter = _sniff(text, sample)
@@ -637,17 +638,19 @@ class _CsvTable(Table):
         cols = list(columns)
         delim = None if self.delimiter == WHITESPACE else self.delimiter
         while True:
-            first, raw = self._lines.take(rows)
-            if not raw:
+            first, lines = self._lines.take(rows)
+            if not lines:
                 return
-            text = _decode(raw, first, self.source)
-            keep = [i for i, s in enumerate(text) if not _BLANK_OR_COMMENT.match(s)]
-            if not keep:
-                continue
-            lines = text if len(keep) == len(text) else [text[i] for i in keep]
+            if any(map(_BLANK_OR_COMMENT.match, lines)):
+                keep = [i for i, s in enumerate(lines) if not _BLANK_OR_COMMENT.match(s)]
+                if not keep:
+                    continue
+                lines = [lines[i] for i in keep]
+                numbers = np.asarray(keep, dtype=np.int64) + first
+            else:
+                numbers = np.arange(first, first + len(lines), dtype=np.int64)
             if self.decimal_comma:
                 lines = [s.replace(",", ".") for s in lines]
-            numbers = np.asarray(keep, dtype=np.int64) + first
             self._check_widths(lines, numbers)
             try:
                 with warnings.catch_warnings():
@@ -666,13 +669,20 @@ class _CsvTable(Table):
             yield Chunk(data=data, lines=numbers)
 
     def _check_widths(self, lines: List[str], numbers: NDArray[np.int64]) -> None:
+        """Every line has as many cells as the header (numpy, given ``usecols``, would not
+        notice a line with more, nor one with fewer beyond the last column read)."""
         d = self.delimiter
+        assert d is not None
         if d == WHITESPACE:
-            widths = [len(s.split()) for s in lines]
-        else:
-            assert d is not None
+            widths = list(map(len, map(str.split, lines)))
+        elif any(map(str.__contains__, lines, repeat('"'))):
             widths = [s.count(d) + 1 if '"' not in s else len(_split(s, d)) for s in lines]
-        if any(w != self.width for w in widths):
+        else:  # the common case, in C: count the delimiters
+            counts = list(map(str.count, lines, repeat(d)))
+            if counts.count(self.width - 1) == len(counts):
+                return
+            widths = [c + 1 for c in counts]
+        if widths.count(self.width) != len(widths):
             row = next(i for i, w in enumerate(widths) if w != self.width)
             raise self._width_error(lines[row], int(numbers[row]), widths[row])
 
