@@ -252,6 +252,12 @@ def test_stdout_on_a_full_device(run_csv: Path) -> None:
             2, "vehid: error: standard output: cannot write (No space left on device)\n")
 
 
+def test_closed_stdout_at_start() -> None:
+    done = subprocess.run(" ".join([*VEHID, "simulate", "--model", "quarter", "--n", "10", "-o", "-"]) + " >&-",
+                          shell=True, capture_output=True, text=True, timeout=120)
+    assert (done.returncode, done.stderr) == (2, "vehid: error: -o -: standard output is closed\n")
+
+
 def test_interrupt_exits_130() -> None:
     child = subprocess.Popen([*VEHID, "identify", "-", "--model", "quarter"], stdin=subprocess.PIPE,
                              stdout=subprocess.PIPE, stderr=subprocess.PIPE)

@@ -115,6 +115,14 @@ def test_delimiter_option_overrides_the_sniffer(plain: Path, tmp_path: Path, cap
     assert identify_json(capsys, str(spaces), "--model", "quarter", "--delimiter", "space")["theta"] == reference["theta"]
 
 
+def test_an_excel_sep_line_with_a_delimiter_option(plain: Path, tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "sep.csv"
+    path.write_bytes(b"sep=;\n" + DIALECTS["semicolon"](plain.read_text()))
+    reference = identify_json(capsys, str(plain), "--model", "quarter")
+    assert identify_json(capsys, str(path), "--model", "quarter", "--delimiter", ";")["theta"] == reference["theta"]
+
+
 def test_comment_lines_count_in_line_numbers(plain: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     header, *data = plain.read_text().splitlines(keepends=True)
     bad = data[9].split(",")

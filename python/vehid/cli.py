@@ -170,6 +170,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     )
     to_stdout = args.output == "-"
     if to_stdout:
+        if sys.stdout is None:  # started with stdout closed (>&-)
+            raise CliError("-o -: standard output is closed")
         out: IO[str] = sys.stdout
         out.write(",".join(csv_header(model.n_states, model.n_inputs, distance)) + "\n")
         for run in run_chunks(sim, args.n, progress=sys.stderr):
@@ -979,9 +981,14 @@ def _silence_stdout() -> None:
         pass
 
 
+def _flush_stdout() -> None:
+    if sys.stdout is not None:  # None: started with stdout closed
+        sys.stdout.flush()
+
+
 def _fail(message: str, status: int = 2) -> int:
     try:
-        sys.stdout.flush()
+        _flush_stdout()
     except (OSError, ValueError):
         _silence_stdout()
     print(" ".join(message.split("\n")), file=sys.stderr)
@@ -994,7 +1001,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     try:
         func: Callable[[argparse.Namespace], int] = args.func
         status = func(args)
-        sys.stdout.flush()
+        _flush_stdout()
         return status
     except (VehidError, CliError, TableError) as e:
         return _fail(f"vehid: error: {e}")

@@ -598,8 +598,8 @@ class _CsvTable(Table):
             if _BLANK_OR_COMMENT.match(text):
                 continue
             sep = re.fullmatch(r"\s*sep=(.)\s*", text)
-            if sep and given is None:  # Excel's "sep=;" line
-                given = sep.group(1)
+            if sep:  # Excel's "sep=;" line (--delimiter, if given, wins)
+                given = sep.group(1) if given is None else given
                 continue
             break
         self.header_line = number
