@@ -55,8 +55,10 @@ def test_demo_prints_the_three_standard_deviations(capsys: pytest.CaptureFixture
     assert cli.main(["demo", "--n", "4000"]) == 0
     out = capsys.readouterr().out
     assert "Eq 4.27" in out
-    rows = [line for line in out.splitlines() if line.startswith(("x1", "dx1", "x2", "dx2"))]
-    assert len(rows) == 4
+    rows = [line for line in out.splitlines() if line.startswith(("x1", "x2", "x3", "x4"))]
+    # The states are named as the CSV columns of `vehid simulate` are (x2 is the wheel velocity).
+    assert [r[:26].rstrip() for r in rows] == [
+        "x1 (wheel_pos, m)", "x2 (wheel_vel, m/s)", "x3 (body_pos, m)", "x4 (body_vel, m/s)"]
     analytic = [float(r.split()[-2]) for r in rows]
     np.testing.assert_allclose(analytic, vehid.QuarterCar().sampled_std(0.1, 0.05, method="exact"), rtol=1e-4)
 

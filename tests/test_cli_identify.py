@@ -71,7 +71,10 @@ def test_text_report(quarter_csv: Path, capsys: pytest.CaptureFixture[str]) -> N
     kf = vehid.KalmanIdentifier(car, p0=1000.0, road_sigma=0.1, deriv_noise=0.005)
     run = run_of(car, 3000, 2)
     kf.fit(run.r, run.z)
-    assert f"xi (Eq 3.17, vs the thesis quarter car) = {vehid.xi(car.theta, kf.theta):.6g}" in out
+    assert "time: 't' (time, s) from 0 to 149.95 s, median sample interval 0.05 s\n" in out
+    # The true rows are fitted to the file's noise-free columns, not assumed to be the thesis car.
+    xi_line = "xi (Eq 3.17, vs the true rows from the file's true_* columns) = "
+    assert f"{xi_line}{vehid.xi(car.theta, kf.theta):.6g}" in out
 
 
 @pytest.mark.parametrize("chunk", [7, 1000, 100_000])
@@ -86,8 +89,12 @@ def test_kalman_equals_the_library_in_any_chunking(
     kf.fit(run.r, run.z)
     assert np.array_equal(np.array(report["theta"]), kf.theta)
     assert report["samples"] == 3000 and report["unknown_rows"] == [1, 3]
-    assert report["xi"] == vehid.xi(car.theta, kf.theta)
-    assert report["true_theta"] == car.theta.tolist()
+    # The true rows are fitted to the file's true_* columns: the thesis car to round-off.
+    assert report["xi"] == pytest.approx(vehid.xi(car.theta, kf.theta), rel=1e-9)
+    np.testing.assert_allclose(report["true_theta"], car.theta, rtol=1e-9)
+    assert report["truth"]["source"] == "the file's true_* columns"
+    assert report["time"] == {"column": "t", "start": 0.0, "end": pytest.approx(149.95),
+                              "median_interval": pytest.approx(0.05), "gaps": 0}
     assert report["options"] == {"p0": 500.0, "road_sigma": 0.2, "deriv_noise": 0.005, "mode": "rows", "reinit": False}
     assert report["physical"] == physical_or_none(car, kf.theta, m=1.0)
 
@@ -122,7 +129,7 @@ def test_half_car_and_known_masses(tmp_path: Path, capsys: pytest.CaptureFixture
     theta = ref_half.theta
     assert np.array_equal(np.array(report["theta"]), theta)
     assert report["known"] == {"m1": 1.5, "m2": 0.5} and report["unknown_rows"] == [1, 3, 5, 7]
-    assert report["xi"] == vehid.xi(half.theta, theta)
+    assert report["xi"] == pytest.approx(vehid.xi(half.theta, theta), rel=1e-9)
     assert report["physical"] == physical_or_none(half, theta, m1=1.5, m2=0.5)
 
 
@@ -195,33 +202,38 @@ def test_user_errors(quarter_csv: Path, tmp_path: Path, capsys: pytest.CaptureFi
         return str(path)
 
     fails(capsys, ["identify", write("empty.csv", ""), *q], "empty file")
-    fails(capsys, ["identify", write("blank.csv", "\n1,2\n"), *q], "empty header")
+    fails(capsys, ["identify", write("blank.csv", "\n1,2\n"), *q], "blank.csv, line 2: the first line holds numbers")
     fails(capsys, ["identify", write("header.csv", header), *q], "has 0 samples", "at least 4")
     fails(capsys, ["identify", write("three.csv", header + "".join(data[:3])), *q], "has 3 samples")
     fails(capsys, ["identify", write("bad.csv", header.replace("dx4", "speed") + data[0]), *q],
-          "unknown column 'speed'")
+          "missing column(s) dx4 (d_body_vel, m/s^2); columns not used: 'speed'")
     cols = header.strip().split(",")
     no_dx4 = ",".join(c for c in cols if c != "dx4") + "\n"
     fails(capsys, ["identify", write("nodx4.csv", no_dx4), *q], "missing column(s) dx4")
     fails(capsys, ["identify", write("dup.csv", header.strip() + ",x2\n"), *q], "'x2' appears twice")
     fails(capsys, ["identify", write("u.csv", header.strip() + ",u2\n"), *q], "'u2' does not fit")
-    fails(capsys, ["identify", write("x0.csv", "t,x0\n"), *q], "unknown column 'x0'")
+    fails(capsys, ["identify", write("x0.csv", "t,x0\n"), *q], "column 'x0': states and inputs are numbered from 1")
     bad_cell = data[10].split(",")
     bad_cell[3] = "abc"
     text = header + "".join(data[:10]) + ",".join(bad_cell) + "".join(data[11:20])
-    fails(capsys, ["identify", write("cell.csv", text), *q], "line 12, column 'x3': 'abc' is not a number")
+    fails(capsys, ["identify", write("cell.csv", text), *q], "line 12, column 'x3' (body_pos, m): 'abc' is not a number")
     text = header + "".join(data[:5]) + data[5].rsplit(",", 1)[0] + "\n"
-    fails(capsys, ["identify", write("short_row.csv", text), *q], "line 7: 17 cells, but the header has 18 columns")
+    fails(capsys, ["identify", write("short_row.csv", text), *q], "line 7: 17 cells, but the header has 18 columns (separated by ',')")
     nan_cell = data[4].split(",")
     nan_cell[6] = "nan"
     text = header + "".join(data[:4]) + ",".join(nan_cell) + "".join(data[5:20])
-    fails(capsys, ["identify", write("nan.csv", text), *q], "line 6, column 'dx2': 'nan' is not a finite number")
-    # A NaN in a column identify does not use is no obstacle.
+    fails(capsys, ["identify", write("nan.csv", text), *q], "line 6, column 'dx2' (d_wheel_vel, m/s^2): 'nan' is not a finite number")
+    # The time must be finite too.
     nan_t = data[4].split(",")
     nan_t[0] = "nan"
-    report = identify_json(capsys, write("nan_t.csv", header + "".join(data[:4]) + ",".join(nan_t) + "".join(data[5:])),
-                           *q)
-    assert report["samples"] == 3000
+    text = header + "".join(data[:4]) + ",".join(nan_t) + "".join(data[5:])
+    fails(capsys, ["identify", write("nan_t.csv", text), *q], "line 6, column 't' (time, s): 'nan' is not a finite")
+    # A NaN in a column identify does not read (u1: the truth comes from --truth) is no obstacle.
+    nan_u = data[4].rstrip("\n").split(",")
+    nan_u[-1] = "nan"
+    text = header + "".join(data[:4]) + ",".join(nan_u) + "\n" + "".join(data[5:])
+    report = identify_json(capsys, write("nan_u.csv", text), *q, "--truth", "thesis")
+    assert report["samples"] == 3000 and report["truth"]["source"] == "--truth thesis"
     (tmp_path / "binary.csv").write_bytes(b"\xff\xfe\x00garbage")
     fails(capsys, ["identify", str(tmp_path / "binary.csv"), *q], "not a text")
 
@@ -241,8 +253,9 @@ def test_values_vehid_rejects(quarter_csv: Path, capsys: pytest.CaptureFixture[s
     # Batch least squares on too little excitation: vehid's own error, exit 2.
     rows = quarter_csv.read_text().splitlines(keepends=True)
     path = quarter_csv.parent / "still.csv"
-    path.write_text(rows[0] + rows[1] * 6)  # one state six times: rank 1
-    fails(capsys, ["identify", str(path), "--model", "quarter", "--method", "ls"], "lacks excitation")
+    path.write_text(rows[0] + rows[1] * 6)  # one state six times: rank 1 (and a repeated time)
+    fails(capsys, ["identify", str(path), "--model", "quarter", "--method", "ls"], "still.csv, line 3: time 0.0 s repeats")
+    fails(capsys, ["identify", str(path), "--model", "quarter", "--method", "ls", "--no-time"], "lacks excitation")
 
 
 def test_option_errors_exit_2(quarter_csv: Path, capsys: pytest.CaptureFixture[str]) -> None:

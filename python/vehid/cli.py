@@ -3,34 +3,40 @@
 Subcommands:
 
 * ``simulate``: simulate the quarter or half car and write a CSV run;
-* ``identify``: read such a CSV run (a file or ``-`` for stdin), identify the unknown rows of
-  A, and print them, the physical constants and, when the file carries the true values, ξ;
+* ``identify``: read a run (CSV in any common dialect, or Parquet; a file or ``-`` for
+  stdin), identify the unknown rows of A, and print them, the physical constants and, when
+  the truth is known (``--truth`` or the file's ``true_*`` columns), ξ;
 * ``demo``: a quarter-car run compared with the analytic standard deviations;
 * ``reproduce``: the thesis' figures and tables, regenerated, into a report (``vehid.reproduce``).
 
-User errors (a missing file, bad columns or cells, too few samples, a value vehid rejects)
-print one line on stderr and exit with status 2.
+Every failure prints one line on stderr and exits with status 2 (an interrupt: 130); a
+closed stdout (``vehid simulate -o - | head``) ends the command quietly. Reading goes through
+:mod:`vehid.io`, in chunks, so memory stays bounded whatever the input's length.
+
+The states are named once, in :data:`vehid.io.STATES`; messages show them as
+:func:`quantity` does:
+
+>>> quantity("quarter", "x2"), quantity("half", "dx8")
+('x2 (wheel_vel, m/s)', 'dx8 (d_pitch_rate, rad/s^2)')
 """
 
 from __future__ import annotations
 
 import argparse
-import itertools
 import json
 import math
 import os
 import re
 import sys
-import warnings
-from dataclasses import dataclass
-from typing import IO, Any, Callable, Dict, Iterator, List, Optional, Sequence, Union
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any, Callable, Dict, Iterator, List, NoReturn, Optional, Sequence, Tuple, Union, cast
 
 import numpy as np
 from numpy.typing import NDArray
 
 from . import (
     BatchLeastSquares,
-    TwoAxleIdentifier,
     HalfCar,
     KalmanIdentifier,
     LinearModel,
@@ -38,15 +44,33 @@ from . import (
     Run,
     Simulator,
     StochasticGradient,
+    TwoAxleIdentifier,
     VehidError,
     __version__,
     xi,
 )
+from .io import (
+    STATES,
+    TIME_NAMES,
+    WHITESPACE,
+    Column,
+    Table,
+    TableError,
+    match_columns,
+    normalize,
+    open_table,
+    parse_column_map,
+    run_columns,
+)
 
-#: Samples simulated per call to ``Simulator.run`` when a run is split into chunks.
+#: Samples simulated, or read, per chunk.
 CHUNK = 100_000
 #: Runs longer than this report their progress on stderr.
 PROGRESS_ABOVE = 200_000
+#: A time step longer than this many median sample intervals is reported as a gap.
+GAP_FACTOR = 10.0
+#: Gap warnings printed one by one; the rest are counted.
+GAP_WARNINGS = 5
 
 MODELS: dict[str, Callable[[], LinearModel]] = {"quarter": QuarterCar, "half": HalfCar}
 #: What ``vehid identify`` calls each model in its messages.
@@ -57,17 +81,33 @@ class CliError(Exception):
     """A user error the command line reports in one line (exit status 2)."""
 
 
+def model_columns(name: str) -> Dict[str, Column]:
+    """The columns of a run of the built-in model ``name``, by their api.md name."""
+    model = MODELS[name]()
+    return {c.name: c for c in run_columns(name, model.n_states, model.n_inputs)}
+
+
+def quantity(model: str, column: str) -> str:
+    """``"x1 (wheel_pos, m)"``: a column of ``model``'s runs as every message shows it."""
+    return model_columns(model)[column].describe()
+
+
+# --- simulate -------------------------------------------------------------------------
+
+
 def run_chunks(
-    sim: Simulator, n: int, progress: Optional[IO[str]] = None, chunk: int = CHUNK
+    sim: Simulator, n: int, progress: Optional[IO[str]] = None, chunk: Optional[int] = None
 ) -> Iterator[Run]:
-    """Simulates ``n`` samples in chunks of at most ``chunk``, yielding each ``Run``.
+    """Simulates ``n`` samples in chunks of at most ``chunk`` (default :data:`CHUNK`),
+    yielding each ``Run``.
 
     When ``progress`` is given and ``n`` exceeds :data:`PROGRESS_ABOVE`, a line per chunk
     reports how far the simulation is.
     """
+    step_max = CHUNK if chunk is None else chunk
     done = 0
     while done < n:
-        step = min(chunk, n - done)
+        step = min(step_max, n - done)
         yield sim.run(step)
         done += step
         if progress is not None and n > PROGRESS_ABOVE:
@@ -100,6 +140,17 @@ def write_csv_rows(out: IO[str], run: Run, distance: bool = False) -> None:
     out.writelines(",".join(map(repr, row)) + "\n" for row in data.tolist())
 
 
+def _open_output(path: str) -> IO[str]:
+    try:
+        return open(path, "w", encoding="ascii", newline="\n")
+    except IsADirectoryError:
+        raise CliError(f"-o {path}: is a directory; give a file name (or - for stdout)") from None
+    except FileNotFoundError:
+        raise CliError(f"-o {path}: no such directory: {os.path.dirname(path) or '.'}") from None
+    except OSError as e:
+        raise CliError(f"-o {path}: cannot create ({e.strerror or e})") from None
+
+
 def cmd_simulate(args: argparse.Namespace) -> int:
     model = MODELS[args.model]()
     distance = args.speed is not None
@@ -118,18 +169,43 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         **road_kw,
     )
     to_stdout = args.output == "-"
-    out: IO[str] = sys.stdout if to_stdout else open(args.output, "w", encoding="ascii", newline="\n")
+    if to_stdout:
+        if sys.stdout is None:  # started with stdout closed (>&-)
+            raise CliError("-o -: standard output is closed")
+        out: IO[str] = sys.stdout
+        out.write(",".join(csv_header(model.n_states, model.n_inputs, distance)) + "\n")
+        for run in run_chunks(sim, args.n, progress=sys.stderr):
+            write_csv_rows(out, run, distance)
+        out.flush()  # a full disk or a closed pipe: main() reports it
+        return 0
+    out = _open_output(args.output)
     try:
         out.write(",".join(csv_header(model.n_states, model.n_inputs, distance)) + "\n")
         for run in run_chunks(sim, args.n, progress=sys.stderr):
             write_csv_rows(out, run, distance)
-        out.flush()
-    finally:
-        if not to_stdout:
-            out.close()
-    if not to_stdout:
-        print(f"vehid: wrote {args.n} samples of the {args.model} car to {args.output}", file=sys.stderr)
+        out.close()
+    except OSError as e:
+        _close_quietly(out)
+        removed = ""
+        if os.path.isfile(args.output):
+            try:
+                os.remove(args.output)
+                removed = "; removed the partial file"
+            except OSError:
+                pass
+        raise CliError(f"-o {args.output}: cannot write ({e.strerror or e}){removed}") from None
+    except BaseException:
+        _close_quietly(out)
+        raise
+    print(f"vehid: wrote {args.n} samples of the {args.model} car to {args.output}", file=sys.stderr)
     return 0
+
+
+def _close_quietly(f: IO[str]) -> None:
+    try:
+        f.close()
+    except OSError:  # the flush of what is left fails the same way
+        pass
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
@@ -140,7 +216,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     simulated = x.std(axis=0)
     sampled = car.sampled_std(road_sigma, dt, method="exact")
     continuous = car.output_std(road_sigma, hold=dt)
-    names = ["x1  wheel position (m)", "dx1 wheel velocity (m/s)", "x2  body position (m)", "dx2 body velocity (m/s)"]
+    names = [quantity("quarter", f"x{i}") for i in range(1, car.n_states + 1)]
     print(f"{car!r}: {n} samples, dt = {dt} s, road sigma_u = {road_sigma} m, seed {seed}, exact ZOH")
     print()
     print(f"{'state':26s} {'simulated':>10s} {'analytic':>10s} {'Eq 4.27':>10s}")
@@ -148,6 +224,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     for name, s, a, c in zip(names, simulated, sampled, continuous):
         print(f"{name:26s} {s:10.5f} {a:10.5f} {c:10.5f}")
     print()
+    print("The states are the columns x1..x4 of `vehid simulate` (see `vehid identify --help`).")
     print("simulated: std of the true state over the run; analytic (sampled): the stationary")
     print("covariance P = Phi P Phi' + Gamma s_u^2 Gamma' of the discretized system at the sample instants.")
     print("Eq 4.27 averages over every instant of each held 0.05 s road step, while the samples fall exactly")
@@ -155,112 +232,329 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
-# --- identify -------------------------------------------------------------------------
+# --- identify: which columns ------------------------------------------------------------
 
 
 @dataclass
-class CsvLayout:
-    """Where the columns ``identify`` needs are in a CSV run."""
+class Layout:
+    """What ``identify`` reads: header positions ``columns`` (in this order in each chunk),
+    their message ``labels``, and where in a chunk each quantity is."""
 
-    names: List[str]
-    x: List[int]
-    dx: List[int]
-    has_truth: bool
+    columns: List[int] = field(default_factory=list)
+    labels: List[str] = field(default_factory=list)
+    used: Dict[str, str] = field(default_factory=dict)
+    t: Optional[int] = None
+    x: List[int] = field(default_factory=list)
+    dx: List[int] = field(default_factory=list)
+    true_x: List[int] = field(default_factory=list)
+    true_dx: List[int] = field(default_factory=list)
+    u: List[int] = field(default_factory=list)
+
+    def add(self, col: Column, position: int, header: str) -> int:
+        """Reads header column ``position`` as ``col``; its place in a chunk."""
+        self.columns.append(position)
+        self.labels.append(column_label(col, header))
+        self.used[col.name] = header
+        return len(self.columns) - 1
 
 
-_COLUMN = re.compile(r"^(t|s|x|dx|true_x|true_dx|u)(\d*)$")
+def column_label(col: Column, header: str) -> str:
+    """How messages name a file column read as ``col``: ``'x3' (body_pos, m)``,
+    ``'body_pos' (x3, m)`` or ``'wheel_z' (x1, wheel_pos, m)``."""
+    key = normalize(header)
+    if key == col.name:
+        parts = [col.alias, col.unit]
+    elif key == col.alias or (col.name == "t" and key in TIME_NAMES):
+        parts = [col.name, col.unit]
+    else:
+        parts = [col.name, col.alias, col.unit]
+    return f"{header!r} ({', '.join(p for p in parts if p)})"
 
 
-def csv_layout(header: str, model: LinearModel, name: str, source: str) -> CsvLayout:
-    """Checks the header of a CSV run against ``model`` (called ``name`` on the command line)."""
+_NUMBERED = re.compile(r"(x|dx|true_x|true_dx|u)(\d+)")
+
+
+def _misfits(table: Table, unknown: List[int], name: str, model: LinearModel) -> None:
+    """Header names that are run columns of another model: a wrong ``--model``."""
     n, m = model.n_states, model.n_inputs
-    names = [c.strip() for c in header.strip().split(",")]
-    expected = f"t, x1..x{n}, dx1..dx{n} (as `vehid simulate` writes)"
-    if names == [""]:
-        raise CliError(f"{source}: empty header line; expected the columns {expected}")
-    seen: Dict[str, int] = {}
-    parsed: List[tuple[str, int]] = []
-    for i, col in enumerate(names):
-        match = _COLUMN.match(col)
-        ok = match is not None and (match.group(1) in ("t", "s")) == (match.group(2) == "")
-        if match is None or not ok or match.group(2).startswith("0"):
-            raise CliError(f"{source}: unknown column {col!r} (column {i + 1}); expected {expected}")
-        if col in seen:
-            raise CliError(f"{source}: column {col!r} appears twice (columns {seen[col] + 1} and {i + 1})")
-        seen[col] = i
-        parsed.append((match.group(1), int(match.group(2) or 0)))
-    states = max((idx for kind, idx in parsed if kind == "x"), default=0)
-    if states not in (0, n):
-        other = {4: "quarter", 8: "half"}.get(states)
-        hint = f": use --model {other}" if other else ""
-        raise CliError(f"{source} has {states} states (x1..x{states}) but the {MODEL_NAMES[name]} has {n}{hint}")
-    need = ["t"] + [f"x{i}" for i in range(1, n + 1)] + [f"dx{i}" for i in range(1, n + 1)]
-    missing = [c for c in need if c not in seen]
-    if missing:
-        raise CliError(f"{source}: missing column(s) {', '.join(missing)}; expected {expected}")
-    for col, (kind, idx) in zip(names, parsed):
-        if kind not in ("t", "s") and idx > (m if kind == "u" else n):
-            raise CliError(f"{source}: column {col!r} does not fit the {MODEL_NAMES[name]} ({n} states, {m} inputs)")
-    return CsvLayout(
-        names=names,
-        x=[seen[f"x{i}"] for i in range(1, n + 1)],
-        dx=[seen[f"dx{i}"] for i in range(1, n + 1)],
-        has_truth=all(f"true_x{i}" in seen for i in range(1, n + 1)),
-    )
-
-
-def _cell_error(lines: List[str], first_line: int, layout: CsvLayout, source: str, fallback: str) -> CliError:
-    """Finds the first bad line of a chunk that numpy refused, for a message with its place."""
-    width = len(layout.names)
-    for i, line in enumerate(lines):
-        if not line.strip():
+    numbered = [(_NUMBERED.fullmatch(normalize(table.names[i])), table.names[i]) for i in unknown]
+    states = max((int(mt.group(2)) for mt, _ in numbered if mt and mt.group(1) in ("x", "dx")), default=0)
+    for mt, header in numbered:
+        if mt is None:
             continue
-        cells = line.rstrip("\r\n").split(",")
-        where = f"{source}, line {first_line + i}"
-        if len(cells) != width:
-            return CliError(f"{where}: {len(cells)} cells, but the header has {width} columns")
-        for name, cell in zip(layout.names, cells):
-            try:
-                float(cell)
-            except ValueError:
-                return CliError(f"{where}, column {name!r}: {cell.strip()!r} is not a number")
-    return CliError(f"{source}: {fallback}")
+        if mt.group(2).startswith("0"):
+            raise CliError(f"{table.source}: column {header!r}: states and inputs are numbered from 1 "
+                           f"(x1..x{n}, dx1..dx{n}, u1..u{m})")
+        if mt.group(1) in ("x", "dx") and states > n:
+            other = {4: "quarter", 8: "half"}.get(states)
+            hint = f": use --model {other}" if other else ""
+            raise CliError(f"{table.source} has {states} states (x1..x{states}) but the {MODEL_NAMES[name]} has {n}{hint}")
+        raise CliError(f"{table.source}: column {header!r} does not fit the {MODEL_NAMES[name]} "
+                       f"({n} states, {m} input{'s' if m > 1 else ''})")
+    for header in (table.names[i] for i in unknown):
+        for other, states_of in STATES.items():
+            if other != name and normalize(header) in {a for a, _ in states_of} - {a for a, _ in STATES[name]}:
+                raise CliError(f"{table.source}: column {header!r} is a state of the {MODEL_NAMES[other]}: "
+                               f"use --model {other}")
 
 
-def read_chunks(
-    stream: IO[str], layout: CsvLayout, source: str, chunk: int, first_line: int = 2
-) -> Iterator[tuple[NDArray[np.float64], NDArray[np.float64], int]]:
-    """Parses the data lines of a CSV run ``chunk`` lines at a time; yields ``(r, z, chars)``:
-    measured states and derivatives (samples, n) and the characters read for them."""
-    line_no = first_line
-    while True:
-        lines = list(itertools.islice(stream, chunk))
-        if not lines:
-            return
-        chars = sum(map(len, lines))
-        if any(line.strip() for line in lines):
-            try:
-                with warnings.catch_warnings():
-                    warnings.simplefilter("error")
-                    data = np.loadtxt(lines, delimiter=",", ndmin=2, comments=None, dtype=np.float64)
-            except (ValueError, Warning) as e:
-                raise _cell_error(lines, line_no, layout, source, str(e)) from None
-            if data.shape[1] != len(layout.names):
-                raise _cell_error(lines, line_no, layout, source, "wrong number of cells")
-            r = np.ascontiguousarray(data[:, layout.x])
-            z = np.ascontiguousarray(data[:, layout.dx])
-            bad = ~(np.isfinite(r).all(axis=1) & np.isfinite(z).all(axis=1))
-            if bad.any():
-                row = int(np.argmax(bad))
-                data_lines = [i for i, line in enumerate(lines) if line.strip()]
-                col = next(c for c in layout.x + layout.dx if not np.isfinite(data[row, c]))
-                cell = lines[data_lines[row]].split(",")[col].strip()
-                raise CliError(
-                    f"{source}, line {line_no + data_lines[row]}, column {layout.names[col]!r}: "
-                    f"{cell!r} is not a finite number (drop or repair that sample)"
-                )
-            yield r, z, chars
-        line_no += len(lines)
+def resolve_layout(
+    table: Table, name: str, model: LinearModel, mapping: Dict[str, str], no_time: bool, file_truth: bool,
+    notes: IO[str],
+) -> Layout:
+    """Matches the header of ``table`` to the columns of a run of ``name``: which to read."""
+    n, m = model.n_states, model.n_inputs
+    cols = model_columns(name)
+    match = match_columns(table.names, list(cols.values()), mapping, table.source)
+    index = match.index
+    _misfits(table, match.unknown, name, model)
+    need = [f"x{i}" for i in range(1, n + 1)] + [f"dx{i}" for i in range(1, n + 1)]
+    missing = [c for c in need if c not in index]
+    if missing:
+        if len(table.names) == 1 and table.kind == "csv":
+            header = table.names[0]
+            shown = header if len(header) <= 40 else header[:37] + "..."
+            marks = [c for c in set(header) if not c.isalnum() and c not in "_.-+ \"'[]()"]
+            hint = ""
+            if marks:
+                mark = max(sorted(marks), key=header.count)
+                hint = f"; it seems separated by {mark!r} (--delimiter '{mark}')"
+            raise CliError(f"{table.source}, line {table.header_line}: the header is one column "
+                           f"{shown!r}{hint or ': pass the delimiter with --delimiter'}")
+        found_x = max((int(c[1:]) for c in index if re.fullmatch(r"x\d+", c)), default=0)
+        other = {4: "quarter", 8: "half"}.get(found_x)
+        if other and found_x < n and all(f"x{i}" in index for i in range(1, found_x + 1)):
+            raise CliError(f"{table.source} has {found_x} states (x1..x{found_x}) but the {MODEL_NAMES[name]} "
+                           f"has {n}: use --model {other}")
+        shown = ", ".join(cols[c].describe() for c in missing[:4]) + (", ..." if len(missing) > 4 else "")
+        unused = [repr(table.names[i]) for i in match.unknown]
+        extra = f"; columns not used: {', '.join(unused[:6])}{', ...' if len(unused) > 6 else ''}" if unused else ""
+        raise CliError(f"{table.source}: missing column(s) {shown}{extra}; name them as vehid identify --help lists, "
+                       f"or map them, e.g. --columns {missing[0]}=NAME")
+    layout = Layout()
+    if no_time:
+        if "t" in mapping:
+            raise CliError("--no-time and --columns t=... contradict each other: drop one")
+    elif "t" in index:
+        layout.t = layout.add(cols["t"], index["t"], table.names[index["t"]])
+    else:
+        raise CliError(f"{table.source}: no time column ({', '.join(TIME_NAMES)}): map one with --columns t=NAME, "
+                       "or pass --no-time to identify without one")
+    layout.x = [layout.add(cols[c], index[c], table.names[index[c]]) for c in need[:n]]
+    layout.dx = [layout.add(cols[c], index[c], table.names[index[c]]) for c in need[n:]]
+    if file_truth:
+        truth = [f"true_x{i}" for i in range(1, n + 1)] + [f"true_dx{r + 1}" for r in model.unknown_rows]
+        truth += [f"u{j}" for j in range(1, m + 1)]
+        present = [c for c in truth if c in index]
+        if len(present) == len(truth):
+            layout.true_x = [layout.add(cols[c], index[c], table.names[index[c]]) for c in truth[:n]]
+            k = len(model.unknown_rows)
+            layout.true_dx = [layout.add(cols[c], index[c], table.names[index[c]]) for c in truth[n:n + k]]
+            layout.u = [layout.add(cols[c], index[c], table.names[index[c]]) for c in truth[n + k:]]
+        elif present:
+            absent = ", ".join(c for c in truth if c not in index)
+            print(f"vehid: note: {table.source}: the true_* columns are incomplete (no {absent}): no xi; "
+                  "pass --truth for one", file=notes)
+    unused = [repr(table.names[i]) for i in match.unknown]
+    if unused:
+        print(f"vehid: note: {table.source}: ignoring column(s) {', '.join(unused[:8])}"
+              f"{', ...' if len(unused) > 8 else ''} (names vehid does not know; map them with --columns)", file=notes)
+    return layout
+
+
+# --- identify: time, truth, progress ------------------------------------------------------
+
+
+class Intervals:
+    """The sample intervals, for their median: all of them up to :attr:`CAP`, then every
+    second, fourth, ... one (memory stays bounded on endless input).
+
+    >>> iv = Intervals(cap=4)
+    >>> iv.add(np.array([0.1, 0.1, 0.2, 0.1, 0.1, 0.3]))
+    >>> iv.stride, iv.median()
+    (2, 0.1)
+    """
+
+    CAP = 1 << 20
+
+    def __init__(self, cap: Optional[int] = None) -> None:
+        self.cap = self.CAP if cap is None else cap
+        self.kept: NDArray[np.float64] = np.zeros(0)
+        self.stride = 1
+        self.count = 0
+
+    def add(self, d: NDArray[np.float64]) -> None:
+        start = (-self.count) % self.stride
+        self.kept = np.concatenate([self.kept, d[start :: self.stride]])
+        self.count += len(d)
+        while len(self.kept) > self.cap:
+            self.kept = self.kept[::2].copy()
+            self.stride *= 2
+
+    def median(self) -> float:
+        return float(np.median(self.kept)) if len(self.kept) else math.nan
+
+
+class TimeCheck:
+    """The time column: finite (the reader checks), strictly increasing across chunks; the
+    median sample interval; steps longer than :data:`GAP_FACTOR` medians are warned about."""
+
+    def __init__(self, table: Table, name: str, label: str, warn: IO[str]) -> None:
+        self.table, self.name, self.label, self.warn = table, name, label, warn
+        self.first: Optional[float] = None
+        self.last: Optional[float] = None
+        self.last_line = 0
+        self.intervals = Intervals()
+        self.gaps = 0
+
+    def add(self, t: NDArray[np.float64], lines: NDArray[np.int64]) -> None:
+        if self.last is None:
+            self.first = float(t[0])
+            tt, ll = t, lines
+        else:
+            tt = np.concatenate([[self.last], t])
+            ll = np.concatenate([[self.last_line], lines])
+        d = np.diff(tt)
+        if len(d) and not (d > 0).all():
+            i = int(np.argmin(d > 0))
+            now, before = float(tt[i + 1]), float(tt[i])
+            where = self.table.where(int(ll[i + 1]))
+            prev = f"{self.table.unit} {int(ll[i])}"
+            if now == before:
+                raise CliError(f"{where}: time {now!r} s repeats {prev}: the time column {self.label} must increase "
+                               "strictly (drop the duplicated sample)")
+            raise CliError(f"{where}: time {now!r} s is before {before!r} s on {prev}: the time column {self.label} "
+                           "must increase strictly (sort the file by time)")
+        if len(d):
+            self.intervals.add(d)
+            limit = GAP_FACTOR * self.intervals.median()
+            for j in np.flatnonzero(d > limit).tolist():
+                self.gaps += 1
+                if self.gaps <= GAP_WARNINGS:
+                    print(f"vehid: warning: {self.table.where(int(ll[j + 1]))}: time jumps by {float(d[j]):.6g} s "
+                          f"({float(d[j]) / self.intervals.median():.3g}x the median sample interval "
+                          f"{self.intervals.median():.6g} s)", file=self.warn)
+        self.last, self.last_line = float(t[-1]), int(lines[-1])
+
+    def finish(self) -> None:
+        if self.gaps > GAP_WARNINGS:
+            print(f"vehid: warning: {self.table.source}: {self.gaps} time gaps longer than {GAP_FACTOR:g}x the median "
+                  f"sample interval in all (the first {GAP_WARNINGS} shown)", file=self.warn)
+
+    def report(self) -> Dict[str, Any]:
+        return {"column": self.name, "start": self.first, "end": self.last,
+                "median_interval": _finite_or_none(self.intervals.median()), "gaps": self.gaps}
+
+
+class TruthFit:
+    """The true unknown rows of A from a run's noise-free columns, which obey
+    ``true_dx = A true_x + B u`` exactly: least squares by a QR factor updated chunk by chunk
+    (bounded memory). :meth:`solve` returns ``None`` and why, when the columns do not
+    determine the rows or do not follow a linear model exactly."""
+
+    def __init__(self, n: int, m: int) -> None:
+        self.n, self.m = n, m
+        self.r: Optional[NDArray[np.float64]] = None
+        self.samples = 0
+
+    def add(self, x: NDArray[np.float64], u: NDArray[np.float64], dx: NDArray[np.float64]) -> None:
+        block = np.column_stack([x, u, dx])
+        stacked = block if self.r is None else np.vstack([self.r, block])
+        self.r = cast(NDArray[np.float64], np.linalg.qr(stacked, mode="r"))
+        self.samples += len(x)
+
+    def solve(self) -> Tuple[Optional[NDArray[np.float64]], str]:
+        p = self.n + self.m
+        if self.r is None or self.samples < p:
+            return None, "too few samples to fit the true rows"
+        r = np.zeros((max(self.r.shape[0], self.r.shape[1]), self.r.shape[1]))
+        r[: self.r.shape[0]] = self.r
+        r11, r12, r22 = r[:p, :p], r[:p, p:], r[p:, p:]
+        _, s, vt = np.linalg.svd(r11)
+        null = vt[s <= s[0] * 1e-10] if s[0] > 0 else vt
+        if len(null) and np.abs(null[:, : self.n]).max() > 1e-6:
+            return None, "the true states do not excite every direction"
+        sol = np.linalg.lstsq(r11, r12, rcond=None)[0]
+        residual = np.linalg.norm(r22, axis=0)
+        scale = np.linalg.norm(r[:, p:], axis=0)
+        rel = float(np.max(residual / np.where(scale > 0, scale, 1.0)))
+        if rel > 1e-8:
+            return None, f"they do not follow dx = A x + B u exactly (relative residual {rel:.2g})"
+        return np.ascontiguousarray(sol[: self.n].T), ""
+
+
+@dataclass
+class Truth:
+    """The true rows, where they come from, and the true constants (if known)."""
+
+    theta: NDArray[np.float64]
+    source: str
+    constants: Optional[Dict[str, float]]
+
+
+def parse_truth(text: Optional[str], name: str) -> Optional[Truth]:
+    """``--truth thesis`` or ``--truth M=10,m=1,...`` (every constant of the model)."""
+    if text is None:
+        return None
+    default = MODELS[name]()
+    expected = dict(default.params)  # type: ignore[attr-defined]
+    if text.strip() == "thesis":
+        return Truth(default.theta, "--truth thesis", expected)
+    values: Dict[str, float] = {}
+    for item in text.split(","):
+        key, sep, value = item.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise CliError(f"--truth: {item.strip()!r} is not NAME=VALUE (e.g. --truth {_truth_example(expected)})")
+        if key not in expected:
+            raise CliError(f"--truth: {key!r} is not a constant of the {MODEL_NAMES[name]} ({', '.join(expected)})")
+        try:
+            v = float(value)
+        except ValueError:
+            raise CliError(f"--truth: {key}={value.strip()!r} is not a number") from None
+        if not math.isfinite(v):
+            raise CliError(f"--truth: {key}={value.strip()} is not a finite number")
+        values[key] = v
+    missing = [k for k in expected if k not in values]
+    if missing:
+        raise CliError(f"--truth: missing {', '.join(missing)}: give every constant of the {MODEL_NAMES[name]} "
+                       f"(e.g. --truth {_truth_example(expected)}), or --truth thesis")
+    try:
+        model = MODELS[name](**values)
+    except VehidError as e:
+        raise CliError(f"--truth: {e}") from None
+    return Truth(model.theta, "--truth " + ",".join(f"{k}={v:g}" for k, v in values.items()), values)
+
+
+def _truth_example(expected: Dict[str, float]) -> str:
+    return ",".join(f"{k}={v:g}" for k, v in expected.items())
+
+
+@dataclass
+class Progress:
+    """Progress lines on stderr for long inputs (more than :data:`PROGRESS_ABOVE` samples,
+    known from the file size or seen so far on a stream)."""
+
+    out: IO[str]
+    source: str
+    size: Optional[int]
+    chars: int = 0
+    samples: int = 0
+
+    def step(self, samples: int, consumed: int) -> None:
+        """``samples`` more samples; ``consumed``: how much of the input is read in all."""
+        self.samples += samples
+        self.chars = consumed
+        if self.size and self.chars:
+            estimate = self.samples * self.size / self.chars
+            if estimate > PROGRESS_ABOVE:
+                pct = min(100, 100 * self.chars // self.size)
+                print(f"vehid: identified {self.samples} samples ({pct}% of {self.source})", file=self.out, flush=True)
+        elif self.samples > PROGRESS_ABOVE:
+            print(f"vehid: identified {self.samples} samples", file=self.out, flush=True)
+
+
+# --- identify: the identifiers ----------------------------------------------------------
 
 
 def parse_floats(text: str) -> Union[float, List[float]]:
@@ -280,6 +574,34 @@ def positive_float(text: str) -> float:
     if not (math.isfinite(v) and v > 0):
         raise argparse.ArgumentTypeError(f"expected a positive mass in kg, got {text!r}")
     return v
+
+
+def count(minimum: int) -> Callable[[str], int]:
+    """An argparse type: a whole number ``>= minimum``."""
+
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+        if v < minimum:
+            raise argparse.ArgumentTypeError(f"expected a whole number >= {minimum}, got {v}")
+        return v
+
+    return parse
+
+
+_DELIMITER_NAMES = {"comma": ",", "semicolon": ";", "tab": "\t", "\\t": "\t", "pipe": "|",
+                    "space": WHITESPACE, "spaces": WHITESPACE, "whitespace": WHITESPACE, " ": WHITESPACE}
+
+
+def delimiter(text: str) -> str:
+    """An argparse type: ``,`` ``;`` ``tab`` ``|`` ``space`` (runs of spaces or tabs), or
+    another single punctuation character."""
+    d = _DELIMITER_NAMES.get(text.lower(), text)
+    if d == WHITESPACE or (len(d) == 1 and (d in ",;\t|" or (not d.isalnum() and d not in ".+-\"'#_ \r\n"))):
+        return d
+    raise argparse.ArgumentTypeError(f"expected one of , ; tab | space (or another punctuation character), got {text!r}")
 
 
 Identifier = Union[KalmanIdentifier, StochasticGradient, BatchLeastSquares, TwoAxleIdentifier]
@@ -314,6 +636,26 @@ def make_identifier(args: argparse.Namespace, model: LinearModel) -> Identifier:
     return BatchLeastSquares(model)
 
 
+def feed_batch_least_squares(ls: BatchLeastSquares, r: NDArray[np.float64], z: NDArray[np.float64]) -> None:
+    """The one place where ``vehid identify --method ls`` hands its samples over, chunk by
+    chunk; the rows are solved once, at the end (``ls.theta``).
+
+    ``BatchLeastSquares`` keeps every sample (``storage_bytes`` grows with the file), so this
+    is the one method whose memory is not bounded. A memory-bounded accumulator (the normal
+    equations or an updated QR factor, as ``vehid_core::identify::LsAccumulator`` does in
+    Rust) belongs here once it is bound to Python; nothing else needs to change.
+    """
+    ls.fit(r, z)  # stores the chunk (all or nothing); solving happens when theta is read
+
+
+def feed(ident: Identifier, r: NDArray[np.float64], z: NDArray[np.float64]) -> None:
+    """One chunk into the identifier; every recursive ``fit`` continues where it stopped."""
+    if isinstance(ident, BatchLeastSquares):
+        feed_batch_least_squares(ident, r, z)
+    else:
+        ident.fit(r, z)
+
+
 def method_options(args: argparse.Namespace) -> Dict[str, Any]:
     """The settings that shaped the estimate, for the report."""
     if args.method == "kalman":
@@ -331,31 +673,22 @@ def known_masses(args: argparse.Namespace) -> Dict[str, float]:
     return {"m": args.m} if args.model == "quarter" else {"m1": args.m1, "m2": args.m2}
 
 
-@dataclass
-class Progress:
-    """Progress lines on stderr for long inputs (more than :data:`PROGRESS_ABOVE` samples,
-    known from the file size or seen so far on a stream)."""
-
-    out: IO[str]
-    source: str
-    size: Optional[int]
-    chars: int = 0
-    samples: int = 0
-
-    def step(self, samples: int, chars: int) -> None:
-        self.samples += samples
-        self.chars += chars
-        if self.size and self.chars:
-            estimate = self.samples * self.size / self.chars
-            if estimate > PROGRESS_ABOVE:
-                pct = min(100, 100 * self.chars // self.size)
-                print(f"vehid: identified {self.samples} samples ({pct}% of {self.source})", file=self.out, flush=True)
-        elif self.samples > PROGRESS_ABOVE:
-            print(f"vehid: identified {self.samples} samples", file=self.out, flush=True)
-
-
 #: Units of the physical constants, by name without the axle digit.
 UNITS = {"M": "kg", "m": "kg", "k": "N/m", "b": "N s/m", "J": "kg m^2", "l": "m"}
+
+
+def _seconds(v: Optional[float]) -> str:
+    """A time for people: 6 significant digits, but whole seconds and microseconds of a
+    timestamp since the epoch.
+
+    >>> _seconds(149.95000000000002), _seconds(1.7e9 + 0.05), _seconds(2.5e-7)
+    ('149.95', '1700000000.05', '2.5e-07')
+    """
+    if v is None:
+        return "?"
+    if abs(v) >= 1e6:
+        return f"{v:.6f}".rstrip("0").rstrip(".")
+    return f"{v:.6g}"
 
 
 def _finite_or_none(v: float) -> Optional[float]:
@@ -366,54 +699,42 @@ def _json_array(a: NDArray[np.float64]) -> Any:
     return [[_finite_or_none(float(v)) for v in row] for row in a]
 
 
+# --- identify ---------------------------------------------------------------------------
+
+
 def cmd_identify(args: argparse.Namespace) -> int:
     model = MODELS[args.model]()
     n = model.n_states
-    source = "<stdin>" if args.file == "-" else args.file
+    try:
+        mapping = parse_column_map(args.columns or [])
+    except TableError as e:
+        raise CliError(str(e)) from None
+    truth = parse_truth(args.truth, args.model)
     ident = make_identifier(args, model)  # option errors before any reading
-    try:
-        stream: IO[str] = (
-            sys.stdin if args.file == "-" else open(args.file, encoding="utf-8")
-        )
-    except FileNotFoundError:
-        raise CliError(f"{args.file}: no such file") from None
-    except IsADirectoryError:
-        raise CliError(f"{args.file}: is a directory, not a CSV file") from None
-    except OSError as e:
-        raise CliError(f"{args.file}: cannot open ({e.strerror})") from None
-    size = None
-    if args.file != "-":
-        try:
-            size = os.fstat(stream.fileno()).st_size
-        except OSError:
-            size = None
-    progress = Progress(sys.stderr, source, size)
-    batches: List[tuple[NDArray[np.float64], NDArray[np.float64]]] = []
-    try:
-        header = stream.readline()
-        if not header:
-            raise CliError(f"{source}: empty file; expected a CSV run with a header line (vehid simulate -o FILE)")
-        layout = csv_layout(header, model, args.model, source)
-        progress.chars = len(header)
-        for r, z, chars in read_chunks(stream, layout, source, CHUNK):
-            if isinstance(ident, BatchLeastSquares):
-                batches.append((r, z))  # solved once, at the end
-            else:
-                ident.fit(r, z)
-            progress.step(len(r), chars)
-    except UnicodeDecodeError:
-        raise CliError(f"{source}: not a text (UTF-8) CSV file") from None
-    finally:
-        if stream is not sys.stdin:
-            stream.close()
+    with open_table(args.file, delimiter=args.delimiter) as table:
+        source = table.source
+        layout = resolve_layout(table, args.model, model, mapping, args.no_time, truth is None, sys.stderr)
+        time = None
+        if layout.t is not None:
+            time = TimeCheck(table, layout.used["t"], layout.labels[layout.t], sys.stderr)
+        fit = TruthFit(n, model.n_inputs) if layout.true_x else None
+        progress = Progress(sys.stderr, source, table.size)
+        for chunk in table.chunks(layout.columns, layout.labels, CHUNK):
+            data = chunk.data
+            if time is not None and layout.t is not None:
+                time.add(data[:, layout.t], chunk.lines)
+            feed(ident, np.ascontiguousarray(data[:, layout.x]), np.ascontiguousarray(data[:, layout.dx]))
+            if fit is not None:
+                fit.add(data[:, layout.true_x], data[:, layout.u], data[:, layout.true_dx])
+            progress.step(len(data), table.consumed)
+    if time is not None:
+        time.finish()
     samples = progress.samples
     if samples < n:
         raise CliError(
             f"{source} has {samples} sample{'s' if samples != 1 else ''}; the {MODEL_NAMES[args.model]} "
             f"needs at least {n} (one per state), and many more for a useful estimate"
         )
-    if isinstance(ident, BatchLeastSquares):
-        ident.fit(np.concatenate([b[0] for b in batches]), np.concatenate([b[1] for b in batches]))
     theta = ident.theta
     known = known_masses(args)
     physical: Optional[Dict[str, float]] = None
@@ -422,8 +743,20 @@ def cmd_identify(args: argparse.Namespace) -> int:
         physical = model.physical(theta, **known)
     except VehidError as e:
         physical_error = str(e)
-    true_theta = model.theta if layout.has_truth else None
-    xi_value = xi(true_theta, theta) if true_theta is not None else None
+    if fit is not None:
+        true_theta, why = fit.solve()
+        if true_theta is None:
+            print(f"vehid: note: {source}: no xi from the true_* columns: {why}; pass --truth for one", file=sys.stderr)
+        else:
+            # Entries the model holds at zero by its structure (left out of xi): exactly 0,
+            # not the round-off of the fit, which xi would divide by.
+            true_theta = np.where(model.structural_zeros, 0.0, true_theta)
+            try:
+                constants: Optional[Dict[str, float]] = model.physical(true_theta, **known)
+            except VehidError:
+                constants = None
+            truth = Truth(true_theta, "the file's true_* columns", constants)
+    xi_value = xi(truth.theta, theta) if truth is not None else None
     rows = list(model.unknown_rows)
     if args.json:
         report = {
@@ -432,12 +765,15 @@ def cmd_identify(args: argparse.Namespace) -> int:
             "method": args.method,
             "options": method_options(args),
             "samples": samples,
+            "columns": layout.used,
+            "time": None if time is None else time.report(),
             "unknown_rows": rows,
             "theta": _json_array(theta),
             "known": known,
             "physical": physical,
             "physical_error": physical_error,
-            "true_theta": None if true_theta is None else _json_array(true_theta),
+            "truth": None if truth is None else {"source": truth.source, "constants": truth.constants},
+            "true_theta": None if truth is None else _json_array(truth.theta),
             "xi": None if xi_value is None else _finite_or_none(xi_value),
         }
         print(json.dumps(report, allow_nan=False))
@@ -445,43 +781,106 @@ def cmd_identify(args: argparse.Namespace) -> int:
     opts = ", ".join(f"{k} {v}" for k, v in method_options(args).items())
     print(f"{source}: {samples} samples, {MODEL_NAMES[args.model]} ({n} states), method {args.method}"
           + (f" ({opts})" if opts else ""))
+    if time is None:
+        print("time: not read (--no-time)")
+    else:
+        gaps = f", {time.gaps} gap(s) longer than {GAP_FACTOR:g}x the median (see the warnings)" if time.gaps else ""
+        print(f"time: {time.label} from {_seconds(time.first)} to {_seconds(time.last)} s, median sample interval "
+              f"{time.intervals.median():.6g} s{gaps}")
     print()
-    width = max(12, max(len(f"{v:.6g}") for v in theta.ravel()) + 2)
-    print("identified rows of A (0-based)" + (", and the true rows" if true_theta is not None else "") + ":")
+    shown = theta.ravel().tolist() + ([] if truth is None else truth.theta.ravel().tolist())
+    width = max(12, max(len(f"{v:.6g}") for v in shown) + 2)
+    print("identified rows of A (0-based)" + (", and the true rows" if truth is not None else "") + ":")
     for i, row in enumerate(rows):
         print(f"  row {row}  " + "".join(f"{v:{width}.6g}" for v in theta[i]))
-        if true_theta is not None:
-            print(f"  true   " + "".join(f"{v:{width}.6g}" for v in true_theta[i]))
+        if truth is not None:
+            print("  true   " + "".join(f"{v:{width}.6g}" for v in truth.theta[i]))
     print()
     given = ", ".join(f"{k} = {v:g} kg" for k, v in known.items())
+    true_constants = truth.constants if truth is not None and truth.constants else {}
     if physical is not None:
         print(f"physical constants (known: {given}):")
         for k, v in physical.items():
-            print(f"  {k:3s} = {v:<12.6g} {UNITS.get(k.rstrip('0123456789'), '')}".rstrip())
+            unit = UNITS.get(k.rstrip("0123456789"), "")
+            true_v = f"true {true_constants[k]:.6g}" if k in true_constants else ""
+            print(f"  {k:3s} = {v:<12.6g} {unit:6s} {true_v}".rstrip())
     else:
         print(f"physical constants (known: {given}): not available: {physical_error}")
-    if xi_value is not None:
+    if truth is not None and xi_value is not None:
         print()
-        print(f"xi (Eq 3.17, vs the thesis {MODEL_NAMES[args.model]}) = {xi_value:.6g}")
+        print(f"xi (Eq 3.17, vs the true rows from {truth.source}) = {xi_value:.6g}")
     return 0
+
+
+# --- reproduce --------------------------------------------------------------------------
+
+
+def _check_out_dir(out: str) -> None:
+    """Fails now, not after the whole reproduction, when ``--out`` cannot be a directory."""
+    probe = Path(out)
+    while not probe.exists() and probe.parent != probe:
+        probe = probe.parent
+    if not probe.is_dir():
+        raise CliError(f"--out {out}: {probe} is not a directory")
+    if not os.access(probe, os.W_OK | os.X_OK):
+        raise CliError(f"--out {out}: cannot write into {probe} (permission denied)")
 
 
 def cmd_reproduce(args: argparse.Namespace) -> int:
     from .reproduce import command
 
-    return command(args)
+    _check_out_dir(args.out)
+    try:
+        return command(args)
+    except OSError as e:
+        where = f" {e.filename}" if e.filename else ""
+        raise CliError(f"--out {args.out}: cannot write the report ({e.strerror or e}{':' if where else ''}{where})") \
+            from None
+
+
+# --- the parser -------------------------------------------------------------------------
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse with one-line errors: ``vehid: error: ... (see vehid identify --help)``."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"vehid: error: {message} (see {self.prog} --help)\n")
+
+
+def columns_help() -> str:
+    """The column table of ``vehid identify --help``, from :data:`vehid.io.STATES`."""
+    out = [
+        "columns (matched by name; case, spaces and a unit in brackets such as 'wheel_pos [m]' do not",
+        "matter; other columns are ignored; --columns NAME=COLUMN maps any other header name):",
+        f"  t        time, s (also {', '.join(TIME_NAMES[1:])}): finite and strictly increasing. Irregular",
+        "           sampling is fine: nothing in the identifiers' update depends on the sample interval;",
+        f"           the median interval is reported, steps over {GAP_FACTOR:g}x it are warned about.",
+        "           No time column: pass --no-time.",
+    ]
+    for name, states in STATES.items():
+        cols = model_columns(name)
+        out.append(f"  {MODEL_NAMES[name]} (--model {name}): state x, measured derivative dx")
+        for i in range(1, len(states) + 1):
+            x, dx = cols[f"x{i}"], cols[f"dx{i}"]
+            out.append(f"    {x.name:4s} {x.alias or '':16s} {x.unit:6s}  {dx.name:4s} {dx.alias or '':18s} {dx.unit}")
+    out += [
+        "  true_x1.., true_dx1.. (or true_ + a name above), u1.. (road input, m): the noise-free values",
+        "           vehid simulate writes; with them identify fits the true rows and reports xi.",
+        "  Also read: CSV separated by , ; tab | or spaces (sniffed), quoted cells, # comment lines, a",
+        "  UTF-8 byte-order mark, pandas' index column, CRLF; Parquet with pip install 'vehid[parquet]'.",
+    ]
+    return "\n".join(out)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="vehid", description="Online identification of vehicle suspension dynamics (Kessler 1986)."
-    )
+    parser = Parser(prog="vehid", description="Online identification of vehicle suspension dynamics (Kessler 1986).")
     parser.add_argument("--version", action="version", version=f"vehid {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     sim = sub.add_parser("simulate", help="simulate a vehicle and write a CSV run")
     sim.add_argument("--model", choices=sorted(MODELS), required=True, help="quarter (4 states) or half (8 states)")
-    sim.add_argument("--n", type=int, default=40_000, help="number of samples (default 40000)")
+    sim.add_argument("--n", type=count(0), default=40_000, help="number of samples (default 40000)")
     sim.add_argument("--dt", type=float, default=0.05, help="sample interval, s (default 0.05)")
     sim.add_argument("--road-sigma", type=float, default=0.1, help="road input std sigma_u, m (default 0.1)")
     sim.add_argument("--ic-sigma", type=float, default=0.0, help="initial-state std (default 0)")
@@ -495,22 +894,36 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--spacing", type=float, default=0.3, help="with --speed: metres between samples (default 0.3)")
     sim.add_argument("--road", choices=["white", "independent"], default="white",
                      help="with --speed: one road under both axles (white) or independent inputs (Fig 6-7)")
-    sim.add_argument("-o", "--output", required=True, metavar="FILE", help="CSV file to write, '-' for stdout")
+    sim.add_argument("-o", "--output", required=True, metavar="FILE",
+                     help="CSV file to write, '-' for stdout (columns t, x1..xn, dx1..dxn, true_x1.., true_dx1.., u1..)")
     sim.set_defaults(func=cmd_simulate)
 
     ident = sub.add_parser(
         "identify",
-        help="identify the unknown rows of A from a CSV run",
-        description="Reads a CSV run written by `vehid simulate` (columns t, x1..xn, dx1..dxn; "
-        "optional true_x.., true_dx.., u..), identifies the unknown rows of A and prints them, the "
-        "physical constants and, when the file carries the true values, xi (Eq 3.17) against the "
-        "thesis model.",
+        help="identify the unknown rows of A from a measured run (CSV or Parquet)",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Reads a run (CSV or Parquet, a file or - for stdin) of measured states x and their measured "
+        "derivatives dx,\nidentifies the unknown rows of A and prints them, the physical constants and, when "
+        "the truth is\nknown (--truth, or the true_* columns vehid simulate writes), xi (Eq 3.17).",
+        epilog=columns_help(),
     )
-    ident.add_argument("file", metavar="FILE", help="CSV run, '-' for stdin")
+    ident.add_argument("file", metavar="FILE", help="CSV or Parquet run, '-' for stdin (CSV)")
     ident.add_argument("--model", choices=sorted(MODELS), required=True, help="quarter (4 states) or half (8 states)")
+    ident.add_argument("--columns", action="append", metavar="MAP",
+                       help="map file columns to the model's names: NAME=COLUMN pairs, comma-separated "
+                            "(e.g. x1=wheel_z,dx1=wheel_zdot,t=Zeit), or a file with one NAME = COLUMN per line; "
+                            "may be repeated")
+    ident.add_argument("--no-time", action="store_true",
+                       help="the file has no time column: identify without the time checks")
+    ident.add_argument("--delimiter", type=delimiter, default=None, metavar="D",
+                       help="CSV delimiter: , ; tab | space (default: sniffed from the header)")
+    ident.add_argument("--truth", default=None, metavar="CONSTANTS",
+                       help="the true constants, for xi: every one of the model, e.g. M=10,m=1,k1=90,k2=50,b=40, "
+                            "or 'thesis' (default: the file's true_* columns if any, else no xi)")
     ident.add_argument("--method", choices=["kalman", "ls", "sg", "two-axle"], default="kalman",
-                       help="kalman (Eq 4.3-4.7, default), ls (batch least squares, Eq 2.14), sg (stochastic "
-                            "gradient), two-axle (half car on one road, samples every --spacing metres)")
+                       help="kalman (Eq 4.3-4.7, default), ls (batch least squares, Eq 2.14; keeps every sample "
+                            "in memory), sg (stochastic gradient), two-axle (half car on one road, samples every "
+                            "--spacing metres)")
     ident.add_argument("--spacing", type=float, default=0.3,
                        help="two-axle: metres between samples, as simulated (default 0.3)")
     ident.add_argument("--wheel-method", choices=["none", "thesis", "cancel"], default="cancel",
@@ -536,7 +949,7 @@ def build_parser() -> argparse.ArgumentParser:
     ident.set_defaults(func=cmd_identify)
 
     demo = sub.add_parser("demo", help="quarter-car run vs the analytic standard deviations")
-    demo.add_argument("--n", type=int, default=40_000, help="number of samples (default 40000)")
+    demo.add_argument("--n", type=count(2), default=40_000, help="number of samples, at least 2 (default 40000)")
     demo.set_defaults(func=cmd_demo)
 
     rep = sub.add_parser(
@@ -553,21 +966,61 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+# --- main -------------------------------------------------------------------------------
+
+
+def _silence_stdout() -> None:
+    """Points stdout at /dev/null, so that the interpreter's last flush of a closed pipe or
+    a full disk cannot print a second message."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError, AttributeError):  # no real file behind stdout (e.g. under pytest)
+        pass
+
+
+def _flush_stdout() -> None:
+    if sys.stdout is not None:  # None: started with stdout closed
+        sys.stdout.flush()
+
+
+def _fail(message: str, status: int = 2) -> int:
+    try:
+        _flush_stdout()
+    except (OSError, ValueError):
+        _silence_stdout()
+    print(" ".join(message.split("\n")), file=sys.stderr)
+    return status
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    if getattr(args, "n", 0) < 0:
-        parser.error("--n must be >= 0")
     try:
         func: Callable[[argparse.Namespace], int] = args.func
-        return func(args)
-    except (VehidError, CliError) as e:
-        print(f"vehid: error: {e}", file=sys.stderr)
-        return 2
+        status = func(args)
+        _flush_stdout()
+        return status
+    except (VehidError, CliError, TableError) as e:
+        return _fail(f"vehid: error: {e}")
     except BrokenPipeError:
         # `vehid simulate -o - | head`: the reader left; not an error of ours.
-        sys.stderr.close()
+        _silence_stdout()
         return 0
+    except OSError as e:  # writing the report to stdout or stderr failed (e.g. a full disk)
+        what = "standard output" if e.filename is None else e.filename
+        return _fail(f"vehid: error: {what}: cannot write ({e.strerror or e})")
+    except KeyboardInterrupt:
+        return _fail("vehid: interrupted", 130)
+    except MemoryError:
+        return _fail("vehid: error: out of memory")
+    except Exception as e:  # a bug: still one line, never a traceback
+        return _fail(f"vehid: internal error: {type(e).__name__}: {e} (a bug in vehid: please report it)")
+    except BaseException as e:
+        if type(e).__name__ != "PanicException":  # SystemExit, GeneratorExit: not ours to stop
+            raise
+        return _fail(f"vehid: internal error: a panic in vehid's Rust core: {e} (a bug in vehid: please report it)")
 
 
 if __name__ == "__main__":
