@@ -88,7 +88,7 @@ pub fn axle_delay<T: Real>(wheelbase: T, spacing: T) -> Result<(usize, T)> {
     check_positive("spacing", spacing)?;
     let ratio = (wheelbase / spacing).to_f64();
     let d = libm::round(ratio);
-    if !(d >= 1.0 && d < 1e9) {
+    if !(1.0..1e9).contains(&d) {
         return Err(Error::InvalidArgument {
             arg: "spacing",
             expected: "a spacing between 1e-9 and 2 times the wheelbase (d = wheelbase/spacing road points ≥ 1)",

@@ -419,7 +419,7 @@ where
     ) -> core::result::Result<(), FitError> {
         let params = self.dims().params;
         let every = opts.record_every;
-        let records = if every > 0 { data.len() / every } else { 0 };
+        let records = data.len().checked_div(every).unwrap_or(0);
         let start = history.len();
         let need = records.checked_mul(params).ok_or(FitError {
             sample: None,

@@ -160,7 +160,7 @@ fn noise_free_initial_condition_excitation_is_exact() {
     }
     let theta = ls.solve().unwrap();
     let truth = car.theta().transpose();
-    assert!(rel_diff(&theta, truth.as_slice().iter().copied().collect::<Vec<_>>().as_slice()) < 1e-9);
+    assert!(rel_diff(&theta, truth.as_slice()) < 1e-9);
     // The memory-bounded accumulator agrees.
     let mut acc = LsAccumulator::<f64, 4, Fixed<2>>::new([1, 3]).unwrap();
     for (x, z) in data.iter().take(4) {
