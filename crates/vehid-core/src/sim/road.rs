@@ -3,9 +3,9 @@
 #[cfg(feature = "alloc")]
 use super::Run;
 use super::{measure, normal, streams, Method, Sample, SimConfig};
-use crate::analysis::{rk4_map, zoh};
 use crate::error::{check_finite, check_nonneg, check_positive};
 use crate::model::LinearModel;
+use crate::model::{rk4_map, zoh};
 use crate::{Error, Real, Result};
 use nalgebra::{SMatrix, SVector};
 use rand::rngs::Xoshiro256PlusPlus;

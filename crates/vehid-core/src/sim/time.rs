@@ -3,9 +3,9 @@
 #[cfg(feature = "alloc")]
 use super::Run;
 use super::{measure, normal, streams, Method, SimConfig};
-use crate::analysis::{auto_substeps, rk4_map, zoh};
 use crate::error::check_finite;
 use crate::model::LinearModel;
+use crate::model::{auto_substeps, rk4_map, zoh};
 use crate::{Error, Real, Result};
 use nalgebra::{SMatrix, SVector};
 use rand::rngs::Xoshiro256PlusPlus;

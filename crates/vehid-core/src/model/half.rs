@@ -1,0 +1,232 @@
+//! The half car (Eq 6.1–6.8).
+
+use super::{scale_ls, LinearModel, RowSet};
+use crate::error::{check_finite, check_positive};
+use crate::{Error, Real, Result};
+use nalgebra::SMatrix;
+
+/// The half-car (heave and pitch) suspension of Eq 6.1–6.8, linearized for small pitch.
+///
+/// State `x = [x1, ẋ1, x2, ẋ2, x3, ẋ3, φ, φ̇]`: front wheel, rear wheel, body heave (m, m/s)
+/// and body pitch (rad, rad/s). Inputs `u = [u1, u2]`: the road under the front and the rear
+/// wheel (m). `B` has `k11/m1` in row 1 and `k21/m2` in row 3 (0-based). Unknown rows
+/// 1, 3, 5, 7: 32 parameters, 4 of them structurally zero (row 1 at x2, ẋ2; row 3 at x1, ẋ1).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HalfCar<T> {
+    p: HalfCarParams<T>,
+}
+
+/// The physical constants of a [`HalfCar`], in the order of the thesis (Eq 6.1–6.6).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HalfCarParams<T> {
+    /// Front tyre stiffness, N/m.
+    pub k11: T,
+    /// Rear tyre stiffness, N/m.
+    pub k21: T,
+    /// Front suspension stiffness, N/m.
+    pub k12: T,
+    /// Rear suspension stiffness, N/m.
+    pub k22: T,
+    /// Front damping, N·s/m.
+    pub b1: T,
+    /// Rear damping, N·s/m.
+    pub b2: T,
+    /// Front wheel mass, kg.
+    pub m1: T,
+    /// Rear wheel mass, kg.
+    pub m2: T,
+    /// Body mass `M`, kg.
+    pub m_body: T,
+    /// Body pitch inertia `J`, kg·m².
+    pub j: T,
+    /// Distance from the centre of mass to the front axle, m.
+    pub l1: T,
+    /// Distance from the centre of mass to the rear axle, m.
+    pub l2: T,
+}
+
+impl<T: Real> HalfCarParams<T> {
+    /// The constants with their thesis names (`M` is the body mass, `J` the pitch inertia),
+    /// in the order of Eq 6.1–6.6.
+    pub fn named(&self) -> [(&'static str, T); 12] {
+        [
+            ("k11", self.k11),
+            ("k21", self.k21),
+            ("k12", self.k12),
+            ("k22", self.k22),
+            ("b1", self.b1),
+            ("b2", self.b2),
+            ("m1", self.m1),
+            ("m2", self.m2),
+            ("M", self.m_body),
+            ("J", self.j),
+            ("l1", self.l1),
+            ("l2", self.l2),
+        ]
+    }
+}
+
+impl<T: Real> HalfCar<T> {
+    /// Builds the half car from its constants.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] naming the first constant that is not finite and > 0.
+    pub fn new(p: HalfCarParams<T>) -> Result<Self> {
+        for (name, v) in p.named() {
+            check_positive(name, v)?;
+        }
+        Ok(Self { p })
+    }
+
+    /// The thesis' values (Ch. VI.A): k11 = k21 = 100, k12 = k22 = 40, b1 = b2 = 60,
+    /// m1 = m2 = 1, M = 20, J = 60, l1 = 2, l2 = 1.
+    pub fn thesis() -> Self {
+        let c = T::of;
+        Self {
+            p: HalfCarParams {
+                k11: c(100.0),
+                k21: c(100.0),
+                k12: c(40.0),
+                k22: c(40.0),
+                b1: c(60.0),
+                b2: c(60.0),
+                m1: c(1.0),
+                m2: c(1.0),
+                m_body: c(20.0),
+                j: c(60.0),
+                l1: c(2.0),
+                l2: c(1.0),
+            },
+        }
+    }
+
+    /// The constants.
+    pub fn params(&self) -> HalfCarParams<T> {
+        self.p
+    }
+
+    /// Wheelbase `L = l1 + l2`, m: the distance the rear wheel trails the front wheel.
+    pub fn wheelbase(&self) -> T {
+        self.p.l1 + self.p.l2
+    }
+
+    /// The unknown rows of `A` (0-based): the four acceleration rows.
+    pub fn unknown_rows(&self) -> [usize; 4] {
+        [1, 3, 5, 7]
+    }
+
+    /// The linear model of Eq 6.1–6.6 (8 states, 2 inputs).
+    pub fn model(&self) -> LinearModel<T, 8, 2> {
+        let p = self.params();
+        let mut a = SMatrix::<T, 8, 8>::zeros();
+        for i in [0usize, 2, 4, 6] {
+            a[(i, i + 1)] = T::one();
+        }
+        let rows = Self::rows_from(&p);
+        for (i, r) in [1usize, 3, 5, 7].iter().enumerate() {
+            for c in 0..8 {
+                a[(*r, c)] = rows[i][c];
+            }
+        }
+        let mut b = SMatrix::<T, 8, 2>::zeros();
+        b[(1, 0)] = p.k11 / p.m1;
+        b[(3, 1)] = p.k21 / p.m2;
+        let mut zero = [[false; 8]; 8];
+        zero[1][2] = true;
+        zero[1][3] = true;
+        zero[3][0] = true;
+        zero[3][1] = true;
+        LinearModel { a, b, rows: RowSet { idx: [1, 3, 5, 7, 0, 0, 0, 0], len: 4 }, zero }
+    }
+
+    /// The unknown rows of `A` as functions of the constants (Eq 6.1–6.4 divided by the masses).
+    fn rows_from(p: &HalfCarParams<T>) -> [[T; 8]; 4] {
+        let z = T::zero();
+        let (k12, k22, b1, b2, l1, l2) = (p.k12, p.k22, p.b1, p.b2, p.l1, p.l2);
+        let (m1, m2, mb, j) = (p.m1, p.m2, p.m_body, p.j);
+        let body = Self::body_pattern(k12, k22, b1, b2, l1, l2);
+        let pitch = Self::pitch_pattern(k12, k22, b1, b2, l1, l2);
+        [
+            [-(k12 + p.k11) / m1, -b1 / m1, z, z, k12 / m1, b1 / m1, k12 * l1 / m1, b1 * l1 / m1],
+            [z, z, -(k22 + p.k21) / m2, -b2 / m2, k22 / m2, b2 / m2, -k22 * l2 / m2, -b2 * l2 / m2],
+            body.map(|v| v / mb),
+            pitch.map(|v| v / j),
+        ]
+    }
+
+    /// The heave row times `M` (Eq 6.3).
+    fn body_pattern(k12: T, k22: T, b1: T, b2: T, l1: T, l2: T) -> [T; 8] {
+        [k12, b1, k22, b2, -(k12 + k22), -(b1 + b2), -k12 * l1 + k22 * l2, -b1 * l1 + b2 * l2]
+    }
+
+    /// The pitch row times `J` (Eq 6.4).
+    fn pitch_pattern(k12: T, k22: T, b1: T, b2: T, l1: T, l2: T) -> [T; 8] {
+        [
+            k12 * l1,
+            b1 * l1,
+            -k22 * l2,
+            -b2 * l2,
+            -k12 * l1 + k22 * l2,
+            -b1 * l1 + b2 * l2,
+            -(k12 * l1 * l1 + k22 * l2 * l2),
+            -(b1 * l1 * l1 + b2 * l2 * l2),
+        ]
+    }
+
+    /// The true unknown rows (`4 × 8`).
+    pub fn theta(&self) -> SMatrix<T, 4, 8> {
+        let rows = Self::rows_from(&self.params());
+        SMatrix::<T, 4, 8>::from_fn(|i, j| rows[i][j])
+    }
+
+    /// Recovers the constants from identified rows (`4 × 8`, rows 1, 3, 5, 7 of `A`) given
+    /// the wheel masses `m1`, `m2` (kg) and the known input matrix entries `b21 = k11/m1`,
+    /// `b42 = k21/m2` (1/s², the thesis' "B known").
+    ///
+    /// Per wheel row: the suspension stiffness and damping are the means of their two
+    /// appearances, the lever arm the least-squares ratio of the pitch columns to the body
+    /// columns. `1/M` and `1/J` are the least-squares scales of the body and pitch rows
+    /// against the patterns those constants predict. Exact on exact rows.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for non-positive known values or non-finite θ;
+    /// [`Error::NotIdentifiable`] when the rows do not give positive constants.
+    pub fn from_theta(theta: &SMatrix<T, 4, 8>, m1: T, m2: T, b21: T, b42: T) -> Result<Self> {
+        check_finite("theta", theta.transpose().as_slice())?;
+        check_positive("m1", m1)?;
+        check_positive("m2", m2)?;
+        check_positive("b21", b21)?;
+        check_positive("b42", b42)?;
+        let half = T::of(0.5);
+        let (k11, k21) = (b21 * m1, b42 * m2);
+        let f = theta.row(0);
+        let r = theta.row(1);
+        let k12 = (m1 * f[4] + (-m1 * f[0] - k11)) * half;
+        let b1 = (m1 * f[5] - m1 * f[1]) * half;
+        let l1 = scale_ls(&[f[4], f[5]], [f[6], f[7]].into_iter(), "l1 (front wheel row is zero)")?;
+        let k22 = (m2 * r[4] + (-m2 * r[2] - k21)) * half;
+        let b2 = (m2 * r[5] - m2 * r[3]) * half;
+        let l2 = -scale_ls(&[r[4], r[5]], [r[6], r[7]].into_iter(), "l2 (rear wheel row is zero)")?;
+        let body = Self::body_pattern(k12, k22, b1, b2, l1, l2);
+        let inv_m = scale_ls(&body, theta.row(2).iter().copied(), "M (body row)")?;
+        let pitch = Self::pitch_pattern(k12, k22, b1, b2, l1, l2);
+        let inv_j = scale_ls(&pitch, theta.row(3).iter().copied(), "J (pitch row)")?;
+        Self::new(HalfCarParams {
+            k11,
+            k21,
+            k12,
+            k22,
+            b1,
+            b2,
+            m1,
+            m2,
+            m_body: T::one() / inv_m,
+            j: T::one() / inv_j,
+            l1,
+            l2,
+        })
+        .map_err(|_| Error::NotIdentifiable {
+            what: "positive half-car constants from these rows (is the estimate converged?)",
+        })
+    }
+}

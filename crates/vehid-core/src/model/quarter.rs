@@ -1,0 +1,158 @@
+//! The quarter car (Eq 3.8–3.13).
+
+use super::{scale_ls, LinearModel, RowSet};
+use crate::error::{check_finite, check_positive};
+use crate::{Error, Real, Result};
+use nalgebra::SMatrix;
+
+/// Which mass of the quarter car is known when mapping identified rows back to constants.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum QuarterKnown<T> {
+    /// The wheel (unsprung) mass `m`, kg: the thesis' assumption.
+    WheelMass(T),
+    /// The body (sprung) mass `M`, kg.
+    BodyMass(T),
+}
+
+/// The quarter-car suspension of Eq 3.8–3.13, state `x = [x1, ẋ1, x2, ẋ2]` (wheel
+/// position m, wheel velocity m/s, body position m, body velocity m/s).
+///
+/// ```text
+/// A = [[0, 1, 0, 0],
+///      [-(k1+k2)/m, -b/m, k2/m, b/m],
+///      [0, 0, 0, 1],
+///      [k2/M, b/M, -k2/M, -b/M]]        B = [0, k1/m, 0, 0]ᵀ
+/// ```
+/// Unknown rows 1 and 3 (0-based): 8 parameters.
+///
+/// # Examples
+/// ```
+/// use vehid_core::model::QuarterCar;
+/// let car = QuarterCar::<f64>::thesis();
+/// assert_eq!(car.unknown_rows(), [1, 3]);
+/// assert!((car.model().a()[(1, 0)] + 140.0).abs() < 1e-12); // -(k1 + k2)/m
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct QuarterCar<T> {
+    m_body: T,
+    m_wheel: T,
+    k1: T,
+    k2: T,
+    b: T,
+}
+
+impl<T: Real> QuarterCar<T> {
+    /// Builds the quarter car from body mass `M` (kg), wheel mass `m` (kg), tyre stiffness
+    /// `k1` (N/m), suspension stiffness `k2` (N/m) and damping `b` (N·s/m).
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] naming the constant when it is not finite and > 0.
+    pub fn new(m_body: T, m_wheel: T, k1: T, k2: T, b: T) -> Result<Self> {
+        check_positive("M", m_body)?;
+        check_positive("m", m_wheel)?;
+        check_positive("k1", k1)?;
+        check_positive("k2", k2)?;
+        check_positive("b", b)?;
+        Ok(Self { m_body, m_wheel, k1, k2, b })
+    }
+
+    /// The thesis' values (Ch. III.B): M = 10, m = 1, k1 = 90, k2 = 50, b = 40.
+    pub fn thesis() -> Self {
+        Self { m_body: T::of(10.0), m_wheel: T::of(1.0), k1: T::of(90.0), k2: T::of(50.0), b: T::of(40.0) }
+    }
+
+    /// Body mass `M`, kg.
+    pub fn m_body(&self) -> T {
+        self.m_body
+    }
+    /// Wheel mass `m`, kg.
+    pub fn m_wheel(&self) -> T {
+        self.m_wheel
+    }
+    /// Tyre stiffness `k1`, N/m.
+    pub fn k1(&self) -> T {
+        self.k1
+    }
+    /// Suspension stiffness `k2`, N/m.
+    pub fn k2(&self) -> T {
+        self.k2
+    }
+    /// Suspension damping `b`, N·s/m.
+    pub fn b(&self) -> T {
+        self.b
+    }
+
+    /// The constants with their thesis names (`M` body mass, `m` wheel mass).
+    pub fn named(&self) -> [(&'static str, T); 5] {
+        [("M", self.m_body), ("m", self.m_wheel), ("k1", self.k1), ("k2", self.k2), ("b", self.b)]
+    }
+
+    /// The unknown rows of `A` (0-based): the wheel and body acceleration rows.
+    pub fn unknown_rows(&self) -> [usize; 2] {
+        [1, 3]
+    }
+
+    /// The linear model of Eq 3.11.
+    pub fn model(&self) -> LinearModel<T, 4, 1> {
+        let (mb, m, k1, k2, b) = (self.m_body, self.m_wheel, self.k1, self.k2, self.b);
+        let z = T::zero();
+        let o = T::one();
+        #[rustfmt::skip]
+        let a = SMatrix::<T, 4, 4>::new(
+            z, o, z, z,
+            -(k1 + k2) / m, -b / m, k2 / m, b / m,
+            z, z, z, o,
+            k2 / mb, b / mb, -k2 / mb, -b / mb,
+        );
+        let bm = SMatrix::<T, 4, 1>::new(z, k1 / m, z, z);
+        // Constants validated at construction, so the model is finite.
+        LinearModel { a, b: bm, rows: RowSet { idx: [1, 3, 0, 0], len: 2 }, zero: [[false; 4]; 4] }
+    }
+
+    /// The true unknown rows (`2 × 4`), the parameters the identifiers estimate.
+    pub fn theta(&self) -> SMatrix<T, 2, 4> {
+        let a = self.model().a;
+        SMatrix::<T, 2, 4>::from_fn(|i, j| a[(2 * i + 1, j)])
+    }
+
+    /// Recovers the physical constants from identified rows (`2 × 4`, rows 1 and 3 of `A`),
+    /// given one known mass (the thesis: "one mass must be known").
+    ///
+    /// With the wheel mass `m` known: `k2 = m θ₁₂`, `b` the mean of `−m θ₁₁` and `m θ₁₃`,
+    /// `k1 = −m θ₁₀ − k2`, and `1/M` the least-squares scale between `[k2, b, −k2, −b]` and
+    /// the body row. With `M` known the roles are swapped. Exact on exact rows.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] when the known mass is not > 0 or θ is not finite;
+    /// [`Error::NotIdentifiable`] when the rows do not give positive constants.
+    pub fn from_theta(theta: &SMatrix<T, 2, 4>, known: QuarterKnown<T>) -> Result<Self> {
+        check_finite("theta", theta.transpose().as_slice())?;
+        let w = theta.row(0);
+        let body = theta.row(1);
+        let half = T::of(0.5);
+        let (m_body, m_wheel, k1, k2, b) = match known {
+            QuarterKnown::WheelMass(m) => {
+                check_positive("m", m)?;
+                let k2 = m * w[2];
+                let b = (m * w[3] - m * w[1]) * half;
+                let k1 = -m * w[0] - k2;
+                let v = [k2, b, -k2, -b];
+                let mu = scale_ls(&v, body.iter().copied(), "M (the body row and [k2, b] are orthogonal)")?;
+                (T::one() / mu, m, k1, k2, b)
+            }
+            QuarterKnown::BodyMass(mb) => {
+                check_positive("M", mb)?;
+                let k2 = (mb * body[0] - mb * body[2]) * half;
+                let b = (mb * body[1] - mb * body[3]) * half;
+                // wheel row: [θ₁₁, θ₁₂, θ₁₃] = [−b, k2, b] / m; θ₁₀ carries k1.
+                let v = [-b, k2, b];
+                let mu = scale_ls(&v, [w[1], w[2], w[3]].into_iter(), "m (the wheel row and [b, k2] are orthogonal)")?;
+                let m = T::one() / mu;
+                (mb, m, -m * w[0] - k2, k2, b)
+            }
+        };
+        Self::new(m_body, m_wheel, k1, k2, b).map_err(|_| Error::NotIdentifiable {
+            what: "positive quarter-car constants from these rows (is the estimate converged?)",
+        })
+    }
+}
