@@ -1,7 +1,7 @@
 //! End-to-end time of the thesis reproduction in quick mode: what `vehid reproduce --quick`
 //! (and `make demo`) spends in Rust.
 //!
-//! One iteration is `experiments::run` with the options the CLI passes for `--quick`
+//! One iteration is `vehid_thesis::run` with the options the CLI passes for `--quick`
 //! (`RunOptions { quick: true, ..Default::default() }`: every figure, 5 seeds, at most
 //! 10,000 iterations per curve, base seed 1986, the tables of Eq 4.28, 4.32, 4.34 and Table I,
 //! threads = the available parallelism) followed by `Report::to_json`, the string the Python
@@ -20,7 +20,7 @@
 use criterion::{criterion_group, criterion_main, Criterion, SamplingMode};
 use std::hint::black_box;
 use std::time::Duration;
-use vehid_core::experiments::{run, Progress, RunOptions};
+use vehid_thesis::{run, Progress, RunOptions};
 
 /// `cargo bench` passes `--bench`; `cargo test --benches` does not.
 fn benchmarking() -> bool {

@@ -1,7 +1,7 @@
 """``vehid reproduce``: the thesis' simulation study, regenerated, with a report.
 
 The experiments (one per figure of Ch. III–VI, with the captions' noise levels) and the
-runner live in Rust (``vehid_core::experiments``); this module renders what the runner
+runner live in Rust (the ``vehid-thesis`` crate); this module renders what the runner
 measured: one PNG per figure (ξ_k against iterations, log scale, median and 10–90 % band
 over seeds; needs the optional ``vehid[plot]`` extra, i.e. matplotlib) and
 ``index.md`` / ``index.html`` with, per figure, the thesis' claim and vehid's measured

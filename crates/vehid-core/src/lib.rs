@@ -35,8 +35,6 @@ extern crate alloc;
 
 pub mod analysis;
 mod error;
-#[cfg(feature = "std")]
-pub mod experiments;
 pub mod identify;
 pub mod linalg;
 pub mod metrics;

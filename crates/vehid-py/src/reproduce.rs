@@ -1,4 +1,4 @@
-//! `vehid reproduce`: the thesis' simulation study (vehid-core's `experiments` runner), run
+//! `vehid reproduce`: the thesis' simulation study (the `vehid-thesis` runner), run
 //! with the GIL released; the result comes back as JSON for `vehid.reproduce` to render.
 
 use crate::core_err;
@@ -6,7 +6,7 @@ use pyo3::prelude::*;
 use std::io::Write;
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
-use vehid_core::experiments::{run, Progress, RunOptions};
+use vehid_thesis::{run, Progress, RunOptions};
 
 /// Runs the reproduction and returns the report as a JSON string.
 ///

@@ -2,7 +2,7 @@
 //! small iteration counts, and the check that the report's numbers are computed from the
 //! seed, not copied (change the base seed, the numbers change).
 
-use vehid_core::experiments::{run, select, Report, RunOptions, EXPERIMENTS};
+use vehid_thesis::{run, select, Report, RunOptions, EXPERIMENTS};
 
 fn quick(seed: u64, only: &[&str], max_iterations: usize) -> Report {
     let opts = RunOptions {
@@ -79,7 +79,7 @@ fn one_road_figures_run_with_the_two_axle_identifier() {
 }
 
 /// The whole quick reproduction with the verdicts printed (`cargo test --release -p
-/// vehid-core --test experiments -- --ignored --nocapture`).
+/// vehid-thesis --test experiments -- --ignored --nocapture`).
 #[test]
 #[ignore]
 fn print_quick_reproduction() {
