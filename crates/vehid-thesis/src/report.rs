@@ -1,35 +1,76 @@
 //! What a reproduction produced: per figure the curves (median and band over seeds, per-seed
-//! metrics) and the verdicts, and the tables.
+//! metrics) and the verdicts, and the tables. Plain data: every type derives
+//! [`serde::Serialize`], and [`Report::to_json`] writes it with serde_json (the criterion
+//! bench times it; the Python binding converts the same fields to Python objects directly).
+//!
+//! # Non-finite numbers
+//!
+//! ξ is NaN where there is no estimate yet (batch least squares before the data have full
+//! rank) and ∞ where an identifier overflowed; per seed, `settle` and `reach` are ∞ when ξ
+//! never got (to stay) below 0.08, `argmin` is NaN when ξ never was a number. JSON has neither
+//! NaN nor ∞, so the serialized form writes **every non-finite number as `null`**, explicitly
+//! (`#[serde(serialize_with)]` on every float series, not left to the serializer): a JSON
+//! reader sees "no finite value". In `settle` and `reach` `null` means never (∞); in the ξ
+//! series (`median`, `p10`, `p90`, `final_xi`, `min_xi`) it means no estimate or overflow;
+//! in `argmin`, no minimum. The scalar floats (σ, `seconds`) are always finite. The Rust
+//! values and the Python binding's objects keep NaN and ±∞ as they are.
+//!
+//! `ident` and `model` are serialized as their Rust `Debug` text (e.g.
+//! `Kalman { p0_wheel: 1000.0, p0_body: 1000.0, r_scale: 1.0, reinit: false }`), which is what
+//! the report prints.
 
-use crate::figures::{curve_name, Curve, Experiment};
+use crate::figures::{Ident, ModelKind};
+use serde::Serialize;
 
 /// Median and 10–90 % band of one curve, plus per-seed summary metrics.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Serialize)]
 pub struct CurveResult {
-    /// The curve's definition.
-    pub curve: Curve,
+    /// The legend name: the curve's label, or `curve i` (1-based) when it has none.
+    pub label: String,
+    /// The identifier and its settings.
+    #[serde(serialize_with = "ser::debug_text")]
+    pub ident: Ident,
+    /// Initial-condition σ_ic.
+    pub ic: f64,
+    /// Road σ_u.
+    pub road: f64,
+    /// State measurement σ_w.
+    pub state: f64,
+    /// State derivative measurement σ_v.
+    pub deriv: f64,
+    /// Pulse width in sample intervals (0 = no pulse).
+    pub pulse_width: u64,
     /// Median ξ over seeds at each recorded iteration.
+    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub median: Vec<f64>,
     /// 10 % quantile.
+    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub p10: Vec<f64>,
     /// 90 % quantile.
+    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub p90: Vec<f64>,
     /// Per seed: ξ at the last recorded iteration.
+    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub final_xi: Vec<f64>,
     /// Per seed: iteration after which ξ stays below 0.08 (∞ if never).
+    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub settle: Vec<f64>,
     /// Per seed: first iteration with ξ < 0.08 (∞ if never).
+    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub reach: Vec<f64>,
     /// Per seed: minimum ξ over the run.
+    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub min_xi: Vec<f64>,
     /// Per seed: iteration of the minimum.
+    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub argmin: Vec<f64>,
     /// Per seed: Eq 4.36 reinitializations (Kalman), else 0.
+    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub reinits: Vec<f64>,
 }
 
 /// A claim's verdict.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Serialize)]
 pub struct Verdict {
     /// The thesis' claim.
     pub claim: String,
@@ -42,26 +83,35 @@ pub struct Verdict {
 }
 
 /// The result of one figure.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Serialize)]
 pub struct FigureResult {
-    /// The definition.
-    pub experiment: &'static Experiment,
-    /// Recorded iterations.
-    pub k: Vec<u64>,
+    /// Figure number, e.g. `"4-2"` ([`crate::select`] finds its [`crate::Experiment`]).
+    pub id: &'static str,
+    /// Caption, shortened.
+    pub title: &'static str,
+    /// Model.
+    #[serde(serialize_with = "ser::debug_text")]
+    pub model: ModelKind,
+    /// Iterations of the full run (as in the thesis, or assumed).
+    pub thesis_iterations: usize,
     /// Iterations actually run.
     pub iterations: usize,
     /// Seeds run.
     pub seeds: usize,
+    /// Values chosen because the thesis does not print them.
+    pub assumptions: &'static str,
+    /// Why it was skipped, if it was.
+    pub skipped: Option<String>,
+    /// Recorded iterations.
+    pub k: Vec<u64>,
     /// Curves.
     pub curves: Vec<CurveResult>,
     /// Claims evaluated.
     pub verdicts: Vec<Verdict>,
-    /// Why it was skipped, if it was.
-    pub skipped: Option<String>,
 }
 
 /// One row of a table (thesis value vs vehid's).
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Serialize)]
 pub struct TableRow {
     /// What the row is.
     pub label: String,
@@ -76,7 +126,7 @@ pub struct TableRow {
 }
 
 /// A table of the report.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Serialize)]
 pub struct Table {
     /// Heading, e.g. "Eq 4.28".
     pub title: String,
@@ -87,7 +137,7 @@ pub struct Table {
 }
 
 /// Everything a reproduction produced.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Serialize)]
 pub struct Report {
     /// Quick mode.
     pub quick: bool,
@@ -102,6 +152,16 @@ pub struct Report {
     /// Tables.
     pub tables: Vec<Table>,
 }
+
+impl Report {
+    /// The report as JSON, field names as in the Rust types; every non-finite number is
+    /// `null` (see the [module documentation](self)).
+    pub fn to_json(&self) -> String {
+        // Infallible: no maps (so no non-string keys) and no serializer that can fail.
+        serde_json::to_string(self).expect("a Report always serializes to JSON")
+    }
+}
+
 /// Formats a number for the report (integers without decimals, ∞ as "never").
 pub fn fmt_num(v: f64) -> String {
     if v.is_nan() {
@@ -119,199 +179,17 @@ pub fn fmt_num(v: f64) -> String {
     }
 }
 
-fn jstr(s: &str, out: &mut String) {
-    out.push('"');
-    for ch in s.chars() {
-        match ch {
-            '"' => out.push_str("\\\""),
-            '\\' => out.push_str("\\\\"),
-            '\n' => out.push_str("\\n"),
-            c if (c as u32) < 0x20 => out.push_str(&format!("\\u{:04x}", c as u32)),
-            c => out.push(c),
-        }
+/// The `serialize_with` helpers of the report's fields.
+mod ser {
+    use serde::Serializer;
+
+    /// A float series with every non-finite value (NaN, ±∞) written as `None` (JSON `null`).
+    pub(super) fn non_finite_as_null<S: Serializer>(v: &[f64], s: S) -> Result<S::Ok, S::Error> {
+        s.collect_seq(v.iter().map(|x| x.is_finite().then_some(*x)))
     }
-    out.push('"');
-}
 
-fn jnum(v: f64, out: &mut String) {
-    if v.is_finite() {
-        out.push_str(&format!("{v}"));
-    } else if v.is_nan() {
-        out.push_str("null");
-    } else if v > 0.0 {
-        out.push_str("\"inf\"");
-    } else {
-        out.push_str("\"-inf\"");
-    }
-}
-
-fn jarr(v: &[f64], out: &mut String) {
-    out.push('[');
-    for (i, x) in v.iter().enumerate() {
-        if i > 0 {
-            out.push(',');
-        }
-        jnum(*x, out);
-    }
-    out.push(']');
-}
-
-fn jkv(key: &str, out: &mut String) {
-    jstr(key, out);
-    out.push(':');
-}
-
-impl Report {
-    /// The report as JSON (non-finite numbers: `null` for NaN, `"inf"` for ∞).
-    pub fn to_json(&self) -> String {
-        let mut o = String::new();
-        o.push('{');
-        jkv("quick", &mut o);
-        o.push_str(if self.quick { "true" } else { "false" });
-        o.push(',');
-        jkv("base_seed", &mut o);
-        o.push_str(&self.base_seed.to_string());
-        o.push(',');
-        jkv("threads", &mut o);
-        o.push_str(&self.threads.to_string());
-        o.push(',');
-        jkv("seconds", &mut o);
-        jnum(self.seconds, &mut o);
-        o.push(',');
-        jkv("figures", &mut o);
-        o.push('[');
-        for (fi, f) in self.figures.iter().enumerate() {
-            if fi > 0 {
-                o.push(',');
-            }
-            let e = f.experiment;
-            o.push('{');
-            jkv("id", &mut o);
-            jstr(e.id, &mut o);
-            o.push(',');
-            jkv("title", &mut o);
-            jstr(e.title, &mut o);
-            o.push(',');
-            jkv("model", &mut o);
-            jstr(&format!("{:?}", e.model), &mut o);
-            o.push(',');
-            jkv("thesis_iterations", &mut o);
-            o.push_str(&e.iterations.to_string());
-            o.push(',');
-            jkv("iterations", &mut o);
-            o.push_str(&f.iterations.to_string());
-            o.push(',');
-            jkv("seeds", &mut o);
-            o.push_str(&f.seeds.to_string());
-            o.push(',');
-            jkv("assumptions", &mut o);
-            jstr(e.assumptions, &mut o);
-            o.push(',');
-            jkv("skipped", &mut o);
-            match &f.skipped {
-                Some(s) => jstr(s, &mut o),
-                None => o.push_str("null"),
-            }
-            o.push(',');
-            jkv("k", &mut o);
-            jarr(&f.k.iter().map(|&v| v as f64).collect::<Vec<_>>(), &mut o);
-            o.push(',');
-            jkv("curves", &mut o);
-            o.push('[');
-            for (ci, c) in f.curves.iter().enumerate() {
-                if ci > 0 {
-                    o.push(',');
-                }
-                let d = &c.curve;
-                o.push('{');
-                jkv("label", &mut o);
-                jstr(&curve_name(d, ci), &mut o);
-                o.push(',');
-                jkv("ident", &mut o);
-                jstr(&format!("{:?}", d.ident), &mut o);
-                o.push(',');
-                for (key, v) in [("ic", d.ic), ("road", d.road), ("state", d.state), ("deriv", d.deriv)] {
-                    jkv(key, &mut o);
-                    jnum(v, &mut o);
-                    o.push(',');
-                }
-                jkv("pulse_width", &mut o);
-                o.push_str(&d.pulse_width.to_string());
-                o.push(',');
-                for (key, v) in [
-                    ("median", &c.median),
-                    ("p10", &c.p10),
-                    ("p90", &c.p90),
-                    ("final_xi", &c.final_xi),
-                    ("settle", &c.settle),
-                    ("reach", &c.reach),
-                    ("min_xi", &c.min_xi),
-                    ("argmin", &c.argmin),
-                    ("reinits", &c.reinits),
-                ] {
-                    jkv(key, &mut o);
-                    jarr(v, &mut o);
-                    o.push(',');
-                }
-                o.pop();
-                o.push('}');
-            }
-            o.push_str("],");
-            jkv("verdicts", &mut o);
-            o.push('[');
-            for (vi, v) in f.verdicts.iter().enumerate() {
-                if vi > 0 {
-                    o.push(',');
-                }
-                o.push('{');
-                jkv("claim", &mut o);
-                jstr(&v.claim, &mut o);
-                o.push(',');
-                jkv("measured", &mut o);
-                jstr(&v.measured, &mut o);
-                o.push(',');
-                jkv("agrees", &mut o);
-                o.push_str(if v.agrees { "true" } else { "false" });
-                o.push(',');
-                jkv("note", &mut o);
-                jstr(&v.note, &mut o);
-                o.push('}');
-            }
-            o.push_str("]}");
-        }
-        o.push_str("],");
-        jkv("tables", &mut o);
-        o.push('[');
-        for (ti, t) in self.tables.iter().enumerate() {
-            if ti > 0 {
-                o.push(',');
-            }
-            o.push('{');
-            jkv("title", &mut o);
-            jstr(&t.title, &mut o);
-            o.push(',');
-            jkv("method", &mut o);
-            jstr(&t.method, &mut o);
-            o.push(',');
-            jkv("rows", &mut o);
-            o.push('[');
-            for (ri, r) in t.rows.iter().enumerate() {
-                if ri > 0 {
-                    o.push(',');
-                }
-                o.push('{');
-                for (key, v) in [("label", &r.label), ("thesis", &r.thesis), ("vehid", &r.vehid), ("note", &r.note)] {
-                    jkv(key, &mut o);
-                    jstr(v, &mut o);
-                    o.push(',');
-                }
-                jkv("agrees", &mut o);
-                o.push_str(if r.agrees { "true" } else { "false" });
-                o.push('}');
-            }
-            o.push_str("]}");
-        }
-        o.push_str("]}");
-        o
+    /// A value as its `Debug` text.
+    pub(super) fn debug_text<T: core::fmt::Debug, S: Serializer>(v: &T, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(&format_args!("{v:?}"))
     }
 }

@@ -1,6 +1,6 @@
 //! Statistics over seeds: quantiles, and per seed the settle, reach and minimum metrics.
 
-use crate::figures::Curve;
+use crate::figures::{curve_name, Curve};
 use crate::report::CurveResult;
 use crate::runner::Trace;
 
@@ -61,16 +61,22 @@ pub fn minimum(xi: &[f64], k: &[u64]) -> (f64, f64) {
     (best, at)
 }
 
-/// One curve over its seeds: median and 10–90 % band at every grid point `k`, and the
-/// per-seed metrics.
-pub(crate) fn summarize(curve: Curve, traces: &[Trace], k: &[u64]) -> CurveResult {
+/// Curve `index` of a figure over its seeds: median and 10–90 % band at every grid point `k`,
+/// and the per-seed metrics.
+pub(crate) fn summarize(curve: &Curve, index: usize, traces: &[Trace], k: &[u64]) -> CurveResult {
     let n = k.len();
     let col = |i: usize| traces.iter().map(|t| t.xi[i]).collect::<Vec<f64>>();
     let median_v = (0..n).map(|i| quantile(&col(i), 0.5)).collect();
     let p10 = (0..n).map(|i| quantile(&col(i), 0.1)).collect();
     let p90 = (0..n).map(|i| quantile(&col(i), 0.9)).collect();
     let mut r = CurveResult {
-        curve,
+        label: curve_name(curve, index),
+        ident: curve.ident,
+        ic: curve.ic,
+        road: curve.road,
+        state: curve.state,
+        deriv: curve.deriv,
+        pulse_width: curve.pulse_width,
         median: median_v,
         p10,
         p90,

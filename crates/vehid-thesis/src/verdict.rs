@@ -1,6 +1,6 @@
 //! Claims evaluated against the measurements: one [`Verdict`] per [`ThesisClaim`].
 
-use crate::figures::{curve_name, Claim, ThesisClaim};
+use crate::figures::{Claim, ThesisClaim};
 use crate::report::{fmt_num, CurveResult, Verdict};
 use crate::stats::median;
 
@@ -96,7 +96,7 @@ pub(crate) fn evaluate(claim: &ThesisClaim, curves: &[CurveResult], n: usize, qu
             let ok = best > lo && best < hi;
             let note =
                 if ok { String::new() } else { format!("best curve outside ({}, {})", fmt_num(lo), fmt_num(hi)) };
-            (format!("best median ξ at {n}: {} ({})", fmt_num(best), curve_name(&curves[bi].curve, bi)), ok, note)
+            (format!("best median ξ at {n}: {} ({})", fmt_num(best), curves[bi].label), ok, note)
         }
         Claim::LowestMinimum { a } => {
             let mins: Vec<f64> = curves.iter().map(|c| median(&c.min_xi)).collect();

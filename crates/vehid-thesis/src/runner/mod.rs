@@ -139,19 +139,24 @@ pub fn run(opts: &RunOptions, progress: &(dyn Fn(Progress<'_>) + Sync)) -> crate
     // After the workers: Table I times updates, which must not share the cores.
     let table_out = if opts.tables { Some(tables(opts.base_seed, seeds, opts.quick)) } else { None };
     let mut results = results.into_inner().unwrap_or_else(|p| p.into_inner());
+    let figure = |e: &Experiment, iterations: usize| FigureResult {
+        id: e.id,
+        title: e.title,
+        model: e.model,
+        thesis_iterations: e.iterations,
+        iterations,
+        seeds,
+        assumptions: e.assumptions,
+        skipped: None,
+        k: vec![],
+        curves: vec![],
+        verdicts: vec![],
+    };
     let mut figures = vec![];
     for (fi, e) in exps.iter().enumerate() {
         let n = iters_of(e);
         if let Some(why) = e.needs {
-            figures.push(FigureResult {
-                experiment: e,
-                k: vec![],
-                iterations: 0,
-                seeds,
-                curves: vec![],
-                verdicts: vec![],
-                skipped: Some(why.to_string()),
-            });
+            figures.push(FigureResult { skipped: Some(why.to_string()), ..figure(e, 0) });
             continue;
         }
         let mut curves = vec![];
@@ -162,18 +167,10 @@ pub fn run(opts: &RunOptions, progress: &(dyn Fn(Progress<'_>) + Sync)) -> crate
                     traces.push(results[ji].take().expect("every job ran")?);
                 }
             }
-            curves.push(summarize(*curve, &traces, &grids[fi]));
+            curves.push(summarize(curve, ci, &traces, &grids[fi]));
         }
         let verdicts = e.claims.iter().map(|c| evaluate(c, &curves, n, opts.quick)).collect();
-        figures.push(FigureResult {
-            experiment: e,
-            k: grids[fi].clone(),
-            iterations: n,
-            seeds,
-            curves,
-            verdicts,
-            skipped: None,
-        });
+        figures.push(FigureResult { k: grids[fi].clone(), curves, verdicts, ..figure(e, n) });
     }
     let tables = match table_out {
         Some(t) => t?,
