@@ -4,6 +4,7 @@ counts), and the report's numbers are computed from the seed, not copied."""
 from __future__ import annotations
 
 import json
+import math
 import re
 from pathlib import Path
 
@@ -62,6 +63,46 @@ def test_reproduce_run_api_and_errors() -> None:
     assert len(data["figures"][1]["curves"]) == 3 and data["figures"][1]["skipped"] is None
     with pytest.raises(ValueError, match="only"):
         vehid.reproduce.run(quick=True, only=["9-9"], tables=False)
+
+
+# The report's keys: the binding's conversion (crates/vehid-py/src/reproduce.rs) writes the
+# field names of vehid_thesis::report, whose JSON the Rust test
+# crates/vehid-thesis/tests/experiments.rs checks against the same lists.
+REPORT_KEYS = {"quick", "base_seed", "threads", "seconds", "figures", "tables"}
+FIGURE_KEYS = {"id", "title", "model", "thesis_iterations", "iterations", "seeds", "assumptions", "skipped", "k",
+               "curves", "verdicts"}
+SERIES = ("median", "p10", "p90", "final_xi", "settle", "reach", "min_xi", "argmin", "reinits")
+CURVE_KEYS = {"label", "ident", "ic", "road", "state", "deriv", "pulse_width", *SERIES}
+VERDICT_KEYS = {"claim", "measured", "agrees", "note"}
+TABLE_KEYS = {"title", "method", "rows"}
+ROW_KEYS = {"label", "thesis", "vehid", "agrees", "note"}
+
+
+def test_reproduce_run_gives_real_floats_nan_and_inf() -> None:
+    # Batch LS (Fig 3-5) has no estimate before the data have full rank (nan), and with state
+    # noise ξ never settles below 0.08 on some curves (inf): real floats, no strings to parse.
+    data = vehid.reproduce.run(quick=True, only=["3-5"], seed=1, seeds=3, max_iterations=200, threads=2, tables=False)
+    assert set(data) == REPORT_KEYS
+    fig = data["figures"][0]
+    assert set(fig) == FIGURE_KEYS
+    assert (fig["id"], fig["model"], fig["thesis_iterations"], fig["skipped"]) == ("3-5", "Quarter", 500, None)
+    assert all(isinstance(k, int) for k in fig["k"])
+    for c in fig["curves"]:
+        assert set(c) == CURVE_KEYS
+        assert c["ident"] == "BatchLs"
+        assert all(isinstance(v, float) for key in SERIES for v in c[key])
+    for v in fig["verdicts"]:
+        assert set(v) == VERDICT_KEYS
+    assert any(math.isnan(v) for c in fig["curves"] for v in c["median"])
+    assert any(v == math.inf for c in fig["curves"] for v in c["settle"])
+
+
+def test_reproduce_tables_have_their_keys() -> None:
+    data = vehid.reproduce.run(quick=True, only=["4-7"], seeds=1, max_iterations=10)
+    assert [t["title"].split(":")[0] for t in data["tables"]] == ["Eq 4.28", "Eq 4.32", "Eq 4.34", "Table I"]
+    for t in data["tables"]:
+        assert set(t) == TABLE_KEYS
+        assert all(set(r) == ROW_KEYS and isinstance(r["agrees"], bool) for r in t["rows"])
 
 
 def test_reproduce_cli_rejects_bad_arguments(capsys: pytest.CaptureFixture[str]) -> None:

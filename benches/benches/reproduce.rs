@@ -1,13 +1,13 @@
 //! End-to-end time of the thesis reproduction in quick mode: what `vehid reproduce --quick`
 //! (and `make demo`) spends in Rust.
 //!
-//! One iteration is `experiments::run` with the options the CLI passes for `--quick`
+//! One iteration is `vehid_thesis::run` with the options the CLI passes for `--quick`
 //! (`RunOptions { quick: true, ..Default::default() }`: every figure, 5 seeds, at most
 //! 10,000 iterations per curve, base seed 1986, the tables of Eq 4.28, 4.32, 4.34 and Table I,
-//! threads = the available parallelism) followed by `Report::to_json`, the string the Python
-//! binding hands to `vehid.reproduce` for rendering. The Python side (rendering index.md /
-//! index.html, plots) is not timed, and nothing is written: no report files (criterion keeps
-//! only its own estimates under `target/criterion/reproduce/`).
+//! threads = the available parallelism) followed by `Report::to_json` (serde_json; the Python
+//! binding converts the same report to Python objects instead, which is not timed here). The
+//! Python side (rendering index.md / index.html, plots) is not timed, and nothing is written:
+//! no report files (criterion keeps only its own estimates under `target/criterion/reproduce/`).
 //!
 //! Run: `cargo bench -p vehid-benches --bench reproduce` (about 10 s after the build: 10
 //! samples of one run each, flat sampling).
@@ -20,7 +20,7 @@
 use criterion::{criterion_group, criterion_main, Criterion, SamplingMode};
 use std::hint::black_box;
 use std::time::Duration;
-use vehid_core::experiments::{run, Progress, RunOptions};
+use vehid_thesis::{run, Progress, RunOptions};
 
 /// `cargo bench` passes `--bench`; `cargo test --benches` does not.
 fn benchmarking() -> bool {

@@ -1,7 +1,7 @@
 """Type stub of the compiled extension ``vehid._vehid`` (hand-written; kept honest by
 ``python -m mypy.stubtest vehid._vehid``)."""
 
-from typing import Literal, Optional, Sequence, Tuple, Union, final, overload
+from typing import Any, Dict, Literal, Optional, Sequence, Tuple, Union, final, overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -24,7 +24,7 @@ __all__ = [
     "AxleSampler",
     "xi",
     "snr_db",
-    "reproduce_json",
+    "reproduce_report",
 ]
 
 _Floats = Union[float, ArrayLike]
@@ -326,7 +326,7 @@ class AxleSampler:
     @property
     def samples(self) -> int: ...
 
-def reproduce_json(
+def reproduce_report(
     quick: bool = False,
     only: Optional[Sequence[str]] = None,
     seed: int = 1986,
@@ -335,4 +335,4 @@ def reproduce_json(
     threads: Optional[int] = None,
     tables: bool = True,
     progress: bool = False,
-) -> str: ...
+) -> Dict[str, Any]: ...

@@ -1,7 +1,7 @@
 """``vehid reproduce``: the thesis' simulation study, regenerated, with a report.
 
 The experiments (one per figure of Ch. III–VI, with the captions' noise levels) and the
-runner live in Rust (``vehid_core::experiments``); this module renders what the runner
+runner live in Rust (the ``vehid-thesis`` crate); this module renders what the runner
 measured: one PNG per figure (ξ_k against iterations, log scale, median and 10–90 % band
 over seeds; needs the optional ``vehid[plot]`` extra, i.e. matplotlib) and
 ``index.md`` / ``index.html`` with, per figure, the thesis' claim and vehid's measured
@@ -25,7 +25,7 @@ import time
 from pathlib import Path
 from typing import Any, Dict, List, Optional, Sequence, Tuple
 
-from ._vehid import reproduce_json
+from ._vehid import reproduce_report
 
 __all__ = ["run", "write_report", "add_arguments", "command"]
 
@@ -48,7 +48,7 @@ def run(
     iterations). ``only``: figure ids such as ``["4-2", "4-5"]``. ``progress``: a progress
     line on stderr. Non-finite numbers come back as ``float('inf')`` / ``nan``.
     """
-    text = reproduce_json(
+    return reproduce_report(
         quick=quick,
         only=list(only) if only else None,
         seed=seed,
@@ -58,22 +58,6 @@ def run(
         tables=tables,
         progress=progress,
     )
-    data: Json = json.loads(text)
-    for fig in data["figures"]:
-        for c in fig["curves"]:
-            for key in ("median", "p10", "p90", "final_xi", "settle", "reach", "min_xi", "argmin", "reinits"):
-                c[key] = [_num(v) for v in c[key]]
-    return data
-
-
-def _num(v: Any) -> float:
-    if v is None:
-        return math.nan
-    if v == "inf":
-        return math.inf
-    if v == "-inf":
-        return -math.inf
-    return float(v)
 
 
 def _fmt(v: float) -> str:

@@ -75,8 +75,6 @@ macro_rules! option_names {
 
 pub mod analysis;
 mod error;
-#[cfg(feature = "std")]
-pub mod experiments;
 pub mod identify;
 pub(crate) mod linalg;
 pub mod metrics;

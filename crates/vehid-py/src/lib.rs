@@ -110,6 +110,6 @@ fn _vehid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<two_axle::PyAxleSampler>()?;
     m.add_function(wrap_pyfunction!(xi, m)?)?;
     m.add_function(wrap_pyfunction!(snr_db, m)?)?;
-    m.add_function(wrap_pyfunction!(reproduce::reproduce_json, m)?)?;
+    m.add_function(wrap_pyfunction!(reproduce::reproduce_report, m)?)?;
     Ok(())
 }

@@ -1,14 +1,21 @@
-//! `vehid reproduce`: the thesis' simulation study (vehid-core's `experiments` runner), run
-//! with the GIL released; the result comes back as JSON for `vehid.reproduce` to render.
+//! `vehid reproduce`: the thesis' simulation study (the `vehid-thesis` runner), run with the
+//! GIL released; the report comes back as Python objects for `vehid.reproduce` to render.
+//!
+//! The conversion is written out here, field by field, with the keys of the report's serde
+//! serialization (`vehid_thesis::report`): the serde→Python bridge `pythonize` would derive it,
+//! but its newest release (0.29) requires pyo3 0.29 and this crate uses pyo3 0.30. Floats stay
+//! floats, so NaN and ±∞ arrive as `nan` / `float('inf')` (the JSON writes them as `null`).
 
 use crate::core_err;
 use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
 use std::io::Write;
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
-use vehid_core::experiments::{run, Progress, RunOptions};
+use vehid_thesis::{run, CurveResult, FigureResult, Progress, Report, RunOptions, Table, TableRow, Verdict};
 
-/// Runs the reproduction and returns the report as a JSON string.
+/// Runs the reproduction and returns the report as nested dicts and lists (NaN and ±inf
+/// as floats).
 ///
 /// quick: 5 seeds and at most 10,000 iterations per curve; only: figure ids (e.g.
 /// ["4-2", "4-5"]), all when None; seed: the base seed; seeds / max_iterations / threads
@@ -17,8 +24,8 @@ use vehid_core::experiments::{run, Progress, RunOptions};
 #[pyfunction]
 #[pyo3(signature = (quick=false, only=None, seed=1986, seeds=None, max_iterations=None, threads=None, tables=true, progress=false))]
 #[allow(clippy::too_many_arguments)]
-pub fn reproduce_json(
-    py: Python<'_>,
+pub fn reproduce_report<'py>(
+    py: Python<'py>,
     quick: bool,
     only: Option<Vec<String>>,
     seed: u64,
@@ -27,7 +34,7 @@ pub fn reproduce_json(
     threads: Option<usize>,
     tables: bool,
     progress: bool,
-) -> PyResult<String> {
+) -> PyResult<Bound<'py, PyDict>> {
     let opts =
         RunOptions { quick, seeds, max_iterations, base_seed: seed, threads, only: only.unwrap_or_default(), tables };
     let last = Mutex::new(Instant::now() - Duration::from_secs(1));
@@ -59,5 +66,97 @@ pub fn reproduce_json(
         };
         run(&opts, &cb)
     });
-    Ok(report.map_err(core_err)?.to_json())
+    report_dict(py, &report.map_err(core_err)?)
+}
+
+/// The report as nested dicts and lists, with the keys of its JSON (`Report::to_json`).
+fn report_dict<'py>(py: Python<'py>, r: &Report) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("quick", r.quick)?;
+    d.set_item("base_seed", r.base_seed)?;
+    d.set_item("threads", r.threads)?;
+    d.set_item("seconds", r.seconds)?;
+    d.set_item("figures", list(py, &r.figures, figure_dict)?)?;
+    d.set_item("tables", list(py, &r.tables, table_dict)?)?;
+    Ok(d)
+}
+
+fn list<'py, T>(
+    py: Python<'py>,
+    items: &[T],
+    f: impl Fn(Python<'py>, &T) -> PyResult<Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyList>> {
+    let l = PyList::empty(py);
+    for item in items {
+        l.append(f(py, item)?)?;
+    }
+    Ok(l)
+}
+
+fn figure_dict<'py>(py: Python<'py>, f: &FigureResult) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("id", f.id)?;
+    d.set_item("title", f.title)?;
+    d.set_item("model", format!("{:?}", f.model))?;
+    d.set_item("thesis_iterations", f.thesis_iterations)?;
+    d.set_item("iterations", f.iterations)?;
+    d.set_item("seeds", f.seeds)?;
+    d.set_item("assumptions", f.assumptions)?;
+    d.set_item("skipped", f.skipped.as_deref())?;
+    d.set_item("k", f.k.as_slice())?;
+    d.set_item("curves", list(py, &f.curves, curve_dict)?)?;
+    d.set_item("verdicts", list(py, &f.verdicts, verdict_dict)?)?;
+    Ok(d)
+}
+
+fn curve_dict<'py>(py: Python<'py>, c: &CurveResult) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("label", c.label.as_str())?;
+    d.set_item("ident", format!("{:?}", c.ident))?;
+    d.set_item("ic", c.ic)?;
+    d.set_item("road", c.road)?;
+    d.set_item("state", c.state)?;
+    d.set_item("deriv", c.deriv)?;
+    d.set_item("pulse_width", c.pulse_width)?;
+    for (key, values) in [
+        ("median", &c.median),
+        ("p10", &c.p10),
+        ("p90", &c.p90),
+        ("final_xi", &c.final_xi),
+        ("settle", &c.settle),
+        ("reach", &c.reach),
+        ("min_xi", &c.min_xi),
+        ("argmin", &c.argmin),
+        ("reinits", &c.reinits),
+    ] {
+        d.set_item(key, values.as_slice())?;
+    }
+    Ok(d)
+}
+
+fn verdict_dict<'py>(py: Python<'py>, v: &Verdict) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("claim", v.claim.as_str())?;
+    d.set_item("measured", v.measured.as_str())?;
+    d.set_item("agrees", v.agrees)?;
+    d.set_item("note", v.note.as_str())?;
+    Ok(d)
+}
+
+fn table_dict<'py>(py: Python<'py>, t: &Table) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("title", t.title.as_str())?;
+    d.set_item("method", t.method.as_str())?;
+    d.set_item("rows", list(py, &t.rows, row_dict)?)?;
+    Ok(d)
+}
+
+fn row_dict<'py>(py: Python<'py>, r: &TableRow) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("label", r.label.as_str())?;
+    d.set_item("thesis", r.thesis.as_str())?;
+    d.set_item("vehid", r.vehid.as_str())?;
+    d.set_item("agrees", r.agrees)?;
+    d.set_item("note", r.note.as_str())?;
+    Ok(d)
 }

@@ -1,12 +1,13 @@
 //! The thesis' qualitative findings about the identifiers (Ch. IV–V), each tested as a
 //! statistical claim over 8 seeds (medians and counts, never one lucky seed).
 //!
-//! Every test prints what it measured (`cargo test -p vehid-core --test thesis_claims --
+//! Every test prints what it measured (`cargo test -p vehid-thesis --test thesis_claims --
 //! --nocapture`); the figures are quoted in the project notes.
 
 use vehid_core::identify::{Gain, KalmanIdentifier, KalmanOptions, StochasticGradient};
 use vehid_core::metrics::xi;
 use vehid_core::model::QuarterCar;
+use vehid_core::nalgebra;
 use vehid_core::sim::{SimConfig, Simulator};
 
 const SEEDS: [u64; 8] = [11, 22, 33, 44, 55, 66, 77, 88];

@@ -1,0 +1,195 @@
+//! What a reproduction produced: per figure the curves (median and band over seeds, per-seed
+//! metrics) and the verdicts, and the tables. Plain data: every type derives
+//! [`serde::Serialize`], and [`Report::to_json`] writes it with serde_json (the criterion
+//! bench times it; the Python binding converts the same fields to Python objects directly).
+//!
+//! # Non-finite numbers
+//!
+//! ξ is NaN where there is no estimate yet (batch least squares before the data have full
+//! rank) and ∞ where an identifier overflowed; per seed, `settle` and `reach` are ∞ when ξ
+//! never got (to stay) below 0.08, `argmin` is NaN when ξ never was a number. JSON has neither
+//! NaN nor ∞, so the serialized form writes **every non-finite number as `null`**, explicitly
+//! (`#[serde(serialize_with)]` on every float series, not left to the serializer): a JSON
+//! reader sees "no finite value". In `settle` and `reach` `null` means never (∞); in the ξ
+//! series (`median`, `p10`, `p90`, `final_xi`, `min_xi`) it means no estimate or overflow;
+//! in `argmin`, no minimum. The scalar floats (σ, `seconds`) are always finite. The Rust
+//! values and the Python binding's objects keep NaN and ±∞ as they are.
+//!
+//! `ident` and `model` are serialized as their Rust `Debug` text (e.g.
+//! `Kalman { p0_wheel: 1000.0, p0_body: 1000.0, r_scale: 1.0, reinit: false }`), which is what
+//! the report prints.
+
+use crate::figures::{Ident, ModelKind};
+use serde::Serialize;
+
+/// Median and 10–90 % band of one curve, plus per-seed summary metrics.
+#[derive(Debug, Clone, Serialize)]
+pub struct CurveResult {
+    /// The legend name: the curve's label, or `curve i` (1-based) when it has none.
+    pub label: String,
+    /// The identifier and its settings.
+    #[serde(serialize_with = "ser::debug_text")]
+    pub ident: Ident,
+    /// Initial-condition σ_ic.
+    pub ic: f64,
+    /// Road σ_u.
+    pub road: f64,
+    /// State measurement σ_w.
+    pub state: f64,
+    /// State derivative measurement σ_v.
+    pub deriv: f64,
+    /// Pulse width in sample intervals (0 = no pulse).
+    pub pulse_width: u64,
+    /// Median ξ over seeds at each recorded iteration.
+    #[serde(serialize_with = "ser::non_finite_as_null")]
+    pub median: Vec<f64>,
+    /// 10 % quantile.
+    #[serde(serialize_with = "ser::non_finite_as_null")]
+    pub p10: Vec<f64>,
+    /// 90 % quantile.
+    #[serde(serialize_with = "ser::non_finite_as_null")]
+    pub p90: Vec<f64>,
+    /// Per seed: ξ at the last recorded iteration.
+    #[serde(serialize_with = "ser::non_finite_as_null")]
+    pub final_xi: Vec<f64>,
+    /// Per seed: iteration after which ξ stays below 0.08 (∞ if never).
+    #[serde(serialize_with = "ser::non_finite_as_null")]
+    pub settle: Vec<f64>,
+    /// Per seed: first iteration with ξ < 0.08 (∞ if never).
+    #[serde(serialize_with = "ser::non_finite_as_null")]
+    pub reach: Vec<f64>,
+    /// Per seed: minimum ξ over the run.
+    #[serde(serialize_with = "ser::non_finite_as_null")]
+    pub min_xi: Vec<f64>,
+    /// Per seed: iteration of the minimum.
+    #[serde(serialize_with = "ser::non_finite_as_null")]
+    pub argmin: Vec<f64>,
+    /// Per seed: Eq 4.36 reinitializations (Kalman), else 0.
+    #[serde(serialize_with = "ser::non_finite_as_null")]
+    pub reinits: Vec<f64>,
+}
+
+/// A claim's verdict.
+#[derive(Debug, Clone, Serialize)]
+pub struct Verdict {
+    /// The thesis' claim.
+    pub claim: String,
+    /// What vehid measured, one line.
+    pub measured: String,
+    /// Whether the measurement agrees.
+    pub agrees: bool,
+    /// Why it differs (or a caveat), empty when there is nothing to add.
+    pub note: String,
+}
+
+/// The result of one figure.
+#[derive(Debug, Clone, Serialize)]
+pub struct FigureResult {
+    /// Figure number, e.g. `"4-2"` ([`crate::select`] finds its [`crate::Experiment`]).
+    pub id: &'static str,
+    /// Caption, shortened.
+    pub title: &'static str,
+    /// Model.
+    #[serde(serialize_with = "ser::debug_text")]
+    pub model: ModelKind,
+    /// Iterations of the full run (as in the thesis, or assumed).
+    pub thesis_iterations: usize,
+    /// Iterations actually run.
+    pub iterations: usize,
+    /// Seeds run.
+    pub seeds: usize,
+    /// Values chosen because the thesis does not print them.
+    pub assumptions: &'static str,
+    /// Why it was skipped, if it was.
+    pub skipped: Option<String>,
+    /// Recorded iterations.
+    pub k: Vec<u64>,
+    /// Curves.
+    pub curves: Vec<CurveResult>,
+    /// Claims evaluated.
+    pub verdicts: Vec<Verdict>,
+}
+
+/// One row of a table (thesis value vs vehid's).
+#[derive(Debug, Clone, Serialize)]
+pub struct TableRow {
+    /// What the row is.
+    pub label: String,
+    /// The thesis' value, as printed.
+    pub thesis: String,
+    /// vehid's value.
+    pub vehid: String,
+    /// Agreement.
+    pub agrees: bool,
+    /// Explanation.
+    pub note: String,
+}
+
+/// A table of the report.
+#[derive(Debug, Clone, Serialize)]
+pub struct Table {
+    /// Heading, e.g. "Eq 4.28".
+    pub title: String,
+    /// How it was measured.
+    pub method: String,
+    /// Rows.
+    pub rows: Vec<TableRow>,
+}
+
+/// Everything a reproduction produced.
+#[derive(Debug, Clone, Serialize)]
+pub struct Report {
+    /// Quick mode.
+    pub quick: bool,
+    /// Base seed.
+    pub base_seed: u64,
+    /// Threads used.
+    pub threads: usize,
+    /// Wall time of the run, s.
+    pub seconds: f64,
+    /// Figures.
+    pub figures: Vec<FigureResult>,
+    /// Tables.
+    pub tables: Vec<Table>,
+}
+
+impl Report {
+    /// The report as JSON, field names as in the Rust types; every non-finite number is
+    /// `null` (see the [module documentation](self)).
+    pub fn to_json(&self) -> String {
+        // Infallible: no maps (so no non-string keys) and no serializer that can fail.
+        serde_json::to_string(self).expect("a Report always serializes to JSON")
+    }
+}
+
+/// Formats a number for the report (integers without decimals, ∞ as "never").
+pub fn fmt_num(v: f64) -> String {
+    if v.is_nan() {
+        "n/a".to_string()
+    } else if v.is_infinite() {
+        "∞".to_string()
+    } else if v != 0.0 && (v.abs() >= 1e5 || v.abs() < 1e-3) {
+        format!("{v:.2e}")
+    } else if v.fract() == 0.0 {
+        format!("{v:.0}")
+    } else if v.abs() >= 10.0 {
+        format!("{v:.1}")
+    } else {
+        format!("{v:.3}")
+    }
+}
+
+/// The `serialize_with` helpers of the report's fields.
+mod ser {
+    use serde::Serializer;
+
+    /// A float series with every non-finite value (NaN, ±∞) written as `None` (JSON `null`).
+    pub(super) fn non_finite_as_null<S: Serializer>(v: &[f64], s: S) -> Result<S::Ok, S::Error> {
+        s.collect_seq(v.iter().map(|x| x.is_finite().then_some(*x)))
+    }
+
+    /// A value as its `Debug` text.
+    pub(super) fn debug_text<T: core::fmt::Debug, S: Serializer>(v: &T, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(&format_args!("{v:?}"))
+    }
+}
