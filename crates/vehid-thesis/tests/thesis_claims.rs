@@ -4,10 +4,9 @@
 //! Every test prints what it measured (`cargo test -p vehid-thesis --test thesis_claims --
 //! --nocapture`); the figures are quoted in the project notes.
 
-use vehid_core::identify::{Gain, KalmanIdentifier, KalmanOptions, StochasticGradient};
+use vehid_core::identify::{Gain, Identifier, KalmanIdentifier, KalmanOptions, StochasticGradient};
 use vehid_core::metrics::xi;
 use vehid_core::model::QuarterCar;
-use vehid_core::nalgebra;
 use vehid_core::sim::{SimConfig, Simulator};
 
 const SEEDS: [u64; 8] = [11, 22, 33, 44, 55, 66, 77, 88];
@@ -36,29 +35,6 @@ fn config(n: Noise) -> SimConfig<f64, 4, 1> {
 }
 
 /// Something that identifies the quarter car's rows 1 and 3 sample by sample.
-trait Ident {
-    fn step(&mut self, x: &nalgebra::Vector4<f64>, z: &nalgebra::Vector4<f64>);
-    fn theta(&self) -> nalgebra::SMatrix<f64, 2, 4>;
-}
-
-impl Ident for KalmanIdentifier<f64, 4, 2> {
-    fn step(&mut self, x: &nalgebra::Vector4<f64>, z: &nalgebra::Vector4<f64>) {
-        self.update(x, z).unwrap();
-    }
-    fn theta(&self) -> nalgebra::SMatrix<f64, 2, 4> {
-        KalmanIdentifier::theta(self)
-    }
-}
-
-impl Ident for StochasticGradient<f64, 4, 2> {
-    fn step(&mut self, x: &nalgebra::Vector4<f64>, z: &nalgebra::Vector4<f64>) {
-        self.update(x, z).unwrap();
-    }
-    fn theta(&self) -> nalgebra::SMatrix<f64, 2, 4> {
-        StochasticGradient::theta(self)
-    }
-}
-
 /// ξ (total, wheel row, body row) recorded every `every` samples.
 struct Trace {
     total: Vec<f64>,
@@ -84,21 +60,22 @@ impl Trace {
     }
 }
 
-fn run(seed: u64, noise: Noise, n: usize, every: usize, id: &mut dyn Ident) -> Trace {
+fn run(seed: u64, noise: Noise, n: usize, every: usize, id: &mut dyn Identifier<f64>) -> Trace {
     let car = QuarterCar::<f64>::thesis();
     let truth = car.theta();
     let mut sim = Simulator::new(car.model(), config(noise), seed).unwrap();
     let mut tr = Trace { total: vec![], body: vec![], every };
     for k in 1..=n {
         let s = sim.next_sample();
-        id.step(&s.r, &s.z);
+        id.update_into(s.r.as_slice(), s.z.as_slice(), &[], &mut [0.0; 2]).unwrap();
         if k % every == 0 {
-            let th = id.theta();
+            // θ̂ row-major: row 1 of A (wheel), then row 3 (body).
+            let mut th = [0.0; 8];
+            id.params_into(&mut th).unwrap();
             let t = truth.transpose();
-            tr.total.push(xi(t.as_slice(), th.transpose().as_slice()).unwrap());
+            tr.total.push(xi(t.as_slice(), &th).unwrap());
             let body_true: Vec<f64> = truth.row(1).iter().copied().collect();
-            let body_hat: Vec<f64> = th.row(1).iter().copied().collect();
-            tr.body.push(xi(&body_true, &body_hat).unwrap());
+            tr.body.push(xi(&body_true, &th[4..]).unwrap());
         }
     }
     tr

@@ -1,7 +1,7 @@
 //! One job: one curve of one figure over one seed, simulated and identified sample by
 //! sample, ξ recorded on the grid.
 
-use super::step::make_ident;
+use super::ident::{make_ident, OnFailure};
 use crate::figures::{Curve, Experiment, Ident, ModelKind, DT, PULSE_AMPLITUDE, PULSE_START};
 use vehid_core::identify::{TwoAxleConfig, TwoAxleIdentifier};
 use vehid_core::metrics::xi;
@@ -28,7 +28,9 @@ fn run_job<const N: usize, const M: usize, const K: usize>(
     if curve.pulse_width > 0 {
         cfg = cfg.with_pulse(Pulse { start: PULSE_START, width: curve.pulse_width, amplitude: PULSE_AMPLITUDE })?;
     }
-    let mut ident = make_ident::<N, M, K>(&model, curve, &road)?;
+    let (mut ident, on_failure) = make_ident::<N, M, K>(&model, curve, &road)?;
+    let mut failed = false;
+    let mut e = [0.0; K];
     let mut sim = Simulator::new(model, cfg, seed)?;
     let t = truth.transpose();
     let truth_flat = t.as_slice();
@@ -46,14 +48,24 @@ fn run_job<const N: usize, const M: usize, const K: usize>(
             let b = *sim.model().b();
             s.z -= b * SVector::<f64, M>::repeat(PULSE_AMPLITUDE);
         }
-        ident.step(&s.r, &s.z);
+        // An update that would overflow is rejected (the identifier unchanged); the job stops
+        // updating then, and ξ reports the estimate or, for a diverged one, infinity.
+        if !failed && ident.update_into(s.r.as_slice(), s.z.as_slice(), &[], &mut e).is_err() {
+            failed = true;
+        }
         if grid.get(next) == Some(&k) {
             next += 1;
-            let v = if ident.theta(&mut th) { xi(truth_flat, &th).unwrap_or(f64::NAN) } else { f64::NAN };
+            let v = if failed && on_failure == OnFailure::Diverged {
+                f64::INFINITY
+            } else if ident.params_into(&mut th).is_ok() {
+                xi(truth_flat, &th).unwrap_or(f64::NAN)
+            } else {
+                f64::NAN // least squares before the data span every direction
+            };
             out.push(v);
         }
     }
-    Ok(Trace { xi: out, reinits: ident.reinits() })
+    Ok(Trace { xi: out, reinits: ident.reinit_count() })
 }
 
 fn half_road(kind: ModelKind, road: f64) -> [f64; 2] {

@@ -3,8 +3,8 @@
 //! the median and the 10–90 % band over seeds and each claim evaluated against the
 //! measurements.
 
+mod ident;
 mod job;
-mod step;
 
 pub(crate) use job::Trace;
 
