@@ -175,9 +175,11 @@ def main(argv: Optional[List[str]] = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--bench", action="append", choices=BENCHES, help="only this bench (repeatable)")
-    ap.add_argument("--baseline", type=Path, default=BASELINE, help=f"baseline file (default {BASELINE.relative_to(ROOT)})")
+    ap.add_argument("--baseline", type=Path, default=BASELINE,
+                    help=f"baseline file (default {BASELINE.relative_to(ROOT)})")
     ap.add_argument("--n", type=int, default=None, help=f"updates per run (default: the baseline's, else {N_UPDATES})")
-    ap.add_argument("--tolerance", type=float, default=None, help=f"allowed growth (default: the baseline's, else {TOLERANCE})")
+    ap.add_argument("--tolerance", type=float, default=None,
+                    help=f"allowed growth (default: the baseline's, else {TOLERANCE})")
     ap.add_argument("--update", action="store_true", help="rewrite the baseline with the measured counts")
     ap.add_argument("--no-build", action="store_true", help="use the existing target/release/count_updates")
     ap.add_argument("--binary", type=Path, default=BINARY,

@@ -31,9 +31,10 @@ import datetime as dt
 import json
 import subprocess
 import sys
-import tomllib
 from pathlib import Path
 from typing import Dict, List, Optional
+
+import tomllib
 
 ROOT = Path(__file__).resolve().parent.parent
 BENCHES = ROOT / "benches"
@@ -141,9 +142,11 @@ def main(argv: Optional[List[str]] = None) -> int:
     for r in rows:
         ratio = "—" if r["ratio"] is None else f"{r['ratio']:.2f}"
         c = "—" if r.get("c_ns") is None else f"{r['c_ref']} {r['c_ns']:.1f}"
-        print(f"{r['name']:<36} {r['budget']:>11} {r['measured']:>11} {r['verdict']:>8} {ratio:>9}  {c:<15} {r['from']}")
+        print(f"{r['name']:<36} {r['budget']:>11} {r['measured']:>11} {r['verdict']:>8} {ratio:>9}  "
+              f"{c:<15} {r['from']}")
     missed = [r["name"] for r in rows if not r["ok"]]
-    print(f"\n{len(rows) - len(missed)} of {len(rows)} budgets met" + (f"; missed: {', '.join(missed)}" if missed else ""))
+    print(f"\n{len(rows) - len(missed)} of {len(rows)} budgets met"
+          + (f"; missed: {', '.join(missed)}" if missed else ""))
     return 1 if (args.strict and missed) else 0
 
 

@@ -11,7 +11,6 @@ import json
 import shutil
 
 import pytest
-
 from bench_scripts import ROOT, load  # tests/ is on sys.path under pytest
 
 cc = load("callgrind_check")

@@ -6,10 +6,9 @@ Not a timed test: the figures are fed in; `make bench-budgets` measures them.
 from __future__ import annotations
 
 import json
-import tomllib
 
 import pytest
-
+import tomllib
 from bench_scripts import ROOT, load  # tests/ is on sys.path under pytest
 
 cb = load("check_budgets")

@@ -146,7 +146,8 @@ def test_unreadable_inputs(run_csv: Path, tmp_path: Path, capsys: pytest.Capture
         raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), path)
 
     monkeypatch.setattr(vio, "open", denied, raising=False)  # root reads anything: pretend
-    assert error_line(capsys, ["identify", str(run_csv), *q]) == f"vehid: error: {run_csv}: cannot open (Permission denied)"
+    assert error_line(capsys, ["identify", str(run_csv), *q]) == (
+        f"vehid: error: {run_csv}: cannot open (Permission denied)")
 
 
 def _write(tmp_path: Path, name: str, data: bytes) -> str:

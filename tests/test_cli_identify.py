@@ -106,7 +106,8 @@ def test_every_method_and_mode(quarter_csv: Path, capsys: pytest.CaptureFixture[
     ref_ls = vehid.BatchLeastSquares(car)
     ref_ls.fit(run.r, run.z)
     assert np.array_equal(np.array(ls["theta"]), ref_ls.theta)
-    sg = identify_json(capsys, str(quarter_csv), "--model", "quarter", "--method", "sg", "--gain", "ljung", "--h", "0.1,1")
+    sg = identify_json(capsys, str(quarter_csv), "--model", "quarter", "--method", "sg", "--gain", "ljung",
+                       "--h", "0.1,1")
     ref = vehid.StochasticGradient(car, gain="ljung", h=[0.1, 1.0])
     ref.fit(run.r, run.z)
     assert np.array_equal(np.array(sg["theta"]), ref.theta) and sg["options"] == {"gain": "ljung", "h": [0.1, 1.0]}
@@ -216,13 +217,16 @@ def test_user_errors(quarter_csv: Path, tmp_path: Path, capsys: pytest.CaptureFi
     bad_cell = data[10].split(",")
     bad_cell[3] = "abc"
     text = header + "".join(data[:10]) + ",".join(bad_cell) + "".join(data[11:20])
-    fails(capsys, ["identify", write("cell.csv", text), *q], "line 12, column 'x3' (body_pos, m): 'abc' is not a number")
+    fails(capsys, ["identify", write("cell.csv", text), *q],
+          "line 12, column 'x3' (body_pos, m): 'abc' is not a number")
     text = header + "".join(data[:5]) + data[5].rsplit(",", 1)[0] + "\n"
-    fails(capsys, ["identify", write("short_row.csv", text), *q], "line 7: 17 cells, but the header has 18 columns (separated by ',')")
+    fails(capsys, ["identify", write("short_row.csv", text), *q],
+          "line 7: 17 cells, but the header has 18 columns (separated by ',')")
     nan_cell = data[4].split(",")
     nan_cell[6] = "nan"
     text = header + "".join(data[:4]) + ",".join(nan_cell) + "".join(data[5:20])
-    fails(capsys, ["identify", write("nan.csv", text), *q], "line 6, column 'dx2' (d_wheel_vel, m/s^2): 'nan' is not a finite number")
+    fails(capsys, ["identify", write("nan.csv", text), *q],
+          "line 6, column 'dx2' (d_wheel_vel, m/s^2): 'nan' is not a finite number")
     # The time must be finite too.
     nan_t = data[4].split(",")
     nan_t[0] = "nan"
@@ -254,7 +258,8 @@ def test_values_vehid_rejects(quarter_csv: Path, capsys: pytest.CaptureFixture[s
     rows = quarter_csv.read_text().splitlines(keepends=True)
     path = quarter_csv.parent / "still.csv"
     path.write_text(rows[0] + rows[1] * 6)  # one state six times: rank 1 (and a repeated time)
-    fails(capsys, ["identify", str(path), "--model", "quarter", "--method", "ls"], "still.csv, line 3: time 0.0 s repeats")
+    fails(capsys, ["identify", str(path), "--model", "quarter", "--method", "ls"],
+          "still.csv, line 3: time 0.0 s repeats")
     fails(capsys, ["identify", str(path), "--model", "quarter", "--method", "ls", "--no-time"], "lacks excitation")
 
 

@@ -109,7 +109,8 @@ def test_one_sensor_for_two_quantities(plain: Path, tmp_path: Path, capsys: pyte
     lines = plain.read_text().splitlines()
     # No dx1 column: the measured wheel velocity x2 stands for it (dx1 = d/dt wheel_pos).
     path = tmp_path / "shared.csv"
-    path.write_text("\n".join(",".join(c for i, c in enumerate(line.split(",")[:9]) if i != 5) for line in lines) + "\n")
+    path.write_text("\n".join(",".join(c for i, c in enumerate(line.split(",")[:9]) if i != 5) for line in lines)
+                    + "\n")
     report = identify_json(capsys, str(path), "--model", "quarter", "--columns", "dx1=x2")
     assert report["columns"]["dx1"] == "x2" and report["columns"]["x2"] == "x2" and report["samples"] == N
 
@@ -148,12 +149,14 @@ def test_column_errors(plain: Path, tmp_path: Path, capsys: pytest.CaptureFixtur
         f"vehid: error: {half_names}: column 'front_wheel_pos' is a state of the half car: use --model half")
 
 
-def test_unknown_columns_are_ignored_with_a_note(plain: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_unknown_columns_are_ignored_with_a_note(plain: Path, tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
     lines = plain.read_text().splitlines()
     path = tmp_path / "extra.csv"
     path.write_text("\n".join([lines[0] + ",speed,gear"] + [line + f",12.5,{'third' if i % 2 else 'fourth'}"
                                                             for i, line in enumerate(lines[1:])]) + "\n")
-    note = f"vehid: note: {path}: ignoring column(s) 'speed', 'gear' (names vehid does not know; map them with --columns)\n"
+    note = (f"vehid: note: {path}: ignoring column(s) 'speed', 'gear' "
+            "(names vehid does not know; map them with --columns)\n")
     report = identify_json(capsys, str(path), "--model", "quarter", err=note)
     assert report["samples"] == N  # a text column nobody reads is no obstacle
 

@@ -25,14 +25,16 @@ def test_simulate_by_distance_then_identify_with_road_cancellation(tmp_path: Pat
     assert np.allclose(np.diff(s), 0.3)  # one sample every 0.3 m
     results = {}
     for method in ["none", "cancel"]:
-        out = vehid_cli("identify", str(csv), "--model", "half", "--method", "two-axle", "--wheel-method", method, "--json")
+        out = vehid_cli("identify", str(csv), "--model", "half", "--method", "two-axle", "--wheel-method", method,
+                        "--json")
         assert out.returncode == 0, out.stderr
         results[method] = json.loads(out.stdout)
     theta = np.array(results["cancel"]["theta"])
     # The same estimate as the Python API on the same samples.
     data = np.loadtxt(csv, delimiter=",", skiprows=1)
     n = 8
-    two = vehid.TwoAxleIdentifier(vehid.HalfCar(), spacing=0.3, method="cancel", p0=1000.0, road_sigma=0.1, deriv_noise=0.005)
+    two = vehid.TwoAxleIdentifier(vehid.HalfCar(), spacing=0.3, method="cancel", p0=1000.0, road_sigma=0.1,
+                                  deriv_noise=0.005)
     two.fit(data[:, 1 : 1 + n], data[:, 1 + n : 1 + 2 * n])
     assert np.array_equal(theta, two.theta)
     assert results["cancel"]["xi"] < 0.05 < results["none"]["xi"]

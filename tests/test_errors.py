@@ -33,7 +33,7 @@ def test_vehid_error_is_value_error() -> None:
 @pytest.mark.parametrize("name", ["M", "m", "k1", "k2", "b"])
 def test_quarter_constants_must_be_positive(name: str) -> None:
     for bad in (0.0, -1.0, math.nan, math.inf):
-        raises_vehid(lambda: vehid.QuarterCar(**{name: bad}), f"`{name}`")
+        raises_vehid(lambda bad=bad: vehid.QuarterCar(**{name: bad}), f"`{name}`")
 
 
 def test_half_constants_must_be_positive() -> None:
@@ -53,8 +53,8 @@ def test_negative_sigmas() -> None:
 
 def test_non_positive_dt_and_hold() -> None:
     for dt in (0.0, -0.05, math.nan, math.inf):
-        raises_vehid(lambda: vehid.Simulator(CAR, dt=dt), "`dt`")
-        raises_vehid(lambda: CAR.sampled_std(dt=dt), "`dt`")
+        raises_vehid(lambda dt=dt: vehid.Simulator(CAR, dt=dt), "`dt`")
+        raises_vehid(lambda dt=dt: CAR.sampled_std(dt=dt), "`dt`")
     raises_vehid(lambda: CAR.output_std(hold=0.0), "`hold`")
 
 
@@ -211,12 +211,14 @@ def test_no_input_panics() -> None:
         never_panics(vehid.snr_db, w, w)
         for key in ("dt", "road_sigma", "ic_sigma", "state_noise", "deriv_noise", "seed", "substeps",
                     "method", "pulses", "instrumentation"):
-            never_panics(lambda: vehid.Simulator(CAR, **{key: w}).run(2))
+            never_panics(lambda key=key, w=w: vehid.Simulator(CAR, **{key: w}).run(2))
         never_panics(vehid.Simulator(CAR).run, w)
     # Extreme but finite models: huge or tiny entries must give errors or numbers, not panics.
     for scale in (1e-300, 1e150, 1e300):
         model = vehid.LinearModel(-np.eye(3) * scale, np.ones((3, 2)) * scale, [0, 2])
-        for call in (model.poles, model.output_std, model.sampled_std, lambda: model.sampled_std(method="exact"),
-                     lambda: model.row_noise_var(1e300), lambda: vehid.Simulator(model).run(3),
-                     lambda: vehid.Simulator(model, method="exact").run(3)):
+        for call in (model.poles, model.output_std, model.sampled_std,
+                     lambda model=model: model.sampled_std(method="exact"),
+                     lambda model=model: model.row_noise_var(1e300),
+                     lambda model=model: vehid.Simulator(model).run(3),
+                     lambda model=model: vehid.Simulator(model, method="exact").run(3)):
             never_panics(call)

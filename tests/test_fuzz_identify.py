@@ -263,7 +263,7 @@ def test_batch_least_squares_keeps_unsolvable_samples_and_says_why() -> None:
     ls.fit(run.r[:2], run.z[:2])  # two samples cannot determine four unknowns per row
     assert ls.samples == 2  # kept: more samples complete the batch
     with pytest.raises(vehid.VehidError, match="lacks excitation"):
-        ls.theta
+        _ = ls.theta
     ls.fit(run.r[2:], run.z[2:])
     before = state(ls)
     assert before[1] == 100
@@ -306,11 +306,13 @@ def test_two_axle_identifier_and_sampler_survive_garbage(seed: int) -> None:
                     args = (g.value(8, 4, r), g.value(8, 4, run.z[lo:hi]))
                     ok, _ = attempt(ident.fit, *args)
                 if not ok:
-                    assert same_state(before, state(ident)), f"rejected call changed TwoAxleIdentifier: {describe(args)}"
+                    assert same_state(before, state(ident)), (
+                        f"rejected call changed TwoAxleIdentifier: {describe(args)}")
                 for name in ("theta", "a_hat", "method", "delay", "spacing", "wheelbase", "wheel_variances",
                              "samples", "paired", "model"):
                     attempt(getattr, ident, name)
-        ok, sampler = attempt(vehid.AxleSampler, *[g.value(1, 1, v) for v in (3.0, 0.3, 0.01)][: int(g.rng.integers(0, 4))])
+        ok, sampler = attempt(vehid.AxleSampler,
+                              *[g.value(1, 1, v) for v in (3.0, 0.3, 0.01)][: int(g.rng.integers(0, 4))])
         calls += 1
         if ok:
             for _ in range(int(g.rng.integers(1, 10))):

@@ -116,7 +116,7 @@ def test_batch_least_squares_is_exact_on_noise_free_initial_conditions() -> None
     short.fit(run.r[:3], run.z[:3])
     assert short.samples == 3  # stored; one more independent sample makes it solvable
     with pytest.raises(vehid.VehidError, match="lacks excitation"):
-        short.theta
+        _ = short.theta
     short.update(run.r[3], run.z[3])
     assert np.allclose(short.theta, theta, rtol=1e-9)
 

@@ -104,7 +104,8 @@ def test_every_dialect_gives_the_same_theta(
     assert identify_json(capsys, "-", "--model", "quarter")["theta"] == reference["theta"]
 
 
-def test_delimiter_option_overrides_the_sniffer(plain: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_delimiter_option_overrides_the_sniffer(plain: Path, tmp_path: Path,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
     path = tmp_path / "semi.csv"
     path.write_bytes(DIALECTS["semicolon"](plain.read_text()))
     reference = identify_json(capsys, str(plain), "--model", "quarter")
@@ -112,7 +113,8 @@ def test_delimiter_option_overrides_the_sniffer(plain: Path, tmp_path: Path, cap
         assert identify_json(capsys, str(path), "--model", "quarter", "--delimiter", d)["theta"] == reference["theta"]
     spaces = tmp_path / "spaces.txt"
     spaces.write_bytes(DIALECTS["spaces"](plain.read_text()))
-    assert identify_json(capsys, str(spaces), "--model", "quarter", "--delimiter", "space")["theta"] == reference["theta"]
+    assert identify_json(capsys, str(spaces), "--model", "quarter",
+                         "--delimiter", "space")["theta"] == reference["theta"]
 
 
 def test_an_excel_sep_line_with_a_delimiter_option(plain: Path, tmp_path: Path,

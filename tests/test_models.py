@@ -139,7 +139,8 @@ def test_quarter_physical_round_trip() -> None:
 
 
 def test_half_physical_round_trip() -> None:
-    consts = dict(k11=110.0, k21=95.0, k12=42.0, k22=37.0, b1=61.0, b2=55.0, m1=1.1, m2=0.9, M=21.0, J=58.0, l1=1.8, l2=1.2)
+    consts = dict(k11=110.0, k21=95.0, k12=42.0, k22=37.0, b1=61.0, b2=55.0, m1=1.1, m2=0.9, M=21.0, J=58.0,
+                  l1=1.8, l2=1.2)
     half = vehid.HalfCar(**consts)
     back = half.physical(half.theta, m1=consts["m1"], m2=consts["m2"])
     assert set(back) == set(consts)

@@ -47,7 +47,7 @@ def load() -> ctypes.CDLL:
     return lib
 
 
-def _ptr(a: np.ndarray, ctype: type) -> "ctypes._Pointer":
+def _ptr(a: np.ndarray, ctype: type) -> ctypes._Pointer:
     return a.ctypes.data_as(ctypes.POINTER(ctype))
 
 
@@ -105,6 +105,8 @@ def reference_ns(n: int = 200_000, seed: int = 1, repeats: int = 7) -> dict:
         x, z = np.ascontiguousarray(run.r), np.ascontiguousarray(run.z)
         unknown = list(car.unknown_rows)
         r = car.row_noise_var(0.1, 0.005)
-        out[f"{name}_rows"] = ns_per_sample(lambda: rows(x, z, unknown, r, 1000.0), n, repeats)
-        out[f"{name}_shared"] = ns_per_sample(lambda: shared(x, z, unknown, 1000.0), n, repeats)
+        out[f"{name}_rows"] = ns_per_sample(lambda x=x, z=z, unknown=unknown, r=r: rows(x, z, unknown, r, 1000.0),
+                                            n, repeats)
+        out[f"{name}_shared"] = ns_per_sample(lambda x=x, z=z, unknown=unknown: shared(x, z, unknown, 1000.0),
+                                              n, repeats)
     return out

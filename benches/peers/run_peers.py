@@ -249,10 +249,10 @@ def peer_table(pb: Problem) -> Tuple[Optional[Dict[str, dict]], np.ndarray]:
 
     rows = "both rows" if len(pb.rows) == 2 else f"all {len(pb.rows)} rows"
     print(f"\n2. time per sample (one update of {rows}), best of repeats, all measured in this run")
-    for name, what, func, repeats in PEERS:
+    for name, _what, func, repeats in PEERS:
         if results[name]["status"] != "ok":
             continue
-        results[name]["ns_per_sample"] = best_ns(lambda: func(pb), pb.n, repeats)
+        results[name]["ns_per_sample"] = best_ns(lambda func=func: func(pb), pb.n, repeats)
         results[name]["repeats"] = repeats
     v = results["vehid fit()"]["ns_per_sample"]
     c = results["C loop (-O3 -march=native)"]["ns_per_sample"]

@@ -81,7 +81,7 @@ def main(argv: List[str] | None = None) -> int:
 
     def empty_loop() -> Callable[[], None]:
         def go() -> None:
-            for x, zk in pairs:
+            for _x, _zk in pairs:
                 pass
 
         return go

@@ -13,6 +13,7 @@ Python face.
 (1000, 4)
 """
 
+from . import reproduce
 from ._vehid import (
     AxleSampler,
     BatchLeastSquares,
@@ -30,7 +31,6 @@ from ._vehid import (
     snr_db,
     xi,
 )
-from . import reproduce
 
 __all__ = [
     "AxleSampler",

@@ -288,7 +288,8 @@ def _misfits(table: Table, unknown: List[int], name: str, model: LinearModel) ->
         if mt.group(1) in ("x", "dx") and states > n:
             other = {4: "quarter", 8: "half"}.get(states)
             hint = f": use --model {other}" if other else ""
-            raise CliError(f"{table.source} has {states} states (x1..x{states}) but the {MODEL_NAMES[name]} has {n}{hint}")
+            raise CliError(f"{table.source} has {states} states (x1..x{states}) "
+                           f"but the {MODEL_NAMES[name]} has {n}{hint}")
         raise CliError(f"{table.source}: column {header!r} does not fit the {MODEL_NAMES[name]} "
                        f"({n} states, {m} input{'s' if m > 1 else ''})")
     for header in (table.names[i] for i in unknown):
@@ -601,7 +602,8 @@ def delimiter(text: str) -> str:
     d = _DELIMITER_NAMES.get(text.lower(), text)
     if d == WHITESPACE or (len(d) == 1 and (d in ",;\t|" or (not d.isalnum() and d not in ".+-\"'#_ \r\n"))):
         return d
-    raise argparse.ArgumentTypeError(f"expected one of , ; tab | space (or another punctuation character), got {text!r}")
+    raise argparse.ArgumentTypeError("expected one of , ; tab | space (or another punctuation character), "
+                                     f"got {text!r}")
 
 
 Identifier = Union[KalmanIdentifier, StochasticGradient, BatchLeastSquares, TwoAxleIdentifier]
@@ -895,7 +897,8 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--road", choices=["white", "independent"], default="white",
                      help="with --speed: one road under both axles (white) or independent inputs (Fig 6-7)")
     sim.add_argument("-o", "--output", required=True, metavar="FILE",
-                     help="CSV file to write, '-' for stdout (columns t, x1..xn, dx1..dxn, true_x1.., true_dx1.., u1..)")
+                     help="CSV file to write, '-' for stdout "
+                          "(columns t, x1..xn, dx1..dxn, true_x1.., true_dx1.., u1..)")
     sim.set_defaults(func=cmd_simulate)
 
     ident = sub.add_parser(
@@ -929,7 +932,8 @@ def build_parser() -> argparse.ArgumentParser:
     ident.add_argument("--wheel-method", choices=["none", "thesis", "cancel"], default="cancel",
                        help="two-axle: wheel rows by plain rows, Eq 6.14, or road cancellation (default)")
     ident.add_argument("--p0", type=parse_floats, default=1000.0, metavar="P0",
-                       help="kalman: prior covariance P(0), one value or one per unknown row, comma-separated (default 1000)")
+                       help="kalman: prior covariance P(0), one value or one per unknown row, comma-separated "
+                            "(default 1000)")
     ident.add_argument("--road-sigma", type=float, default=0.1,
                        help="kalman: road input std sigma_u, m, for R (Eq 4.7) (default 0.1)")
     ident.add_argument("--deriv-noise", type=float, default=0.005,
@@ -941,7 +945,8 @@ def build_parser() -> argparse.ArgumentParser:
     ident.add_argument("--gain", choices=["venter", "lyapunov", "ljung"], default="venter",
                        help="sg: gain sequence (default venter)")
     ident.add_argument("--h", type=parse_floats, default=None, metavar="H",
-                       help="sg: weights, one value, one per unknown row or one per parameter, comma-separated (default 1)")
+                       help="sg: weights, one value, one per unknown row or one per parameter, comma-separated "
+                            "(default 1)")
     ident.add_argument("--m", type=positive_float, default=1.0, help="quarter: known wheel mass m, kg (default 1)")
     ident.add_argument("--m1", type=positive_float, default=1.0, help="half: known front wheel mass m1, kg (default 1)")
     ident.add_argument("--m2", type=positive_float, default=1.0, help="half: known rear wheel mass m2, kg (default 1)")

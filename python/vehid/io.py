@@ -359,7 +359,7 @@ class Table:
     def close(self) -> None:
         """Releases the input (standard input stays open)."""
 
-    def __enter__(self) -> "Table":
+    def __enter__(self) -> Table:
         return self
 
     def __exit__(
@@ -774,7 +774,8 @@ class _ParquetTable(Table):
                 if not finite.all():
                     row = int(np.argmin(finite.all(axis=1)))
                     col = int(np.argmin(finite[row]))
-                    what = "empty (null)" if blocks[col][1][row] else f"{float(data[row, col])!r} is not a finite number"
+                    what = ("empty (null)" if blocks[col][1][row]
+                            else f"{float(data[row, col])!r} is not a finite number")
                     raise TableError(f"{self.where(first + row)}, column {labels[col]}: {what} "
                                      "(drop or repair that sample)")
                 self._consumed += k

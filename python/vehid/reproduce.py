@@ -139,7 +139,12 @@ def _claim_rows(data: Json) -> Tuple[List[Tuple[str, Json]], List[Tuple[str, Jso
             (ok if v["agrees"] else bad).append((f"Fig {fig['id']}", v))
     for t in data["tables"]:
         for r in t["rows"]:
-            item = {"claim": f"{r['label']}: {r['thesis']}", "measured": r["vehid"], "agrees": r["agrees"], "note": r["note"]}
+            item = {
+                "claim": f"{r['label']}: {r['thesis']}",
+                "measured": r["vehid"],
+                "agrees": r["agrees"],
+                "note": r["note"],
+            }
             (ok if r["agrees"] else bad).append((t["title"].split(":")[0], item))
     return ok, bad
 
@@ -184,11 +189,15 @@ def write_report(data: Json, out: Path, command: str = "vehid reproduce") -> Pat
         "",
     ]
     md += [
-        f"- {w}: {_md_cell(v['claim'])} — {_md_cell(v['measured'])}" + (f" ({_md_cell(v['note'])})" if v["note"] else "")
+        f"- {w}: {_md_cell(v['claim'])} — {_md_cell(v['measured'])}"
+        + (f" ({_md_cell(v['note'])})" if v["note"] else "")
         for w, v in ok
     ] or ["- none"]
     md += ["", "### Claims vehid does not confirm", ""]
-    md += [f"- {w}: {_md_cell(v['claim'])} — {_md_cell(v['measured'])}. {_md_cell(v['note'])}" for w, v in bad] or ["- none"]
+    md += [
+        f"- {w}: {_md_cell(v['claim'])} — {_md_cell(v['measured'])}. {_md_cell(v['note'])}"
+        for w, v in bad
+    ] or ["- none"]
     if skipped:
         md += ["", "### Not run", ""]
         md += [f"- Fig {f['id']} ({f['title']}): {f['skipped']}" for f in skipped]
@@ -204,7 +213,10 @@ def write_report(data: Json, out: Path, command: str = "vehid reproduce") -> Pat
             iters = fig["iterations"]
             note = "" if iters == fig["thesis_iterations"] else f" (the table's full run: {fig['thesis_iterations']})"
             md += [f"{iters} iterations{note}, {fig['seeds']} seeds.", ""]
-            md += ["| curve | σ_ic | σ_u | σ_w | σ_v | identifier | median ξ at end [10–90 %] |", "|---|---|---|---|---|---|---|"]
+            md += [
+                "| curve | σ_ic | σ_u | σ_w | σ_v | identifier | median ξ at end [10–90 %] |",
+                "|---|---|---|---|---|---|---|",
+            ]
             for c in fig["curves"]:
                 fin = c["final_xi"]
                 lo, hi = c["p10"][-1], c["p90"][-1]
@@ -217,14 +229,27 @@ def write_report(data: Json, out: Path, command: str = "vehid reproduce") -> Pat
         if fig["verdicts"]:
             md += ["| thesis | vehid | verdict | explanation |", "|---|---|---|---|"]
             for v in fig["verdicts"]:
-                md.append(f"| {_md_cell(v['claim'])} | {_md_cell(v['measured'])} | {_mark(v['agrees'])} | {_md_cell(v['note'])} |")
+                md.append(
+                    f"| {_md_cell(v['claim'])} | {_md_cell(v['measured'])} | {_mark(v['agrees'])} | "
+                    f"{_md_cell(v['note'])} |"
+                )
             md.append("")
         md += [f"Assumptions: {fig['assumptions']}", ""]
     md += ["## Tables", ""]
     for t in data["tables"]:
-        md += [f"### {t['title']}", "", t["method"] + ".", "", "| | thesis | vehid | verdict | explanation |", "|---|---|---|---|---|"]
+        md += [
+            f"### {t['title']}",
+            "",
+            t["method"] + ".",
+            "",
+            "| | thesis | vehid | verdict | explanation |",
+            "|---|---|---|---|---|",
+        ]
         for r in t["rows"]:
-            md.append(f"| {_md_cell(r['label'])} | {_md_cell(r['thesis'])} | {_md_cell(r['vehid'])} | {_mark(r['agrees'])} | {_md_cell(r['note'])} |")
+            md.append(
+                f"| {_md_cell(r['label'])} | {_md_cell(r['thesis'])} | {_md_cell(r['vehid'])} | "
+                f"{_mark(r['agrees'])} | {_md_cell(r['note'])} |"
+            )
         md.append("")
     index_md = out / "index.md"
     index_md.write_text("\n".join(md), encoding="utf-8")
@@ -254,10 +279,14 @@ def _html(
         ".ok{color:#176117}.bad{color:#a01b1b}img{max-width:100%}</style></head><body>",
         "<h1>vehid reproduces Kessler (1986), Ch. III–VI</h1>",
         f"<p>{e(head)}<br>{e(plots)}</p>",
-        f"<h2>Summary</h2><p>{len(ok)} claims and table rows agree, {len(bad)} differ, {len(skipped)} figures skipped.</p>",
+        f"<h2>Summary</h2><p>{len(ok)} claims and table rows agree, {len(bad)} differ, "
+        f"{len(skipped)} figures skipped.</p>",
         "<h3>Claims vehid confirms</h3><ul>",
     ]
-    h += [f"<li>{e(w)}: {e(v['claim'])} — {e(v['measured'])}" + (f" ({e(v['note'])})" if v["note"] else "") + "</li>" for w, v in ok]
+    h += [
+        f"<li>{e(w)}: {e(v['claim'])} — {e(v['measured'])}" + (f" ({e(v['note'])})" if v["note"] else "") + "</li>"
+        for w, v in ok
+    ]
     h += ["</ul><h3>Claims vehid does not confirm</h3><ul>"]
     h += [f"<li>{e(w)}: {e(v['claim'])} — {e(v['measured'])}. {e(v['note'])}</li>" for w, v in bad]
     h += ["</ul>"]
@@ -274,7 +303,10 @@ def _html(
         if fig["verdicts"]:
             h.append("<table><tr><th>thesis</th><th>vehid</th><th>verdict</th><th>explanation</th></tr>")
             for v in fig["verdicts"]:
-                h.append(f"<tr><td>{e(v['claim'])}</td><td>{e(v['measured'])}</td><td>{mark(v['agrees'])}</td><td>{e(v['note'])}</td></tr>")
+                h.append(
+                    f"<tr><td>{e(v['claim'])}</td><td>{e(v['measured'])}</td>"
+                    f"<td>{mark(v['agrees'])}</td><td>{e(v['note'])}</td></tr>"
+                )
             h.append("</table>")
         h.append(f"<p><small>Assumptions: {e(fig['assumptions'])}</small></p>")
     h.append("<h2>Tables</h2>")
@@ -303,9 +335,11 @@ def _positive_int(text: str) -> int:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """The ``vehid reproduce`` options."""
-    p.add_argument("--quick", action="store_true", help="5 seeds, at most 10,000 iterations per curve (under 2 minutes)")
+    p.add_argument("--quick", action="store_true",
+                   help="5 seeds, at most 10,000 iterations per curve (under 2 minutes)")
     p.add_argument("--out", default="report/", help="output directory (default report/)")
-    p.add_argument("--only", default=None, metavar="IDS", help="comma-separated figure ids, e.g. 4-2,4-5 (default: all)")
+    p.add_argument("--only", default=None, metavar="IDS",
+                   help="comma-separated figure ids, e.g. 4-2,4-5 (default: all)")
     p.add_argument("--seed", type=int, default=1986, help="base seed (default 1986)")
     p.add_argument("--seeds", type=_positive_int, default=None, help="seeds per curve (default 5 quick, 16 full)")
     p.add_argument("--max-iterations", type=_positive_int, default=None, help="cap the iterations of every curve")
