@@ -1,8 +1,10 @@
 # Developer entry points. Assumes only python3, cargo and access to PyPI / crates.io.
-#   make venv     .venv with maturin, numpy, pytest, mypy (from PyPI)
+#   make venv     .venv with maturin, numpy, pytest, mypy, ruff (from PyPI)
 #   make develop  build the extension (release) into .venv, editable
 #   make demo     build with the plot extra (matplotlib), reproduce the thesis (--quick) into report/, print its path
-#   make test     Rust tests, no_std build, benches compile, pytest, stub check
+#   make test     lint, every Rust test (unit, integration, bins, benches in test mode, doctests), the
+#                 release-mode SIMD bit check, the no_std build, pytest on the fresh extension, stub check
+#   make lint     cargo fmt --check, clippy -D warnings, ruff (part of `make test`)
 #   make install-check  `pip install .` into a fresh venv in a temp dir (the pyproject backend
 #                 builds through maturin), then `vehid --help` and `vehid simulate | vehid
 #                 identify`, which must report xi (slow: a full release build; not in `test`)
@@ -27,19 +29,21 @@ VENV   := .venv
 VBIN   := $(VENV)/bin
 CARGO  ?= cargo
 
-.PHONY: venv develop demo test test-rust test-python install-check bench-python bench-fit bench-peers bench-budgets bench-check bench-check-update clean
+.PHONY: venv develop demo test lint test-rust test-python install-check bench-python bench-fit bench-peers bench-budgets bench-check bench-check-update clean
 
 venv: $(VENV)/.installed
 
 $(VENV)/.installed:
 	$(PYTHON) -m venv $(VENV)
-	$(VBIN)/python -m pip install --quiet maturin numpy pytest mypy
+	$(VBIN)/python -m pip install --quiet maturin numpy pytest mypy ruff
 	touch $@
 
 # A stale extension module in python/vehid/ would shadow the fresh build: remove it first.
+# Cargo's progress is shown (the first build takes minutes); pip stays quiet (PIP_QUIET).
 develop: venv
 	rm -f python/vehid/*.so python/vehid/*.pyd
-	env -u CONDA_PREFIX VIRTUAL_ENV="$(abspath $(VENV))" $(VBIN)/maturin develop --release --quiet
+	@echo "develop: building the extension (release; the first build compiles the dependencies)"
+	env -u CONDA_PREFIX VIRTUAL_ENV="$(abspath $(VENV))" PIP_QUIET=1 $(VBIN)/maturin develop --release
 
 # The plot extra (vehid[plot] = matplotlib) into the same venv, then the quick reproduction.
 demo: develop
@@ -47,14 +51,22 @@ demo: develop
 	$(VBIN)/vehid reproduce --quick --out report/
 	@echo "report: $(abspath report/index.html) (and report/index.md)"
 
-test: test-rust test-python
+test: lint test-rust test-python
+
+# Every check compiles with one feature set per profile, so each dependency is built once per
+# profile: the test profile here, the release profile for the extension (shared with the
+# release-mode check below).
+lint: venv
+	$(CARGO) fmt --all --check
+	$(CARGO) clippy --workspace --all-targets -- -D warnings
+	$(VBIN)/ruff check python tests benches
 
 test-rust:
-	$(CARGO) test --workspace
+	$(CARGO) test --workspace --all-targets
+	$(CARGO) test --workspace --doc
 	# The AVX2 and portable updates must agree to the bit where it matters: optimized code.
-	$(CARGO) test --release -p vehid-core --lib vector_extensions_do_not_change_a_single_bit
-	$(CARGO) build -p vehid-core --no-default-features
-	$(CARGO) test --benches
+	$(CARGO) test --release -p vehid-core --test simd_paths
+	$(CARGO) check -p vehid-core --no-default-features
 
 test-python: develop
 	$(VBIN)/python -m pytest -q tests
