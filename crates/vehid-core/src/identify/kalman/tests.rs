@@ -502,5 +502,3 @@ fn several_lane_groups_equal_one_and_reject_as_a_whole() {
     assert!((0..6).all(|i| dynamic.filter(i) == before[i]));
     assert_eq!(dynamic.samples(), 3000);
 }
-
-
