@@ -190,25 +190,6 @@ pub fn mat_vec<T: Real, const N: usize>(p: &SMatrix<T, N, N>, x: &SVector<T, N>,
     }
 }
 
-/// `P ← P − u uᵀ`. Each entry subtracts the product `u_i u_j`, which is the same number for
-/// `(i, j)` and `(j, i)`, so a symmetric `P` stays exactly symmetric.
-#[inline(always)]
-pub fn sym_downdate<T: Real, const N: usize>(p: &mut SMatrix<T, N, N>, u: &SVector<T, N>) {
-    for (col, &uj) in p.as_mut_slice().chunks_exact_mut(N).zip(u.iter()) {
-        for (pij, &ui) in col.iter_mut().zip(u.iter()) {
-            *pij -= ui * uj;
-        }
-    }
-}
-
-/// `y ← y + a x`.
-#[inline(always)]
-pub fn axpy<T: Real, const N: usize>(y: &mut SVector<T, N>, a: T, x: &SVector<T, N>) {
-    for (yi, &xi) in y.iter_mut().zip(x.iter()) {
-        *yi += a * xi;
-    }
-}
-
 /// Forces exact symmetry: `P ← (P + Pᵀ)/2`.
 #[inline]
 pub fn symmetrize<T: Real, const N: usize>(p: &mut SMatrix<T, N, N>) {

@@ -54,7 +54,7 @@ pub use kalman::{
 #[cfg(feature = "std")]
 pub use least_squares::BatchLeastSquares;
 pub use least_squares::LsAccumulator;
-pub use store::{Dynamic, Fixed, Flat, Store, DYNAMIC_LANES};
+pub use store::{Dynamic, Fixed, Flat, NoScratch, Store, DYNAMIC_LANES};
 #[cfg(feature = "alloc")]
 pub use two_axle::TwoAxleIdentifierVec;
 pub use two_axle::{Past, TwoAxle, TwoAxleConfig, TwoAxleIdentifier, WheelMethod};

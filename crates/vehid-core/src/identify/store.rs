@@ -69,6 +69,22 @@ impl<X: Copy + core::fmt::Debug> Flat<X> for alloc::vec::Vec<X> {
     }
 }
 
+/// No scratch: a single group of lanes ([`Fixed`] storage) plans each sample on the stack.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct NoScratch;
+
+impl<X> Flat<X> for NoScratch {
+    fn filled(_arg: &'static str, _len: usize, _x: X) -> Result<Self> {
+        Ok(NoScratch)
+    }
+    fn flat(&self) -> &[X] {
+        &[]
+    }
+    fn flat_mut(&mut self) -> &mut [X] {
+        &mut []
+    }
+}
+
 /// Where an identifier keeps its per-row state: [`Fixed<K>`] or [`Dynamic`].
 pub trait Store<T: Real, const N: usize>: Clone + core::fmt::Debug {
     /// Row indices (`K`).
@@ -106,7 +122,7 @@ impl<T: Real, const N: usize, const K: usize> Store<T, N> for Fixed<K> {
     type Vecs = [SVector<T, N>; K];
     type Group = lanes::RowLanes<T, N, K>;
     type Groups = [lanes::RowLanes<T, N, K>; 1];
-    type Scratches = [lanes::LaneScratch<T, N, K>; 1];
+    type Scratches = NoScratch;
     type PairScalars = [[T; K]; K];
     type PairVecs = [[SVector<T, N>; K]; K];
     type Blocks = [[SMatrix<T, N, N>; K]; K];

@@ -36,7 +36,7 @@ use nalgebra::{SMatrix, SVector};
 
 #[cfg(feature = "alloc")]
 use super::Dynamic;
-use super::{CovarianceForm, Fixed};
+use super::Fixed;
 
 /// How the wheel rows are identified.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -316,7 +316,13 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
                     let off = if front { N } else { 0 };
                     SVector::from_fn(|j, _| self.joint.theta()[off + j])
                 }
-                _ => *if front { self.front.theta() } else { self.rear.theta() },
+                _ => {
+                    if front {
+                        self.front.theta()
+                    } else {
+                        self.rear.theta()
+                    }
+                }
             };
         }
         if let Some(body) = &self.body {
@@ -444,7 +450,6 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
             None
         };
         let (zf, zr) = (z[self.front_row], z[self.rear_row]);
-        let form = CovarianceForm::Standard;
         // Plan on copies; commit only when every step succeeded.
         let mut front = self.front;
         let mut rear = self.rear;
@@ -452,13 +457,13 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
         let (e_front, e_rear);
         match self.cfg.method {
             WheelMethod::None => {
-                e_front = front.update(r, zf, form)?;
-                e_rear = rear.update(r, zr, form)?;
+                e_front = front.update(r, zf)?;
+                e_rear = rear.update(r, zr)?;
             }
             WheelMethod::Thesis => {
-                e_front = front.update(r, zf, form)?;
+                e_front = front.update(r, zf)?;
                 e_rear = match past {
-                    Some(p) => rear.update(r, zr - self.ratio * p.e_front, form)?,
+                    Some(p) => rear.update(r, zr - self.ratio * p.e_front)?,
                     None => T::zero(),
                 };
             }
@@ -469,14 +474,14 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
                 e_rear = match past {
                     Some(p) => {
                         let h = SVector::<T, P>::from_fn(|i, _| if i < N { r[i] } else { -self.ratio * p.x[i - N] });
-                        j.update(&h, zr - self.ratio * p.z_front, form)?
+                        j.update(&h, zr - self.ratio * p.z_front)?
                     }
                     None => T::zero(),
                 };
                 if self.cfg.direct_front && self.direct_scale > T::zero() {
                     let h =
                         SVector::<T, P>::from_fn(|i, _| if i < N { T::zero() } else { r[i - N] * self.direct_scale });
-                    j.update(&h, zf * self.direct_scale, form)?;
+                    j.update(&h, zf * self.direct_scale)?;
                 }
                 joint = Some(j);
             }

@@ -1,6 +1,6 @@
 //! The stacked (`full`) form with a general `R`.
 
-use super::KalmanOptions;
+use super::{CovarianceForm, KalmanOptions};
 use crate::error::{check_finite, check_nonneg, check_positive};
 #[cfg(feature = "alloc")]
 use crate::identify::Dynamic;
@@ -52,6 +52,18 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
         opts.validate()?;
         if opts.retire_below > T::zero() {
             return Err(Error::InvalidArgument { arg: "retire_below", expected: "0: retiring rows needs mode='rows'" });
+        }
+        if opts.form != CovarianceForm::Standard {
+            return Err(Error::InvalidArgument {
+                arg: "form",
+                expected: "'standard' for mode='full' (the Joseph and square-root forms need mode='rows')",
+            });
+        }
+        if opts.tracking() {
+            return Err(Error::InvalidArgument {
+                arg: "forgetting",
+                expected: "no forgetting or drift for mode='full' (tracking needs mode='rows')",
+            });
         }
         let rows_buf: S::Rows = rows_buffer::<_, N>(rows)?;
         let k = rows.len();

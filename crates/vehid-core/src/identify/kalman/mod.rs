@@ -21,9 +21,21 @@
 //! `10 Σ|e_i(k)| > Σ_j P_jj(k)` the diagonal of `P` is multiplied by 10 and `R` doubled.
 //!
 //! # Memory (Table I of the thesis: 352 bytes for the 4-state identifier, 2800 for the 8-state)
-//! `size_of::<KalmanIdentifier<f32, 4, 2>>()` is 328 bytes and
-//! `size_of::<KalmanIdentifier<f32, 8, 4>>()` is 1512 bytes (the rows side by side: θ, the
-//! covariances as `N × N` lanes of which the upper triangle is used, `r`, room for the
+//! `size_of::<KalmanIdentifier<f32, 4, 2>>()` is 296 bytes and
+//! `size_of::<KalmanIdentifier<f32, 8, 4>>()` is 1368 bytes (the rows side by side: θ, the
+//! covariances as `N × N` lanes of which the upper triangle is used, `r`, the statistics and
+//! tracking state per row, plus the row indices, options and counters; a sample is planned on
+//! the stack); the shared form needs 152 and 464. Both are within the thesis' 352 and 2800
+//! bytes. These figures are asserted in the tests.
+//!
+//! # Forms, exact start, tracking, statistics
+//! [`CovarianceForm`]: the standard form (the thesis', the fastest), Joseph's, and Bierman's
+//! square-root `U D Uᵀ` form (positive definite in any precision: the recommended online form
+//! in `f32`). [`KalmanRows::exact`]: no prior; samples are absorbed exactly (Givens QR) until
+//! they identify every parameter, then every estimate is least squares on all samples so far.
+//! [`KalmanOptions::forgetting`] / [`KalmanOptions::drift`] track parameters that change,
+//! bounded by [`KalmanOptions::max_trace`] against wind-up. Every row accumulates its squared
+//! recursive residuals (see [`RowIdentifier`]) for the statistics.
 
 /// Gives an identifier with an `#[inline(always)] fn step(&mut self, x, z, e) -> Result<()>`
 /// its AVX2 copy `step_avx2` and `dispatch`, which runs that copy when `wide` (where it
@@ -75,5 +87,7 @@ pub use rows::{KalmanIdentifierVec, KalmanIdentifierVec2};
 pub use shared::SharedKalmanIdentifierVec;
 pub use shared::{KalmanShared, SharedKalmanIdentifier};
 
+#[cfg(test)]
+mod numerics_tests;
 #[cfg(test)]
 mod tests;

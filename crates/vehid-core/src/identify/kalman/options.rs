@@ -1,7 +1,7 @@
 //! Options of the Kalman identifiers.
 
 use crate::error::check_nonneg;
-use crate::{Real, Result};
+use crate::{Error, Real, Result};
 
 #[cfg(doc)]
 use super::{KalmanFull, KalmanRows, KalmanShared, RowIdentifier};
@@ -14,12 +14,20 @@ pub enum CovarianceForm {
     /// `a ≤ b`) and mirror it; [`RowIdentifier`] evaluates `P − u uᵀ` with `u = P x / √s`.
     #[default]
     Standard,
-    /// Joseph's form `P ← (I − g xᵀ) P (I − g xᵀ)ᵀ + r g gᵀ`, positive semi-definite by
-    /// construction (slower; for `f32` over very long runs).
+    /// Joseph's form `P ← (I − g xᵀ) P (I − g xᵀ)ᵀ + r g gᵀ`, symmetric positive
+    /// semi-definite by construction when evaluated exactly (slower; it does not protect
+    /// against rounding in `f32` over long runs: use `Sqrt`).
     Joseph,
+    /// Bierman's square-root form: `P = U D Uᵀ` (`U` unit upper triangular, `D` diagonal) is
+    /// updated through its factors and never formed, so `D > 0` (P positive definite) in any
+    /// precision, for any `p0` and any scaling of the regressors. Chosen over a QR array form
+    /// because it needs no square root and `O(N²)` work per scalar measurement, like the
+    /// standard form (Bierman, *Factorization Methods for Discrete Sequential Estimation*,
+    /// 1977). The recommended form for `f32` and for long online runs.
+    Sqrt,
 }
 
-option_names!(CovarianceForm, "form", { Standard => "standard", Joseph => "joseph" });
+option_names!(CovarianceForm, "form", { Standard => "standard", Joseph => "joseph", Sqrt => "sqrt" });
 
 /// Which of the three Kalman forms to run (they are equal where their assumptions hold).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -46,16 +54,55 @@ pub struct KalmanOptions<T> {
     /// `rows` form only: a row stops updating once `tr P_i` falls below this value
     /// (0 = never). A reinitialization brings retired rows back.
     pub retire_below: T,
+    /// Forgetting factor `λ ∈ (0, 1]` (1: none): old samples weigh `λ^age`, so the estimate
+    /// tracks parameters that change, with a memory of about `1 / (1 − λ)` samples.
+    /// Exponential (`P ← P / λ` after each update) unless [`KalmanOptions::directional`].
+    pub forgetting: T,
+    /// Forget only in the direction each sample informs (Kulhavý & Kárný 1984, see
+    /// [`super::RowIdentifier`]): directions without excitation keep their information, so a
+    /// vehicle at rest forgets nothing (the memory per direction is then about
+    /// `N / (1 − λ)` samples for `N` equally excited parameters, `N` times the exponential
+    /// one). Off: exponential forgetting, bounded by [`KalmanOptions::max_trace`].
+    pub directional: bool,
+    /// Random-walk drift `q ≥ 0`: after each update `P ← P + q I`, the variance (in squared
+    /// parameter units) by which each parameter may drift per sample.
+    pub drift: T,
+    /// Wind-up bound: forgetting and drift act only while `tr P` is below this value
+    /// (0: the trace when filtering starts, i.e. `tr P(0)` or the trace at the end of an exact
+    /// start). Without excitation (`P x = 0`) the estimate cannot move, and this keeps the
+    /// covariance from growing without bound meanwhile.
+    pub max_trace: T,
 }
 
 impl<T: Real> Default for KalmanOptions<T> {
     fn default() -> Self {
-        Self { form: CovarianceForm::Standard, reinit: false, retire_below: T::zero() }
+        Self {
+            form: CovarianceForm::Standard,
+            reinit: false,
+            retire_below: T::zero(),
+            forgetting: T::one(),
+            directional: false,
+            drift: T::zero(),
+            max_trace: T::zero(),
+        }
     }
 }
 
 impl<T: Real> KalmanOptions<T> {
     pub(crate) fn validate(&self) -> Result<()> {
-        check_nonneg("retire_below", self.retire_below)
+        check_nonneg("retire_below", self.retire_below)?;
+        if !(self.forgetting.finite() && self.forgetting > T::zero() && self.forgetting <= T::one()) {
+            return Err(Error::InvalidArgument {
+                arg: "forgetting",
+                expected: "a forgetting factor λ in (0, 1] (1: no forgetting; 0.999: memory of about 1000 samples)",
+            });
+        }
+        check_nonneg("drift", self.drift)?;
+        check_nonneg("max_trace", self.max_trace)
+    }
+
+    /// `true` when forgetting or drift is on.
+    pub fn tracking(&self) -> bool {
+        self.forgetting < T::one() || self.drift > T::zero()
     }
 }

@@ -1,22 +1,92 @@
-//! One decoupled scalar-output filter (Eq 6.16–6.18).
+//! One recursive least-squares filter for one scalar equation `z = xᵀθ + ε`, `ε ~ (0, r)`:
+//! the decoupled row of Eq 6.16–6.18, and the engine of every identifier with a full
+//! covariance per equation.
+//!
+//! The filter keeps the estimate `θ̂` and its covariance in one of three forms
+//! ([`CovarianceForm`]): the covariance `P` itself (the thesis' form, updated as
+//! `P − P x xᵀ P / s`, or in Joseph's form), or its `U D Uᵀ` factors (Bierman's square-root
+//! form: `U` unit upper triangular, `D` diagonal, updated without ever forming `P`, so `P`
+//! stays positive definite in any precision). Before filtering it can absorb samples exactly
+//! ([`RowIdentifier::exact`]): the regressors are triangularized by Givens rotations (a QR
+//! factorization `R` of the stacked `xᵀ`, the right-hand side `Qᵀz` alongside) until `R` is
+//! well conditioned; then `θ̂ = R⁻¹ Qᵀz` and `P = r (RᵀR)⁻¹`, and every estimate from then on
+//! is least squares on all samples so far, with no prior at all.
+//!
+//! Tracking ([`KalmanOptions::forgetting`], [`KalmanOptions::drift`]): exponential forgetting
+//! `P ← P / λ` after each update, or directional forgetting
+//! ([`KalmanOptions::directional`], Kulhavý & Kárný 1984), which inflates the covariance only
+//! along the direction the sample informed, `P⁺ + ((1 − λ)/λ) P⁺x xᵀP⁺ / xᵀP⁺x`, so old
+//! information is discounted where new information replaces it and kept where none arrives;
+//! and random-walk drift `P ← P + q I`. All act only while `tr P` is below a bound (by
+//! default the trace when filtering starts: wind-up protection). Without excitation
+//! (`x = 0`, so `P x = 0`) the estimate cannot move; exponential forgetting then lets `tr P`
+//! grow back to the bound (the uncertainty the filter started with) and no further, while
+//! directional forgetting keeps the covariance exactly as it was.
+//!
+//! Statistics: the filter accumulates the squared recursive residuals
+//! `w² = e² r / s` (`e` the innovation, `s = xᵀPx + r` its variance): with an exact start their
+//! sum is the residual sum of squares of least squares on all samples (Brown, Durbin & Evans
+//! 1975), with a prior it is the minimum of the prior-regularized objective.
 
-use super::CovarianceForm;
+use super::{CovarianceForm, KalmanOptions};
 use crate::error::{check_finite, check_nonneg, check_positive};
 use crate::identify::OVERFLOW;
-use crate::linalg::{axpy, cholesky_in_place, mat_vec, sym_downdate, symmetrize};
+use crate::linalg::{cholesky_in_place, mat_vec, symmetrize};
 use crate::{Error, Real, Result};
 use nalgebra::{SMatrix, SVector};
+
 /// One decoupled scalar-output filter for one row of `A` (Eq 6.16–6.18):
 /// `g = P x / (xᵀ P x + r)`, `θ ← θ + g (z − xᵀ θ)`, `P ← (I − g xᵀ) P`.
+///
+/// The matrix `m` holds, by phase and form: the covariance `P` (standard and Joseph forms),
+/// `U` above the diagonal and `D` on it (square-root form), or the triangular factor `R`
+/// with `θ` holding `Qᵀz` (exact start, before the data identify every direction).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RowIdentifier<T: Real, const N: usize> {
     theta: SVector<T, N>,
-    p: SMatrix<T, N, N>,
+    m: SMatrix<T, N, N>,
     r: T,
+    form: CovarianceForm,
+    /// Absorbing samples exactly (exact start) until identified.
+    start: bool,
     retired: bool,
+    /// Forgetting factor λ (directional or exponential), drift q, and the trace bound below
+    /// which they act.
+    lambda: T,
+    directional: bool,
+    drift: T,
+    cap: T,
+    /// Σ w² (decayed by λ), the effective number of samples, and the last `s`.
+    ssr: T,
+    nobs: T,
+    s: T,
+}
+
+/// Relative size below which a diagonal entry of the exact start's `R` counts as zero
+/// (`√ε · N`): the start ends when every direction is identified that well.
+fn start_tol<T: Real, const N: usize>() -> T {
+    T::default_epsilon().sqrt() * T::of(N as f64)
 }
 
 impl<T: Real, const N: usize> RowIdentifier<T, N> {
+    fn raw(theta: SVector<T, N>, m: SMatrix<T, N, N>, r: T, start: bool) -> Self {
+        Self {
+            theta,
+            m,
+            r,
+            form: CovarianceForm::Standard,
+            start,
+            retired: false,
+            lambda: T::one(),
+            directional: false,
+            drift: T::zero(),
+            cap: T::zero(),
+            ssr: T::zero(),
+            nobs: T::zero(),
+            s: T::zero(),
+        }
+    }
+
     /// A row filter with `θ̂(0) = 0`, `P(0) = p0 I` and measurement variance `r`.
     ///
     /// # Errors
@@ -24,7 +94,7 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
     pub fn new(p0: T, r: T) -> Result<Self> {
         check_positive("p0", p0)?;
         check_nonneg("r", r)?;
-        Ok(Self { theta: SVector::zeros(), p: SMatrix::identity() * p0, r, retired: false })
+        Ok(Self::raw(SVector::zeros(), SMatrix::identity() * p0, r, false))
     }
 
     /// A row filter with a prior mean `theta0` and a full prior covariance `p0`.
@@ -45,27 +115,140 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
         }
         let mut p = p0;
         symmetrize(&mut p);
-        Ok(Self { theta: theta0, p, r, retired: false })
+        Ok(Self::raw(theta0, p, r, false))
     }
 
-    /// A filter from its state (no checks: the parts come from a valid filter).
-    pub(crate) fn from_parts(theta: SVector<T, N>, p: SMatrix<T, N, N>, r: T, retired: bool) -> Self {
-        Self { theta, p, r, retired }
+    /// A row filter with no prior: samples are absorbed exactly until they identify every
+    /// parameter, and from then on the estimate is least squares on all samples so far
+    /// (the exact initialization of recursive least squares). `r > 0` is the measurement
+    /// variance the covariance is expressed in (`P = r (XᵀX)⁻¹`); it does not change the
+    /// estimate.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for `r` not finite and > 0.
+    pub fn exact(r: T) -> Result<Self> {
+        check_positive("r", r)?;
+        Ok(Self::raw(SVector::zeros(), SMatrix::zeros(), r, true))
     }
 
-    /// Current estimate `θ̂_i` of the row.
-    pub fn theta(&self) -> &SVector<T, N> {
-        &self.theta
+    /// The same filter with the covariance kept in `form` (converted now: `U D Uᵀ` factors for
+    /// [`CovarianceForm::Sqrt`]) and the tracking options of `opts` (forgetting, drift, the
+    /// trace bound).
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for tracking options out of their domain (see
+    /// [`KalmanOptions`]); [`Error::Singular`] when the covariance cannot be factored.
+    pub fn configured(mut self, form: CovarianceForm, opts: &KalmanOptions<T>) -> Result<Self> {
+        opts.validate()?;
+        if !self.start && form != self.form {
+            let p = self.p();
+            self.m = match form {
+                CovarianceForm::Sqrt => ud_factor(&p)?,
+                _ => p,
+            };
+        }
+        self.form = form;
+        self.lambda = opts.forgetting;
+        self.directional = opts.directional;
+        self.drift = opts.drift;
+        self.cap = opts.max_trace;
+        if self.cap == T::zero() && !self.start && self.tracking() {
+            self.cap = self.trace();
+        }
+        Ok(self)
     }
 
-    /// Current covariance `P_i`.
-    pub fn p(&self) -> &SMatrix<T, N, N> {
-        &self.p
+    /// A filter from its lane state (no checks: the parts come from a valid filter).
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn from_parts(
+        theta: SVector<T, N>,
+        m: SMatrix<T, N, N>,
+        r: T,
+        form: CovarianceForm,
+        start: bool,
+        retired: bool,
+        stats: [T; 3],
+        tracking: ([T; 3], bool),
+    ) -> Self {
+        let [ssr, nobs, s] = stats;
+        let ([lambda, drift, cap], directional) = tracking;
+        Self { theta, m, r, form, start, retired, lambda, directional, drift, cap, ssr, nobs, s }
     }
 
-    /// Measurement variance `r_i` in use (doubled by each reinitialization).
+    /// The raw state (`θ` or `Qᵀz`, the form's matrix, flags, statistics, tracking), for the
+    /// lanes.
+    #[allow(clippy::type_complexity)]
+    pub(crate) fn parts(&self) -> (SVector<T, N>, SMatrix<T, N, N>, bool, [T; 3], ([T; 3], bool)) {
+        (
+            self.theta,
+            self.m,
+            self.start,
+            [self.ssr, self.nobs, self.s],
+            ([self.lambda, self.drift, self.cap], self.directional),
+        )
+    }
+
+    fn tracking(&self) -> bool {
+        self.lambda < T::one() || self.drift > T::zero()
+    }
+
+    /// `true` while the filter is still absorbing its exact start (before the data identify
+    /// every parameter).
+    pub fn starting(&self) -> bool {
+        self.start
+    }
+
+    /// During an exact start, the number of directions the samples so far identify (the
+    /// numerical rank of their regressors); `N` otherwise.
+    pub fn start_rank(&self) -> usize {
+        if !self.start {
+            return N;
+        }
+        let big = (0..N).fold(T::zero(), |a, j| a.max(self.m[(j, j)].abs()));
+        let tol = start_tol::<T, N>() * big;
+        (0..N).filter(|&j| big > T::zero() && self.m[(j, j)].abs() > tol).count()
+    }
+
+    /// Current estimate `θ̂` of the row. During an exact start, before every parameter is
+    /// identified, there is none: NaN.
+    pub fn theta(&self) -> SVector<T, N> {
+        if self.start {
+            return SVector::repeat(T::of(f64::NAN));
+        }
+        self.theta
+    }
+
+    /// Current covariance `P` (formed from the factors in the square-root form). During an
+    /// exact start: infinite on the diagonal (no information yet in some direction).
+    pub fn p(&self) -> SMatrix<T, N, N> {
+        if self.start {
+            return SMatrix::from_diagonal_element(T::of(f64::INFINITY));
+        }
+        match self.form {
+            CovarianceForm::Sqrt => ud_product(&self.m),
+            _ => self.m,
+        }
+    }
+
+    /// `tr P` (infinite during an exact start).
+    pub fn trace(&self) -> T {
+        if self.start {
+            return T::of(f64::INFINITY);
+        }
+        match self.form {
+            CovarianceForm::Sqrt => ud_trace(&self.m),
+            _ => self.m.trace(),
+        }
+    }
+
+    /// Measurement variance `r` in use (doubled by each reinitialization).
     pub fn r(&self) -> T {
         self.r
+    }
+
+    /// The covariance form.
+    pub fn form(&self) -> CovarianceForm {
+        self.form
     }
 
     /// `true` once the row has retired (stopped updating).
@@ -73,36 +256,138 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
         self.retired
     }
 
-    /// One update with the derivative measurement `z` of this row (Eq 6.16–6.18); returns
-    /// the innovation `z − xᵀ θ̂(k−1)`.
+    /// Sum of the squared recursive residuals `Σ e² r / s` (decayed by λ with forgetting): the
+    /// residual sum of squares of least squares on all samples after an exact start.
+    pub fn ssr(&self) -> T {
+        self.ssr
+    }
+
+    /// Samples that entered the statistics (effective: decayed by λ with forgetting).
+    pub fn nobs(&self) -> T {
+        self.nobs
+    }
+
+    /// The innovation variance `s = xᵀPx + r` of the last update (0 before any, or during
+    /// the exact start).
+    pub fn innovation_var(&self) -> T {
+        self.s
+    }
+
+    /// Stops updating (until the next [`RowIdentifier::reinitialize`]).
+    pub fn retire(&mut self) {
+        self.retired = true;
+    }
+
+    /// Eq 4.36: `P_aa ← 10 P_aa`, `r ← 2 r`, and the row updates again.
+    pub fn reinitialize(&mut self) {
+        if self.start {
+            return;
+        }
+        let mut p = self.p();
+        for a in 0..N {
+            p[(a, a)] *= T::of(10.0);
+        }
+        self.m = match self.form {
+            // P + 9 diag(P) is positive definite when P is: the factorization succeeds.
+            CovarianceForm::Sqrt => ud_factor(&p).unwrap_or(self.m),
+            _ => p,
+        };
+        self.r *= T::of(2.0);
+        self.retired = false;
+    }
+
+    /// One update with the measurement `z` of this row (Eq 6.16–6.18); returns the
+    /// innovation `z − xᵀ θ̂(k−1)` (NaN during an exact start, when there is no estimate).
     ///
     /// # Errors
     /// [`Error::NonFinite`] for NaN/inf input, [`Error::Singular`] when `xᵀ P x + r ≤ 0`
     /// (the covariance lost positive definiteness), an overflow error for values so large the
     /// update would not be finite. The filter is unchanged after an error.
-    pub fn update(&mut self, x: &SVector<T, N>, z: T, form: CovarianceForm) -> Result<T> {
+    pub fn update(&mut self, x: &SVector<T, N>, z: T) -> Result<T> {
         if let Some(index) = x.iter().position(|v| !v.finite()) {
             return Err(Error::NonFinite { arg: "r_k", index });
         }
         if !z.finite() {
             return Err(Error::NonFinite { arg: "z_k", index: 0 });
         }
+        if self.retired {
+            return Ok(z - self.theta.dot(x));
+        }
+        if self.start {
+            return self.absorb(x, z).map(|()| T::of(f64::NAN));
+        }
+        let mut next = *self;
         let e = z - self.theta.dot(x);
-        let mut px = SVector::zeros();
-        let (c, d) = self.plan(x, e, &mut px)?;
-        self.apply(x, &px, c, d, form);
+        // Tracking acts while tr P is below the bound (decided on the covariance before the
+        // sample): directional forgetting inside the measurement update, drift after it.
+        let track = self.tracking() && self.trace() < self.cap;
+        match self.form {
+            CovarianceForm::Sqrt => next.step_ud(x, e, track)?,
+            _ => next.step_p(x, e, track)?,
+        }
+        if track && !self.directional && self.lambda < T::one() {
+            next.forget_exponentially();
+        }
+        if track && self.drift > T::zero() {
+            next.add_drift();
+        }
+        if !(next.theta.iter().all(|v| v.finite()) && next.m.iter().all(|v| v.finite())) {
+            return Err(OVERFLOW);
+        }
+        *self = next;
         Ok(e)
     }
 
-    /// Computes `P x` into `px` and returns `(c, d) = (e/s, 1/√s)` with `s = xᵀPx + r`, or
-    /// `d = 0` when this row takes no step. Changes nothing.
-    #[inline(always)]
-    fn plan(&self, x: &SVector<T, N>, e: T, px: &mut SVector<T, N>) -> Result<(T, T)> {
-        if self.retired {
-            return Ok((T::zero(), T::zero()));
+    /// The directional forgetting term of an update with innovation variance `s`: the
+    /// covariance after the update is inflated along `x` only,
+    /// `P⁺ + ((1 − λ)/λ) P⁺x xᵀP⁺ / xᵀP⁺x` (Kulhavý & Kárný 1984), which with
+    /// `P⁺x = P x r/s` is `c (P x)(P x)ᵀ`, `c = ((1 − λ)/λ) r / (s (s − r))`. A sample that
+    /// carries no information (`x = 0`, `s = r`) forgets nothing: no wind-up without
+    /// excitation. 0 when forgetting is off.
+    fn forget_coefficient(&self, s: T, track: bool) -> T {
+        let xpx = s - self.r;
+        if !track || !self.directional || self.lambda >= T::one() || !(xpx > T::zero()) {
+            return T::zero();
         }
-        mat_vec(&self.p, x, px);
-        let s = x.dot(px) + self.r;
+        (T::one() - self.lambda) / self.lambda * self.r / (s * xpx)
+    }
+
+    /// Exponential forgetting `P ← P / λ` (`D ← D / λ` in the square-root form).
+    fn forget_exponentially(&mut self) {
+        let inv = T::one() / self.lambda;
+        match self.form {
+            CovarianceForm::Sqrt => {
+                for j in 0..N {
+                    self.m[(j, j)] *= inv;
+                }
+            }
+            _ => self.m *= inv,
+        }
+    }
+
+    /// Random-walk drift `P ← P + q I`.
+    fn add_drift(&mut self) {
+        match self.form {
+            CovarianceForm::Sqrt => {
+                for i in 0..N {
+                    let mut a = SVector::<T, N>::zeros();
+                    a[i] = T::one();
+                    ud_rank_one(&mut self.m, self.drift, a);
+                }
+            }
+            _ => {
+                for j in 0..N {
+                    self.m[(j, j)] += self.drift;
+                }
+            }
+        }
+    }
+
+    /// The covariance form's measurement update (standard or Joseph).
+    fn step_p(&mut self, x: &SVector<T, N>, e: T, track: bool) -> Result<()> {
+        let mut px = SVector::zeros();
+        mat_vec(&self.m, x, &mut px);
+        let s = x.dot(&px) + self.r;
         if !s.finite() {
             return Err(OVERFLOW);
         }
@@ -111,40 +396,292 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
             // nothing is left to learn in that direction.
             let floor = T::default_epsilon() * T::of(4.0 * N as f64) * x.abs().sum() * px.abs().sum();
             if s <= floor {
-                return Ok((T::zero(), T::zero()));
+                return Ok(());
             }
         }
         if !(s > T::zero()) {
             return Err(Error::Singular {
-                what: "the innovation variance xᵀPx + r (P lost positive definiteness: use the \
-                       Joseph form, f64, or reinitialization)",
+                what: "the innovation variance xᵀPx + r (P lost positive definiteness: use form='sqrt', f64, or \
+                       reinitialization)",
             });
         }
         let inv_s = T::one() / s;
-        let c = e * inv_s;
-        // The θ step is P x e / s; the covariance step u uᵀ (u = P x / √s) is bounded by the
-        // largest eigenvalue of P, so it cannot overflow for a finite P.
-        if !(px.abs().sum() * c.abs()).finite() {
-            return Err(OVERFLOW);
-        }
-        Ok((c, inv_s.sqrt()))
-    }
-
-    /// Applies a planned update: `θ += P x c`, `P −= u uᵀ` with `u = P x d`.
-    #[inline(always)]
-    fn apply(&mut self, x: &SVector<T, N>, px: &SVector<T, N>, c: T, d: T, form: CovarianceForm) {
-        if d == T::zero() {
-            return;
-        }
-        axpy(&mut self.theta, c, px);
-        match form {
-            CovarianceForm::Standard => sym_downdate(&mut self.p, &(px * d)),
+        let g = px * inv_s;
+        self.theta += g * e;
+        let fc = self.forget_coefficient(s, track);
+        match self.form {
             CovarianceForm::Joseph => {
-                let g = px * (d * d);
                 let a = SMatrix::<T, N, N>::identity() - g * x.transpose();
-                self.p = a * self.p * a.transpose() + g * g.transpose() * self.r;
-                symmetrize(&mut self.p);
+                self.m = a * self.m * a.transpose() + g * g.transpose() * self.r + px * px.transpose() * fc;
+                symmetrize(&mut self.m);
+            }
+            _ => {
+                // P − (P x)(P x)ᵀ (1/s − c), the forgetting folded into the downdate. Entry
+                // (a, b) and (b, a) subtract the same product: P stays exactly symmetric.
+                let gk = px * (inv_s - fc);
+                for b in 0..N {
+                    for a in 0..N {
+                        self.m[(a, b)] -= px[a] * gk[b];
+                    }
+                }
+                symmetrize(&mut self.m);
             }
         }
+        self.record(e, s);
+        Ok(())
+    }
+
+    /// Bierman's square-root (`U D Uᵀ`) measurement update: `f = Uᵀx`, `v = D f`,
+    /// `α_j = r + Σ_{i≤j} f_i v_i`; `D_j ← D_j α_{j−1} / α_j`; the gain accumulates in `b`
+    /// while `U` is updated column by column (Bierman, *Factorization Methods for Discrete
+    /// Sequential Estimation*, 1977, §V.3). `s = α_N`.
+    fn step_ud(&mut self, x: &SVector<T, N>, e: T, track: bool) -> Result<()> {
+        let m = &mut self.m;
+        // f = Uᵀ x (U unit upper triangular: U_aa = 1).
+        let mut f = SVector::<T, N>::zeros();
+        for j in 0..N {
+            let mut v = x[j];
+            for i in 0..j {
+                v += m[(i, j)] * x[i];
+            }
+            f[j] = v;
+        }
+        let mut v = SVector::<T, N>::zeros();
+        for j in 0..N {
+            v[j] = m[(j, j)] * f[j];
+        }
+        let mut alpha = self.r;
+        let mut b = SVector::<T, N>::zeros();
+        for j in 0..N {
+            let prev = alpha;
+            alpha = prev + f[j] * v[j];
+            if !alpha.finite() {
+                return Err(OVERFLOW);
+            }
+            if !(alpha > T::zero()) {
+                if alpha < T::zero() || f[j] != T::zero() {
+                    return Err(Error::Singular {
+                        what: "the innovation variance xᵀPx + r (the square-root factors are not positive)",
+                    });
+                }
+                // r = 0 and no information along x yet (f_j = v_j = 0): column j is unchanged.
+                continue;
+            }
+            m[(j, j)] *= prev / alpha;
+            if prev > T::zero() {
+                let p = -f[j] / prev;
+                for i in 0..j {
+                    let u = m[(i, j)];
+                    m[(i, j)] = u + b[i] * p;
+                    b[i] += u * v[j];
+                }
+            } else {
+                // α_{j−1} = 0: every earlier b_i is 0, U's column keeps its values.
+                for i in 0..j {
+                    b[i] += m[(i, j)] * v[j];
+                }
+            }
+            b[j] = v[j];
+        }
+        if !(alpha > T::zero()) {
+            // r = 0 and x orthogonal to everything learned: nothing to learn (noise-free).
+            return Ok(());
+        }
+        let s = alpha;
+        let c = e / s;
+        for a in 0..N {
+            self.theta[a] += b[a] * c;
+        }
+        // Bierman's b is P x: directional forgetting is the rank-one update c (P x)(P x)ᵀ.
+        let fc = self.forget_coefficient(s, track);
+        if fc > T::zero() {
+            ud_rank_one(&mut self.m, fc, b);
+        }
+        self.record(e, s);
+        Ok(())
+    }
+
+    /// Accumulates the statistics of an accepted update with innovation `e`, variance `s`.
+    fn record(&mut self, e: T, s: T) {
+        let decay = self.lambda;
+        self.ssr = self.ssr * decay + e * e * self.r / s;
+        self.nobs = self.nobs * decay + T::one();
+        self.s = s;
+    }
+
+    /// Exact start: one sample into the QR factorization `R` (in `m`), `Qᵀz` (in `θ`) by
+    /// Givens rotations; the residual left over is the sample's recursive residual. When
+    /// `R` identifies every direction, switches to filtering.
+    fn absorb(&mut self, x: &SVector<T, N>, z: T) -> Result<()> {
+        let mut next = *self;
+        let (rm, c) = (&mut next.m, &mut next.theta);
+        let mut row = *x;
+        let mut rhs = z;
+        for j in 0..N {
+            if row[j] == T::zero() {
+                continue;
+            }
+            let rho = hypot(rm[(j, j)], row[j]);
+            if !(rho.finite() && rho > T::zero()) {
+                return Err(OVERFLOW);
+            }
+            let (cs, sn) = (rm[(j, j)] / rho, row[j] / rho);
+            rm[(j, j)] = rho;
+            for b in (j + 1)..N {
+                let (rv, xv) = (rm[(j, b)], row[b]);
+                rm[(j, b)] = cs * rv + sn * xv;
+                row[b] = cs * xv - sn * rv;
+            }
+            let cv = c[j];
+            c[j] = cs * cv + sn * rhs;
+            rhs = cs * rhs - sn * cv;
+            row[j] = T::zero();
+        }
+        if !rm.iter().chain(c.iter()).all(|v| v.finite()) || !rhs.finite() {
+            return Err(OVERFLOW);
+        }
+        next.ssr += rhs * rhs;
+        next.nobs += T::one();
+        // Identified: every diagonal entry of R clearly non-zero.
+        let big = (0..N).fold(T::zero(), |a, j| a.max(rm[(j, j)].abs()));
+        let tol = start_tol::<T, N>() * big;
+        if big > T::zero() && (0..N).all(|j| rm[(j, j)].abs() > tol) {
+            next.finish_start();
+        }
+        *self = next;
+        Ok(())
+    }
+
+    /// From `R`, `Qᵀz` to `θ̂ = R⁻¹ Qᵀz` and the chosen covariance form of `P = r R⁻¹R⁻ᵀ`.
+    fn finish_start(&mut self) {
+        // S = R⁻¹ (upper triangular), by back substitution column by column.
+        let rm = self.m;
+        let mut sm = SMatrix::<T, N, N>::zeros();
+        for col in 0..N {
+            for i in (0..=col).rev() {
+                let mut v = if i == col { T::one() } else { T::zero() };
+                for k in (i + 1)..=col {
+                    v -= rm[(i, k)] * sm[(k, col)];
+                }
+                sm[(i, col)] = v / rm[(i, i)];
+            }
+        }
+        self.theta = sm * self.theta;
+        self.m = match self.form {
+            // P = r S Sᵀ = U D Uᵀ with U = S diag(1/s_bb), D = r diag(s_bb²).
+            CovarianceForm::Sqrt => {
+                let mut ud = SMatrix::<T, N, N>::zeros();
+                for b in 0..N {
+                    let sbb = sm[(b, b)];
+                    for a in 0..b {
+                        ud[(a, b)] = sm[(a, b)] / sbb;
+                    }
+                    ud[(b, b)] = self.r * sbb * sbb;
+                }
+                ud
+            }
+            _ => {
+                let mut p = sm * sm.transpose() * self.r;
+                symmetrize(&mut p);
+                p
+            }
+        };
+        self.start = false;
+        if self.cap == T::zero() && self.tracking() {
+            self.cap = self.trace();
+        }
+    }
+}
+
+/// `√(a² + b²)` without overflow or underflow in the squares.
+fn hypot<T: Real>(a: T, b: T) -> T {
+    let (a, b) = (a.abs(), b.abs());
+    let (big, small) = if a > b { (a, b) } else { (b, a) };
+    if big == T::zero() {
+        return T::zero();
+    }
+    let q = small / big;
+    big * (T::one() + q * q).sqrt()
+}
+
+/// `U D Uᵀ` factors of a symmetric positive definite `P` (packed: `U` above the diagonal,
+/// `D` on it), by the backward recursion of Bierman (1977, §III).
+///
+/// # Errors
+/// [`Error::Singular`] when `P` is not positive definite.
+pub(crate) fn ud_factor<T: Real, const N: usize>(p: &SMatrix<T, N, N>) -> Result<SMatrix<T, N, N>> {
+    let mut p = *p;
+    let mut ud = SMatrix::<T, N, N>::zeros();
+    for j in (0..N).rev() {
+        let d = p[(j, j)];
+        if !(d > T::zero()) || !d.finite() {
+            return Err(Error::Singular {
+                what: "the covariance (it must be positive definite to be factored U D Uᵀ)",
+            });
+        }
+        ud[(j, j)] = d;
+        for i in 0..j {
+            ud[(i, j)] = p[(i, j)] / d;
+        }
+        for i in 0..j {
+            for k in 0..=i {
+                let v = p[(k, i)] - ud[(k, j)] * d * ud[(i, j)];
+                p[(k, i)] = v;
+                p[(i, k)] = v;
+            }
+        }
+    }
+    Ok(ud)
+}
+
+/// `P = U D Uᵀ` from the packed factors.
+pub(crate) fn ud_product<T: Real, const N: usize>(ud: &SMatrix<T, N, N>) -> SMatrix<T, N, N> {
+    let mut p = SMatrix::<T, N, N>::zeros();
+    for a in 0..N {
+        for b in a..N {
+            // P_ab = Σ_j U_aj D_j U_bj over j ≥ max(a, b) = b (U_jj = 1).
+            let mut v = T::zero();
+            for j in b..N {
+                let ua = if a == j { T::one() } else { ud[(a, j)] };
+                let ub = if b == j { T::one() } else { ud[(b, j)] };
+                v += ua * ud[(j, j)] * ub;
+            }
+            p[(a, b)] = v;
+            p[(b, a)] = v;
+        }
+    }
+    p
+}
+
+/// `tr(U D Uᵀ) = Σ_j D_j (1 + Σ_{a<j} U_aj²)`.
+pub(crate) fn ud_trace<T: Real, const N: usize>(ud: &SMatrix<T, N, N>) -> T {
+    let mut t = T::zero();
+    for j in 0..N {
+        let mut col = T::one();
+        for a in 0..j {
+            col += ud[(a, j)] * ud[(a, j)];
+        }
+        t += ud[(j, j)] * col;
+    }
+    t
+}
+
+/// Agee–Turner rank-one update `U D Uᵀ ← U D Uᵀ + c a aᵀ` for `c > 0` (Bierman 1977, §III.3):
+/// numerically stable, keeps `D > 0`.
+pub(crate) fn ud_rank_one<T: Real, const N: usize>(ud: &mut SMatrix<T, N, N>, mut c: T, mut a: SVector<T, N>) {
+    for j in (0..N).rev() {
+        let d = ud[(j, j)];
+        let dn = d + c * a[j] * a[j];
+        if !(dn > T::zero()) {
+            continue;
+        }
+        let b = c * a[j] / dn;
+        c = c * d / dn;
+        let aj = a[j];
+        for k in 0..j {
+            a[k] -= aj * ud[(k, j)];
+            ud[(k, j)] += b * a[k];
+        }
+        ud[(j, j)] = dn;
     }
 }

@@ -70,7 +70,26 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         let mut s = Self::empty(rows_buf, opts)?;
         for i in 0..k {
             let f = RowIdentifier::new(per_row("p0", p0, k, i)?, per_row("r", r, k, i)?)?;
-            s.set_filter(i, &f);
+            s.set_filter(i, &f)?;
+        }
+        Ok(s)
+    }
+
+    /// Builds the identifier with an exact start (no prior): every row absorbs samples
+    /// exactly until they identify all `N` parameters, and from then on each row's estimate
+    /// is least squares on all samples so far ([`RowIdentifier::exact`]). `r` (one or one per
+    /// row, > 0) is the variance the covariance is expressed in; it does not change the
+    /// estimate.
+    ///
+    /// # Errors
+    /// As [`KalmanRows::from_slices`]; `r` must be > 0.
+    pub fn exact(rows: &[usize], r: &[T], opts: KalmanOptions<T>) -> Result<Self> {
+        opts.validate()?;
+        let rows_buf: S::Rows = rows_buffer::<_, N>(rows)?;
+        let k = rows.len();
+        let mut s = Self::empty(rows_buf, opts)?;
+        for i in 0..k {
+            s.set_filter(i, &RowIdentifier::exact(per_row("r", r, k, i)?)?)?;
         }
         Ok(s)
     }
@@ -102,11 +121,13 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         (&mut self.groups.flat_mut()[i / lanes], i % lanes)
     }
 
-    /// Puts the filter of unknown row `i`.
-    fn set_filter(&mut self, i: usize, f: &RowIdentifier<T, N>) {
+    /// Puts the filter of unknown row `i`, in the identifier's form and with its tracking.
+    fn set_filter(&mut self, i: usize, f: &RowIdentifier<T, N>) -> Result<()> {
+        let f = f.configured(self.opts.form, &self.opts)?;
         let zrow = self.rows.flat()[i];
         let (g, k) = self.group_mut(i);
-        g.set_lane(k, zrow, f);
+        g.set_lane(k, zrow, &f);
+        Ok(())
     }
 
     /// Builds the identifier from prepared row filters (e.g. with full prior covariances
@@ -122,7 +143,7 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         let rows_buf: S::Rows = rows_buffer::<_, N>(rows)?;
         let mut s = Self::empty(rows_buf, opts)?;
         for (i, f) in filters.iter().enumerate() {
-            s.set_filter(i, f);
+            s.set_filter(i, f)?;
         }
         Ok(s)
     }
@@ -173,6 +194,9 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         let k = self.rows.flat().len();
         if out.len() != k * N {
             return Err(Error::Shape { arg: "out", expected: k * N, got: out.len() });
+        }
+        if self.starting() {
+            return Err(Error::RankDeficient { rank: self.filter(0).start_rank(), needed: N });
         }
         for (i, chunk) in out.chunks_exact_mut(N).enumerate() {
             chunk.copy_from_slice(self.theta_row(i).as_slice());
@@ -243,12 +267,12 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         let probe = finite_probe(x, z);
         let mut ok = probe == T::zero();
         let groups = self.groups.flat_mut();
-        // One group (every Fixed<K> store, and up to DYNAMIC_LANES rows) of a small model
-        // plans in registers, with no round trip through memory. With more covariance
-        // entries than vector registers (N = 8: 36), planning through memory is faster: the
-        // compiler would otherwise keep every entry loaded between plan and apply, and spill.
-        let small = N * (N + 1) / 2 <= 12;
-        if let ([grp], true) = (&mut *groups, small) {
+        if groups.first().is_some_and(|g| g.starting()) {
+            return self.absorb(x, z, e);
+        }
+        // One group (every Fixed<K> store, and up to DYNAMIC_LANES rows) plans on the stack;
+        // several groups plan into their scratch, all before any applies.
+        if let [grp] = &mut *groups {
             let mut sc = S::Group::scratch();
             ok &= grp.plan(x, z, e, &mut sc);
             if !ok {
@@ -257,7 +281,7 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
                 grp.check(&copy)?;
                 return Err(OVERFLOW);
             }
-            grp.apply(x, &sc, self.opts.form);
+            grp.apply(x, &sc);
             return self.accepted(e);
         }
         let scratch = self.scratch.flat_mut();
@@ -274,9 +298,32 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
             return Err(OVERFLOW);
         }
         for (grp, sc) in groups.iter_mut().zip(scratch.iter()) {
-            grp.apply(x, sc, self.opts.form);
+            grp.apply(x, sc);
         }
         self.accepted(e)
+    }
+
+    /// Exact start: the sample into every group's factorization (all or nothing).
+    #[cold]
+    #[inline(never)]
+    fn absorb(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
+        check_sample(x, z)?;
+        let lanes = <S::Group as RowGroup<T, N>>::LANES;
+        let k = e.len();
+        let mut next = self.groups.clone();
+        for (g, grp) in next.flat_mut().iter_mut().enumerate() {
+            let lo = g * lanes;
+            let hi = (lo + lanes).min(k);
+            grp.absorb(x, z, &mut e[lo..hi])?;
+        }
+        self.groups = next;
+        self.samples += 1;
+        Ok(())
+    }
+
+    /// `true` while the identifier absorbs its exact start (no estimate yet).
+    pub fn starting(&self) -> bool {
+        self.groups.flat().first().is_some_and(|g| g.starting())
     }
 
     /// Counts an applied sample and runs retirement and reinitialization if enabled.
@@ -373,7 +420,7 @@ impl<T: Real, const N: usize, S: Store<T, N>> Identifier<T> for KalmanRows<T, N,
         }
         out.fill(T::zero());
         for i in 0..k {
-            let p = *self.filter(i).p();
+            let p = self.filter(i).p();
             for a in 0..N {
                 for b in 0..N {
                     out[(i * N + a) * kn + i * N + b] = p[(a, b)];

@@ -45,6 +45,18 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
         if opts.retire_below > T::zero() {
             return Err(Error::InvalidArgument { arg: "retire_below", expected: "0: retiring rows needs mode='rows'" });
         }
+        if opts.form == CovarianceForm::Sqrt {
+            return Err(Error::InvalidArgument {
+                arg: "form",
+                expected: "'standard' or 'joseph' for mode='shared' (the square-root form needs mode='rows')",
+            });
+        }
+        if opts.tracking() {
+            return Err(Error::InvalidArgument {
+                arg: "forgetting",
+                expected: "no forgetting or drift for mode='shared' (tracking needs mode='rows')",
+            });
+        }
         let rows_buf: S::Rows = rows_buffer::<_, N>(rows)?;
         let k = rows.len();
         let mut rv = S::Scalars::filled("r", k, T::zero())?;
@@ -219,6 +231,8 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
                 }
             }
             CovarianceForm::Joseph => self.joseph(x, g),
+            // Refused by the constructor.
+            CovarianceForm::Sqrt => {}
         }
         self.samples += 1;
         if self.opts.reinit && T::of(10.0) * abs_e > self.trace() {

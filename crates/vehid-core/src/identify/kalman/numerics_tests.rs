@@ -1,0 +1,294 @@
+//! The exact start, the square-root form and tracking, checked against an independent least
+//! squares (faer's QR on the stacked problem) and against the single-row reference filter.
+
+use super::lanes::RowGroup;
+use super::*;
+use crate::identify::{Fixed, Identifier};
+use crate::Error;
+use nalgebra::{SMatrix, SVector};
+use rand::rngs::Xoshiro256PlusPlus;
+use rand::SeedableRng;
+use rand_distr::{Distribution, StandardNormal};
+
+type V4 = SVector<f64, 4>;
+
+/// A random regression: `x` with columns scaled by `scales`, `z_i = xᵀθ_i + σ ε` for two rows,
+/// `θ_ij` of size `1 / scales_j` (every column contributes alike to `z`).
+fn regression(seed: u64, n: usize, scales: [f64; 4], sigma: f64) -> Vec<(V4, V4)> {
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
+    let mut g = || -> f64 { StandardNormal.sample(&mut rng) };
+    let th1 = V4::from_fn(|j, _| g() / scales[j]);
+    let th3 = V4::from_fn(|j, _| g() / scales[j]);
+    (0..n)
+        .map(|_| {
+            let x = V4::from_fn(|j, _| g() * scales[j]);
+            let mut z = V4::zeros();
+            z[1] = x.dot(&th1) + sigma * g();
+            z[3] = x.dot(&th3) + sigma * g();
+            (x, z)
+        })
+        .collect()
+}
+
+fn rel_diff(a: &[f64], b: &[f64]) -> f64 {
+    let scale = b.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    a.iter().zip(b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs())) / scale
+}
+
+/// Least squares by faer's QR on rows `[x_kᵀ / √r] θ = [z_k / √r]`, with the prior
+/// `[I / √p0] θ = 0` appended when `p0` is given; also the residual sum of squares of the
+/// data rows (unscaled).
+fn lstsq(data: &[(V4, V4)], row: usize, p0: Option<f64>) -> (Vec<f64>, f64) {
+    use faer::linalg::solvers::SolveLstsq;
+    let l = data.len();
+    let extra = if p0.is_some() { 4 } else { 0 };
+    let a = faer::Mat::<f64>::from_fn(l + extra, 4, |i, j| {
+        if i < l {
+            data[i].0[j]
+        } else if i - l == j {
+            1.0 / p0.unwrap_or(1.0).sqrt()
+        } else {
+            0.0
+        }
+    });
+    let b = faer::Mat::<f64>::from_fn(l + extra, 1, |i, _| if i < l { data[i].1[row] } else { 0.0 });
+    let sol = a.qr().solve_lstsq(&b);
+    let th: Vec<f64> = (0..4).map(|j| sol[(j, 0)]).collect();
+    let ssr = data.iter().map(|(x, z)| (z[row] - (0..4).map(|j| x[j] * th[j]).sum::<f64>()).powi(2)).sum();
+    (th, ssr)
+}
+
+#[test]
+fn exact_start_equals_least_squares_on_every_prefix() {
+    // Property test over seeded random regressions, both forms: from the first prefix that
+    // identifies the four parameters on, θ̂ and the residual sum of squares equal an
+    // independent least squares on that prefix.
+    for seed in 0..20u64 {
+        let scales = [1.0, 10.0f64.powi((seed % 5) as i32 - 2), 3.0, 0.5];
+        let data = regression(seed, 60, scales, 0.3);
+        for form in [CovarianceForm::Standard, CovarianceForm::Sqrt] {
+            let opts = KalmanOptions { form, ..Default::default() };
+            let mut id = KalmanRows::<f64, 4, Fixed<2>>::exact(&[1, 3], &[0.7, 2.0], opts).unwrap();
+            let mut worst = 0.0f64;
+            let mut first = None;
+            for (k, (x, z)) in data.iter().enumerate() {
+                let e = id.update(x, z).unwrap();
+                if id.starting() {
+                    assert!(e.iter().all(|v| v.is_nan()), "no innovation before an estimate exists");
+                    assert!(matches!(id.params_into(&mut [0.0; 8]), Err(Error::RankDeficient { .. })));
+                    continue;
+                }
+                first.get_or_insert(k + 1);
+                for (i, row) in [1usize, 3].into_iter().enumerate() {
+                    let (expect, ssr) = lstsq(&data[..=k], row, None);
+                    let got: Vec<f64> = id.theta_row(i).iter().copied().collect();
+                    worst = worst.max(rel_diff(&got, &expect));
+                    let f = id.filter(i);
+                    if k + 1 > 4 {
+                        let d = (f.ssr() - ssr).abs() / ssr;
+                        assert!(d < 1e-9, "seed {seed} {form:?} k {k}: ssr {} vs {ssr}", f.ssr());
+                    }
+                    assert_eq!(f.nobs(), (k + 1) as f64);
+                }
+            }
+            assert_eq!(first, Some(4), "four generic samples identify four parameters");
+            assert!(worst < 1e-9, "seed {seed} {form:?}: worst relative difference {worst:e}");
+        }
+    }
+}
+
+#[test]
+fn exact_start_waits_for_a_direction_the_data_do_not_excite() {
+    // x4 = 0 for the first 10 samples: no estimate until a sample moves it.
+    let mut data = regression(3, 20, [1.0; 4], 0.1);
+    for (x, _) in data.iter_mut().take(10) {
+        x[3] = 0.0;
+    }
+    let mut id = KalmanRows::<f64, 4, Fixed<2>>::exact(&[1, 3], &[1.0], KalmanOptions::default()).unwrap();
+    for (k, (x, z)) in data.iter().enumerate() {
+        id.update(x, z).unwrap();
+        assert_eq!(id.starting(), k < 10, "sample {k}");
+        if k == 9 {
+            assert!(matches!(id.params_into(&mut [0.0; 8]), Err(Error::RankDeficient { rank: 3, needed: 4 })));
+        }
+    }
+    let (expect, _) = lstsq(&data, 1, None);
+    assert!(rel_diff(id.theta_row(0).as_slice(), &expect) < 1e-9);
+}
+
+#[test]
+fn square_root_form_equals_regularized_least_squares_for_any_prior_and_scaling() {
+    // θ̂ = argmin Σ (z − xᵀθ)²/r + |θ|²/p0, for p0 from 1e-3 to 1e12 and columns scaled from
+    // 1e-6 to 1e6 (condition of X about 1e12): the square-root form stays within 1e-7.
+    let scales = [1e-6, 1e-2, 1e2, 1e6];
+    let data = regression(11, 400, scales, 1e-3);
+    for p0 in [1e-3, 1.0, 1e6, 1e12] {
+        let opts = KalmanOptions { form: CovarianceForm::Sqrt, ..Default::default() };
+        let mut id = KalmanRows::<f64, 4, Fixed<2>>::from_slices(&[1, 3], &[p0], &[1.0], opts).unwrap();
+        for (x, z) in &data {
+            id.update(x, z).unwrap();
+        }
+        for (i, row) in [1usize, 3].into_iter().enumerate() {
+            let (expect, _) = lstsq(&data, row, Some(p0));
+            let got = id.theta_row(i);
+            // The parameters span twelve orders of magnitude: compare each one's contribution
+            // to z (θ_j times its column's scale), relative to the largest.
+            let scaled = |t: &[f64]| (0..4).map(|j| t[j] * scales[j]).collect::<Vec<_>>();
+            let d = rel_diff(&scaled(got.as_slice()), &scaled(&expect));
+            assert!(d < 1e-7, "p0 {p0:e} row {row}: {got:?} vs {expect:?} ({d:e})");
+        }
+    }
+}
+
+#[test]
+fn square_root_form_keeps_f32_positive_definite_where_the_standard_form_fails() {
+    // f32, p0 = 1e12, columns scaled 1e-3 … 1e3: D stays positive and θ finite for the
+    // square-root form; the standard form's P loses definiteness on the same data.
+    let data = regression(5, 20_000, [1e-3, 1.0, 1.0, 1e3], 1e-2);
+    let to32 = |v: &V4| SVector::<f32, 4>::from_fn(|j, _| v[j] as f32);
+    let opts = KalmanOptions { form: CovarianceForm::Sqrt, ..Default::default() };
+    let mut sq = KalmanRows::<f32, 4, Fixed<2>>::from_slices(&[1, 3], &[1e12], &[1e-4], opts).unwrap();
+    let mut std_form =
+        KalmanRows::<f32, 4, Fixed<2>>::from_slices(&[1, 3], &[1e12], &[1e-4], Default::default()).unwrap();
+    let mut std_failed = false;
+    for (x, z) in &data {
+        sq.update(&to32(x), &to32(z)).unwrap();
+        std_failed |= std_form.update(&to32(x), &to32(z)).is_err()
+            || (0..2).any(|i| {
+                let p = std_form.filter(i).p();
+                let mut l = p;
+                !crate::linalg::cholesky_in_place(l.as_mut_slice(), 4)
+            });
+    }
+    for i in 0..2 {
+        let (_, m, _, _, _) = sq.filter(i).parts();
+        assert!((0..4).all(|j| m[(j, j)] > 0.0), "D > 0");
+        assert!(sq.theta_row(i).iter().all(|v| v.is_finite()));
+    }
+    assert!(std_failed, "the standard form should lose definiteness here (else this test shows nothing)");
+}
+
+#[test]
+fn lanes_equal_the_reference_row_filter_in_every_form_with_tracking() {
+    // The vectorized lanes (rows side by side) and the single-row reference compute the same
+    // recursion; sums are ordered differently, so equal to rounding.
+    let data = regression(8, 3000, [1.0, 2.0, 0.5, 1.0], 0.2);
+    for form in [CovarianceForm::Standard, CovarianceForm::Joseph, CovarianceForm::Sqrt] {
+        for (lambda, q, directional) in
+            [(1.0, 0.0, false), (0.995, 0.0, false), (0.995, 0.0, true), (1.0, 1e-6, false), (0.99, 1e-5, true)]
+        {
+            let opts = KalmanOptions {
+                form,
+                forgetting: lambda,
+                directional,
+                drift: q,
+                max_trace: 50.0,
+                ..Default::default()
+            };
+            let mut lanes = KalmanRows::<f64, 4, Fixed<2>>::from_slices(&[1, 3], &[10.0], &[0.3, 0.5], opts).unwrap();
+            let mut refs =
+                [0.3, 0.5].map(|r| RowIdentifier::<f64, 4>::new(10.0, r).unwrap().configured(form, &opts).unwrap());
+            for (x, z) in &data {
+                lanes.update(x, z).unwrap();
+                refs[0].update(x, z[1]).unwrap();
+                refs[1].update(x, z[3]).unwrap();
+            }
+            for (i, f) in refs.iter().enumerate() {
+                let l = lanes.filter(i);
+                let d = rel_diff(l.theta().as_slice(), f.theta().as_slice());
+                assert!(d < 1e-10, "{form:?} λ {lambda} q {q}: θ differs by {d:e}");
+                let d = rel_diff(l.p().as_slice(), f.p().as_slice());
+                assert!(d < 1e-8, "{form:?} λ {lambda} q {q}: P differs by {d:e}");
+                assert!((l.ssr() - f.ssr()).abs() <= 1e-9 * f.ssr(), "{form:?}: ssr");
+            }
+        }
+    }
+}
+
+#[test]
+fn forgetting_tracks_a_step_and_does_not_wind_up_without_excitation() {
+    // θ steps by 20 % at k = 5000; with λ = 0.995 (memory ≈ 200 samples) the estimate is
+    // within 2 % of the new value after a few hundred samples. Then 10⁶ samples of x = 0
+    // (parked: no excitation) leave θ unchanged and tr P below the bound.
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(21);
+    let th = V4::new(-140.0, -40.0, 50.0, 40.0);
+    let opts = KalmanOptions { form: CovarianceForm::Sqrt, forgetting: 0.995, ..Default::default() };
+    let mut id = KalmanRows::<f64, 4, Fixed<1>>::exact(&[1], &[1.0], opts).unwrap();
+    let mut within = None;
+    for k in 0..8000 {
+        let truth = if k < 5000 { th } else { th * 1.2 };
+        let x = V4::from_fn(|_, _| StandardNormal.sample(&mut rng));
+        let noise: f64 = StandardNormal.sample(&mut rng);
+        let z = V4::new(0.0, x.dot(&truth) + noise, 0.0, 0.0);
+        id.update(&x, &z).unwrap();
+        let err = (id.theta_row(0) - truth).abs().max() / truth.abs().max();
+        if k >= 5000 && within.is_none() && err < 0.02 {
+            within = Some(k - 5000);
+        }
+    }
+    let settled = within.expect("tracks the step");
+    eprintln!("exponential forgetting λ = 0.995: within 2 % of a 20 % step after {settled} samples");
+    assert!(settled < 600, "within 2 % after {settled} samples");
+    // Parked: 10⁶ samples without excitation (x = 0, a noisy z). Exponential forgetting lets
+    // tr P grow back to the bound (the trace when filtering started) and no further;
+    // directional forgetting keeps P exactly; with drift P grows to the bound. θ never moves.
+    let before = id.filter(0);
+    let cap = before.parts().4 .0[2];
+    assert!(cap > 0.0 && cap > before.trace());
+    let parked = |opts: KalmanOptions<f64>| {
+        let mut p = KalmanRows::<f64, 4, Fixed<1>>::from_filters(&[1], &[before], opts).unwrap();
+        for k in 0..1_000_000 {
+            let z = V4::new(0.0, 0.3 * ((k % 7) as f64 - 3.0), 0.0, 0.0);
+            p.update(&V4::zeros(), &z).unwrap();
+        }
+        assert_eq!(p.theta_row(0), before.theta(), "no excitation: the estimate does not move");
+        p.filter(0)
+    };
+    let sqrt = KalmanOptions { form: CovarianceForm::Sqrt, forgetting: 0.995, max_trace: cap, ..Default::default() };
+    let exp = parked(sqrt).trace();
+    assert!(exp < cap / 0.995 * 1.000001 && exp >= cap, "exponential: tr P {} → {exp}, bound {cap}", before.trace());
+    let dir = parked(KalmanOptions { directional: true, ..sqrt }).p();
+    assert_eq!(dir, before.p(), "directional: nothing is forgotten without excitation");
+    let drift = parked(KalmanOptions { drift: 1e-4, ..sqrt }).trace();
+    assert!(drift < cap / 0.995 + 4e-4 && drift >= cap, "drift: tr P → {drift}, bound {cap}");
+}
+
+#[test]
+fn rejected_samples_change_nothing_in_the_new_forms() {
+    let data = regression(2, 50, [1.0; 4], 0.1);
+    for form in [CovarianceForm::Standard, CovarianceForm::Sqrt] {
+        let opts = KalmanOptions { form, forgetting: 0.99, drift: 1e-6, ..Default::default() };
+        for exact in [true, false] {
+            let mut id = if exact {
+                KalmanRows::<f64, 4, Fixed<2>>::exact(&[1, 3], &[1.0], opts).unwrap()
+            } else {
+                KalmanRows::<f64, 4, Fixed<2>>::from_slices(&[1, 3], &[100.0], &[1.0], opts).unwrap()
+            };
+            for (k, (x, z)) in data.iter().enumerate() {
+                let before = (0..2).map(|i| id.filter(i)).collect::<Vec<_>>();
+                let mut bad = *x;
+                bad[k % 4] = if k % 2 == 0 { f64::NAN } else { 1e300 };
+                let res = id.update(&bad, z);
+                if res.is_err() {
+                    let after = (0..2).map(|i| id.filter(i)).collect::<Vec<_>>();
+                    assert_eq!(before, after, "{form:?} exact {exact} sample {k}: a rejected sample changed the state");
+                }
+                id.update(x, z).unwrap();
+            }
+        }
+    }
+}
+
+#[test]
+fn ud_factors_round_trip() {
+    let a = SMatrix::<f64, 4, 4>::new(4.0, 1.0, 0.5, 0.2, 1.0, 3.0, 0.1, 0.3, 0.5, 0.1, 2.0, 0.4, 0.2, 0.3, 0.4, 1.5);
+    let ud = super::row::ud_factor(&a).unwrap();
+    let back = super::row::ud_product(&ud);
+    assert!((back - a).abs().max() < 1e-14);
+    assert!((super::row::ud_trace(&ud) - a.trace()).abs() < 1e-14);
+    let mut up = ud;
+    let v = SVector::<f64, 4>::new(0.3, -1.0, 2.0, 0.5);
+    super::row::ud_rank_one(&mut up, 0.7, v);
+    assert!((super::row::ud_product(&up) - (a + v * v.transpose() * 0.7)).abs().max() < 1e-13);
+    let _ = <super::lanes::RowLanes<f64, 4, 2> as RowGroup<f64, 4>>::LANES;
+}
