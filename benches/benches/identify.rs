@@ -8,7 +8,7 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Through
 use std::hint::black_box;
 use std::time::Duration;
 use vehid_core::identify::{
-    BatchLeastSquares, FullKalmanIdentifier, Gain, Identifier, KalmanIdentifier, KalmanIdentifierVec,
+    BatchLeastSquares, CovarianceForm, FullKalmanIdentifier, Gain, Identifier, KalmanIdentifier, KalmanIdentifierVec,
     KalmanIdentifierVec2, KalmanOptions, LsAccumulator, SharedKalmanIdentifier, StochasticGradient,
 };
 use vehid_core::model::{HalfCar, LinearModel, QuarterCar};
@@ -77,6 +77,48 @@ macro_rules! kalman_benches {
             },
             "half/kalman_rows",
         );
+
+        // Issue 12's paths: the square-root form, exponential forgetting, and the exact start
+        // once it has ended (the first samples of the cycle identify the parameters).
+        for (name, opts, exact) in [
+            ("sqrt", KalmanOptions { form: CovarianceForm::Sqrt, ..KalmanOptions::default() }, false),
+            ("forget", KalmanOptions { forgetting: 0.999 as $t, ..KalmanOptions::default() }, false),
+            (
+                "sqrt_forget",
+                KalmanOptions { form: CovarianceForm::Sqrt, forgetting: 0.999 as $t, ..KalmanOptions::default() },
+                false,
+            ),
+            ("exact", KalmanOptions::default(), true),
+        ] {
+            let mut id = if exact {
+                KalmanIdentifier::<$t, 4, 2>::exact(&q.unknown_rows(), &rq, opts).unwrap()
+            } else {
+                KalmanIdentifier::<$t, 4, 2>::from_slices(&q.unknown_rows(), &[1000.0], &rq, opts).unwrap()
+            };
+            bench_updates(
+                $c,
+                group,
+                &qd,
+                |x, z| {
+                    let _ = black_box(id.update(x, z));
+                },
+                &format!("quarter/kalman_rows_{name}"),
+            );
+            let mut id = if exact {
+                KalmanIdentifier::<$t, 8, 4>::exact(&h.unknown_rows(), &rh, opts).unwrap()
+            } else {
+                KalmanIdentifier::<$t, 8, 4>::from_slices(&h.unknown_rows(), &[1000.0], &rh, opts).unwrap()
+            };
+            bench_updates(
+                $c,
+                group,
+                &hd,
+                |x, z| {
+                    let _ = black_box(id.update(x, z));
+                },
+                &format!("half/kalman_rows_{name}"),
+            );
+        }
 
         // The heap forms the Python bindings use (two lanes for the quarter car's two rows).
         let mut id =

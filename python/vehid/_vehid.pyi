@@ -184,6 +184,7 @@ class Simulator:
     def n_inputs(self) -> int: ...
 
 _Mode = Literal["rows", "shared", "full"]
+_Form = Literal["standard", "joseph", "sqrt"]
 _Gain = Literal["venter", "lyapunov", "ljung"]
 
 @disjoint_base
@@ -212,16 +213,24 @@ class KalmanIdentifier(Identifier):
     def __new__(
         cls,
         model: LinearModel,
-        p0: Optional[_Floats] = None,
+        p0: Optional[Union[str, _Floats]] = None,
         r: Optional[_Floats] = None,
         *,
+        theta0: Optional[ArrayLike] = None,
         road_sigma: Optional[_Floats] = None,
         deriv_noise: Optional[_Floats] = None,
         reinit: bool = False,
         mode: str = "rows",
+        form: Optional[str] = None,
         joseph: bool = False,
         retire_below: float = 0.0,
+        forgetting: float = 1.0,
+        drift: float = 0.0,
+        directional: bool = False,
+        max_trace: Optional[float] = None,
     ) -> KalmanIdentifier: ...
+    @property
+    def form(self) -> _Form: ...
     @property
     def covariance(self) -> NDArray[np.float64]: ...
     @property

@@ -11,7 +11,7 @@
 use std::hint::black_box;
 use std::process::ExitCode;
 use vehid_core::identify::{
-    Gain, Identifier, KalmanIdentifier, KalmanIdentifierVec, KalmanIdentifierVec2, KalmanOptions,
+    CovarianceForm, Gain, Identifier, KalmanIdentifier, KalmanIdentifierVec, KalmanIdentifierVec2, KalmanOptions,
     SharedKalmanIdentifier, StochasticGradient,
 };
 use vehid_core::model::{HalfCar, LinearModel, QuarterCar};
@@ -21,9 +21,15 @@ use vehid_core::sim::{Method, SimConfig, Simulator};
 const LEN: usize = 4096;
 
 /// The benches: name and what one update is.
-const BENCHES: [(&str, &str); 8] = [
+const BENCHES: [(&str, &str); 14] = [
     ("quarter_rows", "KalmanIdentifier<f64, 4, 2> (rows) update"),
     ("half_rows", "KalmanIdentifier<f64, 8, 4> (rows) update"),
+    ("quarter_rows_sqrt", "KalmanIdentifier<f64, 4, 2> square-root form update"),
+    ("half_rows_sqrt", "KalmanIdentifier<f64, 8, 4> square-root form update"),
+    ("quarter_rows_forget", "KalmanIdentifier<f64, 4, 2> with forgetting 0.999 update"),
+    ("half_rows_forget", "KalmanIdentifier<f64, 8, 4> with forgetting 0.999 update"),
+    ("quarter_rows_exact", "KalmanIdentifier<f64, 4, 2> after an exact start, update"),
+    ("half_rows_exact", "KalmanIdentifier<f64, 8, 4> after an exact start, update"),
     (
         "quarter_rows_vec",
         "KalmanIdentifierVec2<f64, 4> (rows, heap, two lanes: Python's quarter car) Identifier::update_into (slices)",
@@ -41,6 +47,24 @@ fn samples<const N: usize, const M: usize>(model: LinearModel<f64, N, M>) -> veh
     let cfg = SimConfig::new(0.05).road_sigma(0.1).ic_sigma(0.1).deriv_noise(0.005);
     let mut sim = Simulator::new(model, cfg, 42)?;
     Ok((0..LEN).map(|_| sim.next_sample()).map(|s| (s.r, s.z)).collect())
+}
+
+/// The issue-12 variants of the rows identifier, by bench name suffix.
+fn variant<const N: usize, const K: usize>(
+    bench: &str,
+    rows: &[usize],
+    r: &[f64],
+) -> vehid_core::Result<KalmanIdentifier<f64, N, K>> {
+    let opts = match bench.rsplit('_').next() {
+        Some("sqrt") => KalmanOptions { form: CovarianceForm::Sqrt, ..KalmanOptions::default() },
+        Some("forget") => KalmanOptions { forgetting: 0.999, ..KalmanOptions::default() },
+        _ => KalmanOptions::default(),
+    };
+    if bench.ends_with("_exact") {
+        KalmanIdentifier::exact(rows, r, opts)
+    } else {
+        KalmanIdentifier::from_slices(rows, &[1000.0], r, opts)
+    }
 }
 
 /// Runs `n` updates cycling through `data`; returns a checksum of the results.
@@ -73,6 +97,20 @@ fn run(bench: &str, n: usize) -> vehid_core::Result<String> {
             let data = samples(h.model())?;
             let r: [f64; 4] = h.model().row_noise_var(0.1, 0.005)?;
             let mut id = KalmanIdentifier::<f64, 8, 4>::new(h.unknown_rows(), 1000.0, r)?;
+            cycle(&data, n, |x, z| id.update(x, z).is_ok());
+            format!("{:?}", id.theta())
+        }
+        "quarter_rows_sqrt" | "quarter_rows_forget" | "quarter_rows_exact" => {
+            let data = samples(q.model())?;
+            let r: [f64; 2] = q.model().row_noise_var(0.1, 0.005)?;
+            let mut id = variant::<4, 2>(bench, &q.unknown_rows(), &r)?;
+            cycle(&data, n, |x, z| id.update(x, z).is_ok());
+            format!("{:?}", id.theta())
+        }
+        "half_rows_sqrt" | "half_rows_forget" | "half_rows_exact" => {
+            let data = samples(h.model())?;
+            let r: [f64; 4] = h.model().row_noise_var(0.1, 0.005)?;
+            let mut id = variant::<8, 4>(bench, &h.unknown_rows(), &r)?;
             cycle(&data, n, |x, z| id.update(x, z).is_ok());
             format!("{:?}", id.theta())
         }

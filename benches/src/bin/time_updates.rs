@@ -67,6 +67,7 @@ fn run<const N: usize, const M: usize, const K: usize>(
     let spec = KalmanSpec {
         rows: rows.to_vec(),
         p0: Prior::PerRow(vec![1000.0]),
+        theta0: None,
         r: r.to_vec(),
         mode: Mode::Rows,
         opts: KalmanOptions::default(),

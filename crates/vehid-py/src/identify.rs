@@ -232,22 +232,42 @@ impl PyIdentifier {
     }
 }
 
-/// The Kalman-filter identifier (Eq 4.3–4.7, 6.16–6.18) of the unknown rows of A.
+/// The Kalman-filter identifier (Eq 4.3–4.7, 6.16–6.18) of the unknown rows of A: recursive
+/// (weighted) least squares.
 ///
-/// `p0` is P(0): a scalar, one value per unknown row, one (n, n) matrix per row (k, n, n), or
-/// the full (k·n, k·n) matrix (mode "full"). The regression-error variances come from `r`
-/// (scalar or one per unknown row) or from `road_sigma` and `deriv_noise` (R = R_v + B R_u Bᵀ,
-/// Eq 4.7), not both. For mode "full", `r` may be a (k, k) matrix. `reinit=True` applies Eq
-/// 4.36. `mode`: "rows" (decoupled filters, Eq 6.16–6.18), "shared" (one covariance for all
-/// rows; needs the same r/p0 on every row), "full" (the stacked filter, general R). After k
-/// samples the estimate depends on r/p0 only (see the README on prior regimes).
+/// `p0` is P(0): "exact" (the default: no prior; samples are absorbed exactly until they
+/// identify every parameter, then every estimate is least squares on all samples so far), a
+/// scalar, one value per unknown row, one (n, n) matrix per row (k, n, n), or the full
+/// (k·n, k·n) matrix (mode "full", or block diagonal for mode "rows"); `theta0` the prior mean
+/// (k, n). The regression-error variances come from `r` (scalar or one per unknown row;
+/// optional with p0="exact", where it does not change the estimate) or from `road_sigma` and
+/// `deriv_noise` (R = R_v + B R_u Bᵀ, Eq 4.7), not both. For mode "full", `r` may be a (k, k)
+/// matrix. `form`: "standard" (the thesis', fastest), "joseph", "sqrt" (Bierman's U D Uᵀ
+/// factors: P stays positive definite for any p0 and scaling; the recommended online form).
+/// Tracking: `forgetting` λ in (0, 1] (memory about 1/(1 − λ) samples; `directional=True`
+/// forgets only along excited directions), `drift` q (random walk: P += q I per sample), both
+/// only while tr P < `max_trace` (default: the trace when filtering starts). `reinit=True`
+/// applies Eq 4.36. `mode`: "rows" (decoupled filters, Eq 6.16–6.18), "shared" (one covariance
+/// for all rows; needs the same r/p0 on every row), "full" (the stacked filter, general R).
+/// With a prior the estimate depends on r/p0 only (see the README on prior regimes).
 #[pyclass(name = "KalmanIdentifier", module = "vehid._vehid", extends = PyIdentifier)]
 pub struct PyKalmanIdentifier {
     mode: Mode,
+    form: CovarianceForm,
 }
 
-/// Parses `p0` for a model with `k` unknown rows and `n` states.
-fn p0_arg(p0: &Bound<'_, PyAny>, k: usize, n: usize) -> PyResult<Prior<f64>> {
+/// Parses `p0` for a model with `k` unknown rows and `n` states (`None` or "exact": the
+/// exact start).
+fn p0_arg(p0: Option<&Bound<'_, PyAny>>, k: usize, n: usize) -> PyResult<Prior<f64>> {
+    let Some(p0) = p0 else { return Ok(Prior::Exact) };
+    if let Ok(text) = p0.extract::<String>() {
+        return match text.as_str() {
+            "exact" => Ok(Prior::Exact),
+            other => Err(VehidError::new_err(format!(
+                "unknown `p0` {other:?}: expected \"exact\", a number, one per unknown row, or a matrix"
+            ))),
+        };
+    }
     let a = array(p0, "p0")?;
     finite("p0", &a.data)?;
     Ok(match a.shape[..] {
@@ -257,7 +277,7 @@ fn p0_arg(p0: &Bound<'_, PyAny>, k: usize, n: usize) -> PyResult<Prior<f64>> {
         [r, c] if r == k * n && c == k * n => Prior::Full(a.data),
         _ => {
             return Err(VehidError::new_err(format!(
-                "`p0` must be a scalar, shape ({k},), ({k}, {n}, {n}) or ({kn}, {kn}), got {}",
+                "`p0` must be \"exact\", a scalar, shape ({k},), ({k}, {n}, {n}) or ({kn}, {kn}), got {}",
                 shape_str(&a.shape),
                 kn = k * n
             )))
@@ -265,10 +285,27 @@ fn p0_arg(p0: &Bound<'_, PyAny>, k: usize, n: usize) -> PyResult<Prior<f64>> {
     })
 }
 
+/// Parses `theta0`: (k, n) or (k·n,).
+fn theta0_arg(theta0: Option<&Bound<'_, PyAny>>, k: usize, n: usize) -> PyResult<Option<Vec<f64>>> {
+    let Some(t) = theta0 else { return Ok(None) };
+    let a = array(t, "theta0")?;
+    finite("theta0", &a.data)?;
+    match a.shape[..] {
+        [r, c] if r == k && c == n => Ok(Some(a.data)),
+        [len] if len == k * n => Ok(Some(a.data)),
+        _ => Err(VehidError::new_err(format!(
+            "`theta0` must have shape ({k}, {n}) (the prior mean of the unknown rows) or ({},), got {}",
+            k * n,
+            shape_str(&a.shape)
+        ))),
+    }
+}
+
 /// The regression-error variances from `r=` or from `road_sigma=`/`deriv_noise=`.
 fn r_arg(
     m: &PyLinearModel,
     mode: Mode,
+    exact: bool,
     r: Option<&Bound<'_, PyAny>>,
     road_sigma: Option<&Bound<'_, PyAny>>,
     deriv_noise: Option<&Bound<'_, PyAny>>,
@@ -298,6 +335,8 @@ fn r_arg(
             let dn = values(dn, "deriv_noise", 0.0)?;
             m.row_noise_var_vec(&rs, &dn)
         }
+        // The exact start's estimate does not depend on r: 1 per row expresses P = (XᵀX)⁻¹.
+        (None, None, None) if exact => Ok(vec![1.0]),
         (None, None, None) => Err(VehidError::new_err(
             "give the regression-error variances: `r=` (one per unknown row) or `road_sigma=` and `deriv_noise=` \
              to compute them from the model (Eq 4.7)",
@@ -313,32 +352,59 @@ fn kalman_n<const N: usize>(spec: &KalmanSpec<f64>) -> vehid_core::Result<Box<dy
 #[pymethods]
 impl PyKalmanIdentifier {
     #[new]
-    #[pyo3(signature = (model, p0 = None, r = None, *, road_sigma = None, deriv_noise = None, reinit = false, mode = "rows", joseph = false, retire_below = 0.0))]
+    #[pyo3(signature = (model, p0 = None, r = None, *, theta0 = None, road_sigma = None, deriv_noise = None,
+                        reinit = false, mode = "rows", form = None, joseph = false, retire_below = 0.0,
+                        forgetting = 1.0, drift = 0.0, directional = false, max_trace = None))]
     #[allow(clippy::too_many_arguments)]
     fn py_new(
         model: &Bound<'_, PyLinearModel>,
         p0: Option<&Bound<'_, PyAny>>,
         r: Option<&Bound<'_, PyAny>>,
+        theta0: Option<&Bound<'_, PyAny>>,
         road_sigma: Option<&Bound<'_, PyAny>>,
         deriv_noise: Option<&Bound<'_, PyAny>>,
         reinit: bool,
         mode: &str,
+        form: Option<&str>,
         joseph: bool,
         retire_below: f64,
+        forgetting: f64,
+        drift: f64,
+        directional: bool,
+        max_trace: Option<f64>,
     ) -> PyResult<PyClassInitializer<Self>> {
         let m = model.get();
         let (n, k) = (m.data.n, m.data.rows.len());
         let mode: Mode = option(mode)?;
-        let p0 = match p0 {
-            Some(p) => p0_arg(p, k, n)?,
-            None => Prior::PerRow(vec![1000.0]),
+        let p0 = p0_arg(p0, k, n)?;
+        let theta0 = theta0_arg(theta0, k, n)?;
+        let r = r_arg(m, mode, p0 == Prior::Exact, r, road_sigma, deriv_noise)?;
+        let form = match (form, joseph) {
+            (None, false) => CovarianceForm::Standard,
+            (None, true) => CovarianceForm::Joseph,
+            (Some(f), false) => option(f)?,
+            (Some(_), true) => {
+                return Err(VehidError::new_err("give `form=` or the older `joseph=True`, not both"));
+            }
         };
-        let r = r_arg(m, mode, r, road_sigma, deriv_noise)?;
-        let form = if joseph { CovarianceForm::Joseph } else { CovarianceForm::Standard };
-        let spec =
-            KalmanSpec { rows: m.data.rows.clone(), p0, r, mode, opts: KalmanOptions { form, reinit, retire_below } };
+        let opts = KalmanOptions {
+            form,
+            reinit,
+            retire_below,
+            forgetting,
+            directional,
+            drift,
+            max_trace: max_trace.unwrap_or(0.0),
+        };
+        let spec = KalmanSpec { rows: m.data.rows.clone(), p0, theta0, r, mode, opts };
         let inner = dispatch_n!(n, kalman_n(&spec)).map_err(core_err)?;
-        Ok(PyClassInitializer::from(PyIdentifier::new(inner, m.data.clone())).add_subclass(Self { mode }))
+        Ok(PyClassInitializer::from(PyIdentifier::new(inner, m.data.clone())).add_subclass(Self { mode, form }))
+    }
+
+    /// "standard", "joseph" or "sqrt".
+    #[getter]
+    fn form(&self) -> &'static str {
+        self.form.as_str()
     }
 
     /// The covariance: (k, n, n) per-row P_i for modes "rows" and "shared" (P_i = r_i Q),

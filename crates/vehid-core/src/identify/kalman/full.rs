@@ -162,6 +162,22 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
         Ok(())
     }
 
+    /// Sets the prior mean `θ̂(0)` (`K·N` values, row-major); before the first sample.
+    ///
+    /// # Errors
+    /// [`Error::Shape`] for a wrong length, [`Error::NonFinite`] for NaN/inf.
+    pub fn set_theta(&mut self, theta0: &[T]) -> Result<()> {
+        let k = self.rows.flat().len();
+        if theta0.len() != k * N {
+            return Err(Error::Shape { arg: "theta0", expected: k * N, got: theta0.len() });
+        }
+        check_finite("theta0", theta0)?;
+        for (t, chunk) in self.theta.flat_mut().iter_mut().zip(theta0.chunks_exact(N)) {
+            *t = SVector::from_column_slice(chunk);
+        }
+        Ok(())
+    }
+
     /// The unknown rows (0-based).
     pub fn rows(&self) -> &[usize] {
         self.rows.flat()

@@ -2,7 +2,7 @@
 
 use super::lanes::{finite_probe, is_fin, lane_sum, tree_sum};
 use super::{CovarianceForm, KalmanOptions};
-use crate::error::check_positive;
+use crate::error::{check_finite, check_positive};
 #[cfg(feature = "alloc")]
 use crate::identify::Dynamic;
 use crate::identify::{
@@ -82,6 +82,22 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
         let c = ratio.unwrap_or(T::one());
         let theta = S::Vecs::filled("unknown_rows", k, SVector::zeros())?;
         Ok(Self { rows: rows_buf, theta, r: rv, q: SMatrix::identity() / c, opts, reinit_count: 0, samples: 0 })
+    }
+
+    /// Sets the prior mean `θ̂(0)` (`K·N` values, row-major); before the first sample.
+    ///
+    /// # Errors
+    /// [`Error::Shape`] for a wrong length, [`Error::NonFinite`] for NaN/inf.
+    pub fn set_theta(&mut self, theta0: &[T]) -> Result<()> {
+        let k = self.rows.flat().len();
+        if theta0.len() != k * N {
+            return Err(Error::Shape { arg: "theta0", expected: k * N, got: theta0.len() });
+        }
+        check_finite("theta0", theta0)?;
+        for (t, chunk) in self.theta.flat_mut().iter_mut().zip(theta0.chunks_exact(N)) {
+            *t = SVector::from_column_slice(chunk);
+        }
+        Ok(())
     }
 
     /// The unknown rows (0-based).
