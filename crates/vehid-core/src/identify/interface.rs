@@ -277,6 +277,20 @@ pub trait Identifier<T: Real> {
         0
     }
 
+    /// Samples each equation gated as outliers (see `KalmanOptions::gate`), one count per
+    /// equation into `out`; zeros for an identifier without a gate.
+    ///
+    /// # Errors
+    /// [`Error::Shape`] for a wrong length.
+    fn gated_into(&self, out: &mut [u64]) -> Result<()> {
+        let k = self.dims().equations;
+        if out.len() != k {
+            return Err(Error::Shape { arg: "out", expected: k, got: out.len() });
+        }
+        out.fill(0);
+        Ok(())
+    }
+
     /// Runs every sample of `data` in order; after each accepted sample `k` calls
     /// `each(k, self, innovations)`, which may stop the fit by returning
     /// [`ControlFlow::Break`] with the reason.

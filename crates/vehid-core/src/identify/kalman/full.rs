@@ -59,6 +59,12 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
                 expected: "'standard' for mode='full' (the Joseph and square-root forms need mode='rows')",
             });
         }
+        if opts.gate > T::zero() || opts.huber > T::zero() {
+            return Err(Error::InvalidArgument {
+                arg: "gate",
+                expected: "no outlier gate or Huber weighting for mode='full' (they need mode='rows')",
+            });
+        }
         if opts.tracking() {
             return Err(Error::InvalidArgument {
                 arg: "forgetting",

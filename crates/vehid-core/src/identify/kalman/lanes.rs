@@ -107,6 +107,10 @@ pub struct LaneScratch<T: Real, const N: usize, const L: usize> {
     fc: [T; L],
     scale: [T; L],
     add: [T; L],
+    /// The outlier screen: 1 for a lane whose sample is gated, and the variance each lane
+    /// uses (`r`, scaled up by the Huber weight).
+    gated: [T; L],
+    reff: [T; L],
     /// Square-root form: the updated `U D Uᵀ` factors (upper triangle; `D` on the diagonal).
     ud: [[[T; L]; N]; N],
 }
@@ -139,6 +143,10 @@ pub struct RowLanes<T: Real, const N: usize, const L: usize> {
     lambda: T,
     drift: T,
     directional: bool,
+    /// Outlier gate κ, Huber constant (0: off), and the samples each lane gated.
+    gate: T,
+    huber: T,
+    gated: [u64; L],
     used: usize,
     form: CovarianceForm,
     /// Absorbing an exact start (every lane at once: they share the regressors).
@@ -226,7 +234,7 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
             let g = SVector::<T, N>::from_fn(|a, _| sc.px[a][k] * sc.w[k]);
             let a = SMatrix::<T, N, N>::identity() - g * x.transpose();
             let px = SVector::<T, N>::from_fn(|a, _| sc.px[a][k]);
-            let mut p = a * p * a.transpose() + g * g.transpose() * self.r[k] + px * px.transpose() * sc.fc[k];
+            let mut p = a * p * a.transpose() + g * g.transpose() * sc.reff[k] + px * px.transpose() * sc.fc[k];
             symmetrize(&mut p);
             for i in 0..N {
                 for j in i..N {
@@ -257,7 +265,7 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
     /// directional-forgetting coefficient, `scale = 1/λ` the exponential one (one of the two
     /// per the options; else 0 and 1), `add = q` the drift.
     #[inline(always)]
-    fn tracking(&self, trace: [T; L], s: [T; L], go: [T; L]) -> ([T; L], [T; L], [T; L]) {
+    fn tracking(&self, trace: [T; L], s: [T; L], r: [T; L], go: [T; L]) -> ([T; L], [T; L], [T; L]) {
         let k_lambda = (T::one() - self.lambda) / self.lambda;
         let inv = T::one() / self.lambda;
         let mut fc = [T::zero(); L];
@@ -265,13 +273,55 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
         let mut add = [T::zero(); L];
         for k in 0..L {
             let on = (go[k] != T::zero()) & (trace[k] < self.cap[k]);
-            let xpx = s[k] - self.r[k];
+            let xpx = s[k] - r[k];
             let dir = on & self.directional & (xpx > T::zero());
-            fc[k] = if dir { k_lambda * self.r[k] / (s[k] * xpx) } else { T::zero() };
+            fc[k] = if dir { k_lambda * r[k] / (s[k] * xpx) } else { T::zero() };
             scale[k] = if on & !self.directional { inv } else { T::one() };
             add[k] = if on { self.drift } else { T::zero() };
         }
         (fc, scale, add)
+    }
+
+    /// The outlier screen of every lane ([`super::row::screen`]): the gated flags (1/0) and
+    /// the variance each lane uses.
+    #[inline(never)]
+    fn screen_lanes(&self, e: [T; L], s: [T; L]) -> ([T; L], [T; L]) {
+        let mut gated = [T::zero(); L];
+        let mut reff = self.r;
+        for k in 0..L {
+            match super::row::screen::<T, N>(self.gate, self.huber, self.nobs[k], self.ssr[k], self.r[k], e[k], s[k]) {
+                Some(r) => reff[k] = r,
+                None => gated[k] = T::one(),
+            }
+        }
+        (gated, reff)
+    }
+
+    /// For the lanes whose sample is risky for the standard form (`r / s` below `√ε`), the
+    /// downdated covariance must stay positive definite (checked by Cholesky); `false` when
+    /// one would not (the sample is then refused: see [`super::row::LOST_DEFINITENESS`]).
+    #[cold]
+    #[inline(never)]
+    fn downdates_stay_definite(&self, sc: &LaneScratch<T, N, L>) -> bool {
+        if self.form != CovarianceForm::Standard {
+            return true;
+        }
+        (0..self.used).all(|k| {
+            if sc.go[k] == T::zero() || !(sc.reff[k] < super::row::risky::<T>() * sc.s[k]) {
+                return true;
+            }
+            // Exactly the arithmetic of `apply`: the upper triangle, then mirrored.
+            let mut p = SMatrix::<T, N, N>::zeros();
+            let coef = sc.w[k] - sc.fc[k];
+            for a in 0..N {
+                for b in a..N {
+                    let v = self.p[a][b][k] - sc.px[a][k] * (sc.px[b][k] * coef);
+                    p[(a, b)] = v;
+                    p[(b, a)] = v;
+                }
+            }
+            super::row::positive_definite(&p)
+        })
     }
 
     /// `tr(U D Uᵀ)` of every lane (square-root form): `Σ_j D_j (1 + Σ_{a<j} U_aj²)`.
@@ -329,7 +379,22 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
                 v[j][k] = self.p[j][j][k] * f[j][k];
             }
         }
-        let mut alpha = self.r;
+        (sc.gated, sc.reff) = ([T::zero(); L], self.r);
+        if self.gate > T::zero() || self.huber > T::zero() {
+            let mut fv = [[T::zero(); L]; N];
+            for j in 0..N {
+                for k in 0..L {
+                    fv[j][k] = f[j][k] * v[j][k];
+                }
+            }
+            let xpx = lane_sum(fv);
+            let mut s0 = self.r;
+            for k in 0..L {
+                s0[k] += xpx[k];
+            }
+            (sc.gated, sc.reff) = self.screen_lanes(ek, s0);
+        }
+        let mut alpha = sc.reff;
         let mut b = [[T::zero(); L]; N];
         sc.ud = self.p;
         let mut ok = true;
@@ -353,10 +418,10 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
             }
             b[j] = v[j];
         }
-        // s = α_N; lanes with s = 0 (r = 0, nothing new along x) take no step.
+        // s = α_N; lanes with s = 0 (r = 0, nothing new along x) take no step, nor gated ones.
         sc.go = self.active;
         for k in 0..L {
-            let live = alpha[k] > T::zero();
+            let live = alpha[k] > T::zero() && sc.gated[k] == T::zero();
             sc.go[k] = if live { sc.go[k] } else { T::zero() };
             sc.s[k] = if live { alpha[k] } else { T::one() };
             let go = sc.go[k] != T::zero();
@@ -380,7 +445,7 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
         }
         sc.step = lane_sum(st);
         (sc.fc, sc.scale, sc.add) = if self.lambda < T::one() || self.drift > T::zero() {
-            self.tracking(self.ud_traces(), sc.s, sc.go)
+            self.tracking(self.ud_traces(), sc.s, sc.reff, sc.go)
         } else {
             ([T::zero(); L], [T::one(); L], [T::zero(); L])
         };
@@ -429,6 +494,11 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
     #[inline(always)]
     fn record(&mut self, sc: &LaneScratch<T, N, L>) {
         let keep = self.lambda;
+        if self.gate > T::zero() {
+            for k in 0..self.used {
+                self.gated[k] += u64::from(sc.gated[k] != T::zero());
+            }
+        }
         for k in 0..L {
             let go = sc.go[k] != T::zero();
             let w2 = sc.e[k] * sc.c[k] * self.r[k];
@@ -461,6 +531,9 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
             lambda: T::one(),
             drift: T::zero(),
             directional: false,
+            gate: T::zero(),
+            huber: T::zero(),
+            gated: [0; L],
             used: 0,
             form: CovarianceForm::Standard,
             start: false,
@@ -481,24 +554,25 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
             fc: [T::zero(); L],
             scale: [T::one(); L],
             add: [T::zero(); L],
+            gated: [T::zero(); L],
+            reff: [T::zero(); L],
             ud: [[[T::zero(); L]; N]; N],
         }
     }
 
     fn set_lane(&mut self, k: usize, zrow: usize, f: &RowIdentifier<T, N>) {
-        let (theta, m, start, [ssr, nobs, s], ([lambda, drift, cap], directional)) = f.parts();
         for a in 0..N {
-            self.theta[a][k] = theta[a];
+            self.theta[a][k] = f.theta[a];
             for b in a..N {
-                self.p[a][b][k] = m[(a, b)];
+                self.p[a][b][k] = f.m[(a, b)];
             }
         }
-        self.r[k] = f.r();
+        self.r[k] = f.r;
         self.zrow[k] = zrow;
-        self.active[k] = if f.retired() { T::zero() } else { T::one() };
-        (self.ssr[k], self.nobs[k], self.s[k], self.cap[k]) = (ssr, nobs, s, cap);
-        (self.lambda, self.drift, self.form, self.start) = (lambda, drift, f.form(), start);
-        self.directional = directional;
+        self.active[k] = if f.retired { T::zero() } else { T::one() };
+        (self.ssr[k], self.nobs[k], self.s[k], self.cap[k], self.gated[k]) = (f.ssr, f.nobs, f.s, f.cap, f.gated);
+        (self.lambda, self.drift, self.directional) = (f.lambda, f.drift, f.directional);
+        (self.form, self.start, self.gate, self.huber) = (f.form, f.start, f.gate, f.huber);
         self.used = self.used.max(k + 1);
         self.any_r_zero = (0..self.used).any(|i| self.r[i] == T::zero());
     }
@@ -508,16 +582,24 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
         for a in 0..N {
             theta[a] = self.theta[a][k];
         }
-        RowIdentifier::from_parts(
+        RowIdentifier {
             theta,
-            self.p_lane(k),
-            self.r[k],
-            self.form,
-            self.start,
-            self.active[k] == T::zero(),
-            [self.ssr[k], self.nobs[k], self.s[k]],
-            ([self.lambda, self.drift, self.cap[k]], self.directional),
-        )
+            m: self.p_lane(k),
+            r: self.r[k],
+            form: self.form,
+            start: self.start,
+            retired: self.active[k] == T::zero(),
+            lambda: self.lambda,
+            directional: self.directional,
+            drift: self.drift,
+            cap: self.cap[k],
+            gate: self.gate,
+            huber: self.huber,
+            gated: self.gated[k],
+            ssr: self.ssr[k],
+            nobs: self.nobs[k],
+            s: self.s[k],
+        }
     }
 
     fn theta_lane(&self, k: usize) -> SVector<T, N> {
@@ -612,6 +694,14 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
         if self.any_r_zero {
             sc.go = self.collapsed_lanes(x, sc.px, sc.s, sc.go);
         }
+        (sc.gated, sc.reff) = ([T::zero(); L], self.r);
+        if self.gate > T::zero() || self.huber > T::zero() {
+            (sc.gated, sc.reff) = self.screen_lanes(ek, sc.s);
+            for k in 0..L {
+                sc.go[k] = if sc.gated[k] != T::zero() { T::zero() } else { sc.go[k] };
+                sc.s[k] += sc.reff[k] - self.r[k];
+            }
+        }
         let mut ok = true;
         for k in 0..L {
             let s = sc.s[k];
@@ -629,17 +719,22 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
             }
         }
         sc.step = lane_sum(st);
+        let mut risky = false;
         for k in 0..L {
             ok &= is_fin(sc.step[k]);
+            risky |= (sc.go[k] != T::zero()) & (sc.reff[k] < super::row::risky::<T>() * sc.s[k]);
         }
         if self.lambda < T::one() || self.drift > T::zero() {
             let mut d = [[T::zero(); L]; N];
             for a in 0..N {
                 d[a] = self.p[a][a];
             }
-            (sc.fc, sc.scale, sc.add) = self.tracking(lane_sum(d), sc.s, sc.go);
+            (sc.fc, sc.scale, sc.add) = self.tracking(lane_sum(d), sc.s, sc.reff, sc.go);
         } else {
             (sc.fc, sc.scale, sc.add) = ([T::zero(); L], [T::one(); L], [T::zero(); L]);
+        }
+        if risky {
+            ok &= self.downdates_stay_definite(sc);
         }
         ok
     }
@@ -668,6 +763,9 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
             return Err(Error::Singular {
                 what: "the innovation variance xᵀPx + r (the square-root factors are not positive)",
             });
+        }
+        if self.form == CovarianceForm::Standard && !self.downdates_stay_definite(sc) {
+            return Err(super::row::LOST_DEFINITENESS);
         }
         Ok(())
     }

@@ -67,6 +67,17 @@ pub struct KalmanOptions<T> {
     /// Random-walk drift `q ≥ 0`: after each update `P ← P + q I`, the variance (in squared
     /// parameter units) by which each parameter may drift per sample.
     pub drift: T,
+    /// Outlier gate `κ` (0: off): a sample whose recursive residual `w = e √(r/s)` exceeds
+    /// `κ σ̂` (`σ̂²` the residual variance estimated from the samples accepted so far) leaves
+    /// the row unchanged and is counted ([`super::RowIdentifier::gated`]). Active once the
+    /// row has `N + 50` samples behind its estimate of `σ̂`. On by default in Python
+    /// (`gate=6`); off here, which keeps exact equivalence with least squares.
+    pub gate: T,
+    /// Huber weighting constant `c` (0: off; 1.345 is the usual choice): a sample with
+    /// `|w| > c σ̂` is weighted down, its variance `r` scaled by `|w| / (c σ̂)`, so that its
+    /// influence grows linearly instead of quadratically (Huber's M-estimator, applied
+    /// recursively).
+    pub huber: T,
     /// Wind-up bound: forgetting and drift act only while `tr P` is below this value
     /// (0: the trace when filtering starts, i.e. `tr P(0)` or the trace at the end of an exact
     /// start). Without excitation (`P x = 0`) the estimate cannot move, and this keeps the
@@ -83,6 +94,8 @@ impl<T: Real> Default for KalmanOptions<T> {
             forgetting: T::one(),
             directional: false,
             drift: T::zero(),
+            gate: T::zero(),
+            huber: T::zero(),
             max_trace: T::zero(),
         }
     }
@@ -98,6 +111,8 @@ impl<T: Real> KalmanOptions<T> {
             });
         }
         check_nonneg("drift", self.drift)?;
+        check_nonneg("gate", self.gate)?;
+        check_nonneg("huber", self.huber)?;
         check_nonneg("max_trace", self.max_trace)
     }
 

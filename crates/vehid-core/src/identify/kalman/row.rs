@@ -43,23 +43,27 @@ use nalgebra::{SMatrix, SVector};
 /// with `θ` holding `Qᵀz` (exact start, before the data identify every direction).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RowIdentifier<T: Real, const N: usize> {
-    theta: SVector<T, N>,
-    m: SMatrix<T, N, N>,
-    r: T,
-    form: CovarianceForm,
+    pub(super) theta: SVector<T, N>,
+    pub(super) m: SMatrix<T, N, N>,
+    pub(super) r: T,
+    pub(super) form: CovarianceForm,
     /// Absorbing samples exactly (exact start) until identified.
-    start: bool,
-    retired: bool,
+    pub(super) start: bool,
+    pub(super) retired: bool,
     /// Forgetting factor λ (directional or exponential), drift q, and the trace bound below
     /// which they act.
-    lambda: T,
-    directional: bool,
-    drift: T,
-    cap: T,
+    pub(super) lambda: T,
+    pub(super) directional: bool,
+    pub(super) drift: T,
+    pub(super) cap: T,
+    /// Outlier gate κ and Huber constant c (0: off), and the samples gated so far.
+    pub(super) gate: T,
+    pub(super) huber: T,
+    pub(super) gated: u64,
     /// Σ w² (decayed by λ), the effective number of samples, and the last `s`.
-    ssr: T,
-    nobs: T,
-    s: T,
+    pub(super) ssr: T,
+    pub(super) nobs: T,
+    pub(super) s: T,
 }
 
 /// Relative size below which a diagonal entry of the exact start's `R` counts as zero
@@ -81,6 +85,9 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
             directional: false,
             drift: T::zero(),
             cap: T::zero(),
+            gate: T::zero(),
+            huber: T::zero(),
+            gated: 0,
             ssr: T::zero(),
             nobs: T::zero(),
             s: T::zero(),
@@ -151,41 +158,13 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
         self.lambda = opts.forgetting;
         self.directional = opts.directional;
         self.drift = opts.drift;
+        self.gate = opts.gate;
+        self.huber = opts.huber;
         self.cap = opts.max_trace;
         if self.cap == T::zero() && !self.start && self.tracking() {
             self.cap = self.trace();
         }
         Ok(self)
-    }
-
-    /// A filter from its lane state (no checks: the parts come from a valid filter).
-    #[allow(clippy::too_many_arguments)]
-    pub(crate) fn from_parts(
-        theta: SVector<T, N>,
-        m: SMatrix<T, N, N>,
-        r: T,
-        form: CovarianceForm,
-        start: bool,
-        retired: bool,
-        stats: [T; 3],
-        tracking: ([T; 3], bool),
-    ) -> Self {
-        let [ssr, nobs, s] = stats;
-        let ([lambda, drift, cap], directional) = tracking;
-        Self { theta, m, r, form, start, retired, lambda, directional, drift, cap, ssr, nobs, s }
-    }
-
-    /// The raw state (`θ` or `Qᵀz`, the form's matrix, flags, statistics, tracking), for the
-    /// lanes.
-    #[allow(clippy::type_complexity)]
-    pub(crate) fn parts(&self) -> (SVector<T, N>, SMatrix<T, N, N>, bool, [T; 3], ([T; 3], bool)) {
-        (
-            self.theta,
-            self.m,
-            self.start,
-            [self.ssr, self.nobs, self.s],
-            ([self.lambda, self.drift, self.cap], self.directional),
-        )
     }
 
     fn tracking(&self) -> bool {
@@ -273,6 +252,12 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
         self.s
     }
 
+    /// Samples this row gated as outliers ([`KalmanOptions::gate`]): not used, not counted in
+    /// the statistics.
+    pub fn gated(&self) -> u64 {
+        self.gated
+    }
+
     /// Stops updating (until the next [`RowIdentifier::reinitialize`]).
     pub fn retire(&mut self) {
         self.retired = true;
@@ -344,12 +329,12 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
     /// `P⁺x = P x r/s` is `c (P x)(P x)ᵀ`, `c = ((1 − λ)/λ) r / (s (s − r))`. A sample that
     /// carries no information (`x = 0`, `s = r`) forgets nothing: no wind-up without
     /// excitation. 0 when forgetting is off.
-    fn forget_coefficient(&self, s: T, track: bool) -> T {
-        let xpx = s - self.r;
+    fn forget_coefficient(&self, s: T, r: T, track: bool) -> T {
+        let xpx = s - r;
         if !track || !self.directional || self.lambda >= T::one() || !(xpx > T::zero()) {
             return T::zero();
         }
-        (T::one() - self.lambda) / self.lambda * self.r / (s * xpx)
+        (T::one() - self.lambda) / self.lambda * r / (s * xpx)
     }
 
     /// Exponential forgetting `P ← P / λ` (`D ← D / λ` in the square-root form).
@@ -405,26 +390,36 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
                        reinitialization)",
             });
         }
+        let Some(r_eff) = self.screen(e, s) else {
+            self.gated += 1;
+            return Ok(());
+        };
+        let s = s - self.r + r_eff;
         let inv_s = T::one() / s;
         let g = px * inv_s;
         self.theta += g * e;
-        let fc = self.forget_coefficient(s, track);
+        let fc = self.forget_coefficient(s, r_eff, track);
         match self.form {
             CovarianceForm::Joseph => {
                 let a = SMatrix::<T, N, N>::identity() - g * x.transpose();
-                self.m = a * self.m * a.transpose() + g * g.transpose() * self.r + px * px.transpose() * fc;
+                self.m = a * self.m * a.transpose() + g * g.transpose() * r_eff + px * px.transpose() * fc;
                 symmetrize(&mut self.m);
             }
             _ => {
                 // P − (P x)(P x)ᵀ (1/s − c), the forgetting folded into the downdate. Entry
                 // (a, b) and (b, a) subtract the same product: P stays exactly symmetric.
                 let gk = px * (inv_s - fc);
+                let mut next = self.m;
                 for b in 0..N {
                     for a in 0..N {
-                        self.m[(a, b)] -= px[a] * gk[b];
+                        next[(a, b)] -= px[a] * gk[b];
                     }
                 }
-                symmetrize(&mut self.m);
+                symmetrize(&mut next);
+                if r_eff < risky::<T>() * s && !positive_definite(&next) {
+                    return Err(LOST_DEFINITENESS);
+                }
+                self.m = next;
             }
         }
         self.record(e, s);
@@ -450,7 +445,22 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
         for j in 0..N {
             v[j] = m[(j, j)] * f[j];
         }
-        let mut alpha = self.r;
+        // The innovation variance first (s = r + Σ f_j v_j), for the outlier screen.
+        let s = (0..N).fold(self.r, |a, j| a + f[j] * v[j]);
+        let r_eff = if s > T::zero() && s.finite() {
+            let (gate, huber, nobs, ssr, r) = (self.gate, self.huber, self.nobs, self.ssr, self.r);
+            match screen::<T, N>(gate, huber, nobs, ssr, r, e, s) {
+                Some(r_eff) => r_eff,
+                None => {
+                    self.gated += 1;
+                    return Ok(());
+                }
+            }
+        } else {
+            self.r
+        };
+        let m = &mut self.m;
+        let mut alpha = r_eff;
         let mut b = SVector::<T, N>::zeros();
         for j in 0..N {
             let prev = alpha;
@@ -493,12 +503,18 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
             self.theta[a] += b[a] * c;
         }
         // Bierman's b is P x: directional forgetting is the rank-one update c (P x)(P x)ᵀ.
-        let fc = self.forget_coefficient(s, track);
+        let fc = self.forget_coefficient(s, r_eff, track);
         if fc > T::zero() {
             ud_rank_one(&mut self.m, fc, b);
         }
         self.record(e, s);
         Ok(())
+    }
+
+    /// The outlier screen of a sample with innovation `e` and variance `s`: `None` when the
+    /// gate rejects it, else the variance to use (`r`, or `r` scaled up by the Huber weight).
+    fn screen(&self, e: T, s: T) -> Option<T> {
+        screen::<T, N>(self.gate, self.huber, self.nobs, self.ssr, self.r, e, s)
     }
 
     /// Accumulates the statistics of an accepted update with innovation `e`, variance `s`.
@@ -591,6 +607,53 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
             self.cap = self.trace();
         }
     }
+}
+
+/// Samples behind `σ̂` before the outlier screen acts (beyond the `N` the estimate uses).
+pub(crate) const SCREEN_WARMUP: f64 = 50.0;
+
+/// The outlier screen ([`KalmanOptions::gate`], [`KalmanOptions::huber`]) of a sample with
+/// innovation `e` and innovation variance `s`, given the row's statistics: `None` when gated,
+/// else the variance `r` to use (scaled up by the Huber weight). The recursive residual is
+/// `w² = e² r / s`; `σ̂² = ssr / (nobs − N)` estimates its variance.
+#[inline(always)]
+pub(crate) fn screen<T: Real, const N: usize>(gate: T, huber: T, nobs: T, ssr: T, r: T, e: T, s: T) -> Option<T> {
+    if (gate == T::zero() && huber == T::zero()) || nobs < T::of(N as f64 + SCREEN_WARMUP) {
+        return Some(r);
+    }
+    let sigma2 = ssr / (nobs - T::of(N as f64));
+    if !(sigma2 > T::zero()) {
+        return Some(r); // noise-free so far: no scale to judge by
+    }
+    let z2 = e * e * r / s / sigma2;
+    if gate > T::zero() && !(z2 <= gate * gate) {
+        return None;
+    }
+    if huber > T::zero() && z2 > huber * huber {
+        return Some(r * z2.sqrt() / huber);
+    }
+    Some(r)
+}
+
+/// A sample is risky for the standard form when `r / s` is below this (`√ε`): it carries so
+/// much information relative to its noise that the downdate `P − P x xᵀ P / s` cancels to
+/// rounding level along `x`. The downdated covariance is then checked (Cholesky) before the
+/// update is accepted.
+pub(crate) fn risky<T: Real>() -> T {
+    T::default_epsilon().sqrt()
+}
+
+/// The error of an update the standard form cannot make without losing positive definiteness.
+pub(crate) const LOST_DEFINITENESS: Error = Error::Singular {
+    what: "the covariance after this sample (the standard form would lose positive definiteness: the sample is \
+           informative far beyond its noise r; use form='sqrt', which cannot, or p0='exact' / a smaller p0)",
+};
+
+/// `true` when the symmetric `p` is numerically positive definite (its Cholesky factorization
+/// exists).
+pub(crate) fn positive_definite<T: Real, const N: usize>(p: &SMatrix<T, N, N>) -> bool {
+    let mut l = *p;
+    cholesky_in_place(l.as_mut_slice(), N)
 }
 
 /// `√(a² + b²)` without overflow or underflow in the squares.

@@ -449,4 +449,15 @@ impl<T: Real, const N: usize, S: Store<T, N>> Identifier<T> for KalmanRows<T, N,
     fn reinit_count(&self) -> u32 {
         self.reinit_count
     }
+
+    fn gated_into(&self, out: &mut [u64]) -> Result<()> {
+        let k = self.rows.flat().len();
+        if out.len() != k {
+            return Err(Error::Shape { arg: "out", expected: k, got: out.len() });
+        }
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = self.filter(i).gated();
+        }
+        Ok(())
+    }
 }

@@ -51,6 +51,12 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
                 expected: "'standard' or 'joseph' for mode='shared' (the square-root form needs mode='rows')",
             });
         }
+        if opts.gate > T::zero() || opts.huber > T::zero() {
+            return Err(Error::InvalidArgument {
+                arg: "gate",
+                expected: "no outlier gate or Huber weighting for mode='shared' (they need mode='rows')",
+            });
+        }
         if opts.tracking() {
             return Err(Error::InvalidArgument {
                 arg: "forgetting",
