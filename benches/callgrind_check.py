@@ -64,6 +64,12 @@ BENCHES = [
     "half_shared",        # update_f64/half/kalman_shared
     "quarter_sg_venter",  # update_f64/quarter/sg_venter
     "quarter_sim_exact",  # simulate_f64/quarter/exact
+    "quarter_rows_sqrt",  # update_f64/quarter/kalman_rows_sqrt (square-root form)
+    "half_rows_sqrt",     # update_f64/half/kalman_rows_sqrt
+    "quarter_rows_forget",  # update_f64/quarter/kalman_rows_forget (exponential forgetting)
+    "half_rows_forget",   # update_f64/half/kalman_rows_forget
+    "quarter_rows_exact",  # update_f64/quarter/kalman_rows_exact (after the exact start)
+    "half_rows_exact",    # update_f64/half/kalman_rows_exact
 ]
 
 
@@ -149,10 +155,22 @@ def per_update(binary: Path, bench: str, n: int) -> float:
     return (instructions(binary, bench, n) - instructions(binary, bench, 0)) / n
 
 
-def build() -> None:
+def build() -> Path:
+    """Builds count_updates (release) and returns the executable cargo reports for it: the
+    hashed path of this checkout's build, not ``target/release/count_updates``, which another
+    checkout sharing the target directory (``CARGO_TARGET_DIR``) may have overwritten."""
     cargo = os.environ.get("CARGO", "cargo")
-    subprocess.run([cargo, "build", "--quiet", "--release", "-p", "vehid-benches", "--bin", "count_updates"],
-                   cwd=ROOT, check=True)
+    out = subprocess.run(
+        [cargo, "build", "--quiet", "--release", "-p", "vehid-benches", "--bin", "count_updates",
+         "--message-format=json-render-diagnostics"],
+        cwd=ROOT, check=True, capture_output=True, text=True,
+    ).stdout
+    for line in out.splitlines():
+        msg = json.loads(line)
+        if msg.get("reason") == "compiler-artifact" and msg.get("target", {}).get("name") == "count_updates":
+            if msg.get("executable"):
+                return Path(msg["executable"])
+    raise SystemExit("callgrind_check: cargo did not report the count_updates executable")
 
 
 def toolchain() -> Dict[str, str]:
@@ -189,8 +207,9 @@ def main(argv: Optional[List[str]] = None) -> int:
     if shutil.which("valgrind") is None:
         print("callgrind_check: valgrind is not installed", file=sys.stderr)
         return 2
+    binary = args.binary
     if not args.no_build:
-        build()
+        binary = build()
     base = load_baseline(args.baseline)
     n = args.n or int(base.get("n_updates", N_UPDATES))
     tolerance = args.tolerance if args.tolerance is not None else float(base.get("tolerance", TOLERANCE))
@@ -202,7 +221,7 @@ def main(argv: Optional[List[str]] = None) -> int:
                       f"for that reason alone (re-baseline in a commit of its own)")
 
     benches = args.bench or BENCHES
-    measured = {b: per_update(args.binary, b, n) for b in benches}
+    measured = {b: per_update(binary, b, n) for b in benches}
     rows = compare(measured, base.get("counts", {}), tolerance)
     print(f"instructions per update under callgrind ({n} updates, minus a 0-update run)")
     print(format_table(rows, tolerance))

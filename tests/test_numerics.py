@@ -27,7 +27,7 @@ def test_exact_start_is_least_squares_on_every_prefix() -> None:
     for seed in range(5):
         x, z, _ = regression(100 + seed, 40, np.array([1.0, 10.0, 0.1, 3.0]), 0.2)
         for form in ["standard", "sqrt"]:
-            kf = vehid.KalmanIdentifier(CAR, form=form)
+            kf = vehid.KalmanIdentifier(CAR, form=form, gate=0)  # no gate: exact least squares
             hist = kf.fit(x, z, record_every=1)
             assert np.isnan(hist[:3]).all()  # three samples cannot identify four parameters
             for k in range(4, 41):
@@ -43,7 +43,7 @@ def test_square_root_form_is_the_prior_regularized_least_squares() -> None:
     theta0 = np.array([[0.5, -1.0, 2.0, 0.1], [1.0, 0.0, -0.5, 0.2]]) / scales
     r = 0.5
     for p0 in [1e-3, 1.0, 1e6, 1e12]:
-        kf = vehid.KalmanIdentifier(CAR, p0=p0, r=r, theta0=theta0, form="sqrt")
+        kf = vehid.KalmanIdentifier(CAR, p0=p0, r=r, theta0=theta0, form="sqrt", gate=0)
         kf.fit(x, z)
         for i, row in enumerate([1, 3]):
             a = np.vstack([x / np.sqrt(r), np.eye(4) / np.sqrt(p0)])
@@ -99,3 +99,20 @@ def test_settings_that_cannot_work_are_refused() -> None:
         vehid.KalmanIdentifier(CAR, form="sqrt", joseph=True)
     with pytest.raises(vehid.VehidError, match="p0"):
         vehid.KalmanIdentifier(CAR, p0="diffuse")
+
+
+def test_the_gate_is_on_by_default_and_keeps_an_outlier_out() -> None:
+    # The README's run with one corrupted derivative (1e30) in the middle: the default
+    # identifier leaves it out and says so; with gate=0 it is ruined.
+    run = vehid.Simulator(CAR, road_sigma=0.1, deriv_noise=0.005, seed=1).run(40_001)
+    z = run.z.copy()
+    z[20_000, 1] = 1e30
+    kf = vehid.KalmanIdentifier(CAR, p0=1000.0, road_sigma=0.1, deriv_noise=0.005)
+    kf.fit(run.r, z)
+    clean = vehid.KalmanIdentifier(CAR, p0=1000.0, road_sigma=0.1, deriv_noise=0.005)
+    clean.fit(run.r, run.z)
+    assert list(kf.gated) == [1, 0]
+    assert abs(vehid.xi(CAR.theta, kf.theta) - vehid.xi(CAR.theta, clean.theta)) < 0.1 * vehid.xi(CAR.theta, clean.theta)
+    off = vehid.KalmanIdentifier(CAR, p0=1000.0, road_sigma=0.1, deriv_noise=0.005, gate=0)
+    off.fit(run.r, z)
+    assert vehid.xi(CAR.theta, off.theta) > 1e6

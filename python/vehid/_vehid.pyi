@@ -205,6 +205,8 @@ class Identifier:
     def samples(self) -> int: ...
     @property
     def unknown_rows(self) -> list[int]: ...
+    @property
+    def gated(self) -> NDArray[np.uint64]: ...
 
 @final
 class KalmanIdentifier(Identifier):
@@ -228,6 +230,8 @@ class KalmanIdentifier(Identifier):
         drift: float = 0.0,
         directional: bool = False,
         max_trace: Optional[float] = None,
+        gate: Optional[float] = None,
+        huber: float = 0.0,
     ) -> KalmanIdentifier: ...
     @property
     def form(self) -> _Form: ...

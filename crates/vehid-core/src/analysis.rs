@@ -37,6 +37,9 @@ pub fn discrete_stationary_cov<T: Real, const N: usize, const M: usize>(
     discrete_lyapunov(&phi, &c).map(|p| p.map(T::of)).ok_or(Error::Unstable { what: "the stationary covariance" })
 }
 
+/// Largest `ρ(A) · hold` [`output_std`] accepts.
+pub const MAX_HOLD_RHO: f64 = 1e6;
+
 /// Standard deviation of each state under road noise held over intervals of `hold` seconds
 /// (Eq 4.27): `σ_i² = (T σ_u²/π) ∫₀^∞ |H_i(ω)|² sinc²(ωT/2) dω`, `H(s) = (sI − A)⁻¹ B`.
 ///
@@ -60,9 +63,23 @@ pub fn output_std<T: Real, const N: usize, const M: usize>(
 ) -> Result<SVector<T, N>> {
     crate::error::check_positive("hold", hold)?;
     let su = broadcast::<T, M>("road_sigma", road_sigma)?;
+    if su.iter().any(|s| !(s.to_f64() * s.to_f64() * 1e6).is_finite()) {
+        return Err(Error::InvalidArgument {
+            arg: "road_sigma",
+            expected: "a road standard deviation whose variance is finite with room to spare (below about 1e150; \
+                       rescale the units)",
+        });
+    }
     let a = model.a().map(|v| v.to_f64());
     let b = model.b().map(|v| v.to_f64());
     let t = hold.to_f64();
+    if !(spectral_radius(&a) * t <= MAX_HOLD_RHO) {
+        return Err(Error::InvalidArgument {
+            arg: "hold",
+            expected: "a hold time of at most 1e6 times the model's fastest time constant (the integrals over \
+                       longer holds lose all accuracy; the held input is then effectively constant)",
+        });
+    }
     let s = SMatrix::<f64, M, M>::from_fn(|i, j| {
         if i == j {
             {
@@ -89,7 +106,12 @@ pub fn output_std<T: Real, const N: usize, const M: usize>(
     let tail = discrete_lyapunov(&phi_t, &piece).ok_or(Error::Unstable { what: "the output standard deviation" })?;
     let cov = (first + tail) / t;
     if cov.iter().any(|v| !v.is_finite()) {
-        return Err(Error::Unstable { what: "the output standard deviation" });
+        // A stable model (the Lyapunov sum converged) whose variance still overflows: the
+        // input is too large for f64, not the model unstable.
+        return Err(Error::InvalidArgument {
+            arg: "road_sigma",
+            expected: "a road standard deviation small enough that the state variance is finite (rescale the units)",
+        });
     }
     Ok(SVector::<T, N>::from_fn(|i, _| T::of(libm::sqrt(cov[(i, i)].max(0.0)))))
 }

@@ -66,8 +66,14 @@ impl<X: Copy + core::fmt::Debug, const C: usize> RingStore<X> for [X; C] {
 
 #[cfg(feature = "alloc")]
 impl<X: Copy + core::fmt::Debug> RingStore<X> for alloc::vec::Vec<X> {
-    fn with_len(_arg: &'static str, len: usize, x: X) -> Result<Self> {
-        Ok(alloc::vec![x; len.max(1)])
+    fn with_len(arg: &'static str, len: usize, x: X) -> Result<Self> {
+        // The length comes from the caller (e.g. wheelbase / spacing): allocate fallibly.
+        let len = len.max(1);
+        let mut v = alloc::vec::Vec::new();
+        v.try_reserve_exact(len)
+            .map_err(|_| Error::OutOfMemory { what: arg, bytes: len.saturating_mul(core::mem::size_of::<X>()) })?;
+        v.resize(len, x);
+        Ok(v)
     }
     fn slots(&self) -> &[X] {
         self

@@ -23,6 +23,11 @@ use vehid_core::identify::{
 };
 use vehid_core::Error;
 
+/// The outlier gate of `KalmanIdentifier` unless `gate=` says otherwise (mode rows): a sample
+/// whose recursive residual exceeds 6 estimated standard deviations is left out (for
+/// Gaussian noise: one sample in 5·10⁸).
+pub const DEFAULT_GATE: f64 = 6.0;
+
 /// `fit` asks Python for pending signals (Ctrl-C) every this many samples (a few ms).
 pub const CHECK_EVERY: usize = 1 << 16;
 
@@ -220,6 +225,14 @@ impl PyIdentifier {
     fn unknown_rows(&self) -> Vec<usize> {
         self.inner.rows().to_vec()
     }
+
+    /// Samples each identified equation left out as outliers (the gate), (k,) int.
+    #[getter]
+    fn gated<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<u64>>> {
+        let mut out = vec![0u64; self.inner.dims().equations];
+        self.inner.gated_into(&mut out).map_err(raise)?;
+        Ok(out.into_pyarray(py))
+    }
 }
 
 impl PyIdentifier {
@@ -246,8 +259,11 @@ impl PyIdentifier {
 /// factors: P stays positive definite for any p0 and scaling; the recommended online form).
 /// Tracking: `forgetting` λ in (0, 1] (memory about 1/(1 − λ) samples; `directional=True`
 /// forgets only along excited directions), `drift` q (random walk: P += q I per sample), both
-/// only while tr P < `max_trace` (default: the trace when filtering starts). `reinit=True`
-/// applies Eq 4.36. `mode`: "rows" (decoupled filters, Eq 6.16–6.18), "shared" (one covariance
+/// only while tr P < `max_trace` (default: the trace when filtering starts). Outliers: `gate`
+/// κ (default 6 for mode "rows"; 0 turns it off, as exact least-squares equivalence needs)
+/// leaves out a sample whose recursive residual exceeds κ estimated standard deviations
+/// (counted in `gated`); `huber` c (e.g. 1.345) weights large residuals down (Huber).
+/// `reinit=True` applies Eq 4.36. `mode`: "rows" (decoupled filters, Eq 6.16–6.18), "shared" (one covariance
 /// for all rows; needs the same r/p0 on every row), "full" (the stacked filter, general R).
 /// With a prior the estimate depends on r/p0 only (see the README on prior regimes).
 #[pyclass(name = "KalmanIdentifier", module = "vehid._vehid", extends = PyIdentifier)]
@@ -354,7 +370,8 @@ impl PyKalmanIdentifier {
     #[new]
     #[pyo3(signature = (model, p0 = None, r = None, *, theta0 = None, road_sigma = None, deriv_noise = None,
                         reinit = false, mode = "rows", form = None, joseph = false, retire_below = 0.0,
-                        forgetting = 1.0, drift = 0.0, directional = false, max_trace = None))]
+                        forgetting = 1.0, drift = 0.0, directional = false, max_trace = None, gate = None,
+                        huber = 0.0))]
     #[allow(clippy::too_many_arguments)]
     fn py_new(
         model: &Bound<'_, PyLinearModel>,
@@ -372,6 +389,8 @@ impl PyKalmanIdentifier {
         drift: f64,
         directional: bool,
         max_trace: Option<f64>,
+        gate: Option<f64>,
+        huber: f64,
     ) -> PyResult<PyClassInitializer<Self>> {
         let m = model.get();
         let (n, k) = (m.data.n, m.data.rows.len());
@@ -395,6 +414,9 @@ impl PyKalmanIdentifier {
             directional,
             drift,
             max_trace: max_trace.unwrap_or(0.0),
+            // On by default for online use (mode rows; the other modes have no gate).
+            gate: gate.unwrap_or(if mode == Mode::Rows { DEFAULT_GATE } else { 0.0 }),
+            huber,
         };
         let spec = KalmanSpec { rows: m.data.rows.clone(), p0, theta0, r, mode, opts };
         let inner = dispatch_n!(n, kalman_n(&spec)).map_err(core_err)?;

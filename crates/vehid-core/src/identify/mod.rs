@@ -109,6 +109,14 @@ pub(crate) const OVERFLOW: Error = Error::InvalidArgument {
     expected: "sample values small enough that the update stays finite (rescale the units)",
 };
 
+/// The error for an update that would overflow through the innovation (a derivative far from
+/// the prediction), when the state itself is in range: names `z_k`.
+pub(crate) const OVERFLOW_Z: Error = Error::InvalidArgument {
+    arg: "z_k",
+    expected: "a measured derivative small enough that the update stays finite (rescale the units, or turn the \
+               outlier gate on)",
+};
+
 /// `θ̂` of a fixed-size identifier as a `K × N` matrix (the estimate of every unknown row).
 pub(crate) fn fixed_theta<T: Real, const N: usize, const K: usize>(id: &impl Identifier<T>) -> SMatrix<T, K, N> {
     // Row-major K × N is the column-major storage of its N × K transpose.

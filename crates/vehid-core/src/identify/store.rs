@@ -100,6 +100,8 @@ pub trait Store<T: Real, const N: usize>: Clone + core::fmt::Debug {
     /// One planned step per group, for the identifiers that plan through memory (several
     /// groups, or a group with too many covariance entries to keep in registers).
     type Scratches: Flat<<Self::Group as RowGroup<T, N>>::Scratch>;
+    /// The square-root form's planned steps, likewise (empty unless that form is used).
+    type SqrtScratches: Flat<<Self::Group as RowGroup<T, N>>::SqrtScratch>;
     /// One value per pair of rows (`K²`).
     type PairScalars: Flat<T>;
     /// One `N`-vector per pair of rows (`K²`).
@@ -123,6 +125,7 @@ impl<T: Real, const N: usize, const K: usize> Store<T, N> for Fixed<K> {
     type Group = lanes::RowLanes<T, N, K>;
     type Groups = [lanes::RowLanes<T, N, K>; 1];
     type Scratches = NoScratch;
+    type SqrtScratches = NoScratch;
     type PairScalars = [[T; K]; K];
     type PairVecs = [[SVector<T, N>; K]; K];
     type Blocks = [[SMatrix<T, N, N>; K]; K];
@@ -145,6 +148,7 @@ impl<T: Real, const N: usize, const L: usize> Store<T, N> for Dynamic<L> {
     type Group = lanes::RowLanes<T, N, L>;
     type Groups = alloc::vec::Vec<lanes::RowLanes<T, N, L>>;
     type Scratches = alloc::vec::Vec<lanes::LaneScratch<T, N, L>>;
+    type SqrtScratches = alloc::vec::Vec<lanes::SqrtScratch<T, N, L>>;
     type PairScalars = alloc::vec::Vec<T>;
     type PairVecs = alloc::vec::Vec<SVector<T, N>>;
     type Blocks = alloc::vec::Vec<SMatrix<T, N, N>>;

@@ -252,10 +252,17 @@ impl<T: Real, const N: usize, const M: usize> LinearModel<T, N, M> {
             return Err(Error::Shape { arg: "r", expected: self.rows.len(), got: out.len() });
         }
         for (o, &r) in out.iter_mut().zip(self.rows.as_slice()) {
-            let mut v = sv[r] * sv[r];
+            let dv = sv[r] * sv[r];
+            if !dv.finite() {
+                return Err(TOO_LARGE_DERIV);
+            }
+            let mut v = dv;
             for j in 0..M {
                 let bu = self.b[(r, j)] * su[j];
                 v += bu * bu;
+            }
+            if !v.finite() {
+                return Err(TOO_LARGE_ROAD);
             }
             *o = v;
         }
@@ -305,6 +312,18 @@ impl<T: Real, const N: usize, const M: usize> LinearModel<T, N, M> {
         Ok(out)
     }
 }
+
+/// The error of a road σ so large that `(B σ_u)²` overflows.
+const TOO_LARGE_ROAD: Error = Error::InvalidArgument {
+    arg: "road_sigma",
+    expected: "a road standard deviation small enough that its variance through B is finite (rescale the units)",
+};
+
+/// The error of a derivative-noise σ so large that its square overflows.
+const TOO_LARGE_DERIV: Error = Error::InvalidArgument {
+    arg: "deriv_noise",
+    expected: "a derivative-noise standard deviation small enough that its variance is finite (rescale the units)",
+};
 
 /// Expands one value to `K` values, or checks there are exactly `K`; each must be a finite
 /// non-negative standard deviation.

@@ -121,17 +121,34 @@ impl<T: Real, const N: usize, const M: usize> SimConfig<T, N, M> {
     pub(crate) fn validate(&self) -> Result<()> {
         check_positive("dt", self.dt)?;
         for &s in self.road_sigma.iter() {
-            check_nonneg("road_sigma", s)?;
+            check_sigma("road_sigma", s)?;
         }
-        check_nonneg("ic_sigma", self.ic_sigma)?;
+        check_sigma("ic_sigma", self.ic_sigma)?;
         for &s in self.state_noise.iter() {
-            check_nonneg("state_noise", s)?;
+            check_sigma("state_noise", s)?;
         }
         for &s in self.deriv_noise.iter() {
-            check_nonneg("deriv_noise", s)?;
+            check_sigma("deriv_noise", s)?;
         }
         Ok(())
     }
+}
+
+/// Largest noise standard deviation a simulation accepts: larger values overflow once
+/// squared or propagated through the model (the simulation would produce inf/NaN).
+pub const MAX_SIGMA: f64 = 1e100;
+
+/// A finite, non-negative standard deviation no larger than [`MAX_SIGMA`].
+fn check_sigma<T: Real>(arg: &'static str, s: T) -> Result<()> {
+    check_nonneg(arg, s)?;
+    if s.to_f64() > MAX_SIGMA {
+        return Err(Error::InvalidArgument {
+            arg,
+            expected: "a standard deviation of at most 1e100 (larger ones overflow in the simulation: rescale the \
+                       units)",
+        });
+    }
+    Ok(())
 }
 
 /// Sets a per-component vector from one value or one value per component.

@@ -26,7 +26,7 @@ mod road;
 mod run;
 mod time;
 
-pub use config::{per_component, Method, Pulse, SimConfig, SimSettings, MAX_PULSES};
+pub use config::{per_component, Method, Pulse, SimConfig, SimSettings, MAX_PULSES, MAX_SIGMA};
 pub use road::{RoadConfig, RoadMode, RoadSample, RoadSimulator, SpeedProfile};
 #[cfg(feature = "alloc")]
 pub use run::Run;

@@ -342,11 +342,17 @@ impl<T: Real, const N: usize, const C: usize> RoadSimulator<T, N, C> {
         let (phi, gamma) = match self.cfg.method {
             Method::Exact => zoh(&self.model, dt)?,
             Method::Rk4 => {
-                // auto_substeps' rule with ρ(A) computed once.
+                // auto_substeps' rule with ρ(A) computed once. A step so long (a very low
+                // speed) that RK4 would need more than MAX_SUBSTEPS sub-steps uses the exact
+                // zero-order hold, to which RK4 converges.
                 let need = libm::ceil(self.rho * tau / 0.5);
-                let auto = if need.is_finite() && need >= 1.0 { (need as usize).min(100_000) } else { 1 };
-                let sub = auto.max(self.cfg.substeps.unwrap_or(1));
-                rk4_map(&self.model, dt, sub)?
+                if need > crate::model::MAX_SUBSTEPS as f64 {
+                    zoh(&self.model, dt)?
+                } else {
+                    let auto = if need.is_finite() && need >= 1.0 { need as usize } else { 1 };
+                    let sub = auto.max(self.cfg.substeps.unwrap_or(1));
+                    rk4_map(&self.model, dt, sub)?
+                }
             }
         };
         let s = Step { tau, phi, gamma };

@@ -15,7 +15,7 @@
 //! one (tested).
 
 use super::{CovarianceForm, RowIdentifier};
-use crate::identify::OVERFLOW;
+use crate::identify::{OVERFLOW, OVERFLOW_Z};
 use crate::linalg::symmetrize;
 use crate::{Error, Real};
 use nalgebra::{SMatrix, SVector};
@@ -80,6 +80,19 @@ pub(crate) fn is_fin<T: Real>(v: T) -> bool {
     v - v == T::zero()
 }
 
+/// Which argument an overflowing step is due to: the state (`x θ` not finite) or the
+/// derivative (an innovation far beyond the prediction).
+#[cold]
+fn overflow_culprit<T: Real>(e: T, xth: T) -> crate::Error {
+    if !xth.finite() {
+        OVERFLOW
+    } else if !e.finite() || e.abs() > (xth.abs() + T::one()) * T::of(1e6) {
+        OVERFLOW_Z
+    } else {
+        OVERFLOW
+    }
+}
+
 /// One sample's planned step for a group of lanes: computed by [`RowGroup::plan`], applied
 /// by [`RowGroup::apply`] (nothing changes in between, so a rejected sample changes nothing).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -111,8 +124,18 @@ pub struct LaneScratch<T: Real, const N: usize, const L: usize> {
     /// uses (`r`, scaled up by the Huber weight).
     gated: [T; L],
     reff: [T; L],
-    /// Square-root form: the updated `U D Uᵀ` factors (upper triangle; `D` on the diagonal).
-    ud: [[[T; L]; N]; N],
+}
+
+/// The planned step of the square-root form: the common part (innovations, gain numerator
+/// `P x`, statistics, tracking) and, per column `j`, `v_j = D_j f_j`, Bierman's
+/// `p_j = −f_j / α_{j−1}` and `D_j`'s factor `α_{j−1} / α_j` (`apply_sqrt` replays the column
+/// sweep with them).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SqrtScratch<T: Real, const N: usize, const L: usize> {
+    base: LaneScratch<T, N, L>,
+    v: [[T; L]; N],
+    p: [[T; L]; N],
+    ratio: [[T; L]; N],
 }
 
 /// `L` decoupled row filters stored side by side. Lanes `used..L` are padding (a
@@ -196,6 +219,19 @@ pub trait RowGroup<T: Real, const N: usize>: Copy + core::fmt::Debug + PartialEq
     fn check(&self, sc: &Self::Scratch) -> crate::Result<()>;
     /// Applies a planned step.
     fn apply(&mut self, x: &SVector<T, N>, sc: &Self::Scratch);
+    /// The planned step of one sample in the square-root form.
+    type SqrtScratch: Copy + core::fmt::Debug;
+    /// An empty square-root scratch.
+    fn sqrt_scratch() -> Self::SqrtScratch;
+    /// [`RowGroup::plan`] for the square-root form (Bierman's update).
+    fn plan_sqrt(&self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T], sc: &mut Self::SqrtScratch) -> bool;
+    /// [`RowGroup::check`] for the square-root form.
+    ///
+    /// # Errors
+    /// Overflow, or [`Error::Singular`] when the factors are not positive.
+    fn check_sqrt(&self, sc: &Self::SqrtScratch) -> crate::Result<()>;
+    /// Applies a step planned by [`RowGroup::plan_sqrt`].
+    fn apply_sqrt(&mut self, sc: &Self::SqrtScratch);
 }
 
 impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
@@ -307,15 +343,20 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
             return true;
         }
         (0..self.used).all(|k| {
-            if sc.go[k] == T::zero() || !(sc.reff[k] < super::row::risky::<T>() * sc.s[k]) {
+            if sc.go[k] == T::zero() || sc.reff[k] == T::zero() || !(sc.reff[k] < super::row::risky::<T>() * sc.s[k]) {
                 return true;
             }
             // Exactly the arithmetic of `apply`: the upper triangle, then mirrored.
             let mut p = SMatrix::<T, N, N>::zeros();
-            let coef = sc.w[k] - sc.fc[k];
+            let tracking = self.lambda < T::one() || self.drift > T::zero();
             for a in 0..N {
                 for b in a..N {
-                    let v = self.p[a][b][k] - sc.px[a][k] * (sc.px[b][k] * coef);
+                    let v = if tracking {
+                        let g = sc.px[b][k] * ((sc.w[k] - sc.fc[k]) * sc.scale[k]);
+                        self.p[a][b][k] * sc.scale[k] - sc.px[a][k] * g + if a == b { sc.add[k] } else { T::zero() }
+                    } else {
+                        self.p[a][b][k] - sc.px[a][k] * (sc.px[b][k] * sc.w[k])
+                    };
                     p[(a, b)] = v;
                     p[(b, a)] = v;
                 }
@@ -362,9 +403,11 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
     }
 
     /// The square-root form's plan (Bierman's update in every lane at once; see
-    /// [`RowIdentifier`]): the new factors into `sc.ud`, the gain numerator into `sc.px`.
-    #[inline(never)]
-    fn plan_ud(&self, x: &SVector<T, N>, ek: [T; L], sc: &mut LaneScratch<T, N, L>) -> bool {
+    /// [`RowIdentifier`]): Bierman's per-column quantities for `apply_ud`, the gain numerator (`P x`)
+    /// into `sc.px`; checks that the update cannot overflow.
+    #[inline(always)]
+    fn plan_ud(&self, x: &SVector<T, N>, ek: [T; L], ss: &mut SqrtScratch<T, N, L>) -> bool {
+        let sc = &mut ss.base;
         // f = Uᵀ x, v = D f.
         let mut f = [[T::zero(); L]; N];
         let mut v = [[T::zero(); L]; N];
@@ -394,47 +437,76 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
             }
             (sc.gated, sc.reff) = self.screen_lanes(ek, s0);
         }
+        // Lanes that step: active and not gated (the others keep their factors: ratio 1, p 0).
+        let mut act = [T::zero(); L];
+        for k in 0..L {
+            act[k] = if sc.gated[k] == T::zero() { self.active[k] } else { T::zero() };
+        }
         let mut alpha = sc.reff;
         let mut b = [[T::zero(); L]; N];
-        sc.ud = self.p;
-        let mut ok = true;
+        // The sweep over the columns: α_j = α_{j−1} + f_j v_j (non-decreasing: f_j v_j =
+        // D_j f_j² ≥ 0), one division per column (1/α_j serves D_j's factor and the next
+        // column's p). Written as arithmetic and selects on whole lanes, so that it vectorizes.
+        let mut inv_prev = [T::zero(); L];
+        for k in 0..L {
+            inv_prev[k] = if alpha[k] > T::zero() { T::one() / alpha[k] } else { T::zero() };
+        }
+        let mut pmax = [T::zero(); L];
+        let mut vmax = [T::zero(); L];
         for j in 0..N {
             let prev = alpha;
-            let mut pj = [T::zero(); L];
+            let mut inv = [T::zero(); L];
             for k in 0..L {
                 alpha[k] = prev[k] + f[j][k] * v[j][k];
-                let live = alpha[k] > T::zero();
-                ok &= alpha[k] >= T::zero() && alpha[k] <= T::biggest() && (live | (f[j][k] == T::zero()));
-                let ratio = if live { prev[k] / alpha[k] } else { T::one() };
-                sc.ud[j][j][k] = self.p[j][j][k] * ratio;
-                pj[k] = if live && prev[k] > T::zero() { -f[j][k] / prev[k] } else { T::zero() };
+                inv[k] = T::one() / alpha[k];
             }
+            for k in 0..L {
+                let live = alpha[k] > T::zero();
+                inv[k] = if live { inv[k] } else { T::zero() };
+                let step = act[k] != T::zero();
+                ss.ratio[j][k] = if step & live { prev[k] * inv[k] } else { T::one() };
+                ss.p[j][k] = if step { -f[j][k] * inv_prev[k] } else { T::zero() };
+            }
+            for k in 0..L {
+                pmax[k] = pmax[k].max(ss.p[j][k].abs());
+                vmax[k] = vmax[k].max(v[j][k].abs());
+            }
+            inv_prev = inv;
             for i in 0..j {
                 for k in 0..L {
-                    let u = self.p[i][j][k];
-                    sc.ud[i][j][k] = u + b[i][k] * pj[k];
-                    b[i][k] += u * v[j][k];
+                    b[i][k] += self.p[i][j][k] * v[j][k];
                 }
             }
             b[j] = v[j];
         }
-        // s = α_N; lanes with s = 0 (r = 0, nothing new along x) take no step, nor gated ones.
-        sc.go = self.active;
+        // α_N finite and ≥ 0 (it is when the factors are: D ≥ 0).
+        let mut ok = true;
         for k in 0..L {
-            let live = alpha[k] > T::zero() && sc.gated[k] == T::zero();
-            sc.go[k] = if live { sc.go[k] } else { T::zero() };
-            sc.s[k] = if live { alpha[k] } else { T::one() };
-            let go = sc.go[k] != T::zero();
-            sc.w[k] = if go { T::one() / sc.s[k] } else { T::zero() };
-            sc.c[k] = if go { ek[k] * sc.w[k] } else { T::zero() };
-            if !go {
-                // A lane that takes no step keeps its factors.
-                for a in 0..N {
-                    for bb in a..N {
-                        sc.ud[a][bb][k] = self.p[a][bb][k];
-                    }
+            ok &= (alpha[k] >= T::zero()) & (alpha[k] <= T::biggest());
+        }
+        ss.v = v;
+        // |U'_ij| ≤ |U_ij| + |b_i| |p_j| with |b_i| ≤ (1 + N max|U|) max|v|: bounded, so that
+        // `apply_sqrt`, which updates U in place, cannot overflow.
+        let mut umax = [T::zero(); L];
+        for j in 0..N {
+            for i in 0..j {
+                for k in 0..L {
+                    umax[k] = umax[k].max(self.p[i][j][k].abs());
                 }
             }
+        }
+        let mut bounded = [true; L];
+        for k in 0..L {
+            let bbound = (T::one() + T::of(N as f64) * umax[k]) * vmax[k];
+            bounded[k] = is_fin(umax[k] + bbound * pmax[k]);
+        }
+        // s = α_N; lanes with s = 0 (r = 0, nothing new along x) take no step, nor gated ones.
+        for k in 0..L {
+            let live = (alpha[k] > T::zero()) & (act[k] != T::zero());
+            sc.go[k] = if live { T::one() } else { T::zero() };
+            sc.s[k] = if live { alpha[k] } else { T::one() };
+            sc.w[k] = if live { T::one() / sc.s[k] } else { T::zero() };
+            sc.c[k] = if live { ek[k] * sc.w[k] } else { T::zero() };
         }
         sc.px = b;
         let mut st = [[T::zero(); L]; N];
@@ -450,26 +522,39 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
             ([T::zero(); L], [T::one(); L], [T::zero(); L])
         };
         for k in 0..L {
+            // A factor update that could overflow shows as a non-finite step (see `check`).
+            sc.step[k] = if bounded[k] { sc.step[k] } else { T::of(f64::INFINITY) };
             ok &= is_fin(sc.step[k]);
-            for a in 0..N {
-                for bb in a..N {
-                    ok &= is_fin(sc.ud[a][bb][k]);
-                }
-            }
         }
         ok
     }
 
     /// Applies the square-root plan: `θ += b c`, the new factors, then forgetting (`D ← D/λ`)
     /// and drift (Agee–Turner rank-one updates `+ q e_i e_iᵀ`) where the plan turned them on.
-    #[inline(never)]
-    fn apply_ud(&mut self, sc: &LaneScratch<T, N, L>) {
+    #[inline(always)]
+    fn apply_ud(&mut self, ss: &SqrtScratch<T, N, L>) {
+        let sc = &ss.base;
         for a in 0..N {
             for k in 0..L {
                 self.theta[a][k] += sc.px[a][k] * sc.c[k];
             }
         }
-        self.p = sc.ud;
+        // Bierman's column sweep, replayed in place with the plan's v, p and ratios: the same
+        // arithmetic as the plan's gain, so the same numbers.
+        let mut b = [[T::zero(); L]; N];
+        for j in 0..N {
+            for k in 0..L {
+                self.p[j][j][k] *= ss.ratio[j][k];
+            }
+            for i in 0..j {
+                for k in 0..L {
+                    let u = self.p[i][j][k];
+                    self.p[i][j][k] = u + b[i][k] * ss.p[j][k];
+                    b[i][k] += u * ss.v[j][k];
+                }
+            }
+            b[j] = ss.v[j];
+        }
         if self.lambda < T::one() && !self.directional {
             for j in 0..N {
                 for k in 0..L {
@@ -512,6 +597,7 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
 impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, L> {
     const LANES: usize = L;
     type Scratch = LaneScratch<T, N, L>;
+    type SqrtScratch = SqrtScratch<T, N, L>;
 
     fn padding() -> Self {
         let mut p = [[[T::zero(); L]; N]; N];
@@ -556,7 +642,6 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
             add: [T::zero(); L],
             gated: [T::zero(); L],
             reff: [T::zero(); L],
-            ud: [[[T::zero(); L]; N]; N],
         }
     }
 
@@ -674,9 +759,6 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
         sc.e = ek;
         let used = e.len().min(L);
         e[..used].copy_from_slice(&ek[..used]);
-        if self.form == CovarianceForm::Sqrt {
-            return self.plan_ud(x, ek, sc);
-        }
         // P x from the upper triangle, lane by lane, each sum pairwise.
         for a in 0..N {
             let mut col = [[T::zero(); L]; N];
@@ -703,12 +785,15 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
             }
         }
         let mut ok = true;
+        let mut risky = false;
+        let rk = super::row::risky::<T>();
         for k in 0..L {
             let s = sc.s[k];
             let inv = T::one() / s;
             let go = sc.go[k] != T::zero();
-            // A lane that steps needs 0 < s < inf.
+            // A lane that steps needs 0 < s < inf; r/s below √ε makes its downdate risky.
             ok &= !go | ((s > T::zero()) & (s <= T::biggest()));
+            risky |= go & (sc.reff[k] > T::zero()) & (sc.reff[k] < rk * s);
             sc.w[k] = if go { inv } else { T::zero() };
             sc.c[k] = if go { ek[k] * inv } else { T::zero() };
         }
@@ -719,10 +804,8 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
             }
         }
         sc.step = lane_sum(st);
-        let mut risky = false;
         for k in 0..L {
             ok &= is_fin(sc.step[k]);
-            risky |= (sc.go[k] != T::zero()) & (sc.reff[k] < super::row::risky::<T>() * sc.s[k]);
         }
         if self.lambda < T::one() || self.drift > T::zero() {
             let mut d = [[T::zero(); L]; N];
@@ -741,16 +824,17 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
 
     #[cold]
     fn check(&self, sc: &Self::Scratch) -> crate::Result<()> {
-        let sqrt = self.form == CovarianceForm::Sqrt;
         for k in 0..self.used {
-            if sc.go[k] == T::zero() && !sqrt {
+            if sc.go[k] == T::zero() {
                 continue;
             }
-            if !sc.s[k].finite() || !sc.step[k].finite() {
+            // s overflows through the state; a finite s with an infinite step, through the
+            // innovation.
+            if !sc.s[k].finite() {
                 return Err(OVERFLOW);
             }
-            if sqrt && (0..N).any(|a| (a..N).any(|b| !sc.ud[a][b][k].finite())) {
-                return Err(OVERFLOW);
+            if !sc.step[k].finite() {
+                return Err(overflow_culprit(sc.e[k], sc.xth[k]));
             }
             if !(sc.s[k] > T::zero()) {
                 return Err(Error::Singular {
@@ -759,15 +843,49 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
                 });
             }
         }
-        if sqrt {
-            return Err(Error::Singular {
-                what: "the innovation variance xᵀPx + r (the square-root factors are not positive)",
-            });
-        }
         if self.form == CovarianceForm::Standard && !self.downdates_stay_definite(sc) {
             return Err(super::row::LOST_DEFINITENESS);
         }
         Ok(())
+    }
+
+    fn sqrt_scratch() -> Self::SqrtScratch {
+        SqrtScratch { base: Self::scratch(), v: [[T::zero(); L]; N], p: [[T::zero(); L]; N], ratio: [[T::one(); L]; N] }
+    }
+
+    #[cold]
+    fn check_sqrt(&self, ss: &Self::SqrtScratch) -> crate::Result<()> {
+        let sc = &ss.base;
+        for k in 0..self.used {
+            if !sc.s[k].finite() {
+                return Err(OVERFLOW);
+            }
+            if !sc.step[k].finite() {
+                return Err(overflow_culprit(sc.e[k], sc.xth[k]));
+            }
+        }
+        Err(Error::Singular { what: "the innovation variance xᵀPx + r (the square-root factors are not positive)" })
+    }
+
+    #[inline(always)]
+    fn plan_sqrt(&self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T], ss: &mut Self::SqrtScratch) -> bool {
+        let sc = &mut ss.base;
+        sc.xth = lane_dot(&self.theta, x);
+        let mut ek = [T::zero(); L];
+        for k in 0..L {
+            let zk = z.as_slice().get(self.zrow[k]).copied().unwrap_or_else(T::zero);
+            ek[k] = zk - sc.xth[k];
+        }
+        sc.e = ek;
+        let used = e.len().min(L);
+        e[..used].copy_from_slice(&ek[..used]);
+        self.plan_ud(x, ek, ss)
+    }
+
+    #[inline(always)]
+    fn apply_sqrt(&mut self, ss: &Self::SqrtScratch) {
+        self.record(&ss.base);
+        self.apply_ud(ss);
     }
 
     #[inline(always)]
@@ -780,12 +898,15 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
                         self.theta[a][k] += sc.px[a][k] * sc.c[k];
                     }
                 }
-                // P_ab ← P_ab − (P x)_a (P x)_b (1/s − c) on the upper triangle (c: directional
-                // forgetting, 0 when off).
+                if self.lambda < T::one() || self.drift > T::zero() {
+                    self.downdate_tracking(sc);
+                    return;
+                }
+                // P_ab ← P_ab − (P x)_a (P x)_b / s on the upper triangle.
                 let mut g = [[T::zero(); L]; N];
                 for b in 0..N {
                     for k in 0..L {
-                        g[b][k] = sc.px[b][k] * (sc.w[k] - sc.fc[k]);
+                        g[b][k] = sc.px[b][k] * sc.w[k];
                     }
                 }
                 for a in 0..N {
@@ -794,9 +915,6 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
                             self.p[a][b][k] -= sc.px[a][k] * g[b][k];
                         }
                     }
-                }
-                if self.lambda < T::one() || self.drift > T::zero() {
-                    self.track(sc);
                 }
             }
             CovarianceForm::Joseph => {
@@ -807,20 +925,28 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
                 }
                 self.joseph(x, *sc);
             }
-            CovarianceForm::Sqrt => self.apply_ud(sc),
+            // Planned and applied by `plan_sqrt` / `apply_sqrt`.
+            CovarianceForm::Sqrt => {}
         }
     }
 }
 
 impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
-    /// Exponential forgetting and drift of the standard form after the downdate:
-    /// `P ← P · scale + add I`.
-    #[inline(never)]
-    fn track(&mut self, sc: &LaneScratch<T, N, L>) {
+    /// The standard form's downdate with tracking, in one pass over the upper triangle:
+    /// `P_ab ← P_ab·scale − (P x)_a (P x)_b (1/s − c)·scale`, then `+ add` on the diagonal
+    /// (exponential forgetting `scale = 1/λ`, directional forgetting `c`, drift `add`).
+    #[inline(always)]
+    fn downdate_tracking(&mut self, sc: &LaneScratch<T, N, L>) {
+        let mut g = [[T::zero(); L]; N];
+        for b in 0..N {
+            for k in 0..L {
+                g[b][k] = sc.px[b][k] * ((sc.w[k] - sc.fc[k]) * sc.scale[k]);
+            }
+        }
         for a in 0..N {
             for b in a..N {
                 for k in 0..L {
-                    self.p[a][b][k] *= sc.scale[k];
+                    self.p[a][b][k] = self.p[a][b][k] * sc.scale[k] - sc.px[a][k] * g[b][k];
                 }
             }
             for k in 0..L {

@@ -402,6 +402,9 @@ fn the_standard_form_refuses_a_sample_that_would_break_positive_definiteness() {
     }
     sqrt_form.update(&x, &z).unwrap();
     for i in 0..2 {
-        assert!(super::row::positive_definite(&sqrt_form.filter(i).p()));
+        // The factors stay positive (the product P may not factor numerically: its condition
+        // is now about 1e20, which is why P is kept factored).
+        let m = sqrt_form.filter(i).m;
+        assert!((0..4).all(|j| m[(j, j)] > 0.0), "D > 0");
     }
 }

@@ -416,7 +416,7 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
                     }
                 }
                 symmetrize(&mut next);
-                if r_eff < risky::<T>() * s && !positive_definite(&next) {
+                if r_eff > T::zero() && r_eff < risky::<T>() * s && !positive_definite(&next) {
                     return Err(LOST_DEFINITENESS);
                 }
                 self.m = next;
@@ -638,7 +638,8 @@ pub(crate) fn screen<T: Real, const N: usize>(gate: T, huber: T, nobs: T, ssr: T
 /// A sample is risky for the standard form when `r / s` is below this (`√ε`): it carries so
 /// much information relative to its noise that the downdate `P − P x xᵀ P / s` cancels to
 /// rounding level along `x`. The downdated covariance is then checked (Cholesky) before the
-/// update is accepted.
+/// update is accepted. (Noise-free rows, `r = 0`, are exempt: their `P` becomes singular by
+/// design, and directions already learned take no further step.)
 pub(crate) fn risky<T: Real>() -> T {
     T::default_epsilon().sqrt()
 }

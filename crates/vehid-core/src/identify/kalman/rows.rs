@@ -1,7 +1,7 @@
 //! The decoupled (`rows`) form.
 
 use super::lanes::{finite_probe, RowGroup};
-use super::{KalmanOptions, RowIdentifier};
+use super::{CovarianceForm, KalmanOptions, RowIdentifier};
 #[cfg(feature = "alloc")]
 use crate::identify::Dynamic;
 use crate::identify::{
@@ -22,6 +22,8 @@ pub struct KalmanRows<T: Real, const N: usize, S: Store<T, N>> {
     /// The planned step of the sample being processed, one per group (used when the plan
     /// does not stay in registers).
     pub(super) scratch: S::Scratches,
+    /// The same for the square-root form (empty in the other forms).
+    sqrt_scratch: S::SqrtScratches,
     opts: KalmanOptions<T>,
     reinit_count: u32,
     samples: u64,
@@ -103,6 +105,11 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
             rows,
             groups: S::Groups::filled("unknown_rows", n_groups, S::Group::padding())?,
             scratch: S::Scratches::filled("unknown_rows", n_groups, S::Group::scratch())?,
+            sqrt_scratch: S::SqrtScratches::filled(
+                "unknown_rows",
+                if opts.form == CovarianceForm::Sqrt { n_groups } else { 0 },
+                S::Group::sqrt_scratch(),
+            )?,
             opts,
             reinit_count: 0,
             samples: 0,
@@ -227,7 +234,10 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
             additions: k * (N * N + 2 * N + tri),
             divisions: k,
             square_roots: 0,
-            bytes: core::mem::size_of_val(self) + self.groups.heap_bytes() + self.scratch.heap_bytes(),
+            bytes: core::mem::size_of_val(self)
+                + self.groups.heap_bytes()
+                + self.scratch.heap_bytes()
+                + self.sqrt_scratch.heap_bytes(),
         }
     }
 
@@ -262,14 +272,17 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
     /// The update: plan every group, then apply (a failure anywhere changes nothing).
     #[inline(always)]
     fn step(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
+        if self.groups.flat().first().is_some_and(|g| g.starting()) {
+            return self.absorb(x, z, e);
+        }
+        if self.opts.form == CovarianceForm::Sqrt {
+            return self.step_sqrt(x, z, e);
+        }
         let k = e.len();
         let lanes = <S::Group as RowGroup<T, N>>::LANES;
         let probe = finite_probe(x, z);
         let mut ok = probe == T::zero();
         let groups = self.groups.flat_mut();
-        if groups.first().is_some_and(|g| g.starting()) {
-            return self.absorb(x, z, e);
-        }
         // One group (every Fixed<K> store, and up to DYNAMIC_LANES rows) plans on the stack;
         // several groups plan into their scratch, all before any applies.
         if let [grp] = &mut *groups {
@@ -299,6 +312,48 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         }
         for (grp, sc) in groups.iter_mut().zip(scratch.iter()) {
             grp.apply(x, sc);
+        }
+        self.accepted(e)
+    }
+
+    /// [`Self::step`] for the square-root form (a separate path with its own scratch, inlined
+    /// into both the portable and the AVX2 copy of the update).
+    #[inline(always)]
+    fn step_sqrt(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
+        let k = e.len();
+        let lanes = <S::Group as RowGroup<T, N>>::LANES;
+        let probe = finite_probe(x, z);
+        let mut ok = probe == T::zero();
+        let groups = self.groups.flat_mut();
+        // One group (every Fixed<K> store, and up to DYNAMIC_LANES rows) plans on the stack;
+        // several groups plan into their scratch, all before any applies.
+        if let [grp] = &mut *groups {
+            let mut sc = S::Group::sqrt_scratch();
+            ok &= grp.plan_sqrt(x, z, e, &mut sc);
+            if !ok {
+                check_sample(x, z)?;
+                let copy = sc; // a reference to `sc` itself would keep it in memory
+                grp.check_sqrt(&copy)?;
+                return Err(OVERFLOW);
+            }
+            grp.apply_sqrt(&sc);
+            return self.accepted(e);
+        }
+        let scratch = self.sqrt_scratch.flat_mut();
+        for (g, (grp, sc)) in groups.iter().zip(scratch.iter_mut()).enumerate() {
+            let lo = g * lanes;
+            let hi = (lo + lanes).min(k);
+            ok &= grp.plan_sqrt(x, z, &mut e[lo..hi], sc);
+        }
+        if !ok {
+            check_sample(x, z)?;
+            for (grp, sc) in groups.iter().zip(scratch.iter()) {
+                grp.check_sqrt(sc)?;
+            }
+            return Err(OVERFLOW);
+        }
+        for (grp, sc) in groups.iter_mut().zip(scratch.iter()) {
+            grp.apply_sqrt(sc);
         }
         self.accepted(e)
     }
