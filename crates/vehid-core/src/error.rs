@@ -51,6 +51,12 @@ pub enum Error {
         /// Rank required (the number of states).
         needed: usize,
     },
+    /// One stored sample dominates a batch regression (its state is more than 1e6 times the
+    /// typical one), so that the others cannot be resolved: an outlier to remove.
+    Dominated {
+        /// Index of the sample (0-based, in the order stored).
+        sample: usize,
+    },
     /// A matrix that must be invertible or positive definite is not (numerically).
     Singular {
         /// What was being factorized.
@@ -121,6 +127,11 @@ impl fmt::Display for Error {
                  initial state, or a richer input"
             ),
             Error::Singular { what } => write!(f, "{what} is singular or not positive definite"),
+            Error::Dominated { sample } => write!(
+                f,
+                "sample {sample} dominates the regression (its state is more than 1e6 times the typical one): an \
+                 outlier; remove it (remove({sample})) and solve again"
+            ),
             Error::Unstable { what } => {
                 write!(f, "{what} does not exist: the model has a pole with non-negative real part")
             }

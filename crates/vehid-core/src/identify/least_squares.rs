@@ -237,6 +237,11 @@ impl<T: Real, const N: usize> BatchLeastSquares<T, N> {
         let tol = (l.max(N) as f64) * f64::EPSILON * r00;
         let rank = (0..N).filter(|&i| r[(i, i)].abs() > tol).count();
         if r00 == 0.0 || rank < N {
+            // One sample far larger than the rest makes the others look like rounding: say
+            // which, rather than "not enough excitation" (more samples would not help).
+            if let Some(sample) = self.dominating_sample() {
+                return Err(Error::Dominated { sample });
+            }
             return Err(Error::RankDeficient { rank, needed: N });
         }
         let sol = qr.solve_lstsq(&zm);
@@ -251,6 +256,39 @@ impl<T: Real, const N: usize> BatchLeastSquares<T, N> {
             }
         }
         Ok(out)
+    }
+
+    /// The stored sample whose state is more than `1e6` times the median state norm, if one
+    /// is (the largest): an outlier that dominates the regression.
+    pub fn dominating_sample(&self) -> Option<usize> {
+        let norms: std::vec::Vec<f64> = self
+            .x
+            .chunks_exact(N.max(1))
+            .map(|row| row.iter().map(|v| v.to_f64() * v.to_f64()).sum::<f64>().sqrt())
+            .collect();
+        if norms.is_empty() {
+            return None;
+        }
+        let mut sorted = norms.clone();
+        let mid = sorted.len() / 2;
+        let median = *sorted.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1;
+        let (i, max) = norms.iter().enumerate().fold((0, 0.0f64), |b, (i, v)| if *v > b.1 { (i, *v) } else { b });
+        (max > 1e6 * median).then_some(i)
+    }
+
+    /// Removes stored sample `index` (0-based, in the order stored), e.g. an outlier that
+    /// [`Error::Dominated`] named.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] (argument `index`) when there is no such sample.
+    pub fn remove(&mut self, index: usize) -> Result<()> {
+        if index >= self.samples() {
+            return Err(Error::InvalidArgument { arg: "index", expected: "the index of a stored sample (0-based)" });
+        }
+        let k = self.rows.len();
+        self.x.drain(index * N..(index + 1) * N);
+        self.z.drain(index * k..(index + 1) * k);
+        Ok(())
     }
 
     /// Drops the stored samples (keeps the rows).
