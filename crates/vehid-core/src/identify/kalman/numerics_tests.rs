@@ -408,3 +408,29 @@ fn the_standard_form_refuses_a_sample_that_would_break_positive_definiteness() {
         assert!((0..4).all(|j| m[(j, j)] > 0.0), "D > 0");
     }
 }
+
+#[test]
+fn batch_least_squares_names_a_dominating_outlier_and_can_remove_it() {
+    use crate::identify::BatchLeastSquares;
+    let data = regression(12, 100, [1.0; 4], 0.1);
+    let mut ls = BatchLeastSquares::<f64, 4>::new(&[1, 3]).unwrap();
+    for (x, z) in &data[..60] {
+        ls.push(x, z).unwrap();
+    }
+    let (mut x, z) = data[60];
+    x[0] = 1e20;
+    ls.push(&x, &z).unwrap();
+    for (x, z) in &data[61..] {
+        ls.push(x, z).unwrap();
+    }
+    assert_eq!(ls.solve(), Err(Error::Dominated { sample: 60 }));
+    ls.remove(60).unwrap();
+    let mut clean = BatchLeastSquares::<f64, 4>::new(&[1, 3]).unwrap();
+    for (i, (x, z)) in data.iter().enumerate() {
+        if i != 60 {
+            clean.push(x, z).unwrap();
+        }
+    }
+    assert_eq!(ls.solve().unwrap(), clean.solve().unwrap());
+    assert!(ls.remove(1000).is_err());
+}
