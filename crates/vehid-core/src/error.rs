@@ -122,9 +122,9 @@ impl fmt::Display for Error {
             }
             Error::RankDeficient { rank, needed } => write!(
                 f,
-                "every unknown row of A lacks excitation: the measured states span only {rank} of \
-                 {needed} directions (they share the regressors x(k)); use more samples, a nonzero \
-                 initial state, or a richer input"
+                "the data lacks excitation: the regressors so far span only {rank} of the {needed} \
+                 directions the estimate needs; use more samples, a nonzero initial state, or a richer \
+                 input"
             ),
             Error::Singular { what } => write!(f, "{what} is singular or not positive definite"),
             Error::Dominated { sample } => write!(

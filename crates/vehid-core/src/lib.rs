@@ -83,6 +83,7 @@ pub mod sampler;
 mod scalar;
 pub mod sim;
 pub mod simd;
+pub mod structure;
 
 pub use error::{Error, Result};
 pub use nalgebra;

@@ -5,6 +5,7 @@
 //! | [`BatchLeastSquares`] (std), [`LsAccumulator`] | Eq 2.14, 3.4 | `least_squares.rs` |
 //! | [`KalmanIdentifier`] (decoupled rows), [`SharedKalmanIdentifier`], [`FullKalmanIdentifier`] | Eq 4.3–4.7, 4.35–4.36, 6.16–6.18 | `kalman/` |
 //! | [`StochasticGradient`] | Eq 2.56, 5.2–5.18 | `gradient.rs` |
+//! | [`Structured`] (any [`crate::structure::Structure`]: grey-box models linear in their parameters) | Eq 2.2–2.4, 6.16–6.18 | `structured.rs` |
 //! | [`TwoAxleIdentifier`] (two axles on one road: plain, Eq 6.14, road cancellation) | Eq 6.9, 6.12–6.14 | `two_axle.rs` |
 //!
 //! All of them regress the measured derivative of each unknown row on the measured state:
@@ -34,6 +35,7 @@ mod interface;
 mod kalman;
 mod least_squares;
 mod store;
+mod structured;
 mod two_axle;
 
 #[cfg(feature = "alloc")]
@@ -55,6 +57,9 @@ pub use kalman::{
 pub use least_squares::BatchLeastSquares;
 pub use least_squares::LsAccumulator;
 pub use store::{Dynamic, Fixed, Flat, NoScratch, Store, DYNAMIC_LANES};
+#[cfg(feature = "alloc")]
+pub use structured::StructuredKalmanVec;
+pub use structured::{Structured, StructuredKalman, StructuredPrior};
 #[cfg(feature = "alloc")]
 pub use two_axle::TwoAxleIdentifierVec;
 pub use two_axle::{Past, TwoAxle, TwoAxleConfig, TwoAxleIdentifier, WheelMethod};

@@ -325,7 +325,7 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
         let mut gated = [T::zero(); L];
         let mut reff = self.r;
         for k in 0..L {
-            match super::row::screen::<T, N>(self.gate, self.huber, self.nobs[k], self.ssr[k], self.r[k], e[k], s[k]) {
+            match super::row::screen(self.gate, self.huber, self.nobs[k], self.ssr[k], self.r[k], e[k], s[k], N) {
                 Some(r) => reff[k] = r,
                 None => gated[k] = T::one(),
             }
@@ -361,7 +361,7 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
                     p[(b, a)] = v;
                 }
             }
-            super::row::positive_definite(&p)
+            super::row::positive_definite(&p, N)
         })
     }
 
@@ -684,6 +684,7 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
             ssr: self.ssr[k],
             nobs: self.nobs[k],
             s: self.s[k],
+            dim: N as u8,
         }
     }
 

@@ -282,7 +282,7 @@ fn rejected_samples_change_nothing_in_the_new_forms() {
 #[test]
 fn ud_factors_round_trip() {
     let a = SMatrix::<f64, 4, 4>::new(4.0, 1.0, 0.5, 0.2, 1.0, 3.0, 0.1, 0.3, 0.5, 0.1, 2.0, 0.4, 0.2, 0.3, 0.4, 1.5);
-    let ud = super::row::ud_factor(&a).unwrap();
+    let ud = super::row::ud_factor(&a, 4).unwrap();
     let back = super::row::ud_product(&ud);
     assert!((back - a).abs().max() < 1e-14);
     assert!((super::row::ud_trace(&ud) - a.trace()).abs() < 1e-14);
@@ -392,13 +392,13 @@ fn the_standard_form_refuses_a_sample_that_would_break_positive_definiteness() {
         Ok(_) => {
             // Accepted only if the result stayed positive definite.
             for i in 0..2 {
-                assert!(super::row::positive_definite(&std_form.filter(i).p()));
+                assert!(super::row::positive_definite(&std_form.filter(i).p(), 4));
             }
         }
         Err(e) => panic!("{e}"),
     }
     if std_form.filter(0) != before.0 {
-        assert!(super::row::positive_definite(&std_form.filter(0).p()));
+        assert!(super::row::positive_definite(&std_form.filter(0).p(), 4));
     }
     sqrt_form.update(&x, &z).unwrap();
     for i in 0..2 {

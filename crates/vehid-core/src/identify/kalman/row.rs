@@ -64,12 +64,15 @@ pub struct RowIdentifier<T: Real, const N: usize> {
     pub(super) ssr: T,
     pub(super) nobs: T,
     pub(super) s: T,
+    /// Parameters in use: the leading `dim ≤ N` (a structure's smaller groups share one `N`);
+    /// the rest of `θ` and of the matrix stays 0.
+    pub(super) dim: u8,
 }
 
 /// Relative size below which a diagonal entry of the exact start's `R` counts as zero
-/// (`√ε · N`): the start ends when every direction is identified that well.
-fn start_tol<T: Real, const N: usize>() -> T {
-    T::default_epsilon().sqrt() * T::of(N as f64)
+/// (`√ε · d` for `d` parameters): the start ends when every direction is identified that well.
+fn start_tol<T: Real>(d: usize) -> T {
+    T::default_epsilon().sqrt() * T::of(d as f64)
 }
 
 impl<T: Real, const N: usize> RowIdentifier<T, N> {
@@ -91,7 +94,41 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
             ssr: T::zero(),
             nobs: T::zero(),
             s: T::zero(),
+            dim: N as u8,
         }
+    }
+
+    /// Parameters in use (`N` unless [`RowIdentifier::restricted`]).
+    #[inline(always)]
+    pub fn dim(&self) -> usize {
+        self.dim as usize
+    }
+
+    /// The same filter on the leading `d` parameters only (`1 ≤ d ≤ N`): the others are
+    /// fixed at 0 with no uncertainty, and regressors must be 0 there. Lets one `N` serve
+    /// several smaller problems (the groups of a [`crate::structure::Structure`]).
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for `d` out of range.
+    pub fn restricted(mut self, d: usize) -> Result<Self> {
+        if d == 0 || d > N {
+            return Err(Error::InvalidArgument { arg: "dim", expected: "between 1 and the filter's N parameters" });
+        }
+        for a in 0..N {
+            for b in 0..N {
+                if a >= d || b >= d {
+                    self.m[(a, b)] = T::zero();
+                }
+            }
+            if a >= d {
+                self.theta[a] = T::zero();
+            }
+        }
+        self.dim = d as u8;
+        if self.cap != T::zero() && !self.start && self.tracking() {
+            self.cap = self.trace();
+        }
+        Ok(self)
     }
 
     /// A row filter with `θ̂(0) = 0`, `P(0) = p0 I` and measurement variance `r`.
@@ -150,7 +187,7 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
         if !self.start && form != self.form {
             let p = self.p();
             self.m = match form {
-                CovarianceForm::Sqrt => ud_factor(&p)?,
+                CovarianceForm::Sqrt => ud_factor(&p, self.dim())?,
                 _ => p,
             };
         }
@@ -178,14 +215,27 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
     }
 
     /// During an exact start, the number of directions the samples so far identify (the
-    /// numerical rank of their regressors); `N` otherwise.
+    /// numerical rank of their regressors); [`RowIdentifier::dim`] otherwise.
     pub fn start_rank(&self) -> usize {
+        let d = self.dim();
         if !self.start {
-            return N;
+            return d;
         }
-        let big = (0..N).fold(T::zero(), |a, j| a.max(self.m[(j, j)].abs()));
-        let tol = start_tol::<T, N>() * big;
-        (0..N).filter(|&j| big > T::zero() && self.m[(j, j)].abs() > tol).count()
+        let big = (0..d).fold(T::zero(), |a, j| a.max(self.m[(j, j)].abs()));
+        let tol = start_tol::<T>(d) * big;
+        (0..d).filter(|&j| big > T::zero() && self.m[(j, j)].abs() > tol).count()
+    }
+
+    /// During an exact start, whether parameter `j` is not yet identified: its column of the
+    /// triangular factor adds nothing beyond the earlier columns (it is a combination of them
+    /// in the data so far). `false` once filtering.
+    pub fn unidentified(&self, j: usize) -> bool {
+        let d = self.dim();
+        if !self.start || j >= d {
+            return false;
+        }
+        let big = (0..d).fold(T::zero(), |a, i| a.max(self.m[(i, i)].abs()));
+        !(big > T::zero() && self.m[(j, j)].abs() > start_tol::<T>(d) * big)
     }
 
     /// Current estimate `θ̂` of the row. During an exact start, before every parameter is
@@ -218,6 +268,11 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
             CovarianceForm::Sqrt => ud_trace(&self.m),
             _ => self.m.trace(),
         }
+    }
+
+    /// The forgetting factor λ (1: none).
+    pub fn forgetting(&self) -> T {
+        self.lambda
     }
 
     /// Measurement variance `r` in use (doubled by each reinitialization).
@@ -274,7 +329,7 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
         }
         self.m = match self.form {
             // P + 9 diag(P) is positive definite when P is: the factorization succeeds.
-            CovarianceForm::Sqrt => ud_factor(&p).unwrap_or(self.m),
+            CovarianceForm::Sqrt => ud_factor(&p, self.dim()).unwrap_or(self.m),
             _ => p,
         };
         self.r *= T::of(2.0);
@@ -354,14 +409,14 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
     fn add_drift(&mut self) {
         match self.form {
             CovarianceForm::Sqrt => {
-                for i in 0..N {
+                for i in 0..self.dim() {
                     let mut a = SVector::<T, N>::zeros();
                     a[i] = T::one();
                     ud_rank_one(&mut self.m, self.drift, a);
                 }
             }
             _ => {
-                for j in 0..N {
+                for j in 0..self.dim() {
                     self.m[(j, j)] += self.drift;
                 }
             }
@@ -416,7 +471,7 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
                     }
                 }
                 symmetrize(&mut next);
-                if r_eff > T::zero() && r_eff < risky::<T>() * s && !positive_definite(&next) {
+                if r_eff > T::zero() && r_eff < risky::<T>() * s && !positive_definite(&next, self.dim()) {
                     return Err(LOST_DEFINITENESS);
                 }
                 self.m = next;
@@ -449,7 +504,7 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
         let s = (0..N).fold(self.r, |a, j| a + f[j] * v[j]);
         let r_eff = if s > T::zero() && s.finite() {
             let (gate, huber, nobs, ssr, r) = (self.gate, self.huber, self.nobs, self.ssr, self.r);
-            match screen::<T, N>(gate, huber, nobs, ssr, r, e, s) {
+            match screen(gate, huber, nobs, ssr, r, e, s, self.dim as usize) {
                 Some(r_eff) => r_eff,
                 None => {
                     self.gated += 1;
@@ -514,7 +569,7 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
     /// The outlier screen of a sample with innovation `e` and variance `s`: `None` when the
     /// gate rejects it, else the variance to use (`r`, or `r` scaled up by the Huber weight).
     fn screen(&self, e: T, s: T) -> Option<T> {
-        screen::<T, N>(self.gate, self.huber, self.nobs, self.ssr, self.r, e, s)
+        screen(self.gate, self.huber, self.nobs, self.ssr, self.r, e, s, self.dim())
     }
 
     /// Accumulates the statistics of an accepted update with innovation `e`, variance `s`.
@@ -530,6 +585,7 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
     /// `R` identifies every direction, switches to filtering.
     fn absorb(&mut self, x: &SVector<T, N>, z: T) -> Result<()> {
         let mut next = *self;
+        let d = next.dim();
         let (rm, c) = (&mut next.m, &mut next.theta);
         let mut row = *x;
         let mut rhs = z;
@@ -559,9 +615,9 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
         next.ssr += rhs * rhs;
         next.nobs += T::one();
         // Identified: every diagonal entry of R clearly non-zero.
-        let big = (0..N).fold(T::zero(), |a, j| a.max(rm[(j, j)].abs()));
-        let tol = start_tol::<T, N>() * big;
-        if big > T::zero() && (0..N).all(|j| rm[(j, j)].abs() > tol) {
+        let big = (0..d).fold(T::zero(), |a, j| a.max(rm[(j, j)].abs()));
+        let tol = start_tol::<T>(d) * big;
+        if big > T::zero() && (0..d).all(|j| rm[(j, j)].abs() > tol) {
             next.finish_start();
         }
         *self = next;
@@ -572,8 +628,9 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
     fn finish_start(&mut self) {
         // S = R⁻¹ (upper triangular), by back substitution column by column.
         let rm = self.m;
+        let d = self.dim();
         let mut sm = SMatrix::<T, N, N>::zeros();
-        for col in 0..N {
+        for col in 0..d {
             for i in (0..=col).rev() {
                 let mut v = if i == col { T::one() } else { T::zero() };
                 for k in (i + 1)..=col {
@@ -587,7 +644,7 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
             // P = r S Sᵀ = U D Uᵀ with U = S diag(1/s_bb), D = r diag(s_bb²).
             CovarianceForm::Sqrt => {
                 let mut ud = SMatrix::<T, N, N>::zeros();
-                for b in 0..N {
+                for b in 0..d {
                     let sbb = sm[(b, b)];
                     for a in 0..b {
                         ud[(a, b)] = sm[(a, b)] / sbb;
@@ -617,11 +674,12 @@ pub(crate) const SCREEN_WARMUP: f64 = 50.0;
 /// else the variance `r` to use (scaled up by the Huber weight). The recursive residual is
 /// `w² = e² r / s`; `σ̂² = ssr / (nobs − N)` estimates its variance.
 #[inline(always)]
-pub(crate) fn screen<T: Real, const N: usize>(gate: T, huber: T, nobs: T, ssr: T, r: T, e: T, s: T) -> Option<T> {
-    if (gate == T::zero() && huber == T::zero()) || nobs < T::of(N as f64 + SCREEN_WARMUP) {
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn screen<T: Real>(gate: T, huber: T, nobs: T, ssr: T, r: T, e: T, s: T, params: usize) -> Option<T> {
+    if (gate == T::zero() && huber == T::zero()) || nobs < T::of(params as f64 + SCREEN_WARMUP) {
         return Some(r);
     }
-    let sigma2 = ssr / (nobs - T::of(N as f64));
+    let sigma2 = ssr / (nobs - T::of(params as f64));
     if !(sigma2 > T::zero()) {
         return Some(r); // noise-free so far: no scale to judge by
     }
@@ -650,11 +708,17 @@ pub(crate) const LOST_DEFINITENESS: Error = Error::Singular {
            informative far beyond its noise r; use form='sqrt', which cannot, or p0='exact' / a smaller p0)",
 };
 
-/// `true` when the symmetric `p` is numerically positive definite (its Cholesky factorization
-/// exists).
-pub(crate) fn positive_definite<T: Real, const N: usize>(p: &SMatrix<T, N, N>) -> bool {
-    let mut l = *p;
-    cholesky_in_place(l.as_mut_slice(), N)
+/// `true` when the leading `d × d` block of the symmetric `p` is numerically positive
+/// definite (its Cholesky factorization exists).
+pub(crate) fn positive_definite<T: Real, const N: usize>(p: &SMatrix<T, N, N>, d: usize) -> bool {
+    let mut l = SMatrix::<T, N, N>::zeros();
+    let buf = l.as_mut_slice();
+    for b in 0..d {
+        for a in 0..d {
+            buf[b * d + a] = p[(a, b)];
+        }
+    }
+    cholesky_in_place(&mut buf[..d * d], d)
 }
 
 /// `√(a² + b²)` without overflow or underflow in the squares.
@@ -668,15 +732,16 @@ fn hypot<T: Real>(a: T, b: T) -> T {
     big * (T::one() + q * q).sqrt()
 }
 
-/// `U D Uᵀ` factors of a symmetric positive definite `P` (packed: `U` above the diagonal,
-/// `D` on it), by the backward recursion of Bierman (1977, §III).
+/// `U D Uᵀ` factors of the leading `d × d` block of a symmetric positive definite `P`
+/// (packed: `U` above the diagonal, `D` on it; 0 beyond the block), by the backward recursion
+/// of Bierman (1977, §III).
 ///
 /// # Errors
-/// [`Error::Singular`] when `P` is not positive definite.
-pub(crate) fn ud_factor<T: Real, const N: usize>(p: &SMatrix<T, N, N>) -> Result<SMatrix<T, N, N>> {
+/// [`Error::Singular`] when the block is not positive definite.
+pub(crate) fn ud_factor<T: Real, const N: usize>(p: &SMatrix<T, N, N>, d: usize) -> Result<SMatrix<T, N, N>> {
     let mut p = *p;
     let mut ud = SMatrix::<T, N, N>::zeros();
-    for j in (0..N).rev() {
+    for j in (0..d).rev() {
         let d = p[(j, j)];
         if !(d > T::zero()) || !d.finite() {
             return Err(Error::Singular {

@@ -1,0 +1,664 @@
+//! The text form of a [`Structure`] (std): names for states, inputs and parameters, and
+//! equations such as `"a*tau - b*v - c*sign(v) - d"` or `"-k2_M*(qb - qw) - b_M*(vb - vw)"`.
+//!
+//! Grammar (whitespace is free):
+//! ```text
+//! expr    := ['+' | '-'] product (('+' | '-') product)*
+//! product := factor (('*' | '/') factor)*          '/' only by a number
+//! factor  := number | name | '(' expr ')' | f '(' expr ')'     f ∈ sign, pos, neg, der
+//! ```
+//! A name is a state, an input, or else a parameter (in order of first appearance, unless
+//! the parameters are declared). Products are expanded, so `k*(x - y)` is `k*x - k*y`; every
+//! resulting term must be `number × [parameter] × [basis]` with at most one parameter and one
+//! basis (a state, an input, `der(state)`, or `sign`/`pos`/`neg` of a linear combination of
+//! states, inputs and derivatives): the model stays linear in its parameters.
+
+use super::{Basis, Structure, Term, Var, MAX_COMBINATION, MAX_PARAMS, MAX_TERMS};
+use crate::Real;
+use std::string::{String, ToString};
+use std::vec::Vec;
+use std::{format, vec};
+
+/// A structure's names: states, inputs, parameters, and the states whose equations are
+/// identified (in order) — everything the numeric [`Structure`] leaves out.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct Names {
+    /// State names, in state order.
+    pub states: Vec<String>,
+    /// Measured input names.
+    pub inputs: Vec<String>,
+    /// Parameter names, in parameter order.
+    pub params: Vec<String>,
+}
+
+/// A structure that could not be built: which item (`"equation for v"`, `"states"`, …) and
+/// what is wrong with it, in words that say how to fix it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct StructureError {
+    /// The item at fault.
+    pub item: String,
+    /// What is wrong, and the fix.
+    pub message: String,
+}
+
+impl core::fmt::Display for StructureError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "{}: {}", self.item, self.message)
+    }
+}
+
+impl std::error::Error for StructureError {}
+
+fn err<R>(item: &str, message: impl Into<String>) -> Result<R, StructureError> {
+    Err(StructureError { item: item.to_string(), message: message.into() })
+}
+
+/// Builds a [`Structure`] from names and equation texts.
+///
+/// # Examples
+/// A mass on a rail with a measured force `tau`, viscous and Coulomb friction and an offset:
+/// ```
+/// use vehid_core::structure::StructureBuilder;
+/// let (s, names) = StructureBuilder::new(&["q", "v"], &["tau"])
+///     .equation("v", "a*tau - b*v - c*sign(v) - d")
+///     .known("q", "v")
+///     .build::<f64>()?;
+/// assert_eq!(names.params, ["a", "b", "c", "d"]);
+/// assert_eq!((s.params(), s.equations(), s.known_equations()), (4, 1, 1));
+/// # Ok::<(), vehid_core::structure::StructureError>(())
+/// ```
+#[derive(Debug, Clone, Default)]
+pub struct StructureBuilder {
+    states: Vec<String>,
+    inputs: Vec<String>,
+    params: Option<Vec<String>>,
+    equations: Vec<(String, String)>,
+    known: Vec<(String, String)>,
+}
+
+impl StructureBuilder {
+    /// A builder over these state and input names.
+    pub fn new<S: AsRef<str>>(states: &[S], inputs: &[S]) -> Self {
+        Self {
+            states: states.iter().map(|s| s.as_ref().to_string()).collect(),
+            inputs: inputs.iter().map(|s| s.as_ref().to_string()).collect(),
+            ..Self::default()
+        }
+    }
+
+    /// Declares the parameters (their order fixes the parameter vector); any other name in an
+    /// equation is then an error instead of a new parameter.
+    pub fn parameters<S: AsRef<str>>(mut self, names: &[S]) -> Self {
+        self.params = Some(names.iter().map(|s| s.as_ref().to_string()).collect());
+        self
+    }
+
+    /// An identified equation: the derivative of `state` is `text`.
+    pub fn equation(mut self, state: &str, text: &str) -> Self {
+        self.equations.push((state.to_string(), text.to_string()));
+        self
+    }
+
+    /// A known (parameter-free) equation, used when simulating.
+    pub fn known(mut self, state: &str, text: &str) -> Self {
+        self.known.push((state.to_string(), text.to_string()));
+        self
+    }
+
+    /// Parses everything and checks the structure ([`Structure::check_identifiable`]).
+    ///
+    /// # Errors
+    /// [`StructureError`] naming the item: a bad or repeated name, a syntax error (with the
+    /// position), a product of two parameters or two variables, an unused or confounded
+    /// parameter, capacities exceeded.
+    pub fn build<T: Real>(&self) -> Result<(Structure<T>, Names), StructureError> {
+        check_names("states", &self.states)?;
+        check_names("inputs", &self.inputs)?;
+        for s in &self.inputs {
+            if self.states.contains(s) {
+                return err("inputs", format!("'{s}' is also a state: give inputs and states different names"));
+            }
+        }
+        if self.states.is_empty() {
+            return err("states", "at least one state is needed");
+        }
+        if let Some(p) = &self.params {
+            check_names("parameters", p)?;
+            if let Some(s) = p.iter().find(|p| self.states.contains(p) || self.inputs.contains(p)) {
+                return err("parameters", format!("'{s}' is also a state or input name"));
+            }
+        }
+        if self.equations.is_empty() {
+            return err("equations", "at least one identified equation is needed");
+        }
+        let mut ctx = Ctx {
+            states: &self.states,
+            inputs: &self.inputs,
+            params: self.params.clone().unwrap_or_default(),
+            fixed: self.params.is_some(),
+        };
+        // Parse everything first (parameters get their indices in order of appearance).
+        let mut parsed = Vec::new();
+        for (state, text) in &self.equations {
+            let item = format!("equation for {state}");
+            let si = state_index(&self.states, state, &item)?;
+            let poly = ctx.parse(text, &item, true)?;
+            if poly.iter().all(|m| m.param.is_none()) {
+                return err(&item, "no parameter in this equation: put parameter-free equations under known");
+            }
+            parsed.push((si, poly, item));
+        }
+        for (state, text) in &self.known {
+            let item = format!("known equation for {state}");
+            let si = state_index(&self.states, state, &item)?;
+            let poly = ctx.parse(text, &item, false)?;
+            parsed.push((si, poly, item));
+        }
+        if ctx.params.len() > MAX_PARAMS {
+            return err("equations", format!("{} parameters; at most {MAX_PARAMS} are supported", ctx.params.len()));
+        }
+        let mut s = Structure::<T>::new(self.states.len(), self.inputs.len(), ctx.params.len()).or_else(|_| {
+            err(
+                "structure",
+                format!("at most {} states and {} inputs are supported", super::MAX_STATES, super::MAX_INPUTS),
+            )
+        })?;
+        for (si, poly, item) in &parsed {
+            let mut terms: Vec<Term<T>> = Vec::new();
+            for m in poly {
+                let basis = match &m.basis {
+                    None => Basis::One,
+                    Some(B::Var(v)) => Basis::Var(*v),
+                    Some(B::Fun(f, comb)) => {
+                        let entries: Vec<(Var, T)> = comb.iter().map(|&(v, c)| (v, T::of(c))).collect();
+                        let (start, len) = s.push_combination(&entries).or_else(|_| {
+                            err(
+                                item,
+                                format!("too many entries in sign/pos/neg combinations (at most {MAX_COMBINATION})"),
+                            )
+                        })?;
+                        match f {
+                            Fun::Sign => Basis::Sign { start, len },
+                            Fun::Pos => Basis::Pos { start, len },
+                            Fun::Neg => Basis::Neg { start, len },
+                        }
+                    }
+                };
+                terms.push(Term { coef: T::of(m.coef), param: m.param.map(|p| p as u8), basis });
+            }
+            if terms.len() > MAX_TERMS {
+                return err(item, format!("too many terms (at most {MAX_TERMS} in all)"));
+            }
+            s.push_equation(*si, &terms).map_err(|e| StructureError { item: item.clone(), message: e.to_string() })?;
+        }
+        if let Some(j) = s.unused_param() {
+            return err(
+                "parameters",
+                format!("'{}' appears in no identified equation: remove it or use it", ctx.params[j]),
+            );
+        }
+        if let Some((a, b)) = s.confounded_pair() {
+            return err(
+                "parameters",
+                format!(
+                    "'{}' and '{}' multiply the same terms, so only a combination of them is identifiable: merge them \
+                     into one parameter",
+                    ctx.params[a], ctx.params[b]
+                ),
+            );
+        }
+        Ok((s, Names { states: self.states.clone(), inputs: self.inputs.clone(), params: ctx.params }))
+    }
+}
+
+fn check_names(item: &str, names: &[String]) -> Result<(), StructureError> {
+    for (i, n) in names.iter().enumerate() {
+        let mut chars = n.chars();
+        let ok = chars.next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+            && chars.all(|c| c.is_ascii_alphanumeric() || c == '_');
+        if !ok {
+            return err(item, format!("'{n}' is not a name (letters, digits, '_', not starting with a digit)"));
+        }
+        if matches!(n.as_str(), "sign" | "pos" | "neg" | "der") {
+            return err(item, format!("'{n}' is a function name: choose another name"));
+        }
+        if names[..i].contains(n) {
+            return err(item, format!("'{n}' is given twice"));
+        }
+    }
+    Ok(())
+}
+
+fn state_index(states: &[String], name: &str, item: &str) -> Result<usize, StructureError> {
+    states
+        .iter()
+        .position(|s| s == name)
+        .map_or_else(|| err(item, format!("'{name}' is not a state (states: {})", states.join(", "))), Ok)
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Fun {
+    Sign,
+    Pos,
+    Neg,
+}
+
+/// A basis while parsing: a variable, or a function of a linear combination.
+#[derive(Debug, Clone, PartialEq)]
+enum B {
+    Var(Var),
+    Fun(Fun, Vec<(Var, f64)>),
+}
+
+/// One monomial `coef × [param] × [basis]`.
+#[derive(Debug, Clone, PartialEq)]
+struct Mono {
+    coef: f64,
+    param: Option<usize>,
+    basis: Option<B>,
+}
+
+type Poly = Vec<Mono>;
+
+struct Ctx<'a> {
+    states: &'a [String],
+    inputs: &'a [String],
+    params: Vec<String>,
+    fixed: bool,
+}
+
+struct Lexer<'s> {
+    text: &'s str,
+    pos: usize,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+enum Tok {
+    Num(f64),
+    Name(String),
+    Op(char),
+    End,
+}
+
+impl Lexer<'_> {
+    fn skip(&mut self) {
+        while self.text[self.pos..].starts_with(char::is_whitespace) {
+            self.pos += self.text[self.pos..].chars().next().map_or(1, char::len_utf8);
+        }
+    }
+
+    fn peek(&mut self) -> Result<Tok, String> {
+        let save = self.pos;
+        let t = self.next();
+        self.pos = save;
+        t
+    }
+
+    fn next(&mut self) -> Result<Tok, String> {
+        self.skip();
+        let rest = &self.text[self.pos..];
+        let Some(c) = rest.chars().next() else { return Ok(Tok::End) };
+        if c.is_ascii_digit() || c == '.' {
+            let mut end = 0;
+            let b = rest.as_bytes();
+            while end < b.len() && (b[end].is_ascii_digit() || b[end] == b'.') {
+                end += 1;
+            }
+            if end < b.len() && (b[end] == b'e' || b[end] == b'E') {
+                let mut k = end + 1;
+                if k < b.len() && (b[k] == b'+' || b[k] == b'-') {
+                    k += 1;
+                }
+                if k < b.len() && b[k].is_ascii_digit() {
+                    while k < b.len() && b[k].is_ascii_digit() {
+                        k += 1;
+                    }
+                    end = k;
+                }
+            }
+            let s = &rest[..end];
+            self.pos += end;
+            return s.parse::<f64>().map(Tok::Num).map_err(|_| format!("'{s}' is not a number"));
+        }
+        if c.is_ascii_alphabetic() || c == '_' {
+            let end = rest.find(|c: char| !(c.is_ascii_alphanumeric() || c == '_')).unwrap_or(rest.len());
+            self.pos += end;
+            return Ok(Tok::Name(rest[..end].to_string()));
+        }
+        if "+-*/()".contains(c) {
+            self.pos += 1;
+            return Ok(Tok::Op(c));
+        }
+        Err(format!("unexpected '{c}'"))
+    }
+}
+
+impl Ctx<'_> {
+    fn parse(&mut self, text: &str, item: &str, params_allowed: bool) -> Result<Poly, StructureError> {
+        let mut lx = Lexer { text, pos: 0 };
+        let at = |lx: &Lexer<'_>, msg: String| StructureError {
+            item: item.to_string(),
+            message: format!("{msg} at position {} of \"{text}\"", lx.pos + 1),
+        };
+        let poly = self.expr(&mut lx, item, params_allowed).map_err(|m| at(&lx, m))?;
+        match lx.next().map_err(|m| at(&lx, m))? {
+            Tok::End => {}
+            t => return Err(at(&lx, format!("unexpected {}", describe(&t)))),
+        }
+        let poly = collect(poly);
+        if poly.is_empty() {
+            return err(item, format!("\"{text}\" is zero"));
+        }
+        Ok(poly)
+    }
+
+    fn expr(&mut self, lx: &mut Lexer<'_>, item: &str, pa: bool) -> Result<Poly, String> {
+        let mut sign = 1.0;
+        match lx.peek()? {
+            Tok::Op('+') => {
+                lx.next()?;
+            }
+            Tok::Op('-') => {
+                lx.next()?;
+                sign = -1.0;
+            }
+            _ => {}
+        }
+        let mut out = scale(self.product(lx, item, pa)?, sign);
+        loop {
+            match lx.peek()? {
+                Tok::Op('+') => {
+                    lx.next()?;
+                    out.extend(self.product(lx, item, pa)?);
+                }
+                Tok::Op('-') => {
+                    lx.next()?;
+                    out.extend(scale(self.product(lx, item, pa)?, -1.0));
+                }
+                _ => return Ok(out),
+            }
+        }
+    }
+
+    fn product(&mut self, lx: &mut Lexer<'_>, item: &str, pa: bool) -> Result<Poly, String> {
+        let mut acc = self.factor(lx, item, pa)?;
+        loop {
+            match lx.peek()? {
+                Tok::Op('*') => {
+                    lx.next()?;
+                    let f = self.factor(lx, item, pa)?;
+                    acc = multiply(&acc, &f, self)?;
+                }
+                Tok::Op('/') => {
+                    lx.next()?;
+                    match lx.next()? {
+                        Tok::Num(d) if d != 0.0 => acc = scale(acc, 1.0 / d),
+                        Tok::Num(_) => return Err("division by zero".into()),
+                        t => {
+                            return Err(format!(
+                                "division by {} (divide only by numbers: the model must stay linear in its parameters; \
+                                 make the quotient one parameter)",
+                                describe(&t)
+                            ))
+                        }
+                    }
+                }
+                _ => return Ok(acc),
+            }
+        }
+    }
+
+    fn factor(&mut self, lx: &mut Lexer<'_>, item: &str, pa: bool) -> Result<Poly, String> {
+        match lx.next()? {
+            Tok::Num(c) => Ok(vec![Mono { coef: c, param: None, basis: None }]),
+            Tok::Op('(') => {
+                let e = self.expr(lx, item, pa)?;
+                expect_close(lx)?;
+                Ok(e)
+            }
+            Tok::Op('-') => Ok(scale(self.factor(lx, item, pa)?, -1.0)),
+            Tok::Name(n) => {
+                let fun = match n.as_str() {
+                    "sign" => Some(Fun::Sign),
+                    "pos" => Some(Fun::Pos),
+                    "neg" => Some(Fun::Neg),
+                    _ => None,
+                };
+                if n == "der" {
+                    if lx.next()? != Tok::Op('(') {
+                        return Err("der must be followed by '(' and a state name".into());
+                    }
+                    let Tok::Name(s) = lx.next()? else { return Err("der(·) takes one state name".into()) };
+                    let Some(i) = self.states.iter().position(|x| *x == s) else {
+                        return Err(format!("der({s}): '{s}' is not a state (states: {})", self.states.join(", ")));
+                    };
+                    expect_close(lx)?;
+                    return Ok(vec![Mono { coef: 1.0, param: None, basis: Some(B::Var(Var::Deriv(i as u8))) }]);
+                }
+                if let Some(f) = fun {
+                    if lx.next()? != Tok::Op('(') {
+                        return Err(format!("{n} must be followed by '(' and a combination of states and inputs"));
+                    }
+                    let inner = self.expr(lx, item, pa)?;
+                    expect_close(lx)?;
+                    let mut comb = Vec::new();
+                    for m in collect(inner) {
+                        match (m.param, m.basis) {
+                            (None, Some(B::Var(v))) => comb.push((v, m.coef)),
+                            (Some(p), _) => {
+                                return Err(format!(
+                                    "{n}(·) holds the parameter '{}': inside {n}(·) only states, inputs and der(·) may \
+                                     appear (is it a misspelled name? states: {}; inputs: {})",
+                                    self.params[p],
+                                    self.states.join(", "),
+                                    list(self.inputs)
+                                ))
+                            }
+                            (None, None) => {
+                                return Err(format!(
+                                    "{n}(·) holds a constant: only states, inputs and der(·) may appear"
+                                ))
+                            }
+                            (None, Some(B::Fun(..))) => return Err(format!("{n}(·) of a function is not supported")),
+                        }
+                    }
+                    if comb.is_empty() {
+                        return Err(format!("{n}(·) of zero"));
+                    }
+                    return Ok(vec![Mono { coef: 1.0, param: None, basis: Some(B::Fun(f, comb)) }]);
+                }
+                if let Some(i) = self.states.iter().position(|x| *x == n) {
+                    return Ok(vec![Mono { coef: 1.0, param: None, basis: Some(B::Var(Var::State(i as u8))) }]);
+                }
+                if let Some(j) = self.inputs.iter().position(|x| *x == n) {
+                    return Ok(vec![Mono { coef: 1.0, param: None, basis: Some(B::Var(Var::Input(j as u8))) }]);
+                }
+                if !pa {
+                    return Err(format!(
+                        "'{n}' is not a state or input (known equations take no parameters; states: {}; inputs: {})",
+                        self.states.join(", "),
+                        list(self.inputs)
+                    ));
+                }
+                let p = match self.params.iter().position(|x| *x == n) {
+                    Some(p) => p,
+                    None if self.fixed => return Err(format!(
+                        "'{n}' is not a state, input or declared parameter (states: {}; inputs: {}; parameters: {})",
+                        self.states.join(", "),
+                        list(self.inputs),
+                        self.params.join(", ")
+                    )),
+                    None => {
+                        self.params.push(n);
+                        self.params.len() - 1
+                    }
+                };
+                Ok(vec![Mono { coef: 1.0, param: Some(p), basis: None }])
+            }
+            t => Err(format!("expected a number, a name or '(' but found {}", describe(&t))),
+        }
+    }
+}
+
+fn list(names: &[String]) -> String {
+    if names.is_empty() {
+        "none".to_string()
+    } else {
+        names.join(", ")
+    }
+}
+
+fn expect_close(lx: &mut Lexer<'_>) -> Result<(), String> {
+    match lx.next()? {
+        Tok::Op(')') => Ok(()),
+        t => Err(format!("expected ')' but found {}", describe(&t))),
+    }
+}
+
+fn describe(t: &Tok) -> String {
+    match t {
+        Tok::Num(v) => format!("the number {v}"),
+        Tok::Name(n) => format!("'{n}'"),
+        Tok::Op(c) => format!("'{c}'"),
+        Tok::End => "the end".to_string(),
+    }
+}
+
+fn scale(mut p: Poly, c: f64) -> Poly {
+    for m in &mut p {
+        m.coef *= c;
+    }
+    p
+}
+
+/// The expanded product of two polynomials; a term with two parameters or two bases is an
+/// error (the model must be linear in its parameters, and terms are single basis functions).
+fn multiply(a: &Poly, b: &Poly, ctx: &Ctx<'_>) -> Result<Poly, String> {
+    let mut out = Vec::with_capacity(a.len() * b.len());
+    for x in a {
+        for y in b {
+            let param = match (x.param, y.param) {
+                (Some(p), Some(q)) => {
+                    let (pn, qn) = (&ctx.params[p], &ctx.params[q]);
+                    return Err(format!(
+                        "'{pn}*{qn}' multiplies two parameters, which is not linear in the parameters: make the \
+                         product one parameter, or is one of them a misspelled state or input? (states: {}; inputs: {})",
+                        ctx.states.join(", "),
+                        list(ctx.inputs)
+                    ));
+                }
+                (p, q) => p.or(q),
+            };
+            let basis = match (&x.basis, &y.basis) {
+                (Some(_), Some(_)) => {
+                    return Err("a product of two variables: a term is a parameter times one state, input, der(·), \
+                                sign(·), pos(·) or neg(·) (add the product as a measured input)"
+                        .into())
+                }
+                (p, q) => p.clone().or_else(|| q.clone()),
+            };
+            out.push(Mono { coef: x.coef * y.coef, param, basis });
+        }
+    }
+    Ok(out)
+}
+
+/// Merges monomials with the same parameter and basis, drops zeros, keeps first-appearance order.
+fn collect(p: Poly) -> Poly {
+    let mut out: Poly = Vec::new();
+    for m in p {
+        match out.iter_mut().find(|o| o.param == m.param && o.basis == m.basis) {
+            Some(o) => o.coef += m.coef,
+            None => out.push(m),
+        }
+    }
+    out.retain(|m| m.coef != 0.0);
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn build(eqs: &[(&str, &str)]) -> Result<(Structure<f64>, Names), StructureError> {
+        let mut b = StructureBuilder::new(&["q", "v", "w"], &["tau"]);
+        for (s, t) in eqs {
+            b = b.equation(s, t);
+        }
+        b.build()
+    }
+
+    #[test]
+    fn expands_products_and_evaluates() {
+        let (s, names) = build(&[("v", "a*tau - b*(v - w) - c*sign(v - 2*w) - d + 0.5*q")]).unwrap();
+        assert_eq!(names.params, ["a", "b", "c", "d"]);
+        let (x, z, u) = ([0.3, 1.0, 2.0], [0.0, 7.0, 0.0], [4.0]);
+        let mut h = [0.0; 4];
+        let y = s.regression(0, &x, &z, &u, &mut h);
+        // sign(1 - 4) = -1
+        assert_eq!(h, [4.0, -(1.0 - 2.0), 1.0, -1.0]);
+        assert_eq!(y, 7.0 - 0.5 * 0.3);
+    }
+
+    #[test]
+    fn errors_name_the_item_and_the_fix() {
+        let e = build(&[("v", "a*tua - b*v")]).unwrap_err();
+        assert_eq!(e.item, "equation for v");
+        assert!(e.message.contains("misspelled") && e.message.contains("tau"), "{e}");
+        let e = build(&[("vv", "a*v")]).unwrap_err();
+        assert!(e.message.contains("not a state"), "{e}");
+        let e = build(&[("v", "a*v*w")]).unwrap_err();
+        assert!(e.message.contains("two variables"), "{e}");
+        let e = build(&[("v", "a*v + 2*a*v - b*(3*v)")]).unwrap_err();
+        assert!(e.message.contains("'a' and 'b'"), "{e}");
+        let e = build(&[("v", "a*v +")]).unwrap_err();
+        assert!(e.message.contains("position"), "{e}");
+        let e = build(&[("v", "a/b*v")]).unwrap_err();
+        assert!(e.message.contains("divide only by numbers"), "{e}");
+        let e = build(&[("v", "a*der(v)")]).unwrap_err();
+        assert!(e.message.contains("own state's derivative"), "{e}");
+        let e = StructureBuilder::new(&["q", "v"], &[]).equation("v", "a*v").parameters(&["a", "b"]).build::<f64>();
+        assert!(e.unwrap_err().message.contains("'b' appears in no identified equation"));
+        let e = StructureBuilder::new(&["q", "v"], &[]).equation("v", "a*v - b").parameters(&["a"]).build::<f64>();
+        assert!(e.unwrap_err().message.contains("declared parameter"));
+        let e = StructureBuilder::new(&["q", "v"], &[]).equation("v", "a*v").known("q", "k*v").build::<f64>();
+        assert!(e.unwrap_err().message.contains("known equations take no parameters"));
+        let e = StructureBuilder::new(&["q", "v"], &[]).equation("v", "3*v").build::<f64>();
+        assert!(e.unwrap_err().message.contains("no parameter"));
+        let e = StructureBuilder::new(&["q", "1v"], &[]).equation("q", "a*q").build::<f64>();
+        assert_eq!(e.unwrap_err().item, "states");
+    }
+
+    #[test]
+    fn derivatives_order_the_simulation() {
+        // v's equation reads der(w): w is computed first whatever the declaration order.
+        let (s, _) = StructureBuilder::new(&["q", "v", "w"], &[])
+            .equation("v", "-m*der(w) - k*q")
+            .equation("w", "-c*w")
+            .known("q", "v")
+            .build::<f64>()
+            .unwrap();
+        let mut out = [0.0; 3];
+        s.derivative(&[2.0, 3.0, 0.5], &[1.0, 0.0, 4.0], &[], &mut out);
+        assert_eq!(out, [0.0, -2.0 * (-0.5 * 4.0) - 3.0 * 1.0, -2.0]);
+        let e =
+            StructureBuilder::new(&["v", "w"], &[]).equation("v", "a*der(w)").equation("w", "b*der(v)").build::<f64>();
+        assert!(e.unwrap_err().message.contains("loop"));
+    }
+
+    #[test]
+    fn partition_groups_shared_parameters() {
+        let (s, _) = StructureBuilder::new(&["a", "b", "c"], &[])
+            .equation("a", "p*a + q*b")
+            .equation("b", "r*c")
+            .equation("c", "q*c + s")
+            .build::<f64>()
+            .unwrap();
+        let part = s.partition();
+        assert_eq!(part.groups, 2);
+        assert_eq!(&part.group_of_param[..4], &[0, 0, 1, 0]);
+        assert_eq!(&part.local[..4], &[0, 1, 0, 2]);
+        assert_eq!(&part.group_of_eq[..3], &[0, 1, 0]);
+        assert_eq!(part.largest(), 3);
+    }
+}
