@@ -1,5 +1,6 @@
 //! The half car (Eq 6.1–6.8).
 
+use super::physical::{der, st, tk, tt, Builder, PhysicalStructure, TemplateTerm};
 use super::{scale_ls, LinearModel, RowSet};
 use crate::error::{check_finite, check_positive};
 use crate::{Error, Real, Result};
@@ -228,5 +229,92 @@ impl<T: Real> HalfCar<T> {
         .map_err(|_| Error::NotIdentifiable {
             what: "positive half-car constants from these rows (is the estimate converged?)",
         })
+    }
+
+    /// The constants' names, in the order [`HalfCar::structure`] and [`HalfCar::constants`]
+    /// use.
+    pub const CONSTANTS: [&'static str; 12] = ["M", "J", "k11", "k21", "k12", "k22", "b1", "b2", "m1", "m2", "l1", "l2"];
+
+    /// The constants' values in the order of [`HalfCar::CONSTANTS`].
+    pub fn constants(&self) -> [T; 12] {
+        let p = self.p;
+        [p.m_body, p.j, p.k11, p.k21, p.k12, p.k22, p.b1, p.b2, p.m1, p.m2, p.l1, p.l2]
+    }
+
+    /// The half car's physical structure (see [`PhysicalStructure`]), states
+    /// `z1, v1, z2, v2, zb, vb, ph, om` (front wheel, rear wheel, body heave, pitch), with the
+    /// constants given in `known` (order of [`HalfCar::CONSTANTS`]) fixed; the lever arms
+    /// `l1`, `l2` must be known. With `d1 = zb + l1 ph − z1`, `d2 = zb − l2 ph − z2` (the
+    /// suspension extensions) and `L = l1 + l2`:
+    ///
+    /// ```text
+    /// v̇b = −(k12/M) d1 − (b1/M) ḋ1 − (k22/M) d2 − (b2/M) ḋ2                  heave (Eq 6.3 / M)
+    /// ȯm = −l1 (k12/J) d1 − l1 (b1/J) ḋ1 + l2 (k22/J) d2 + l2 (b2/J) ḋ2      pitch (Eq 6.4 / J)
+    /// v̇1 = −(l2/L)(M/m1) der(vb) − (1/L)(J/m1) der(om) − (k11/m1) z1         front wheel
+    /// v̇2 = −(l1/L)(M/m2) der(vb) + (1/L)(J/m2) der(om) − (k21/m2) z2         rear wheel
+    /// ```
+    ///
+    /// The wheel equations are Eq 6.1–6.2 with each suspension force read from the body's
+    /// measured heave and pitch accelerations (solving Eq 6.3–6.4 for the two forces), so the
+    /// road, which enters only the wheel equations, meets three parameters per wheel, and
+    /// with the wheel masses known the two wheels share `M` and `J`. With `m1, m2, l1, l2`
+    /// known: 12 parameters for the 28 non-zero entries of the four rows.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for a known value not finite and > 0 or unknown lever arms;
+    /// [`Error::NotIdentifiable`] when nothing is left to identify.
+    pub fn structure(known: [Option<T>; 12]) -> Result<PhysicalStructure<T>> {
+        let (Some(l1), Some(l2)) = (known[10], known[11]) else {
+            return Err(Error::InvalidArgument {
+                arg: "known",
+                expected: "the lever arms l1 and l2 among the known constants (they are coefficients of the half \
+                           car's equations)",
+            });
+        };
+        crate::error::check_positive("l1", l1)?;
+        crate::error::check_positive("l2", l2)?;
+        // Constants: 0 M, 1 J, 2 k11, 3 k21, 4 k12, 5 k22, 6 b1, 7 b2, 8 m1, 9 m2.
+        let edges = [
+            (4, 0, "k12/M"),
+            (6, 0, "b1/M"),
+            (5, 0, "k22/M"),
+            (7, 0, "b2/M"),
+            (4, 1, "k12/J"),
+            (6, 1, "b1/J"),
+            (5, 1, "k22/J"),
+            (7, 1, "b2/J"),
+            (0, 8, "M/m1"),
+            (1, 8, "J/m1"),
+            (2, 8, "k11/m1"),
+            (0, 9, "M/m2"),
+            (1, 9, "J/m2"),
+            (3, 9, "k21/m2"),
+        ];
+        let one = T::one();
+        let l = l1 + l2;
+        // c × edge × (extension): d1 = zb + l1 ph − z1 (positions 4, 6, 0; velocities 5, 7, 1),
+        // d2 = zb − l2 ph − z2 (positions 4, 6, 2; velocities 5, 7, 3).
+        let ext = |c: T, e: u8, front: bool, vel: bool| -> [TemplateTerm<T>; 3] {
+            let o = u8::from(vel);
+            let (arm, wheel) = if front { (l1, 0) } else { (-l2, 2) };
+            [tt(c, e, st(4 + o)), tt(c * arm, e, st(6 + o)), tt(-c, e, st(wheel + o))]
+        };
+        let cat = |parts: [[TemplateTerm<T>; 3]; 4]| -> [TemplateTerm<T>; 12] {
+            let mut out = [parts[0][0]; 12];
+            for (i, p) in parts.iter().enumerate() {
+                out[3 * i..3 * i + 3].copy_from_slice(p);
+            }
+            out
+        };
+        let heave = cat([ext(-one, 0, true, false), ext(-one, 1, true, true), ext(-one, 2, false, false), ext(-one, 3, false, true)]);
+        let pitch = cat([ext(-l1, 4, true, false), ext(-l1, 5, true, true), ext(l2, 6, false, false), ext(l2, 7, false, true)]);
+        let front = [tt(-l2 / l, 8, der(5)), tt(-one / l, 9, der(7)), tt(-one, 10, st(0))];
+        let rear = [tt(-l1 / l, 11, der(5)), tt(one / l, 12, der(7)), tt(-one, 13, st(2))];
+        let k = |i: u8| [tk(one, st(i))];
+        let (k0, k2, k4, k6) = (k(1), k(3), k(5), k(7));
+        Builder { states: 8, constants: &Self::CONSTANTS, edges: &edges, known: &known }.build(
+            &[(5, &heave), (7, &pitch), (1, &front), (3, &rear)],
+            &[(0, &k0), (2, &k2), (4, &k4), (6, &k6)],
+        )
     }
 }

@@ -18,10 +18,12 @@
 
 mod discretize;
 mod half;
+mod physical;
 mod quarter;
 
 pub use discretize::{auto_substeps, rk4_map, zoh, MAX_SUBSTEPS};
 pub use half::{HalfCar, HalfCarParams};
+pub use physical::{PhysicalStructure, MAX_CONSTANTS};
 pub use quarter::{QuarterCar, QuarterKnown};
 
 use crate::error::{check_finite, check_nonneg};

@@ -1,5 +1,6 @@
 //! The quarter car (Eq 3.8–3.13).
 
+use super::physical::{der, st, tk, tt, Builder, PhysicalStructure};
 use super::{scale_ls, LinearModel, RowSet};
 use crate::error::{check_finite, check_positive};
 use crate::{Error, Real, Result};
@@ -154,5 +155,50 @@ impl<T: Real> QuarterCar<T> {
         Self::new(m_body, m_wheel, k1, k2, b).map_err(|_| Error::NotIdentifiable {
             what: "positive quarter-car constants from these rows (is the estimate converged?)",
         })
+    }
+
+    /// The constants' names, in the order [`QuarterCar::structure`] and
+    /// [`QuarterCar::constants`] use: `M, m, k1, k2, b`.
+    pub const CONSTANTS: [&'static str; 5] = ["M", "m", "k1", "k2", "b"];
+
+    /// The constants' values in the order of [`QuarterCar::CONSTANTS`].
+    pub fn constants(&self) -> [T; 5] {
+        [self.m_body, self.m_wheel, self.k1, self.k2, self.b]
+    }
+
+    /// The quarter car's physical structure (see [`PhysicalStructure`]), states
+    /// `zw, vw, zb, vb` (wheel and body position and velocity), with the constants given in
+    /// `known` (order of [`QuarterCar::CONSTANTS`]) fixed:
+    ///
+    /// ```text
+    /// v̇b = −(k2/M)(zb − zw) − (b/M)(vb − vw)           body (Eq 3.10 / M)
+    /// v̇w = −(M/m) der(vb) − (k1/m) zw                  momentum of both masses / m
+    /// żw = vw,  żb = vb                                 known
+    /// ```
+    ///
+    /// The wheel equation is the balance of forces on both masses (Eq 3.9 + Eq 3.10: the
+    /// suspension force cancels), `m v̇w + M v̇b = k1 (u − zw)`, with the body's acceleration
+    /// read from its measured derivative. So the road (which enters only this equation, as
+    /// its noise) meets two parameters instead of the thesis' four, while the body equation,
+    /// free of the road, fixes `k2/M` and `b/M` from data a thousand times cleaner. With `m`
+    /// known the parameters are `k2/M, b/M, M, k1`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for a known value not finite and > 0;
+    /// [`Error::NotIdentifiable`] when so much is known that nothing is left to identify.
+    pub fn structure(known: [Option<T>; 5]) -> Result<PhysicalStructure<T>> {
+        // Constants: 0 M, 1 m, 2 k1, 3 k2, 4 b. Edges: 0 k2/M, 1 b/M, 2 M/m, 3 k1/m.
+        let edges = [(3, 0, "k2/M"), (4, 0, "b/M"), (0, 1, "M/m"), (2, 1, "k1/m")];
+        let one = T::one();
+        let body = [
+            tt(-one, 0, st(2)),
+            tt(one, 0, st(0)),
+            tt(-one, 1, st(3)),
+            tt(one, 1, st(1)),
+        ];
+        let wheel = [tt(-one, 2, der(3)), tt(-one, 3, st(0))];
+        let (kw, kb) = ([tk(one, st(1))], [tk(one, st(3))]);
+        Builder { states: 4, constants: &Self::CONSTANTS, edges: &edges, known: &known }
+            .build(&[(3, &body), (1, &wheel)], &[(0, &kw), (2, &kb)])
     }
 }
