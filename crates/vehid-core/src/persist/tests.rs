@@ -135,6 +135,33 @@ fn kalman_rows_tracking() {
 }
 
 #[test]
+fn kalman_rows_outlier_gate_and_huber() {
+    // Outliers after the gate's warm-up (N + 50 samples), split before and after the first.
+    let mut data = quarter(400);
+    for k in [120, 260, 261, 330] {
+        data[k].1[1] += 1e3;
+        data[k].1[3] -= 50.0;
+    }
+    let d = slices(&data);
+    for form in [CovarianceForm::Standard, CovarianceForm::Joseph, CovarianceForm::Sqrt] {
+        for (gate, huber) in [(6.0, 0.0), (0.0, 1.345), (6.0, 1.345)] {
+            let o = KalmanOptions { form, gate, huber, ..KalmanOptions::default() };
+            for split in [100, 200] {
+                let id = continues(
+                    KalmanIdentifier::<f64, 4, 2>::from_slices(&[1, 3], &[1000.0], &R_Q, o).unwrap(),
+                    &d,
+                    split,
+                );
+                if gate > 0.0 {
+                    assert!((0..2).any(|i| id.filter(i).gated() > 0), "the gate acted");
+                }
+                continues(KalmanIdentifierVec::<f64, 4>::exact(&[1, 3], &R_Q, o).unwrap(), &d, split);
+            }
+        }
+    }
+}
+
+#[test]
 fn kalman_rows_several_groups_and_f32() {
     // Six rows of the half car: Fixed<6> in one group, Dynamic<2> in three (with scratch).
     let data = half_road(600);
