@@ -172,6 +172,10 @@ fn kalman_rows_several_groups_and_f32() {
     continues(KalmanIdentifier::<f64, 8, 6>::from_slices(&rows, &[1000.0], &r, o).unwrap(), &d, 250);
     continues(KalmanIdentifierVec2::<f64, 8>::from_slices(&rows, &[1000.0], &r, o).unwrap(), &d, 250);
     continues(KalmanIdentifierVec::<f64, 8>::from_slices(&rows, &[1000.0], &r, o).unwrap(), &d, 250);
+    // The square-root form plans several groups through its own scratch.
+    let o = opts(CovarianceForm::Sqrt);
+    continues(KalmanIdentifierVec2::<f64, 8>::from_slices(&rows, &[1000.0], &r, o).unwrap(), &d, 250);
+    continues(KalmanIdentifierVec2::<f64, 8>::exact(&rows, &r, o).unwrap(), &d, 250);
     // f32: the same continuation, read through the fixed-size API.
     let mut a = KalmanIdentifier::<f32, 4, 2>::new([1, 3], 1000.0, [81.0, 2.5e-5]).unwrap();
     let q: Vec<_> = quarter(200).iter().map(|(x, z)| (x.cast::<f32>(), z.cast::<f32>())).collect();
