@@ -27,6 +27,12 @@
 //! - `alloc`: whole-run simulation, stored-sample least squares, dynamic row counts.
 //! - neither: `#![no_std]`, for microcontrollers; models, streaming simulator and the
 //!   recursive identifiers are all available.
+//! - `serde` (any of the above): `Serialize`/`Deserialize` for every identifier, in both
+//!   stores ([`identify::Fixed`] without allocation, [`identify::Dynamic`]), its options and
+//!   the models it holds. A deserialized identifier continues bit for bit where the
+//!   serialized one was; input whose parts do not fit together (buffer lengths, rows, the
+//!   two-axle ring) is a deserialization error, never a later panic. Deserialize through the
+//!   trait (`postcard::from_bytes`, `serde_json::from_str`, `<T as Deserialize>::deserialize`).
 #![cfg_attr(not(feature = "std"), no_std)]
 #![deny(missing_docs)]
 
@@ -79,6 +85,8 @@ pub mod identify;
 pub(crate) mod linalg;
 pub mod metrics;
 pub mod model;
+#[cfg(feature = "serde")]
+mod persist;
 pub mod sampler;
 mod scalar;
 pub mod sim;

@@ -47,6 +47,13 @@ pub trait RingStore<X>: Clone + core::fmt::Debug {
     fn slots(&self) -> &[X];
     /// The slots in use, mutably.
     fn slots_mut(&mut self) -> &mut [X];
+    /// A buffer of the slots `items` yields, in order (how a deserialized ring is read back,
+    /// without allocating for arrays); `Ok(None)` when their number does not fit (an array
+    /// takes exactly its length, and a ring is never empty).
+    ///
+    /// # Errors
+    /// The first `Err` that `items` yields.
+    fn from_items<E>(items: impl Iterator<Item = core::result::Result<X, E>>) -> core::result::Result<Option<Self>, E>;
 }
 
 impl<X: Copy + core::fmt::Debug, const C: usize> RingStore<X> for [X; C] {
@@ -61,6 +68,9 @@ impl<X: Copy + core::fmt::Debug, const C: usize> RingStore<X> for [X; C] {
     }
     fn slots_mut(&mut self) -> &mut [X] {
         self
+    }
+    fn from_items<E>(items: impl Iterator<Item = core::result::Result<X, E>>) -> core::result::Result<Option<Self>, E> {
+        crate::identify::array_from_items(items)
     }
 }
 
@@ -80,6 +90,10 @@ impl<X: Copy + core::fmt::Debug> RingStore<X> for alloc::vec::Vec<X> {
     }
     fn slots_mut(&mut self) -> &mut [X] {
         self
+    }
+    fn from_items<E>(items: impl Iterator<Item = core::result::Result<X, E>>) -> core::result::Result<Option<Self>, E> {
+        let v = items.collect::<core::result::Result<Self, E>>()?;
+        Ok((!v.is_empty()).then_some(v))
     }
 }
 

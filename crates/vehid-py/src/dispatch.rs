@@ -92,7 +92,7 @@ pub(crate) use {dispatch_n, dispatch_nm};
 
 /// A validated model as plain data: `A` (`n × n`) and `B` (`n × m`) row-major, the unknown
 /// rows (ascending) and the structurally-zero entries of the unknown rows.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ModelData {
     pub n: usize,
     pub m: usize,

@@ -17,6 +17,7 @@ use numpy::ndarray::{Array1, Array3};
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3};
 use pyo3::exceptions::PyMemoryError;
 use pyo3::prelude::*;
+use pyo3::types::PyTuple;
 use vehid_core::identify::{
     boxed_kalman, BatchLeastSquares, CovarianceForm, DynIdentifier, FitError, FitOptions, Gain, GainKind,
     KalmanOptions, KalmanSpec, Mode, Prior, Samples, StochasticGradientVec,
@@ -232,6 +233,27 @@ impl PyIdentifier {
         let mut out = vec![0u64; self.inner.dims().equations];
         self.inner.gated_into(&mut out).map_err(raise)?;
         Ok(out.into_pyarray(py))
+    }
+
+    /// Pickling (every protocol): the class with its settings, and the core's state
+    /// (`persist.rs`).
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyTuple>> {
+        crate::persist::reduce(slf)
+    }
+
+    /// Restores the state `__reduce__` saved (its format version is checked first).
+    fn __setstate__(slf: &Bound<'_, Self>, state: &Bound<'_, PyAny>) -> PyResult<()> {
+        crate::persist::set_state(slf, state)
+    }
+
+    /// A copy with its own core (the model is shared: models are immutable).
+    fn __copy__<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyAny>> {
+        crate::persist::copy(slf)
+    }
+
+    /// The same as `__copy__`: the core shares nothing.
+    fn __deepcopy__<'py>(slf: &Bound<'py, Self>, _memo: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
+        crate::persist::copy(slf)
     }
 }
 

@@ -11,6 +11,7 @@ mod convert;
 mod dispatch;
 mod identify;
 mod model;
+mod persist;
 mod reproduce;
 mod sim;
 mod two_axle;

@@ -10,12 +10,13 @@ use numpy::ndarray::Array2;
 use numpy::{Complex64, IntoPyArray, PyArray1, PyArray2};
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
+use pyo3::pyclass::CompareOp;
 use pyo3::types::{PyDict, PyTuple};
 use vehid_core::model::{HalfCar, HalfCarParams, QuarterCar, QuarterKnown};
 use vehid_core::nalgebra::SMatrix;
 
 /// Which vehicle a model came from: decides what `physical()` can recover.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Kind {
     Generic,
     Quarter(QuarterCar<f64>),
@@ -344,6 +345,57 @@ impl PyLinearModel {
             }
         }
         Ok(out)
+    }
+
+    /// Pickling (every protocol): the class and its constructor arguments (the physical
+    /// constants of QuarterCar and HalfCar; A, B, the rows and the structural zeros otherwise).
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyTuple>> {
+        let py = slf.py();
+        let m = slf.get();
+        let args = match m.kind {
+            Kind::Quarter(c) => (c.m_body(), c.m_wheel(), c.k1(), c.k2(), c.b()).into_pyobject(py)?,
+            Kind::Half(c) => {
+                let p = c.params();
+                let v = [p.k11, p.k21, p.k12, p.k22, p.b1, p.b2, p.m1, p.m2, p.m_body, p.j, p.l1, p.l2];
+                PyTuple::new(py, v)?
+            }
+            Kind::Generic => {
+                let d = &m.data;
+                let rows = |v: &[f64], w: usize| v.chunks(w).map(<[f64]>::to_vec).collect::<Vec<_>>();
+                (rows(&d.a, d.n), rows(&d.b, d.m), d.rows.clone(), d.zeros.clone()).into_pyobject(py)?
+            }
+        };
+        (slf.get_type(), args).into_pyobject(py)
+    }
+
+    /// Models compare by value: the same class, matrices, unknown rows, structural zeros and
+    /// (QuarterCar, HalfCar) physical constants.
+    fn __richcmp__(slf: &Bound<'_, Self>, other: &Bound<'_, PyAny>, op: CompareOp) -> PyResult<Py<PyAny>> {
+        let py = slf.py();
+        let Ok(other) = other.cast::<Self>() else {
+            return Ok(py.NotImplemented());
+        };
+        let same = slf.get_type().is(other.get_type()) && {
+            let (a, b) = (slf.get(), other.get());
+            a.data == b.data && a.kind == b.kind
+        };
+        match op {
+            CompareOp::Eq => Ok(same.into_pyobject(py)?.to_owned().into_any().unbind()),
+            CompareOp::Ne => Ok((!same).into_pyobject(py)?.to_owned().into_any().unbind()),
+            _ => Ok(py.NotImplemented()),
+        }
+    }
+
+    /// Consistent with `==` (-0.0 and 0.0 hash alike).
+    fn __hash__(&self) -> u64 {
+        use std::hash::{Hash, Hasher};
+        let mut h = std::collections::hash_map::DefaultHasher::new();
+        let d = &self.data;
+        (d.n, d.m, &d.rows, &d.zeros).hash(&mut h);
+        for v in d.a.iter().chain(&d.b) {
+            (v + 0.0).to_bits().hash(&mut h);
+        }
+        h.finish()
     }
 
     fn __repr__(&self) -> String {

@@ -28,6 +28,7 @@ use nalgebra::{SMatrix, SVector};
 
 /// The gain sequence `γ(k)` of the stochastic-gradient identifier.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum Gain<T> {
     /// Venter's gain (Eq 5.8): `γ(k) = k^(−p)`, `1/2 < p ≤ 1` (thesis: 0.51, 0.95).
     Venter {
@@ -47,6 +48,7 @@ pub enum Gain<T> {
 
 /// The name of a gain sequence, without its constants.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum GainKind {
     /// Venter's gain (Eq 5.8).
     #[default]
@@ -100,9 +102,17 @@ impl<T: Real> Gain<T> {
 
 /// The stochastic-gradient identifier over a [`Store`]; see [`StochasticGradient`].
 #[derive(Debug, Clone)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+)]
 pub struct GradientCore<T: Real, const N: usize, S: Store<T, N>> {
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::flat"))]
     rows: S::Rows,
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::flat"))]
     theta: S::Vecs,
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::flat"))]
     h: S::Vecs,
     sigma_w: SMatrix<T, N, N>,
     gain: Gain<T>,
@@ -283,6 +293,25 @@ impl<T: Real, const N: usize, S: Store<T, N>> GradientCore<T, N, S> {
         self.k = step;
         self.phase = next_phase;
         self.samples += 1;
+        Ok(())
+    }
+}
+
+#[cfg(feature = "serde")]
+impl<T: Real, const N: usize, S: Store<T, N>> GradientCore<T, N, S> {
+    /// Checks a deserialized identifier: valid rows, gain and spacing, one `θ_i` and `h_i`
+    /// per row.
+    pub(crate) fn restored(&mut self) -> Result<()> {
+        self.gain.validate()?;
+        if self.spacing == 0 {
+            return Err(Error::InvalidArgument { arg: "spacing", expected: "at least 1 sample" });
+        }
+        let k = crate::model::RowSet::<N>::new(self.rows.flat())?.len();
+        for (arg, len) in [("theta", self.theta.flat().len()), ("h", self.h.flat().len())] {
+            if len != k {
+                return Err(Error::Shape { arg, expected: k, got: len });
+            }
+        }
         Ok(())
     }
 }

@@ -18,9 +18,16 @@ use nalgebra::{SMatrix, SVector};
 
 /// Running normal equations `Σ x xᵀ`, `Σ x z_i` for the unknown rows; no allocation.
 #[derive(Debug, Clone)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+)]
 pub struct LsAccumulator<T: Real, const N: usize, S: Store<T, N> = Fixed<1>> {
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::flat"))]
     rows: S::Rows,
     gram: SMatrix<T, N, N>,
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::flat"))]
     xz: S::Vecs,
     samples: u64,
 }
@@ -112,6 +119,18 @@ impl<T: Real, const N: usize, S: Store<T, N>> LsAccumulator<T, N, S> {
     }
 }
 
+#[cfg(feature = "serde")]
+impl<T: Real, const N: usize, S: Store<T, N>> LsAccumulator<T, N, S> {
+    /// Checks a deserialized accumulator: valid rows, one `Σ x z_i` per row.
+    pub(crate) fn restored(&mut self) -> Result<()> {
+        let k = crate::model::RowSet::<N>::new(self.rows.flat())?.len();
+        if self.xz.flat().len() != k {
+            return Err(Error::Shape { arg: "xz", expected: k, got: self.xz.flat().len() });
+        }
+        Ok(())
+    }
+}
+
 impl<T: Real, const N: usize, const K: usize> LsAccumulator<T, N, Fixed<K>> {
     /// An empty accumulator for `K` unknown rows.
     ///
@@ -153,6 +172,11 @@ impl<T: Real, const N: usize, const K: usize> LsAccumulator<T, N, Fixed<K>> {
 /// ```
 #[cfg(feature = "std")]
 #[derive(Debug, Clone)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+)]
 pub struct BatchLeastSquares<T: Real, const N: usize> {
     rows: std::vec::Vec<usize>,
     /// Stored measured states, row-major (`samples × N`).
@@ -295,6 +319,20 @@ impl<T: Real, const N: usize> BatchLeastSquares<T, N> {
     pub fn clear(&mut self) {
         self.x.clear();
         self.z.clear();
+    }
+
+    /// Checks a deserialized batch: valid rows, whole samples (`N` states, one derivative per
+    /// row each).
+    #[cfg(feature = "serde")]
+    pub(crate) fn restored(&mut self) -> Result<()> {
+        let k = crate::model::RowSet::<N>::new(&self.rows)?.len();
+        if self.x.len() % N != 0 {
+            return Err(Error::Shape { arg: "x", expected: self.x.len().div_ceil(N) * N, got: self.x.len() });
+        }
+        if self.z.len() != self.samples() * k {
+            return Err(Error::Shape { arg: "z", expected: self.samples() * k, got: self.z.len() });
+        }
+        Ok(())
     }
 }
 

@@ -21,6 +21,31 @@ pub trait Flat<X>: Clone + core::fmt::Debug {
     fn heap_bytes(&self) -> usize {
         0
     }
+    /// A buffer of the elements `items` yields, in order (how a deserialized buffer is read
+    /// back, without allocating for arrays); `Ok(None)` when their number does not fit (an
+    /// array takes exactly its length, and none is empty). The first error of `items` is
+    /// returned as is.
+    ///
+    /// # Errors
+    /// The first `Err` that `items` yields.
+    fn from_items<E>(items: impl Iterator<Item = core::result::Result<X, E>>) -> core::result::Result<Option<Self>, E>;
+}
+
+/// `[x; K]` filled from `items` (exactly `K` of them; `K ≥ 1`), without allocating.
+pub(crate) fn array_from_items<X: Copy, E, const K: usize>(
+    items: impl Iterator<Item = core::result::Result<X, E>>,
+) -> core::result::Result<Option<[X; K]>, E> {
+    let mut out: Option<[X; K]> = None;
+    let mut len = 0;
+    for item in items {
+        let x = item?;
+        if len == K {
+            return Ok(None);
+        }
+        out.get_or_insert([x; K])[len] = x;
+        len += 1;
+    }
+    Ok(out.filter(|_| len == K))
 }
 
 impl<X: Copy + core::fmt::Debug, const K: usize> Flat<X> for [X; K] {
@@ -36,6 +61,9 @@ impl<X: Copy + core::fmt::Debug, const K: usize> Flat<X> for [X; K] {
     fn flat_mut(&mut self) -> &mut [X] {
         self
     }
+    fn from_items<E>(items: impl Iterator<Item = core::result::Result<X, E>>) -> core::result::Result<Option<Self>, E> {
+        array_from_items(items)
+    }
 }
 
 impl<X: Copy + core::fmt::Debug, const K: usize> Flat<X> for [[X; K]; K] {
@@ -50,6 +78,19 @@ impl<X: Copy + core::fmt::Debug, const K: usize> Flat<X> for [[X; K]; K] {
     }
     fn flat_mut(&mut self) -> &mut [X] {
         self.as_flattened_mut()
+    }
+    fn from_items<E>(items: impl Iterator<Item = core::result::Result<X, E>>) -> core::result::Result<Option<Self>, E> {
+        let mut out: Option<Self> = None;
+        let mut len = 0;
+        for item in items {
+            let x = item?;
+            if len == K * K {
+                return Ok(None);
+            }
+            out.get_or_insert([[x; K]; K])[len / K][len % K] = x;
+            len += 1;
+        }
+        Ok(out.filter(|_| len == K * K))
     }
 }
 
@@ -67,10 +108,14 @@ impl<X: Copy + core::fmt::Debug> Flat<X> for alloc::vec::Vec<X> {
     fn flat_mut(&mut self) -> &mut [X] {
         self
     }
+    fn from_items<E>(items: impl Iterator<Item = core::result::Result<X, E>>) -> core::result::Result<Option<Self>, E> {
+        items.collect::<core::result::Result<Self, E>>().map(Some)
+    }
 }
 
 /// No scratch: a single group of lanes ([`Fixed`] storage) plans each sample on the stack.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct NoScratch;
 
 impl<X> Flat<X> for NoScratch {
@@ -82,6 +127,11 @@ impl<X> Flat<X> for NoScratch {
     }
     fn flat_mut(&mut self) -> &mut [X] {
         &mut []
+    }
+    fn from_items<E>(
+        mut items: impl Iterator<Item = core::result::Result<X, E>>,
+    ) -> core::result::Result<Option<Self>, E> {
+        Ok(items.next().transpose()?.is_none().then_some(NoScratch))
     }
 }
 
@@ -116,6 +166,7 @@ pub const DYNAMIC_LANES: usize = if cfg!(target_arch = "x86_64") { 4 } else { 2 
 
 /// Fixed storage for exactly `K` unknown rows: plain arrays, no allocation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Fixed<const K: usize>;
 
 impl<T: Real, const N: usize, const K: usize> Store<T, N> for Fixed<K> {
@@ -138,6 +189,7 @@ impl<T: Real, const N: usize, const K: usize> Store<T, N> for Fixed<K> {
 /// is faster (measured, quarter car f64: 22.6 ns against 37–42 ns with four lanes of which
 /// two are padding); the Python bindings choose it then.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Dynamic<const L: usize = DYNAMIC_LANES>;
 
 #[cfg(feature = "alloc")]

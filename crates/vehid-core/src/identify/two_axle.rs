@@ -40,6 +40,7 @@ use super::Fixed;
 
 /// How the wheel rows are identified.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum WheelMethod {
     /// Plain decoupled rows (Eq 6.16–6.18): biased on the rear row by the correlated input.
     None,
@@ -55,6 +56,7 @@ option_names!(WheelMethod, "method", { None => "none", Thesis => "thesis", Cance
 /// Settings of a [`TwoAxle`] identifier: method, prior and noise levels (each equation's
 /// variance is derived from the noise levels).
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct TwoAxleConfig<T> {
     /// How the wheel rows are identified.
     pub method: WheelMethod,
@@ -87,6 +89,7 @@ impl<T: Real> TwoAxleConfig<T> {
 /// One remembered sample of the ring: its grid index, measured state `r(k)`, front-row
 /// derivative `z2(k)` and front-row innovation `e1(k)`.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Past<T: Real, const N: usize> {
     /// Grid (road-point) index.
     pub grid: u64,
@@ -105,6 +108,17 @@ pub struct Past<T: Real, const N: usize> {
 ///
 /// `P` must be `2 N` (the joint regression of the `Cancel` method; checked at construction).
 #[derive(Debug, Clone)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(
+        remote = "Self",
+        bound(
+            serialize = "T: serde::Serialize, S::Group: serde::Serialize",
+            deserialize = "T: serde::Deserialize<'de>, S::Group: serde::Deserialize<'de>"
+        )
+    )
+)]
 pub struct TwoAxle<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<T, N>>> {
     model: LinearModel<T, N, 2>,
     rows: RowSet<N>,
@@ -121,6 +135,7 @@ pub struct TwoAxle<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: R
     rear: RowIdentifier<T, N>,
     joint: RowIdentifier<T, P>,
     body: Option<KalmanRows<T, N, S>>,
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::ring"))]
     ring: B,
     last_grid: Option<u64>,
     samples: u64,
@@ -259,6 +274,31 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
             samples: 0,
             paired: 0,
         })
+    }
+
+    /// Checks a deserialized identifier: `P = 2N`, valid settings, the wheel rows the
+    /// model's, the body rows the other unknown rows, a ring of at least `d ≥ 1` samples.
+    #[cfg(feature = "serde")]
+    pub(crate) fn restored(&mut self) -> Result<()> {
+        if P != 2 * N {
+            return Err(Error::Shape { arg: "P (joint parameters, must be 2N)", expected: 2 * N, got: P });
+        }
+        self.cfg.validate()?;
+        if self.rows != self.model.unknown_rows() || wheel_rows(&self.model)? != (self.front_row, self.rear_row) {
+            return Err(Error::InvalidArgument { arg: "rows", expected: "the model's unknown rows and wheel rows" });
+        }
+        let body = self.body.as_ref().map_or(&[][..], |b| b.rows());
+        let others = self.rows.as_slice().iter().filter(|&&r| r != self.front_row && r != self.rear_row);
+        if !others.eq(body.iter()) {
+            return Err(Error::InvalidArgument { arg: "body", expected: "the unknown rows other than the wheel rows" });
+        }
+        if self.d == 0 {
+            return Err(Error::InvalidArgument { arg: "d", expected: "at least 1 road point between the axles" });
+        }
+        if self.ring.slots().len() < self.d {
+            return Err(Error::Capacity { arg: "ring", needed: self.d, capacity: self.ring.slots().len() });
+        }
+        Ok(())
     }
 
     /// The settings.

@@ -32,7 +32,9 @@ use nalgebra::SMatrix;
 
 /// The set of unknown rows of a model (0-based, ascending), stored without allocation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize), serde(remote = "Self"))]
 pub struct RowSet<const N: usize> {
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::array"))]
     idx: [usize; N],
     len: usize,
 }
@@ -81,6 +83,19 @@ impl<const N: usize> RowSet<N> {
         self.as_slice().contains(&row)
     }
 
+    /// Checks a deserialized set: what [`RowSet::new`] would have built.
+    #[cfg(feature = "serde")]
+    pub(crate) fn restored(&mut self) -> Result<()> {
+        let rows = self.idx.get(..self.len).ok_or(Error::Shape { arg: "unknown_rows", expected: N, got: self.len })?;
+        if Self::new(rows)? != *self {
+            return Err(Error::InvalidArgument {
+                arg: "unknown_rows",
+                expected: "distinct rows in ascending order, the unused slots 0",
+            });
+        }
+        Ok(())
+    }
+
     /// The rows as a fixed-size array, for the const-generic identifiers.
     ///
     /// # Errors
@@ -102,10 +117,16 @@ impl<const N: usize> RowSet<N> {
 /// kinematic rows such as `ẋ1 = x2` are known from the structure). Entries of unknown rows
 /// marked structurally zero are excluded from the error measure ξ (Eq 6.10).
 #[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+)]
 pub struct LinearModel<T: Real, const N: usize, const M: usize> {
     a: SMatrix<T, N, N>,
     b: SMatrix<T, N, M>,
     rows: RowSet<N>,
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::array2"))]
     zero: [[bool; N]; N],
 }
 
@@ -132,6 +153,17 @@ impl<T: Real, const N: usize, const M: usize> LinearModel<T, N, M> {
             }
         }
         Ok(Self { a, b, rows, zero })
+    }
+
+    /// Checks a deserialized model: what [`LinearModel::new`] accepts, structural zeros only
+    /// in unknown rows.
+    #[cfg(feature = "serde")]
+    pub(crate) fn restored(&mut self) -> Result<()> {
+        Self::new(self.a, self.b, self.rows.as_slice())?;
+        match (0..N).find(|&r| !self.rows.contains(r) && self.zero[r].contains(&true)) {
+            Some(row) => Err(Error::BadRow { arg: "structural_zeros", row, n: N }),
+            None => Ok(()),
+        }
     }
 
     /// Replaces the structural-zero pattern: `(row, col)` pairs (0-based) of unknown rows

@@ -11,6 +11,7 @@ use nalgebra::{SMatrix, SVector};
 
 /// The prior covariance `P(0)` as given at run time (`k` unknown rows, `n` states).
 #[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum Prior<T> {
     /// One value for every row, or one per row, times the identity.
     PerRow(Vec<T>),
@@ -25,6 +26,7 @@ pub enum Prior<T> {
 
 /// Everything that defines a Kalman identifier, as run-time data.
 #[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct KalmanSpec<T> {
     /// The unknown rows (0-based), in the order of θ and of the innovations.
     pub rows: Vec<usize>,

@@ -14,18 +14,30 @@ use nalgebra::{SMatrix, SVector};
 /// The stacked (`full`) Kalman identifier over a [`Store`], general `R`; see
 /// [`FullKalmanIdentifier`].
 #[derive(Debug, Clone)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+)]
 pub struct KalmanFull<T: Real, const N: usize, S: Store<T, N>> {
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::flat"))]
     rows: S::Rows,
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::flat"))]
     theta: S::Vecs,
     /// Covariance blocks `P_ij` (`K × K` of `N × N`, row-major).
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::flat"))]
     p: S::Blocks,
     /// Measurement covariance `R` (`K × K`, row-major).
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::flat"))]
     r: S::PairScalars,
     /// Scratch: `c_ij = P_ij x`.
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::flat"))]
     c: S::PairVecs,
     /// Scratch: gain columns `w_il` (block `i`, column `l`).
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::flat"))]
     w: S::PairVecs,
     /// Scratch: Cholesky factor of `S`.
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::flat"))]
     s: S::PairScalars,
     opts: KalmanOptions<T>,
     reinit_count: u32,
@@ -344,6 +356,28 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
             self.reinit_count += 1;
         }
         Ok(())
+    }
+}
+
+#[cfg(feature = "serde")]
+impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
+    /// Checks a deserialized identifier: valid rows and options, every buffer sized for
+    /// its rows (`θ`: `K`; `P`, `R` and the scratch: `K²`).
+    pub(crate) fn restored(&mut self) -> Result<()> {
+        self.opts.validate()?;
+        let k = crate::model::RowSet::<N>::new(self.rows.flat())?.len();
+        let lens = [
+            ("theta", self.theta.flat().len(), k),
+            ("p", self.p.flat().len(), k * k),
+            ("r", self.r.flat().len(), k * k),
+            ("c", self.c.flat().len(), k * k),
+            ("w", self.w.flat().len(), k * k),
+            ("s", self.s.flat().len(), k * k),
+        ];
+        match lens.into_iter().find(|(_, got, expected)| got != expected) {
+            Some((arg, got, expected)) => Err(Error::Shape { arg, expected, got }),
+            None => Ok(()),
+        }
     }
 }
 

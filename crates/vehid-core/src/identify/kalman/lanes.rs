@@ -147,21 +147,35 @@ pub struct SqrtScratch<T: Real, const N: usize, const L: usize> {
 /// during an exact start, the upper-triangular factor `R` of the regressors (the same in
 /// every lane) with `theta` holding `Qᵀz`.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+)]
 pub struct RowLanes<T: Real, const N: usize, const L: usize> {
     /// `theta[a][k]`: coefficient `a` of lane `k`.
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::array2"))]
     theta: [[T; L]; N],
     /// `p[a][b][k]` for `a ≤ b`: the upper triangle of lane `k`'s matrix (see above).
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::array3"))]
     p: [[[T; L]; N]; N],
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::array"))]
     r: [T; L],
     /// Index into `z` of each lane's row (0 for padding).
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::array"))]
     zrow: [usize; L],
     /// 1 when the lane steps (used and not retired), else 0.
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::array"))]
     active: [T; L],
     /// Statistics per lane: Σ of squared recursive residuals, effective samples, last `s`.
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::array"))]
     ssr: [T; L],
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::array"))]
     nobs: [T; L],
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::array"))]
     s: [T; L],
     /// Tracking: the trace bound per lane, the forgetting factor and the drift.
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::array"))]
     cap: [T; L],
     lambda: T,
     drift: T,
@@ -169,7 +183,9 @@ pub struct RowLanes<T: Real, const N: usize, const L: usize> {
     /// Outlier gate κ, Huber constant (0: off), and the samples each lane gated.
     gate: T,
     huber: T,
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::array"))]
     gated: [u64; L],
+    #[cfg_attr(feature = "serde", serde(deserialize_with = "crate::persist::at_most::<_, L>"))]
     used: usize,
     form: CovarianceForm,
     /// Absorbing an exact start (every lane at once: they share the regressors).
@@ -232,6 +248,8 @@ pub trait RowGroup<T: Real, const N: usize>: Copy + core::fmt::Debug + PartialEq
     fn check_sqrt(&self, sc: &Self::SqrtScratch) -> crate::Result<()>;
     /// Applies a step planned by [`RowGroup::plan_sqrt`].
     fn apply_sqrt(&mut self, sc: &Self::SqrtScratch);
+    /// `true` when the used lanes hold exactly `rows` (their indices into `z`), in order.
+    fn lanes_are(&self, rows: &[usize]) -> bool;
 }
 
 impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
@@ -732,6 +750,10 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
 
     fn starting(&self) -> bool {
         self.start
+    }
+
+    fn lanes_are(&self, rows: &[usize]) -> bool {
+        self.used == rows.len() && self.zrow.get(..self.used) == Some(rows)
     }
 
     #[cold]

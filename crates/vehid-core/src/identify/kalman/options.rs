@@ -8,6 +8,7 @@ use super::{KalmanFull, KalmanRows, KalmanShared, RowIdentifier};
 
 /// How the covariance is propagated after a measurement.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum CovarianceForm {
     /// `P ← P − P x xᵀ P / (xᵀ P x + r)` (Eq 4.6), kept exactly symmetric: [`KalmanRows`]
     /// and [`KalmanShared`] update only the upper triangle (`P_ab −= (Px)_a (Px)_b / s`,
@@ -31,6 +32,7 @@ option_names!(CovarianceForm, "form", { Standard => "standard", Joseph => "josep
 
 /// Which of the three Kalman forms to run (they are equal where their assumptions hold).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum Mode {
     /// Decoupled rows (Eq 6.16–6.18): [`KalmanRows`], each row with its own `p0` and `r`.
     #[default]
@@ -46,6 +48,7 @@ option_names!(Mode, "mode", { Rows => "rows", Shared => "shared", Full => "full"
 
 /// Options common to the Kalman identifiers.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct KalmanOptions<T> {
     /// Covariance update form.
     pub form: CovarianceForm,

@@ -16,13 +16,28 @@ use nalgebra::{SMatrix, SVector};
 /// The row filters are kept side by side in lanes ([`super::lanes`]): one update treats all
 /// rows at once with vector instructions, and only the upper triangle of each `P` is stored.
 #[derive(Debug, Clone)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(
+        remote = "Self",
+        bound(
+            serialize = "T: serde::Serialize, S::Group: serde::Serialize",
+            deserialize = "T: serde::Deserialize<'de>, S::Group: serde::Deserialize<'de>"
+        )
+    )
+)]
 pub struct KalmanRows<T: Real, const N: usize, S: Store<T, N>> {
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::flat"))]
     rows: S::Rows,
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::flat"))]
     pub(super) groups: S::Groups,
     /// The planned step of the sample being processed, one per group (used when the plan
     /// does not stay in registers).
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::transient"))]
     pub(super) scratch: S::Scratches,
     /// The same for the square-root form (empty in the other forms).
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::transient"))]
     sqrt_scratch: S::SqrtScratches,
     opts: KalmanOptions<T>,
     reinit_count: u32,
@@ -409,6 +424,30 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
             }
             self.reinit_count += 1;
         }
+    }
+}
+
+#[cfg(feature = "serde")]
+impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
+    /// Checks a deserialized identifier (valid rows and options, one group of lanes per
+    /// `LANES` rows holding exactly those rows, one phase) and sizes its scratch again.
+    pub(crate) fn restored(&mut self) -> Result<()> {
+        self.opts.validate()?;
+        let rows = self.rows.flat();
+        crate::model::RowSet::<N>::new(rows)?;
+        let lanes = <S::Group as RowGroup<T, N>>::LANES;
+        let groups = self.groups.flat();
+        if groups.len() != rows.len().div_ceil(lanes) {
+            return Err(Error::Shape { arg: "groups", expected: rows.len().div_ceil(lanes), got: groups.len() });
+        }
+        let start = self.starting();
+        if groups.iter().zip(rows.chunks(lanes)).any(|(g, chunk)| !g.lanes_are(chunk) || g.starting() != start) {
+            return Err(Error::InvalidArgument { arg: "groups", expected: "lanes holding the unknown rows, in order" });
+        }
+        self.scratch = S::Scratches::filled("unknown_rows", groups.len(), S::Group::scratch())?;
+        let sqrt_groups = if self.opts.form == CovarianceForm::Sqrt { groups.len() } else { 0 };
+        self.sqrt_scratch = S::SqrtScratches::filled("unknown_rows", sqrt_groups, S::Group::sqrt_scratch())?;
+        Ok(())
     }
 }
 

@@ -15,9 +15,17 @@ use nalgebra::{SMatrix, SVector};
 /// Shared-covariance Kalman identifier over a [`Store`] (`P_i = r_i Q`); see
 /// [`SharedKalmanIdentifier`].
 #[derive(Debug, Clone)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+)]
 pub struct KalmanShared<T: Real, const N: usize, S: Store<T, N>> {
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::flat"))]
     rows: S::Rows,
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::flat"))]
     theta: S::Vecs,
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::flat"))]
     r: S::Scalars,
     q: SMatrix<T, N, N>,
     opts: KalmanOptions<T>,
@@ -284,6 +292,21 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
             *r *= T::of(2.0);
         }
         self.reinit_count += 1;
+    }
+}
+
+#[cfg(feature = "serde")]
+impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
+    /// Checks a deserialized identifier: valid rows and options, one `θ_i` and `r_i` per row.
+    pub(crate) fn restored(&mut self) -> Result<()> {
+        self.opts.validate()?;
+        let k = crate::model::RowSet::<N>::new(self.rows.flat())?.len();
+        for (arg, len) in [("theta", self.theta.flat().len()), ("r", self.r.flat().len())] {
+            if len != k {
+                return Err(Error::Shape { arg, expected: k, got: len });
+            }
+        }
+        Ok(())
     }
 }
 

@@ -1,0 +1,433 @@
+//! Round trips: every identifier, in every form and store, serialized after `N` samples and
+//! deserialized continues bit for bit with the original for `M` more; corrupt input is an
+//! error, never a panic (also after loading).
+
+use crate::identify::*;
+use crate::model::{HalfCar, LinearModel, QuarterCar, RowSet};
+use crate::sim::{RoadConfig, RoadSimulator, SimConfig, Simulator};
+use nalgebra::{SMatrix, SVector};
+use serde::de::DeserializeOwned;
+use serde::Serialize;
+
+type V4 = SVector<f64, 4>;
+type V8 = SVector<f64, 8>;
+
+fn quarter(n: usize) -> Vec<(V4, V4)> {
+    let cfg = SimConfig::new(0.05).road_sigma(0.1).ic_sigma(0.1).deriv_noise(0.005);
+    let mut sim = Simulator::new(QuarterCar::thesis().model(), cfg, 7).unwrap();
+    (0..n).map(|_| sim.next_sample()).map(|s| (s.r, s.z)).collect()
+}
+
+/// Half-car samples taken every 0.3 m at 6 m/s on one road (d = 10).
+fn half_road(n: usize) -> Vec<(V8, V8)> {
+    let car = HalfCar::<f64>::thesis();
+    let cfg = SimConfig::new(0.05).road_sigma(0.1).ic_sigma(0.1).deriv_noise(0.005);
+    let mut sim = RoadSimulator::<f64, 8, 16>::new(car.model(), cfg, RoadConfig::new(0.3, car.wheelbase()), 3).unwrap();
+    (0..n).map(|_| sim.next_sample(6.0).unwrap()).map(|s| (s.r, s.z)).collect()
+}
+
+fn to_bytes<I: Serialize>(id: &I) -> Vec<u8> {
+    postcard::to_allocvec(id).unwrap()
+}
+
+/// Bits of a reported quantity, or why there is none.
+type Bits = Result<Vec<u64>, crate::Error>;
+
+/// Everything an identifier reports, as bits (`Err` where it has no such quantity yet).
+fn report<I: Identifier<f64>>(id: &I) -> (Bits, Bits, Vec<u64>) {
+    let d = id.dims();
+    let bits = |v: Vec<f64>| v.into_iter().map(f64::to_bits).collect::<Vec<_>>();
+    let mut th = vec![0.0; d.params];
+    let th = id.params_into(&mut th).map(|()| bits(th));
+    let mut p = vec![0.0; d.params * d.params];
+    let p = id.covariance_into(&mut p).map(|()| bits(p));
+    let counters =
+        vec![id.samples(), u64::from(id.reinit_count()), id.trace().map_or(0, f64::to_bits), d.params as u64];
+    (th, p, counters)
+}
+
+/// Runs `data[..split]`, restores a copy through postcard, runs the rest on both, comparing
+/// innovations and reports after every sample and the serialized states at the end.
+fn continues<I>(mut id: I, data: &[(&[f64], &[f64])], split: usize) -> I
+where
+    I: Identifier<f64> + Serialize + DeserializeOwned,
+{
+    let k = id.dims().equations;
+    let (mut e1, mut e2) = (vec![0.0; k], vec![0.0; k]);
+    for (x, z) in &data[..split] {
+        id.update_into(x, z, &[], &mut e1).unwrap();
+    }
+    let bytes = to_bytes(&id);
+    let mut back: I = postcard::from_bytes(&bytes).unwrap();
+    assert_eq!(to_bytes(&back), bytes, "serialize ∘ deserialize is the identity");
+    assert_eq!(report(&back), report(&id));
+    for (x, z) in &data[split..] {
+        let a = id.update_into(x, z, &[], &mut e1);
+        let b = back.update_into(x, z, &[], &mut e2);
+        assert_eq!(a, b);
+        assert_eq!(
+            e1.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+            e2.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+        );
+        assert_eq!(report(&back), report(&id));
+    }
+    assert_eq!(to_bytes(&back), to_bytes(&id), "the same state after the continuation");
+    id
+}
+
+fn slices<const N: usize>(data: &[(SVector<f64, N>, SVector<f64, N>)]) -> Vec<(&[f64], &[f64])> {
+    data.iter().map(|(x, z)| (x.as_slice(), z.as_slice())).collect()
+}
+
+const R_Q: [f64; 2] = [81.0, 2.5e-5];
+
+fn opts(form: CovarianceForm) -> KalmanOptions<f64> {
+    KalmanOptions { form, ..KalmanOptions::default() }
+}
+
+#[test]
+fn kalman_rows_every_form_and_store() {
+    let data = quarter(400);
+    let d = slices(&data);
+    for form in [CovarianceForm::Standard, CovarianceForm::Joseph, CovarianceForm::Sqrt] {
+        let o = opts(form);
+        continues(KalmanIdentifier::<f64, 4, 2>::from_slices(&[1, 3], &[1000.0], &R_Q, o).unwrap(), &d, 150);
+        continues(KalmanIdentifierVec2::<f64, 4>::from_slices(&[1, 3], &[1000.0], &R_Q, o).unwrap(), &d, 150);
+        continues(KalmanIdentifierVec::<f64, 4>::from_slices(&[3, 1], &[1000.0], &R_Q, o).unwrap(), &d, 150);
+        // Reinitialization (Eq 4.36) and retirement.
+        let o = KalmanOptions { reinit: true, retire_below: 1e-9, ..o };
+        continues(KalmanIdentifier::<f64, 4, 2>::from_slices(&[1, 3], &[1.0], &R_Q, o).unwrap(), &d, 20);
+    }
+}
+
+#[test]
+fn kalman_rows_exact_start_before_and_after_it_ends() {
+    let data = quarter(300);
+    let d = slices(&data);
+    for form in [CovarianceForm::Standard, CovarianceForm::Sqrt] {
+        let o = opts(form);
+        for split in [2, 100] {
+            let id = KalmanIdentifier::<f64, 4, 2>::exact(&[1, 3], &R_Q, o).unwrap();
+            let id = continues(id, &d, split);
+            assert!(!id.starting());
+            let id = KalmanIdentifierVec2::<f64, 4>::exact(&[1, 3], &R_Q, o).unwrap();
+            continues(id, &d, split);
+        }
+    }
+    // Still starting when saved: the restored one is still starting too.
+    let mut id = KalmanIdentifier::<f64, 4, 2>::exact(&[1, 3], &R_Q, KalmanOptions::default()).unwrap();
+    id.update(&data[0].0, &data[0].1).unwrap();
+    let back: KalmanIdentifier<f64, 4, 2> = postcard::from_bytes(&to_bytes(&id)).unwrap();
+    assert!(back.starting() && id.starting());
+}
+
+#[test]
+fn kalman_rows_tracking() {
+    let data = quarter(400);
+    let d = slices(&data);
+    for form in [CovarianceForm::Standard, CovarianceForm::Joseph, CovarianceForm::Sqrt] {
+        for directional in [false, true] {
+            let o = KalmanOptions { form, forgetting: 0.98, directional, drift: 1e-6, ..KalmanOptions::default() };
+            continues(KalmanIdentifier::<f64, 4, 2>::from_slices(&[1, 3], &[1000.0], &R_Q, o).unwrap(), &d, 200);
+            continues(KalmanIdentifierVec::<f64, 4>::exact(&[1, 3], &R_Q, o).unwrap(), &d, 200);
+        }
+    }
+}
+
+#[test]
+fn kalman_rows_outlier_gate_and_huber() {
+    // Outliers after the gate's warm-up (N + 50 samples), split before and after the first.
+    let mut data = quarter(400);
+    for k in [120, 260, 261, 330] {
+        data[k].1[1] += 1e3;
+        data[k].1[3] -= 50.0;
+    }
+    let d = slices(&data);
+    for form in [CovarianceForm::Standard, CovarianceForm::Joseph, CovarianceForm::Sqrt] {
+        for (gate, huber) in [(6.0, 0.0), (0.0, 1.345), (6.0, 1.345)] {
+            let o = KalmanOptions { form, gate, huber, ..KalmanOptions::default() };
+            for split in [100, 200] {
+                let id = continues(
+                    KalmanIdentifier::<f64, 4, 2>::from_slices(&[1, 3], &[1000.0], &R_Q, o).unwrap(),
+                    &d,
+                    split,
+                );
+                if gate > 0.0 {
+                    assert!((0..2).any(|i| id.filter(i).gated() > 0), "the gate acted");
+                }
+                continues(KalmanIdentifierVec::<f64, 4>::exact(&[1, 3], &R_Q, o).unwrap(), &d, split);
+            }
+        }
+    }
+}
+
+#[test]
+fn kalman_rows_several_groups_and_f32() {
+    // Six rows of the half car: Fixed<6> in one group, Dynamic<2> in three (with scratch).
+    let data = half_road(600);
+    let d = slices(&data);
+    let rows = [0, 1, 3, 5, 6, 7];
+    let r = [0.01, 100.0, 100.0, 2.5e-3, 0.02, 2.5e-3];
+    let o = KalmanOptions::default();
+    continues(KalmanIdentifier::<f64, 8, 6>::from_slices(&rows, &[1000.0], &r, o).unwrap(), &d, 250);
+    continues(KalmanIdentifierVec2::<f64, 8>::from_slices(&rows, &[1000.0], &r, o).unwrap(), &d, 250);
+    continues(KalmanIdentifierVec::<f64, 8>::from_slices(&rows, &[1000.0], &r, o).unwrap(), &d, 250);
+    // The square-root form plans several groups through its own scratch.
+    let o = opts(CovarianceForm::Sqrt);
+    continues(KalmanIdentifierVec2::<f64, 8>::from_slices(&rows, &[1000.0], &r, o).unwrap(), &d, 250);
+    continues(KalmanIdentifierVec2::<f64, 8>::exact(&rows, &r, o).unwrap(), &d, 250);
+    // f32: the same continuation, read through the fixed-size API.
+    let mut a = KalmanIdentifier::<f32, 4, 2>::new([1, 3], 1000.0, [81.0, 2.5e-5]).unwrap();
+    let q: Vec<_> = quarter(200).iter().map(|(x, z)| (x.cast::<f32>(), z.cast::<f32>())).collect();
+    for (x, z) in &q[..100] {
+        a.update(x, z).unwrap();
+    }
+    let mut b: KalmanIdentifier<f32, 4, 2> = postcard::from_bytes(&to_bytes(&a)).unwrap();
+    for (x, z) in &q[100..] {
+        assert_eq!(a.update(x, z).unwrap(), b.update(x, z).unwrap());
+    }
+    assert_eq!(a.theta(), b.theta());
+    assert!((0..2).all(|i| a.filter(i) == b.filter(i)));
+}
+
+#[test]
+fn kalman_shared_and_full() {
+    let data = quarter(400);
+    let d = slices(&data);
+    for form in [CovarianceForm::Standard, CovarianceForm::Joseph] {
+        for reinit in [false, true] {
+            let o = KalmanOptions { form, reinit, ..KalmanOptions::default() };
+            let r = [2.5e-5, 2.5e-5];
+            continues(SharedKalmanIdentifier::<f64, 4, 2>::from_slices(&[1, 3], &[1000.0], &r, o).unwrap(), &d, 150);
+            continues(SharedKalmanIdentifierVec::<f64, 4>::from_slices(&[1, 3], &[1000.0], &r, o).unwrap(), &d, 150);
+        }
+    }
+    let r = [81.0, 0.01, 0.01, 2.5e-5];
+    for reinit in [false, true] {
+        let o = KalmanOptions { reinit, ..KalmanOptions::default() };
+        continues(FullKalmanIdentifier::<f64, 4, 2>::from_slices(&[1, 3], &[1000.0], &r, o).unwrap(), &d, 150);
+        continues(FullKalmanIdentifierVec::<f64, 4>::from_slices(&[1, 3], &[1000.0], &r, o).unwrap(), &d, 150);
+    }
+}
+
+#[test]
+fn gradient_accumulator_and_batch() {
+    let data = quarter(400);
+    let d = slices(&data);
+    let gains = [Gain::Venter { p: 0.51 }, Gain::Lyapunov, Gain::Ljung { lambda0: 0.99, lambda_init: 0.95 }];
+    for gain in gains {
+        for spacing in [1, 3] {
+            let h = [0.4, 0.4, 0.4, 0.4, 0.04, 0.04, 0.04, 0.04];
+            let id = StochasticGradient::<f64, 4, 2>::from_slices(&[1, 3], gain, &h, &[1e-4], spacing).unwrap();
+            continues(id, &d, 151);
+            let id = StochasticGradientVec::<f64, 4>::from_slices(&[1, 3], gain, &h, &[1e-4], spacing).unwrap();
+            continues(id, &d, 151);
+        }
+    }
+    continues(LsAccumulator::<f64, 4, Fixed<2>>::from_rows(&[1, 3]).unwrap(), &d, 150);
+    continues(LsAccumulator::<f64, 4, Dynamic>::from_rows(&[1, 3]).unwrap(), &d, 150);
+    continues(BatchLeastSquares::<f64, 4>::new(&[1, 3]).unwrap(), &d, 150);
+}
+
+#[test]
+fn two_axle_with_its_ring() {
+    let car = HalfCar::<f64>::thesis();
+    let data = half_road(500);
+    let d = slices(&data);
+    for method in [WheelMethod::None, WheelMethod::Thesis, WheelMethod::Cancel] {
+        let cfg = TwoAxleConfig::new(method, 1000.0, 0.1, 0.005);
+        for split in [5, 200] {
+            // Split inside the first d = 10 samples (ring partly filled) and after.
+            let id = TwoAxleIdentifier::<f64, 8, 16, 2, 16>::new(&car.model(), 10, cfg).unwrap();
+            let id = continues(id, &d, split);
+            assert!(id.paired() > 0);
+            let id = TwoAxleIdentifierVec::<f64, 8, 16>::new(&car.model(), 10, cfg).unwrap();
+            continues(id, &d, split);
+        }
+    }
+}
+
+#[test]
+fn options_models_and_sets_round_trip() {
+    let model = HalfCar::<f64>::thesis().model();
+    let back: LinearModel<f64, 8, 2> = postcard::from_bytes(&to_bytes(&model)).unwrap();
+    assert_eq!(back, model);
+    let rows = RowSet::<8>::new(&[7, 1, 3]).unwrap();
+    assert_eq!(postcard::from_bytes::<RowSet<8>>(&to_bytes(&rows)).unwrap(), rows);
+    let o = KalmanOptions { form: CovarianceForm::Sqrt, forgetting: 0.99, ..KalmanOptions::<f64>::default() };
+    assert_eq!(postcard::from_bytes::<KalmanOptions<f64>>(&to_bytes(&o)).unwrap(), o);
+    let spec = KalmanSpec { rows: vec![1, 3], p0: Prior::Exact, theta0: None, r: vec![1.0], mode: Mode::Rows, opts: o };
+    assert_eq!(postcard::from_bytes::<KalmanSpec<f64>>(&to_bytes(&spec)).unwrap(), spec);
+    // A self-describing format names the choices.
+    let json = serde_json::to_string(&(CovarianceForm::Sqrt, GainKind::Ljung, WheelMethod::Cancel)).unwrap();
+    assert_eq!(json, r#"["Sqrt","Ljung","Cancel"]"#);
+}
+
+#[test]
+fn json_round_trip_of_a_fixed_identifier() {
+    // A self-describing format (maps, fixed arrays as arrays) works too (to the precision of
+    // serde_json's float parsing, which is bit-exact only with its `float_roundtrip` feature).
+    let data = quarter(100);
+    let mut id = KalmanIdentifier::<f64, 4, 2>::new([1, 3], 1000.0, R_Q).unwrap();
+    for (x, z) in &data[..50] {
+        id.update(x, z).unwrap();
+    }
+    let text = serde_json::to_string(&id).unwrap();
+    let mut back: KalmanIdentifier<f64, 4, 2> = serde_json::from_str(&text).unwrap();
+    for (x, z) in &data[50..] {
+        id.update(x, z).unwrap();
+        back.update(x, z).unwrap();
+    }
+    let (a, b) = (id.theta(), back.theta());
+    assert!((a - b).abs().max() <= 1e-12 * a.abs().max(), "{a} {b}");
+}
+
+/// Deserializing `value` as `I` is an error mentioning `needle`.
+fn rejects<I: DeserializeOwned>(value: &serde_json::Value, needle: &str) {
+    match serde_json::from_value::<I>(value.clone()) {
+        Ok(_) => panic!("accepted a corrupt {needle}"),
+        Err(e) => assert!(e.to_string().contains(needle), "{e}"),
+    }
+}
+
+#[test]
+fn inconsistent_input_is_an_error() {
+    use serde_json::json;
+    let id = KalmanIdentifierVec2::<f64, 8>::from_slices(&[0, 1, 3, 5, 6], &[1000.0], &[1.0], KalmanOptions::default())
+        .unwrap();
+    let good = serde_json::to_value(&id).unwrap();
+    type Rows = KalmanIdentifierVec2<f64, 8>;
+    let with = |path: &[&str], v: serde_json::Value| {
+        let mut out = good.clone();
+        let mut at = &mut out;
+        for p in &path[..path.len() - 1] {
+            at = if let Ok(i) = p.parse::<usize>() { &mut at[i] } else { &mut at[*p] };
+        }
+        at[path[path.len() - 1]] = v;
+        out
+    };
+    rejects::<Rows>(&with(&["rows"], json!([0, 1, 3, 5, 5])), "unknown_rows");
+    rejects::<Rows>(&with(&["rows"], json!([0, 1, 3, 5, 9])), "unknown_rows");
+    rejects::<Rows>(&with(&["rows"], json!([0, 1, 3, 5])), "not a valid KalmanRows");
+    rejects::<Rows>(&with(&["groups", "0", "used"], json!(3)), "capacity");
+    rejects::<Rows>(&with(&["groups", "2", "used"], json!(2)), "not a valid KalmanRows");
+    rejects::<Rows>(&with(&["groups", "1", "zrow"], json!([5, 3])), "not a valid KalmanRows");
+    rejects::<Rows>(&with(&["opts", "forgetting"], json!(1.5)), "forgetting");
+    let mut short = good.clone();
+    short["groups"].as_array_mut().unwrap().pop();
+    rejects::<Rows>(&short, "groups");
+
+    let full = FullKalmanIdentifierVec::<f64, 4>::from_slices(&[1, 3], &[1.0], &[1.0], KalmanOptions::default());
+    let mut v = serde_json::to_value(full.unwrap()).unwrap();
+    v["p"].as_array_mut().unwrap().pop();
+    rejects::<FullKalmanIdentifierVec<f64, 4>>(&v, "`p`");
+
+    let mut ls = BatchLeastSquares::<f64, 4>::new(&[1, 3]).unwrap();
+    ls.push(&V4::repeat(1.0), &V4::repeat(2.0)).unwrap();
+    let mut v = serde_json::to_value(&ls).unwrap();
+    v["z"].as_array_mut().unwrap().pop();
+    rejects::<BatchLeastSquares<f64, 4>>(&v, "`z`");
+
+    let car = HalfCar::<f64>::thesis();
+    let cfg = TwoAxleConfig::new(WheelMethod::Cancel, 1000.0, 0.1, 0.005);
+    let two = TwoAxleIdentifierVec::<f64, 8, 16>::new(&car.model(), 10, cfg).unwrap();
+    let good = serde_json::to_value(&two).unwrap();
+    let mut v = good.clone();
+    v["d"] = json!(11);
+    rejects::<TwoAxleIdentifierVec<f64, 8, 16>>(&v, "ring");
+    let mut v = good.clone();
+    v["ring"] = json!([]);
+    rejects::<TwoAxleIdentifierVec<f64, 8, 16>>(&v, "ring");
+    let mut v = good.clone();
+    v["front_row"] = json!(9);
+    rejects::<TwoAxleIdentifierVec<f64, 8, 16>>(&v, "wheel rows");
+    let mut v = good.clone();
+    v["body"]["rows"] = json!([5]);
+    rejects::<TwoAxleIdentifierVec<f64, 8, 16>>(&v, "not a valid KalmanRows");
+    let mut v = good;
+    v["body"] = json!(null);
+    rejects::<TwoAxleIdentifierVec<f64, 8, 16>>(&v, "`body`");
+
+    // A fixed store takes exactly its length.
+    let fixed = serde_json::to_value(KalmanIdentifier::<f64, 4, 2>::new([1, 3], 1.0, [1.0, 1.0]).unwrap()).unwrap();
+    let mut v = fixed.clone();
+    v["rows"] = json!([1, 3, 0]);
+    rejects::<KalmanIdentifier<f64, 4, 2>>(&v, "fixed store");
+    let mut v = fixed;
+    v["rows"] = json!([1]);
+    rejects::<KalmanIdentifier<f64, 4, 2>>(&v, "fixed store");
+    let mut set = serde_json::to_value(RowSet::<4>::new(&[1, 3]).unwrap()).unwrap();
+    set["len"] = json!(5);
+    rejects::<RowSet<4>>(&set, "unknown_rows");
+}
+
+/// Every single-byte change of a serialized identifier either fails to load or loads into
+/// an identifier that updates and reports without panicking.
+fn survives_corruption<I>(id: &I, data: &[(&[f64], &[f64])], flips: &[u8])
+where
+    I: Identifier<f64> + Serialize + DeserializeOwned,
+{
+    let bytes = to_bytes(id);
+    let k = id.dims().equations;
+    let mut e = vec![0.0; k];
+    for i in 0..bytes.len() {
+        for &flip in flips {
+            let mut b = bytes.clone();
+            b[i] ^= flip;
+            if let Ok(mut back) = postcard::from_bytes::<I>(&b) {
+                for (x, z) in data {
+                    let _ = back.update_into(x, z, &[], &mut e);
+                }
+                let _ = report(&back);
+            }
+        }
+    }
+}
+
+#[test]
+fn corrupt_bytes_never_panic() {
+    let q = quarter(60);
+    let dq = slices(&q);
+    let h = half_road(40);
+    let dh = slices(&h);
+    // Three rows in two groups of two lanes (one of them half padding).
+    let mut rows =
+        KalmanIdentifierVec2::<f64, 4>::from_slices(&[1, 2, 3], &[1000.0], &[1.0], KalmanOptions::default()).unwrap();
+    let mut e = [0.0; 3];
+    for (x, z) in &q[..20] {
+        rows.update_vec(x, z, &mut e).unwrap();
+    }
+    survives_corruption(&rows, &dq[20..23], &[0x01, 0xff]);
+    survives_corruption(
+        &KalmanIdentifierVec2::<f64, 4>::exact(&[1, 3], &R_Q, KalmanOptions::default()).unwrap(),
+        &dq[..6],
+        &[0x01, 0xff],
+    );
+    let r = SMatrix::<f64, 2, 2>::new(81.0, 0.01, 0.01, 2.5e-5);
+    survives_corruption(&FullKalmanIdentifier::<f64, 4, 2>::new([1, 3], 1000.0, r).unwrap(), &dq[..3], &[0x01, 0xff]);
+    survives_corruption(
+        &SharedKalmanIdentifierVec::<f64, 4>::from_slices(&[1, 3], &[1.0], &[1.0], KalmanOptions::default()).unwrap(),
+        &dq[..3],
+        &[0x01, 0xff],
+    );
+    survives_corruption(
+        &StochasticGradientVec::<f64, 4>::from_slices(&[1, 3], Gain::Lyapunov, &[1.0], &[0.0], 2).unwrap(),
+        &dq[..3],
+        &[0x01, 0xff],
+    );
+    survives_corruption(&LsAccumulator::<f64, 4, Dynamic>::from_rows(&[1, 3]).unwrap(), &dq[..3], &[0x01, 0xff]);
+    let mut ls = BatchLeastSquares::<f64, 4>::new(&[1, 3]).unwrap();
+    for (x, z) in &q[..8] {
+        ls.push(x, z).unwrap();
+    }
+    survives_corruption(&ls, &dq[..4], &[0x01, 0xff]);
+    let car = HalfCar::<f64>::thesis();
+    let cfg = TwoAxleConfig::new(WheelMethod::Thesis, 1000.0, 0.1, 0.005);
+    let mut two = TwoAxleIdentifierVec::<f64, 8, 16>::new(&car.model(), 3, cfg).unwrap();
+    let mut e = [0.0; 4];
+    for (x, z) in &h[..5] {
+        two.update_next(x, z, &mut e).unwrap();
+    }
+    // (7 kB, most of it floats: one update per variant keeps the debug-build test short.)
+    survives_corruption(&two, &dh[5..6], &[0xff]);
+}

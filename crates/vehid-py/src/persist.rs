@@ -1,0 +1,240 @@
+//! Pickling and copying of identifiers.
+//!
+//! An identifier pickles as `copyreg.__newobj_ex__(cls, args, kwargs)` plus a state:
+//! `args`/`kwargs` build a fresh object of the same class and settings (the model, and for
+//! `KalmanIdentifier` its mode and form, for `StochasticGradient` its gain, for
+//! `TwoAxleIdentifier` its spacing, method and wheelbase), and `__setstate__` then replaces
+//! its core by the saved one. That works with every pickle protocol (0–5).
+//!
+//! The state is the tuple `(FORMAT, "vehid <version>", payload)`: the payload is postcard
+//! (vehid-core's `serde` feature) of [`Saved`]: which concrete core type the identifier holds
+//! (the binding chose it at construction), the model, and the core's own postcard bytes.
+//! Loading checks the format version first, then decodes (the core validates itself: a
+//! corrupt payload is an error, never a later panic), then checks that the core fits the
+//! class and the model of the object it goes into.
+
+use crate::dispatch::{dispatch_n, ModelData};
+use crate::identify::{PyBatchLeastSquares, PyIdentifier, PyKalmanIdentifier, PyStochasticGradient};
+use crate::model::{Kind, PyLinearModel};
+use crate::two_axle::PyTwoAxleIdentifier;
+use crate::VehidError;
+use pyo3::prelude::*;
+use pyo3::types::{PyBytes, PyDict, PyTuple};
+use serde::{Deserialize, Serialize};
+use vehid_core::identify::{
+    BatchLeastSquares, DynIdentifier, Dynamic, KalmanFull, KalmanRows, KalmanShared, StochasticGradientVec,
+    TwoAxleIdentifierVec,
+};
+use vehid_core::Error;
+
+/// Version of the pickled state's layout. Raise it when the payload or any serialized core
+/// type changes in a way older readers (or this reader, for older payloads) cannot follow.
+pub const FORMAT: u32 = 1;
+
+/// The concrete core type behind a Python identifier.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+enum Core {
+    /// `KalmanRows` in groups of two lanes.
+    Rows2,
+    /// `KalmanRows` in groups of four lanes.
+    Rows4,
+    Shared,
+    Full,
+    Gradient,
+    Batch,
+    /// `TwoAxleIdentifierVec<f64, 8, 16>`.
+    TwoAxle,
+}
+
+impl Core {
+    fn mode(self) -> Option<&'static str> {
+        match self {
+            Core::Rows2 | Core::Rows4 => Some("rows"),
+            Core::Shared => Some("shared"),
+            Core::Full => Some("full"),
+            _ => None,
+        }
+    }
+}
+
+/// What the state's payload holds.
+#[derive(Serialize, Deserialize)]
+struct Saved {
+    core: Core,
+    model: ModelData,
+    state: Vec<u8>,
+}
+
+type TwoAxleCore = TwoAxleIdentifierVec<f64, 8, 16>;
+
+fn encode<I: Serialize>(core: Core, id: &I) -> vehid_core::Result<Option<(Core, Vec<u8>)>> {
+    postcard::to_allocvec(id)
+        .map(|bytes| Some((core, bytes)))
+        .map_err(|_| Error::OutOfMemory { what: "the pickled state", bytes: usize::MAX })
+}
+
+/// The core type and its bytes, for an `N`-state identifier (`None`: not a type this binding
+/// builds).
+fn save_n<const N: usize>(id: &dyn DynIdentifier<f64>) -> vehid_core::Result<Option<(Core, Vec<u8>)>> {
+    let any = id.as_any();
+    if let Some(x) = any.downcast_ref::<KalmanRows<f64, N, Dynamic<2>>>() {
+        return encode(Core::Rows2, x);
+    }
+    if let Some(x) = any.downcast_ref::<KalmanRows<f64, N, Dynamic<4>>>() {
+        return encode(Core::Rows4, x);
+    }
+    if let Some(x) = any.downcast_ref::<KalmanShared<f64, N, Dynamic>>() {
+        return encode(Core::Shared, x);
+    }
+    if let Some(x) = any.downcast_ref::<KalmanFull<f64, N, Dynamic>>() {
+        return encode(Core::Full, x);
+    }
+    if let Some(x) = any.downcast_ref::<StochasticGradientVec<f64, N>>() {
+        return encode(Core::Gradient, x);
+    }
+    if let Some(x) = any.downcast_ref::<BatchLeastSquares<f64, N>>() {
+        return encode(Core::Batch, x);
+    }
+    if let Some(x) = any.downcast_ref::<TwoAxleCore>() {
+        return encode(Core::TwoAxle, x);
+    }
+    Ok(None)
+}
+
+type Loaded = Result<Box<dyn DynIdentifier<f64>>, postcard::Error>;
+
+fn decode<I: DynIdentifier<f64> + for<'de> Deserialize<'de> + 'static>(bytes: &[u8]) -> Loaded {
+    Ok(Box::new(postcard::from_bytes::<I>(bytes)?))
+}
+
+/// Decodes an `N`-state core of type `core`.
+fn load_n<const N: usize>(core: Core, bytes: &[u8]) -> vehid_core::Result<Loaded> {
+    Ok(match core {
+        Core::Rows2 => decode::<KalmanRows<f64, N, Dynamic<2>>>(bytes),
+        Core::Rows4 => decode::<KalmanRows<f64, N, Dynamic<4>>>(bytes),
+        Core::Shared => decode::<KalmanShared<f64, N, Dynamic>>(bytes),
+        Core::Full => decode::<KalmanFull<f64, N, Dynamic>>(bytes),
+        Core::Gradient => decode::<StochasticGradientVec<f64, N>>(bytes),
+        Core::Batch => decode::<BatchLeastSquares<f64, N>>(bytes),
+        Core::TwoAxle if N == 8 => decode::<TwoAxleCore>(bytes),
+        Core::TwoAxle => return Err(crate::dispatch::bad_dims()),
+    })
+}
+
+/// The identifier's state: `(FORMAT, "vehid <version>", payload)`.
+fn state<'py>(py: Python<'py>, base: &PyIdentifier) -> PyResult<Bound<'py, PyTuple>> {
+    let n = base.model.n;
+    let saved = dispatch_n!(n, save_n(base.inner.as_ref())).map_err(crate::identify::raise)?;
+    let Some((core, bytes)) = saved else {
+        return Err(VehidError::new_err("this identifier cannot be pickled (its core type is not one vehid builds)"));
+    };
+    let payload = postcard::to_allocvec(&Saved { core, model: base.model.clone(), state: bytes })
+        .map_err(|e| VehidError::new_err(format!("cannot pickle the identifier: {e}")))?;
+    let version = concat!("vehid ", env!("CARGO_PKG_VERSION"));
+    (FORMAT, version, PyBytes::new(py, &payload)).into_pyobject(py)
+}
+
+/// The arguments that build a fresh identifier of `obj`'s class and settings.
+fn blank_args<'py>(obj: &Bound<'py, PyIdentifier>) -> PyResult<(Bound<'py, PyTuple>, Bound<'py, PyDict>)> {
+    let py = obj.py();
+    let kwargs = PyDict::new(py);
+    let model = if obj.is_instance_of::<PyTwoAxleIdentifier>() {
+        for key in ["spacing", "method", "wheelbase"] {
+            kwargs.set_item(key, obj.getattr(key)?)?;
+        }
+        obj.getattr("model")?
+    } else {
+        if obj.is_instance_of::<PyKalmanIdentifier>() {
+            kwargs.set_item("p0", 1.0)?;
+            kwargs.set_item("r", 1.0)?;
+            kwargs.set_item("mode", obj.getattr("mode")?)?;
+            kwargs.set_item("form", obj.getattr("form")?)?;
+        } else if obj.is_instance_of::<PyStochasticGradient>() {
+            kwargs.set_item("gain", obj.getattr("gain")?)?;
+        } else if !obj.is_instance_of::<PyBatchLeastSquares>() {
+            return Err(VehidError::new_err(format!(
+                "{} cannot be pickled or copied: only vehid's identifier classes can",
+                obj.get_type().name()?
+            )));
+        }
+        let data = obj.borrow().model.clone();
+        Bound::new(py, PyLinearModel::new_core(data, Kind::Generic))?.into_any()
+    };
+    Ok((PyTuple::new(py, [model])?, kwargs))
+}
+
+/// `__reduce__`: `(copyreg.__newobj_ex__, (cls, args, kwargs), state)`.
+pub fn reduce<'py>(obj: &Bound<'py, PyIdentifier>) -> PyResult<Bound<'py, PyTuple>> {
+    let py = obj.py();
+    let (args, kwargs) = blank_args(obj)?;
+    let newobj = py.import("copyreg")?.getattr("__newobj_ex__")?;
+    let state = state(py, &obj.borrow())?;
+    (newobj, (obj.get_type(), args, kwargs), state).into_pyobject(py)
+}
+
+/// `__copy__` / `__deepcopy__`: a fresh object of the same class with a copy of the core (the
+/// models are immutable and shared).
+pub fn copy<'py>(obj: &Bound<'py, PyIdentifier>) -> PyResult<Bound<'py, PyAny>> {
+    let (args, kwargs) = blank_args(obj)?;
+    let new = obj.get_type().call(args, Some(&kwargs))?;
+    let new = new.cast::<PyIdentifier>()?;
+    let core = obj.borrow().inner.clone_box();
+    new.borrow_mut().inner = core;
+    Ok(new.clone().into_any())
+}
+
+fn corrupt(what: &str) -> PyErr {
+    VehidError::new_err(format!(
+        "cannot restore the identifier: {what} (the pickle is corrupt, or was not made by vehid)"
+    ))
+}
+
+/// `__setstate__`: checks the format version, decodes, checks that the core fits this
+/// object's class and model, then replaces the core.
+pub fn set_state(obj: &Bound<'_, PyIdentifier>, state: &Bound<'_, PyAny>) -> PyResult<()> {
+    let Ok((format, version, payload)) = state.extract::<(u32, String, Vec<u8>)>() else {
+        return Err(corrupt("its state is not a (format, version, bytes) tuple"));
+    };
+    if format != FORMAT {
+        return Err(VehidError::new_err(format!(
+            "cannot restore the identifier: it was pickled by {version} in state format {format}, and this vehid \
+             ({}) reads format {FORMAT} only; refit it, or load it with the version that saved it",
+            env!("CARGO_PKG_VERSION")
+        )));
+    }
+    let saved: Saved =
+        postcard::from_bytes(&payload).map_err(|e| corrupt(&format!("its payload does not decode ({e})")))?;
+    let model = obj.borrow().model.clone();
+    if saved.model != model {
+        return Err(VehidError::new_err(
+            "cannot restore the identifier: the state is of an identifier of another model than this object's",
+        ));
+    }
+    let class_fits = if obj.is_instance_of::<PyKalmanIdentifier>() {
+        let mode: String = obj.getattr("mode")?.extract()?;
+        saved.core.mode() == Some(mode.as_str())
+    } else if obj.is_instance_of::<PyStochasticGradient>() {
+        saved.core == Core::Gradient
+    } else if obj.is_instance_of::<PyBatchLeastSquares>() {
+        saved.core == Core::Batch
+    } else if obj.is_instance_of::<PyTwoAxleIdentifier>() {
+        saved.core == Core::TwoAxle
+    } else {
+        false
+    };
+    if !class_fits {
+        return Err(VehidError::new_err(format!(
+            "cannot restore a {} from the state of another kind of identifier ({:?})",
+            obj.get_type().name()?,
+            saved.core
+        )));
+    }
+    let loaded = dispatch_n!(model.n, load_n(saved.core, &saved.state)).map_err(crate::core_err)?;
+    let core = loaded.map_err(|e| corrupt(&format!("its {:?} core does not decode ({e})", saved.core)))?;
+    let d = core.dims();
+    if d.states != model.n || d.inputs != 0 || core.rows() != model.rows.as_slice() {
+        return Err(corrupt("its core does not fit the model (states or unknown rows differ)"));
+    }
+    obj.borrow_mut().inner = core;
+    Ok(())
+}
