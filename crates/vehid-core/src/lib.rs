@@ -17,7 +17,9 @@
 //! - [`metrics`]: the parameter error measure ξ (Eq 3.17) and sensor SNR (Eq 4.31);
 //! - [`simd`]: the run-time choice of vector instructions (results never depend on it);
 //! - [`identify`]: batch least squares, the Kalman-filter identifier, stochastic gradient,
-//!   and the two-axle identifier (thesis' Eq 6.14 and road cancellation).
+//!   and the two-axle identifier (thesis' Eq 6.14 and road cancellation);
+//! - [`stats`]: the estimates' uncertainty as statsmodels names it (`bse`, `conf_int`,
+//!   `sigma2`, `cov_params`), Student's t, and the CUSUM tests of the recursive residuals.
 //!
 //! Everything is generic over the scalar ([`Real`]: `f32` or `f64`) and over the dimensions
 //! (const generics). The per-sample paths allocate nothing.
@@ -91,6 +93,7 @@ pub mod sampler;
 mod scalar;
 pub mod sim;
 pub mod simd;
+pub mod stats;
 pub mod structure;
 
 pub use error::{Error, Result};
