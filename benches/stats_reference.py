@@ -76,6 +76,10 @@ PS = [1e-300, 1e-12, 1e-6, 1e-3, 0.025, 0.05, 0.3, 0.5 + 2.0**-30, 0.7, 0.95, 0.
 NORM_XS = [-37.5, -37.0, -20.0, -8.0, -3.0, -1.0, -0.3, 0.0, 0.7, 2.0, 5.0, 8.2]
 NORM_PS = [1e-300, 1e-100] + PS[1:]
 
+SWEEP_DFS = [0.01, 0.1, 0.3, 0.9, 1.7, 3.3, 9.9, 33.0, 150.5, 2e3, 5e4, 1e6, 1e9, 1e13, 1e18, 1e25, 1e31]
+SWEEP_PS = [1e-300, 1e-200, 1e-100, 1e-50, 1e-20, 1e-10, 1e-6, 1e-3, 0.01, 0.05, 0.1, 0.2, 0.25, 0.2500001, 0.3, 0.4]
+SWEEP_PS += [0.45, 0.49, 0.499, 0.4999999, 0.5000001, 0.6, 0.75, 0.9, 0.99, 0.999999, 1 - 1e-12]
+
 HALF = mp.mpf(1) / 2
 
 
@@ -118,12 +122,21 @@ def rel(a, b):
 
 
 def mp_t_tail(x, nu):
-    """P(T > x) for x >= 0 (nu = inf: the normal)."""
-    x = mp.mpf(x)
+    """P(T > x) for x >= 0 (nu = inf: the normal).
+
+    `1/2 I_{nu/(nu+x^2)}(nu/2, 1/2)`; for nu >= 1e4, where `nu/(nu+x^2)` is within `x^2/nu` of 1,
+    at 130 digits and through the central part `1/2 - 1/2 I_y(1/2, nu/2)`, `y = x^2/(nu+x^2)`,
+    unless the tail is below 1e-80 (then `nu/(nu+x^2)` keeps 50 digits of its complement)."""
     if nu == float("inf"):
-        return mp.ncdf(-x)
-    nu = mp.mpf(nu)
-    return mp.betainc(nu / 2, HALF, 0, nu / (nu + x * x), regularized=True) / 2
+        return mp.ncdf(-mp.mpf(x))
+    with mp.workdps(mp.mp.dps if nu < 1e4 else 130):
+        x, nu = mp.mpf(x), mp.mpf(nu)
+        y = x * x / (nu + x * x)
+        if nu >= 1e4 and y < HALF:
+            t = HALF - mp.betainc(HALF, nu / 2, 0, y, regularized=True) / 2
+            if t > mp.mpf(10) ** -80:
+                return +t
+        return mp.betainc(nu / 2, HALF, 0, nu / (nu + x * x), regularized=True) / 2
 
 
 def mp_t_cdf(x, nu):
@@ -149,8 +162,13 @@ def mp_t_ppf(p, nu, start):
         return mp.mpf(0)
     q = min(p, 1 - p)
     if start is None or not np.isfinite(start) or start == 0:
-        # The power-law tail P(T > t) ~ f(0) nu^((nu-1)/2) t^(-nu) / nu ... a rough start.
-        start = mp.mpf(10) if nu == float("inf") else (mp_t_pdf(0, nu) / q) ** (1 / mp.mpf(nu))
+        # The normal quantile with its first correction in 1/nu (A&S 26.7.5), or for nu < 4 the
+        # larger of it and the power-law tail P(T > t) ~ f(0) (sqrt(nu)/t)^nu / sqrt(nu).
+        z = mp.mpf(st.norm.isf(float(q)))
+        start = z if nu == float("inf") else z + z * (z * z + 1) / (4 * mp.mpf(nu))
+        if nu < 4:
+            root = mp.sqrt(nu)
+            start = max(start, root * (mp_t_pdf(0, nu) / (q * root)) ** (1 / mp.mpf(nu)))
     u = mp.log(abs(mp.mpf(start)))
 
     def h(u):
@@ -214,6 +232,28 @@ def t_tables(out, notes):
     out.append("/// Student's t quantiles where scipy's `t.ppf` is inaccurate: 50-digit mpmath values.")
     out.append(f"const T_PPF_MPMATH_REF: [(f64, f64, f64); {len(mp_rows)}] = [")
     out += [f"    ({lit(p)}, {lit(nu)}, {lit(v)})," for p, nu, v in mp_rows]
+    out.append("];")
+
+
+def sweep_tables(out, notes):
+    """mpmath alone, over a wide grid: where scipy cannot be the reference (df 0.01 or 1e25)."""
+    xs = [-1e-6 * 4.0**k for k in range(23)]
+    rows, qrows = [], []
+    for nu in SWEEP_DFS:
+        for x in xs:
+            if nu >= 1e6 and x < -40:
+                continue  # P = 0 in f64
+            rows.append((x, nu, float(mp_t_cdf(x, nu))))
+        for p in SWEEP_PS:
+            qrows.append((p, nu, float(mp_t_ppf(p, nu, None))))
+    notes.append(f"sweep: {len(rows)} CDF values and {len(qrows)} quantiles from mpmath alone")
+    out.append("/// Student's t from mpmath alone on a wide grid: `(x, df, P(T <= x))`, x = -1e-6 4^k.")
+    out.append(f"const T_SWEEP_CDF_REF: [(f64, f64, f64); {len(rows)}] = [")
+    out += [f"    ({lit(x)}, {lit(nu)}, {lit(c)})," for x, nu, c in rows]
+    out.append("];")
+    out.append("/// Student's t quantiles from mpmath alone on a wide grid: `(p, df, quantile)`.")
+    out.append(f"const T_SWEEP_PPF_REF: [(f64, f64, f64); {len(qrows)}] = [")
+    out += [f"    ({lit(p)}, {lit(nu)}, {lit(v)})," for p, nu, v in qrows]
     out.append("];")
 
 
@@ -426,6 +466,7 @@ def bde_table(out):
 def main():
     notes, body = [], []
     t_tables(body, notes)
+    sweep_tables(body, notes)
     normal_tables(body, notes)
     ols_table(body)
     cusum_table(body)
