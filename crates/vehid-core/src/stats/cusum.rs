@@ -71,12 +71,12 @@ pub fn cusum_scalar(alpha: f64) -> Result<f64> {
 /// and `j = m`.
 ///
 /// # Errors
-/// [`Error::InvalidArgument`] for an `alpha` without a constant ([`cusum_scalar`]), `m = 0` or
-/// a `j` that is not finite.
+/// [`Error::InvalidArgument`] for an `alpha` without a constant ([`cusum_scalar`]);
+/// [`Error::Shape`] for `m = 0` (no residuals); [`Error::NonFinite`] for a `j` that is not finite.
 pub fn cusum_bound(alpha: f64, m: usize, j: f64) -> Result<f64> {
     let a = cusum_scalar(alpha)?;
     if m == 0 {
-        return Err(Error::InvalidArgument { arg: "m", expected: "at least one recursive residual" });
+        return Err(Error::Shape { arg: "w", expected: 1, got: 0 });
     }
     if !j.is_finite() {
         return Err(Error::NonFinite { arg: "j", index: 0 });

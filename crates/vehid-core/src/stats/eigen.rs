@@ -25,7 +25,8 @@ pub(crate) fn jacobi_eigenvalues(m: &mut [f64], k: usize) -> bool {
             for q in p + 1..k {
                 let apq = m[p * k + q];
                 let (app, aqq) = (m[p * k + p], m[q * k + q]);
-                if libm::fabs(apq) <= f64::EPSILON * libm::sqrt(libm::fabs(app * aqq)) {
+                // (√|app|·√|aqq| rather than √|app·aqq|: no overflow or underflow of the product.)
+                if libm::fabs(apq) <= f64::EPSILON * libm::sqrt(libm::fabs(app)) * libm::sqrt(libm::fabs(aqq)) {
                     m[p * k + q] = 0.0;
                     m[q * k + p] = 0.0;
                     continue;

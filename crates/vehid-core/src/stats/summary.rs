@@ -86,8 +86,12 @@ fn check_inputs(params: &[f64], cov_unscaled: &[f64], ssr: f64, nobs: f64, alpha
     if !nobs.is_finite() {
         return Err(Error::NonFinite { arg: "nobs", index: 0 });
     }
-    if !(alpha > 0.0 && alpha < 1.0) {
-        return Err(Error::InvalidArgument { arg: "alpha", expected: "a significance level in (0, 1), e.g. 0.05" });
+    // (`1 − alpha/2` must stay below 1 in f64: alpha > 2⁻⁵³.)
+    if !(alpha > 0.0 && alpha < 1.0 && 1.0 - alpha / 2.0 < 1.0) {
+        return Err(Error::InvalidArgument {
+            arg: "alpha",
+            expected: "a significance level in (0, 1) with 1 - alpha/2 < 1 in f64 (alpha > 1.2e-16), e.g. 0.05",
+        });
     }
     let df_resid = nobs - k as f64;
     if !(df_resid > 0.0) {
@@ -133,7 +137,7 @@ fn condition_from(cov_unscaled: &[f64], k: usize, scratch: &mut [f64]) -> Result
     // The symmetric part (the inputs may differ by rounding).
     for i in 0..k {
         for j in 0..k {
-            scratch[i * k + j] = 0.5 * (cov_unscaled[i * k + j] + cov_unscaled[j * k + i]);
+            scratch[i * k + j] = 0.5 * cov_unscaled[i * k + j] + 0.5 * cov_unscaled[j * k + i];
         }
     }
     if !jacobi_eigenvalues(scratch, k) {
@@ -234,7 +238,13 @@ pub fn summary_into(
         let tv = params[i] / bse;
         out.bse[i] = bse;
         out.tvalues[i] = tv;
-        out.pvalues[i] = if tv.is_nan() { f64::NAN } else { 2.0 * t_sf(libm::fabs(tv), df_resid)? };
+        out.pvalues[i] = if tv.is_nan() {
+            f64::NAN // 0/0: a zero parameter with zero standard error, as statsmodels
+        } else if tv.is_infinite() {
+            0.0 // a perfect fit (ssr = 0), as statsmodels
+        } else {
+            2.0 * t_sf(libm::fabs(tv), df_resid)?
+        };
         out.conf_int[i] = [params[i] - t_crit * bse, params[i] + t_crit * bse];
     }
     Ok(SummaryScalars { sigma2, df_resid, nobs, alpha, t_crit, condition_number })

@@ -231,13 +231,23 @@ fn huge_df_is_the_normal() {
 #[test]
 fn limits_and_infinities() {
     for df in [0.3, 1.0, 7.0, f64::INFINITY] {
-        assert_eq!(t_cdf(f64::NEG_INFINITY, df).unwrap(), 0.0);
-        assert_eq!(t_cdf(f64::INFINITY, df).unwrap(), 1.0);
+        // At ±f64::MAX: P(T ≤ −1.8e308) ≈ f(0) ν^{(ν−1)/2} 10^{−308.3 ν}, 1e-93 for ν = 0.3.
+        let lo = t_cdf(-f64::MAX, df).unwrap();
+        assert!((0.0..1e-80).contains(&lo), "{lo:e}");
+        assert_eq!(t_cdf(f64::MAX, df).unwrap(), 1.0);
         assert_eq!(t_cdf(0.0, df).unwrap(), 0.5);
-        assert_eq!(t_ppf(0.0, df).unwrap(), f64::NEG_INFINITY);
-        assert_eq!(t_ppf(1.0, df).unwrap(), f64::INFINITY);
+        assert_eq!(t_sf(0.0, df).unwrap(), 0.5);
         assert_eq!(t_ppf(0.5, df).unwrap(), 0.0);
+        // The smallest probabilities still have finite quantiles (for df ≥ 1).
+        if df >= 1.0 {
+            assert!(t_ppf(f64::MIN_POSITIVE, df).unwrap().is_finite());
+            assert!(t_ppf(1.0 - f64::EPSILON / 2.0, df).unwrap().is_finite());
+        }
     }
+    // Cauchy quantiles −1/(π p) within the last factor 16 below f64::MAX (p = 2.2e-309 is
+    // subnormal: 48 significant bits).
+    assert_rel(t_ppf(f64::MIN_POSITIVE, 1.0).unwrap(), -1.0 / (PI * f64::MIN_POSITIVE), 1e-14, "Cauchy near MAX");
+    assert_rel(t_ppf(2.2e-309, 1.0).unwrap(), -1.0 / (PI * 2.2e-309), 1e-12, "Cauchy at 1.45e308");
     // A quantile beyond f64::MAX: ν = 0.1 and p = 1e-100 (x ≈ −10^{1000}).
     assert_eq!(t_ppf(1e-100, 0.1).unwrap(), f64::NEG_INFINITY);
 }
@@ -248,11 +258,17 @@ fn distribution_errors() {
         assert!(matches!(t_cdf(1.0, df), Err(Error::InvalidArgument { arg: "df", .. })), "{df}");
         assert!(matches!(t_ppf(0.3, df), Err(Error::InvalidArgument { arg: "df", .. })), "{df}");
     }
-    assert_eq!(t_cdf(f64::NAN, 3.0), Err(Error::NonFinite { arg: "x", index: 0 }));
-    assert_eq!(normal_sf(f64::NAN), Err(Error::NonFinite { arg: "x", index: 0 }));
+    for x in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+        assert_eq!(t_cdf(x, 3.0), Err(Error::NonFinite { arg: "x", index: 0 }));
+        assert_eq!(t_sf(x, 3.0), Err(Error::NonFinite { arg: "x", index: 0 }));
+        assert_eq!(normal_cdf(x), Err(Error::NonFinite { arg: "x", index: 0 }));
+        assert_eq!(normal_sf(x), Err(Error::NonFinite { arg: "x", index: 0 }));
+    }
     assert_eq!(t_ppf(f64::NAN, 3.0), Err(Error::NonFinite { arg: "p", index: 0 }));
-    for p in [-1e-300, 1.0 + f64::EPSILON, f64::INFINITY] {
+    // The open interval: the quantiles of 0 and 1 are infinite.
+    for p in [-1e-300, 0.0, 1.0, 1.0 + f64::EPSILON, f64::INFINITY, f64::NEG_INFINITY] {
         assert!(matches!(normal_ppf(p), Err(Error::InvalidArgument { arg: "p", .. })), "{p}");
+        assert!(matches!(t_ppf(p, 2.5), Err(Error::InvalidArgument { arg: "p", .. })), "{p}");
     }
 }
 
@@ -303,6 +319,17 @@ fn straight_line_by_hand() {
     assert_rel(s.condition_number, cond, 1e-14, "condition number");
     let mut scratch = [0.0; 4];
     assert_rel(condition_number(&inv, &mut scratch).unwrap(), cond, 1e-14, "condition_number()");
+}
+
+#[test]
+fn condition_number_at_extreme_scales() {
+    // [[2, 1], [1, 2]] · s has eigenvalues s and 3s: condition number √3 at any scale s
+    // (neither the Jacobi stopping rule nor the symmetrization may overflow or underflow).
+    let mut scratch = [0.0; 4];
+    for s in [1.0, 1e-300, 1e-160, 1e150, 1e300, 8e307] {
+        let c = [2.0 * s / 2.0, s / 2.0, s / 2.0, 2.0 * s / 2.0];
+        assert_rel(condition_number(&c, &mut scratch).unwrap(), libm::sqrt(3.0), 1e-15, "scaled [[2,1],[1,2]]");
+    }
 }
 
 #[test]
@@ -437,9 +464,11 @@ fn summary_errors() {
         Err(Error::NonFinite { arg: "cov_unscaled", index: 2 })
     );
     assert!(matches!(run(&theta, &inv, -1.0, 4.0, 0.05), Err(Error::InvalidArgument { arg: "ssr", .. })));
-    for alpha in [0.0, 1.0, -0.1, f64::NAN] {
+    // (1e-17: 1 − alpha/2 rounds to 1, whose quantile is infinite.)
+    for alpha in [0.0, 1.0, -0.1, f64::NAN, 1e-17] {
         assert!(matches!(run(&theta, &inv, ssr, 4.0, alpha), Err(Error::InvalidArgument { arg: "alpha", .. })));
     }
+    assert!(run(&theta, &inv, ssr, 4.0, 1e-15).is_ok());
     assert!(matches!(
         run(&theta, &[0.7, -0.3, 0.3, 0.2], ssr, 4.0, 0.05),
         Err(Error::InvalidArgument { arg: "cov_unscaled", .. })
@@ -609,7 +638,7 @@ fn cusum_errors() {
         assert!(matches!(cusum_squares_critical(alpha, 10), Err(Error::InvalidArgument { arg: "alpha", .. })));
     }
     assert_eq!(cusum_squares_critical(0.05, 2), Err(Error::Shape { arg: "w", expected: 3, got: 2 }));
-    assert!(matches!(cusum_bound(0.05, 0, 0.0), Err(Error::InvalidArgument { arg: "m", .. })));
+    assert_eq!(cusum_bound(0.05, 0, 0.0), Err(Error::Shape { arg: "w", expected: 1, got: 0 }));
     assert!(matches!(cusum_bound(0.05, 4, f64::NAN), Err(Error::NonFinite { arg: "j", .. })));
     // A computed level is accepted.
     assert_eq!(cusum_scalar(1.0 - 0.95).unwrap(), 0.948);
