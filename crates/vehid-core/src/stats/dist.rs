@@ -199,11 +199,7 @@ pub fn t_ppf(p: f64, df: f64) -> Result<f64> {
     }
     let sign = if p < 0.5 { -1.0 } else { 1.0 };
     let q = if p < 0.5 { p } else { 1.0 - p }; // exact for p ≥ ½ (Sterbenz)
-    let t = if q > 0.25 {
-        solve_central(libm::fabs(p - 0.5), df)
-    } else {
-        solve_tail(q, df)
-    };
+    let t = if q > 0.25 { solve_central(libm::fabs(p - 0.5), df) } else { solve_tail(q, df) };
     Ok(sign * t)
 }
 

@@ -8,13 +8,17 @@
 //!
 //! | concept | items | file |
 //! |---|---|---|
-//! | Student's t and the normal: CDF, survival function, quantile | [`t_cdf`], [`t_sf`], [`t_ppf`], [`normal_cdf`], [`normal_sf`], [`normal_ppf`] | `dist.rs` (`beta.rs`: incomplete beta) |
-//! | OLS summary (`OLSResults`) | [`summary_into`], [`Summary`] (alloc), [`condition_number`] | `summary.rs` (`eigen.rs`: Jacobi) |
-//! | CUSUM and CUSUM of squares (`RecursiveLSResults`) | [`cusum_into`], [`cusum_squares_into`], [`cusum_bound`], [`cusum_squares_bounds`], [`Cusum`] (alloc) | `cusum.rs` |
+//! | Student's t and the normal: CDF, survival function, quantile (scipy `stats.t`, `stats.norm`) | [`t_cdf`], [`t_sf`], [`t_ppf`], [`normal_cdf`], [`normal_sf`], [`normal_ppf`] | `dist.rs` (`beta.rs`: incomplete beta) |
+//! | OLS summary (statsmodels `OLSResults`) | [`summary_into`] with [`SummaryBuffers`] → [`SummaryScalars`], [`Summary`] (alloc), [`condition_number`], [`SYMMETRY_TOLERANCE`] | `summary.rs` (`eigen.rs`: Jacobi) |
+//! | CUSUM and CUSUM of squares (statsmodels `RecursiveLSResults`) | [`cusum_into`], [`cusum_squares_into`], [`cusum_bound`], [`cusum_scalar`], [`cusum_squares_bounds`], [`cusum_squares_critical`], [`CUSUM_SCALARS`], [`CUSUM_SQUARES_SCALARS`], [`Cusum`] (alloc) | `cusum.rs` |
 //!
 //! Functions that return a `Vec` (the [`Summary`] and [`Cusum`] structs) need `alloc`; the
-//! rest writes into caller buffers and works without it. Bad input is an [`crate::Error`],
-//! never a panic.
+//! rest writes into caller buffers and works without it. Bad input (NaN or infinite values,
+//! `df ≤ 0`, a probability outside `(0, 1)`, mismatched lengths, too few residuals) is an
+//! [`crate::Error`], never a panic.
+//!
+//! The tests compare with scipy and statsmodels (and 50-digit mpmath where scipy is off), through
+//! tables that `benches/stats_reference.py` generates; their tolerances are stated in `tests.rs`.
 
 mod beta;
 mod cusum;

@@ -437,7 +437,12 @@ fn summary_matches_statsmodels_ols() {
         assert_rel(s.t_crit, r.t_crit, TOL_QUANTILE, name);
         assert_rel(s.condition_number, r.condition_number, TOL_COND, name);
         let mut scratch = [0.0; 64];
-        assert_rel(condition_number(r.cov_unscaled, &mut scratch[..k * k]).unwrap(), r.condition_number, TOL_COND, name);
+        assert_rel(
+            condition_number(r.cov_unscaled, &mut scratch[..k * k]).unwrap(),
+            r.condition_number,
+            TOL_COND,
+            name,
+        );
         #[cfg(feature = "alloc")]
         {
             let full = Summary::new(r.params, r.cov_unscaled, r.ssr, r.nobs, r.alpha).unwrap();
