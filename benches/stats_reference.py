@@ -6,9 +6,12 @@ Prints the Rust file `crates/vehid-core/src/stats/tests_ref.rs` (included by `st
   df in {0.5, 1, 2, 2.5, 3, 5, 7.3, 10, 30, 1e3, 1e6, 1e10, 1e20} and x from -1e6 (df < 1e6)
   or -40 to 40;
 - `T_PPF_REF`: `(p, df, quantile)` from `scipy.stats.t.ppf`, p from 1e-300 through 1e-12 to
-  1 - 1e-12, same df; `T_PPF_MPMATH_REF`: the points where scipy's `t.ppf` (cdflib's `stdtrit`)
-  is off by more than 1e-13 relative, with 50-digit mpmath quantiles instead (each listed in
-  the header of the generated file with scipy's value);
+  1 - 1e-12, same df; `T_PPF_MPMATH_REF`: the points where scipy's `t.ppf` is off by more
+  than 1e-13 relative, with 50-digit mpmath quantiles instead (each listed in the header of the
+  generated file with scipy's value);
+- `T_SWEEP_CDF_REF` / `T_SWEEP_PPF_REF`: mpmath alone (50 digits, 130 for df >= 1e4) (scipy is not the reference
+  there) on a wide grid: df from 0.01 to 1e31, x = -1e-6 4^k down to -1.8e7 (-40 for df >= 1e6), p from 1e-300 to
+  1 - 1e-12;
 - `NORM_REF` / `NORM_PPF_REF`: `scipy.stats.norm.cdf`, `norm.sf`, `norm.ppf`;
 - `OLS_REF`: three `statsmodels.api.OLS(...).fit()` regressions on fixed data (a straight line
   with tiny p-values, three correlated regressors with an insignificant one, a cubic with a
