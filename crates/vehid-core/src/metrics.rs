@@ -72,6 +72,46 @@ pub fn snr_db<T: Real>(signal_std: T, noise_std: T) -> Result<T> {
     Ok(T::of(20.0 * libm::log10((signal_std / noise_std).to_f64())))
 }
 
+/// How well a simulation `simulated` reproduces measurements `measured` (both `samples × n`,
+/// row-major), per column `j`: the root-mean-square error `rmse_j = √(mean (x − x̂)²)` and the
+/// fit percentage `fit_j = 100 (1 − ‖x − x̂‖ / ‖x − mean(x)‖)` (the normalized-RMSE fit of
+/// Ljung's *System Identification*, 2nd ed., §16.6, and MATLAB's `compare`): 100 for a perfect
+/// simulation, 0 for one no better than the measured mean, negative when worse.
+///
+/// # Errors
+/// [`Error::Shape`] for lengths that disagree (or `n = 0`); [`Error::NonFinite`] naming
+/// `measured` or `simulated`. A constant measured column gives `fit = -inf` (or NaN when the
+/// simulation matches it exactly).
+pub fn simulation_fit<T: Real>(measured: &[T], simulated: &[T], n: usize, fit: &mut [T], rmse: &mut [T]) -> Result<()> {
+    if n == 0 || measured.len() % n != 0 {
+        return Err(Error::Shape { arg: "measured", expected: n, got: measured.len() });
+    }
+    if simulated.len() != measured.len() {
+        return Err(Error::Shape { arg: "simulated", expected: measured.len(), got: simulated.len() });
+    }
+    if fit.len() != n || rmse.len() != n {
+        return Err(Error::Shape { arg: "fit", expected: n, got: fit.len().min(rmse.len()) });
+    }
+    check_finite("measured", measured)?;
+    check_finite("simulated", simulated)?;
+    let samples = measured.len() / n;
+    if samples == 0 {
+        return Err(Error::Shape { arg: "measured", expected: n, got: 0 });
+    }
+    for j in 0..n {
+        let mean = measured.iter().skip(j).step_by(n).fold(0.0, |a, v| a + v.to_f64()) / samples as f64;
+        let (mut err, mut dev) = (0.0f64, 0.0f64);
+        for k in 0..samples {
+            let (x, s) = (measured[k * n + j].to_f64(), simulated[k * n + j].to_f64());
+            err += (x - s) * (x - s);
+            dev += (x - mean) * (x - mean);
+        }
+        rmse[j] = T::of((err / samples as f64).sqrt());
+        fit[j] = T::of(100.0 * (1.0 - (err / dev).sqrt()));
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

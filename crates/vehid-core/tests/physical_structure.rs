@@ -34,9 +34,13 @@ fn reproduces<const N: usize>(ps: &PhysicalStructure<f64>, a: &nalgebra::SMatrix
 fn quarter_and_half_car_structures_reproduce_their_models() {
     let car = QuarterCar::<f64>::thesis();
     let c = car.constants();
-    for known in [[None, Some(c[1]), None, None, None], [Some(c[0]), None, None, None, None], [None, Some(1.0), Some(90.0), None, Some(40.0)]] {
+    for known in [
+        [None, Some(c[1]), None, None, None],
+        [Some(c[0]), None, None, None, None],
+        [None, Some(1.0), Some(90.0), None, Some(40.0)],
+    ] {
         let ps = QuarterCar::structure(known).unwrap();
-        reproduces(&ps, &car.model().a(), &c);
+        reproduces(&ps, car.model().a(), &c);
     }
     let ps = QuarterCar::structure([None, Some(1.0), None, None, None]).unwrap();
     assert_eq!(ps.param_names(), ["k2/M", "b/M", "M", "k1"]);
@@ -49,7 +53,7 @@ fn quarter_and_half_car_structures_reproduce_their_models() {
     let ps = HalfCar::structure(known).unwrap();
     assert_eq!(ps.structure().params(), 12);
     assert_eq!(ps.structure().partition().groups, 3);
-    reproduces(&ps, &half.model().a(), &h);
+    reproduces(&ps, half.model().a(), &h);
     assert!(HalfCar::<f64>::structure([None; 12]).is_err());
 }
 
@@ -84,7 +88,8 @@ fn fig_4_2_physical_structure_converges_within_4000_samples() {
     let (n, every) = (4000, 50);
     let (mut ok_struct, mut ok_rows) = (0, 0);
     for seed in 9000..9050 {
-        let mut sim = Simulator::new(car.model(), SimConfig::new(0.05).road_sigma(0.1).deriv_noise(0.005), seed).unwrap();
+        let mut sim =
+            Simulator::new(car.model(), SimConfig::new(0.05).road_sigma(0.1).deriv_noise(0.005), seed).unwrap();
         let mut id = StructuredKalman::<f64, 2, 2>::exact(*ps.structure(), KalmanOptions::default()).unwrap();
         let r = car.model().row_noise_var::<2>(0.1, 0.005).unwrap();
         let mut rows = KalmanIdentifier::<f64, 4, 2>::exact(&[1, 3], &r, KalmanOptions::default()).unwrap();

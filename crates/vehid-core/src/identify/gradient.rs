@@ -81,7 +81,7 @@ impl<T: Real> Gain<T> {
         }
     }
 
-    fn validate(&self) -> Result<()> {
+    pub(crate) fn validate(&self) -> Result<()> {
         match *self {
             Gain::Venter { p } => {
                 if !(p.finite() && p > T::of(0.5) && p <= T::one()) {

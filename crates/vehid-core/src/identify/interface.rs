@@ -267,6 +267,47 @@ pub trait Identifier<T: Real> {
         Err(Error::Unsupported { what: "a noise covariance R (this identifier uses none)" })
     }
 
+    /// Each identified equation's residual statistics (statsmodels' `ssr` and `nobs`): into
+    /// `ssr` the sum of its squared recursive residuals `Σ e_k² r/s_k` in the equation's own
+    /// units (after an exact start: the least-squares residual sum of squares on every sample
+    /// so far; decayed like the estimate under forgetting), into `nobs` the samples behind it
+    /// (an effective count `Σ λ^j` under forgetting). One value per equation each.
+    ///
+    /// # Errors
+    /// [`Error::Unsupported`] for an identifier that keeps none; [`Error::Shape`].
+    fn residuals_into(&self, ssr: &mut [T], nobs: &mut [T]) -> Result<()> {
+        let _ = (ssr, nobs);
+        Err(Error::Unsupported {
+            what: "residual statistics (this identifier keeps none: use KalmanIdentifier in mode rows or \
+                   BatchLeastSquares)",
+        })
+    }
+
+    /// Which parameters and equations form independent groups (no equation couples two
+    /// groups; each group has its own block of `P` and one noise scale): `group_of_param`
+    /// (`params` values) and `group_of_eq` (`equations` values). The default: equation `i` with
+    /// the `i`-th block of `params / equations` parameters (the rows of a linear model).
+    ///
+    /// # Errors
+    /// [`Error::Shape`] for wrong lengths.
+    fn groups_into(&self, group_of_param: &mut [usize], group_of_eq: &mut [usize]) -> Result<()> {
+        let d = self.dims();
+        if group_of_param.len() != d.params {
+            return Err(Error::Shape { arg: "group_of_param", expected: d.params, got: group_of_param.len() });
+        }
+        if group_of_eq.len() != d.equations {
+            return Err(Error::Shape { arg: "group_of_eq", expected: d.equations, got: group_of_eq.len() });
+        }
+        let per = d.params / d.equations.max(1);
+        for (j, g) in group_of_param.iter_mut().enumerate() {
+            *g = j / per.max(1);
+        }
+        for (i, g) in group_of_eq.iter_mut().enumerate() {
+            *g = i;
+        }
+        Ok(())
+    }
+
     /// `tr P`, when the identifier keeps a covariance (Eq 4.36 compares it with the innovations).
     fn trace(&self) -> Option<T> {
         None

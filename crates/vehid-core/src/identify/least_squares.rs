@@ -399,6 +399,67 @@ impl<T: Real, const N: usize> Identifier<T> for BatchLeastSquares<T, N> {
         BatchLeastSquares::samples(self) as u64
     }
 
+    /// The residual sum of squares of each row's least-squares fit, and the sample count.
+    fn residuals_into(&self, ssr: &mut [T], nobs: &mut [T]) -> Result<()> {
+        let k = self.rows.len();
+        if ssr.len() != k || nobs.len() != k {
+            return Err(Error::Shape { arg: "ssr", expected: k, got: ssr.len().min(nobs.len()) });
+        }
+        let theta = self.solve()?;
+        let mut acc = std::vec![0.0f64; k];
+        for (x, z) in self.x.chunks_exact(N).zip(self.z.chunks_exact(k.max(1))) {
+            for i in 0..k {
+                let pred: f64 = (0..N).map(|j| x[j].to_f64() * theta[i * N + j].to_f64()).sum();
+                let e = z[i].to_f64() - pred;
+                acc[i] += e * e;
+            }
+        }
+        for i in 0..k {
+            ssr[i] = T::of(acc[i]);
+            nobs[i] = T::of(self.samples() as f64);
+        }
+        Ok(())
+    }
+
+    /// `(XᵀX)⁻¹` on each row's block (the same for every row): the covariance of the estimate
+    /// for unit noise variance ([`Identifier::noise_into`] gives 1).
+    fn covariance_into(&self, out: &mut [T]) -> Result<()> {
+        let k = self.rows.len();
+        let kn = k * N;
+        if out.len() != kn * kn {
+            return Err(Error::Shape { arg: "out", expected: kn * kn, got: out.len() });
+        }
+        self.solve()?;
+        let mut g = nalgebra::SMatrix::<f64, N, N>::zeros();
+        for x in self.x.chunks_exact(N) {
+            let v = nalgebra::SVector::<f64, N>::from_fn(|j, _| x[j].to_f64());
+            g += v * v.transpose();
+        }
+        let inv = g.cholesky().map(|c| c.inverse()).ok_or(Error::RankDeficient { rank: N - 1, needed: N })?;
+        out.fill(T::zero());
+        for i in 0..k {
+            for a in 0..N {
+                for b in 0..N {
+                    out[(i * N + a) * kn + i * N + b] = T::of(inv[(a, b)]);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Unit variances: [`Identifier::covariance_into`] is `(XᵀX)⁻¹`.
+    fn noise_into(&self, out: &mut [T]) -> Result<()> {
+        let k = self.rows.len();
+        if out.len() != k * k {
+            return Err(Error::Shape { arg: "out", expected: k * k, got: out.len() });
+        }
+        out.fill(T::zero());
+        for i in 0..k {
+            out[i * k + i] = T::one();
+        }
+        Ok(())
+    }
+
     /// Stores every sample; rolls back by truncating the stored samples (no copy of them).
     fn fit<F>(&mut self, data: &super::Samples<'_, T>, mut each: F) -> core::result::Result<(), super::FitError>
     where

@@ -30,14 +30,19 @@
 //! rows and shared updates also have an AVX2 copy chosen at run time ([`crate::simd`]). Every
 //! path computes the same bits. Measured figures and how to reproduce them: `benches/README.md`.
 
+#[cfg(feature = "alloc")]
+mod estimate_stats;
 mod gradient;
 mod interface;
 mod kalman;
 mod least_squares;
 mod store;
 mod structured;
+mod structured_gradient;
 mod two_axle;
 
+#[cfg(feature = "alloc")]
+pub use estimate_stats::{estimate_stats, EstimateStats};
 #[cfg(feature = "alloc")]
 pub use gradient::StochasticGradientVec;
 pub use gradient::{Gain, GainKind, GradientCore, StochasticGradient};
@@ -60,6 +65,7 @@ pub use store::{Dynamic, Fixed, Flat, NoScratch, Store, DYNAMIC_LANES};
 #[cfg(feature = "alloc")]
 pub use structured::StructuredKalmanVec;
 pub use structured::{Structured, StructuredKalman, StructuredPrior};
+pub use structured_gradient::StructuredGradient;
 #[cfg(feature = "alloc")]
 pub use two_axle::TwoAxleIdentifierVec;
 pub use two_axle::{Past, TwoAxle, TwoAxleConfig, TwoAxleIdentifier, WheelMethod};

@@ -404,6 +404,33 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Identifier<T> for St
         self.samples
     }
 
+    fn residuals_into(&self, ssr: &mut [T], nobs: &mut [T]) -> Result<()> {
+        let ne = self.structure.equations();
+        if ssr.len() != ne || nobs.len() != ne {
+            return Err(Error::Shape { arg: "ssr", expected: ne, got: ssr.len().min(nobs.len()) });
+        }
+        ssr.copy_from_slice(&self.eq_ssr[..ne]);
+        nobs.copy_from_slice(&self.eq_nobs[..ne]);
+        Ok(())
+    }
+
+    fn groups_into(&self, group_of_param: &mut [usize], group_of_eq: &mut [usize]) -> Result<()> {
+        let (np, ne) = (self.structure.params(), self.structure.equations());
+        if group_of_param.len() != np {
+            return Err(Error::Shape { arg: "group_of_param", expected: np, got: group_of_param.len() });
+        }
+        if group_of_eq.len() != ne {
+            return Err(Error::Shape { arg: "group_of_eq", expected: ne, got: group_of_eq.len() });
+        }
+        for (j, g) in group_of_param.iter_mut().enumerate() {
+            *g = self.part.group_of_param[j] as usize;
+        }
+        for (i, g) in group_of_eq.iter_mut().enumerate() {
+            *g = self.part.group_of_eq[i] as usize;
+        }
+        Ok(())
+    }
+
     fn covariance_into(&self, out: &mut [T]) -> Result<()> {
         let np = self.structure.params();
         if out.len() != np * np {

@@ -233,7 +233,8 @@ impl<T: Real> HalfCar<T> {
 
     /// The constants' names, in the order [`HalfCar::structure`] and [`HalfCar::constants`]
     /// use.
-    pub const CONSTANTS: [&'static str; 12] = ["M", "J", "k11", "k21", "k12", "k22", "b1", "b2", "m1", "m2", "l1", "l2"];
+    pub const CONSTANTS: [&'static str; 12] =
+        ["M", "J", "k11", "k21", "k12", "k22", "b1", "b2", "m1", "m2", "l1", "l2"];
 
     /// The constants' values in the order of [`HalfCar::CONSTANTS`].
     pub fn constants(&self) -> [T; 12] {
@@ -306,15 +307,19 @@ impl<T: Real> HalfCar<T> {
             }
             out
         };
-        let heave = cat([ext(-one, 0, true, false), ext(-one, 1, true, true), ext(-one, 2, false, false), ext(-one, 3, false, true)]);
-        let pitch = cat([ext(-l1, 4, true, false), ext(-l1, 5, true, true), ext(l2, 6, false, false), ext(l2, 7, false, true)]);
+        let heave = cat([
+            ext(-one, 0, true, false),
+            ext(-one, 1, true, true),
+            ext(-one, 2, false, false),
+            ext(-one, 3, false, true),
+        ]);
+        let pitch =
+            cat([ext(-l1, 4, true, false), ext(-l1, 5, true, true), ext(l2, 6, false, false), ext(l2, 7, false, true)]);
         let front = [tt(-l2 / l, 8, der(5)), tt(-one / l, 9, der(7)), tt(-one, 10, st(0))];
         let rear = [tt(-l1 / l, 11, der(5)), tt(one / l, 12, der(7)), tt(-one, 13, st(2))];
         let k = |i: u8| [tk(one, st(i))];
         let (k0, k2, k4, k6) = (k(1), k(3), k(5), k(7));
-        Builder { states: 8, constants: &Self::CONSTANTS, edges: &edges, known: &known }.build(
-            &[(5, &heave), (7, &pitch), (1, &front), (3, &rear)],
-            &[(0, &k0), (2, &k2), (4, &k4), (6, &k6)],
-        )
+        Builder { states: 8, constants: &Self::CONSTANTS, edges: &edges, known: &known }
+            .build(&[(5, &heave), (7, &pitch), (1, &front), (3, &rear)], &[(0, &k0), (2, &k2), (4, &k4), (6, &k6)])
     }
 }

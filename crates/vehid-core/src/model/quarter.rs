@@ -190,12 +190,7 @@ impl<T: Real> QuarterCar<T> {
         // Constants: 0 M, 1 m, 2 k1, 3 k2, 4 b. Edges: 0 k2/M, 1 b/M, 2 M/m, 3 k1/m.
         let edges = [(3, 0, "k2/M"), (4, 0, "b/M"), (0, 1, "M/m"), (2, 1, "k1/m")];
         let one = T::one();
-        let body = [
-            tt(-one, 0, st(2)),
-            tt(one, 0, st(0)),
-            tt(-one, 1, st(3)),
-            tt(one, 1, st(1)),
-        ];
+        let body = [tt(-one, 0, st(2)), tt(one, 0, st(0)), tt(-one, 1, st(3)), tt(one, 1, st(1))];
         let wheel = [tt(-one, 2, der(3)), tt(-one, 3, st(0))];
         let (kw, kb) = ([tk(one, st(1))], [tk(one, st(3))]);
         Builder { states: 4, constants: &Self::CONSTANTS, edges: &edges, known: &known }

@@ -450,6 +450,95 @@ impl<T: Real> Structure<T> {
         }
     }
 
+    /// Free-run simulation with parameters `p` from `x0`: `out` (`samples × n`, row-major)
+    /// receives the state at each sample, `out[0] = x0`; the inputs `u` (`samples × m`) are
+    /// held over each interval (zero-order hold) and each interval of `dt` seconds is
+    /// integrated by `substeps` classical Runge–Kutta (RK4) steps of [`Structure::derivative`].
+    /// No allocation.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for an incomplete structure (a state without an equation:
+    /// add a known equation), `dt ≤ 0` or `substeps = 0`; [`Error::Shape`] for lengths;
+    /// [`Error::NonFinite`] naming `params`, `x0` or `u`; [`Error::InvalidArgument`] naming
+    /// `params` when the state overflows (the model diverges on these inputs).
+    pub fn simulate(&self, p: &[T], x0: &[T], u: &[T], dt: T, substeps: u32, out: &mut [T]) -> Result<()> {
+        let (n, m) = (self.states as usize, self.inputs as usize);
+        if !self.complete() {
+            return Err(Error::InvalidArgument {
+                arg: "structure",
+                expected: "an equation for every state to simulate (add known equations, e.g. q = v)",
+            });
+        }
+        if !(dt > T::zero()) || !dt.finite() {
+            return Err(Error::InvalidArgument { arg: "dt", expected: "a finite sample interval > 0 s" });
+        }
+        if substeps == 0 {
+            return Err(Error::InvalidArgument { arg: "substeps", expected: "at least 1 integration step per sample" });
+        }
+        if p.len() != self.params() {
+            return Err(Error::Shape { arg: "params", expected: self.params(), got: p.len() });
+        }
+        if x0.len() != n {
+            return Err(Error::Shape { arg: "x0", expected: n, got: x0.len() });
+        }
+        let samples = out.len() / n.max(1);
+        if out.len() != samples * n || u.len() != samples * m {
+            return Err(Error::Shape { arg: "u", expected: samples * m, got: u.len() });
+        }
+        for (arg, v) in [("params", p), ("x0", x0), ("u", u)] {
+            if let Some(index) = v.iter().position(|a| !a.finite()) {
+                return Err(Error::NonFinite { arg, index });
+            }
+        }
+        if samples == 0 {
+            return Ok(());
+        }
+        let h = dt / T::of(f64::from(substeps));
+        let half = h / T::of(2.0);
+        let mut x = [T::zero(); MAX_STATES];
+        x[..n].copy_from_slice(x0);
+        let (mut k1, mut k2, mut k3, mut k4, mut tmp) = (
+            [T::zero(); MAX_STATES],
+            [T::zero(); MAX_STATES],
+            [T::zero(); MAX_STATES],
+            [T::zero(); MAX_STATES],
+            [T::zero(); MAX_STATES],
+        );
+        for k in 0..samples {
+            out[k * n..(k + 1) * n].copy_from_slice(&x[..n]);
+            if k + 1 == samples {
+                break;
+            }
+            let uk = &u[k * m..(k + 1) * m];
+            for _ in 0..substeps {
+                self.derivative(p, &x[..n], uk, &mut k1[..n]);
+                for j in 0..n {
+                    tmp[j] = x[j] + half * k1[j];
+                }
+                self.derivative(p, &tmp[..n], uk, &mut k2[..n]);
+                for j in 0..n {
+                    tmp[j] = x[j] + half * k2[j];
+                }
+                self.derivative(p, &tmp[..n], uk, &mut k3[..n]);
+                for j in 0..n {
+                    tmp[j] = x[j] + h * k3[j];
+                }
+                self.derivative(p, &tmp[..n], uk, &mut k4[..n]);
+                for j in 0..n {
+                    x[j] += h / T::of(6.0) * (k1[j] + T::of(2.0) * (k2[j] + k3[j]) + k4[j]);
+                }
+            }
+            if x[..n].iter().any(|v| !v.finite()) {
+                return Err(Error::InvalidArgument {
+                    arg: "params",
+                    expected: "a model that stays bounded on these inputs (the simulated state overflowed: the \
+                               model diverges; check the estimate's stability and the input's units)",
+                });
+            }
+        }
+        Ok(())
+    }
+
     /// `true` when every state has an equation (identified or known): the structure can then
     /// be simulated.
     pub fn complete(&self) -> bool {

@@ -482,12 +482,14 @@ impl Ctx<'_> {
                 }
                 let p = match self.params.iter().position(|x| *x == n) {
                     Some(p) => p,
-                    None if self.fixed => return Err(format!(
+                    None if self.fixed => {
+                        return Err(format!(
                         "'{n}' is not a state, input or declared parameter (states: {}; inputs: {}; parameters: {})",
                         self.states.join(", "),
                         list(self.inputs),
                         self.params.join(", ")
-                    )),
+                    ))
+                    }
                     None => {
                         self.params.push(n);
                         self.params.len() - 1

@@ -67,8 +67,13 @@ pub fn boxed_kalman<T: Real, const N: usize>(spec: &KalmanSpec<T>) -> Result<Box
     if spec.p0 == Prior::Exact && spec.mode != Mode::Rows {
         return Err(Error::InvalidArgument {
             arg: "p0",
-            expected: "a prior (a number, one per row, or a matrix) for this mode: the exact start (p0='exact', the \
-                       default) needs mode='rows'",
+            expected: if spec.mode == Mode::Shared {
+                "a prior (a number, one per row) for mode='shared': the exact start (p0='exact', the default) \
+                 needs mode='rows'"
+            } else {
+                "a prior (a number, one per row, or a matrix) for mode='full': the exact start (p0='exact', the \
+                 default) needs mode='rows'"
+            },
         });
     }
     Ok(match spec.mode {

@@ -524,6 +524,18 @@ impl<T: Real, const N: usize, S: Store<T, N>> Identifier<T> for KalmanRows<T, N,
         Ok(())
     }
 
+    fn residuals_into(&self, ssr: &mut [T], nobs: &mut [T]) -> Result<()> {
+        let k = self.rows.flat().len();
+        if ssr.len() != k || nobs.len() != k {
+            return Err(Error::Shape { arg: "ssr", expected: k, got: ssr.len().min(nobs.len()) });
+        }
+        for i in 0..k {
+            let f = self.filter(i);
+            (ssr[i], nobs[i]) = (f.ssr(), f.nobs());
+        }
+        Ok(())
+    }
+
     fn noise_into(&self, out: &mut [T]) -> Result<()> {
         let k = self.rows.flat().len();
         if out.len() != k * k {
