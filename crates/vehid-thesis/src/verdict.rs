@@ -30,6 +30,12 @@ pub(crate) fn evaluate(claim: &ThesisClaim, curves: &[CurveResult], n: usize, qu
             };
             (format!("median iterations until ξ stays < {level}: {}", iters_text(m, n)), m >= iters, note)
         }
+        Claim::SettlesWithin { curve, level, iters } => {
+            let m = median(&curves[curve].settle);
+            let ok = m <= iters;
+            let note = if ok { String::new() } else { format!("vehid settles below {level} later than {iters}") };
+            (format!("median iterations until ξ stays < {level}: {}", iters_text(m, n)), ok, note)
+        }
         Claim::ReachesWithin { curve, level, iters } => {
             let m = median(&curves[curve].reach);
             let ok = m <= iters;

@@ -13,6 +13,16 @@ pub enum Claim {
         /// Iterations claimed.
         iters: f64,
     },
+    /// ξ stays below `level` from at most `iters` iterations on (median over seeds; a claim
+    /// of vehid's extensions, the counterpart of [`Claim::SettlesAfter`]).
+    SettlesWithin {
+        /// Curve.
+        curve: usize,
+        /// Acceptance level.
+        level: f64,
+        /// Iterations claimed.
+        iters: f64,
+    },
     /// ξ reaches `level` within `iters` iterations (median first crossing).
     ReachesWithin {
         /// Curve.

@@ -26,6 +26,10 @@ pub enum Ident {
         /// Body-row gain `h` (wheel row `h / 10`).
         h: f64,
     },
+    /// vehid's extension: the quarter car identified in its physical structure with the wheel
+    /// mass `m` known (4 parameters k2/M, b/M, M, k1 instead of 8 free entries; exact start,
+    /// no prior), read back as rows of A for ξ.
+    Physical,
     /// The two-axle identifier on one road (Ch. VI.D): `None` = plain decoupled rows,
     /// `Thesis` = Eq 6.12–6.14, `Cancel` = vehid's road cancellation (an extension).
     TwoAxle {

@@ -3,9 +3,10 @@
 
 use crate::figures::{Curve, GainKind, Ident};
 use vehid_core::identify::{
-    Fixed, Gain, Identifier, KalmanIdentifier, KalmanOptions, LsAccumulator, StochasticGradient,
+    Dims, Fixed, Gain, Identifier, KalmanIdentifier, KalmanOptions, LsAccumulator, StochasticGradient,
+    StructuredKalmanVec,
 };
-use vehid_core::model::LinearModel;
+use vehid_core::model::{LinearModel, QuarterCar};
 
 /// What a rejected sample (an update that would overflow) means for the figure.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -62,6 +63,13 @@ pub(super) fn make_ident<const N: usize, const M: usize, const K: usize>(
             let snv = [curve.state * curve.state];
             (Box::new(StochasticGradient::<f64, N, K>::from_slices(&rows, g, &hs, &snv, 1)?), OnFailure::Diverged)
         }
+        Ident::Physical => {
+            if N != 4 || K != 2 {
+                return Err(crate::Error::InvalidArgument { arg: "ident", expected: "the quarter car for Physical" });
+            }
+            // A and B fix only ratios of the constants: the known wheel mass is the thesis' 1 kg.
+            (Box::new(PhysicalRows::new(QuarterCar::<f64>::thesis().m_wheel())?), OnFailure::Hold)
+        }
         Ident::TwoAxle { .. } => {
             return Err(crate::Error::InvalidArgument {
                 arg: "ident",
@@ -69,4 +77,63 @@ pub(super) fn make_ident<const N: usize, const M: usize, const K: usize>(
             })
         }
     })
+}
+
+/// The quarter car identified in its physical structure (m known), read back as the rows
+/// 1 and 3 of A for ξ: body `[k2/M, b/M, −k2/M, −b/M]`, wheel `[−(k1+k2)/m, −b/m, k2/m, b/m]`
+/// with k2 = (k2/M)·M and b = (b/M)·M.
+#[derive(Debug, Clone)]
+struct PhysicalRows {
+    inner: StructuredKalmanVec<f64, 2>,
+    m: f64,
+    /// Position of rows 1 and 3 among the structure's equations.
+    eq_of_row: [usize; 2],
+}
+
+impl PhysicalRows {
+    fn new(m: f64) -> crate::Result<Self> {
+        let ph = QuarterCar::<f64>::structure([None, Some(m), None, None, None])?;
+        if ph.param_names() != ["k2/M", "b/M", "M", "k1"] {
+            return Err(crate::Error::InvalidArgument { arg: "ident", expected: "the parameters k2/M, b/M, M, k1" });
+        }
+        let s = *ph.structure();
+        let opts = KalmanOptions::default();
+        let inner = StructuredKalmanVec::<f64, 2>::exact(s, opts)?;
+        let rows = inner.rows();
+        let pos = |r: usize| rows.iter().position(|&x| x == r).unwrap_or(0);
+        let eq_of_row = [pos(1), pos(3)];
+        Ok(Self { inner, m, eq_of_row })
+    }
+}
+
+impl Identifier<f64> for PhysicalRows {
+    fn dims(&self) -> Dims {
+        Dims { states: 4, inputs: 0, equations: 2, params: 8 }
+    }
+
+    fn rows(&self) -> &[usize] {
+        &[1, 3]
+    }
+
+    fn update_into(&mut self, x: &[f64], z: &[f64], u: &[f64], e: &mut [f64]) -> vehid_core::Result<()> {
+        let mut inner_e = [0.0; 2];
+        self.inner.update_into(x, z, u, &mut inner_e)?;
+        for (i, &j) in self.eq_of_row.iter().enumerate() {
+            e[i] = inner_e[j];
+        }
+        Ok(())
+    }
+
+    fn params_into(&self, out: &mut [f64]) -> vehid_core::Result<()> {
+        let mut p = [0.0; 4];
+        self.inner.params_into(&mut p)?;
+        let [k2_m, b_m, mb, k1] = p;
+        let (k2, b, m) = (k2_m * mb, b_m * mb, self.m);
+        out.copy_from_slice(&[-(k1 + k2) / m, -b / m, k2 / m, b / m, k2_m, b_m, -k2_m, -b_m]);
+        Ok(())
+    }
+
+    fn samples(&self) -> u64 {
+        self.inner.samples()
+    }
 }
