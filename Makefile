@@ -1,5 +1,5 @@
 # Developer entry points. Assumes only python3, cargo and access to PyPI / crates.io.
-#   make venv     .venv with maturin, numpy, pytest, mypy, ruff (from PyPI)
+#   make venv     .venv with maturin, numpy, pytest, mypy, ruff, scipy (tests: derivatives, t quantiles) (from PyPI)
 #   make develop  build the extension (release) into .venv, editable
 #   make demo     build with the plot extra (matplotlib), reproduce the thesis (--quick) into report/, print its path
 #   make test     lint, every Rust test (unit, integration, bins, benches in test mode, doctests), the
@@ -35,7 +35,7 @@ venv: $(VENV)/.installed
 
 $(VENV)/.installed:
 	$(PYTHON) -m venv $(VENV)
-	$(VBIN)/python -m pip install --quiet maturin numpy pytest mypy ruff
+	$(VBIN)/python -m pip install --quiet maturin numpy pytest mypy ruff scipy
 	touch $@
 
 # A stale extension module in python/vehid/ would shadow the fresh build: remove it first.

@@ -241,7 +241,9 @@ def test_identifiers_survive_garbage(seed: int) -> None:
 @pytest.mark.parametrize("mode", ["rows", "shared", "full"])
 def test_rejected_fit_part_way_leaves_kalman_unchanged(mode: str) -> None:
     run = sample_run(CAR, 100, 3)
-    kf = vehid.KalmanIdentifier(CAR, p0=1000.0, r=[0.3, 0.3], mode=mode)
+    # The outlier gate (on by default in mode rows) would leave such samples out and count
+    # them; off, the update itself must reject them.
+    kf = vehid.KalmanIdentifier(CAR, p0=1000.0, r=[0.3, 0.3], mode=mode, gate=0.0)
     kf.fit(run.r[:50], run.z[:50])
     before = state(kf)
     r = run.r[50:].copy()
@@ -249,8 +251,13 @@ def test_rejected_fit_part_way_leaves_kalman_unchanged(mode: str) -> None:
     with pytest.raises(vehid.VehidError, match="sample 20 was rejected .* the identifier is unchanged"):
         kf.fit(r, run.z[50:], record_every=5)
     assert same_state(before, state(kf))
+    if mode == "rows":
+        gated = vehid.KalmanIdentifier(CAR, p0=1000.0, r=[0.3, 0.3])
+        gated.fit(run.r[:50], run.z[:50])
+        gated.fit(r, run.z[50:])
+        assert gated.samples == 100 and np.all(gated.gated >= 30)
     # ... and it still works afterwards, exactly as if the bad call never happened.
-    fresh = vehid.KalmanIdentifier(CAR, p0=1000.0, r=[0.3, 0.3], mode=mode)
+    fresh = vehid.KalmanIdentifier(CAR, p0=1000.0, r=[0.3, 0.3], mode=mode, gate=0.0)
     fresh.fit(run.r[:50], run.z[:50])
     kf.fit(run.r[50:], run.z[50:])
     fresh.fit(run.r[50:], run.z[50:])

@@ -704,7 +704,42 @@ def _json_array(a: NDArray[np.float64]) -> Any:
 # --- identify ---------------------------------------------------------------------------
 
 
+def cmd_identify_file(args: argparse.Namespace) -> int:
+    """``identify --model model.toml``: a Structure from a model file."""
+    from . import model_file
+
+    try:
+        mf = model_file.load(args.model)
+        with open_table(args.file, delimiter=args.delimiter) as table:
+            report = model_file.identify(mf, table, args.method, CHUNK)
+    except model_file.ModelFileError as e:
+        raise CliError(str(e)) from None
+    if args.json:
+        print(json.dumps({"source": args.file, "model": args.model, "method": args.method, **report}))
+        return 0
+    print(f"{args.file}: {report['samples']} samples, model {args.model}, method {args.method}")
+    print()
+    level = int(round(100 * (1 - report["alpha"])))
+    print(f"  {'parameter':12s} {'estimate':>14s} {'std err':>12s}   {level} % interval")
+    for name, v, se, (lo, hi) in zip(report["names"], report["params"], report["bse"], report["conf_int"]):
+        print(f"  {name:12s} {v:14.6g} {se:12.4g}   [{lo:.6g}, {hi:.6g}]")
+    print()
+    print("residual variance per equation: " + ", ".join(f"d{k}/dt {v:.4g}" for k, v in report["sigma2"].items()))
+    return 0
+
+
+def model_arg(text: str) -> str:
+    """``--model`` of identify: a built-in model or a model file."""
+    if text in MODELS or text.endswith(".toml"):
+        return text
+    raise argparse.ArgumentTypeError(
+        f"invalid choice: {text!r} (choose from {', '.join(sorted(MODELS))}, or a model file NAME.toml)"
+    )
+
+
 def cmd_identify(args: argparse.Namespace) -> int:
+    if args.model not in MODELS:
+        return cmd_identify_file(args)
     model = MODELS[args.model]()
     n = model.n_states
     try:
@@ -911,7 +946,9 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=columns_help(),
     )
     ident.add_argument("file", metavar="FILE", help="CSV or Parquet run, '-' for stdin (CSV)")
-    ident.add_argument("--model", choices=sorted(MODELS), required=True, help="quarter (4 states) or half (8 states)")
+    ident.add_argument("--model", required=True, metavar="MODEL", type=model_arg,
+                       help="quarter (4 states), half (8 states), or a model file (.toml: any vehid.Structure, "
+                            "see python/vehid/model_file.py)")
     ident.add_argument("--columns", action="append", metavar="MAP",
                        help="map file columns to the model's names: NAME=COLUMN pairs, comma-separated "
                             "(e.g. x1=wheel_z,dx1=wheel_zdot,t=Zeit), or a file with one NAME = COLUMN per line; "

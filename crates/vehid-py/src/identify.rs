@@ -12,9 +12,10 @@
 use crate::convert::{array, finite, shape_str, size, values, Table};
 use crate::dispatch::{a_hat_n, dispatch_n, ModelData};
 use crate::model::{to_array2, PyLinearModel};
+use crate::structure::{kalman_on_structure, refuse_for_structure, PyStructure};
 use crate::{core_err, option, VehidError};
 use numpy::ndarray::{Array1, Array3};
-use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3};
+use numpy::{IntoPyArray, PyArray1, PyArray2};
 use pyo3::exceptions::PyMemoryError;
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
@@ -68,14 +69,35 @@ pub(crate) fn fit_error(e: FitError, len: usize) -> PyErr {
 pub struct PyIdentifier {
     pub(crate) inner: Box<dyn DynIdentifier<f64>>,
     pub(crate) model: ModelData,
+    /// The structure, for an identifier built on one (`model` then only records its sizes).
+    pub(crate) structure: Option<Py<PyStructure>>,
 }
 
 impl PyIdentifier {
     pub(crate) fn new(inner: Box<dyn DynIdentifier<f64>>, model: ModelData) -> Self {
-        Self { inner, model }
+        Self { inner, model, structure: None }
     }
 
+    /// An identifier on a structure.
+    pub(crate) fn on_structure(inner: Box<dyn DynIdentifier<f64>>, s: &Bound<'_, PyStructure>) -> Self {
+        let st = s.get();
+        let (n, m) = (st.core.states(), st.core.inputs());
+        let model = ModelData {
+            n,
+            m,
+            a: vec![0.0; n * n],
+            b: vec![0.0; n * m],
+            rows: st.core.equation_states().collect(),
+            zeros: vec![],
+        };
+        Self { inner, model, structure: Some(s.clone().unbind()) }
+    }
+
+    /// The shape of θ: (equations, states) for a linear model, (1, params) for a structure.
     fn shape(&self) -> (usize, usize) {
+        if self.structure.is_some() {
+            return (1, self.inner.dims().params);
+        }
         (self.inner.dims().equations, self.model.n)
     }
 
@@ -148,7 +170,7 @@ impl PyIdentifier {
         z: &Bound<'py, PyAny>,
         u: Option<&Bound<'py, PyAny>>,
         record_every: i128,
-    ) -> PyResult<Bound<'py, PyArray3<f64>>> {
+    ) -> PyResult<Bound<'py, PyAny>> {
         let every = size(record_every, "record_every")?;
         let d = self.inner.dims();
         let rt = Table::new(r, "r", None, d.states, "measured states")?;
@@ -187,16 +209,38 @@ impl PyIdentifier {
         }
         let (k, n) = self.shape();
         let rows = hist.len() / (k * n).max(1);
+        if self.structure.is_some() {
+            return Ok(to_array2(py, rows, n, hist)?.into_any());
+        }
         Array3::from_shape_vec((rows, k, n), hist)
-            .map(|a| a.into_pyarray(py))
+            .map(|a| a.into_pyarray(py).into_any())
             .map_err(|e| VehidError::new_err(format!("internal shape error: {e}")))
     }
 
-    /// The estimated unknown rows of A, shape (k, n).
+    /// The estimated unknown rows of A, shape (k, n); for a structure the parameters
+    /// (n_params,), like `params`.
     #[getter]
-    fn theta<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    fn theta<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        if self.structure.is_some() {
+            return Ok(self.params_vec(py)?.into_pyarray(py).into_any());
+        }
         let (k, n) = self.shape();
-        to_array2(py, k, n, self.params_vec(py)?)
+        Ok(to_array2(py, k, n, self.params_vec(py)?)?.into_any())
+    }
+
+    /// The estimate's uncertainty (`vehid.Stats`: params, bse, conf_int at level `alpha`,
+    /// cov, sigma2, nobs): the covariance P scaled by the residual variance the data show
+    /// (statsmodels' OLS figures after an exact start). Needs an identifier that keeps P and
+    /// its residuals (KalmanIdentifier in mode "rows" or on a Structure, BatchLeastSquares).
+    #[pyo3(signature = (alpha = 0.05))]
+    fn stats(&self, py: Python<'_>, alpha: f64) -> PyResult<crate::stats::PyStats> {
+        crate::stats::stats_of(py, self, alpha)
+    }
+
+    /// The structure the identifier was built on (None for a linear model).
+    #[getter]
+    fn structure(&self, py: Python<'_>) -> Option<Py<PyStructure>> {
+        self.structure.as_ref().map(|s| s.clone_ref(py))
     }
 
     /// The estimated parameters, (n_params,); for a linear model the unknown rows of A,
@@ -209,6 +253,11 @@ impl PyIdentifier {
     /// Â: the model's A with the unknown rows replaced by the estimate, shape (n, n).
     #[getter]
     fn a_hat<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        if self.structure.is_some() {
+            return Err(VehidError::new_err(
+                "an identifier on a Structure has no matrix A: read `params` (named by `structure.parameters`)",
+            ));
+        }
         let th = self.params_vec(py)?;
         let d = &self.model;
         let a = dispatch_n!(d.n, a_hat_n(d, &th)).map_err(core_err)?;
@@ -396,7 +445,7 @@ impl PyKalmanIdentifier {
                         huber = 0.0))]
     #[allow(clippy::too_many_arguments)]
     fn py_new(
-        model: &Bound<'_, PyLinearModel>,
+        model: &Bound<'_, PyAny>,
         p0: Option<&Bound<'_, PyAny>>,
         r: Option<&Bound<'_, PyAny>>,
         theta0: Option<&Bound<'_, PyAny>>,
@@ -414,12 +463,7 @@ impl PyKalmanIdentifier {
         gate: Option<f64>,
         huber: f64,
     ) -> PyResult<PyClassInitializer<Self>> {
-        let m = model.get();
-        let (n, k) = (m.data.n, m.data.rows.len());
         let mode: Mode = option(mode)?;
-        let p0 = p0_arg(p0, k, n)?;
-        let theta0 = theta0_arg(theta0, k, n)?;
-        let r = r_arg(m, mode, p0 == Prior::Exact, r, road_sigma, deriv_noise)?;
         let form = match (form, joseph) {
             (None, false) => CovarianceForm::Standard,
             (None, true) => CovarianceForm::Joseph,
@@ -428,6 +472,39 @@ impl PyKalmanIdentifier {
                 return Err(VehidError::new_err("give `form=` or the older `joseph=True`, not both"));
             }
         };
+        if let Ok(st) = model.cast::<PyStructure>() {
+            refuse_for_structure("road_sigma", road_sigma.is_some())?;
+            refuse_for_structure("deriv_noise", deriv_noise.is_some())?;
+            if mode != Mode::Rows {
+                return Err(VehidError::new_err(
+                    "`mode` applies to a LinearModel: a Structure is identified one parameter group at a time \
+                     (equations sharing a parameter are filtered together)",
+                ));
+            }
+            let opts = KalmanOptions {
+                form,
+                reinit,
+                retire_below,
+                forgetting,
+                directional,
+                drift,
+                max_trace: max_trace.unwrap_or(0.0),
+                gate: 0.0,
+                huber,
+            };
+            let inner = kalman_on_structure(st.get(), p0, r, theta0, opts, gate)?;
+            return Ok(
+                PyClassInitializer::from(PyIdentifier::on_structure(inner, st)).add_subclass(Self { mode, form })
+            );
+        }
+        let model = model.cast::<PyLinearModel>().map_err(|_| {
+            VehidError::new_err("`model` must be a LinearModel (QuarterCar, HalfCar, ...) or a vehid.Structure")
+        })?;
+        let m = model.get();
+        let (n, k) = (m.data.n, m.data.rows.len());
+        let p0 = p0_arg(p0, k, n)?;
+        let theta0 = theta0_arg(theta0, k, n)?;
+        let r = r_arg(m, mode, p0 == Prior::Exact, r, road_sigma, deriv_noise)?;
         let opts = KalmanOptions {
             form,
             reinit,
@@ -544,7 +621,7 @@ impl PyStochasticGradient {
     #[pyo3(signature = (model, gain = "venter", h = None, p = 0.51, *, spacing = 1, state_noise_var = None, lambda0 = 0.99, lambda_init = 0.95))]
     #[allow(clippy::too_many_arguments)]
     fn py_new(
-        model: &Bound<'_, PyLinearModel>,
+        model: &Bound<'_, PyAny>,
         gain: &str,
         h: Option<&Bound<'_, PyAny>>,
         p: f64,
@@ -553,8 +630,29 @@ impl PyStochasticGradient {
         lambda0: f64,
         lambda_init: f64,
     ) -> PyResult<PyClassInitializer<Self>> {
-        let m = model.get();
         let kind: GainKind = option(gain)?;
+        if let Ok(st) = model.cast::<PyStructure>() {
+            refuse_for_structure("state_noise_var", state_noise_var.is_some())?;
+            let h = match h {
+                None => vec![1.0],
+                Some(h) => {
+                    let a = array(h, "h")?;
+                    finite("h", &a.data)?;
+                    a.data
+                }
+            };
+            let spacing = u32::try_from(spacing)
+                .map_err(|_| VehidError::new_err(format!("`spacing` must be an integer >= 1, got {spacing}")))?;
+            let g = Gain::of_kind(kind, p, lambda0, lambda_init);
+            let inner = crate::structure::gradient_on_structure(st.get(), g, &h, spacing)?;
+            return Ok(
+                PyClassInitializer::from(PyIdentifier::on_structure(inner, st)).add_subclass(Self { gain: kind })
+            );
+        }
+        let model = model.cast::<PyLinearModel>().map_err(|_| {
+            VehidError::new_err("`model` must be a LinearModel (QuarterCar, HalfCar, ...) or a vehid.Structure")
+        })?;
+        let m = model.get();
         let h = match h {
             None => vec![1.0],
             Some(h) => {
@@ -589,7 +687,8 @@ impl PyStochasticGradient {
 }
 
 /// Batch least squares (Eq 2.14): stores every sample and solves each unknown row by
-/// column-pivoted QR when the estimate is read. Missing excitation raises VehidError (rank
+/// column-pivoted QR when the estimate is read. On a Structure: the same least-squares
+/// estimate, computed recursively (exact start, no prior, no outlier gate), storing nothing. Missing excitation raises VehidError (rank
 /// deficiency), never NaN. `fit` stores the samples (all or nothing) and returns the history
 /// like the recursive identifiers (θ̂ over every prefix, solved at each record).
 #[pyclass(name = "BatchLeastSquares", module = "vehid._vehid", extends = PyIdentifier)]
@@ -618,7 +717,16 @@ fn batch_storage<const N: usize>(id: &mut Box<dyn DynIdentifier<f64>>, clear: bo
 #[pymethods]
 impl PyBatchLeastSquares {
     #[new]
-    fn py_new(model: &Bound<'_, PyLinearModel>) -> PyResult<PyClassInitializer<Self>> {
+    fn py_new(model: &Bound<'_, PyAny>) -> PyResult<PyClassInitializer<Self>> {
+        if let Ok(st) = model.cast::<PyStructure>() {
+            // Least squares on all samples, solved recursively (exact start, no prior, no
+            // gate): the same estimate as the normal equations, without storing samples.
+            let inner = kalman_on_structure(st.get(), None, None, None, KalmanOptions::default(), Some(0.0))?;
+            return Ok(PyClassInitializer::from(PyIdentifier::on_structure(inner, st)).add_subclass(Self));
+        }
+        let model = model.cast::<PyLinearModel>().map_err(|_| {
+            VehidError::new_err("`model` must be a LinearModel (QuarterCar, HalfCar, ...) or a vehid.Structure")
+        })?;
         let m = model.get();
         let inner = dispatch_n!(m.data.n, batch_n(&m.data.rows)).map_err(core_err)?;
         Ok(PyClassInitializer::from(PyIdentifier::new(inner, m.data.clone())).add_subclass(Self))
@@ -628,6 +736,9 @@ impl PyBatchLeastSquares {
     #[getter]
     fn storage_bytes(mut slf: PyRefMut<'_, Self>) -> PyResult<usize> {
         let base = slf.as_super();
+        if base.structure.is_some() {
+            return Ok(0);
+        }
         let n = base.model.n;
         dispatch_n!(n, batch_storage(&mut base.inner, false)).map_err(core_err)
     }
@@ -635,6 +746,11 @@ impl PyBatchLeastSquares {
     /// Drops the stored samples.
     fn clear(mut slf: PyRefMut<'_, Self>) -> PyResult<()> {
         let base = slf.as_super();
+        if let Some(st) = &base.structure {
+            let inner = kalman_on_structure(st.get(), None, None, None, KalmanOptions::default(), Some(0.0))?;
+            base.inner = inner;
+            return Ok(());
+        }
         let n = base.model.n;
         dispatch_n!(n, batch_storage(&mut base.inner, true)).map(|_| ()).map_err(core_err)
     }

@@ -14,6 +14,8 @@ mod model;
 mod persist;
 mod reproduce;
 mod sim;
+mod stats;
+mod structure;
 mod two_axle;
 
 pyo3::create_exception!(
@@ -109,6 +111,10 @@ fn _vehid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<identify::PyBatchLeastSquares>()?;
     m.add_class::<two_axle::PyTwoAxleIdentifier>()?;
     m.add_class::<two_axle::PyAxleSampler>()?;
+    m.add_class::<structure::PyStructure>()?;
+    m.add_class::<stats::PyStats>()?;
+    m.add_function(wrap_pyfunction!(structure::_physical_structure, m)?)?;
+    m.add_function(wrap_pyfunction!(structure::validate, m)?)?;
     m.add_function(wrap_pyfunction!(xi, m)?)?;
     m.add_function(wrap_pyfunction!(snr_db, m)?)?;
     m.add_function(wrap_pyfunction!(reproduce::reproduce_report, m)?)?;

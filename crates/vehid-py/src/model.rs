@@ -272,12 +272,37 @@ impl PyLinearModel {
         to_array2(py, d.n, d.n, v)
     }
 
+    /// The car's physical structure as a `vehid.Structure`, with the constants in `known`
+    /// (e.g. {"m": 1.0}) fixed: its parameters are the unknown constants and their ratios
+    /// (QuarterCar with m known: "k2/M", "b/M", "M", "k1"; the body equation in ratio form,
+    /// the wheel's in momentum form through der(x4)), states x1..xn. HalfCar needs l1 and l2
+    /// known (they enter the pitch lever arms).
+    #[pyo3(signature = (known = None))]
+    fn structure(&self, known: Option<&Bound<'_, PyAny>>) -> PyResult<crate::structure::PyStructure> {
+        use crate::structure::{CarKind, PyStructure};
+        let car = match self.kind {
+            Kind::Quarter(_) => CarKind::Quarter,
+            Kind::Half(_) => CarKind::Half,
+            Kind::Generic => {
+                return Err(VehidError::new_err(
+                    "a generic LinearModel has no physical structure: write one with vehid.Structure(...)",
+                ))
+            }
+        };
+        PyStructure::physical(car, known)
+    }
+
     /// Physical constants from identified rows `theta_hat` (len(unknown_rows), n).
     ///
     /// QuarterCar: one known mass, `m=` (wheel, the thesis' choice) or `M=` (body) ->
     /// {"M", "m", "k1", "k2", "b"}. HalfCar: `m1=` and `m2=` (wheel masses); the tyre
     /// stiffnesses come from the model's B -> all 12 constants. A generic LinearModel has no
     /// physical constants.
+    ///
+    /// Given a `Stats` (from an identifier on `car.structure(known=...)`) instead of rows:
+    /// {constant: (value, low, high)} with the interval at the Stats' level by the delta
+    /// method (exact when the constant is linear in the parameters); known constants appear
+    /// as (value, value, value); `known` defaults to the structure's.
     #[pyo3(signature = (theta_hat, **known))]
     fn physical<'py>(
         &self,
@@ -285,6 +310,13 @@ impl PyLinearModel {
         theta_hat: &Bound<'py, PyAny>,
         known: Option<&Bound<'py, PyDict>>,
     ) -> PyResult<Bound<'py, PyDict>> {
+        if let (Ok(st), Kind::Quarter(_) | Kind::Half(_)) = (theta_hat.cast::<crate::stats::PyStats>(), self.kind) {
+            let car = match self.kind {
+                Kind::Quarter(_) => crate::structure::CarKind::Quarter,
+                _ => crate::structure::CarKind::Half,
+            };
+            return crate::stats::physical_from_stats(py, car, st.get(), known);
+        }
         let allowed: &[&str] = match self.kind {
             Kind::Generic => {
                 return Err(VehidError::new_err(

@@ -123,6 +123,12 @@ fn load_n<const N: usize>(core: Core, bytes: &[u8]) -> vehid_core::Result<Loaded
 
 /// The identifier's state: `(FORMAT, "vehid <version>", payload)`.
 fn state<'py>(py: Python<'py>, base: &PyIdentifier) -> PyResult<Bound<'py, PyTuple>> {
+    if base.structure.is_some() {
+        return Err(VehidError::new_err(
+            "an identifier on a Structure cannot be pickled yet (copy.copy / copy.deepcopy work): pickle the \
+             Structure and its data, or the estimate (`params`, `stats()`)",
+        ));
+    }
     let n = base.model.n;
     let saved = dispatch_n!(n, save_n(base.inner.as_ref())).map_err(crate::identify::raise)?;
     let Some((core, bytes)) = saved else {
@@ -157,8 +163,15 @@ fn blank_args<'py>(obj: &Bound<'py, PyIdentifier>) -> PyResult<(Bound<'py, PyTup
                 obj.get_type().name()?
             )));
         }
-        let data = obj.borrow().model.clone();
-        Bound::new(py, PyLinearModel::new_core(data, Kind::Generic))?.into_any()
+        if let Some(st) = &obj.borrow().structure {
+            if kwargs.contains("r")? {
+                kwargs.del_item("r")?;
+            }
+            st.bind(py).clone().into_any()
+        } else {
+            let data = obj.borrow().model.clone();
+            Bound::new(py, PyLinearModel::new_core(data, Kind::Generic))?.into_any()
+        }
     };
     Ok((PyTuple::new(py, [model])?, kwargs))
 }

@@ -1,0 +1,186 @@
+//! `Identifier.stats(alpha)` → `vehid.Stats` (the core's `estimate_stats`), and the physical
+//! constants with intervals from a `Stats` of a car's physical structure (the core's
+//! `PhysicalStructure::constant`, delta method).
+
+use crate::identify::{raise, PyIdentifier};
+use crate::model::to_array2;
+use crate::structure::{CarKind, Origin, PyStructure};
+use crate::{core_err, VehidError};
+use numpy::{IntoPyArray, PyArray1, PyArray2};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyTuple};
+use vehid_core::identify::{estimate_stats, EstimateStats};
+
+/// An estimate and its uncertainty, as statsmodels names them (from `Identifier.stats`).
+///
+/// `names` (n_params,) the parameters; `params` θ̂; `bse` standard errors; `conf_int`
+/// (n_params, 2) the 1 − `alpha` intervals (Student's t with `df` degrees of freedom);
+/// `cov` (n_params, n_params) the covariance `s² P`; `sigma2` and `nobs` one residual
+/// variance and one (effective) sample count per identified equation. `s²` is the weighted
+/// residual variance of the parameters' group: the OLS `scale` for one equation.
+#[pyclass(name = "Stats", module = "vehid._vehid", frozen)]
+pub struct PyStats {
+    pub(crate) s: EstimateStats,
+    pub(crate) names: Vec<String>,
+    pub(crate) structure: Option<Py<PyStructure>>,
+}
+
+#[pymethods]
+impl PyStats {
+    /// The parameter names.
+    #[getter]
+    fn names<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyTuple>> {
+        PyTuple::new(py, &self.names)
+    }
+
+    /// θ̂, (n_params,).
+    #[getter]
+    fn params<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        self.s.params.clone().into_pyarray(py)
+    }
+
+    /// Standard errors, (n_params,).
+    #[getter]
+    fn bse<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        self.s.bse.clone().into_pyarray(py)
+    }
+
+    /// The 1 − alpha confidence intervals, (n_params, 2).
+    #[getter]
+    fn conf_int<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let v = self.s.conf_int.iter().flat_map(|&(a, b)| [a, b]).collect();
+        to_array2(py, self.s.params.len(), 2, v)
+    }
+
+    /// The covariance of θ̂, (n_params, n_params).
+    #[getter]
+    fn cov<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let n = self.s.params.len();
+        to_array2(py, n, n, self.s.cov.clone())
+    }
+
+    /// One residual variance per identified equation.
+    #[getter]
+    fn sigma2<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        self.s.sigma2.clone().into_pyarray(py)
+    }
+
+    /// One (effective) number of observations per identified equation.
+    #[getter]
+    fn nobs<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        self.s.nobs.clone().into_pyarray(py)
+    }
+
+    /// Residual degrees of freedom behind each parameter's interval, (n_params,).
+    #[getter]
+    fn df<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        self.s.df.clone().into_pyarray(py)
+    }
+
+    /// The level of `conf_int`.
+    #[getter]
+    fn alpha(&self) -> f64 {
+        self.s.alpha
+    }
+
+    /// The structure the estimate belongs to (None for a linear model's rows).
+    #[getter]
+    fn structure(&self, py: Python<'_>) -> Option<Py<PyStructure>> {
+        self.structure.as_ref().map(|s| s.clone_ref(py))
+    }
+
+    fn __repr__(&self) -> String {
+        let rows: Vec<String> = self
+            .names
+            .iter()
+            .zip(&self.s.params)
+            .zip(&self.s.bse)
+            .map(|((n, p), b)| format!("{n}={p:.6e}±{b:.2e}"))
+            .collect();
+        format!("Stats({}, alpha={})", rows.join(", "), self.s.alpha)
+    }
+}
+
+/// `Identifier.stats(alpha)`.
+pub(crate) fn stats_of(py: Python<'_>, id: &PyIdentifier, alpha: f64) -> PyResult<PyStats> {
+    let inner = &id.inner;
+    let s = py.detach(|| estimate_stats(inner.as_ref(), alpha)).map_err(raise)?;
+    let names = match &id.structure {
+        Some(st) => st.get().params.clone(),
+        None => {
+            let n = id.model.n;
+            id.model.rows.iter().flat_map(|&r| (0..n).map(move |c| format!("a[{r},{c}]"))).collect()
+        }
+    };
+    Ok(PyStats { s, names, structure: id.structure.as_ref().map(|s| s.clone_ref(py)) })
+}
+
+/// `car.physical(stats, **known)`: every constant as `(value, low, high)`, the interval by the
+/// delta method with the Student quantile of the smallest `df` (known constants: the value
+/// three times).
+pub(crate) fn physical_from_stats<'py>(
+    py: Python<'py>,
+    car: CarKind,
+    st: &PyStats,
+    known: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let consts = car.constants();
+    // The structure the stats came from, or the one `known` describes.
+    let ph = match (known.filter(|k| !k.is_empty()), &st.structure) {
+        (Some(k), _) => PyStructure::physical(car, Some(k.as_any()))?,
+        (None, Some(s)) => {
+            let s = s.get();
+            PyStructure::physical(
+                car,
+                match &s.origin {
+                    Origin::Physical { known, .. } => {
+                        let d = PyDict::new(py);
+                        for (c, v) in consts.iter().zip(known) {
+                            if let Some(v) = v {
+                                d.set_item(*c, *v)?;
+                            }
+                        }
+                        Some(d.into_any())
+                    }
+                    Origin::Text { .. } => None,
+                }
+                .as_ref(),
+            )?
+        }
+        (None, None) => {
+            return Err(VehidError::new_err(
+                "give the known constants (e.g. m=1.0), as when building car.structure(known=...)",
+            ))
+        }
+    };
+    if ph.params != st.names {
+        return Err(VehidError::new_err(format!(
+            "these stats belong to parameters {:?}, but the structure with these known constants has {:?}: use \
+             the same known constants as for car.structure(known=...)",
+            st.names, ph.params
+        )));
+    }
+    let Origin::Physical { physical, known: kn, .. } = &ph.origin else {
+        return Err(VehidError::new_err("internal: not a physical structure"));
+    };
+    let df = st.s.df.iter().copied().fold(f64::INFINITY, f64::min);
+    let q = vehid_core::stats::t_ppf(1.0 - st.s.alpha / 2.0, df).map_err(core_err)?;
+    let out = PyDict::new(py);
+    for (c, name) in consts.iter().enumerate() {
+        if let Some(v) = kn[c] {
+            out.set_item(*name, (v, v, v))?;
+            continue;
+        }
+        match physical.constant(c, &st.s.params, &st.s.cov) {
+            Ok((v, se)) => out.set_item(*name, (v, v - q * se, v + q * se))?,
+            Err(vehid_core::Error::NotIdentifiable { .. }) => {}
+            Err(e) => return Err(core_err(e)),
+        }
+    }
+    if out.len() == kn.iter().flatten().count() {
+        return Err(VehidError::new_err(
+            "no constant follows from these parameters: the equations fix only ratios; give a mass as known",
+        ));
+    }
+    Ok(out)
+}
