@@ -9,11 +9,13 @@ use std::hint::black_box;
 use std::time::Duration;
 use vehid_core::identify::{
     BatchLeastSquares, CovarianceForm, FullKalmanIdentifier, Gain, Identifier, KalmanIdentifier, KalmanIdentifierVec,
-    KalmanIdentifierVec2, KalmanOptions, LsAccumulator, SharedKalmanIdentifier, StochasticGradient,
+    KalmanIdentifierVec2, KalmanOptions, LsAccumulator, SharedKalmanIdentifier, StochasticGradient, StructuredGradient,
+    StructuredKalman, StructuredPrior,
 };
 use vehid_core::model::{HalfCar, LinearModel, QuarterCar};
 use vehid_core::nalgebra::SVector;
 use vehid_core::sim::{Method, SimConfig, Simulator};
+use vehid_core::structure::Structure;
 use vehid_core::Real;
 
 const LEN: usize = 4096;
@@ -237,6 +239,52 @@ fn identifiers(c: &mut Criterion) {
     kalman_benches!(c, f32, "f32");
 }
 
+/// Identifiers on a Structure against the plain rows update for the same parameters
+/// (issue 14: at most 1.5x): the quarter car's full rows as a structure (8 parameters in two
+/// groups of 4), its physical structure with m known (4 parameters, two groups of 2), and the
+/// stochastic gradient on the full-row structure.
+fn structured(c: &mut Criterion) {
+    let q = QuarterCar::<f64>::thesis();
+    let data = samples(q.model());
+    let r: [f64; 2] = q.model().row_noise_var(0.1, 0.005).unwrap();
+    let opts = KalmanOptions::default();
+    let full = Structure::<f64>::full_rows(4, &q.unknown_rows()).unwrap();
+    let mut id = StructuredKalman::<f64, 4, 2>::new(full, StructuredPrior::Scalar(1000.0), None, &r, opts).unwrap();
+    let mut e = [0.0; 2];
+    bench_updates(
+        c,
+        "update_f64",
+        &data,
+        |x, z| {
+            let _ = black_box(id.update_into(x.as_slice(), z.as_slice(), &[], &mut e));
+        },
+        "quarter/structured_rows",
+    );
+    let ph = QuarterCar::<f64>::structure([None, Some(1.0), None, None, None]).unwrap();
+    let mut id =
+        StructuredKalman::<f64, 2, 2>::new(*ph.structure(), StructuredPrior::Scalar(1000.0), None, &[1.0], opts)
+            .unwrap();
+    bench_updates(
+        c,
+        "update_f64",
+        &data,
+        |x, z| {
+            let _ = black_box(id.update_into(x.as_slice(), z.as_slice(), &[], &mut e));
+        },
+        "quarter/structured_physical",
+    );
+    let mut sg = StructuredGradient::<f64, 8>::new(full, Gain::Venter { p: 0.51 }, &[0.4], None, 1).unwrap();
+    bench_updates(
+        c,
+        "update_f64",
+        &data,
+        |x, z| {
+            let _ = black_box(sg.update_into(x.as_slice(), z.as_slice(), &[], &mut e));
+        },
+        "quarter/structured_sg_venter",
+    );
+}
+
 fn batch_least_squares(c: &mut Criterion) {
     let q = QuarterCar::<f64>::thesis();
     let data = samples(q.model());
@@ -279,5 +327,5 @@ fn config() -> Criterion {
         .sample_size(30)
 }
 
-criterion_group! { name = benches; config = config(); targets = identifiers, batch_least_squares, simulator }
+criterion_group! { name = benches; config = config(); targets = identifiers, structured, batch_least_squares, simulator }
 criterion_main!(benches);
