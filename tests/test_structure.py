@@ -437,3 +437,24 @@ def test_stochastic_gradient_on_a_structure_equals_numpy_loop() -> None:
     np.testing.assert_allclose(e[-1], theta, rtol=1e-9)
     with pytest.raises(TypeError, match="state_noise_var"):
         vehid.StochasticGradient(s, state_noise_var=0.1)
+
+
+def test_cli_simulate_a_model_file_over_measured_inputs(tmp_path: Path) -> None:
+    model = tmp_path / "msd.toml"
+    model.write_text(
+        'states = ["q", "v"]\ninputs = ["f"]\n[equations]\nv = "-k*q - c*v + g*f"\n[known]\nq = "v"\n'
+        '[columns]\nf = "force"\n'
+    )
+    rng = np.random.default_rng(2)
+    u = rng.standard_normal(300)
+    (tmp_path / "u.csv").write_text("force\n" + "\n".join(repr(float(v)) for v in u) + "\n")
+    out = run_cli("simulate", "--model", str(model), "--input", str(tmp_path / "u.csv"), "--params",
+                  "k=40,c=3,g=2", "--x0", "0.1,0", "--dt", "0.01", "-o", "-")
+    assert out.returncode == 0, out.stderr
+    lines = out.stdout.splitlines()
+    assert lines[0] == "t,q,v,f"
+    data = np.loadtxt(lines[1:], delimiter=",")
+    s = vehid.Structure(["q", "v"], ["f"], {"v": "-k*q - c*v + g*f"}, known={"q": "v"})
+    np.testing.assert_array_equal(data[:, 1:3], s.simulate([40, 3, 2], [0.1, 0.0], u[:, None], dt=0.01))
+    bad = run_cli("simulate", "--model", str(model), "--input", str(tmp_path / "u.csv"), "--params", "k=40", "-o", "-")
+    assert bad.returncode == 2 and "no value for c, g" in bad.stderr

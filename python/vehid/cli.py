@@ -151,7 +151,40 @@ def _open_output(path: str) -> IO[str]:
         raise CliError(f"-o {path}: cannot create ({e.strerror or e})") from None
 
 
+def cmd_simulate_file(args: argparse.Namespace) -> int:
+    """``simulate --model model.toml --input u.csv --params ...``: free-run simulation of a
+    Structure over measured inputs."""
+    from . import model_file
+
+    if args.input is None:
+        raise CliError(f"--model {args.model}: give --input FILE with the measured inputs to simulate over")
+    try:
+        x0 = None if args.x0 is None else [float(v) for v in args.x0.split(",")]
+    except ValueError:
+        raise CliError(f"--x0 {args.x0}: expected numbers, comma-separated") from None
+    try:
+        mf = model_file.load(args.model)
+        params = model_file.parse_params(mf, args.params)
+        with open_table(args.input) as table:
+            header, rows = model_file.simulate(mf, table, params, args.dt, x0, CHUNK)
+    except model_file.ModelFileError as e:
+        raise CliError(str(e)) from None
+    out = sys.stdout if args.output == "-" else _open_output(args.output)
+    try:
+        out.write(",".join(header) + "\n")
+        np.savetxt(out, rows, delimiter=",", fmt="%.17g")
+        out.flush()
+    finally:
+        if out is not sys.stdout:
+            out.close()
+    return 0
+
+
 def cmd_simulate(args: argparse.Namespace) -> int:
+    if args.model not in MODELS:
+        return cmd_simulate_file(args)
+    if args.input is not None or args.params is not None or args.x0 is not None:
+        raise CliError("--input, --params and --x0 apply to a model file (--model NAME.toml)")
     model = MODELS[args.model]()
     distance = args.speed is not None
     road_kw: Dict[str, Any] = {}
@@ -916,7 +949,13 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     sim = sub.add_parser("simulate", help="simulate a vehicle and write a CSV run")
-    sim.add_argument("--model", choices=sorted(MODELS), required=True, help="quarter (4 states) or half (8 states)")
+    sim.add_argument("--model", type=model_arg, required=True, metavar="MODEL",
+                     help="quarter (4 states), half (8 states), or a model file NAME.toml (with --input, --params)")
+    sim.add_argument("--input", default=None, metavar="FILE",
+                     help="model file: CSV of the measured inputs to simulate over (columns per [columns])")
+    sim.add_argument("--params", default=None, metavar="VALUES",
+                     help="model file: the parameters, NAME=VALUE pairs, comma-separated")
+    sim.add_argument("--x0", default=None, metavar="VALUES", help="model file: initial state, comma-separated (0)")
     sim.add_argument("--n", type=count(0), default=40_000, help="number of samples (default 40000)")
     sim.add_argument("--dt", type=float, default=0.05, help="sample interval, s (default 0.05)")
     sim.add_argument("--road-sigma", type=float, default=0.1, help="road input std sigma_u, m (default 0.1)")

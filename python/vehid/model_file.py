@@ -27,7 +27,7 @@ from __future__ import annotations
 import re
 import sys
 from dataclasses import dataclass, field
-from typing import Any, Dict, List, Optional
+from typing import Any, Dict, List, Optional, Tuple
 
 from ._vehid import Structure, VehidError
 
@@ -153,7 +153,8 @@ def identify(
     dcols = {st: table.names.index(c) for st, c in model.dx.items()}
     ucols = [table.names.index(model.u[i]) for i in inputs]
     order = cols + list(dcols.values()) + ucols
-    labels = [f"column {table.names[i]!r}" for i in order]
+    what = {table.names.index(c): w for c, w in wanted.items()}
+    labels = [f"{table.names[i]!r} ({what[i]})" for i in order]
     if method == "kalman":
         ident = KalmanIdentifier(s)
     elif method == "ls":
@@ -183,3 +184,58 @@ def identify(
         "sigma2": dict(zip(s.identified, st.sigma2.tolist())),
         "alpha": alpha,
     }
+
+
+def parse_params(model: ModelFile, text: Optional[str]) -> List[float]:
+    """``--params a=2,b=0.8,...``: a value for every parameter of the structure."""
+    names = list(model.structure.parameters)
+    if not text:
+        raise ModelFileError(f"give --params with a value for each of {', '.join(names)} (e.g. {names[0]}=1.0)")
+    given: Dict[str, float] = {}
+    for item in text.split(","):
+        name, sep, value = item.partition("=")
+        name = name.strip()
+        if not sep or name not in names:
+            raise ModelFileError(f"--params: {item.strip()!r} is not NAME=VALUE for a parameter ({', '.join(names)})")
+        try:
+            given[name] = float(value)
+        except ValueError:
+            raise ModelFileError(f"--params: {name}={value.strip()!r} is not a number") from None
+    missing = [n for n in names if n not in given]
+    if missing:
+        raise ModelFileError(f"--params: no value for {', '.join(missing)}")
+    return [given[n] for n in names]
+
+
+def simulate(
+    model: ModelFile, table: Any, params: List[float], dt: float, x0: Optional[List[float]], chunk: int
+) -> Tuple[List[str], Any]:
+    """Free-run simulation of ``model`` with ``params`` over the inputs read from ``table``
+    (columns per ``[columns]``), ``dt`` seconds apart. Returns the CSV header and the rows
+    (t, states, inputs) as an array."""
+    import numpy as np
+
+    s = model.structure
+    inputs = list(s.inputs)
+    if not inputs:
+        raise ModelFileError(f"{model.path} has no inputs: nothing to read from an input file")
+    missing = [model.u[i] for i in inputs if model.u[i] not in table.names]
+    if missing:
+        raise ModelFileError(
+            f"{table.source}: no column {', '.join(repr(c) for c in missing)} for the inputs; the file has "
+            f"{', '.join(table.names)}: map them in {model.path}'s [columns]"
+        )
+    cols = [table.names.index(model.u[i]) for i in inputs]
+    u = np.concatenate(
+        [c.data for c in table.chunks(cols, [f"{model.u[i]!r} (input {i})" for i in inputs], chunk)]
+        or [np.zeros((0, len(inputs)))]
+    )
+    if len(u) == 0:
+        raise ModelFileError(f"{table.source}: no samples")
+    start = x0 if x0 is not None else [0.0] * s.n_states
+    if len(start) != s.n_states:
+        raise ModelFileError(f"--x0: {len(start)} values for {s.n_states} states ({', '.join(s.states)})")
+    x = s.simulate(params, start, u, dt=dt)
+    t = np.arange(len(u)) * dt
+    header = ["t", *s.states, *inputs]
+    return header, np.column_stack([t, x, u])

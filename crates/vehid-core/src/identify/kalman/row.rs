@@ -447,7 +447,7 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
             });
         }
         let Some(r_eff) = self.screen(e, s) else {
-            self.gated += 1;
+            self.record_gated();
             return Ok(());
         };
         let s = s - self.r + r_eff;
@@ -508,7 +508,7 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
             match screen(gate, huber, nobs, ssr, r, e, s, self.dim as usize) {
                 Some(r_eff) => r_eff,
                 None => {
-                    self.gated += 1;
+                    self.record_gated();
                     return Ok(());
                 }
             }
@@ -571,6 +571,13 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
     /// gate rejects it, else the variance to use (`r`, or `r` scaled up by the Huber weight).
     fn screen(&self, e: T, s: T) -> Option<T> {
         screen(self.gate, self.huber, self.nobs, self.ssr, self.r, e, s, self.dim())
+    }
+
+    /// Counts a gated sample and lets it inform the scale: its recursive residual enters
+    /// `σ̂²` Winsorized at the gate, `κ² σ̂²` (see [`gated_scale`]).
+    fn record_gated(&mut self) {
+        (self.ssr, self.nobs) = gated_scale(self.gate, self.lambda, self.ssr, self.nobs, self.dim());
+        self.gated += 1;
     }
 
     /// Accumulates the statistics of an accepted update with innovation `e`, variance `s`.
@@ -692,6 +699,20 @@ pub(crate) fn screen<T: Real>(gate: T, huber: T, nobs: T, ssr: T, r: T, e: T, s:
         return Some(r * z2.sqrt() / huber);
     }
     Some(r)
+}
+
+/// The residual statistics `(ssr, nobs)` after a gated sample: its recursive residual enters
+/// Winsorized at the gate, `κ² σ̂²` with `σ̂² = ssr / (nobs − N)`, decayed by `λ` like an
+/// accepted one. An isolated outlier then moves `σ̂²` by a factor `1 + (κ² − 1)/n` only (n the
+/// statistics' memory: every sample so far, or `1/(1 − λ)` with forgetting), while a lasting
+/// change of the dynamics, whose every residual lies beyond the gate, raises `σ̂` by that
+/// factor per sample until its samples pass: within about `ln(z²/κ²) / ln(1 + (κ² − 1)/n)`
+/// samples for residuals `z σ̂` (tens of samples at `κ = 6`, `λ = 0.995`), so a gate does not
+/// stop the identifier from tracking a change.
+#[inline(always)]
+pub(crate) fn gated_scale<T: Real>(gate: T, lambda: T, ssr: T, nobs: T, params: usize) -> (T, T) {
+    let sigma2 = ssr / (nobs - T::of(params as f64));
+    (ssr * lambda + gate * gate * sigma2, nobs * lambda + T::one())
 }
 
 /// A sample is risky for the standard form when `r / s` is below this (`√ε`): it carries so
