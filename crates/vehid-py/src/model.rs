@@ -187,7 +187,7 @@ impl PyLinearModel {
     /// The poles (eigenvalues of A), (n,) complex128, sorted by real then imaginary part.
     fn poles<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<Complex64>>> {
         let d = &self.data;
-        let v = dispatch_n!(d.n, poles_n(d)).map_err(core_err)?;
+        let v = py.detach(|| dispatch_n!(d.n, poles_n(d))).map_err(core_err)?;
         Ok(to_array1(py, v))
     }
 
@@ -203,7 +203,8 @@ impl PyLinearModel {
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let road = values(road_sigma, "road_sigma", 1.0)?;
         let d = &self.data;
-        let v = dispatch_nm!(d.n, d.m, output_std_nm(d, &road, hold)).map_err(core_err)?;
+        // A long hold on a large model takes seconds: GIL released.
+        let v = py.detach(|| dispatch_nm!(d.n, d.m, output_std_nm(d, &road, hold))).map_err(core_err)?;
         Ok(to_array1(py, v))
     }
 
@@ -222,7 +223,7 @@ impl PyLinearModel {
         let road = values(road_sigma, "road_sigma", 0.1)?;
         let deriv = values(deriv_noise, "deriv_noise", 0.005)?;
         let d = &self.data;
-        let v = dispatch_nm!(d.n, d.m, row_noise_var_nm(d, &road, &deriv)).map_err(core_err)?;
+        let v = py.detach(|| dispatch_nm!(d.n, d.m, row_noise_var_nm(d, &road, &deriv))).map_err(core_err)?;
         Ok(to_array1(py, v))
     }
 

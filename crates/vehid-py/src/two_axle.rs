@@ -2,6 +2,7 @@
 //! of the core.
 
 use crate::dispatch::ModelData;
+use crate::guard::borrow;
 use crate::identify::PyIdentifier;
 use crate::model::{Kind, PyLinearModel};
 use crate::{core_err, option, VehidError};
@@ -107,55 +108,56 @@ impl PyTwoAxleIdentifier {
 
     /// "none", "thesis" or "cancel".
     #[getter]
-    fn method(slf: PyRef<'_, Self>) -> &'static str {
-        Self::core(&slf).config().method.as_str()
+    fn method(slf: &Bound<'_, Self>) -> PyResult<&'static str> {
+        Ok(Self::core(&borrow(slf)?).config().method.as_str())
     }
 
     /// Samples (road points) between the axles, d = wheelbase / spacing.
     #[getter]
-    fn delay(slf: PyRef<'_, Self>) -> usize {
-        Self::core(&slf).delay()
+    fn delay(slf: &Bound<'_, Self>) -> PyResult<usize> {
+        Ok(Self::core(&borrow(slf)?).delay())
     }
 
     /// Sample spacing, m.
     #[getter]
-    fn spacing(&self) -> f64 {
-        self.spacing
+    fn spacing(slf: &Bound<'_, Self>) -> PyResult<f64> {
+        Ok(borrow(slf)?.spacing)
     }
 
     /// Wheelbase, m.
     #[getter]
-    fn wheelbase(&self) -> f64 {
-        self.wheelbase
+    fn wheelbase(slf: &Bound<'_, Self>) -> PyResult<f64> {
+        Ok(borrow(slf)?.wheelbase)
     }
 
     /// Variances (front, rear, cancelled) of the wheel-row equations.
     #[getter]
-    fn wheel_variances(slf: PyRef<'_, Self>) -> (f64, f64, f64) {
-        Self::core(&slf).wheel_variances()
+    fn wheel_variances(slf: &Bound<'_, Self>) -> PyResult<(f64, f64, f64)> {
+        Ok(Self::core(&borrow(slf)?).wheel_variances())
     }
 
     /// Samples paired with the sample d road points earlier.
     #[getter]
-    fn paired(slf: PyRef<'_, Self>) -> u64 {
-        Self::core(&slf).paired()
+    fn paired(slf: &Bound<'_, Self>) -> PyResult<u64> {
+        Ok(Self::core(&borrow(slf)?).paired())
     }
 
     /// The model.
     #[getter]
-    fn model(&self, py: Python<'_>) -> Py<PyLinearModel> {
-        self.model.clone_ref(py)
+    fn model(slf: &Bound<'_, Self>) -> PyResult<Py<PyLinearModel>> {
+        Ok(borrow(slf)?.model.clone_ref(slf.py()))
     }
 
-    fn __repr__(slf: PyRef<'_, Self>) -> String {
+    fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
+        let slf = borrow(slf)?;
         let id = Self::core(&slf);
-        format!(
+        Ok(format!(
             "TwoAxleIdentifier(method={:?}, spacing={:?}, delay={}, samples={})",
             id.config().method.as_str(),
             slf.spacing,
             id.delay(),
             id.samples()
-        )
+        ))
     }
 }
 
