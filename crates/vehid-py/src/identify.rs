@@ -616,6 +616,19 @@ fn batch_storage<const N: usize>(id: &mut Box<dyn DynIdentifier<f64>>, clear: bo
     Ok(PyBatchLeastSquares::batch::<N>(id.as_ref()).map_or(0, |b| b.storage_bytes()))
 }
 
+/// `remove(index)` of the stored batch, for any state count: on a copy, which replaces the
+/// original only when it succeeded (the binding holds the batch as a `DynIdentifier`, which
+/// gives no mutable access to the concrete type).
+fn batch_remove<const N: usize>(id: &mut Box<dyn DynIdentifier<f64>>, index: usize) -> vehid_core::Result<()> {
+    let Some(batch) = PyBatchLeastSquares::batch::<N>(id.as_ref()) else {
+        return Err(Error::InvalidArgument { arg: "self", expected: "a BatchLeastSquares" });
+    };
+    let mut copy = batch.clone();
+    copy.remove(index)?;
+    *id = Box::new(copy);
+    Ok(())
+}
+
 #[pymethods]
 impl PyBatchLeastSquares {
     #[new]
@@ -640,6 +653,23 @@ impl PyBatchLeastSquares {
         let base = slf.as_super();
         let n = base.model.n;
         dispatch_n!(n, batch_storage(&mut base.inner, true)).map(|_| ()).map_err(core_err)
+    }
+
+    /// Drops stored sample `index` (0-based, in the order the samples were given), e.g. the
+    /// one a `VehidError` names as dominating the batch (an outlier). Later samples move up by
+    /// one. An index out of range raises and changes nothing.
+    fn remove(slf: &Bound<'_, Self>, index: i128) -> PyResult<()> {
+        let mut slf = borrow_mut(slf)?;
+        let base = slf.as_super();
+        let n = base.model.n;
+        let samples = base.inner.samples();
+        let index = usize::try_from(index).ok().filter(|&i| (i as u64) < samples).ok_or_else(|| {
+            VehidError::new_err(format!(
+                "`index` must be the index of a stored sample, 0 to {}, got {index}",
+                samples.saturating_sub(1)
+            ))
+        })?;
+        dispatch_n!(n, batch_remove(&mut base.inner, index)).map_err(raise)
     }
 
     fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {

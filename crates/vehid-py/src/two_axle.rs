@@ -6,6 +6,7 @@ use crate::guard::borrow;
 use crate::identify::PyIdentifier;
 use crate::model::{Kind, PyLinearModel};
 use crate::{core_err, option, VehidError};
+use pyo3::exceptions::PyMemoryError;
 use pyo3::prelude::*;
 use vehid_core::identify::{TwoAxleConfig, TwoAxleIdentifierVec, WheelMethod};
 use vehid_core::sampler::{axle_delay, AxleSampler, Trigger};
@@ -101,7 +102,15 @@ impl PyTwoAxleIdentifier {
         cfg.p0_body = p0_body.unwrap_or(p0);
         cfg.direct_front = direct_front;
         let core = m.data.model::<8, 2>().map_err(core_err)?;
-        let inner = Id::new(&core, d, cfg).map_err(core_err)?;
+        let inner = Id::new(&core, d, cfg).map_err(|e| match e {
+            // The ring of the last d samples is what grows as `spacing` shrinks.
+            vehid_core::Error::OutOfMemory { bytes, .. } => PyMemoryError::new_err(format!(
+                "`spacing` = {spacing} m puts d = {d} samples between the axles (wheelbase {wheelbase} m), and the \
+                 identifier must keep the last d samples ({bytes} bytes, which cannot be allocated): use a larger \
+                 `spacing` (the thesis samples every 0.3 m)"
+            )),
+            e => core_err(e),
+        })?;
         let base = PyIdentifier::new(Box::new(inner), m.data.clone());
         Ok(PyClassInitializer::from(base).add_subclass(Self { model: model.unbind(), spacing, wheelbase }))
     }
@@ -188,7 +197,9 @@ impl PyAxleSampler {
     #[new]
     #[pyo3(signature = (wheelbase = 3.0, spacing = 0.3, tolerance = None))]
     fn py_new(wheelbase: f64, spacing: f64, tolerance: Option<f64>) -> PyResult<Self> {
-        let tol = tolerance.unwrap_or(0.01 * spacing);
+        // The default follows `spacing`; for a bad spacing it is 0, so that the core names
+        // `spacing`, not the tolerance derived from it.
+        let tol = tolerance.unwrap_or(if spacing.is_finite() && spacing > 0.0 { 0.01 * spacing } else { 0.0 });
         Ok(Self { inner: Box::new(AxleSampler::new(wheelbase, spacing, tol).map_err(core_err)?) })
     }
 
