@@ -22,6 +22,15 @@
 #   make bench-check    regression gate: instructions per update under valgrind's callgrind
 #                 (release build) against benches/callgrind_baseline.json; fails on > 5 % growth
 #   make bench-check-update  rewrite that baseline deliberately (see below)
+#   make soak     f32 soak (issue 13): 10^8 square-root-form updates per run, quarter and half car,
+#                 excited and still, states x1/x10/x0.1: P positive definite and theta finite at every
+#                 check, xi within 10x of f64; a table at the end (SOAK_UPDATES=1e6 for a short run;
+#                 about an hour in full; not in `test`)
+#   make fuzz     the fuzz harness (tests/fuzz_harness.py, issue 13): FUZZ_CALLS=100000 seeded calls of the
+#                 whole Python API with random shapes, dtypes, NaN/inf, huge and subnormal values, None and
+#                 strings; 0 panics, only ValueError/TypeError/VehidError/MemoryError/OverflowError, every
+#                 rejected call leaves its object bit for bit unchanged; progress lines, the seed
+#                 (FUZZ_SEED=1) and a summary (under a minute; `make test` runs 10,000 calls of it)
 #   make clean    remove build products and the venv
 
 PYTHON ?= python3
@@ -29,7 +38,7 @@ VENV   := .venv
 VBIN   := $(VENV)/bin
 CARGO  ?= cargo
 
-.PHONY: venv develop demo test lint test-rust test-python install-check bench-python bench-fit bench-peers bench-budgets bench-check bench-check-update clean
+.PHONY: venv develop demo test lint test-rust test-python install-check bench-python bench-fit bench-peers bench-budgets bench-check bench-check-update soak fuzz clean
 
 venv: $(VENV)/.installed
 
@@ -139,6 +148,19 @@ bench-check:
 
 bench-check-update:
 	$(PYTHON) benches/callgrind_check.py --update
+
+# The f32 soak, built in release (benches/src/bin/soak.rs documents the runs and the checks; exit
+# status 1 on a failed check). SOAK_CHECK, SOAK_THREADS and SOAK_ONLY pass through the environment.
+SOAK_UPDATES ?= 1e8
+soak:
+	SOAK_UPDATES=$(SOAK_UPDATES) $(CARGO) run -q --release -p vehid-benches --bin soak
+
+# The fuzz harness on the fresh extension (exit status 1 on a failure, which names the seed
+# and episode that reproduce it: python tests/fuzz_harness.py --seed S --episode K).
+FUZZ_CALLS ?= 100000
+FUZZ_SEED ?= 1
+fuzz: develop
+	FUZZ_CALLS=$(FUZZ_CALLS) FUZZ_SEED=$(FUZZ_SEED) $(VBIN)/python tests/fuzz_harness.py
 
 clean:
 	rm -f python/vehid/*.so python/vehid/*.pyd

@@ -8,6 +8,7 @@ use numpy::{
     AllowTypeChange, PyArray2, PyArrayDescrMethods, PyArrayLikeDyn, PyArrayMethods, PyReadonlyArray2,
     PyUntypedArrayMethods,
 };
+use pyo3::exceptions::PyMemoryError;
 use pyo3::prelude::*;
 
 /// A float64 array copied out of Python, row-major (C order) whatever its strides were.
@@ -46,17 +47,33 @@ fn not_complex(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<()> {
 /// Converts any array-like to float64, copying it in row-major order.
 pub fn array(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Array> {
     not_complex(obj, arg)?;
-    let arr: PyArrayLikeDyn<'_, f64, AllowTypeChange> = obj
-        .extract()
-        .map_err(|e: PyErr| VehidError::new_err(format!("`{arg}` must be a float array or convertible to one: {e}")))?;
+    let arr: PyArrayLikeDyn<'_, f64, AllowTypeChange> = obj.extract().map_err(|e: PyErr| {
+        // NumPy's own MemoryError (converting a huge input) stays a MemoryError.
+        if e.is_instance_of::<PyMemoryError>(obj.py()) {
+            return e;
+        }
+        VehidError::new_err(format!("`{arg}` must be a float array or convertible to one: {e}"))
+    })?;
     let shape = arr.shape().to_vec();
+    // The copy is reserved fallibly: a huge input (e.g. a broadcast view, which takes no
+    // memory itself) raises MemoryError instead of aborting the process.
+    let len = arr.len();
+    let mut data: Vec<f64> = Vec::new();
+    data.try_reserve_exact(len).map_err(|_| {
+        PyMemoryError::new_err(format!(
+            "`{arg}` ({} values) cannot be copied: {} bytes cannot be allocated; pass a C-contiguous float64 array \
+             (read in place), or fewer samples per call",
+            len,
+            len.saturating_mul(8)
+        ))
+    })?;
     // Contiguous C-order input (the common case) is one block copy; anything else is walked
     // in logical row-major order.
     // (`as_slice` also accepts Fortran order, whose memory order is not row-major: check.)
-    let data: Vec<f64> = match arr.as_slice() {
-        Ok(slice) if arr.is_c_contiguous() => slice.to_vec(),
-        _ => arr.as_array().iter().copied().collect(),
-    };
+    match arr.as_slice() {
+        Ok(slice) if arr.is_c_contiguous() => data.extend_from_slice(slice),
+        _ => data.extend(arr.as_array().iter().copied()),
+    }
     Ok(Array { shape, data })
 }
 

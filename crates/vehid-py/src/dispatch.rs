@@ -251,11 +251,15 @@ impl SimParams {
 
 /// A simulator of any size, behind one object-safe interface.
 pub trait SimDyn: Send + Sync {
-    /// Runs `n` more samples (the stream continues from the previous call).
+    /// Runs `n` more samples (the stream continues from the previous call), asking
+    /// `interrupt()` between pieces of work (every [`sim_chunk`] samples; a run is simulated
+    /// in these pieces, which gives the same samples as one piece). All or nothing: when
+    /// `interrupt()` says stop, or on any error, the simulator is put back where it was.
     ///
     /// # Errors
-    /// [`Error::OutOfMemory`] when the output does not fit; the simulator's own errors.
-    fn run(&mut self, n: usize) -> Result<Run<f64>>;
+    /// [`Error::OutOfMemory`] when the output does not fit; [`Error::Interrupted`]; the
+    /// simulator's own errors.
+    fn run(&mut self, n: usize, interrupt: &mut dyn FnMut() -> bool) -> Result<Run<f64>>;
     /// RK4 sub-steps per sample (0 for the exact method).
     fn substeps(&self) -> usize;
     /// Samples produced so far (index of the next sample).
@@ -283,10 +287,33 @@ pub fn reserve_run(n: usize, states: usize, inputs: usize, distance: bool) -> Re
     Ok(out)
 }
 
+/// Samples simulated between two interrupt checks: some 10⁵ operations (a sample of an
+/// `n`-state model costs a few n² of them: the step `Φ x + Γ u`, discretized once, and the
+/// noise), at least one sample.
+pub fn sim_chunk(n: usize) -> usize {
+    ((1usize << 17) / (4 * n * n).max(1)).clamp(1, 1 << 16)
+}
+
 impl<const N: usize, const M: usize> SimDyn for Simulator<f64, N, M> {
-    fn run(&mut self, n: usize) -> Result<Run<f64>> {
+    fn run(&mut self, n: usize, interrupt: &mut dyn FnMut() -> bool) -> Result<Run<f64>> {
         let mut out = reserve_run(n, N, M, false)?;
-        self.run_with(n, |s| out.push(s));
+        let chunk = sim_chunk(N);
+        if n <= chunk {
+            self.run_with(n, |s| out.push(s));
+            return Ok(out);
+        }
+        // Kept to undo an interrupted run (a few hundred bytes).
+        let start = self.clone();
+        let mut done = 0;
+        while done < n {
+            if done > 0 && interrupt() {
+                *self = start;
+                return Err(Error::Interrupted);
+            }
+            let m = chunk.min(n - done);
+            self.run_with(m, |s| out.push(s));
+            done += m;
+        }
         Ok(out)
     }
 

@@ -6,11 +6,14 @@
 //! The shared methods (`update`, `fit`, `theta`, `params`, `a_hat`, `samples`, …) are written
 //! once, on the base class. `fit` reads float64 C-contiguous arrays in place (anything else is
 //! converted once), validates while it updates (the core's update rejects a non-finite sample
-//! and the core's `fit` rolls back), releases the GIL, and checks for Ctrl-C every
-//! [`CHECK_EVERY`] samples.
+//! and the core's `fit` rolls back), releases the GIL, and checks for Ctrl-C (`guard.rs`;
+//! an interrupted `fit` changes nothing). Every method borrows its object through
+//! `guard::borrow` / `guard::borrow_mut`: a call into an identifier that another thread is
+//! fitting raises a `VehidError` saying so.
 
 use crate::convert::{array, finite, shape_str, size, values, Table};
 use crate::dispatch::{a_hat_n, dispatch_n, ModelData};
+use crate::guard::{borrow, borrow_mut, check_every, Interrupts};
 use crate::model::{to_array2, PyLinearModel};
 use crate::structure::{kalman_on_structure, refuse_for_structure, PyStructure};
 use crate::{core_err, option, VehidError};
@@ -29,9 +32,6 @@ use vehid_core::Error;
 /// whose recursive residual exceeds 6 estimated standard deviations is left out (for
 /// Gaussian noise: one sample in 5·10⁸).
 pub const DEFAULT_GATE: f64 = 6.0;
-
-/// `fit` asks Python for pending signals (Ctrl-C) every this many samples (a few ms).
-pub const CHECK_EVERY: usize = 1 << 16;
 
 /// Maps a core error to a Python exception: `MemoryError` for allocations that failed,
 /// `KeyboardInterrupt` passes through, `VehidError` for everything else.
@@ -142,29 +142,31 @@ impl PyIdentifier {
     /// singular step) raises VehidError and leaves the identifier unchanged.
     #[pyo3(signature = (r_k, z_k, u_k = None))]
     fn update<'py>(
-        &mut self,
+        slf: &Bound<'py, Self>,
         py: Python<'py>,
         r_k: &Bound<'py, PyAny>,
         z_k: &Bound<'py, PyAny>,
         u_k: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let d = self.inner.dims();
+        let mut this = borrow_mut(slf)?;
+        let d = this.inner.dims();
         let x = vector(Some(r_k), "r_k", d.states)?;
         let z = vector(Some(z_k), "z_k", d.states)?;
         let u = vector(u_k, "u_k", d.inputs)?;
         let mut e = vec![0.0; d.equations];
-        self.inner.update_into(&x, &z, &u, &mut e).map_err(raise)?;
+        this.inner.update_into(&x, &z, &u, &mut e).map_err(raise)?;
         Ok(e.into_pyarray(py))
     }
 
     /// Runs every sample of `r`, `z` (samples, n) (and `u` (samples, m) for a model with
     /// measured inputs) with the GIL released. All or nothing: a rejected sample raises and
-    /// leaves the identifier as it was (so does Ctrl-C, checked every 65,536 samples).
+    /// leaves the identifier as it was; so does Ctrl-C (KeyboardInterrupt within some 20 ms
+    /// of work, whatever a sample costs, when called from the main thread).
     /// Returns θ̂ recorded every `record_every` samples, shape (samples // record_every, k, n)
     /// (empty when 0; NaN rows while the estimate does not exist yet).
     #[pyo3(signature = (r, z, u = None, record_every = 0))]
     fn fit<'py>(
-        &mut self,
+        slf: &Bound<'py, Self>,
         py: Python<'py>,
         r: &Bound<'py, PyAny>,
         z: &Bound<'py, PyAny>,
@@ -172,7 +174,8 @@ impl PyIdentifier {
         record_every: i128,
     ) -> PyResult<Bound<'py, PyAny>> {
         let every = size(record_every, "record_every")?;
-        let d = self.inner.dims();
+        let mut this = borrow_mut(slf)?;
+        let d = this.inner.dims();
         let rt = Table::new(r, "r", None, d.states, "measured states")?;
         let zt = Table::new(z, "z", Some(rt.rows), d.states, "measured derivatives, like `r`")?;
         let ut = match (u, d.inputs) {
@@ -187,29 +190,20 @@ impl PyIdentifier {
         let samples = Samples::new(d.states, d.inputs, rt.data(), zt.data(), ut.as_ref().map_or(&[][..], |t| t.data()))
             .map_err(raise)?;
         let len = samples.len();
-        let opts = FitOptions { record_every: every, check_every: CHECK_EVERY };
-        let inner = &mut self.inner;
+        let opts = FitOptions { record_every: every, check_every: check_every(d.params) };
+        let inner = &mut this.inner;
         let mut hist = Vec::new();
-        let mut pending: Option<PyErr> = None;
-        let res = py.detach(|| {
-            let mut interrupted = || match Python::attach(|py| py.check_signals()) {
-                Ok(()) => false,
-                Err(e) => {
-                    pending = Some(e);
-                    true
-                }
-            };
-            inner.fit_dyn(&samples, opts, &mut hist, &mut interrupted)
-        });
+        let mut signals = Interrupts::new();
+        let res = py.detach(|| inner.fit_dyn(&samples, opts, &mut hist, &mut || signals.check()));
         if let Err(e) = res {
-            if let (Error::Interrupted, Some(err)) = (&e.error, pending) {
+            if let (Error::Interrupted, Some(err)) = (&e.error, signals.raise()) {
                 return Err(err);
             }
             return Err(fit_error(e, len));
         }
-        let (k, n) = self.shape();
+        let (k, n) = this.shape();
         let rows = hist.len() / (k * n).max(1);
-        if self.structure.is_some() {
+        if this.structure.is_some() {
             return Ok(to_array2(py, rows, n, hist)?.into_any());
         }
         Array3::from_shape_vec((rows, k, n), hist)
@@ -220,12 +214,13 @@ impl PyIdentifier {
     /// The estimated unknown rows of A, shape (k, n); for a structure the parameters
     /// (n_params,), like `params`.
     #[getter]
-    fn theta<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        if self.structure.is_some() {
-            return Ok(self.params_vec(py)?.into_pyarray(py).into_any());
+    fn theta<'py>(slf: &Bound<'py, Self>, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let this = borrow(slf)?;
+        if this.structure.is_some() {
+            return Ok(this.params_vec(py)?.into_pyarray(py).into_any());
         }
-        let (k, n) = self.shape();
-        Ok(to_array2(py, k, n, self.params_vec(py)?)?.into_any())
+        let (k, n) = this.shape();
+        Ok(to_array2(py, k, n, this.params_vec(py)?)?.into_any())
     }
 
     /// The estimate's uncertainty (`vehid.Stats`: params, bse, conf_int at level `alpha`,
@@ -233,54 +228,56 @@ impl PyIdentifier {
     /// (statsmodels' OLS figures after an exact start). Needs an identifier that keeps P and
     /// its residuals (KalmanIdentifier in mode "rows" or on a Structure, BatchLeastSquares).
     #[pyo3(signature = (alpha = 0.05))]
-    fn stats(&self, py: Python<'_>, alpha: f64) -> PyResult<crate::stats::PyStats> {
-        crate::stats::stats_of(py, self, alpha)
+    fn stats(slf: &Bound<'_, Self>, py: Python<'_>, alpha: f64) -> PyResult<crate::stats::PyStats> {
+        crate::stats::stats_of(py, &*borrow(slf)?, alpha)
     }
 
     /// The structure the identifier was built on (None for a linear model).
     #[getter]
-    fn structure(&self, py: Python<'_>) -> Option<Py<PyStructure>> {
-        self.structure.as_ref().map(|s| s.clone_ref(py))
+    fn structure(slf: &Bound<'_, Self>, py: Python<'_>) -> PyResult<Option<Py<PyStructure>>> {
+        Ok(borrow(slf)?.structure.as_ref().map(|s| s.clone_ref(py)))
     }
 
     /// The estimated parameters, (n_params,); for a linear model the unknown rows of A,
     /// row-major.
     #[getter]
-    fn params<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        Ok(self.params_vec(py)?.into_pyarray(py))
+    fn params<'py>(slf: &Bound<'py, Self>, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        Ok(borrow(slf)?.params_vec(py)?.into_pyarray(py))
     }
 
     /// Â: the model's A with the unknown rows replaced by the estimate, shape (n, n).
     #[getter]
-    fn a_hat<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        if self.structure.is_some() {
+    fn a_hat<'py>(slf: &Bound<'py, Self>, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let this = borrow(slf)?;
+        if this.structure.is_some() {
             return Err(VehidError::new_err(
                 "an identifier on a Structure has no matrix A: read `params` (named by `structure.parameters`)",
             ));
         }
-        let th = self.params_vec(py)?;
-        let d = &self.model;
+        let th = this.params_vec(py)?;
+        let d = &this.model;
         let a = dispatch_n!(d.n, a_hat_n(d, &th)).map_err(core_err)?;
         to_array2(py, d.n, d.n, a)
     }
 
     /// Number of samples accepted.
     #[getter]
-    fn samples(&self) -> u64 {
-        self.inner.samples()
+    fn samples(slf: &Bound<'_, Self>) -> PyResult<u64> {
+        Ok(borrow(slf)?.inner.samples())
     }
 
     /// The unknown rows (0-based), in the order of θ and of the innovations.
     #[getter]
-    fn unknown_rows(&self) -> Vec<usize> {
-        self.inner.rows().to_vec()
+    fn unknown_rows(slf: &Bound<'_, Self>) -> PyResult<Vec<usize>> {
+        Ok(borrow(slf)?.inner.rows().to_vec())
     }
 
     /// Samples each identified equation left out as outliers (the gate), (k,) int.
     #[getter]
-    fn gated<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<u64>>> {
-        let mut out = vec![0u64; self.inner.dims().equations];
-        self.inner.gated_into(&mut out).map_err(raise)?;
+    fn gated<'py>(slf: &Bound<'py, Self>, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<u64>>> {
+        let this = borrow(slf)?;
+        let mut out = vec![0u64; this.inner.dims().equations];
+        this.inner.gated_into(&mut out).map_err(raise)?;
         Ok(out.into_pyarray(py))
     }
 
@@ -524,14 +521,15 @@ impl PyKalmanIdentifier {
 
     /// "standard", "joseph" or "sqrt".
     #[getter]
-    fn form(&self) -> &'static str {
-        self.form.as_str()
+    fn form(slf: &Bound<'_, Self>) -> PyResult<&'static str> {
+        Ok(borrow(slf)?.form.as_str())
     }
 
     /// The covariance: (k, n, n) per-row P_i for modes "rows" and "shared" (P_i = r_i Q),
     /// the full (k·n, k·n) matrix for mode "full".
     #[getter]
-    fn covariance<'py>(slf: PyRef<'py, Self>, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+    fn covariance<'py>(slf: &Bound<'py, Self>, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let slf = borrow(slf)?;
         let base = slf.as_super();
         let (k, n) = base.shape();
         let c = base.covariance_vec()?;
@@ -552,7 +550,8 @@ impl PyKalmanIdentifier {
     /// The regression-error variances in use (k,), or the (k, k) R of mode "full"; each
     /// reinitialization doubles them (Eq 4.36).
     #[getter]
-    fn r<'py>(slf: PyRef<'py, Self>, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+    fn r<'py>(slf: &Bound<'py, Self>, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let slf = borrow(slf)?;
         let base = slf.as_super();
         let k = base.inner.dims().equations;
         let r = base.noise_vec()?;
@@ -564,31 +563,32 @@ impl PyKalmanIdentifier {
 
     /// tr P, the quantity Eq 4.36 compares with the innovations.
     #[getter]
-    fn trace(slf: PyRef<'_, Self>) -> f64 {
-        slf.as_super().inner.trace().unwrap_or(f64::NAN)
+    fn trace(slf: &Bound<'_, Self>) -> PyResult<f64> {
+        Ok(borrow(slf)?.as_super().inner.trace().unwrap_or(f64::NAN))
     }
 
     /// Number of reinitializations (Eq 4.36) so far.
     #[getter]
-    fn reinit_count(slf: PyRef<'_, Self>) -> u32 {
-        slf.as_super().inner.reinit_count()
+    fn reinit_count(slf: &Bound<'_, Self>) -> PyResult<u32> {
+        Ok(borrow(slf)?.as_super().inner.reinit_count())
     }
 
     /// "rows", "shared" or "full".
     #[getter]
-    fn mode(&self) -> &'static str {
-        self.mode.as_str()
+    fn mode(slf: &Bound<'_, Self>) -> PyResult<&'static str> {
+        Ok(borrow(slf)?.mode.as_str())
     }
 
-    fn __repr__(slf: PyRef<'_, Self>) -> String {
+    fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
+        let slf = borrow(slf)?;
         let base = slf.as_super();
-        format!(
+        Ok(format!(
             "KalmanIdentifier(mode={:?}, unknown_rows={:?}, samples={}, reinit_count={})",
             slf.mode.as_str(),
             base.inner.rows(),
             base.inner.samples(),
             base.inner.reinit_count()
-        )
+        ))
     }
 }
 
@@ -671,18 +671,19 @@ impl PyStochasticGradient {
 
     /// The gain name.
     #[getter]
-    fn gain(&self) -> &'static str {
-        self.gain.as_str()
+    fn gain(slf: &Bound<'_, Self>) -> PyResult<&'static str> {
+        Ok(borrow(slf)?.gain.as_str())
     }
 
-    fn __repr__(slf: PyRef<'_, Self>) -> String {
+    fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
+        let slf = borrow(slf)?;
         let base = slf.as_super();
-        format!(
+        Ok(format!(
             "StochasticGradient(gain={:?}, unknown_rows={:?}, samples={})",
             slf.gain.as_str(),
             base.inner.rows(),
             base.inner.samples()
-        )
+        ))
     }
 }
 
@@ -714,6 +715,19 @@ fn batch_storage<const N: usize>(id: &mut Box<dyn DynIdentifier<f64>>, clear: bo
     Ok(PyBatchLeastSquares::batch::<N>(id.as_ref()).map_or(0, |b| b.storage_bytes()))
 }
 
+/// `remove(index)` of the stored batch, for any state count: on a copy, which replaces the
+/// original only when it succeeded (the binding holds the batch as a `DynIdentifier`, which
+/// gives no mutable access to the concrete type).
+fn batch_remove<const N: usize>(id: &mut Box<dyn DynIdentifier<f64>>, index: usize) -> vehid_core::Result<()> {
+    let Some(batch) = PyBatchLeastSquares::batch::<N>(id.as_ref()) else {
+        return Err(Error::InvalidArgument { arg: "self", expected: "a BatchLeastSquares" });
+    };
+    let mut copy = batch.clone();
+    copy.remove(index)?;
+    *id = Box::new(copy);
+    Ok(())
+}
+
 #[pymethods]
 impl PyBatchLeastSquares {
     #[new]
@@ -734,7 +748,8 @@ impl PyBatchLeastSquares {
 
     /// Bytes of sample storage (the thesis' objection to batch least squares).
     #[getter]
-    fn storage_bytes(mut slf: PyRefMut<'_, Self>) -> PyResult<usize> {
+    fn storage_bytes(slf: &Bound<'_, Self>) -> PyResult<usize> {
+        let mut slf = borrow_mut(slf)?;
         let base = slf.as_super();
         if base.structure.is_some() {
             return Ok(0);
@@ -744,7 +759,8 @@ impl PyBatchLeastSquares {
     }
 
     /// Drops the stored samples.
-    fn clear(mut slf: PyRefMut<'_, Self>) -> PyResult<()> {
+    fn clear(slf: &Bound<'_, Self>) -> PyResult<()> {
+        let mut slf = borrow_mut(slf)?;
         let base = slf.as_super();
         if let Some(st) = &base.structure {
             let inner = kalman_on_structure(st.get(), None, None, None, KalmanOptions::default(), Some(0.0))?;
@@ -755,8 +771,26 @@ impl PyBatchLeastSquares {
         dispatch_n!(n, batch_storage(&mut base.inner, true)).map(|_| ()).map_err(core_err)
     }
 
-    fn __repr__(slf: PyRef<'_, Self>) -> String {
+    /// Drops stored sample `index` (0-based, in the order the samples were given), e.g. the
+    /// one a `VehidError` names as dominating the batch (an outlier). Later samples move up by
+    /// one. An index out of range raises and changes nothing.
+    fn remove(slf: &Bound<'_, Self>, index: i128) -> PyResult<()> {
+        let mut slf = borrow_mut(slf)?;
         let base = slf.as_super();
-        format!("BatchLeastSquares(unknown_rows={:?}, samples={})", base.inner.rows(), base.inner.samples())
+        let n = base.model.n;
+        let samples = base.inner.samples();
+        let index = usize::try_from(index).ok().filter(|&i| (i as u64) < samples).ok_or_else(|| {
+            VehidError::new_err(format!(
+                "`index` must be the index of a stored sample, 0 to {}, got {index}",
+                samples.saturating_sub(1)
+            ))
+        })?;
+        dispatch_n!(n, batch_remove(&mut base.inner, index)).map_err(raise)
+    }
+
+    fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
+        let slf = borrow(slf)?;
+        let base = slf.as_super();
+        Ok(format!("BatchLeastSquares(unknown_rows={:?}, samples={})", base.inner.rows(), base.inner.samples()))
     }
 }

@@ -9,6 +9,7 @@ use pyo3::prelude::*;
 
 mod convert;
 mod dispatch;
+mod guard;
 mod identify;
 mod model;
 mod persist;

@@ -187,7 +187,7 @@ impl PyLinearModel {
     /// The poles (eigenvalues of A), (n,) complex128, sorted by real then imaginary part.
     fn poles<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<Complex64>>> {
         let d = &self.data;
-        let v = dispatch_n!(d.n, poles_n(d)).map_err(core_err)?;
+        let v = py.detach(|| dispatch_n!(d.n, poles_n(d))).map_err(core_err)?;
         Ok(to_array1(py, v))
     }
 
@@ -203,7 +203,8 @@ impl PyLinearModel {
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let road = values(road_sigma, "road_sigma", 1.0)?;
         let d = &self.data;
-        let v = dispatch_nm!(d.n, d.m, output_std_nm(d, &road, hold)).map_err(core_err)?;
+        // A long hold on a large model takes seconds: GIL released.
+        let v = py.detach(|| dispatch_nm!(d.n, d.m, output_std_nm(d, &road, hold))).map_err(core_err)?;
         Ok(to_array1(py, v))
     }
 
@@ -222,7 +223,7 @@ impl PyLinearModel {
         let road = values(road_sigma, "road_sigma", 0.1)?;
         let deriv = values(deriv_noise, "deriv_noise", 0.005)?;
         let d = &self.data;
-        let v = dispatch_nm!(d.n, d.m, row_noise_var_nm(d, &road, &deriv)).map_err(core_err)?;
+        let v = py.detach(|| dispatch_nm!(d.n, d.m, row_noise_var_nm(d, &road, &deriv))).map_err(core_err)?;
         Ok(to_array1(py, v))
     }
 
@@ -472,6 +473,25 @@ fn half_params_into(out: &Bound<'_, PyDict>, p: &HalfCarParams<f64>) -> PyResult
     Ok(())
 }
 
+/// A model built from physical constants must come out finite: a tiny mass or a huge
+/// stiffness overflows a ratio such as k/m without an error from the arithmetic. `mass_of`
+/// names, for each acceleration row, the constant that divides it.
+fn finite_model(d: &ModelData, mass_of: &[(usize, &str)]) -> PyResult<()> {
+    let (n, m) = (d.n, d.m);
+    for i in 0..n {
+        if d.a[i * n..(i + 1) * n].iter().chain(&d.b[i * m..(i + 1) * m]).all(|v| v.is_finite()) {
+            continue;
+        }
+        let mass = mass_of.iter().find(|(r, _)| *r == i).map_or("a mass", |(_, name)| *name);
+        return Err(VehidError::new_err(format!(
+            "row {i} of A or B overflows (inf): {mass} is too small for the stiffnesses and dampings that act on \
+             it, or they are too large; physical constants in SI units (masses well above 1e-300, stiffnesses, \
+             dampings and lengths well below 1e300)"
+        )));
+    }
+    Ok(())
+}
+
 /// The quarter car of Eq 3.8–3.13: state [x1, ẋ1, x2, ẋ2] (wheel, body), one road input,
 /// unknown rows (1, 3). Defaults are the thesis' values.
 #[pyclass(name = "QuarterCar", module = "vehid._vehid", extends = PyLinearModel, frozen)]
@@ -484,7 +504,9 @@ impl PyQuarterCar {
     #[allow(non_snake_case)]
     fn py_new(M: f64, m: f64, k1: f64, k2: f64, b: f64) -> PyResult<PyClassInitializer<Self>> {
         let car = QuarterCar::new(M, m, k1, k2, b).map_err(core_err)?;
-        let base = PyLinearModel::new_core(ModelData::from_core(&car.model()), Kind::Quarter(car));
+        let data = ModelData::from_core(&car.model());
+        finite_model(&data, &[(1, "`m` (the wheel mass)"), (3, "`M` (the body mass)")])?;
+        let base = PyLinearModel::new_core(data, Kind::Quarter(car));
         Ok(PyClassInitializer::from(base).add_subclass(Self))
     }
 
@@ -529,7 +551,15 @@ impl PyHalfCar {
     ) -> PyResult<PyClassInitializer<Self>> {
         let p = HalfCarParams { k11, k21, k12, k22, b1, b2, m1, m2, m_body: M, j: J, l1, l2 };
         let car = HalfCar::new(p).map_err(core_err)?;
-        let base = PyLinearModel::new_core(ModelData::from_core(&car.model()), Kind::Half(car));
+        let data = ModelData::from_core(&car.model());
+        let masses = [
+            (1, "`m1` (the front wheel mass)"),
+            (3, "`m2` (the rear wheel mass)"),
+            (5, "`M` (the body mass)"),
+            (7, "`J` (the pitch inertia)"),
+        ];
+        finite_model(&data, &masses)?;
+        let base = PyLinearModel::new_core(data, Kind::Half(car));
         Ok(PyClassInitializer::from(base).add_subclass(Self))
     }
 

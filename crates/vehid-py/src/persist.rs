@@ -14,6 +14,7 @@
 //! class and the model of the object it goes into.
 
 use crate::dispatch::{dispatch_n, ModelData};
+use crate::guard::{borrow, borrow_mut};
 use crate::identify::{PyBatchLeastSquares, PyIdentifier, PyKalmanIdentifier, PyStochasticGradient};
 use crate::model::{Kind, PyLinearModel};
 use crate::two_axle::PyTwoAxleIdentifier;
@@ -163,13 +164,14 @@ fn blank_args<'py>(obj: &Bound<'py, PyIdentifier>) -> PyResult<(Bound<'py, PyTup
                 obj.get_type().name()?
             )));
         }
-        if let Some(st) = &obj.borrow().structure {
+        let guard = borrow(obj)?;
+        if let Some(st) = &guard.structure {
             if kwargs.contains("r")? {
                 kwargs.del_item("r")?;
             }
             st.bind(py).clone().into_any()
         } else {
-            let data = obj.borrow().model.clone();
+            let data = guard.model.clone();
             Bound::new(py, PyLinearModel::new_core(data, Kind::Generic))?.into_any()
         }
     };
@@ -181,7 +183,8 @@ pub fn reduce<'py>(obj: &Bound<'py, PyIdentifier>) -> PyResult<Bound<'py, PyTupl
     let py = obj.py();
     let (args, kwargs) = blank_args(obj)?;
     let newobj = py.import("copyreg")?.getattr("__newobj_ex__")?;
-    let state = state(py, &obj.borrow())?;
+    let this = borrow(obj)?;
+    let state = state(py, &this)?;
     (newobj, (obj.get_type(), args, kwargs), state).into_pyobject(py)
 }
 
@@ -191,8 +194,8 @@ pub fn copy<'py>(obj: &Bound<'py, PyIdentifier>) -> PyResult<Bound<'py, PyAny>> 
     let (args, kwargs) = blank_args(obj)?;
     let new = obj.get_type().call(args, Some(&kwargs))?;
     let new = new.cast::<PyIdentifier>()?;
-    let core = obj.borrow().inner.clone_box();
-    new.borrow_mut().inner = core;
+    let core = borrow(obj)?.inner.clone_box();
+    borrow_mut(new)?.inner = core;
     Ok(new.clone().into_any())
 }
 
@@ -217,7 +220,7 @@ pub fn set_state(obj: &Bound<'_, PyIdentifier>, state: &Bound<'_, PyAny>) -> PyR
     }
     let saved: Saved =
         postcard::from_bytes(&payload).map_err(|e| corrupt(&format!("its payload does not decode ({e})")))?;
-    let model = obj.borrow().model.clone();
+    let model = borrow(obj)?.model.clone();
     if saved.model != model {
         return Err(VehidError::new_err(
             "cannot restore the identifier: the state is of an identifier of another model than this object's",
@@ -248,6 +251,6 @@ pub fn set_state(obj: &Bound<'_, PyIdentifier>, state: &Bound<'_, PyAny>) -> PyR
     if d.states != model.n || d.inputs != 0 || core.rows() != model.rows.as_slice() {
         return Err(corrupt("its core does not fit the model (states or unknown rows differ)"));
     }
-    obj.borrow_mut().inner = core;
+    borrow_mut(obj)?.inner = core;
     Ok(())
 }

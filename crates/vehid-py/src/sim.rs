@@ -1,7 +1,8 @@
 //! `Simulator` and `Run`.
 
 use crate::convert::{array, shape_str, size, uint, values};
-use crate::dispatch::{dispatch_nm, reserve_run, simulator_nm, SimDyn, SimParams};
+use crate::dispatch::{dispatch_nm, reserve_run, sim_chunk, simulator_nm, SimDyn, SimParams};
+use crate::guard::{borrow, borrow_mut, Interrupts};
 use crate::identify::raise;
 use crate::model::{to_array2, PyLinearModel};
 use crate::two_axle::{half_dims, wheelbase_of};
@@ -28,7 +29,7 @@ pub struct RoadSim {
 }
 
 impl SimDyn for RoadSim {
-    fn run(&mut self, n: usize) -> Result<Run<f64>> {
+    fn run(&mut self, n: usize, interrupt: &mut dyn FnMut() -> bool) -> Result<Run<f64>> {
         let mut profile = if self.speeds.is_empty() {
             SpeedProfile::Constant(self.speed)
         } else {
@@ -45,7 +46,26 @@ impl SimDyn for RoadSim {
             }
         }
         let mut out = reserve_run(n, 8, 2, true)?;
-        self.sim.run_profile(n, &mut profile, |s| out.push_road(s))?;
+        // All or nothing: the road state (some 40 kB) is kept to undo a run that fails or is
+        // interrupted part way.
+        let start = self.sim.clone();
+        let chunk = sim_chunk(8);
+        let mut done = 0;
+        let mut step = || -> Result<()> {
+            while done < n {
+                if done > 0 && interrupt() {
+                    return Err(vehid_core::Error::Interrupted);
+                }
+                let m = chunk.min(n - done);
+                self.sim.run_profile(m, &mut profile, |s| out.push_road(s))?;
+                done += m;
+            }
+            Ok(())
+        };
+        if let Err(e) = step() {
+            self.sim = start;
+            return Err(e);
+        }
         if let SpeedProfile::PerSample { next, .. } = profile {
             self.next = next;
         }
@@ -248,13 +268,22 @@ impl PySimulator {
 
     /// Simulates `n` more samples (the GIL is released meanwhile) and returns them as a Run.
     /// A run too large for memory raises MemoryError; a speed profile with fewer than `n`
-    /// samples left raises VehidError (nothing is simulated then).
-    fn run(&mut self, py: Python<'_>, n: i128) -> PyResult<PyRun> {
+    /// samples left raises VehidError. Ctrl-C (from the main thread) raises
+    /// KeyboardInterrupt within some 20 ms of work. Nothing is simulated when it raises: the
+    /// next run starts where this one would have.
+    fn run(slf: &Bound<'_, Self>, n: i128) -> PyResult<PyRun> {
+        let py = slf.py();
         let n = size(n, "n")?;
-        let inner = &mut self.inner;
-        let run = py.detach(|| inner.run(n)).map_err(raise)?;
+        let mut this = borrow_mut(slf)?;
+        let inner = &mut this.inner;
+        let mut signals = Interrupts::new();
+        let run = match py.detach(|| inner.run(n, &mut || signals.check())) {
+            Ok(run) => run,
+            Err(e @ vehid_core::Error::Interrupted) => return Err(signals.raise().unwrap_or_else(|| core_err(e))),
+            Err(e) => return Err(raise(e)),
+        };
         let (len, ns, ni) = (run.len(), run.n_states, run.n_inputs);
-        let s = self.road.is_some().then(|| run.s.into_pyarray(py).unbind());
+        let s = this.road.is_some().then(|| run.s.into_pyarray(py).unbind());
         Ok(PyRun {
             s,
             t: run.t.into_pyarray(py).unbind(),
@@ -271,73 +300,74 @@ impl PySimulator {
 
     /// RK4 sub-steps per sample (0 for the exact method).
     #[getter]
-    fn substeps(&self) -> usize {
-        self.inner.substeps()
+    fn substeps(slf: &Bound<'_, Self>) -> PyResult<usize> {
+        Ok(borrow(slf)?.inner.substeps())
     }
 
     /// Sample interval, s.
     #[getter]
-    fn dt(&self) -> f64 {
-        self.dt
+    fn dt(slf: &Bound<'_, Self>) -> PyResult<f64> {
+        Ok(borrow(slf)?.dt)
     }
 
     /// Sample spacing (m) for a road simulation (speed=/spacing=/road=), else None.
     #[getter]
-    fn spacing(&self) -> Option<f64> {
-        self.road.map(|r| r.0)
+    fn spacing(slf: &Bound<'_, Self>) -> PyResult<Option<f64>> {
+        Ok(borrow(slf)?.road.map(|r| r.0))
     }
 
     /// "white" or "independent" for a road simulation, else None.
     #[getter]
-    fn road(&self) -> Option<&'static str> {
-        self.road.map(|r| r.1.as_str())
+    fn road(slf: &Bound<'_, Self>) -> PyResult<Option<&'static str>> {
+        Ok(borrow(slf)?.road.map(|r| r.1.as_str()))
     }
 
     /// The seed.
     #[getter]
-    fn seed(&self) -> u64 {
-        self.seed
+    fn seed(slf: &Bound<'_, Self>) -> PyResult<u64> {
+        Ok(borrow(slf)?.seed)
     }
 
     /// "rk4" or "exact".
     #[getter]
-    fn method(&self) -> &'static str {
-        self.method.as_str()
+    fn method(slf: &Bound<'_, Self>) -> PyResult<&'static str> {
+        Ok(borrow(slf)?.method.as_str())
     }
 
     /// The model simulated.
     #[getter]
-    fn model(&self, py: Python<'_>) -> Py<PyLinearModel> {
-        self.model.clone_ref(py)
+    fn model(slf: &Bound<'_, Self>) -> PyResult<Py<PyLinearModel>> {
+        Ok(borrow(slf)?.model.clone_ref(slf.py()))
     }
 
     /// Samples produced so far (the index of the next one).
     #[getter]
-    fn samples(&self) -> u64 {
-        self.inner.samples()
+    fn samples(slf: &Bound<'_, Self>) -> PyResult<u64> {
+        Ok(borrow(slf)?.inner.samples())
     }
 
     /// Number of states n.
     #[getter]
-    fn n_states(&self) -> usize {
-        self.n_states
+    fn n_states(slf: &Bound<'_, Self>) -> PyResult<usize> {
+        Ok(borrow(slf)?.n_states)
     }
 
     /// Number of inputs m.
     #[getter]
-    fn n_inputs(&self) -> usize {
-        self.n_inputs
+    fn n_inputs(slf: &Bound<'_, Self>) -> PyResult<usize> {
+        Ok(borrow(slf)?.n_inputs)
     }
 
-    fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
-        let model = self.model.bind(py).repr()?;
+    fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
+        let this = borrow(slf)?;
+        let model = this.model.bind(slf.py()).repr()?;
         Ok(format!(
             "Simulator({model}, dt={:?}, method='{}', substeps={}, seed={}, samples={})",
-            self.dt,
-            self.method.as_str(),
-            self.inner.substeps(),
-            self.seed,
-            self.inner.samples()
+            this.dt,
+            this.method.as_str(),
+            this.inner.substeps(),
+            this.seed,
+            this.inner.samples()
         ))
     }
 }

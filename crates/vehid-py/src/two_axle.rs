@@ -2,9 +2,11 @@
 //! of the core.
 
 use crate::dispatch::ModelData;
+use crate::guard::borrow;
 use crate::identify::PyIdentifier;
 use crate::model::{Kind, PyLinearModel};
 use crate::{core_err, option, VehidError};
+use pyo3::exceptions::PyMemoryError;
 use pyo3::prelude::*;
 use vehid_core::identify::{TwoAxleConfig, TwoAxleIdentifierVec, WheelMethod};
 use vehid_core::sampler::{axle_delay, AxleSampler, Trigger};
@@ -100,62 +102,71 @@ impl PyTwoAxleIdentifier {
         cfg.p0_body = p0_body.unwrap_or(p0);
         cfg.direct_front = direct_front;
         let core = m.data.model::<8, 2>().map_err(core_err)?;
-        let inner = Id::new(&core, d, cfg).map_err(core_err)?;
+        let inner = Id::new(&core, d, cfg).map_err(|e| match e {
+            // The ring of the last d samples is what grows as `spacing` shrinks.
+            vehid_core::Error::OutOfMemory { bytes, .. } => PyMemoryError::new_err(format!(
+                "`spacing` = {spacing} m puts d = {d} samples between the axles (wheelbase {wheelbase} m), and the \
+                 identifier must keep the last d samples ({bytes} bytes, which cannot be allocated): use a larger \
+                 `spacing` (the thesis samples every 0.3 m)"
+            )),
+            e => core_err(e),
+        })?;
         let base = PyIdentifier::new(Box::new(inner), m.data.clone());
         Ok(PyClassInitializer::from(base).add_subclass(Self { model: model.unbind(), spacing, wheelbase }))
     }
 
     /// "none", "thesis" or "cancel".
     #[getter]
-    fn method(slf: PyRef<'_, Self>) -> &'static str {
-        Self::core(&slf).config().method.as_str()
+    fn method(slf: &Bound<'_, Self>) -> PyResult<&'static str> {
+        Ok(Self::core(&borrow(slf)?).config().method.as_str())
     }
 
     /// Samples (road points) between the axles, d = wheelbase / spacing.
     #[getter]
-    fn delay(slf: PyRef<'_, Self>) -> usize {
-        Self::core(&slf).delay()
+    fn delay(slf: &Bound<'_, Self>) -> PyResult<usize> {
+        Ok(Self::core(&borrow(slf)?).delay())
     }
 
     /// Sample spacing, m.
     #[getter]
-    fn spacing(&self) -> f64 {
-        self.spacing
+    fn spacing(slf: &Bound<'_, Self>) -> PyResult<f64> {
+        Ok(borrow(slf)?.spacing)
     }
 
     /// Wheelbase, m.
     #[getter]
-    fn wheelbase(&self) -> f64 {
-        self.wheelbase
+    fn wheelbase(slf: &Bound<'_, Self>) -> PyResult<f64> {
+        Ok(borrow(slf)?.wheelbase)
     }
 
     /// Variances (front, rear, cancelled) of the wheel-row equations.
     #[getter]
-    fn wheel_variances(slf: PyRef<'_, Self>) -> (f64, f64, f64) {
-        Self::core(&slf).wheel_variances()
+    fn wheel_variances(slf: &Bound<'_, Self>) -> PyResult<(f64, f64, f64)> {
+        Ok(Self::core(&borrow(slf)?).wheel_variances())
     }
 
     /// Samples paired with the sample d road points earlier.
     #[getter]
-    fn paired(slf: PyRef<'_, Self>) -> u64 {
-        Self::core(&slf).paired()
+    fn paired(slf: &Bound<'_, Self>) -> PyResult<u64> {
+        Ok(Self::core(&borrow(slf)?).paired())
     }
 
     /// The model.
     #[getter]
-    fn model(&self, py: Python<'_>) -> Py<PyLinearModel> {
-        self.model.clone_ref(py)
+    fn model(slf: &Bound<'_, Self>) -> PyResult<Py<PyLinearModel>> {
+        Ok(borrow(slf)?.model.clone_ref(slf.py()))
     }
 
-    fn __repr__(slf: PyRef<'_, Self>) -> String {
+    fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
+        let slf = borrow(slf)?;
         let id = Self::core(&slf);
-        format!(
+        Ok(format!(
             "TwoAxleIdentifier(method={:?}, spacing={:?}, delay={}, samples={})",
             id.config().method.as_str(),
             slf.spacing,
             id.delay(),
             id.samples()
-        )
+        ))
     }
 }
 
@@ -186,7 +197,9 @@ impl PyAxleSampler {
     #[new]
     #[pyo3(signature = (wheelbase = 3.0, spacing = 0.3, tolerance = None))]
     fn py_new(wheelbase: f64, spacing: f64, tolerance: Option<f64>) -> PyResult<Self> {
-        let tol = tolerance.unwrap_or(0.01 * spacing);
+        // The default follows `spacing`; for a bad spacing it is 0, so that the core names
+        // `spacing`, not the tolerance derived from it.
+        let tol = tolerance.unwrap_or(if spacing.is_finite() && spacing > 0.0 { 0.01 * spacing } else { 0.0 });
         Ok(Self { inner: Box::new(AxleSampler::new(wheelbase, spacing, tol).map_err(core_err)?) })
     }
 
