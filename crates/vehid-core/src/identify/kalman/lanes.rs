@@ -609,6 +609,16 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
             self.nobs[k] = if go { self.nobs[k] * keep + T::one() } else { self.nobs[k] };
             self.s[k] = if go { sc.s[k] } else { self.s[k] };
         }
+        if self.gate > T::zero() {
+            // A gated sample enters the scale Winsorized at the gate (row::gated_scale): a
+            // lasting change opens the gate within tens of samples.
+            for k in 0..self.used {
+                if sc.gated[k] != T::zero() {
+                    (self.ssr[k], self.nobs[k]) =
+                        super::row::gated_scale(self.gate, keep, self.ssr[k], self.nobs[k], N);
+                }
+            }
+        }
     }
 }
 

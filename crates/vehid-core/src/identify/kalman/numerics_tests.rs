@@ -254,6 +254,41 @@ fn forgetting_tracks_a_step_and_does_not_wind_up_without_excitation() {
 }
 
 #[test]
+fn the_outlier_gate_does_not_stop_tracking_a_lasting_change() {
+    // The same 20 % step with the gate on (κ = 6, Python's default): the residuals after the
+    // step are all beyond the gate; without the Winsorized scale (row::gated_scale) they
+    // stayed gated and the step took 1356 (lanes) / 844 (row) samples, with it 432 / 418.
+    // Lanes and the reference row filter alike.
+    for form in [CovarianceForm::Standard, CovarianceForm::Sqrt] {
+        let opts = KalmanOptions { form, forgetting: 0.995, gate: 6.0, ..Default::default() };
+        let mut lanes = KalmanRows::<f64, 4, Fixed<1>>::exact(&[1], &[1.0], opts).unwrap();
+        let mut row = RowIdentifier::<f64, 4>::exact(1.0).unwrap().configured(form, &opts).unwrap();
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(22);
+        let th = V4::new(-140.0, -40.0, 50.0, 40.0);
+        let (mut within_lanes, mut within_row) = (None, None);
+        for k in 0..8000 {
+            let truth = if k < 5000 { th } else { th * 1.2 };
+            let x = V4::from_fn(|_, _| StandardNormal.sample(&mut rng));
+            let noise: f64 = StandardNormal.sample(&mut rng);
+            let y = x.dot(&truth) + 0.3 * noise;
+            lanes.update(&x, &V4::new(0.0, y, 0.0, 0.0)).unwrap();
+            row.update(&x, y).unwrap();
+            let err = |t: &V4| (t - truth).abs().max() / truth.abs().max();
+            if k >= 5000 && within_lanes.is_none() && err(&lanes.theta_row(0)) < 0.02 {
+                within_lanes = Some(k - 5000);
+            }
+            if k >= 5000 && within_row.is_none() && err(&row.theta()) < 0.02 {
+                within_row = Some(k - 5000);
+            }
+        }
+        let (a, b) = (within_lanes.expect("lanes track"), within_row.expect("row tracks"));
+        eprintln!("{form:?}, gate 6: within 2 % of a 20 % step after {a} (lanes) / {b} (row) samples");
+        assert!(a < 600 && b < 600, "{form:?}: {a} / {b} samples");
+        assert!(lanes.filter(0).gated() > 0, "the step's first residuals were gated");
+    }
+}
+
+#[test]
 fn rejected_samples_change_nothing_in_the_new_forms() {
     let data = regression(2, 50, [1.0; 4], 0.1);
     for form in [CovarianceForm::Standard, CovarianceForm::Sqrt] {
