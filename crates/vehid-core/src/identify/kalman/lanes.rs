@@ -124,6 +124,11 @@ pub struct LaneScratch<T: Real, const N: usize, const L: usize> {
     /// uses (`r`, scaled up by the Huber weight).
     gated: [T; L],
     reff: [T; L],
+    /// The statistics after the step (`ssr`, `nobs`, last `s`; unchanged in a lane that takes
+    /// no step), computed by the plan so that applying it is a plain copy.
+    ssr: [T; L],
+    nobs: [T; L],
+    s_last: [T; L],
 }
 
 /// The planned step of the square-root form: the common part (innovations, gain numerator
@@ -191,6 +196,11 @@ pub struct RowLanes<T: Real, const N: usize, const L: usize> {
     /// Absorbing an exact start (every lane at once: they share the regressors).
     start: bool,
     any_r_zero: bool,
+    /// The plain update applies: the standard form after the start, no tracking, no outlier
+    /// screen, no lane with `r = 0` ([`RowGroup::fast`]). Derived from the fields above by
+    /// [`RowGroup::refresh`], not stored (false, the general path, until refreshed).
+    #[cfg_attr(feature = "serde", serde(skip))]
+    fast: bool,
 }
 
 /// A group of row filters handled together (implemented by [`RowLanes`] for every lane
@@ -225,16 +235,27 @@ pub trait RowGroup<T: Real, const N: usize>: Copy + core::fmt::Debug + PartialEq
     /// # Errors
     /// Overflow; the group is unchanged then.
     fn absorb(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> crate::Result<()>;
+    /// `true` when the plain update applies (standard form after the start, no tracking, no
+    /// outlier screen, no lane with `r = 0`): [`RowGroup::plan`] and [`RowGroup::apply`] may
+    /// then be called with `FAST`, which leaves out the tests for those options.
+    fn fast(&self) -> bool;
+    /// Derives what is not stored (after deserialization).
+    fn refresh(&mut self);
     /// Plans one sample: innovations of the used lanes into `e`; returns `false` when the
-    /// sample must be rejected (see [`RowGroup::check`]). Changes nothing.
-    fn plan(&self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T], sc: &mut Self::Scratch) -> bool;
-    /// The error of a rejected plan, if a lane of this group caused it (first lane first).
+    /// sample cannot be applied at once: it is refused, or a lane's downdate is risky (see
+    /// [`RowGroup::check`]). Changes nothing. `FAST` only when [`RowGroup::fast`].
+    fn plan<const FAST: bool>(&self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T], sc: &mut Self::Scratch)
+        -> bool;
+    /// Of a plan that [`RowGroup::plan`] did not accept at once: the error, if a lane of this
+    /// group refuses it (first lane first); `Ok` when the plan may be applied (its risky
+    /// downdates stay positive definite).
     ///
     /// # Errors
-    /// Overflow for a non-finite `s` or θ step, [`Error::Singular`] for `s ≤ 0`.
+    /// Overflow for a non-finite `s` or θ step, [`Error::Singular`] for `s ≤ 0` or a risky
+    /// downdate that would lose positive definiteness.
     fn check(&self, sc: &Self::Scratch) -> crate::Result<()>;
-    /// Applies a planned step.
-    fn apply(&mut self, x: &SVector<T, N>, sc: &Self::Scratch);
+    /// Applies a planned step (`FAST` as in the plan).
+    fn apply<const FAST: bool>(&mut self, x: &SVector<T, N>, sc: &Self::Scratch);
     /// The planned step of one sample in the square-root form.
     type SqrtScratch: Copy + core::fmt::Debug;
     /// An empty square-root scratch.
@@ -356,7 +377,7 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
     /// one would not (the sample is then refused: see [`super::row::LOST_DEFINITENESS`]).
     #[cold]
     #[inline(never)]
-    fn downdates_stay_definite(&self, sc: &LaneScratch<T, N, L>) -> bool {
+    fn downdates_stay_definite(&self, sc: LaneScratch<T, N, L>) -> bool {
         if self.form != CovarianceForm::Standard {
             return true;
         }
@@ -534,7 +555,8 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
             }
         }
         sc.step = lane_sum(st);
-        (sc.fc, sc.scale, sc.add) = if self.lambda < T::one() || self.drift > T::zero() {
+        (sc.ssr, sc.nobs, sc.s_last) = self.statistics(sc.go, ek, sc.c, sc.s);
+        (sc.fc, sc.scale, sc.add) = if self.tracks() {
             self.tracking(self.ud_traces(), sc.s, sc.reff, sc.go)
         } else {
             ([T::zero(); L], [T::one(); L], [T::zero(); L])
@@ -593,22 +615,45 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
         }
     }
 
-    /// The statistics of an applied step.
+    /// The statistics after a step with innovations `e`, `c = e / s` and variances `s` in the
+    /// lanes where `go` is set (the others keep theirs): `(ssr, nobs, s)`. Computed while
+    /// planning, from values in registers: selecting between two stored values here would
+    /// make the compiler select between their addresses and keep the plan in memory.
     #[inline(always)]
-    fn record(&mut self, sc: &LaneScratch<T, N, L>) {
-        let keep = self.lambda;
-        if self.gate > T::zero() {
-            for k in 0..self.used {
+    fn statistics(&self, go: [T; L], e: [T; L], c: [T; L], s: [T; L]) -> ([T; L], [T; L], [T; L]) {
+        // Written with selects of computed values only (no branch, no select between stored
+        // values): with `go` 1 or 0, `kk` is λ or 1 and `w2`, `sg` are 0 in a lane that takes
+        // no step, so that lane keeps its values exactly (they are ≥ +0).
+        let (mut ssr, mut nobs, mut s_last) = ([T::zero(); L], [T::zero(); L], [T::zero(); L]);
+        for k in 0..L {
+            let step = go[k] != T::zero();
+            let kk = if step { self.lambda } else { T::one() };
+            let w2 = if step { e[k] * c[k] * self.r[k] } else { T::zero() };
+            let sg = if step { s[k] } else { T::zero() };
+            ssr[k] = self.ssr[k] * kk + w2;
+            nobs[k] = self.nobs[k] * kk + go[k];
+            s_last[k] = self.s[k] * (T::one() - go[k]) + sg;
+        }
+        (ssr, nobs, s_last)
+    }
+
+    /// The statistics of an applied step (planned by [`Self::statistics`]).
+    #[inline(always)]
+    fn record<const FAST: bool>(&mut self, sc: &LaneScratch<T, N, L>) {
+        if !FAST && self.gate > T::zero() {
+            // Over every lane (padding is never gated): a run-time bound would index the plan
+            // dynamically and keep it in memory.
+            for k in 0..L {
                 self.gated[k] += u64::from(sc.gated[k] != T::zero());
             }
         }
-        for k in 0..L {
-            let go = sc.go[k] != T::zero();
-            let w2 = sc.e[k] * sc.c[k] * self.r[k];
-            self.ssr[k] = if go { self.ssr[k] * keep + w2 } else { self.ssr[k] };
-            self.nobs[k] = if go { self.nobs[k] * keep + T::one() } else { self.nobs[k] };
-            self.s[k] = if go { sc.s[k] } else { self.s[k] };
-        }
+        (self.ssr, self.nobs, self.s) = (sc.ssr, sc.nobs, sc.s_last);
+    }
+
+    /// `true` when forgetting or drift is on.
+    #[inline(always)]
+    fn tracks(&self) -> bool {
+        self.lambda < T::one() || self.drift > T::zero()
     }
 }
 
@@ -642,6 +687,7 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
             form: CovarianceForm::Standard,
             start: false,
             any_r_zero: false,
+            fast: true,
         }
     }
 
@@ -660,6 +706,9 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
             add: [T::zero(); L],
             gated: [T::zero(); L],
             reff: [T::zero(); L],
+            ssr: [T::zero(); L],
+            nobs: [T::zero(); L],
+            s_last: [T::zero(); L],
         }
     }
 
@@ -678,6 +727,22 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
         (self.form, self.start, self.gate, self.huber) = (f.form, f.start, f.gate, f.huber);
         self.used = self.used.max(k + 1);
         self.any_r_zero = (0..self.used).any(|i| self.r[i] == T::zero());
+        self.refresh();
+    }
+
+    #[inline(always)]
+    fn fast(&self) -> bool {
+        self.fast
+    }
+
+    fn refresh(&mut self) {
+        self.fast = self.form == CovarianceForm::Standard
+            && !self.start
+            && !self.any_r_zero
+            && self.lambda == T::one()
+            && self.drift == T::zero()
+            && self.gate == T::zero()
+            && self.huber == T::zero();
     }
 
     fn lane(&self, k: usize) -> RowIdentifier<T, N> {
@@ -770,78 +835,89 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
     }
 
     #[inline(always)]
-    fn plan(&self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T], sc: &mut Self::Scratch) -> bool {
-        sc.xth = lane_dot(&self.theta, x);
+    fn plan<const FAST: bool>(
+        &self,
+        x: &SVector<T, N>,
+        z: &SVector<T, N>,
+        e: &mut [T],
+        sc: &mut Self::Scratch,
+    ) -> bool {
+        // Everything is computed into locals and the plan written once at the end: the
+        // compiler then keeps it in registers (no initialization, no stores it cannot drop).
+        let xth = lane_dot(&self.theta, x);
         let mut ek = [T::zero(); L];
         for k in 0..L {
             // `zrow` is always in range; `get` keeps the lanes free of a panic branch, which
             // would stop the compiler from keeping them in one vector register.
             let zk = z.as_slice().get(self.zrow[k]).copied().unwrap_or_else(T::zero);
-            ek[k] = zk - sc.xth[k];
+            ek[k] = zk - xth[k];
         }
-        sc.e = ek;
         let used = e.len().min(L);
         e[..used].copy_from_slice(&ek[..used]);
         // P x from the upper triangle, lane by lane, each sum pairwise.
+        let mut px = [[T::zero(); L]; N];
         for a in 0..N {
             let mut col = [[T::zero(); L]; N];
             for b in 0..N {
                 col[b] = if a <= b { self.p[a][b] } else { self.p[b][a] };
             }
-            sc.px[a] = lane_dot(&col, x);
+            px[a] = lane_dot(&col, x);
         }
-        // xᵀ P x (stored at once: the compiler then keeps the lanes together).
-        sc.s = lane_dot(&sc.px, x);
+        let mut s = lane_dot(&px, x);
         for k in 0..L {
-            sc.s[k] += self.r[k];
+            s[k] += self.r[k];
         }
-        sc.go = self.active;
-        if self.any_r_zero {
-            sc.go = self.collapsed_lanes(x, sc.px, sc.s, sc.go);
+        let mut go = self.active;
+        if !FAST && self.any_r_zero {
+            go = self.collapsed_lanes(x, px, s, go);
         }
-        (sc.gated, sc.reff) = ([T::zero(); L], self.r);
-        if self.gate > T::zero() || self.huber > T::zero() {
-            (sc.gated, sc.reff) = self.screen_lanes(ek, sc.s);
+        let (mut gated, mut reff) = ([T::zero(); L], self.r);
+        if !FAST && (self.gate > T::zero() || self.huber > T::zero()) {
+            (gated, reff) = self.screen_lanes(ek, s);
             for k in 0..L {
-                sc.go[k] = if sc.gated[k] != T::zero() { T::zero() } else { sc.go[k] };
-                sc.s[k] += sc.reff[k] - self.r[k];
+                go[k] = if gated[k] != T::zero() { T::zero() } else { go[k] };
+                s[k] += reff[k] - self.r[k];
             }
         }
-        let mut ok = true;
-        let mut risky = false;
+        // Per lane, as whole-lane arithmetic and selects (so that it stays vectorized). A lane
+        // that steps needs 0 < s < inf; r/s below √ε makes its downdate risky. Either marks
+        // the lane's step check with a NaN, so that one test of the steps refuses the plan:
+        // `check` then names the cause, or finds only risky downdates that stay definite.
         let rk = super::row::risky::<T>();
+        let mut w = [T::zero(); L];
+        let mut c = [T::zero(); L];
+        let mut flag = [T::zero(); L];
         for k in 0..L {
-            let s = sc.s[k];
-            let inv = T::one() / s;
-            let go = sc.go[k] != T::zero();
-            // A lane that steps needs 0 < s < inf; r/s below √ε makes its downdate risky.
-            ok &= !go | ((s > T::zero()) & (s <= T::biggest()));
-            risky |= go & (sc.reff[k] > T::zero()) & (sc.reff[k] < rk * s);
-            sc.w[k] = if go { inv } else { T::zero() };
-            sc.c[k] = if go { ek[k] * inv } else { T::zero() };
+            let inv = T::one() / s[k];
+            let step = go[k] != T::zero();
+            let fine = (s[k] > T::zero()) & (s[k] <= T::biggest());
+            let risky = (reff[k] > T::zero()) & (reff[k] < rk * s[k]);
+            flag[k] = if step & (risky | !fine) { T::of(f64::NAN) } else { T::zero() };
+            w[k] = if step { inv } else { T::zero() };
+            c[k] = if step { ek[k] * inv } else { T::zero() };
         }
         let mut st = [[T::zero(); L]; N];
         for a in 0..N {
             for k in 0..L {
-                st[a][k] = sc.px[a][k] * sc.c[k];
+                st[a][k] = px[a][k] * c[k];
             }
         }
-        sc.step = lane_sum(st);
+        let step = lane_sum(st);
+        let mut ok = true;
         for k in 0..L {
-            ok &= is_fin(sc.step[k]);
+            ok &= is_fin(step[k] + flag[k]);
         }
-        if self.lambda < T::one() || self.drift > T::zero() {
+        let (fc, scale, add) = if !FAST && self.tracks() {
             let mut d = [[T::zero(); L]; N];
             for a in 0..N {
                 d[a] = self.p[a][a];
             }
-            (sc.fc, sc.scale, sc.add) = self.tracking(lane_sum(d), sc.s, sc.reff, sc.go);
+            self.tracking(lane_sum(d), s, reff, go)
         } else {
-            (sc.fc, sc.scale, sc.add) = ([T::zero(); L], [T::one(); L], [T::zero(); L]);
-        }
-        if risky {
-            ok &= self.downdates_stay_definite(sc);
-        }
+            ([T::zero(); L], [T::one(); L], [T::zero(); L])
+        };
+        let (ssr, nobs, s_last) = self.statistics(go, ek, c, s);
+        *sc = LaneScratch { px, c, w, s, xth, step, go, e: ek, fc, scale, add, gated, reff, ssr, nobs, s_last };
         ok
     }
 
@@ -866,7 +942,7 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
                 });
             }
         }
-        if self.form == CovarianceForm::Standard && !self.downdates_stay_definite(sc) {
+        if self.form == CovarianceForm::Standard && !self.downdates_stay_definite(*sc) {
             return Err(super::row::LOST_DEFINITENESS);
         }
         Ok(())
@@ -907,45 +983,29 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
 
     #[inline(always)]
     fn apply_sqrt(&mut self, ss: &Self::SqrtScratch) {
-        self.record(&ss.base);
+        self.record::<false>(&ss.base);
         self.apply_ud(ss);
     }
 
     #[inline(always)]
-    fn apply(&mut self, x: &SVector<T, N>, sc: &Self::Scratch) {
-        self.record(sc);
+    fn apply<const FAST: bool>(&mut self, x: &SVector<T, N>, sc: &Self::Scratch) {
+        self.record::<FAST>(sc);
+        if FAST {
+            self.step_theta(sc);
+            self.downdate(sc);
+            return;
+        }
         match self.form {
             CovarianceForm::Standard => {
-                for a in 0..N {
-                    for k in 0..L {
-                        self.theta[a][k] += sc.px[a][k] * sc.c[k];
-                    }
-                }
-                if self.lambda < T::one() || self.drift > T::zero() {
+                self.step_theta(sc);
+                if self.tracks() {
                     self.downdate_tracking(sc);
-                    return;
-                }
-                // P_ab ← P_ab − (P x)_a (P x)_b / s on the upper triangle.
-                let mut g = [[T::zero(); L]; N];
-                for b in 0..N {
-                    for k in 0..L {
-                        g[b][k] = sc.px[b][k] * sc.w[k];
-                    }
-                }
-                for a in 0..N {
-                    for b in a..N {
-                        for k in 0..L {
-                            self.p[a][b][k] -= sc.px[a][k] * g[b][k];
-                        }
-                    }
+                } else {
+                    self.downdate(sc);
                 }
             }
             CovarianceForm::Joseph => {
-                for a in 0..N {
-                    for k in 0..L {
-                        self.theta[a][k] += sc.px[a][k] * sc.c[k];
-                    }
-                }
+                self.step_theta(sc);
                 self.joseph(x, *sc);
             }
             // Planned and applied by `plan_sqrt` / `apply_sqrt`.
@@ -955,6 +1015,34 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
 }
 
 impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
+    /// `θ += c P x`.
+    #[inline(always)]
+    fn step_theta(&mut self, sc: &LaneScratch<T, N, L>) {
+        for a in 0..N {
+            for k in 0..L {
+                self.theta[a][k] += sc.px[a][k] * sc.c[k];
+            }
+        }
+    }
+
+    /// The standard form's downdate: `P_ab ← P_ab − (P x)_a (P x)_b / s` on the upper triangle.
+    #[inline(always)]
+    fn downdate(&mut self, sc: &LaneScratch<T, N, L>) {
+        let mut g = [[T::zero(); L]; N];
+        for b in 0..N {
+            for k in 0..L {
+                g[b][k] = sc.px[b][k] * sc.w[k];
+            }
+        }
+        for a in 0..N {
+            for b in a..N {
+                for k in 0..L {
+                    self.p[a][b][k] -= sc.px[a][k] * g[b][k];
+                }
+            }
+        }
+    }
+
     /// The standard form's downdate with tracking, in one pass over the upper triangle:
     /// `P_ab ← P_ab·scale − (P x)_a (P x)_b (1/s − c)·scale`, then `+ add` on the diagonal
     /// (exponential forgetting `scale = 1/λ`, directional forgetting `c`, drift `add`).

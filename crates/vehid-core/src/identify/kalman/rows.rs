@@ -287,12 +287,23 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
     /// The update: plan every group, then apply (a failure anywhere changes nothing).
     #[inline(always)]
     fn step(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
+        // The plain update (standard form, no options on) first, without their tests.
+        if self.groups.flat().iter().all(|g| g.fast()) {
+            return self.step_standard::<true>(x, z, e);
+        }
         if self.groups.flat().first().is_some_and(|g| g.starting()) {
             return self.absorb(x, z, e);
         }
         if self.opts.form == CovarianceForm::Sqrt {
             return self.step_sqrt(x, z, e);
         }
+        self.step_standard::<false>(x, z, e)
+    }
+
+    /// [`Self::step`] in the standard or Joseph form (`FAST`: every group is
+    /// [`RowGroup::fast`]).
+    #[inline(always)]
+    fn step_standard<const FAST: bool>(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
         let k = e.len();
         let lanes = <S::Group as RowGroup<T, N>>::LANES;
         let probe = finite_probe(x, z);
@@ -302,31 +313,57 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         // several groups plan into their scratch, all before any applies.
         if let [grp] = &mut *groups {
             let mut sc = S::Group::scratch();
-            ok &= grp.plan(x, z, e, &mut sc);
+            ok &= grp.plan::<FAST>(x, z, e, &mut sc);
             if !ok {
-                check_sample(x, z)?;
-                let copy = sc; // a reference to `sc` itself would keep it in memory
-                grp.check(&copy)?;
-                return Err(OVERFLOW);
+                // Not `check(&sc)` here: any reference to the plan would keep it in memory.
+                return self.settle(x, z, e);
             }
-            grp.apply(x, &sc);
+            grp.apply::<FAST>(x, &sc);
             return self.accepted(e);
         }
         let scratch = self.scratch.flat_mut();
         for (g, (grp, sc)) in groups.iter().zip(scratch.iter_mut()).enumerate() {
             let lo = g * lanes;
             let hi = (lo + lanes).min(k);
-            ok &= grp.plan(x, z, &mut e[lo..hi], sc);
+            ok &= grp.plan::<FAST>(x, z, &mut e[lo..hi], sc);
         }
         if !ok {
-            check_sample(x, z)?;
-            for (grp, sc) in groups.iter().zip(scratch.iter()) {
-                grp.check(sc)?;
-            }
-            return Err(OVERFLOW);
+            return self.settle(x, z, e);
         }
         for (grp, sc) in groups.iter_mut().zip(scratch.iter()) {
-            grp.apply(x, sc);
+            grp.apply::<FAST>(x, sc);
+        }
+        self.accepted(e)
+    }
+
+    /// A sample the fast path of [`Self::step`] did not accept at once (the standard and
+    /// Joseph forms): plans it again, names the error if a group refuses it, else (risky
+    /// downdates that stay positive definite) applies it.
+    #[cold]
+    #[inline(never)]
+    fn settle(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
+        check_sample(x, z)?;
+        let k = e.len();
+        let lanes = <S::Group as RowGroup<T, N>>::LANES;
+        let groups = self.groups.flat_mut();
+        if let [grp] = &mut *groups {
+            let mut sc = S::Group::scratch();
+            grp.plan::<false>(x, z, e, &mut sc);
+            grp.check(&sc)?;
+            grp.apply::<false>(x, &sc);
+            return self.accepted(e);
+        }
+        let scratch = self.scratch.flat_mut();
+        for (g, (grp, sc)) in groups.iter().zip(scratch.iter_mut()).enumerate() {
+            let lo = g * lanes;
+            let hi = (lo + lanes).min(k);
+            grp.plan::<false>(x, z, &mut e[lo..hi], sc);
+        }
+        for (grp, sc) in groups.iter().zip(scratch.iter()) {
+            grp.check(sc)?;
+        }
+        for (grp, sc) in groups.iter_mut().zip(scratch.iter()) {
+            grp.apply::<false>(x, sc);
         }
         self.accepted(e)
     }
@@ -444,6 +481,10 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         if groups.iter().zip(rows.chunks(lanes)).any(|(g, chunk)| !g.lanes_are(chunk) || g.starting() != start) {
             return Err(Error::InvalidArgument { arg: "groups", expected: "lanes holding the unknown rows, in order" });
         }
+        for g in self.groups.flat_mut() {
+            g.refresh();
+        }
+        let groups = self.groups.flat();
         self.scratch = S::Scratches::filled("unknown_rows", groups.len(), S::Group::scratch())?;
         let sqrt_groups = if self.opts.form == CovarianceForm::Sqrt { groups.len() } else { 0 };
         self.sqrt_scratch = S::SqrtScratches::filled("unknown_rows", sqrt_groups, S::Group::sqrt_scratch())?;
