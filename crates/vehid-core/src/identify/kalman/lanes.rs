@@ -62,6 +62,21 @@ pub(crate) fn tree_sum<T: Real, const M: usize>(a: [T; M]) -> T {
     lane_sum(l)[0]
 }
 
+/// Writes the lanes `v` into `out` (its first `L` entries, or all of them when it is shorter),
+/// lane by lane: a copy of a run-time length would call `memcpy` and keep `v` in memory.
+#[inline(always)]
+fn put_lanes<T: Real, const L: usize>(out: &mut [T], v: [T; L]) {
+    if let Some(head) = out.get_mut(..L) {
+        head.copy_from_slice(&v);
+    } else {
+        for k in 0..L {
+            if let Some(o) = out.get_mut(k) {
+                *o = v[k];
+            }
+        }
+    }
+}
+
 /// `±0` when every entry of `x` and `z` is finite, NaN otherwise (`0 · v` is NaN exactly
 /// for NaN and ±inf). One vector pass; the exact index is found only on the error path.
 #[inline(always)]
@@ -650,6 +665,23 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
         (self.ssr, self.nobs, self.s) = (sc.ssr, sc.nobs, sc.s_last);
     }
 
+    /// The innovations `z_row − xᵀθ` of every lane, from `xth = xᵀθ`: the measured values
+    /// gathered first, then one whole-lane subtraction (so that `xᵀθ` stays vectorized).
+    #[inline(always)]
+    fn innovations(&self, z: &SVector<T, N>, xth: [T; L]) -> [T; L] {
+        let mut zk = [T::zero(); L];
+        for k in 0..L {
+            // `zrow` is always in range; `get` keeps the lanes free of a panic branch, which
+            // would stop the compiler from keeping them in one vector register.
+            zk[k] = z.as_slice().get(self.zrow[k]).copied().unwrap_or_else(T::zero);
+        }
+        let mut ek = [T::zero(); L];
+        for k in 0..L {
+            ek[k] = zk[k] - xth[k];
+        }
+        ek
+    }
+
     /// `true` when forgetting or drift is on.
     #[inline(always)]
     fn tracks(&self) -> bool {
@@ -845,15 +877,8 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
         // Everything is computed into locals and the plan written once at the end: the
         // compiler then keeps it in registers (no initialization, no stores it cannot drop).
         let xth = lane_dot(&self.theta, x);
-        let mut ek = [T::zero(); L];
-        for k in 0..L {
-            // `zrow` is always in range; `get` keeps the lanes free of a panic branch, which
-            // would stop the compiler from keeping them in one vector register.
-            let zk = z.as_slice().get(self.zrow[k]).copied().unwrap_or_else(T::zero);
-            ek[k] = zk - xth[k];
-        }
-        let used = e.len().min(L);
-        e[..used].copy_from_slice(&ek[..used]);
+        let ek = self.innovations(z, xth);
+        put_lanes(e, ek);
         // P x from the upper triangle, lane by lane, each sum pairwise.
         let mut px = [[T::zero(); L]; N];
         for a in 0..N {
@@ -976,8 +1001,7 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
             ek[k] = zk - sc.xth[k];
         }
         sc.e = ek;
-        let used = e.len().min(L);
-        e[..used].copy_from_slice(&ek[..used]);
+        put_lanes(e, ek);
         self.plan_ud(x, ek, ss)
     }
 
