@@ -636,13 +636,15 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
     /// make the compiler select between their addresses and keep the plan in memory.
     #[inline(always)]
     fn statistics(&self, go: [T; L], e: [T; L], c: [T; L], s: [T; L]) -> ([T; L], [T; L], [T; L]) {
-        // Written with selects of computed values only (no branch, no select between stored
-        // values): with `go` 1 or 0, `kk` is λ or 1 and `w2`, `sg` are 0 in a lane that takes
-        // no step, so that lane keeps its values exactly (they are ≥ +0).
+        // Written as arithmetic and selects of computed values only (a select of a stored
+        // value becomes a branch or a select of addresses): with `go` 1 or 0, `kk` is λ or 1
+        // (exactly) and `w2`, `sg` are 0 in a lane that takes no step, so that lane keeps its
+        // values exactly (they are ≥ +0).
+        let keep = self.lambda;
         let (mut ssr, mut nobs, mut s_last) = ([T::zero(); L], [T::zero(); L], [T::zero(); L]);
         for k in 0..L {
             let step = go[k] != T::zero();
-            let kk = if step { self.lambda } else { T::one() };
+            let kk = go[k] * keep + (T::one() - go[k]);
             let w2 = if step { e[k] * c[k] * self.r[k] } else { T::zero() };
             let sg = if step { s[k] } else { T::zero() };
             ssr[k] = self.ssr[k] * kk + w2;
