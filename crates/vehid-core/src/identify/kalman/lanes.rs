@@ -211,12 +211,34 @@ pub struct RowLanes<T: Real, const N: usize, const L: usize> {
     /// Absorbing an exact start (every lane at once: they share the regressors).
     start: bool,
     any_r_zero: bool,
-    /// The plain update applies: the standard form after the start, no tracking, no outlier
-    /// screen, no lane with `r = 0` ([`RowGroup::fast`]). Derived from the fields above by
-    /// [`RowGroup::refresh`], not stored (false, the general path, until refreshed).
+    /// Which update applies ([`RowGroup::mode`]): [`PLAIN`], [`TRACKING`] or [`GENERAL`].
+    /// Derived from the fields above by [`RowGroup::refresh`], not stored (0, read as the
+    /// general path, until refreshed).
     #[cfg_attr(feature = "serde", serde(skip))]
-    fast: bool,
+    mode: u8,
+    /// Exponential forgetting's factor per lane while its trace is below the bound: `1/λ`
+    /// in the active lanes, 1 in the others. Derived like `mode`.
+    #[cfg_attr(feature = "serde", serde(skip, default = "ones"))]
+    forget: [T; L],
 }
+
+/// `[1; L]` (the default of a derived lane vector).
+#[cfg(feature = "serde")]
+fn ones<T: Real, const L: usize>() -> [T; L] {
+    [T::one(); L]
+}
+
+/// [`RowGroup::mode`]: the standard form after the start, no tracking, no outlier screen, no
+/// lane with `r = 0`.
+pub const PLAIN: u8 = 1;
+/// [`RowGroup::mode`]: as [`PLAIN`] but with forgetting or drift.
+pub const TRACKING: u8 = 2;
+/// [`RowGroup::mode`]: as [`TRACKING`] with exponential forgetting only (no drift, not
+/// directional).
+pub const FORGET: u8 = 3;
+/// [`RowGroup::mode`]: anything else (the other forms, the exact start, the outlier screen,
+/// lanes with `r = 0`).
+pub const GENERAL: u8 = 0;
 
 /// A group of row filters handled together (implemented by [`RowLanes`] for every lane
 /// count). An implementation detail of the stores, public only because
@@ -250,16 +272,16 @@ pub trait RowGroup<T: Real, const N: usize>: Copy + core::fmt::Debug + PartialEq
     /// # Errors
     /// Overflow; the group is unchanged then.
     fn absorb(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> crate::Result<()>;
-    /// `true` when the plain update applies (standard form after the start, no tracking, no
-    /// outlier screen, no lane with `r = 0`): [`RowGroup::plan`] and [`RowGroup::apply`] may
-    /// then be called with `FAST`, which leaves out the tests for those options.
-    fn fast(&self) -> bool;
+    /// The update that applies: [`PLAIN`], [`FORGET`], [`TRACKING`] or [`GENERAL`]. [`RowGroup::plan`] and
+    /// [`RowGroup::apply`] may be called with `MODE` equal to it (or [`GENERAL`], always
+    /// valid): the two special ones leave out the tests for the options they exclude.
+    fn mode(&self) -> u8;
     /// Derives what is not stored (after deserialization).
     fn refresh(&mut self);
     /// Plans one sample: innovations of the used lanes into `e`; returns `false` when the
     /// sample cannot be applied at once: it is refused, or a lane's downdate is risky (see
-    /// [`RowGroup::check`]). Changes nothing. `FAST` only when [`RowGroup::fast`].
-    fn plan<const FAST: bool>(&self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T], sc: &mut Self::Scratch)
+    /// [`RowGroup::check`]). Changes nothing. `MODE`: see [`RowGroup::mode`].
+    fn plan<const MODE: u8>(&self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T], sc: &mut Self::Scratch)
         -> bool;
     /// Of a plan that [`RowGroup::plan`] did not accept at once: the error, if a lane of this
     /// group refuses it (first lane first); `Ok` when the plan may be applied (its risky
@@ -269,8 +291,8 @@ pub trait RowGroup<T: Real, const N: usize>: Copy + core::fmt::Debug + PartialEq
     /// Overflow for a non-finite `s` or θ step, [`Error::Singular`] for `s ≤ 0` or a risky
     /// downdate that would lose positive definiteness.
     fn check(&self, sc: &Self::Scratch) -> crate::Result<()>;
-    /// Applies a planned step (`FAST` as in the plan).
-    fn apply<const FAST: bool>(&mut self, x: &SVector<T, N>, sc: &Self::Scratch);
+    /// Applies a planned step (`MODE` as in the plan).
+    fn apply<const MODE: u8>(&mut self, x: &SVector<T, N>, sc: &Self::Scratch);
     /// The planned step of one sample in the square-root form.
     type SqrtScratch: Copy + core::fmt::Debug;
     /// An empty square-root scratch.
@@ -356,20 +378,55 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
     /// per the options; else 0 and 1), `add = q` the drift.
     #[inline(always)]
     fn tracking(&self, trace: [T; L], s: [T; L], r: [T; L], go: [T; L]) -> ([T; L], [T; L], [T; L]) {
-        let k_lambda = (T::one() - self.lambda) / self.lambda;
-        let inv = T::one() / self.lambda;
+        // Whole-lane arithmetic and selects of computed values (`on` is 1 or 0, so that
+        // `on · q` is q or 0 exactly); the kind of forgetting is one test for all lanes.
+        let mut on = [T::zero(); L];
+        for k in 0..L {
+            on[k] = if (go[k] != T::zero()) & (trace[k] < self.cap[k]) { T::one() } else { T::zero() };
+        }
         let mut fc = [T::zero(); L];
         let mut scale = [T::one(); L];
         let mut add = [T::zero(); L];
+        let drift = self.drift;
         for k in 0..L {
-            let on = (go[k] != T::zero()) & (trace[k] < self.cap[k]);
-            let xpx = s[k] - r[k];
-            let dir = on & self.directional & (xpx > T::zero());
-            fc[k] = if dir { k_lambda * r[k] / (s[k] * xpx) } else { T::zero() };
-            scale[k] = if on & !self.directional { inv } else { T::one() };
-            add[k] = if on { self.drift } else { T::zero() };
+            add[k] = on[k] * drift;
+        }
+        if self.directional {
+            let k_lambda = (T::one() - self.lambda) / self.lambda;
+            for k in 0..L {
+                let xpx = s[k] - r[k];
+                let dir = (on[k] != T::zero()) & (xpx > T::zero());
+                fc[k] = if dir { k_lambda * r[k] / (s[k] * xpx) } else { T::zero() };
+            }
+        } else {
+            let inv = T::one() / self.lambda;
+            for k in 0..L {
+                scale[k] = if on[k] != T::zero() { inv } else { T::one() };
+            }
         }
         (fc, scale, add)
+    }
+
+    /// [`Self::tracking`] for exponential forgetting alone (no drift, not directional): the
+    /// factor `1/λ` in the lanes that step (in this mode, the active ones) with their trace
+    /// below the bound, else 1.
+    #[inline(always)]
+    fn forgetting(&self, trace: [T; L]) -> [T; L] {
+        let mut scale = [T::one(); L];
+        for k in 0..L {
+            scale[k] = if trace[k] < self.cap[k] { self.forget[k] } else { T::one() };
+        }
+        scale
+    }
+
+    /// `tr P` of every lane (the standard form: the sum of the stored diagonal, pairwise).
+    #[inline(always)]
+    fn diag_traces(&self) -> [T; L] {
+        let mut d = [[T::zero(); L]; N];
+        for a in 0..N {
+            d[a] = self.p[a][a];
+        }
+        lane_sum(d)
     }
 
     /// The outlier screen of every lane ([`super::row::screen`]): the gated flags (1/0) and
@@ -656,8 +713,8 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
 
     /// The statistics of an applied step (planned by [`Self::statistics`]).
     #[inline(always)]
-    fn record<const FAST: bool>(&mut self, sc: &LaneScratch<T, N, L>) {
-        if !FAST && self.gate > T::zero() {
+    fn record<const MODE: u8>(&mut self, sc: &LaneScratch<T, N, L>) {
+        if MODE == GENERAL && self.gate > T::zero() {
             // Over every lane (padding is never gated): a run-time bound would index the plan
             // dynamically and keep it in memory.
             for k in 0..L {
@@ -721,7 +778,8 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
             form: CovarianceForm::Standard,
             start: false,
             any_r_zero: false,
-            fast: true,
+            mode: PLAIN,
+            forget: [T::one(); L],
         }
     }
 
@@ -765,18 +823,27 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
     }
 
     #[inline(always)]
-    fn fast(&self) -> bool {
-        self.fast
+    fn mode(&self) -> u8 {
+        self.mode
     }
 
     fn refresh(&mut self) {
-        self.fast = self.form == CovarianceForm::Standard
+        let standard = self.form == CovarianceForm::Standard
             && !self.start
             && !self.any_r_zero
-            && self.lambda == T::one()
-            && self.drift == T::zero()
             && self.gate == T::zero()
             && self.huber == T::zero();
+        let exponential = !self.directional && self.drift == T::zero();
+        self.mode = match (standard, self.tracks(), exponential) {
+            (true, false, _) => PLAIN,
+            (true, true, true) => FORGET,
+            (true, true, false) => TRACKING,
+            (false, _, _) => GENERAL,
+        };
+        let inv = T::one() / self.lambda;
+        for k in 0..L {
+            self.forget[k] = if self.active[k] != T::zero() { inv } else { T::one() };
+        }
     }
 
     fn lane(&self, k: usize) -> RowIdentifier<T, N> {
@@ -825,6 +892,7 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
 
     fn retire_lane(&mut self, k: usize) {
         self.active[k] = T::zero();
+        self.refresh();
     }
 
     fn reinitialize(&mut self) {
@@ -845,6 +913,7 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
             self.r[k] *= T::of(2.0);
             self.active[k] = T::one();
         }
+        self.refresh();
     }
 
     fn starting(&self) -> bool {
@@ -869,7 +938,7 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
     }
 
     #[inline(always)]
-    fn plan<const FAST: bool>(
+    fn plan<const MODE: u8>(
         &self,
         x: &SVector<T, N>,
         z: &SVector<T, N>,
@@ -895,11 +964,11 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
             s[k] += self.r[k];
         }
         let mut go = self.active;
-        if !FAST && self.any_r_zero {
+        if MODE == GENERAL && self.any_r_zero {
             go = self.collapsed_lanes(x, px, s, go);
         }
         let (mut gated, mut reff) = ([T::zero(); L], self.r);
-        if !FAST && (self.gate > T::zero() || self.huber > T::zero()) {
+        if MODE == GENERAL && (self.gate > T::zero() || self.huber > T::zero()) {
             (gated, reff) = self.screen_lanes(ek, s);
             for k in 0..L {
                 go[k] = if gated[k] != T::zero() { T::zero() } else { go[k] };
@@ -934,14 +1003,11 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
         for k in 0..L {
             ok &= is_fin(step[k] + flag[k]);
         }
-        let (fc, scale, add) = if !FAST && self.tracks() {
-            let mut d = [[T::zero(); L]; N];
-            for a in 0..N {
-                d[a] = self.p[a][a];
-            }
-            self.tracking(lane_sum(d), s, reff, go)
-        } else {
-            ([T::zero(); L], [T::one(); L], [T::zero(); L])
+        let (fc, scale, add) = match MODE {
+            PLAIN => ([T::zero(); L], [T::one(); L], [T::zero(); L]),
+            FORGET => ([T::zero(); L], self.forgetting(self.diag_traces()), [T::zero(); L]),
+            _ if MODE == TRACKING || self.tracks() => self.tracking(self.diag_traces(), s, reff, go),
+            _ => ([T::zero(); L], [T::one(); L], [T::zero(); L]),
         };
         let (ssr, nobs, s_last) = self.statistics(go, ek, c, s);
         *sc = LaneScratch { px, c, w, s, xth, step, go, e: ek, fc, scale, add, gated, reff, ssr, nobs, s_last };
@@ -1009,16 +1075,27 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
 
     #[inline(always)]
     fn apply_sqrt(&mut self, ss: &Self::SqrtScratch) {
-        self.record::<false>(&ss.base);
+        self.record::<GENERAL>(&ss.base);
         self.apply_ud(ss);
     }
 
     #[inline(always)]
-    fn apply<const FAST: bool>(&mut self, x: &SVector<T, N>, sc: &Self::Scratch) {
-        self.record::<FAST>(sc);
-        if FAST {
+    fn apply<const MODE: u8>(&mut self, x: &SVector<T, N>, sc: &Self::Scratch) {
+        core::sync::atomic::compiler_fence(core::sync::atomic::Ordering::SeqCst);
+        self.record::<MODE>(sc);
+        if MODE == PLAIN {
             self.step_theta(sc);
             self.downdate(sc);
+            return;
+        }
+        if MODE == FORGET {
+            self.step_theta(sc);
+            self.downdate_forget(sc);
+            return;
+        }
+        if MODE == TRACKING {
+            self.step_theta(sc);
+            self.downdate_tracking(sc);
             return;
         }
         match self.form {
@@ -1064,6 +1141,25 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
             for b in a..N {
                 for k in 0..L {
                     self.p[a][b][k] -= sc.px[a][k] * g[b][k];
+                }
+            }
+        }
+    }
+
+    /// [`Self::downdate_tracking`] for exponential forgetting alone: `P_ab ← P_ab·scale −
+    /// (P x)_a (P x)_b (1/s)·scale` (the same numbers: `c = 0` and no drift to add).
+    #[inline(always)]
+    fn downdate_forget(&mut self, sc: &LaneScratch<T, N, L>) {
+        let mut g = [[T::zero(); L]; N];
+        for b in 0..N {
+            for k in 0..L {
+                g[b][k] = sc.px[b][k] * (sc.w[k] * sc.scale[k]);
+            }
+        }
+        for a in 0..N {
+            for b in a..N {
+                for k in 0..L {
+                    self.p[a][b][k] = self.p[a][b][k] * sc.scale[k] - sc.px[a][k] * g[b][k];
                 }
             }
         }

@@ -1,6 +1,6 @@
 //! The decoupled (`rows`) form.
 
-use super::lanes::{finite_probe, RowGroup};
+use super::lanes::{finite_probe, RowGroup, FORGET, GENERAL, PLAIN, TRACKING};
 use super::{CovarianceForm, KalmanOptions, RowIdentifier};
 #[cfg(feature = "alloc")]
 use crate::identify::Dynamic;
@@ -287,9 +287,24 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
     /// The update: plan every group, then apply (a failure anywhere changes nothing).
     #[inline(always)]
     fn step(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
-        // The plain update (standard form, no options on) first, without their tests.
-        if self.groups.flat().iter().all(|g| g.fast()) {
-            return self.step_standard::<true>(x, z, e);
+        // The standard form without options (or with tracking only) first, without the tests
+        // for the others.
+        let mode = match self.groups.flat() {
+            [g] => g.mode(),
+            groups => {
+                let first = groups.first().map_or(GENERAL, |g| g.mode());
+                if groups.iter().all(|g| g.mode() == first) {
+                    first
+                } else {
+                    GENERAL
+                }
+            }
+        };
+        match mode {
+            PLAIN => return self.step_standard::<PLAIN>(x, z, e),
+            FORGET => return self.step_standard::<FORGET>(x, z, e),
+            TRACKING => return self.step_standard::<TRACKING>(x, z, e),
+            _ => {}
         }
         if self.groups.flat().first().is_some_and(|g| g.starting()) {
             return self.absorb(x, z, e);
@@ -297,13 +312,13 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         if self.opts.form == CovarianceForm::Sqrt {
             return self.step_sqrt(x, z, e);
         }
-        self.step_standard::<false>(x, z, e)
+        self.step_standard::<GENERAL>(x, z, e)
     }
 
-    /// [`Self::step`] in the standard or Joseph form (`FAST`: every group is
-    /// [`RowGroup::fast`]).
+    /// [`Self::step`] in the standard or Joseph form (`MODE`: that of every group, or
+    /// [`GENERAL`]).
     #[inline(always)]
-    fn step_standard<const FAST: bool>(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
+    fn step_standard<const MODE: u8>(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
         let k = e.len();
         let lanes = <S::Group as RowGroup<T, N>>::LANES;
         let probe = finite_probe(x, z);
@@ -313,25 +328,25 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         // several groups plan into their scratch, all before any applies.
         if let [grp] = &mut *groups {
             let mut sc = S::Group::scratch();
-            ok &= grp.plan::<FAST>(x, z, e, &mut sc);
+            ok &= grp.plan::<MODE>(x, z, e, &mut sc);
             if !ok {
                 // Not `check(&sc)` here: any reference to the plan would keep it in memory.
                 return self.settle(x, z, e);
             }
-            grp.apply::<FAST>(x, &sc);
+            grp.apply::<MODE>(x, &sc);
             return self.accepted(e);
         }
         let scratch = self.scratch.flat_mut();
         for (g, (grp, sc)) in groups.iter().zip(scratch.iter_mut()).enumerate() {
             let lo = g * lanes;
             let hi = (lo + lanes).min(k);
-            ok &= grp.plan::<FAST>(x, z, &mut e[lo..hi], sc);
+            ok &= grp.plan::<MODE>(x, z, &mut e[lo..hi], sc);
         }
         if !ok {
             return self.settle(x, z, e);
         }
         for (grp, sc) in groups.iter_mut().zip(scratch.iter()) {
-            grp.apply::<FAST>(x, sc);
+            grp.apply::<MODE>(x, sc);
         }
         self.accepted(e)
     }
@@ -348,22 +363,22 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         let groups = self.groups.flat_mut();
         if let [grp] = &mut *groups {
             let mut sc = S::Group::scratch();
-            grp.plan::<false>(x, z, e, &mut sc);
+            grp.plan::<GENERAL>(x, z, e, &mut sc);
             grp.check(&sc)?;
-            grp.apply::<false>(x, &sc);
+            grp.apply::<GENERAL>(x, &sc);
             return self.accepted(e);
         }
         let scratch = self.scratch.flat_mut();
         for (g, (grp, sc)) in groups.iter().zip(scratch.iter_mut()).enumerate() {
             let lo = g * lanes;
             let hi = (lo + lanes).min(k);
-            grp.plan::<false>(x, z, &mut e[lo..hi], sc);
+            grp.plan::<GENERAL>(x, z, &mut e[lo..hi], sc);
         }
         for (grp, sc) in groups.iter().zip(scratch.iter()) {
             grp.check(sc)?;
         }
         for (grp, sc) in groups.iter_mut().zip(scratch.iter()) {
-            grp.apply::<false>(x, sc);
+            grp.apply::<GENERAL>(x, sc);
         }
         self.accepted(e)
     }
