@@ -51,6 +51,9 @@ pub(crate) fn streams(seed: u64) -> [Xoshiro256PlusPlus; 4] {
 
 /// The sensors of Ch. III.C: `r = x + w`, `z = ẋ + v` (one draw per component, `w` first),
 /// and in instrumentation mode (Eq 4.37–4.39) a kinematic row read from its state's sensor.
+/// (`#[inline]`: the per-sample path, so that it can be inlined into its caller whichever
+/// codegen unit holds that caller's instantiation.)
+#[inline]
 pub(crate) fn measure<T: Real, const N: usize, const M: usize>(
     cfg: &SimConfig<T, N, M>,
     kinematic: &[Option<usize>; N],

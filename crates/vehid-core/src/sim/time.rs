@@ -126,6 +126,7 @@ impl<T: Real, const N: usize, const M: usize> Simulator<T, N, M> {
         self.k
     }
 
+    #[inline]
     fn pulse_at(&self, k: u64) -> T {
         let mut p = T::zero();
         for pulse in self.cfg.pulses() {
@@ -137,6 +138,7 @@ impl<T: Real, const N: usize, const M: usize> Simulator<T, N, M> {
     }
 
     /// Draws the road input of sample `k` (noise plus pulses).
+    #[inline]
     fn next_input(&mut self) -> SVector<T, M> {
         let pulse = self.pulse_at(self.k);
         let mut u = SVector::<T, M>::zeros();
@@ -147,6 +149,7 @@ impl<T: Real, const N: usize, const M: usize> Simulator<T, N, M> {
     }
 
     /// Produces sample `k` and advances the state to `k + 1`.
+    #[inline]
     pub fn next_sample(&mut self) -> Sample<T, N, M> {
         let u = self.next_input();
         self.sample_with_input(u)
@@ -162,6 +165,7 @@ impl<T: Real, const N: usize, const M: usize> Simulator<T, N, M> {
         Ok(self.sample_with_input(*u))
     }
 
+    #[inline]
     fn sample_with_input(&mut self, u: SVector<T, M>) -> Sample<T, N, M> {
         let x = self.x;
         let xdot = self.model.a() * x + self.model.b() * u;

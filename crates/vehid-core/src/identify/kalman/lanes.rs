@@ -62,6 +62,21 @@ pub(crate) fn tree_sum<T: Real, const M: usize>(a: [T; M]) -> T {
     lane_sum(l)[0]
 }
 
+/// Writes the lanes `v` into `out` (its first `L` entries, or all of them when it is shorter),
+/// lane by lane: a copy of a run-time length would call `memcpy` and keep `v` in memory.
+#[inline(always)]
+fn put_lanes<T: Real, const L: usize>(out: &mut [T], v: [T; L]) {
+    if let Some(head) = out.get_mut(..L) {
+        head.copy_from_slice(&v);
+    } else {
+        for k in 0..L {
+            if let Some(o) = out.get_mut(k) {
+                *o = v[k];
+            }
+        }
+    }
+}
+
 /// `±0` when every entry of `x` and `z` is finite, NaN otherwise (`0 · v` is NaN exactly
 /// for NaN and ±inf). One vector pass; the exact index is found only on the error path.
 #[inline(always)]
@@ -124,6 +139,11 @@ pub struct LaneScratch<T: Real, const N: usize, const L: usize> {
     /// uses (`r`, scaled up by the Huber weight).
     gated: [T; L],
     reff: [T; L],
+    /// The statistics after the step (`ssr`, `nobs`, last `s`; unchanged in a lane that takes
+    /// no step), computed by the plan so that applying it is a plain copy.
+    ssr: [T; L],
+    nobs: [T; L],
+    s_last: [T; L],
 }
 
 /// The planned step of the square-root form: the common part (innovations, gain numerator
@@ -191,7 +211,34 @@ pub struct RowLanes<T: Real, const N: usize, const L: usize> {
     /// Absorbing an exact start (every lane at once: they share the regressors).
     start: bool,
     any_r_zero: bool,
+    /// Which update applies ([`RowGroup::mode`]): [`PLAIN`], [`TRACKING`] or [`GENERAL`].
+    /// Derived from the fields above by [`RowGroup::refresh`], not stored (0, read as the
+    /// general path, until refreshed).
+    #[cfg_attr(feature = "serde", serde(skip))]
+    mode: u8,
+    /// Exponential forgetting's factor per lane while its trace is below the bound: `1/λ`
+    /// in the active lanes, 1 in the others. Derived like `mode`.
+    #[cfg_attr(feature = "serde", serde(skip, default = "ones"))]
+    forget: [T; L],
 }
+
+/// `[1; L]` (the default of a derived lane vector).
+#[cfg(feature = "serde")]
+fn ones<T: Real, const L: usize>() -> [T; L] {
+    [T::one(); L]
+}
+
+/// [`RowGroup::mode`]: the standard form after the start, no tracking, no outlier screen, no
+/// lane with `r = 0`.
+pub const PLAIN: u8 = 1;
+/// [`RowGroup::mode`]: as [`PLAIN`] but with forgetting or drift.
+pub const TRACKING: u8 = 2;
+/// [`RowGroup::mode`]: as [`TRACKING`] with exponential forgetting only (no drift, not
+/// directional).
+pub const FORGET: u8 = 3;
+/// [`RowGroup::mode`]: anything else (the other forms, the exact start, the outlier screen,
+/// lanes with `r = 0`).
+pub const GENERAL: u8 = 0;
 
 /// A group of row filters handled together (implemented by [`RowLanes`] for every lane
 /// count). An implementation detail of the stores, public only because
@@ -225,16 +272,26 @@ pub trait RowGroup<T: Real, const N: usize>: Copy + core::fmt::Debug + PartialEq
     /// # Errors
     /// Overflow; the group is unchanged then.
     fn absorb(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> crate::Result<()>;
+    /// The update that applies: [`PLAIN`], [`FORGET`], [`TRACKING`] or [`GENERAL`]. [`RowGroup::plan`] and
+    /// [`RowGroup::apply`] may be called with `MODE` equal to it (or [`GENERAL`], always
+    /// valid): the two special ones leave out the tests for the options they exclude.
+    fn mode(&self) -> u8;
+    /// Derives what is not stored (after deserialization).
+    fn refresh(&mut self);
     /// Plans one sample: innovations of the used lanes into `e`; returns `false` when the
-    /// sample must be rejected (see [`RowGroup::check`]). Changes nothing.
-    fn plan(&self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T], sc: &mut Self::Scratch) -> bool;
-    /// The error of a rejected plan, if a lane of this group caused it (first lane first).
+    /// sample cannot be applied at once: it is refused, or a lane's downdate is risky (see
+    /// [`RowGroup::check`]). Changes nothing. `MODE`: see [`RowGroup::mode`].
+    fn plan<const MODE: u8>(&self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T], sc: &mut Self::Scratch) -> bool;
+    /// Of a plan that [`RowGroup::plan`] did not accept at once: the error, if a lane of this
+    /// group refuses it (first lane first); `Ok` when the plan may be applied (its risky
+    /// downdates stay positive definite).
     ///
     /// # Errors
-    /// Overflow for a non-finite `s` or θ step, [`Error::Singular`] for `s ≤ 0`.
+    /// Overflow for a non-finite `s` or θ step, [`Error::Singular`] for `s ≤ 0` or a risky
+    /// downdate that would lose positive definiteness.
     fn check(&self, sc: &Self::Scratch) -> crate::Result<()>;
-    /// Applies a planned step.
-    fn apply(&mut self, x: &SVector<T, N>, sc: &Self::Scratch);
+    /// Applies a planned step (`MODE` as in the plan).
+    fn apply<const MODE: u8>(&mut self, x: &SVector<T, N>, sc: &Self::Scratch);
     /// The planned step of one sample in the square-root form.
     type SqrtScratch: Copy + core::fmt::Debug;
     /// An empty square-root scratch.
@@ -320,20 +377,55 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
     /// per the options; else 0 and 1), `add = q` the drift.
     #[inline(always)]
     fn tracking(&self, trace: [T; L], s: [T; L], r: [T; L], go: [T; L]) -> ([T; L], [T; L], [T; L]) {
-        let k_lambda = (T::one() - self.lambda) / self.lambda;
-        let inv = T::one() / self.lambda;
+        // Whole-lane arithmetic and selects of computed values (`on` is 1 or 0, so that
+        // `on · q` is q or 0 exactly); the kind of forgetting is one test for all lanes.
+        let mut on = [T::zero(); L];
+        for k in 0..L {
+            on[k] = if (go[k] != T::zero()) & (trace[k] < self.cap[k]) { T::one() } else { T::zero() };
+        }
         let mut fc = [T::zero(); L];
         let mut scale = [T::one(); L];
         let mut add = [T::zero(); L];
+        let drift = self.drift;
         for k in 0..L {
-            let on = (go[k] != T::zero()) & (trace[k] < self.cap[k]);
-            let xpx = s[k] - r[k];
-            let dir = on & self.directional & (xpx > T::zero());
-            fc[k] = if dir { k_lambda * r[k] / (s[k] * xpx) } else { T::zero() };
-            scale[k] = if on & !self.directional { inv } else { T::one() };
-            add[k] = if on { self.drift } else { T::zero() };
+            add[k] = on[k] * drift;
+        }
+        if self.directional {
+            let k_lambda = (T::one() - self.lambda) / self.lambda;
+            for k in 0..L {
+                let xpx = s[k] - r[k];
+                let dir = (on[k] != T::zero()) & (xpx > T::zero());
+                fc[k] = if dir { k_lambda * r[k] / (s[k] * xpx) } else { T::zero() };
+            }
+        } else {
+            let inv = T::one() / self.lambda;
+            for k in 0..L {
+                scale[k] = if on[k] != T::zero() { inv } else { T::one() };
+            }
         }
         (fc, scale, add)
+    }
+
+    /// [`Self::tracking`] for exponential forgetting alone (no drift, not directional): the
+    /// factor `1/λ` in the lanes that step (in this mode, the active ones) with their trace
+    /// below the bound, else 1.
+    #[inline(always)]
+    fn forgetting(&self, trace: [T; L]) -> [T; L] {
+        let mut scale = [T::one(); L];
+        for k in 0..L {
+            scale[k] = if trace[k] < self.cap[k] { self.forget[k] } else { T::one() };
+        }
+        scale
+    }
+
+    /// `tr P` of every lane (the standard form: the sum of the stored diagonal, pairwise).
+    #[inline(always)]
+    fn diag_traces(&self) -> [T; L] {
+        let mut d = [[T::zero(); L]; N];
+        for a in 0..N {
+            d[a] = self.p[a][a];
+        }
+        lane_sum(d)
     }
 
     /// The outlier screen of every lane ([`super::row::screen`]): the gated flags (1/0) and
@@ -356,7 +448,7 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
     /// one would not (the sample is then refused: see [`super::row::LOST_DEFINITENESS`]).
     #[cold]
     #[inline(never)]
-    fn downdates_stay_definite(&self, sc: &LaneScratch<T, N, L>) -> bool {
+    fn downdates_stay_definite(&self, sc: LaneScratch<T, N, L>) -> bool {
         if self.form != CovarianceForm::Standard {
             return true;
         }
@@ -534,7 +626,8 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
             }
         }
         sc.step = lane_sum(st);
-        (sc.fc, sc.scale, sc.add) = if self.lambda < T::one() || self.drift > T::zero() {
+        (sc.ssr, sc.nobs, sc.s_last) = self.statistics(sc.go, ek, sc.c, sc.s);
+        (sc.fc, sc.scale, sc.add) = if self.tracks() {
             self.tracking(self.ud_traces(), sc.s, sc.reff, sc.go)
         } else {
             ([T::zero(); L], [T::one(); L], [T::zero(); L])
@@ -593,32 +686,71 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
         }
     }
 
-    /// The statistics of an applied step.
+    /// The statistics after a step with innovations `e`, `c = e / s` and variances `s` in the
+    /// lanes where `go` is set (the others keep theirs): `(ssr, nobs, s)`. Computed while
+    /// planning, from values in registers: selecting between two stored values here would
+    /// make the compiler select between their addresses and keep the plan in memory.
     #[inline(always)]
-    fn record(&mut self, sc: &LaneScratch<T, N, L>) {
+    fn statistics(&self, go: [T; L], e: [T; L], c: [T; L], s: [T; L]) -> ([T; L], [T; L], [T; L]) {
+        // Written as arithmetic and selects of computed values only (a select of a stored
+        // value becomes a branch or a select of addresses): with `go` 1 or 0, `kk` is λ or 1
+        // (exactly) and `w2`, `sg` are 0 in a lane that takes no step, so that lane keeps its
+        // values exactly (they are ≥ +0).
         let keep = self.lambda;
-        if self.gate > T::zero() {
-            for k in 0..self.used {
-                self.gated[k] += u64::from(sc.gated[k] != T::zero());
-            }
-        }
+        let (mut ssr, mut nobs, mut s_last) = ([T::zero(); L], [T::zero(); L], [T::zero(); L]);
         for k in 0..L {
-            let go = sc.go[k] != T::zero();
-            let w2 = sc.e[k] * sc.c[k] * self.r[k];
-            self.ssr[k] = if go { self.ssr[k] * keep + w2 } else { self.ssr[k] };
-            self.nobs[k] = if go { self.nobs[k] * keep + T::one() } else { self.nobs[k] };
-            self.s[k] = if go { sc.s[k] } else { self.s[k] };
+            let step = go[k] != T::zero();
+            let kk = go[k] * keep + (T::one() - go[k]);
+            let w2 = if step { e[k] * c[k] * self.r[k] } else { T::zero() };
+            let sg = if step { s[k] } else { T::zero() };
+            ssr[k] = self.ssr[k] * kk + w2;
+            nobs[k] = self.nobs[k] * kk + go[k];
+            s_last[k] = self.s[k] * (T::one() - go[k]) + sg;
         }
-        if self.gate > T::zero() {
-            // A gated sample enters the scale Winsorized at the gate (row::gated_scale): a
-            // lasting change opens the gate within tens of samples.
-            for k in 0..self.used {
-                if sc.gated[k] != T::zero() {
+        (ssr, nobs, s_last)
+    }
+
+    /// The statistics of an applied step (planned by [`Self::statistics`]).
+    #[inline(always)]
+    fn record<const MODE: u8>(&mut self, sc: &LaneScratch<T, N, L>) {
+        (self.ssr, self.nobs, self.s) = (sc.ssr, sc.nobs, sc.s_last);
+        if MODE == GENERAL && self.gate > T::zero() {
+            // Over every lane (padding is never gated): a run-time bound would index the plan
+            // dynamically and keep it in memory. A gated sample enters the scale Winsorized at
+            // the gate (row::gated_scale): a lasting change opens the gate within tens of
+            // samples.
+            for k in 0..L {
+                let gated = sc.gated[k] != T::zero();
+                self.gated[k] += u64::from(gated);
+                if gated {
                     (self.ssr[k], self.nobs[k]) =
-                        super::row::gated_scale(self.gate, keep, self.ssr[k], self.nobs[k], N);
+                        super::row::gated_scale(self.gate, self.lambda, self.ssr[k], self.nobs[k], N);
                 }
             }
         }
+    }
+
+    /// The innovations `z_row − xᵀθ` of every lane, from `xth = xᵀθ`: the measured values
+    /// gathered first, then one whole-lane subtraction (so that `xᵀθ` stays vectorized).
+    #[inline(always)]
+    fn innovations(&self, z: &SVector<T, N>, xth: [T; L]) -> [T; L] {
+        let mut zk = [T::zero(); L];
+        for k in 0..L {
+            // `zrow` is always in range; `get` keeps the lanes free of a panic branch, which
+            // would stop the compiler from keeping them in one vector register.
+            zk[k] = z.as_slice().get(self.zrow[k]).copied().unwrap_or_else(T::zero);
+        }
+        let mut ek = [T::zero(); L];
+        for k in 0..L {
+            ek[k] = zk[k] - xth[k];
+        }
+        ek
+    }
+
+    /// `true` when forgetting or drift is on.
+    #[inline(always)]
+    fn tracks(&self) -> bool {
+        self.lambda < T::one() || self.drift > T::zero()
     }
 }
 
@@ -652,6 +784,8 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
             form: CovarianceForm::Standard,
             start: false,
             any_r_zero: false,
+            mode: PLAIN,
+            forget: [T::one(); L],
         }
     }
 
@@ -670,6 +804,9 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
             add: [T::zero(); L],
             gated: [T::zero(); L],
             reff: [T::zero(); L],
+            ssr: [T::zero(); L],
+            nobs: [T::zero(); L],
+            s_last: [T::zero(); L],
         }
     }
 
@@ -688,6 +825,31 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
         (self.form, self.start, self.gate, self.huber) = (f.form, f.start, f.gate, f.huber);
         self.used = self.used.max(k + 1);
         self.any_r_zero = (0..self.used).any(|i| self.r[i] == T::zero());
+        self.refresh();
+    }
+
+    #[inline(always)]
+    fn mode(&self) -> u8 {
+        self.mode
+    }
+
+    fn refresh(&mut self) {
+        let standard = self.form == CovarianceForm::Standard
+            && !self.start
+            && !self.any_r_zero
+            && self.gate == T::zero()
+            && self.huber == T::zero();
+        let exponential = !self.directional && self.drift == T::zero();
+        self.mode = match (standard, self.tracks(), exponential) {
+            (true, false, _) => PLAIN,
+            (true, true, true) => FORGET,
+            (true, true, false) => TRACKING,
+            (false, _, _) => GENERAL,
+        };
+        let inv = T::one() / self.lambda;
+        for k in 0..L {
+            self.forget[k] = if self.active[k] != T::zero() { inv } else { T::one() };
+        }
     }
 
     fn lane(&self, k: usize) -> RowIdentifier<T, N> {
@@ -736,6 +898,7 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
 
     fn retire_lane(&mut self, k: usize) {
         self.active[k] = T::zero();
+        self.refresh();
     }
 
     fn reinitialize(&mut self) {
@@ -756,6 +919,7 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
             self.r[k] *= T::of(2.0);
             self.active[k] = T::one();
         }
+        self.refresh();
     }
 
     fn starting(&self) -> bool {
@@ -780,78 +944,73 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
     }
 
     #[inline(always)]
-    fn plan(&self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T], sc: &mut Self::Scratch) -> bool {
-        sc.xth = lane_dot(&self.theta, x);
-        let mut ek = [T::zero(); L];
-        for k in 0..L {
-            // `zrow` is always in range; `get` keeps the lanes free of a panic branch, which
-            // would stop the compiler from keeping them in one vector register.
-            let zk = z.as_slice().get(self.zrow[k]).copied().unwrap_or_else(T::zero);
-            ek[k] = zk - sc.xth[k];
-        }
-        sc.e = ek;
-        let used = e.len().min(L);
-        e[..used].copy_from_slice(&ek[..used]);
+    fn plan<const MODE: u8>(&self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T], sc: &mut Self::Scratch) -> bool {
+        // Everything is computed into locals and the plan written once at the end: the
+        // compiler then keeps it in registers (no initialization, no stores it cannot drop).
+        let xth = lane_dot(&self.theta, x);
+        let ek = self.innovations(z, xth);
+        put_lanes(e, ek);
         // P x from the upper triangle, lane by lane, each sum pairwise.
+        let mut px = [[T::zero(); L]; N];
         for a in 0..N {
             let mut col = [[T::zero(); L]; N];
             for b in 0..N {
                 col[b] = if a <= b { self.p[a][b] } else { self.p[b][a] };
             }
-            sc.px[a] = lane_dot(&col, x);
+            px[a] = lane_dot(&col, x);
         }
-        // xᵀ P x (stored at once: the compiler then keeps the lanes together).
-        sc.s = lane_dot(&sc.px, x);
+        let mut s = lane_dot(&px, x);
         for k in 0..L {
-            sc.s[k] += self.r[k];
+            s[k] += self.r[k];
         }
-        sc.go = self.active;
-        if self.any_r_zero {
-            sc.go = self.collapsed_lanes(x, sc.px, sc.s, sc.go);
+        let mut go = self.active;
+        if MODE == GENERAL && self.any_r_zero {
+            go = self.collapsed_lanes(x, px, s, go);
         }
-        (sc.gated, sc.reff) = ([T::zero(); L], self.r);
-        if self.gate > T::zero() || self.huber > T::zero() {
-            (sc.gated, sc.reff) = self.screen_lanes(ek, sc.s);
+        let (mut gated, mut reff) = ([T::zero(); L], self.r);
+        if MODE == GENERAL && (self.gate > T::zero() || self.huber > T::zero()) {
+            (gated, reff) = self.screen_lanes(ek, s);
             for k in 0..L {
-                sc.go[k] = if sc.gated[k] != T::zero() { T::zero() } else { sc.go[k] };
-                sc.s[k] += sc.reff[k] - self.r[k];
+                go[k] = if gated[k] != T::zero() { T::zero() } else { go[k] };
+                s[k] += reff[k] - self.r[k];
             }
         }
-        let mut ok = true;
-        let mut risky = false;
+        // Per lane, as whole-lane arithmetic and selects (so that it stays vectorized). A lane
+        // that steps needs 0 < s < inf; r/s below √ε makes its downdate risky. Either marks
+        // the lane's step check with a NaN, so that one test of the steps refuses the plan:
+        // `check` then names the cause, or finds only risky downdates that stay definite.
         let rk = super::row::risky::<T>();
+        let mut w = [T::zero(); L];
+        let mut c = [T::zero(); L];
+        let mut flag = [T::zero(); L];
         for k in 0..L {
-            let s = sc.s[k];
-            let inv = T::one() / s;
-            let go = sc.go[k] != T::zero();
-            // A lane that steps needs 0 < s < inf; r/s below √ε makes its downdate risky.
-            ok &= !go | ((s > T::zero()) & (s <= T::biggest()));
-            risky |= go & (sc.reff[k] > T::zero()) & (sc.reff[k] < rk * s);
-            sc.w[k] = if go { inv } else { T::zero() };
-            sc.c[k] = if go { ek[k] * inv } else { T::zero() };
+            let inv = T::one() / s[k];
+            let step = go[k] != T::zero();
+            let fine = (s[k] > T::zero()) & (s[k] <= T::biggest());
+            let risky = (reff[k] > T::zero()) & (reff[k] < rk * s[k]);
+            flag[k] = if step & (risky | !fine) { T::of(f64::NAN) } else { T::zero() };
+            w[k] = if step { inv } else { T::zero() };
+            c[k] = if step { ek[k] * inv } else { T::zero() };
         }
         let mut st = [[T::zero(); L]; N];
         for a in 0..N {
             for k in 0..L {
-                st[a][k] = sc.px[a][k] * sc.c[k];
+                st[a][k] = px[a][k] * c[k];
             }
         }
-        sc.step = lane_sum(st);
+        let step = lane_sum(st);
+        let mut ok = true;
         for k in 0..L {
-            ok &= is_fin(sc.step[k]);
+            ok &= is_fin(step[k] + flag[k]);
         }
-        if self.lambda < T::one() || self.drift > T::zero() {
-            let mut d = [[T::zero(); L]; N];
-            for a in 0..N {
-                d[a] = self.p[a][a];
-            }
-            (sc.fc, sc.scale, sc.add) = self.tracking(lane_sum(d), sc.s, sc.reff, sc.go);
-        } else {
-            (sc.fc, sc.scale, sc.add) = ([T::zero(); L], [T::one(); L], [T::zero(); L]);
-        }
-        if risky {
-            ok &= self.downdates_stay_definite(sc);
-        }
+        let (fc, scale, add) = match MODE {
+            PLAIN => ([T::zero(); L], [T::one(); L], [T::zero(); L]),
+            FORGET => ([T::zero(); L], self.forgetting(self.diag_traces()), [T::zero(); L]),
+            _ if MODE == TRACKING || self.tracks() => self.tracking(self.diag_traces(), s, reff, go),
+            _ => ([T::zero(); L], [T::one(); L], [T::zero(); L]),
+        };
+        let (ssr, nobs, s_last) = self.statistics(go, ek, c, s);
+        *sc = LaneScratch { px, c, w, s, xth, step, go, e: ek, fc, scale, add, gated, reff, ssr, nobs, s_last };
         ok
     }
 
@@ -876,7 +1035,7 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
                 });
             }
         }
-        if self.form == CovarianceForm::Standard && !self.downdates_stay_definite(sc) {
+        if self.form == CovarianceForm::Standard && !self.downdates_stay_definite(*sc) {
             return Err(super::row::LOST_DEFINITENESS);
         }
         Ok(())
@@ -910,52 +1069,46 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
             ek[k] = zk - sc.xth[k];
         }
         sc.e = ek;
-        let used = e.len().min(L);
-        e[..used].copy_from_slice(&ek[..used]);
+        put_lanes(e, ek);
         self.plan_ud(x, ek, ss)
     }
 
     #[inline(always)]
     fn apply_sqrt(&mut self, ss: &Self::SqrtScratch) {
-        self.record(&ss.base);
+        self.record::<GENERAL>(&ss.base);
         self.apply_ud(ss);
     }
 
     #[inline(always)]
-    fn apply(&mut self, x: &SVector<T, N>, sc: &Self::Scratch) {
-        self.record(sc);
+    fn apply<const MODE: u8>(&mut self, x: &SVector<T, N>, sc: &Self::Scratch) {
+        core::sync::atomic::compiler_fence(core::sync::atomic::Ordering::SeqCst);
+        self.record::<MODE>(sc);
+        if MODE == PLAIN {
+            self.step_theta(sc);
+            self.downdate(sc);
+            return;
+        }
+        if MODE == FORGET {
+            self.step_theta(sc);
+            self.downdate_forget(sc);
+            return;
+        }
+        if MODE == TRACKING {
+            self.step_theta(sc);
+            self.downdate_tracking(sc);
+            return;
+        }
         match self.form {
             CovarianceForm::Standard => {
-                for a in 0..N {
-                    for k in 0..L {
-                        self.theta[a][k] += sc.px[a][k] * sc.c[k];
-                    }
-                }
-                if self.lambda < T::one() || self.drift > T::zero() {
+                self.step_theta(sc);
+                if self.tracks() {
                     self.downdate_tracking(sc);
-                    return;
-                }
-                // P_ab ← P_ab − (P x)_a (P x)_b / s on the upper triangle.
-                let mut g = [[T::zero(); L]; N];
-                for b in 0..N {
-                    for k in 0..L {
-                        g[b][k] = sc.px[b][k] * sc.w[k];
-                    }
-                }
-                for a in 0..N {
-                    for b in a..N {
-                        for k in 0..L {
-                            self.p[a][b][k] -= sc.px[a][k] * g[b][k];
-                        }
-                    }
+                } else {
+                    self.downdate(sc);
                 }
             }
             CovarianceForm::Joseph => {
-                for a in 0..N {
-                    for k in 0..L {
-                        self.theta[a][k] += sc.px[a][k] * sc.c[k];
-                    }
-                }
+                self.step_theta(sc);
                 self.joseph(x, *sc);
             }
             // Planned and applied by `plan_sqrt` / `apply_sqrt`.
@@ -965,6 +1118,53 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
 }
 
 impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
+    /// `θ += c P x`.
+    #[inline(always)]
+    fn step_theta(&mut self, sc: &LaneScratch<T, N, L>) {
+        for a in 0..N {
+            for k in 0..L {
+                self.theta[a][k] += sc.px[a][k] * sc.c[k];
+            }
+        }
+    }
+
+    /// The standard form's downdate: `P_ab ← P_ab − (P x)_a (P x)_b / s` on the upper triangle.
+    #[inline(always)]
+    fn downdate(&mut self, sc: &LaneScratch<T, N, L>) {
+        let mut g = [[T::zero(); L]; N];
+        for b in 0..N {
+            for k in 0..L {
+                g[b][k] = sc.px[b][k] * sc.w[k];
+            }
+        }
+        for a in 0..N {
+            for b in a..N {
+                for k in 0..L {
+                    self.p[a][b][k] -= sc.px[a][k] * g[b][k];
+                }
+            }
+        }
+    }
+
+    /// [`Self::downdate_tracking`] for exponential forgetting alone: `P_ab ← P_ab·scale −
+    /// (P x)_a (P x)_b (1/s)·scale` (the same numbers: `c = 0` and no drift to add).
+    #[inline(always)]
+    fn downdate_forget(&mut self, sc: &LaneScratch<T, N, L>) {
+        let mut g = [[T::zero(); L]; N];
+        for b in 0..N {
+            for k in 0..L {
+                g[b][k] = sc.px[b][k] * (sc.w[k] * sc.scale[k]);
+            }
+        }
+        for a in 0..N {
+            for b in a..N {
+                for k in 0..L {
+                    self.p[a][b][k] = self.p[a][b][k] * sc.scale[k] - sc.px[a][k] * g[b][k];
+                }
+            }
+        }
+    }
+
     /// The standard form's downdate with tracking, in one pass over the upper triangle:
     /// `P_ab ← P_ab·scale − (P x)_a (P x)_b (1/s − c)·scale`, then `+ add` on the diagonal
     /// (exponential forgetting `scale = 1/λ`, directional forgetting `c`, drift `add`).

@@ -21,11 +21,11 @@
 //! `10 Σ|e_i(k)| > Σ_j P_jj(k)` the diagonal of `P` is multiplied by 10 and `R` doubled.
 //!
 //! # Memory (Table I of the thesis: 352 bytes for the 4-state identifier, 2800 for the 8-state)
-//! `size_of::<KalmanIdentifier<f32, 4, 2>>()` is 328 bytes and
-//! `size_of::<KalmanIdentifier<f32, 8, 4>>()` is 1416 bytes (the rows side by side: θ, the
+//! `size_of::<KalmanIdentifier<f32, 4, 2>>()` is 336 bytes and
+//! `size_of::<KalmanIdentifier<f32, 8, 4>>()` is 1432 bytes (the rows side by side: θ, the
 //! covariances as `N × N` lanes of which the upper triangle is used, `r`, the statistics and
-//! tracking state per row, plus the row indices, options and counters; a sample is planned on
-//! the stack); the shared form needs 160 and 472. Both are within the thesis' 352 and 2800
+//! tracking state per row (with the forgetting factor per lane, derived), plus the row
+//! indices, options and counters; a sample is planned on the stack); the shared form needs 160 and 472. Both are within the thesis' 352 and 2800
 //! bytes. These figures are asserted in the tests.
 //!
 //! # Forms, exact start, tracking, statistics

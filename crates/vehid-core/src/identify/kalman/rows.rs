@@ -1,6 +1,6 @@
 //! The decoupled (`rows`) form.
 
-use super::lanes::{finite_probe, RowGroup};
+use super::lanes::{finite_probe, RowGroup, FORGET, GENERAL, PLAIN, TRACKING};
 use super::{CovarianceForm, KalmanOptions, RowIdentifier};
 #[cfg(feature = "alloc")]
 use crate::identify::Dynamic;
@@ -287,12 +287,38 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
     /// The update: plan every group, then apply (a failure anywhere changes nothing).
     #[inline(always)]
     fn step(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
+        // The standard form without options (or with tracking only) first, without the tests
+        // for the others.
+        let mode = match self.groups.flat() {
+            [g] => g.mode(),
+            groups => {
+                let first = groups.first().map_or(GENERAL, |g| g.mode());
+                if groups.iter().all(|g| g.mode() == first) {
+                    first
+                } else {
+                    GENERAL
+                }
+            }
+        };
+        match mode {
+            PLAIN => return self.step_standard::<PLAIN>(x, z, e),
+            FORGET => return self.step_standard::<FORGET>(x, z, e),
+            TRACKING => return self.step_standard::<TRACKING>(x, z, e),
+            _ => {}
+        }
         if self.groups.flat().first().is_some_and(|g| g.starting()) {
             return self.absorb(x, z, e);
         }
         if self.opts.form == CovarianceForm::Sqrt {
             return self.step_sqrt(x, z, e);
         }
+        self.step_standard::<GENERAL>(x, z, e)
+    }
+
+    /// [`Self::step`] in the standard or Joseph form (`MODE`: that of every group, or
+    /// [`GENERAL`]).
+    #[inline(always)]
+    fn step_standard<const MODE: u8>(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
         let k = e.len();
         let lanes = <S::Group as RowGroup<T, N>>::LANES;
         let probe = finite_probe(x, z);
@@ -302,31 +328,57 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         // several groups plan into their scratch, all before any applies.
         if let [grp] = &mut *groups {
             let mut sc = S::Group::scratch();
-            ok &= grp.plan(x, z, e, &mut sc);
+            ok &= grp.plan::<MODE>(x, z, e, &mut sc);
             if !ok {
-                check_sample(x, z)?;
-                let copy = sc; // a reference to `sc` itself would keep it in memory
-                grp.check(&copy)?;
-                return Err(OVERFLOW);
+                // Not `check(&sc)` here: any reference to the plan would keep it in memory.
+                return self.settle(x, z, e);
             }
-            grp.apply(x, &sc);
+            grp.apply::<MODE>(x, &sc);
             return self.accepted(e);
         }
         let scratch = self.scratch.flat_mut();
         for (g, (grp, sc)) in groups.iter().zip(scratch.iter_mut()).enumerate() {
             let lo = g * lanes;
             let hi = (lo + lanes).min(k);
-            ok &= grp.plan(x, z, &mut e[lo..hi], sc);
+            ok &= grp.plan::<MODE>(x, z, &mut e[lo..hi], sc);
         }
         if !ok {
-            check_sample(x, z)?;
-            for (grp, sc) in groups.iter().zip(scratch.iter()) {
-                grp.check(sc)?;
-            }
-            return Err(OVERFLOW);
+            return self.settle(x, z, e);
         }
         for (grp, sc) in groups.iter_mut().zip(scratch.iter()) {
-            grp.apply(x, sc);
+            grp.apply::<MODE>(x, sc);
+        }
+        self.accepted(e)
+    }
+
+    /// A sample the fast path of [`Self::step`] did not accept at once (the standard and
+    /// Joseph forms): plans it again, names the error if a group refuses it, else (risky
+    /// downdates that stay positive definite) applies it.
+    #[cold]
+    #[inline(never)]
+    fn settle(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
+        check_sample(x, z)?;
+        let k = e.len();
+        let lanes = <S::Group as RowGroup<T, N>>::LANES;
+        let groups = self.groups.flat_mut();
+        if let [grp] = &mut *groups {
+            let mut sc = S::Group::scratch();
+            grp.plan::<GENERAL>(x, z, e, &mut sc);
+            grp.check(&sc)?;
+            grp.apply::<GENERAL>(x, &sc);
+            return self.accepted(e);
+        }
+        let scratch = self.scratch.flat_mut();
+        for (g, (grp, sc)) in groups.iter().zip(scratch.iter_mut()).enumerate() {
+            let lo = g * lanes;
+            let hi = (lo + lanes).min(k);
+            grp.plan::<GENERAL>(x, z, &mut e[lo..hi], sc);
+        }
+        for (grp, sc) in groups.iter().zip(scratch.iter()) {
+            grp.check(sc)?;
+        }
+        for (grp, sc) in groups.iter_mut().zip(scratch.iter()) {
+            grp.apply::<GENERAL>(x, sc);
         }
         self.accepted(e)
     }
@@ -444,6 +496,10 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         if groups.iter().zip(rows.chunks(lanes)).any(|(g, chunk)| !g.lanes_are(chunk) || g.starting() != start) {
             return Err(Error::InvalidArgument { arg: "groups", expected: "lanes holding the unknown rows, in order" });
         }
+        for g in self.groups.flat_mut() {
+            g.refresh();
+        }
+        let groups = self.groups.flat();
         self.scratch = S::Scratches::filled("unknown_rows", groups.len(), S::Group::scratch())?;
         let sqrt_groups = if self.opts.form == CovarianceForm::Sqrt { groups.len() } else { 0 };
         self.sqrt_scratch = S::SqrtScratches::filled("unknown_rows", sqrt_groups, S::Group::sqrt_scratch())?;
