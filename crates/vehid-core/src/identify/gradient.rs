@@ -81,6 +81,26 @@ impl<T: Real> Gain<T> {
         }
     }
 
+    /// The gain `γ(k)` of gradient step `step` and the forgetting factor after it, from the
+    /// previous `gamma` and `lambda`: Venter `k^(−p)` (Eq 5.8), Ljung's `λ(k) = λ₀ λ(k−1) +
+    /// (1 − λ₀)`, `γ(k) = γ(k−1) / (γ(k−1) + λ(k))` (Eq 5.15–5.18), or the normalized
+    /// `1 / norm()` (Eq 5.9; `norm` is evaluated for that gain only). `None` when the
+    /// normalized gain has no direction to move in (`norm() ≤ 0`: zero regressors).
+    #[inline(always)]
+    pub(crate) fn next(&self, step: u64, gamma: T, lambda: T, norm: impl FnOnce() -> T) -> Option<(T, T)> {
+        match *self {
+            Gain::Venter { p } => Some((T::of(libm::pow(step as f64, -p.to_f64())), lambda)),
+            Gain::Ljung { lambda0, .. } => {
+                let lambda = lambda0 * lambda + (T::one() - lambda0);
+                Some((gamma / (gamma + lambda), lambda))
+            }
+            Gain::Lyapunov => {
+                let den = norm();
+                (den > T::zero()).then(|| (T::one() / den, lambda))
+            }
+        }
+    }
+
     pub(crate) fn validate(&self) -> Result<()> {
         match *self {
             Gain::Venter { p } => {
@@ -260,23 +280,15 @@ impl<T: Real, const N: usize, S: Store<T, N>> GradientCore<T, N, S> {
             return Ok(());
         }
         let step = self.k + 1;
-        let (gamma, lambda) = match self.gain {
-            Gain::Venter { p } => (T::of(libm::pow(step as f64, -p.to_f64())), self.lambda),
-            Gain::Ljung { lambda0, .. } => {
-                let lambda = lambda0 * self.lambda + (T::one() - lambda0);
-                (self.gamma / (self.gamma + lambda), lambda)
-            }
-            Gain::Lyapunov => {
-                let x2 = x.component_mul(x);
-                let den = self.h.flat().iter().fold(T::zero(), |a, h| a + h.dot(&x2));
-                if !(den > T::zero()) {
-                    // x = 0: no direction to move in.
-                    self.phase = next_phase;
-                    self.samples += 1;
-                    return Ok(());
-                }
-                (T::one() / den, self.lambda)
-            }
+        let norm = || {
+            let x2 = x.component_mul(x);
+            self.h.flat().iter().fold(T::zero(), |a, h| a + h.dot(&x2))
+        };
+        let Some((gamma, lambda)) = self.gain.next(step, self.gamma, self.lambda, norm) else {
+            // The normalized gain with x = 0: no direction to move in.
+            self.phase = next_phase;
+            self.samples += 1;
+            return Ok(());
         };
         let h = self.h.flat();
         let mut new = [SVector::<T, N>::zeros(); N];

@@ -20,6 +20,7 @@
 use super::interface::check_lengths;
 use super::kalman::RowIdentifier;
 use super::{CovarianceForm, Dims, Flat, Identifier, KalmanOptions, OVERFLOW};
+use crate::error::check_finite;
 use crate::structure::{Partition, Structure, MAX_EQUATIONS, MAX_PARAMS};
 use crate::{Error, Real, Result};
 use nalgebra::SVector;
@@ -107,7 +108,7 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Structured<T, P, F> 
             }
             k => return Err(Error::Shape { arg: "r", expected: ne, got: k }),
         };
-        crate::error::check_finite("r", &r_all[..ne])?;
+        check_finite("r", &r_all[..ne])?;
         if r_all[..ne].iter().any(|&v| v < T::zero()) {
             return Err(Error::InvalidArgument { arg: "r", expected: "variances ≥ 0" });
         }
@@ -115,7 +116,7 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Structured<T, P, F> 
             if t.len() != np {
                 return Err(Error::Shape { arg: "theta0", expected: np, got: t.len() });
             }
-            crate::error::check_finite("theta0", t)?;
+            check_finite("theta0", t)?;
             if p0 == StructuredPrior::Exact {
                 return Err(Error::InvalidArgument {
                     arg: "theta0",
@@ -313,15 +314,6 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Structured<T, P, F> 
     }
 }
 
-/// Checks one slice for NaN/inf, naming it.
-#[inline(always)]
-fn finite<T: Real>(arg: &'static str, v: &[T]) -> Result<()> {
-    match v.iter().position(|a| !a.finite()) {
-        Some(index) => Err(Error::NonFinite { arg, index }),
-        None => Ok(()),
-    }
-}
-
 impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Identifier<T> for Structured<T, P, F> {
     fn dims(&self) -> Dims {
         Dims {
@@ -338,9 +330,9 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Identifier<T> for St
 
     fn update_into(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
         check_lengths(self.dims(), x, z, u, e)?;
-        finite("r_k", x)?;
-        finite("z_k", z)?;
-        finite("u_k", u)?;
+        check_finite("r_k", x)?;
+        check_finite("z_k", z)?;
+        check_finite("u_k", u)?;
         let ne = self.structure.equations();
         let (ssr0, nobs0, gated0) = (self.eq_ssr, self.eq_nobs, self.eq_gated);
         let mut touched = 0u32;

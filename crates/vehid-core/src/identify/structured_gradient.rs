@@ -11,6 +11,7 @@
 
 use super::interface::check_lengths;
 use super::{Dims, Gain, Identifier, OVERFLOW};
+use crate::error::check_finite;
 use crate::structure::{Structure, MAX_EQUATIONS};
 use crate::{Error, Real, Result};
 
@@ -105,13 +106,13 @@ impl<T: Real, const P: usize> Identifier<T> for StructuredGradient<T, P> {
 
     fn update_into(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
         check_lengths(self.dims(), x, z, u, e)?;
-        for (arg, v) in [("r_k", x), ("z_k", z), ("u_k", u)] {
-            if let Some(index) = v.iter().position(|a| !a.finite()) {
-                return Err(Error::NonFinite { arg, index });
-            }
-        }
+        check_finite("r_k", x)?;
+        check_finite("z_k", z)?;
+        check_finite("u_k", u)?;
         let (ne, np) = (self.structure.equations(), self.structure.params());
         let mut grad = [T::zero(); P];
+        // Σ_j w_j Σ_i h_ij², the normalized gain's denominator (Eq 5.9), only for that gain.
+        let lyapunov = matches!(self.gain, Gain::Lyapunov);
         let mut h2 = T::zero();
         let mut h = [T::zero(); P];
         for i in 0..ne {
@@ -124,7 +125,11 @@ impl<T: Real, const P: usize> Identifier<T> for StructuredGradient<T, P> {
             e[i] = ei;
             for j in 0..np {
                 grad[j] += h[j] * ei;
-                h2 += self.w[j] * h[j] * h[j];
+            }
+            if lyapunov {
+                for j in 0..np {
+                    h2 += self.w[j] * h[j] * h[j];
+                }
             }
         }
         let active = self.phase == 0;
@@ -135,20 +140,11 @@ impl<T: Real, const P: usize> Identifier<T> for StructuredGradient<T, P> {
             return Ok(());
         }
         let step = self.k + 1;
-        let (gamma, lambda) = match self.gain {
-            Gain::Venter { p } => (T::of(libm::pow(step as f64, -p.to_f64())), self.lambda),
-            Gain::Ljung { lambda0, .. } => {
-                let lambda = lambda0 * self.lambda + (T::one() - lambda0);
-                (self.gamma / (self.gamma + lambda), lambda)
-            }
-            Gain::Lyapunov => {
-                if !(h2 > T::zero()) {
-                    self.phase = next_phase;
-                    self.samples += 1;
-                    return Ok(());
-                }
-                (T::one() / h2, self.lambda)
-            }
+        let Some((gamma, lambda)) = self.gain.next(step, self.gamma, self.lambda, || h2) else {
+            // The normalized gain with zero regressors: no direction to move in.
+            self.phase = next_phase;
+            self.samples += 1;
+            return Ok(());
         };
         let mut new = self.theta;
         for j in 0..np {
