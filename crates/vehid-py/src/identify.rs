@@ -33,6 +33,13 @@ use vehid_core::Error;
 /// Gaussian noise: one sample in 5·10⁸).
 pub const DEFAULT_GATE: f64 = 6.0;
 
+/// `model` as a linear model, or an error naming the two kinds of model an identifier takes.
+fn linear_model<'a, 'py>(model: &'a Bound<'py, PyAny>) -> PyResult<&'a Bound<'py, PyLinearModel>> {
+    model.cast::<PyLinearModel>().map_err(|_| {
+        VehidError::new_err("`model` must be a LinearModel (QuarterCar, HalfCar, ...) or a vehid.Structure")
+    })
+}
+
 /// Maps a core error to a Python exception: `MemoryError` for allocations that failed,
 /// `KeyboardInterrupt` passes through, `VehidError` for everything else.
 pub(crate) fn raise(e: Error) -> PyErr {
@@ -469,39 +476,6 @@ impl PyKalmanIdentifier {
                 return Err(VehidError::new_err("give `form=` or the older `joseph=True`, not both"));
             }
         };
-        if let Ok(st) = model.cast::<PyStructure>() {
-            refuse_for_structure("road_sigma", road_sigma.is_some())?;
-            refuse_for_structure("deriv_noise", deriv_noise.is_some())?;
-            if mode != Mode::Rows {
-                return Err(VehidError::new_err(
-                    "`mode` applies to a LinearModel: a Structure is identified one parameter group at a time \
-                     (equations sharing a parameter are filtered together)",
-                ));
-            }
-            let opts = KalmanOptions {
-                form,
-                reinit,
-                retire_below,
-                forgetting,
-                directional,
-                drift,
-                max_trace: max_trace.unwrap_or(0.0),
-                gate: 0.0,
-                huber,
-            };
-            let inner = kalman_on_structure(st.get(), p0, r, theta0, opts, gate)?;
-            return Ok(
-                PyClassInitializer::from(PyIdentifier::on_structure(inner, st)).add_subclass(Self { mode, form })
-            );
-        }
-        let model = model.cast::<PyLinearModel>().map_err(|_| {
-            VehidError::new_err("`model` must be a LinearModel (QuarterCar, HalfCar, ...) or a vehid.Structure")
-        })?;
-        let m = model.get();
-        let (n, k) = (m.data.n, m.data.rows.len());
-        let p0 = p0_arg(p0, k, n)?;
-        let theta0 = theta0_arg(theta0, k, n)?;
-        let r = r_arg(m, mode, p0 == Prior::Exact, r, road_sigma, deriv_noise)?;
         let opts = KalmanOptions {
             form,
             reinit,
@@ -514,6 +488,26 @@ impl PyKalmanIdentifier {
             gate: gate.unwrap_or(if mode == Mode::Rows { DEFAULT_GATE } else { 0.0 }),
             huber,
         };
+        if let Ok(st) = model.cast::<PyStructure>() {
+            refuse_for_structure("road_sigma", road_sigma.is_some())?;
+            refuse_for_structure("deriv_noise", deriv_noise.is_some())?;
+            if mode != Mode::Rows {
+                return Err(VehidError::new_err(
+                    "`mode` applies to a LinearModel: a Structure is identified one parameter group at a time \
+                     (equations sharing a parameter are filtered together)",
+                ));
+            }
+            let inner = kalman_on_structure(st.get(), p0, r, theta0, opts)?;
+            return Ok(
+                PyClassInitializer::from(PyIdentifier::on_structure(inner, st)).add_subclass(Self { mode, form })
+            );
+        }
+        let model = linear_model(model)?;
+        let m = model.get();
+        let (n, k) = (m.data.n, m.data.rows.len());
+        let p0 = p0_arg(p0, k, n)?;
+        let theta0 = theta0_arg(theta0, k, n)?;
+        let r = r_arg(m, mode, p0 == Prior::Exact, r, road_sigma, deriv_noise)?;
         let spec = KalmanSpec { rows: m.data.rows.clone(), p0, theta0, r, mode, opts };
         let inner = dispatch_n!(n, kalman_n(&spec)).map_err(core_err)?;
         Ok(PyClassInitializer::from(PyIdentifier::new(inner, m.data.clone())).add_subclass(Self { mode, form }))
@@ -649,9 +643,7 @@ impl PyStochasticGradient {
                 PyClassInitializer::from(PyIdentifier::on_structure(inner, st)).add_subclass(Self { gain: kind })
             );
         }
-        let model = model.cast::<PyLinearModel>().map_err(|_| {
-            VehidError::new_err("`model` must be a LinearModel (QuarterCar, HalfCar, ...) or a vehid.Structure")
-        })?;
+        let model = linear_model(model)?;
         let m = model.get();
         let h = match h {
             None => vec![1.0],
@@ -735,12 +727,10 @@ impl PyBatchLeastSquares {
         if let Ok(st) = model.cast::<PyStructure>() {
             // Least squares on all samples, solved recursively (exact start, no prior, no
             // gate): the same estimate as the normal equations, without storing samples.
-            let inner = kalman_on_structure(st.get(), None, None, None, KalmanOptions::default(), Some(0.0))?;
+            let inner = kalman_on_structure(st.get(), None, None, None, KalmanOptions::default())?;
             return Ok(PyClassInitializer::from(PyIdentifier::on_structure(inner, st)).add_subclass(Self));
         }
-        let model = model.cast::<PyLinearModel>().map_err(|_| {
-            VehidError::new_err("`model` must be a LinearModel (QuarterCar, HalfCar, ...) or a vehid.Structure")
-        })?;
+        let model = linear_model(model)?;
         let m = model.get();
         let inner = dispatch_n!(m.data.n, batch_n(&m.data.rows)).map_err(core_err)?;
         Ok(PyClassInitializer::from(PyIdentifier::new(inner, m.data.clone())).add_subclass(Self))
@@ -763,7 +753,7 @@ impl PyBatchLeastSquares {
         let mut slf = borrow_mut(slf)?;
         let base = slf.as_super();
         if let Some(st) = &base.structure {
-            let inner = kalman_on_structure(st.get(), None, None, None, KalmanOptions::default(), Some(0.0))?;
+            let inner = kalman_on_structure(st.get(), None, None, None, KalmanOptions::default())?;
             base.inner = inner;
             return Ok(());
         }

@@ -4,7 +4,7 @@
 
 use crate::identify::{raise, PyIdentifier};
 use crate::model::to_array2;
-use crate::structure::{CarKind, Origin, PyStructure};
+use crate::structure::{known_constants, CarKind, Origin, PyStructure};
 use crate::{core_err, VehidError};
 use numpy::{IntoPyArray, PyArray1, PyArray2};
 use pyo3::prelude::*;
@@ -126,33 +126,26 @@ pub(crate) fn physical_from_stats<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let consts = car.constants();
     // The structure the stats came from, or the one `known` describes.
-    let ph = match (known.filter(|k| !k.is_empty()), &st.structure) {
-        (Some(k), _) => PyStructure::physical(car, Some(k.as_any()))?,
-        (None, Some(s)) => {
-            let s = s.get();
-            PyStructure::physical(
-                car,
-                match &s.origin {
-                    Origin::Physical { known, .. } => {
-                        let d = PyDict::new(py);
-                        for (c, v) in consts.iter().zip(known) {
-                            if let Some(v) = v {
-                                d.set_item(*c, *v)?;
-                            }
-                        }
-                        Some(d.into_any())
-                    }
-                    Origin::Text { .. } => None,
-                }
-                .as_ref(),
-            )?
-        }
+    let known_k = match (known.filter(|k| !k.is_empty()), &st.structure) {
+        (Some(k), _) => known_constants(car, Some(k.as_any()))?,
+        (None, Some(s)) => match &s.get().origin {
+            Origin::Physical { car: of, known, .. } if *of == car => known.clone(),
+            Origin::Physical { car: of, .. } => {
+                return Err(VehidError::new_err(format!(
+                    "these stats come from a {} structure, not a {}",
+                    of.name(),
+                    car.name()
+                )))
+            }
+            Origin::Text { .. } => vec![None; consts.len()],
+        },
         (None, None) => {
             return Err(VehidError::new_err(
                 "give the known constants (e.g. m=1.0), as when building car.structure(known=...)",
             ))
         }
     };
+    let ph = PyStructure::physical_known(car, known_k)?;
     if ph.params != st.names {
         return Err(VehidError::new_err(format!(
             "these stats belong to parameters {:?}, but the structure with these known constants has {:?}: use \

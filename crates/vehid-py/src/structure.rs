@@ -3,7 +3,6 @@
 //! `HalfCar.structure`: the core's `PhysicalStructure`); and the identifiers built on one.
 
 use crate::convert::{array, finite, shape_str};
-use crate::identify::DEFAULT_GATE;
 use crate::{core_err, VehidError};
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
@@ -39,7 +38,7 @@ impl CarKind {
         }
     }
 
-    fn name(self) -> &'static str {
+    pub(crate) fn name(self) -> &'static str {
         match self {
             CarKind::Quarter => "QuarterCar",
             CarKind::Half => "HalfCar",
@@ -151,29 +150,11 @@ impl PyStructure {
 
     /// A car's physical structure; `known` maps constant names to values.
     pub(crate) fn physical(car: CarKind, known: Option<&Bound<'_, PyAny>>) -> PyResult<Self> {
-        let consts = car.constants();
-        let mut k = vec![None; consts.len()];
-        if let Some(d) = known.filter(|d| !d.is_none()) {
-            let d = d.cast::<PyDict>().map_err(|_| {
-                VehidError::new_err(format!(
-                    "`known` must be a dict of known constants, e.g. {{\"{}\": 1.0}}",
-                    consts[1]
-                ))
-            })?;
-            for (key, v) in d.iter() {
-                let key: String = key.extract().map_err(|_| VehidError::new_err("`known`: keys must be names"))?;
-                let Some(c) = consts.iter().position(|c| *c == key) else {
-                    return Err(VehidError::new_err(format!(
-                        "`known`: {} has no constant {key:?} (its constants: {})",
-                        car.name(),
-                        consts.join(", ")
-                    )));
-                };
-                let val: f64 =
-                    v.extract().map_err(|_| VehidError::new_err(format!("`known[{key:?}]` must be a number")))?;
-                k[c] = Some(val);
-            }
-        }
+        Self::physical_known(car, known_constants(car, known)?)
+    }
+
+    /// A car's physical structure with constants `k` (one per [`CarKind::constants`]) known.
+    pub(crate) fn physical_known(car: CarKind, k: Vec<Option<f64>>) -> PyResult<Self> {
         let ph = car.physical(&k).map_err(core_err)?;
         let n = ph.structure().states();
         Ok(Self {
@@ -460,8 +441,7 @@ pub(crate) fn kalman_on_structure(
     p0: Option<&Bound<'_, PyAny>>,
     r: Option<&Bound<'_, PyAny>>,
     theta0: Option<&Bound<'_, PyAny>>,
-    mut opts: KalmanOptions<f64>,
-    gate: Option<f64>,
+    opts: KalmanOptions<f64>,
 ) -> PyResult<Box<dyn DynIdentifier<f64>>> {
     let (np, ne) = (s.core.params(), s.core.equations());
     let p0_data;
@@ -511,7 +491,6 @@ pub(crate) fn kalman_on_structure(
             a.data
         }
     };
-    opts.gate = gate.unwrap_or(DEFAULT_GATE);
     let largest = s.core.partition().largest();
     let (core, th) = (s.core, theta0.as_deref());
     match largest {
@@ -522,6 +501,32 @@ pub(crate) fn kalman_on_structure(
         _ => structured_p::<32>(core, p0, th, &r, opts),
     }
     .map_err(core_err)
+}
+
+/// The known constants of a car, one per [`CarKind::constants`], from a dict mapping constant
+/// names to values (`None`: nothing known).
+pub(crate) fn known_constants(car: CarKind, known: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<Option<f64>>> {
+    let consts = car.constants();
+    let mut k = vec![None; consts.len()];
+    if let Some(d) = known.filter(|d| !d.is_none()) {
+        let d = d.cast::<PyDict>().map_err(|_| {
+            VehidError::new_err(format!("`known` must be a dict of known constants, e.g. {{\"{}\": 1.0}}", consts[1]))
+        })?;
+        for (key, v) in d.iter() {
+            let key: String = key.extract().map_err(|_| VehidError::new_err("`known`: keys must be names"))?;
+            let Some(c) = consts.iter().position(|c| *c == key) else {
+                return Err(VehidError::new_err(format!(
+                    "`known`: {} has no constant {key:?} (its constants: {})",
+                    car.name(),
+                    consts.join(", ")
+                )));
+            };
+            let val: f64 =
+                v.extract().map_err(|_| VehidError::new_err(format!("`known[{key:?}]` must be a number")))?;
+            k[c] = Some(val);
+        }
+    }
+    Ok(k)
 }
 
 /// Refuses keyword arguments that only make sense for a linear model.
