@@ -1,6 +1,6 @@
 //! The decoupled (`rows`) form.
 
-use super::lanes::{finite_probe, RowGroup, FORGET, GENERAL, PLAIN, TRACKING};
+use super::lanes::{finite_probe, RowGroup, FORGET, GENERAL, PLAIN, SQRT, TRACKING};
 use super::{CovarianceForm, KalmanOptions, RowIdentifier};
 #[cfg(feature = "alloc")]
 use crate::identify::Dynamic;
@@ -304,13 +304,14 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
             PLAIN => return self.step_standard::<PLAIN>(x, z, e),
             FORGET => return self.step_standard::<FORGET>(x, z, e),
             TRACKING => return self.step_standard::<TRACKING>(x, z, e),
+            SQRT => return self.step_sqrt::<SQRT>(x, z, e),
             _ => {}
         }
         if self.groups.flat().first().is_some_and(|g| g.starting()) {
             return self.absorb(x, z, e);
         }
         if self.opts.form == CovarianceForm::Sqrt {
-            return self.step_sqrt(x, z, e);
+            return self.step_sqrt::<GENERAL>(x, z, e);
         }
         self.step_standard::<GENERAL>(x, z, e)
     }
@@ -352,8 +353,8 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
     }
 
     /// A sample the fast path of [`Self::step`] did not accept at once (the standard and
-    /// Joseph forms): plans it again, names the error if a group refuses it, else (risky
-    /// downdates that stay positive definite) applies it.
+    /// Joseph forms): plans it again; applies it when every group accepts it after a closer
+    /// look (its risky downdates stay positive definite), else names the error.
     #[cold]
     #[inline(never)]
     fn settle(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
@@ -364,7 +365,10 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         if let [grp] = &mut *groups {
             let mut sc = S::Group::scratch();
             grp.plan::<GENERAL>(x, z, e, &mut sc);
-            grp.check(&sc)?;
+            if !grp.accepts(&sc) {
+                grp.check(&sc)?;
+                return Err(OVERFLOW);
+            }
             grp.apply::<GENERAL>(x, &sc);
             return self.accepted(e);
         }
@@ -374,8 +378,11 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
             let hi = (lo + lanes).min(k);
             grp.plan::<GENERAL>(x, z, &mut e[lo..hi], sc);
         }
-        for (grp, sc) in groups.iter().zip(scratch.iter()) {
-            grp.check(sc)?;
+        if !groups.iter().zip(scratch.iter()).all(|(grp, sc)| grp.accepts(sc)) {
+            for (grp, sc) in groups.iter().zip(scratch.iter()) {
+                grp.check(sc)?;
+            }
+            return Err(OVERFLOW);
         }
         for (grp, sc) in groups.iter_mut().zip(scratch.iter()) {
             grp.apply::<GENERAL>(x, sc);
@@ -384,9 +391,10 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
     }
 
     /// [`Self::step`] for the square-root form (a separate path with its own scratch, inlined
-    /// into both the portable and the AVX2 copy of the update).
+    /// into both the portable and the AVX2 copy of the update; `MODE`: [`SQRT`] when every
+    /// group is in that mode, else [`GENERAL`]).
     #[inline(always)]
-    fn step_sqrt(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
+    fn step_sqrt<const MODE: u8>(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
         let k = e.len();
         let lanes = <S::Group as RowGroup<T, N>>::LANES;
         let probe = finite_probe(x, z);
@@ -396,33 +404,45 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         // several groups plan into their scratch, all before any applies.
         if let [grp] = &mut *groups {
             let mut sc = S::Group::sqrt_scratch();
-            ok &= grp.plan_sqrt(x, z, e, &mut sc);
+            ok &= grp.plan_sqrt::<MODE>(x, z, e, &mut sc);
             if !ok {
-                check_sample(x, z)?;
-                let copy = sc; // a reference to `sc` itself would keep it in memory
-                grp.check_sqrt(&copy)?;
-                return Err(OVERFLOW);
+                // Not `check_sqrt(&sc)` here: any reference to the plan would keep it in memory.
+                return self.refused_sqrt(x, z, e);
             }
-            grp.apply_sqrt(&sc);
+            grp.apply_sqrt::<MODE>(&sc);
             return self.accepted(e);
         }
         let scratch = self.sqrt_scratch.flat_mut();
         for (g, (grp, sc)) in groups.iter().zip(scratch.iter_mut()).enumerate() {
             let lo = g * lanes;
             let hi = (lo + lanes).min(k);
-            ok &= grp.plan_sqrt(x, z, &mut e[lo..hi], sc);
+            ok &= grp.plan_sqrt::<MODE>(x, z, &mut e[lo..hi], sc);
         }
         if !ok {
-            check_sample(x, z)?;
-            for (grp, sc) in groups.iter().zip(scratch.iter()) {
-                grp.check_sqrt(sc)?;
-            }
-            return Err(OVERFLOW);
+            return self.refused_sqrt(x, z, e);
         }
         for (grp, sc) in groups.iter_mut().zip(scratch.iter()) {
-            grp.apply_sqrt(sc);
+            grp.apply_sqrt::<MODE>(sc);
         }
         self.accepted(e)
+    }
+
+    /// The error of a sample the square-root form refused: plans it again and names the cause.
+    #[cold]
+    #[inline(never)]
+    fn refused_sqrt(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
+        check_sample(x, z)?;
+        let k = e.len();
+        let lanes = <S::Group as RowGroup<T, N>>::LANES;
+        // Every group in order, as before: the first one names the error.
+        for (g, grp) in self.groups.flat().iter().enumerate() {
+            let lo = g * lanes;
+            let hi = (lo + lanes).min(k);
+            let mut sc = S::Group::sqrt_scratch();
+            grp.plan_sqrt::<GENERAL>(x, z, &mut e[lo..hi], &mut sc);
+            grp.check_sqrt(&sc)?;
+        }
+        Err(OVERFLOW)
     }
 
     /// Exact start: the sample into every group's factorization (all or nothing).
