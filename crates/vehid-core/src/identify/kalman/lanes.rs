@@ -35,7 +35,8 @@ macro_rules! unrolled {
     }};
     (@each $n:expr, $j:ident, $body:block, $($i:literal)*) => {
         $(
-            if $i < $n {
+            // A `const` test: the copies past `$n` are not even compiled.
+            if const { $i < $n } {
                 let $j: usize = $i;
                 $body
             }
@@ -234,7 +235,7 @@ pub struct RowLanes<T: Real, const N: usize, const L: usize> {
     /// Absorbing an exact start (every lane at once: they share the regressors).
     start: bool,
     any_r_zero: bool,
-    /// Which update applies ([`RowGroup::mode`]): [`PLAIN`], [`TRACKING`] or [`GENERAL`].
+    /// Which update applies ([`RowGroup::mode`]): [`PLAIN`], [`FORGET`] or [`GENERAL`].
     /// Derived from the fields above by [`RowGroup::refresh`], not stored (0, read as the
     /// general path, until refreshed).
     #[cfg_attr(feature = "serde", serde(skip))]
@@ -254,15 +255,11 @@ fn ones<T: Real, const L: usize>() -> [T; L] {
 /// [`RowGroup::mode`]: the standard form after the start, no tracking, no outlier screen, no
 /// lane with `r = 0`.
 pub const PLAIN: u8 = 1;
-/// [`RowGroup::mode`]: as [`PLAIN`] but with forgetting or drift.
-pub const TRACKING: u8 = 2;
-/// [`RowGroup::mode`]: as [`TRACKING`] with exponential forgetting only (no drift, not
-/// directional).
-pub const FORGET: u8 = 3;
-/// [`RowGroup::mode`]: the square-root form after the start, no outlier screen.
-pub const SQRT: u8 = 4;
+/// [`RowGroup::mode`]: as [`PLAIN`] with exponential forgetting (no drift, not directional).
+pub const FORGET: u8 = 2;
 /// [`RowGroup::mode`]: anything else (the other forms, the exact start, the outlier screen,
-/// lanes with `r = 0`).
+/// lanes with `r = 0`, drift and directional forgetting). Each special mode is one more
+/// compiled copy of the update per identifier type, so only the common cases have one.
 pub const GENERAL: u8 = 0;
 
 /// A group of row filters handled together (implemented by [`RowLanes`] for every lane
@@ -297,7 +294,7 @@ pub trait RowGroup<T: Real, const N: usize>: Copy + core::fmt::Debug + PartialEq
     /// # Errors
     /// Overflow; the group is unchanged then.
     fn absorb(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> crate::Result<()>;
-    /// The update that applies: [`PLAIN`], [`FORGET`], [`TRACKING`], [`SQRT`] or [`GENERAL`]. [`RowGroup::plan`] and
+    /// The update that applies: [`PLAIN`], [`FORGET`] or [`GENERAL`]. [`RowGroup::plan`] and
     /// [`RowGroup::apply`] may be called with `MODE` equal to it (or [`GENERAL`], always
     /// valid): the two special ones leave out the tests for the options they exclude.
     fn mode(&self) -> u8;
@@ -324,22 +321,15 @@ pub trait RowGroup<T: Real, const N: usize>: Copy + core::fmt::Debug + PartialEq
     type SqrtScratch: Copy + core::fmt::Debug;
     /// An empty square-root scratch.
     fn sqrt_scratch() -> Self::SqrtScratch;
-    /// [`RowGroup::plan`] for the square-root form (Bierman's update); `MODE` is [`SQRT`] when
-    /// [`RowGroup::mode`] is, else [`GENERAL`].
-    fn plan_sqrt<const MODE: u8>(
-        &self,
-        x: &SVector<T, N>,
-        z: &SVector<T, N>,
-        e: &mut [T],
-        sc: &mut Self::SqrtScratch,
-    ) -> bool;
+    /// [`RowGroup::plan`] for the square-root form (Bierman's update).
+    fn plan_sqrt(&self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T], sc: &mut Self::SqrtScratch) -> bool;
     /// [`RowGroup::check`] for the square-root form.
     ///
     /// # Errors
     /// Overflow, or [`Error::Singular`] when the factors are not positive.
     fn check_sqrt(&self, sc: &Self::SqrtScratch) -> crate::Result<()>;
-    /// Applies a step planned by [`RowGroup::plan_sqrt`] (`MODE` as in the plan).
-    fn apply_sqrt<const MODE: u8>(&mut self, sc: &Self::SqrtScratch);
+    /// Applies a step planned by [`RowGroup::plan_sqrt`].
+    fn apply_sqrt(&mut self, sc: &Self::SqrtScratch);
     /// `true` when the used lanes hold exactly `rows` (their indices into `z`), in order.
     fn lanes_are(&self, rows: &[usize]) -> bool;
 }
@@ -550,16 +540,9 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
     /// The square-root form's plan (Bierman's update in every lane at once; see
     /// [`RowIdentifier`]): Bierman's per-column quantities for `apply_ud`, the gain numerator (`P x`)
     /// into `sc.px`; checks that the update cannot overflow. Everything is computed into
-    /// locals and the plan written once at the end (so that it can stay in registers);
-    /// `MODE` is [`SQRT`] (no outlier screen) or [`GENERAL`].
+    /// locals and the plan written once at the end (so that it can stay in registers).
     #[inline(always)]
-    fn plan_ud<const MODE: u8>(
-        &self,
-        x: &SVector<T, N>,
-        xth: [T; L],
-        ek: [T; L],
-        ss: &mut SqrtScratch<T, N, L>,
-    ) -> bool {
+    fn plan_ud(&self, x: &SVector<T, N>, xth: [T; L], ek: [T; L], ss: &mut SqrtScratch<T, N, L>) -> bool {
         // f = Uᵀ x, v = D f (each f_j the pairwise sum over all N terms, the zero ones too).
         let mut f = [[T::zero(); L]; N];
         let mut v = [[T::zero(); L]; N];
@@ -577,7 +560,7 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
         let (mut gated, mut reff) = ([T::zero(); L], self.r);
         // Lanes that step: active and not gated (the others keep their factors: ratio 1, p 0).
         let mut act = self.active;
-        if MODE == GENERAL && (self.gate > T::zero() || self.huber > T::zero()) {
+        if self.gate > T::zero() || self.huber > T::zero() {
             let mut fv = [[T::zero(); L]; N];
             for j in 0..N {
                 for k in 0..L {
@@ -782,7 +765,7 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
     /// The statistics of an applied step (planned by [`Self::statistics`]).
     #[inline(always)]
     fn record<const MODE: u8>(&mut self, sc: &LaneScratch<T, N, L>) {
-        if MODE == GENERAL && self.gate > T::zero() {
+        if const { MODE == GENERAL } && self.gate > T::zero() {
             // Over every lane (padding is never gated): a run-time bound would index the plan
             // dynamically and keep it in memory.
             for k in 0..L {
@@ -896,15 +879,16 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
     }
 
     fn refresh(&mut self) {
-        let unscreened = !self.start && self.gate == T::zero() && self.huber == T::zero();
-        let standard = unscreened && self.form == CovarianceForm::Standard && !self.any_r_zero;
+        let standard = self.form == CovarianceForm::Standard
+            && !self.start
+            && !self.any_r_zero
+            && self.gate == T::zero()
+            && self.huber == T::zero();
         let exponential = !self.directional && self.drift == T::zero();
         self.mode = match (standard, self.tracks(), exponential) {
             (true, false, _) => PLAIN,
             (true, true, true) => FORGET,
-            (true, true, false) => TRACKING,
-            (false, _, _) if unscreened && self.form == CovarianceForm::Sqrt => SQRT,
-            (false, _, _) => GENERAL,
+            _ => GENERAL,
         };
         let inv = T::one() / self.lambda;
         for k in 0..L {
@@ -1019,16 +1003,19 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
             }
             px[a] = lane_dot(&col, x);
         }
+        // Exponential forgetting needs tr P before the update: summed while the diagonal is
+        // loaded anyway.
+        let trace = if const { MODE == FORGET } { self.diag_traces() } else { [T::zero(); L] };
         let mut s = lane_dot(&px, x);
         for k in 0..L {
             s[k] += self.r[k];
         }
         let mut go = self.active;
-        if MODE == GENERAL && self.any_r_zero {
+        if const { MODE == GENERAL } && self.any_r_zero {
             go = self.collapsed_lanes(x, px, s, go);
         }
         let (mut gated, mut reff) = ([T::zero(); L], self.r);
-        if MODE == GENERAL && (self.gate > T::zero() || self.huber > T::zero()) {
+        if const { MODE == GENERAL } && (self.gate > T::zero() || self.huber > T::zero()) {
             (gated, reff) = self.screen_lanes(ek, s);
             for k in 0..L {
                 go[k] = if gated[k] != T::zero() { T::zero() } else { go[k] };
@@ -1065,8 +1052,8 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
         }
         let (fc, scale, add) = match MODE {
             PLAIN => ([T::zero(); L], [T::one(); L], [T::zero(); L]),
-            FORGET => ([T::zero(); L], self.forgetting(self.diag_traces()), [T::zero(); L]),
-            _ if MODE == TRACKING || self.tracks() => self.tracking(self.diag_traces(), s, reff, go),
+            FORGET => ([T::zero(); L], self.forgetting(trace), [T::zero(); L]),
+            _ if self.tracks() => self.tracking(self.diag_traces(), s, reff, go),
             _ => ([T::zero(); L], [T::one(); L], [T::zero(); L]),
         };
         let (ssr, nobs, s_last) = self.statistics(go, ek, c, s);
@@ -1134,23 +1121,17 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
     }
 
     #[inline(always)]
-    fn plan_sqrt<const MODE: u8>(
-        &self,
-        x: &SVector<T, N>,
-        z: &SVector<T, N>,
-        e: &mut [T],
-        ss: &mut Self::SqrtScratch,
-    ) -> bool {
+    fn plan_sqrt(&self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T], ss: &mut Self::SqrtScratch) -> bool {
         let xth = lane_dot(&self.theta, x);
         let ek = self.innovations(z, xth);
         put_lanes(e, ek);
-        self.plan_ud::<MODE>(x, xth, ek, ss)
+        self.plan_ud(x, xth, ek, ss)
     }
 
     #[inline(always)]
-    fn apply_sqrt<const MODE: u8>(&mut self, ss: &Self::SqrtScratch) {
+    fn apply_sqrt(&mut self, ss: &Self::SqrtScratch) {
         core::sync::atomic::compiler_fence(core::sync::atomic::Ordering::SeqCst);
-        self.record::<MODE>(&ss.base);
+        self.record::<GENERAL>(&ss.base);
         self.apply_ud(ss);
     }
 
@@ -1158,19 +1139,14 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
     fn apply<const MODE: u8>(&mut self, x: &SVector<T, N>, sc: &Self::Scratch) {
         core::sync::atomic::compiler_fence(core::sync::atomic::Ordering::SeqCst);
         self.record::<MODE>(sc);
-        if MODE == PLAIN {
+        if const { MODE == PLAIN } {
             self.step_theta(sc);
             self.downdate(sc);
             return;
         }
-        if MODE == FORGET {
+        if const { MODE == FORGET } {
             self.step_theta(sc);
             self.downdate_forget(sc);
-            return;
-        }
-        if MODE == TRACKING {
-            self.step_theta(sc);
-            self.downdate_tracking(sc);
             return;
         }
         match self.form {

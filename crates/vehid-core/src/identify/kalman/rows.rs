@@ -1,6 +1,6 @@
 //! The decoupled (`rows`) form.
 
-use super::lanes::{finite_probe, RowGroup, FORGET, GENERAL, PLAIN, SQRT, TRACKING};
+use super::lanes::{finite_probe, RowGroup, FORGET, GENERAL, PLAIN};
 use super::{CovarianceForm, KalmanOptions, RowIdentifier};
 #[cfg(feature = "alloc")]
 use crate::identify::Dynamic;
@@ -276,19 +276,18 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         if e.len() != k {
             return Err(Error::Shape { arg: "e", expected: k, got: e.len() });
         }
-        // AVX2 pays only when a group of lanes fills a 256-bit register (four f64 rows);
-        // narrower groups are faster in the portable build, which fits them exactly.
-        let wide = <S::Group as RowGroup<T, N>>::LANES * core::mem::size_of::<T>() >= 32;
-        self.dispatch(wide, x, z, e)
+        self.dispatch(x, z, e)
     }
 
-    avx2_step!();
+    // AVX2 pays only when a group of lanes fills a 256-bit register (four f64 rows); narrower
+    // groups are faster in the portable build, which fits them exactly.
+    avx2_step!(<S::Group as RowGroup<T, N>>::LANES * core::mem::size_of::<T>() >= 32);
 
     /// The update: plan every group, then apply (a failure anywhere changes nothing).
     #[inline(always)]
     fn step(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
-        // The standard form without options (or with tracking only) first, without the tests
-        // for the others.
+        // The standard form without options (or with exponential forgetting only) first,
+        // without the tests for the others.
         let mode = match self.groups.flat() {
             [g] => g.mode(),
             groups => {
@@ -303,15 +302,13 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         match mode {
             PLAIN => return self.step_standard::<PLAIN>(x, z, e),
             FORGET => return self.step_standard::<FORGET>(x, z, e),
-            TRACKING => return self.step_standard::<TRACKING>(x, z, e),
-            SQRT => return self.step_sqrt::<SQRT>(x, z, e),
             _ => {}
         }
         if self.groups.flat().first().is_some_and(|g| g.starting()) {
             return self.absorb(x, z, e);
         }
         if self.opts.form == CovarianceForm::Sqrt {
-            return self.step_sqrt::<GENERAL>(x, z, e);
+            return self.step_sqrt(x, z, e);
         }
         self.step_standard::<GENERAL>(x, z, e)
     }
@@ -391,10 +388,9 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
     }
 
     /// [`Self::step`] for the square-root form (a separate path with its own scratch, inlined
-    /// into both the portable and the AVX2 copy of the update; `MODE`: [`SQRT`] when every
-    /// group is in that mode, else [`GENERAL`]).
+    /// into both the portable and the AVX2 copy of the update).
     #[inline(always)]
-    fn step_sqrt<const MODE: u8>(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
+    fn step_sqrt(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
         let k = e.len();
         let lanes = <S::Group as RowGroup<T, N>>::LANES;
         let probe = finite_probe(x, z);
@@ -404,25 +400,25 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         // several groups plan into their scratch, all before any applies.
         if let [grp] = &mut *groups {
             let mut sc = S::Group::sqrt_scratch();
-            ok &= grp.plan_sqrt::<MODE>(x, z, e, &mut sc);
+            ok &= grp.plan_sqrt(x, z, e, &mut sc);
             if !ok {
                 // Not `check_sqrt(&sc)` here: any reference to the plan would keep it in memory.
                 return self.refused_sqrt(x, z, e);
             }
-            grp.apply_sqrt::<MODE>(&sc);
+            grp.apply_sqrt(&sc);
             return self.accepted(e);
         }
         let scratch = self.sqrt_scratch.flat_mut();
         for (g, (grp, sc)) in groups.iter().zip(scratch.iter_mut()).enumerate() {
             let lo = g * lanes;
             let hi = (lo + lanes).min(k);
-            ok &= grp.plan_sqrt::<MODE>(x, z, &mut e[lo..hi], sc);
+            ok &= grp.plan_sqrt(x, z, &mut e[lo..hi], sc);
         }
         if !ok {
             return self.refused_sqrt(x, z, e);
         }
         for (grp, sc) in groups.iter_mut().zip(scratch.iter()) {
-            grp.apply_sqrt::<MODE>(sc);
+            grp.apply_sqrt(sc);
         }
         self.accepted(e)
     }
@@ -439,7 +435,7 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
             let lo = g * lanes;
             let hi = (lo + lanes).min(k);
             let mut sc = S::Group::sqrt_scratch();
-            grp.plan_sqrt::<GENERAL>(x, z, &mut e[lo..hi], &mut sc);
+            grp.plan_sqrt(x, z, &mut e[lo..hi], &mut sc);
             grp.check_sqrt(&sc)?;
         }
         Err(OVERFLOW)
