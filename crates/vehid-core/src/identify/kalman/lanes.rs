@@ -20,6 +20,30 @@ use crate::linalg::symmetrize;
 use crate::{Error, Real};
 use nalgebra::{SMatrix, SVector};
 
+/// `for $j in 0..$n $body`, written out for the first 16 indices (a loop beyond). The compiler
+/// fully unrolls a loop only below a size threshold that it applies before vectorizing,
+/// counting each lane as an operation: the square-root form's column sweeps for `N = 8` and
+/// four lanes exceed it and were left as loops over memory, scalar. Written out (a macro: a
+/// closure called sixteen times would not be inlined), every index is a constant and the
+/// lanes stay in vector registers.
+macro_rules! unrolled {
+    ($n:expr, |$j:ident| $body:block) => {{
+        unrolled!(@each $n, $j, $body, 0 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15);
+        for $j in 16..$n {
+            $body
+        }
+    }};
+    (@each $n:expr, $j:ident, $body:block, $($i:literal)*) => {
+        $(
+            // A `const` test: the copies past `$n` are not even compiled.
+            if const { $i < $n } {
+                let $j: usize = $i;
+                $body
+            }
+        )*
+    };
+}
+
 /// `a[0] + a[1] + … + a[M−1]` for each lane, summed pairwise in a fixed order.
 #[inline(always)]
 pub(crate) fn lane_sum<T: Real, const L: usize, const M: usize>(mut a: [[T; L]; M]) -> [T; L] {
@@ -211,7 +235,7 @@ pub struct RowLanes<T: Real, const N: usize, const L: usize> {
     /// Absorbing an exact start (every lane at once: they share the regressors).
     start: bool,
     any_r_zero: bool,
-    /// Which update applies ([`RowGroup::mode`]): [`PLAIN`], [`TRACKING`] or [`GENERAL`].
+    /// Which update applies ([`RowGroup::mode`]): [`PLAIN`], [`FORGET`] or [`GENERAL`].
     /// Derived from the fields above by [`RowGroup::refresh`], not stored (0, read as the
     /// general path, until refreshed).
     #[cfg_attr(feature = "serde", serde(skip))]
@@ -231,13 +255,11 @@ fn ones<T: Real, const L: usize>() -> [T; L] {
 /// [`RowGroup::mode`]: the standard form after the start, no tracking, no outlier screen, no
 /// lane with `r = 0`.
 pub const PLAIN: u8 = 1;
-/// [`RowGroup::mode`]: as [`PLAIN`] but with forgetting or drift.
-pub const TRACKING: u8 = 2;
-/// [`RowGroup::mode`]: as [`TRACKING`] with exponential forgetting only (no drift, not
-/// directional).
-pub const FORGET: u8 = 3;
+/// [`RowGroup::mode`]: as [`PLAIN`] with exponential forgetting (no drift, not directional).
+pub const FORGET: u8 = 2;
 /// [`RowGroup::mode`]: anything else (the other forms, the exact start, the outlier screen,
-/// lanes with `r = 0`).
+/// lanes with `r = 0`, drift and directional forgetting). Each special mode is one more
+/// compiled copy of the update per identifier type, so only the common cases have one.
 pub const GENERAL: u8 = 0;
 
 /// A group of row filters handled together (implemented by [`RowLanes`] for every lane
@@ -272,7 +294,7 @@ pub trait RowGroup<T: Real, const N: usize>: Copy + core::fmt::Debug + PartialEq
     /// # Errors
     /// Overflow; the group is unchanged then.
     fn absorb(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> crate::Result<()>;
-    /// The update that applies: [`PLAIN`], [`FORGET`], [`TRACKING`] or [`GENERAL`]. [`RowGroup::plan`] and
+    /// The update that applies: [`PLAIN`], [`FORGET`] or [`GENERAL`]. [`RowGroup::plan`] and
     /// [`RowGroup::apply`] may be called with `MODE` equal to it (or [`GENERAL`], always
     /// valid): the two special ones leave out the tests for the options they exclude.
     fn mode(&self) -> u8;
@@ -282,9 +304,12 @@ pub trait RowGroup<T: Real, const N: usize>: Copy + core::fmt::Debug + PartialEq
     /// sample cannot be applied at once: it is refused, or a lane's downdate is risky (see
     /// [`RowGroup::check`]). Changes nothing. `MODE`: see [`RowGroup::mode`].
     fn plan<const MODE: u8>(&self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T], sc: &mut Self::Scratch) -> bool;
-    /// Of a plan that [`RowGroup::plan`] did not accept at once: the error, if a lane of this
-    /// group refuses it (first lane first); `Ok` when the plan may be applied (its risky
-    /// downdates stay positive definite).
+    /// Of a plan that [`RowGroup::plan`] did not accept at once: `true` when it may be applied
+    /// all the same (every lane's θ step finite, `0 < s < ∞` in the lanes that step, and the
+    /// risky downdates stay positive definite).
+    fn accepts(&self, sc: &Self::Scratch) -> bool;
+    /// The error of a plan that [`RowGroup::accepts`] refuses, if a lane of this group caused
+    /// it (first lane first).
     ///
     /// # Errors
     /// Overflow for a non-finite `s` or θ step, [`Error::Singular`] for `s ≤ 0` or a risky
@@ -514,14 +539,14 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
 
     /// The square-root form's plan (Bierman's update in every lane at once; see
     /// [`RowIdentifier`]): Bierman's per-column quantities for `apply_ud`, the gain numerator (`P x`)
-    /// into `sc.px`; checks that the update cannot overflow.
+    /// into `sc.px`; checks that the update cannot overflow. Everything is computed into
+    /// locals and the plan written once at the end (so that it can stay in registers).
     #[inline(always)]
-    fn plan_ud(&self, x: &SVector<T, N>, ek: [T; L], ss: &mut SqrtScratch<T, N, L>) -> bool {
-        let sc = &mut ss.base;
-        // f = Uᵀ x, v = D f.
+    fn plan_ud(&self, x: &SVector<T, N>, xth: [T; L], ek: [T; L], ss: &mut SqrtScratch<T, N, L>) -> bool {
+        // f = Uᵀ x, v = D f (each f_j the pairwise sum over all N terms, the zero ones too).
         let mut f = [[T::zero(); L]; N];
         let mut v = [[T::zero(); L]; N];
-        for j in 0..N {
+        unrolled!(N, |j| {
             let mut col = [[T::zero(); L]; N];
             for i in 0..j {
                 col[i] = self.p[i][j];
@@ -531,8 +556,10 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
             for k in 0..L {
                 v[j][k] = self.p[j][j][k] * f[j][k];
             }
-        }
-        (sc.gated, sc.reff) = ([T::zero(); L], self.r);
+        });
+        let (mut gated, mut reff) = ([T::zero(); L], self.r);
+        // Lanes that step: active and not gated (the others keep their factors: ratio 1, p 0).
+        let mut act = self.active;
         if self.gate > T::zero() || self.huber > T::zero() {
             let mut fv = [[T::zero(); L]; N];
             for j in 0..N {
@@ -545,63 +572,81 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
             for k in 0..L {
                 s0[k] += xpx[k];
             }
-            (sc.gated, sc.reff) = self.screen_lanes(ek, s0);
+            (gated, reff) = self.screen_lanes(ek, s0);
+            for k in 0..L {
+                // `gated` is 1 or 0: exactly the active flag or 0.
+                act[k] *= T::one() - gated[k];
+            }
         }
-        // Lanes that step: active and not gated (the others keep their factors: ratio 1, p 0).
-        let mut act = [T::zero(); L];
+        // The sweep over the columns, in passes of one simple loop each (the ones the compiler
+        // would leave rolled for N = 8 written out by `unrolled!`), with the arithmetic of the
+        // column-by-column form: α_j = α_{j−1} + f_j v_j (non-decreasing: f_j v_j = D_j f_j²
+        // ≥ 0), one division per column (1/α_j serves D_j's factor and the next column's p),
+        // selects on whole lanes.
+        let mut alphas = [[T::zero(); L]; N];
+        let mut alpha = reff;
+        for j in 0..N {
+            for k in 0..L {
+                alpha[k] += f[j][k] * v[j][k];
+            }
+            alphas[j] = alpha;
+        }
+        let mut inv0 = [T::zero(); L];
         for k in 0..L {
-            act[k] = if sc.gated[k] == T::zero() { self.active[k] } else { T::zero() };
+            inv0[k] = if reff[k] > T::zero() { T::one() / reff[k] } else { T::zero() };
         }
-        let mut alpha = sc.reff;
-        let mut b = [[T::zero(); L]; N];
-        // The sweep over the columns: α_j = α_{j−1} + f_j v_j (non-decreasing: f_j v_j =
-        // D_j f_j² ≥ 0), one division per column (1/α_j serves D_j's factor and the next
-        // column's p). Written as arithmetic and selects on whole lanes, so that it vectorizes.
-        let mut inv_prev = [T::zero(); L];
-        for k in 0..L {
-            inv_prev[k] = if alpha[k] > T::zero() { T::one() / alpha[k] } else { T::zero() };
+        let mut inv = [[T::zero(); L]; N];
+        for j in 0..N {
+            for k in 0..L {
+                let q = T::one() / alphas[j][k];
+                inv[j][k] = if alphas[j][k] > T::zero() { q } else { T::zero() };
+            }
         }
+        let mut ratio = [[T::one(); L]; N];
+        let mut pj = [[T::zero(); L]; N];
+        unrolled!(N, |j| {
+            let (prev, inv_prev) = if j == 0 { (reff, inv0) } else { (alphas[j - 1], inv[j - 1]) };
+            for k in 0..L {
+                let live = alphas[j][k] > T::zero();
+                let step = act[k] != T::zero();
+                ratio[j][k] = if step & live { prev[k] * inv[j][k] } else { T::one() };
+                pj[j][k] = if step { -f[j][k] * inv_prev[k] } else { T::zero() };
+            }
+        });
+        // The maxima of |p| and |v| (for the overflow bound below) as compare and select:
+        // `max` would also order NaNs, which costs three instructions per lane here and
+        // cannot matter (a NaN in p or v makes α_N NaN or infinite: the plan is refused).
         let mut pmax = [T::zero(); L];
         let mut vmax = [T::zero(); L];
         for j in 0..N {
-            let prev = alpha;
-            let mut inv = [T::zero(); L];
             for k in 0..L {
-                alpha[k] = prev[k] + f[j][k] * v[j][k];
-                inv[k] = T::one() / alpha[k];
+                let (ap, av) = (pj[j][k].abs(), v[j][k].abs());
+                pmax[k] = if ap > pmax[k] { ap } else { pmax[k] };
+                vmax[k] = if av > vmax[k] { av } else { vmax[k] };
             }
-            for k in 0..L {
-                let live = alpha[k] > T::zero();
-                inv[k] = if live { inv[k] } else { T::zero() };
-                let step = act[k] != T::zero();
-                ss.ratio[j][k] = if step & live { prev[k] * inv[k] } else { T::one() };
-                ss.p[j][k] = if step { -f[j][k] * inv_prev[k] } else { T::zero() };
-            }
-            for k in 0..L {
-                pmax[k] = pmax[k].max(ss.p[j][k].abs());
-                vmax[k] = vmax[k].max(v[j][k].abs());
-            }
-            inv_prev = inv;
-            for i in 0..j {
+        }
+        // The gain numerator b = P x: b_i = v_i + Σ_{j>i} U_ij v_j, summed in increasing j.
+        let mut b = v;
+        for i in 0..N {
+            for j in (i + 1)..N {
                 for k in 0..L {
                     b[i][k] += self.p[i][j][k] * v[j][k];
                 }
             }
-            b[j] = v[j];
         }
         // α_N finite and ≥ 0 (it is when the factors are: D ≥ 0).
         let mut ok = true;
         for k in 0..L {
             ok &= (alpha[k] >= T::zero()) & (alpha[k] <= T::biggest());
         }
-        ss.v = v;
         // |U'_ij| ≤ |U_ij| + |b_i| |p_j| with |b_i| ≤ (1 + N max|U|) max|v|: bounded, so that
         // `apply_sqrt`, which updates U in place, cannot overflow.
         let mut umax = [T::zero(); L];
         for j in 0..N {
             for i in 0..j {
                 for k in 0..L {
-                    umax[k] = umax[k].max(self.p[i][j][k].abs());
+                    let au = self.p[i][j][k].abs();
+                    umax[k] = if au > umax[k] { au } else { umax[k] };
                 }
             }
         }
@@ -611,32 +656,34 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
             bounded[k] = is_fin(umax[k] + bbound * pmax[k]);
         }
         // s = α_N; lanes with s = 0 (r = 0, nothing new along x) take no step, nor gated ones.
+        let (mut go, mut s, mut w, mut c) = ([T::zero(); L], [T::one(); L], [T::zero(); L], [T::zero(); L]);
         for k in 0..L {
             let live = (alpha[k] > T::zero()) & (act[k] != T::zero());
-            sc.go[k] = if live { T::one() } else { T::zero() };
-            sc.s[k] = if live { alpha[k] } else { T::one() };
-            sc.w[k] = if live { T::one() / sc.s[k] } else { T::zero() };
-            sc.c[k] = if live { ek[k] * sc.w[k] } else { T::zero() };
+            go[k] = if live { T::one() } else { T::zero() };
+            s[k] = if live { alpha[k] } else { T::one() };
+            w[k] = if live { T::one() / s[k] } else { T::zero() };
+            c[k] = if live { ek[k] * w[k] } else { T::zero() };
         }
-        sc.px = b;
         let mut st = [[T::zero(); L]; N];
         for a in 0..N {
             for k in 0..L {
-                st[a][k] = b[a][k] * sc.c[k];
+                st[a][k] = b[a][k] * c[k];
             }
         }
-        sc.step = lane_sum(st);
-        (sc.ssr, sc.nobs, sc.s_last) = self.statistics(sc.go, ek, sc.c, sc.s);
-        (sc.fc, sc.scale, sc.add) = if self.tracks() {
-            self.tracking(self.ud_traces(), sc.s, sc.reff, sc.go)
+        let mut step = lane_sum(st);
+        let (ssr, nobs, s_last) = self.statistics(go, ek, c, s);
+        let (fc, scale, add) = if self.tracks() {
+            self.tracking(self.ud_traces(), s, reff, go)
         } else {
             ([T::zero(); L], [T::one(); L], [T::zero(); L])
         };
         for k in 0..L {
             // A factor update that could overflow shows as a non-finite step (see `check`).
-            sc.step[k] = if bounded[k] { sc.step[k] } else { T::of(f64::INFINITY) };
-            ok &= is_fin(sc.step[k]);
+            step[k] = if bounded[k] { step[k] } else { T::of(f64::INFINITY) };
+            ok &= is_fin(step[k]);
         }
+        ss.base = LaneScratch { px: b, c, w, s, xth, step, go, e: ek, fc, scale, add, gated, reff, ssr, nobs, s_last };
+        (ss.v, ss.p, ss.ratio) = (v, pj, ratio);
         ok
     }
 
@@ -651,20 +698,25 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
             }
         }
         // Bierman's column sweep, replayed in place with the plan's v, p and ratios: the same
-        // arithmetic as the plan's gain, so the same numbers.
-        let mut b = [[T::zero(); L]; N];
+        // arithmetic as the plan's gain, so the same numbers. Row by row (each entry needs
+        // only its row's running sum b_i, so the order of the rows does not matter).
         for j in 0..N {
             for k in 0..L {
                 self.p[j][j][k] *= ss.ratio[j][k];
             }
-            for i in 0..j {
+        }
+        unrolled!(N, |i| {
+            let mut b = ss.v[i];
+            for j in (i + 1)..N {
                 for k in 0..L {
                     let u = self.p[i][j][k];
-                    self.p[i][j][k] = u + b[i][k] * ss.p[j][k];
-                    b[i][k] += u * ss.v[j][k];
+                    self.p[i][j][k] = u + b[k] * ss.p[j][k];
+                    b[k] += u * ss.v[j][k];
                 }
             }
-            b[j] = ss.v[j];
+        });
+        if !self.tracks() {
+            return;
         }
         if self.lambda < T::one() && !self.directional {
             for j in 0..N {
@@ -714,7 +766,7 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
     #[inline(always)]
     fn record<const MODE: u8>(&mut self, sc: &LaneScratch<T, N, L>) {
         (self.ssr, self.nobs, self.s) = (sc.ssr, sc.nobs, sc.s_last);
-        if MODE == GENERAL && self.gate > T::zero() {
+        if const { MODE == GENERAL } && self.gate > T::zero() {
             // Over every lane (padding is never gated): a run-time bound would index the plan
             // dynamically and keep it in memory. A gated sample enters the scale Winsorized at
             // the gate (row::gated_scale): a lasting change opens the gate within tens of
@@ -843,8 +895,7 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
         self.mode = match (standard, self.tracks(), exponential) {
             (true, false, _) => PLAIN,
             (true, true, true) => FORGET,
-            (true, true, false) => TRACKING,
-            (false, _, _) => GENERAL,
+            _ => GENERAL,
         };
         let inv = T::one() / self.lambda;
         for k in 0..L {
@@ -959,16 +1010,19 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
             }
             px[a] = lane_dot(&col, x);
         }
+        // Exponential forgetting needs tr P before the update: summed while the diagonal is
+        // loaded anyway.
+        let trace = if const { MODE == FORGET } { self.diag_traces() } else { [T::zero(); L] };
         let mut s = lane_dot(&px, x);
         for k in 0..L {
             s[k] += self.r[k];
         }
         let mut go = self.active;
-        if MODE == GENERAL && self.any_r_zero {
+        if const { MODE == GENERAL } && self.any_r_zero {
             go = self.collapsed_lanes(x, px, s, go);
         }
         let (mut gated, mut reff) = ([T::zero(); L], self.r);
-        if MODE == GENERAL && (self.gate > T::zero() || self.huber > T::zero()) {
+        if const { MODE == GENERAL } && (self.gate > T::zero() || self.huber > T::zero()) {
             (gated, reff) = self.screen_lanes(ek, s);
             for k in 0..L {
                 go[k] = if gated[k] != T::zero() { T::zero() } else { go[k] };
@@ -1005,13 +1059,27 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
         }
         let (fc, scale, add) = match MODE {
             PLAIN => ([T::zero(); L], [T::one(); L], [T::zero(); L]),
-            FORGET => ([T::zero(); L], self.forgetting(self.diag_traces()), [T::zero(); L]),
-            _ if MODE == TRACKING || self.tracks() => self.tracking(self.diag_traces(), s, reff, go),
+            FORGET => ([T::zero(); L], self.forgetting(trace), [T::zero(); L]),
+            _ if self.tracks() => self.tracking(self.diag_traces(), s, reff, go),
             _ => ([T::zero(); L], [T::one(); L], [T::zero(); L]),
         };
         let (ssr, nobs, s_last) = self.statistics(go, ek, c, s);
         *sc = LaneScratch { px, c, w, s, xth, step, go, e: ek, fc, scale, add, gated, reff, ssr, nobs, s_last };
         ok
+    }
+
+    #[cold]
+    fn accepts(&self, sc: &Self::Scratch) -> bool {
+        let rk = super::row::risky::<T>();
+        let mut risky = false;
+        for k in 0..L {
+            let go = sc.go[k] != T::zero();
+            if !sc.step[k].finite() || (go && !(sc.s[k] > T::zero() && sc.s[k] <= T::biggest())) {
+                return false;
+            }
+            risky |= go && sc.reff[k] > T::zero() && sc.reff[k] < rk * sc.s[k];
+        }
+        !risky || self.downdates_stay_definite(*sc)
     }
 
     #[cold]
@@ -1061,20 +1129,15 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
 
     #[inline(always)]
     fn plan_sqrt(&self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T], ss: &mut Self::SqrtScratch) -> bool {
-        let sc = &mut ss.base;
-        sc.xth = lane_dot(&self.theta, x);
-        let mut ek = [T::zero(); L];
-        for k in 0..L {
-            let zk = z.as_slice().get(self.zrow[k]).copied().unwrap_or_else(T::zero);
-            ek[k] = zk - sc.xth[k];
-        }
-        sc.e = ek;
+        let xth = lane_dot(&self.theta, x);
+        let ek = self.innovations(z, xth);
         put_lanes(e, ek);
-        self.plan_ud(x, ek, ss)
+        self.plan_ud(x, xth, ek, ss)
     }
 
     #[inline(always)]
     fn apply_sqrt(&mut self, ss: &Self::SqrtScratch) {
+        core::sync::atomic::compiler_fence(core::sync::atomic::Ordering::SeqCst);
         self.record::<GENERAL>(&ss.base);
         self.apply_ud(ss);
     }
@@ -1083,19 +1146,14 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
     fn apply<const MODE: u8>(&mut self, x: &SVector<T, N>, sc: &Self::Scratch) {
         core::sync::atomic::compiler_fence(core::sync::atomic::Ordering::SeqCst);
         self.record::<MODE>(sc);
-        if MODE == PLAIN {
+        if const { MODE == PLAIN } {
             self.step_theta(sc);
             self.downdate(sc);
             return;
         }
-        if MODE == FORGET {
+        if const { MODE == FORGET } {
             self.step_theta(sc);
             self.downdate_forget(sc);
-            return;
-        }
-        if MODE == TRACKING {
-            self.step_theta(sc);
-            self.downdate_tracking(sc);
             return;
         }
         match self.form {

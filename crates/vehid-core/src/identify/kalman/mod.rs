@@ -38,11 +38,13 @@
 //! recursive residuals (see [`RowIdentifier`]) for the statistics.
 
 /// Gives an identifier with an `#[inline(always)] fn step(&mut self, x, z, e) -> Result<()>`
-/// its AVX2 copy `step_avx2` and `dispatch`, which runs that copy when `wide` (where it
-/// measured faster) and the CPU has AVX2 (x86-64 with `std`), else the portable `step`.
-/// Both copies compute the same bits (no FMA, fixed summation order; tested).
+/// its AVX2 copy `step_avx2` and `dispatch`, which runs that copy when `$wide` (a constant
+/// expression of the identifier's parameters: where it measured faster) and the CPU has AVX2
+/// (x86-64 with `std`), else the portable `step`. Both copies compute the same bits (no FMA,
+/// fixed summation order; tested). `$wide` is tested in a `const` block, so that the AVX2
+/// copy is not even compiled for the identifiers that never take it.
 macro_rules! avx2_step {
-    () => {
+    ($wide:expr) => {
         /// [`Self::step`] compiled for AVX2 (same arithmetic, wider registers).
         #[cfg(all(feature = "std", target_arch = "x86_64"))]
         #[target_feature(enable = "avx2")]
@@ -50,15 +52,14 @@ macro_rules! avx2_step {
             self.step(x, z, e)
         }
 
-        /// Runs [`Self::step`] in its AVX2 copy when `wide` and the CPU has AVX2, else portable.
+        /// Runs [`Self::step`] in its AVX2 copy when wide and the CPU has AVX2, else portable.
         #[inline(always)]
-        fn dispatch(&mut self, wide: bool, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
+        fn dispatch(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
             #[cfg(all(feature = "std", target_arch = "x86_64"))]
-            if wide && crate::simd::avx2() {
+            if const { $wide } && crate::simd::avx2() {
                 // SAFETY: the CPU supports AVX2 (checked at run time by `simd::avx2`).
                 return unsafe { self.step_avx2(x, z, e) };
             }
-            let _ = wide;
             self.step(x, z, e)
         }
     };

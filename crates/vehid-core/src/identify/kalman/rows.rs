@@ -1,6 +1,6 @@
 //! The decoupled (`rows`) form.
 
-use super::lanes::{finite_probe, RowGroup, FORGET, GENERAL, PLAIN, TRACKING};
+use super::lanes::{finite_probe, RowGroup, FORGET, GENERAL, PLAIN};
 use super::{CovarianceForm, KalmanOptions, RowIdentifier};
 #[cfg(feature = "alloc")]
 use crate::identify::Dynamic;
@@ -276,19 +276,18 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         if e.len() != k {
             return Err(Error::Shape { arg: "e", expected: k, got: e.len() });
         }
-        // AVX2 pays only when a group of lanes fills a 256-bit register (four f64 rows);
-        // narrower groups are faster in the portable build, which fits them exactly.
-        let wide = <S::Group as RowGroup<T, N>>::LANES * core::mem::size_of::<T>() >= 32;
-        self.dispatch(wide, x, z, e)
+        self.dispatch(x, z, e)
     }
 
-    avx2_step!();
+    // AVX2 pays only when a group of lanes fills a 256-bit register (four f64 rows); narrower
+    // groups are faster in the portable build, which fits them exactly.
+    avx2_step!(<S::Group as RowGroup<T, N>>::LANES * core::mem::size_of::<T>() >= 32);
 
     /// The update: plan every group, then apply (a failure anywhere changes nothing).
     #[inline(always)]
     fn step(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
-        // The standard form without options (or with tracking only) first, without the tests
-        // for the others.
+        // The standard form without options (or with exponential forgetting only) first,
+        // without the tests for the others.
         let mode = match self.groups.flat() {
             [g] => g.mode(),
             groups => {
@@ -303,7 +302,6 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         match mode {
             PLAIN => return self.step_standard::<PLAIN>(x, z, e),
             FORGET => return self.step_standard::<FORGET>(x, z, e),
-            TRACKING => return self.step_standard::<TRACKING>(x, z, e),
             _ => {}
         }
         if self.groups.flat().first().is_some_and(|g| g.starting()) {
@@ -352,8 +350,8 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
     }
 
     /// A sample the fast path of [`Self::step`] did not accept at once (the standard and
-    /// Joseph forms): plans it again, names the error if a group refuses it, else (risky
-    /// downdates that stay positive definite) applies it.
+    /// Joseph forms): plans it again; applies it when every group accepts it after a closer
+    /// look (its risky downdates stay positive definite), else names the error.
     #[cold]
     #[inline(never)]
     fn settle(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
@@ -364,7 +362,10 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         if let [grp] = &mut *groups {
             let mut sc = S::Group::scratch();
             grp.plan::<GENERAL>(x, z, e, &mut sc);
-            grp.check(&sc)?;
+            if !grp.accepts(&sc) {
+                grp.check(&sc)?;
+                return Err(OVERFLOW);
+            }
             grp.apply::<GENERAL>(x, &sc);
             return self.accepted(e);
         }
@@ -374,8 +375,11 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
             let hi = (lo + lanes).min(k);
             grp.plan::<GENERAL>(x, z, &mut e[lo..hi], sc);
         }
-        for (grp, sc) in groups.iter().zip(scratch.iter()) {
-            grp.check(sc)?;
+        if !groups.iter().zip(scratch.iter()).all(|(grp, sc)| grp.accepts(sc)) {
+            for (grp, sc) in groups.iter().zip(scratch.iter()) {
+                grp.check(sc)?;
+            }
+            return Err(OVERFLOW);
         }
         for (grp, sc) in groups.iter_mut().zip(scratch.iter()) {
             grp.apply::<GENERAL>(x, sc);
@@ -398,10 +402,8 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
             let mut sc = S::Group::sqrt_scratch();
             ok &= grp.plan_sqrt(x, z, e, &mut sc);
             if !ok {
-                check_sample(x, z)?;
-                let copy = sc; // a reference to `sc` itself would keep it in memory
-                grp.check_sqrt(&copy)?;
-                return Err(OVERFLOW);
+                // Not `check_sqrt(&sc)` here: any reference to the plan would keep it in memory.
+                return self.refused_sqrt(x, z, e);
             }
             grp.apply_sqrt(&sc);
             return self.accepted(e);
@@ -413,16 +415,30 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
             ok &= grp.plan_sqrt(x, z, &mut e[lo..hi], sc);
         }
         if !ok {
-            check_sample(x, z)?;
-            for (grp, sc) in groups.iter().zip(scratch.iter()) {
-                grp.check_sqrt(sc)?;
-            }
-            return Err(OVERFLOW);
+            return self.refused_sqrt(x, z, e);
         }
         for (grp, sc) in groups.iter_mut().zip(scratch.iter()) {
             grp.apply_sqrt(sc);
         }
         self.accepted(e)
+    }
+
+    /// The error of a sample the square-root form refused: plans it again and names the cause.
+    #[cold]
+    #[inline(never)]
+    fn refused_sqrt(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
+        check_sample(x, z)?;
+        let k = e.len();
+        let lanes = <S::Group as RowGroup<T, N>>::LANES;
+        // Every group in order, as before: the first one names the error.
+        for (g, grp) in self.groups.flat().iter().enumerate() {
+            let lo = g * lanes;
+            let hi = (lo + lanes).min(k);
+            let mut sc = S::Group::sqrt_scratch();
+            grp.plan_sqrt(x, z, &mut e[lo..hi], &mut sc);
+            grp.check_sqrt(&sc)?;
+        }
+        Err(OVERFLOW)
     }
 
     /// Exact start: the sample into every group's factorization (all or nothing).

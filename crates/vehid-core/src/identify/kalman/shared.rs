@@ -187,13 +187,12 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
         if e.len() != k {
             return Err(Error::Shape { arg: "e", expected: k, got: e.len() });
         }
-        // AVX2 pays for the half car in f64 (two 256-bit registers per column); for the
-        // quarter car the portable build is faster (measured: 18.8 against 20.5 ns).
-        let wide = N * core::mem::size_of::<T>() > 32;
-        self.dispatch(wide, x, z, e)
+        self.dispatch(x, z, e)
     }
 
-    avx2_step!();
+    // AVX2 pays for the half car in f64 (two 256-bit registers per column); for the quarter
+    // car the portable build is faster (measured: 18.8 against 20.5 ns).
+    avx2_step!(N * core::mem::size_of::<T>() > 32);
 
     /// The update: `g = Q x / s`, `s = 1 + xᵀQx`; `θ_i += g e_i`; `Q −= (Q x) gᵀ` with
     /// entry `(a, b)` taken from the upper triangle (so `Q` stays exactly symmetric).
