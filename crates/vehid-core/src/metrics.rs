@@ -106,8 +106,8 @@ pub fn simulation_fit<T: Real>(measured: &[T], simulated: &[T], n: usize, fit: &
             err += (x - s) * (x - s);
             dev += (x - mean) * (x - mean);
         }
-        rmse[j] = T::of((err / samples as f64).sqrt());
-        fit[j] = T::of(100.0 * (1.0 - (err / dev).sqrt()));
+        rmse[j] = T::of(libm::sqrt(err / samples as f64));
+        fit[j] = T::of(100.0 * (1.0 - libm::sqrt(err / dev)));
     }
     Ok(())
 }
