@@ -1,0 +1,194 @@
+//! The auxiliary model of the refined instrumental variables: a recursive linear predictor of
+//! the current sample from past ones (the first stage of two-stage least squares).
+//!
+//! The best instrument for a regressor `h(k)` is its noise-free part `E[h(k) | past]`
+//! (Söderström & Stoica, *System Identification*, 1989, §8.2: the optimal instruments are the
+//! noise-free regressors; Young's refined IV, *Recursive Estimation and Time-Series
+//! Analysis*, 2nd ed., 2011, Ch. 7, and the SRIVC of Young & Garnier obtain them from an
+//! auxiliary model of the system driven by the measured input). The road input here is never
+//! measured, so the auxiliary model cannot be simulated from it; instead the sample
+//! `s(k) = [r(k); z(k); u(k)]` is predicted from the `lags` samples before `k − d + 1`:
+//!
+//! ```text
+//! q(k) = [s(k−d); s(k−d−1); …; s(k−d−lags+1); 1]        ŝ(k) = Π̂ᵀ q(k)
+//! ```
+//!
+//! with `Π̂` the recursive least-squares fit of `s` on `q` over the samples so far (one
+//! covariance `(Σ q qᵀ)⁻¹` shared by every output, exact start). For a suspension the past
+//! state and its measured derivative carry the road input that moved the state since (through
+//! `B u`), so `ŝ` recovers almost all of the true state's variation, where the delayed state
+//! alone misses the fast wheel mode. The instruments are then `ζ_i(k) = h_i(ŝ(k))`: for
+//! regressors linear in the sample this makes the IV estimate two-stage least squares
+//! (instruments `q`, weighting `(Σ q qᵀ)⁻¹`), asymptotically the most efficient IV estimate
+//! on those instruments. They are valid for the same reasons as the delayed regressors
+//! (`Π̂` at `k` uses samples before `k` only), and invalid under the same coloured noise.
+
+use crate::identify::iv_filter::invert;
+use crate::identify::OVERFLOW;
+use crate::structure::{MAX_INPUTS, MAX_STATES};
+use crate::{Real, Result};
+use nalgebra::SMatrix;
+
+/// Most values of one sample `[r; z; u]`.
+pub const SAMPLE_VALUES: usize = 2 * MAX_STATES + MAX_INPUTS;
+
+/// One planned step of a [`Predictor`]: `P q`, the prediction errors and `1 + qᵀ P q`.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Step<T, const Q: usize> {
+    pq: [T; Q],
+    innov: [T; SAMPLE_VALUES],
+    den: T,
+}
+
+/// The recursive predictor of the current sample (module docs); `Q` bounds the regressors
+/// `lags × (2n + m) + 1`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Predictor<T: Real, const Q: usize> {
+    /// `(Σ q qᵀ)⁻¹`; during the exact start `Σ q qᵀ`.
+    p: SMatrix<T, Q, Q>,
+    /// `Π̂` (regressor × output); during the exact start `Σ q sᵀ`.
+    pi: SMatrix<T, Q, SAMPLE_VALUES>,
+    /// Regressors `L` and outputs in use.
+    dim: u16,
+    outputs: u8,
+    start: bool,
+    count: u64,
+    /// The largest entry of `P` and `Π̂` (for the overflow check).
+    big: T,
+}
+
+impl<T: Real, const Q: usize> Predictor<T, Q> {
+    /// A predictor of `outputs` values from `dim ≤ Q` regressors (exact start).
+    pub(crate) fn new(dim: usize, outputs: usize) -> Self {
+        Self {
+            p: SMatrix::zeros(),
+            pi: SMatrix::zeros(),
+            dim: dim as u16,
+            outputs: outputs as u8,
+            start: true,
+            count: 0,
+            big: T::zero(),
+        }
+    }
+
+    /// `true` until `Σ q qᵀ` is well conditioned (no prediction yet).
+    pub fn starting(&self) -> bool {
+        self.start
+    }
+
+    /// `ŝ = Π̂ᵀ q` into `out` (`outputs` values).
+    #[inline]
+    pub(crate) fn predict(&self, q: &[T], out: &mut [T]) {
+        let d = self.dim as usize;
+        for (j, o) in out.iter_mut().enumerate().take(self.outputs as usize) {
+            *o = (0..d).fold(T::zero(), |acc, a| acc + q[a] * self.pi[(a, j)]);
+        }
+    }
+
+    /// Plans adding the sample `(q, s)` and checks that every entry stays finite (bounds from
+    /// the largest entry so far), so that [`Predictor::apply`] cannot fail: the identifier's
+    /// update stays transactional without a copy of the predictor.
+    ///
+    /// # Errors
+    /// The overflow error naming `r_k`.
+    #[inline]
+    pub(crate) fn plan(&self, q: &[T], s: &[T]) -> Result<Step<T, Q>> {
+        let (d, no) = (self.dim as usize, self.outputs as usize);
+        let amax = |v: &[T]| v.iter().fold(T::zero(), |m, x| m.max(x.abs()));
+        let mut step = Step { pq: [T::zero(); Q], innov: [T::zero(); SAMPLE_VALUES], den: T::one() };
+        let bound = if self.start {
+            let (mq, ms) = (amax(&q[..d]), amax(&s[..no]));
+            mq * mq.max(ms)
+        } else {
+            for a in 0..d {
+                step.pq[a] = (0..d).fold(T::zero(), |acc, b| acc + self.p[(a, b)] * q[b]);
+                step.den += q[a] * step.pq[a];
+            }
+            for j in 0..no {
+                step.innov[j] = s[j] - (0..d).fold(T::zero(), |acc, a| acc + q[a] * self.pi[(a, j)]);
+            }
+            let mpq = amax(&step.pq[..d]);
+            (mpq / step.den.abs()) * mpq.max(amax(&step.innov[..no]))
+        };
+        let quarter = T::biggest() / T::of(4.0);
+        if bound.finite() && step.den.finite() && bound < quarter && self.big < quarter {
+            Ok(step)
+        } else {
+            Err(OVERFLOW)
+        }
+    }
+
+    /// Adds the sample `(q, s)` as planned: recursive least squares with unit weight,
+    /// `g = P q / (1 + qᵀ P q)`, `Π̂ += g (s − Π̂ᵀ q)ᵀ`, `P −= g (P q)ᵀ` (or, during the exact
+    /// start, the sums `Σ q qᵀ`, `Σ q sᵀ`).
+    #[inline]
+    pub(crate) fn apply(&mut self, step: &Step<T, Q>, q: &[T], s: &[T]) {
+        let (d, no) = (self.dim as usize, self.outputs as usize);
+        self.count += 1;
+        let mut big = T::zero();
+        if self.start {
+            for a in 0..d {
+                for b in 0..d {
+                    self.p[(a, b)] += q[a] * q[b];
+                    big = big.max(self.p[(a, b)].abs());
+                }
+                for j in 0..no {
+                    self.pi[(a, j)] += q[a] * s[j];
+                    big = big.max(self.pi[(a, j)].abs());
+                }
+            }
+            self.big = big;
+            if self.count >= d as u64 {
+                self.try_start();
+            }
+            return;
+        }
+        for a in 0..d {
+            let g = step.pq[a] / step.den;
+            for b in 0..d {
+                self.p[(a, b)] -= g * step.pq[b];
+                big = big.max(self.p[(a, b)].abs());
+            }
+            for j in 0..no {
+                self.pi[(a, j)] += g * step.innov[j];
+                big = big.max(self.pi[(a, j)].abs());
+            }
+        }
+        self.big = big;
+    }
+
+    fn try_start(&mut self) {
+        let d = self.dim as usize;
+        let mut w = [T::one(); Q];
+        for a in 0..d {
+            let v = self.p[(a, a)];
+            if !(v > T::zero()) {
+                return;
+            }
+            w[a] = T::one() / v.sqrt();
+        }
+        let mut c = self.p;
+        for a in 0..d {
+            for b in 0..d {
+                c[(a, b)] *= w[a] * w[b];
+            }
+        }
+        let Some(inv) = invert(&c, d) else { return };
+        let mut p = SMatrix::<T, Q, Q>::zeros();
+        for a in 0..d {
+            for b in 0..d {
+                p[(a, b)] = inv[(a, b)] * w[a] * w[b];
+            }
+        }
+        let mut pi = SMatrix::<T, Q, SAMPLE_VALUES>::zeros();
+        for a in 0..d {
+            for j in 0..self.outputs as usize {
+                pi[(a, j)] = (0..d).fold(T::zero(), |acc, b| acc + p[(a, b)] * self.pi[(b, j)]);
+            }
+        }
+        let big = p.iter().chain(pi.iter()).fold(T::zero(), |m, v| m.max(v.abs()));
+        if big.finite() {
+            (self.p, self.pi, self.start, self.big) = (p, pi, false, big);
+        }
+    }
+}
