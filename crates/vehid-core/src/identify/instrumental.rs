@@ -493,8 +493,19 @@ impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> Identifie
     /// no instrument yet: they are stored and their innovations reported, nothing else.
     fn update_into(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
         check_lengths(self.dims(), x, z, u, e)?;
+        // Every value is kept for later samples' instruments, whose products must stay finite:
+        // a value that would overflow when squared is refused now (accepted, it would make
+        // every later sample overflow while it stays in the ring).
+        let limit = T::biggest().sqrt() / T::of(256.0);
         for (arg, v) in [("r_k", x), ("z_k", z), ("u_k", u)] {
             crate::error::check_finite(arg, v)?;
+            if v.iter().any(|a| !(a.abs() < limit)) {
+                return Err(Error::InvalidArgument {
+                    arg,
+                    expected: "values below √(largest float)/256 (about 5e151 in f64, 7e16 in f32), whose squares \
+                               stay finite (rescale the units)",
+                });
+            }
         }
         if !self.ring.full() {
             self.innovations(x, z, u, e)?;
