@@ -343,6 +343,33 @@ fn iv_removes_the_state_noise_bias() {
     assert!(kalman > 4.0 && refined <= 0.15, "{kalman} {refined}");
 }
 
+/// With noise-free states the lagged samples are nearly collinear (the state one step on is
+/// a linear function of the state and its derivative before): the refined instruments'
+/// predictor still starts (a ridge far below the data's scale), and the estimate is then the
+/// least-squares one.
+#[test]
+fn refined_instruments_start_on_noise_free_states() {
+    let car = QuarterCar::<f64>::thesis();
+    let cfg = SimConfig::new(DT).road_sigma(ROAD).deriv_noise(0.005);
+    let mut sim = Simulator::new(car.model(), cfg, 8).unwrap();
+    let mut iv = IvIdentifier::<f64, 4, 2, Q>::full_rows(4, &[1, 3], 1, StructuredPrior::Exact, &[1.0])
+        .unwrap()
+        .with_lags(LAGS)
+        .unwrap();
+    let mut ls = BatchLeastSquares::<f64, 4>::new(&[1, 3]).unwrap();
+    let mut e = [0.0; 2];
+    for _ in 0..4000 {
+        let s = sim.next_sample();
+        iv.update_into(s.r.as_slice(), s.z.as_slice(), &[], &mut e).unwrap();
+        ls.update_into(s.r.as_slice(), s.z.as_slice(), &[], &mut e).unwrap();
+    }
+    assert!(!iv.starting());
+    let (mut a, mut b) = ([0.0; 8], [0.0; 8]);
+    iv.params_into(&mut a).unwrap();
+    ls.params_into(&mut b).unwrap();
+    assert!(xi_rows(&a) < 2.0 * xi_rows(&b) + 1e-3, "IV ξ {} vs LS ξ {}", xi_rows(&a), xi_rows(&b));
+}
+
 /// The IV sandwich covariance (through `estimate_stats`) gives intervals that cover the true
 /// parameter at their level: a scalar errors-in-variables problem over 400 seeds.
 #[test]
@@ -547,4 +574,44 @@ fn must_show_consistency_slope() {
         eprintln!("{name}: median √ξ at 1e4..1e6 {med:.4?}, slope {:.3}", slopes[i]);
     }
     assert!((-0.6..=-0.4).contains(&slopes[0]), "{slopes:?}");
+}
+
+/// Wall-clock ns per update (release; indicative only, criterion has the real figures:
+/// `cargo bench -p vehid-benches --bench identify -- 'quarter/(kalman_rows|structured|iv_|bcls)'`).
+#[test]
+#[ignore]
+fn timing() {
+    use std::time::Instant;
+    use vehid_core::identify::{KalmanOptions, StructuredKalman};
+    let (x, z) = quarter(4096, 8.0, 1);
+    let reps = 50;
+    let mut time = |name: &str, id: &mut dyn Identifier<f64>| {
+        let mut e = [0.0; 2];
+        let t = Instant::now();
+        for _ in 0..reps {
+            for (xk, zk) in x.chunks(4).zip(z.chunks(4)) {
+                let _ = std::hint::black_box(id.update_into(xk, zk, &[], &mut e));
+            }
+        }
+        eprintln!("{name}: {:.0} ns/update", t.elapsed().as_nanos() as f64 / (reps * 4096) as f64);
+    };
+    let r = [1.0, 1.0];
+    time("kalman rows", &mut KalmanIdentifier::<f64, 4, 2>::new([1, 3], 1000.0, r).unwrap());
+    let full = Structure::<f64>::full_rows(4, &[1, 3]).unwrap();
+    let opts = KalmanOptions::default();
+    time(
+        "structured rows",
+        &mut StructuredKalman::<f64, 4, 2>::new(full, StructuredPrior::Scalar(1000.0), None, &r, opts).unwrap(),
+    );
+    time(
+        "iv rows",
+        &mut IvIdentifier::<f64, 4, 2>::full_rows(4, &[1, 3], 1, StructuredPrior::Scalar(1000.0), &r).unwrap(),
+    );
+    let mut refined = IvIdentifier::<f64, 4, 2, Q>::full_rows(4, &[1, 3], 1, StructuredPrior::Exact, &r)
+        .unwrap()
+        .with_lags(LAGS)
+        .unwrap();
+    time("iv rows refined 6", &mut refined);
+    time("iv physical", &mut IvIdentifier::<f64, 2, 2>::exact(*physical().structure(), 1).unwrap());
+    time("bcls rows", &mut BiasCompensatedLs::<f64, 4, 2>::full_rows(4, &[1, 3], &[6.4e-5]).unwrap());
 }

@@ -38,6 +38,22 @@ pub(crate) struct Step<T, const Q: usize> {
     pq: [T; Q],
     innov: [T; SAMPLE_VALUES],
     den: T,
+    /// Bound on how much any entry can grow in this step.
+    grow: T,
+}
+
+/// `Σ a_i b_i`.
+#[inline(always)]
+fn dot<T: Real>(a: &[T], b: &[T]) -> T {
+    a.iter().zip(b).fold(T::zero(), |acc, (&x, &y)| acc + x * y)
+}
+
+/// `y += α x`.
+#[inline(always)]
+fn axpy<T: Real>(alpha: T, x: &[T], y: &mut [T]) {
+    for (yi, &xi) in y.iter_mut().zip(x) {
+        *yi += alpha * xi;
+    }
 }
 
 /// The recursive predictor of the current sample (module docs); `Q` bounds the regressors
@@ -53,7 +69,7 @@ pub struct Predictor<T: Real, const Q: usize> {
     outputs: u8,
     start: bool,
     count: u64,
-    /// The largest entry of `P` and `Π̂` (for the overflow check).
+    /// An upper bound of the largest entry of `P` and `Π̂` (for the overflow check).
     big: T,
 }
 
@@ -81,7 +97,7 @@ impl<T: Real, const Q: usize> Predictor<T, Q> {
     pub(crate) fn predict(&self, q: &[T], out: &mut [T]) {
         let d = self.dim as usize;
         for (j, o) in out.iter_mut().enumerate().take(self.outputs as usize) {
-            *o = (0..d).fold(T::zero(), |acc, a| acc + q[a] * self.pi[(a, j)]);
+            *o = dot(&self.pi.as_slice()[j * Q..j * Q + d], &q[..d]);
         }
     }
 
@@ -95,23 +111,26 @@ impl<T: Real, const Q: usize> Predictor<T, Q> {
     pub(crate) fn plan(&self, q: &[T], s: &[T]) -> Result<Step<T, Q>> {
         let (d, no) = (self.dim as usize, self.outputs as usize);
         let amax = |v: &[T]| v.iter().fold(T::zero(), |m, x| m.max(x.abs()));
-        let mut step = Step { pq: [T::zero(); Q], innov: [T::zero(); SAMPLE_VALUES], den: T::one() };
-        let bound = if self.start {
+        let mut step = Step { pq: [T::zero(); Q], innov: [T::zero(); SAMPLE_VALUES], den: T::one(), grow: T::zero() };
+        let grow = if self.start {
             let (mq, ms) = (amax(&q[..d]), amax(&s[..no]));
             mq * mq.max(ms)
         } else {
-            for a in 0..d {
-                step.pq[a] = (0..d).fold(T::zero(), |acc, b| acc + self.p[(a, b)] * q[b]);
-                step.den += q[a] * step.pq[a];
+            // P q by columns (P is symmetric and stored column-major).
+            let p = self.p.as_slice();
+            for b in 0..d {
+                axpy(q[b], &p[b * Q..b * Q + d], &mut step.pq[..d]);
             }
+            step.den = T::one() + dot(&q[..d], &step.pq[..d]);
             for j in 0..no {
-                step.innov[j] = s[j] - (0..d).fold(T::zero(), |acc, a| acc + q[a] * self.pi[(a, j)]);
+                step.innov[j] = s[j] - dot(&self.pi.as_slice()[j * Q..j * Q + d], &q[..d]);
             }
             let mpq = amax(&step.pq[..d]);
             (mpq / step.den.abs()) * mpq.max(amax(&step.innov[..no]))
         };
+        step.grow = grow;
         let quarter = T::biggest() / T::of(4.0);
-        if bound.finite() && step.den.finite() && bound < quarter && self.big < quarter {
+        if grow.finite() && step.den.finite() && grow < quarter && self.big + grow < quarter {
             Ok(step)
         } else {
             Err(OVERFLOW)
@@ -120,58 +139,58 @@ impl<T: Real, const Q: usize> Predictor<T, Q> {
 
     /// Adds the sample `(q, s)` as planned: recursive least squares with unit weight,
     /// `g = P q / (1 + qᵀ P q)`, `Π̂ += g (s − Π̂ᵀ q)ᵀ`, `P −= g (P q)ᵀ` (or, during the exact
-    /// start, the sums `Σ q qᵀ`, `Σ q sᵀ`).
+    /// start, the sums `Σ q qᵀ`, `Σ q sᵀ`). Every operation is a column sweep.
     #[inline]
     pub(crate) fn apply(&mut self, step: &Step<T, Q>, q: &[T], s: &[T]) {
         let (d, no) = (self.dim as usize, self.outputs as usize);
         self.count += 1;
-        let mut big = T::zero();
+        // An upper bound of the largest entry (exact again at the start's end).
+        self.big += step.grow;
         if self.start {
-            for a in 0..d {
-                for b in 0..d {
-                    self.p[(a, b)] += q[a] * q[b];
-                    big = big.max(self.p[(a, b)].abs());
-                }
-                for j in 0..no {
-                    self.pi[(a, j)] += q[a] * s[j];
-                    big = big.max(self.pi[(a, j)].abs());
-                }
+            let p = self.p.as_mut_slice();
+            for b in 0..d {
+                axpy(q[b], &q[..d], &mut p[b * Q..b * Q + d]);
             }
-            self.big = big;
+            let pi = self.pi.as_mut_slice();
+            for j in 0..no {
+                axpy(s[j], &q[..d], &mut pi[j * Q..j * Q + d]);
+            }
             if self.count >= d as u64 {
                 self.try_start();
             }
             return;
         }
-        for a in 0..d {
-            let g = step.pq[a] / step.den;
-            for b in 0..d {
-                self.p[(a, b)] -= g * step.pq[b];
-                big = big.max(self.p[(a, b)].abs());
-            }
-            for j in 0..no {
-                self.pi[(a, j)] += g * step.innov[j];
-                big = big.max(self.pi[(a, j)].abs());
-            }
+        let p = self.p.as_mut_slice();
+        for b in 0..d {
+            axpy(-step.pq[b] / step.den, &step.pq[..d], &mut p[b * Q..b * Q + d]);
         }
-        self.big = big;
+        let pi = self.pi.as_mut_slice();
+        for j in 0..no {
+            axpy(step.innov[j] / step.den, &step.pq[..d], &mut pi[j * Q..j * Q + d]);
+        }
     }
 
+    /// Ends the exact start once every regressor has been seen `dim` times: `P = (Σ q qᵀ + δ
+    /// D²)⁻¹` with `D² = diag(Σ q qᵀ)` and `δ = 16 √ε d`, a ridge far below the data's scale.
+    /// Lagged samples of a nearly noise-free system are nearly collinear (the state one step
+    /// on is a linear function of the state and input before), and the predictor needs to be
+    /// good, not exact: without the ridge it could wait forever. Any predictor built from past
+    /// samples gives valid instruments.
     fn try_start(&mut self) {
         let d = self.dim as usize;
         let mut w = [T::one(); Q];
         for a in 0..d {
             let v = self.p[(a, a)];
-            if !(v > T::zero()) {
-                return;
+            if v > T::zero() {
+                w[a] = T::one() / v.sqrt();
             }
-            w[a] = T::one() / v.sqrt();
         }
         let mut c = self.p;
         for a in 0..d {
             for b in 0..d {
                 c[(a, b)] *= w[a] * w[b];
             }
+            c[(a, a)] += T::of(16.0) * T::default_epsilon().sqrt() * T::of(d as f64);
         }
         let Some(inv) = invert(&c, d) else { return };
         let mut p = SMatrix::<T, Q, Q>::zeros();

@@ -62,7 +62,6 @@ pub use interface::{Dims, FitError, Identifier, SampleIter, Samples, FIT_STACK_E
 #[cfg(feature = "alloc")]
 pub use interface::{DynIdentifier, FitOptions};
 pub use iv_filter::IvFilter;
-pub use iv_predictor::{Predictor, SAMPLE_VALUES};
 #[cfg(feature = "alloc")]
 pub use kalman::{
     boxed_kalman, FullKalmanIdentifierVec, KalmanIdentifierVec, KalmanIdentifierVec2, KalmanSpec, Prior,
