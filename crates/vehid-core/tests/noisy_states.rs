@@ -585,7 +585,7 @@ fn timing() {
     use vehid_core::identify::{KalmanOptions, StructuredKalman};
     let (x, z) = quarter(4096, 8.0, 1);
     let reps = 50;
-    let mut time = |name: &str, id: &mut dyn Identifier<f64>| {
+    let time = |name: &str, id: &mut dyn Identifier<f64>| {
         let mut e = [0.0; 2];
         let t = Instant::now();
         for _ in 0..reps {
