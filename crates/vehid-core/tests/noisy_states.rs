@@ -473,11 +473,11 @@ impl ToF32 for [f64] {
 /// | σ_w (% of σ_u) | method | median ξ | worst ξ | within the bound |
 /// |---|---|---|---|---|
 /// | 32 | physical structure + IV, delayed regressors | 0.0059 | 0.0438 | 20/20 (ξ ≤ 0.08) |
-/// | 32 | physical structure + IV, refined (6 lags) | 0.0004 | 0.0092 | 20/20 |
+/// | 32 | physical structure + IV, refined (6 lags) | 0.0003 | 0.0022 | 20/20 |
 /// | 32 | physical structure + BCLS (Σ_w, Σ_v known) | 0.0013 | 0.0182 | 20/20 |
 /// | 32 | full rows, Kalman (thesis) | 5.82 | 5.96 | 0/20 |
 /// | 8 | full rows + IV, delayed regressors | 0.146 | 1.21 | 10/20 (ξ ≤ 0.15) |
-/// | 8 | full rows + IV, refined (6 lags) | 0.0218 | 0.537 | 15/20 |
+/// | 8 | full rows + IV, refined (6 lags) | 0.0273 | 0.542 | 17/20 |
 /// | 8 | full rows + BCLS (Σ_w known) | 0.0783 | 1.42 | 14/20 |
 /// | 8 | full rows, Kalman (thesis) | 4.83 | 5.29 | 0/20 |
 ///
@@ -523,10 +523,10 @@ fn must_show_xi_over_seeds() {
 
 /// Must-show consistency (issue 15): the full rows' error √ξ (median over seeds 1100–1109)
 /// falls like 1/√N from 10⁴ to 10⁶ samples at 8 % state noise. Measured log-log slopes of
-/// the median (release, seeds 1100–1109): full rows refined IV −0.583 (median √ξ 0.444,
-/// 0.379, 0.178, 0.111, 0.029 at 10⁴, 10^4.5, …, 10⁶), full rows delayed-regressor IV
+/// the median (release, seeds 1100–1109): full rows refined IV −0.576 (median √ξ 0.429,
+/// 0.369, 0.171, 0.117, 0.028 at 10⁴, 10^4.5, …, 10⁶), full rows delayed-regressor IV
 /// −0.630 (0.869 … 0.045: steeper, its 10⁴-sample error is inflated by weak instruments),
-/// physical structure refined −0.524 (0.033 … 0.0031). On seeds 200–209 (used while
+/// physical structure refined −0.525 (0.033 … 0.0031). On seeds 200–209 (used while
 /// developing): −0.52, −0.49, −0.46. The assertion is on the refined full rows.
 ///
 /// Run: `cargo test -p vehid-core --release --test noisy_states -- --ignored --nocapture slope`

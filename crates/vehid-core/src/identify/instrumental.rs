@@ -224,8 +224,9 @@ impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> Instrumen
     /// An IV identifier of `structure`'s parameters with instruments delayed by `delay ≥ 1`
     /// samples, prior `p0` ([`StructuredPrior::Exact`]: batch IV on the first samples, then
     /// recursive; otherwise `P(0)` as given, with prior mean `theta0`, `None`: 0), and equation
-    /// variances `r` (one, or one per identified equation; > 0; they weigh equations that share
-    /// parameters and, with a prior, the prior against the data).
+    /// variances `r` (one, or one per identified equation; > 0; in the units of the equation's
+    /// measured derivative, squared; they weigh equations that share parameters and, with a
+    /// prior, `r/p0` weighs the prior against the data, as for [`super::Structured`]).
     ///
     /// # Errors
     /// [`Error::NotIdentifiable`] for an unused or confounded parameter; [`Error::Capacity`]
