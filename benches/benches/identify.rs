@@ -285,6 +285,41 @@ fn structured(c: &mut Criterion) {
     );
 }
 
+/// Noisy state sensors (issue 15): recursive IV on the quarter car's full rows (8 parameters
+/// in two groups of 4: compare with `quarter/kalman_rows`), with the refined instruments'
+/// predictor (6 lags: a 49-regressor least-squares predictor per sample), on the physical
+/// structure, and the bias-compensated sums.
+fn noisy_states(c: &mut Criterion) {
+    use vehid_core::identify::{BiasCompensatedLs, IvIdentifier, StructuredPrior};
+    let q = QuarterCar::<f64>::thesis();
+    let data = samples(q.model());
+    let mut e = [0.0; 2];
+    let mut iv =
+        IvIdentifier::<f64, 4, 2>::full_rows(4, &q.unknown_rows(), 1, StructuredPrior::Scalar(1000.0), &[1.0]).unwrap();
+    let mut update = |x: &SVector<f64, 4>, z: &SVector<f64, 4>| {
+        let _ = black_box(iv.update_into(x.as_slice(), z.as_slice(), &[], &mut e));
+    };
+    bench_updates(c, "update_f64", &data, &mut update, "quarter/iv_rows");
+    let mut iv = IvIdentifier::<f64, 4, 2, 49>::full_rows(4, &q.unknown_rows(), 1, StructuredPrior::Exact, &[1.0])
+        .and_then(|id| id.with_lags(6))
+        .unwrap();
+    let mut update = |x: &SVector<f64, 4>, z: &SVector<f64, 4>| {
+        let _ = black_box(iv.update_into(x.as_slice(), z.as_slice(), &[], &mut e));
+    };
+    bench_updates(c, "update_f64", &data, &mut update, "quarter/iv_rows_refined6");
+    let ph = QuarterCar::<f64>::structure([None, Some(1.0), None, None, None]).unwrap();
+    let mut iv = IvIdentifier::<f64, 2, 2>::exact(*ph.structure(), 1).unwrap();
+    let mut update = |x: &SVector<f64, 4>, z: &SVector<f64, 4>| {
+        let _ = black_box(iv.update_into(x.as_slice(), z.as_slice(), &[], &mut e));
+    };
+    bench_updates(c, "update_f64", &data, &mut update, "quarter/iv_physical");
+    let mut bc = BiasCompensatedLs::<f64, 4, 2>::full_rows(4, &q.unknown_rows(), &[6.4e-5]).unwrap();
+    let mut update = |x: &SVector<f64, 4>, z: &SVector<f64, 4>| {
+        let _ = black_box(bc.update_into(x.as_slice(), z.as_slice(), &[], &mut e));
+    };
+    bench_updates(c, "update_f64", &data, &mut update, "quarter/bcls_rows");
+}
+
 fn batch_least_squares(c: &mut Criterion) {
     let q = QuarterCar::<f64>::thesis();
     let data = samples(q.model());
@@ -327,5 +362,5 @@ fn config() -> Criterion {
         .sample_size(30)
 }
 
-criterion_group! { name = benches; config = config(); targets = identifiers, structured, batch_least_squares, simulator }
+criterion_group! { name = benches; config = config(); targets = identifiers, structured, noisy_states, batch_least_squares, simulator }
 criterion_main!(benches);

@@ -17,8 +17,10 @@ from . import reproduce
 from ._vehid import (
     AxleSampler,
     BatchLeastSquares,
+    BiasCompensated,
     HalfCar,
     Identifier,
+    IVIdentifier,
     KalmanIdentifier,
     LinearModel,
     QuarterCar,
@@ -38,7 +40,9 @@ from ._vehid import (
 __all__ = [
     "AxleSampler",
     "BatchLeastSquares",
+    "BiasCompensated",
     "HalfCar",
+    "IVIdentifier",
     "Identifier",
     "KalmanIdentifier",
     "LinearModel",

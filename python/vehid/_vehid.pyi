@@ -21,6 +21,8 @@ __all__ = [
     "StochasticGradient",
     "BatchLeastSquares",
     "TwoAxleIdentifier",
+    "IVIdentifier",
+    "BiasCompensated",
     "AxleSampler",
     "Structure",
     "Stats",
@@ -294,6 +296,37 @@ class BatchLeastSquares(Identifier):
     def clear(self) -> None: ...
     def remove(self, index: int) -> None: ...
 
+@final
+class IVIdentifier(Identifier):
+    """Recursive instrumental variables: consistent with white noise on the measured state."""
+
+    def __new__(
+        cls,
+        model: Union[LinearModel, Structure],
+        delay: int = 1,
+        lags: Optional[int] = None,
+        p0: Optional[Union[str, _Floats]] = None,
+        r: Optional[_Floats] = None,
+        *,
+        theta0: Optional[ArrayLike] = None,
+    ) -> IVIdentifier: ...
+    @property
+    def delay(self) -> int: ...
+    @property
+    def lags(self) -> int: ...
+
+@final
+class BiasCompensated(Identifier):
+    """Bias-compensated least squares (XᵀX − N Σ_w)⁻¹ Xᵀz with a known sensor-noise covariance."""
+
+    def __new__(
+        cls,
+        model: Union[LinearModel, Structure],
+        state_noise_var: _Floats,
+        deriv_noise_var: Optional[_Floats] = None,
+        r: Optional[_Floats] = None,
+    ) -> BiasCompensated: ...
+
 def xi(theta: ArrayLike, theta_hat: ArrayLike) -> float: ...
 @overload
 def snr_db(signal_std: float, noise_std: float) -> float: ...
@@ -411,7 +444,7 @@ class Structure:
         samples: Optional[int] = None,
         substeps: int = 10,
     ) -> NDArray[np.float64]: ...
-    def __eq__(self, other: object) -> bool: ...
+    def __eq__(self, value: object, /) -> bool: ...
     def __reduce__(self) -> Tuple[Any, ...]: ...
 
 @final

@@ -12,6 +12,7 @@ mod dispatch;
 mod guard;
 mod identify;
 mod model;
+mod noisy;
 mod persist;
 mod reproduce;
 mod sim;
@@ -111,6 +112,8 @@ fn _vehid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<identify::PyStochasticGradient>()?;
     m.add_class::<identify::PyBatchLeastSquares>()?;
     m.add_class::<two_axle::PyTwoAxleIdentifier>()?;
+    m.add_class::<noisy::PyIVIdentifier>()?;
+    m.add_class::<noisy::PyBiasCompensated>()?;
     m.add_class::<two_axle::PyAxleSampler>()?;
     m.add_class::<structure::PyStructure>()?;
     m.add_class::<stats::PyStats>()?;

@@ -6,6 +6,8 @@
 //! | [`KalmanIdentifier`] (decoupled rows), [`SharedKalmanIdentifier`], [`FullKalmanIdentifier`] | Eq 4.3–4.7, 4.35–4.36, 6.16–6.18 | `kalman/` |
 //! | [`StochasticGradient`] | Eq 2.56, 5.2–5.18 | `gradient.rs` |
 //! | [`Structured`] (any [`crate::structure::Structure`]: grey-box models linear in their parameters) | Eq 2.2–2.4, 6.16–6.18 | `structured.rs` |
+//! | [`InstrumentalVariables`] (noisy measured states: instruments = regressors `delay` samples earlier) | Söderström & Stoica §8 | `instrumental.rs`, `iv_filter.rs` |
+//! | [`BiasCompensated`] (noisy measured states, known noise covariance: `(XᵀX − N Σ_w)⁻¹ Xᵀz`) | Söderström 2007 §4.3 | `bias_compensated.rs` |
 //! | [`TwoAxleIdentifier`] (two axles on one road: plain, Eq 6.14, road cancellation) | Eq 6.9, 6.12–6.14 | `two_axle.rs` |
 //!
 //! All of them regress the measured derivative of each unknown row on the measured state:
@@ -30,10 +32,14 @@
 //! rows and shared updates also have an AVX2 copy chosen at run time ([`crate::simd`]). Every
 //! path computes the same bits. Measured figures and how to reproduce them: `benches/README.md`.
 
+mod bias_compensated;
 #[cfg(feature = "alloc")]
 mod estimate_stats;
 mod gradient;
+mod instrumental;
 mod interface;
+mod iv_filter;
+mod iv_predictor;
 mod kalman;
 mod least_squares;
 mod store;
@@ -42,13 +48,20 @@ mod structured_gradient;
 mod two_axle;
 
 #[cfg(feature = "alloc")]
+pub use bias_compensated::BiasCompensatedVec;
+pub use bias_compensated::{BcGroup, BiasCompensated, BiasCompensatedLs};
+#[cfg(feature = "alloc")]
 pub use estimate_stats::{estimate_stats, EstimateStats};
 #[cfg(feature = "alloc")]
 pub use gradient::StochasticGradientVec;
 pub use gradient::{Gain, GainKind, GradientCore, StochasticGradient};
+#[cfg(feature = "alloc")]
+pub use instrumental::IvIdentifierVec;
+pub use instrumental::{InstrumentalVariables, IvIdentifier, RING_VALUES};
 pub use interface::{Dims, FitError, Identifier, SampleIter, Samples, FIT_STACK_EQUATIONS};
 #[cfg(feature = "alloc")]
 pub use interface::{DynIdentifier, FitOptions};
+pub use iv_filter::IvFilter;
 #[cfg(feature = "alloc")]
 pub use kalman::{
     boxed_kalman, FullKalmanIdentifierVec, KalmanIdentifierVec, KalmanIdentifierVec2, KalmanSpec, Prior,

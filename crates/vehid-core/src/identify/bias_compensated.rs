@@ -1,0 +1,427 @@
+//! Bias-compensated least squares (BCLS) with a known sensor-noise covariance.
+//!
+//! With noise on the measured state (`r = x + w`, `w ~ (0, Σ_w)`, white), least squares on
+//! `y_i = h_iᵀ p + ε_i` converges to `(E[h hᵀ])⁻¹ E[h y]`, in which the noise adds
+//! `E[h̃ h̃ᵀ] = S Σ Sᵀ` (`h̃ = S η` the noise part of the regressor) and `E[h̃ ỹ] = S Σ g` (the
+//! part shared with the output): the attenuation bias of the thesis' Eq 2.20. Subtracting both
+//! (Söderström, "Errors-in-variables methods in system identification", *Automatica* 43,
+//! 2007, §4.3; Stoica & Söderström, *Int. J. Control* 35, 1982; the thesis' own `[I + R Σ_N]`
+//! of Eq 5.2–5.6 is the same correction in its stochastic-gradient form):
+//!
+//! ```text
+//! θ̂_BCLS = (Σ_k h hᵀ − N S Σ Sᵀ)⁻¹ (Σ_k h y − N S Σ g)
+//! ```
+//!
+//! — for the thesis' full rows `h = r`, `S = I`, `g = 0`: `θ̂ = (XᵀX − N Σ_w)⁻¹ Xᵀz` row by row.
+//! The identifier accumulates `Σ h hᵀ` and `Σ h y` per parameter group (allocation-free, no
+//! stored samples, `O(d²)` per equation and sample) and solves when the estimate is read
+//! (`O(d³)`, Cholesky). It is consistent when `Σ` is right; a `Σ` too large makes the
+//! corrected matrix indefinite ([`Error::Singular`]), too small leaves part of the bias.
+//!
+//! # What it supports
+//! The noise vector is `η = [w; v]`: state noise `w` (covariance `Σ_w`, n × n) and derivative
+//! noise `v` (`Σ_v`, default 0), independent of each other and white from sample to sample.
+//! Every term's basis function must be *linear* in the noisy variables: a state, `der(·)` of a
+//! state, a measured input (taken as exact), an offset; `sign`, `pos`, `neg` only of
+//! noise-free variables (a nonlinear function of a noisy state has a bias that depends on
+//! the unknown true state: refused with [`Error::Unsupported`]; use instrumental variables).
+//! Known (parameter-free) terms may read noisy variables: their noise enters `g`. This covers
+//! the full rows of any linear model (with `Σ_w`) and the vehicles' physical structures (the
+//! quarter car's wheel equation reads `der(vb)`: give `Σ_v` too).
+//!
+//! `Σ` estimated from the data is not implemented (it needs more equations than parameters
+//! or a noise model: Söderström 2007 §4.3); nor is a covariance of the estimate (the
+//! errors-in-variables sandwich needs fourth moments of the regressors): use
+//! [`super::InstrumentalVariables`] for standard errors.
+
+use super::instrumental::{equation_weights, local_regression};
+use super::interface::check_lengths;
+use super::{Dims, Flat, Identifier, OVERFLOW};
+use crate::linalg::{cholesky_in_place, cholesky_solve};
+use crate::structure::{Basis, Partition, Structure, Var, MAX_EQUATIONS, MAX_STATES};
+use crate::{Error, Real, Result};
+use nalgebra::{SMatrix, SVector};
+
+/// The noise variables: `n` states then `n` derivatives.
+const ETA: usize = 2 * MAX_STATES;
+
+/// One parameter group's sums and noise correction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BcGroup<T: Real, const P: usize> {
+    /// `Σ h hᵀ`, `Σ h y` (rows weighted by `√(r_g/r_i)`).
+    a: SMatrix<T, P, P>,
+    b: SVector<T, P>,
+    /// Per sample: `Σ_i w_i² S_i Σ S_iᵀ` and `Σ_i w_i² S_i Σ g_i`.
+    c: SMatrix<T, P, P>,
+    d: SVector<T, P>,
+    dim: u8,
+    count: u64,
+}
+
+/// Bias-compensated least squares on a [`Structure`] over group storage `F` (module docs):
+/// [`BiasCompensatedLs`] (arrays, no allocation) or [`BiasCompensatedVec`] (heap).
+#[derive(Debug, Clone)]
+pub struct BiasCompensated<T: Real, const P: usize, F: Flat<BcGroup<T, P>>> {
+    structure: Structure<T>,
+    part: Partition,
+    groups: F,
+    backup: F,
+    rows: [usize; MAX_EQUATIONS],
+    r: [T; MAX_EQUATIONS],
+    scale: [T; MAX_EQUATIONS],
+    samples: u64,
+}
+
+/// [`BiasCompensated`] with its `G` groups in an array: no allocation.
+pub type BiasCompensatedLs<T, const P: usize, const G: usize> = BiasCompensated<T, P, [BcGroup<T, P>; G]>;
+
+/// [`BiasCompensated`] with its groups in a `Vec` sized at construction (requires `alloc`).
+#[cfg(feature = "alloc")]
+pub type BiasCompensatedVec<T, const P: usize> = BiasCompensated<T, P, alloc::vec::Vec<BcGroup<T, P>>>;
+
+/// A noise covariance given as one variance (every component), one per component, or the
+/// full `n × n` matrix (row-major), into `out` at offset `at`.
+fn noise_block<T: Real>(arg: &'static str, v: &[T], n: usize, at: usize, out: &mut [[T; ETA]; ETA]) -> Result<()> {
+    crate::error::check_finite(arg, v)?;
+    match v.len() {
+        0 => {}
+        1 => (0..n).for_each(|j| out[at + j][at + j] = v[0]),
+        k if k == n => (0..n).for_each(|j| out[at + j][at + j] = v[j]),
+        k if k == n * n => {
+            for a in 0..n {
+                for b in 0..n {
+                    out[at + a][at + b] = v[a * n + b];
+                }
+            }
+        }
+        k => return Err(Error::Shape { arg, expected: n, got: k }),
+    }
+    for a in 0..n {
+        if out[at + a][at + a] < T::zero() {
+            return Err(Error::InvalidArgument { arg, expected: "variances >= 0" });
+        }
+        for b in 0..n {
+            let (x, y) = (out[at + a][at + b], out[at + b][at + a]);
+            let bound = (out[at + a][at + a] * out[at + b][at + b]).sqrt();
+            if (x - y).abs() > T::default_epsilon() * T::of(16.0) * (x.abs() + y.abs())
+                || x.abs() > bound * T::of(1.0 + 1e-12)
+            {
+                return Err(Error::InvalidArgument {
+                    arg,
+                    expected: "a covariance matrix: symmetric, |Σ_ab| ≤ √(Σ_aa Σ_bb)",
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
+impl<T: Real, const P: usize, F: Flat<BcGroup<T, P>>> BiasCompensated<T, P, F> {
+    /// A BCLS identifier of `structure`'s parameters for state-noise covariance
+    /// `state_noise_var` (`Σ_w`, state units²: one variance, one per state, or `n × n`
+    /// row-major), derivative-noise covariance `deriv_noise_var` (`Σ_v`, (state units/s)²;
+    /// empty: 0) and equation variances `r` (one or one per equation; they only weigh
+    /// equations that share parameters).
+    ///
+    /// # Errors
+    /// [`Error::NotIdentifiable`] for an unused or confounded parameter; [`Error::Capacity`]
+    /// for a group over `P` parameters or groups `F` cannot hold; [`Error::Unsupported`] for a
+    /// `sign`/`pos`/`neg` term of a noisy variable; [`Error::Shape`] / [`Error::InvalidArgument`]
+    /// naming `state_noise_var`, `deriv_noise_var` or `r`.
+    pub fn new(structure: Structure<T>, state_noise_var: &[T], deriv_noise_var: &[T], r: &[T]) -> Result<Self> {
+        structure.check_identifiable()?;
+        let part = structure.partition();
+        let (n, ne, ng) = (structure.states(), structure.equations(), part.groups as usize);
+        if part.largest() > P {
+            return Err(Error::Capacity { arg: "P", needed: part.largest(), capacity: P });
+        }
+        if state_noise_var.is_empty() {
+            return Err(Error::Shape { arg: "state_noise_var", expected: n, got: 0 });
+        }
+        let mut sigma = [[T::zero(); ETA]; ETA];
+        noise_block("state_noise_var", state_noise_var, n, 0, &mut sigma)?;
+        noise_block("deriv_noise_var", deriv_noise_var, n, n, &mut sigma)?;
+        let (r_all, scale, _) = equation_weights(&part, ne, r)?;
+        let zero = BcGroup {
+            a: SMatrix::zeros(),
+            b: SVector::zeros(),
+            c: SMatrix::zeros(),
+            d: SVector::zeros(),
+            dim: 0,
+            count: 0,
+        };
+        let mut groups = F::filled("groups", ng, zero)?;
+        for (g, grp) in groups.flat_mut().iter_mut().enumerate() {
+            grp.dim = part.size[g];
+        }
+        let noisy = |v: Var| match v {
+            Var::State(j) => Some(j as usize),
+            Var::Deriv(j) => Some(n + j as usize),
+            Var::Input(_) => None,
+        };
+        for i in 0..ne {
+            let w = scale[i];
+            // Noise sensitivities of the regressor (S: local parameter × η) and of the output (g).
+            let mut s = [[T::zero(); ETA]; MAX_PARAMS_LOCAL];
+            let mut gy = [T::zero(); ETA];
+            gy[n + structure.equation_state(i)] = w;
+            for t in structure.terms(i) {
+                let mut sens = [T::zero(); ETA];
+                match t.basis {
+                    Basis::One => {}
+                    Basis::Var(v) => {
+                        if let Some(k) = noisy(v) {
+                            sens[k] = T::one();
+                        }
+                    }
+                    Basis::Sign { start, len } | Basis::Pos { start, len } | Basis::Neg { start, len } => {
+                        let reads_noise = structure
+                            .combination(start, len)
+                            .iter()
+                            .any(|&(v, _)| noisy(v).is_some_and(|k| sigma[k][k] > T::zero()));
+                        if reads_noise {
+                            return Err(Error::Unsupported {
+                                what: "bias compensation of a sign/pos/neg term of a noisy state or derivative (its \
+                                       bias depends on the unknown true state): use instrumental variables",
+                            });
+                        }
+                    }
+                }
+                match t.param {
+                    Some(p) => {
+                        let l = part.local[p as usize] as usize;
+                        for k in 0..2 * n {
+                            s[l][k] += w * t.coef * sens[k];
+                        }
+                    }
+                    None => {
+                        for k in 0..2 * n {
+                            gy[k] -= w * t.coef * sens[k];
+                        }
+                    }
+                }
+            }
+            let grp = &mut groups.flat_mut()[part.group_of_eq[i] as usize];
+            let d = grp.dim as usize;
+            for a in 0..d {
+                // (S Σ)_a·
+                let mut sa = [T::zero(); ETA];
+                for k in 0..2 * n {
+                    sa[k] = (0..2 * n).fold(T::zero(), |acc, l| acc + s[a][l] * sigma[l][k]);
+                }
+                for b in 0..d {
+                    grp.c[(a, b)] += (0..2 * n).fold(T::zero(), |acc, k| acc + sa[k] * s[b][k]);
+                }
+                grp.d[a] += (0..2 * n).fold(T::zero(), |acc, k| acc + sa[k] * gy[k]);
+            }
+        }
+        for grp in groups.flat() {
+            if !(grp.c.iter().chain(grp.d.iter()).all(|v| v.finite())) {
+                return Err(Error::InvalidArgument {
+                    arg: "state_noise_var",
+                    expected: "variances small enough that the noise correction stays finite (rescale the units)",
+                });
+            }
+        }
+        let mut rows = [0usize; MAX_EQUATIONS];
+        for (i, st) in structure.equation_states().enumerate() {
+            rows[i] = st;
+        }
+        Ok(Self { structure, part, backup: groups.clone(), groups, rows, r: r_all, scale, samples: 0 })
+    }
+
+    /// The thesis' full unknown rows of an `n`-state linear model with state-noise
+    /// covariance `state_noise_var` (one, `n`, or `n × n` values): `θ̂ = (XᵀX − N Σ_w)⁻¹ Xᵀz`
+    /// per row.
+    ///
+    /// # Errors
+    /// As [`Structure::full_rows`] and [`BiasCompensated::new`].
+    pub fn full_rows(n: usize, rows: &[usize], state_noise_var: &[T]) -> Result<Self> {
+        Self::new(Structure::full_rows(n, rows)?, state_noise_var, &[], &[T::one()])
+    }
+
+    /// The structure identified.
+    pub fn structure(&self) -> &Structure<T> {
+        &self.structure
+    }
+
+    /// Group `g`'s per-sample noise correction `(Σ_i w_i² S_i Σ S_iᵀ, Σ_i w_i² S_i Σ g_i)`.
+    pub fn correction(&self, g: usize) -> (&SMatrix<T, P, P>, &SVector<T, P>) {
+        let grp = &self.groups.flat()[g];
+        (&grp.c, &grp.d)
+    }
+
+    /// Group `g`'s estimate into `out` (its `dim` leading entries).
+    fn solve(&self, g: usize) -> Result<SVector<T, P>> {
+        let grp = &self.groups.flat()[g];
+        let d = grp.dim as usize;
+        let nn = T::of(grp.count as f64);
+        let mut m = SMatrix::<T, P, P>::identity();
+        let mut a = SMatrix::<T, P, P>::identity();
+        let mut v = SVector::<T, P>::zeros();
+        for i in 0..d {
+            for j in 0..d {
+                a[(i, j)] = grp.a[(i, j)];
+                m[(i, j)] = grp.a[(i, j)] - nn * grp.c[(i, j)];
+            }
+            v[i] = grp.b[i] - nn * grp.d[i];
+        }
+        // Equilibrate by diag(Σ h hᵀ)^{-1/2} before judging definiteness.
+        let mut w = SVector::<T, P>::repeat(T::one());
+        for i in 0..d {
+            let x = a[(i, i)];
+            if !(x > T::zero()) {
+                return Err(Error::RankDeficient { rank: 0, needed: d });
+            }
+            w[i] = T::one() / x.sqrt();
+        }
+        // Cholesky factors of the equilibrated leading blocks (row-major d × d).
+        let factor = |x: &SMatrix<T, P, P>| {
+            let mut f = [T::zero(); MAX_PARAMS_LOCAL * MAX_PARAMS_LOCAL];
+            for i in 0..d {
+                for j in 0..d {
+                    f[i * d + j] = x[(i, j)] * w[i] * w[j];
+                }
+            }
+            let ok = cholesky_in_place(&mut f[..d * d], d);
+            (f, ok)
+        };
+        let tol = T::default_epsilon().sqrt() * T::of(d as f64);
+        let (fa, ok) = factor(&a);
+        if !ok || (0..d).any(|i| !(fa[i * d + i] * fa[i * d + i] > tol)) {
+            return Err(Error::RankDeficient { rank: 0, needed: d });
+        }
+        let (fm, ok) = factor(&m);
+        if !ok {
+            return Err(Error::Singular {
+                what: "the bias-compensated normal matrix Σ h hᵀ − N S Σ Sᵀ (the noise covariance given exceeds what \
+                       the data show in some direction: state_noise_var too large, or too few samples)",
+            });
+        }
+        let mut z = [T::zero(); MAX_PARAMS_LOCAL];
+        for i in 0..d {
+            z[i] = v[i] * w[i];
+        }
+        cholesky_solve(&fm[..d * d], d, &mut z[..d]);
+        Ok(SVector::from_fn(|i, _| if i < d { z[i] * w[i] } else { T::zero() }))
+    }
+
+    fn restore(&mut self, touched: u32) {
+        for g in 0..self.part.groups as usize {
+            if touched & (1 << g) != 0 {
+                self.groups.flat_mut()[g] = self.backup.flat()[g];
+            }
+        }
+    }
+}
+
+/// Local parameters a group can have (the structure's capacity).
+const MAX_PARAMS_LOCAL: usize = crate::structure::MAX_PARAMS;
+
+impl<T: Real, const P: usize, F: Flat<BcGroup<T, P>>> Identifier<T> for BiasCompensated<T, P, F> {
+    fn dims(&self) -> Dims {
+        Dims {
+            states: self.structure.states(),
+            inputs: self.structure.inputs(),
+            equations: self.structure.equations(),
+            params: self.structure.params(),
+        }
+    }
+
+    fn rows(&self) -> &[usize] {
+        &self.rows[..self.structure.equations()]
+    }
+
+    /// Adds one sample to the sums. The innovations are NaN: the estimate is solved only
+    /// when read ([`Identifier::params_into`]), as for batch least squares.
+    fn update_into(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
+        check_lengths(self.dims(), x, z, u, e)?;
+        for (arg, v) in [("r_k", x), ("z_k", z), ("u_k", u)] {
+            crate::error::check_finite(arg, v)?;
+        }
+        let ne = self.structure.equations();
+        let mut touched = 0u32;
+        for i in 0..ne {
+            let g = self.part.group_of_eq[i] as usize;
+            if touched & (1 << g) == 0 {
+                touched |= 1 << g;
+                self.backup.flat_mut()[g] = self.groups.flat()[g];
+                self.groups.flat_mut()[g].count += 1;
+            }
+            let (y, h) = local_regression::<T, P>(&self.structure, &self.part, i, self.scale[i], x, z, u);
+            let grp = &mut self.groups.flat_mut()[g];
+            grp.a.ger(T::one(), &h, &h, T::one());
+            grp.b.axpy(y, &h, T::one());
+            if !(grp.a.iter().chain(grp.b.iter()).all(|v| v.finite())) {
+                self.restore(touched);
+                return Err(OVERFLOW);
+            }
+            e[i] = T::of(f64::NAN);
+        }
+        self.samples += 1;
+        Ok(())
+    }
+
+    /// Solves every group: `(Σ h hᵀ − N C)⁻¹ (Σ h y − N d)`.
+    ///
+    /// # Errors
+    /// [`Error::RankDeficient`] while the data do not span a group's parameters;
+    /// [`Error::Singular`] when the corrected matrix is not positive definite.
+    fn params_into(&self, out: &mut [T]) -> Result<()> {
+        let np = self.structure.params();
+        if out.len() != np {
+            return Err(Error::Shape { arg: "out", expected: np, got: out.len() });
+        }
+        for g in 0..self.part.groups as usize {
+            let th = self.solve(g).map_err(|e| match e {
+                Error::RankDeficient { .. } => Error::RankDeficient { rank: 0, needed: np },
+                other => other,
+            })?;
+            for j in (0..np).filter(|&j| self.part.group_of_param[j] as usize == g) {
+                out[j] = th[self.part.local[j] as usize];
+            }
+        }
+        Ok(())
+    }
+
+    fn samples(&self) -> u64 {
+        self.samples
+    }
+
+    fn noise_into(&self, out: &mut [T]) -> Result<()> {
+        let ne = self.structure.equations();
+        if out.len() != ne * ne {
+            return Err(Error::Shape { arg: "out", expected: ne * ne, got: out.len() });
+        }
+        out.fill(T::zero());
+        for i in 0..ne {
+            out[i * ne + i] = self.r[i];
+        }
+        Ok(())
+    }
+
+    fn covariance_into(&self, out: &mut [T]) -> Result<()> {
+        let _ = out;
+        Err(Error::Unsupported {
+            what: "a parameter covariance for bias-compensated least squares (its errors-in-variables sandwich needs \
+                   fourth moments of the data): use IVIdentifier for standard errors",
+        })
+    }
+
+    fn groups_into(&self, group_of_param: &mut [usize], group_of_eq: &mut [usize]) -> Result<()> {
+        let (np, ne) = (self.structure.params(), self.structure.equations());
+        if group_of_param.len() != np {
+            return Err(Error::Shape { arg: "group_of_param", expected: np, got: group_of_param.len() });
+        }
+        if group_of_eq.len() != ne {
+            return Err(Error::Shape { arg: "group_of_eq", expected: ne, got: group_of_eq.len() });
+        }
+        for (j, g) in group_of_param.iter_mut().enumerate() {
+            *g = self.part.group_of_param[j] as usize;
+        }
+        for (i, g) in group_of_eq.iter_mut().enumerate() {
+            *g = self.part.group_of_eq[i] as usize;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,684 @@
+//! Recursive instrumental variables (IV) on a [`Structure`]: consistent estimates when the
+//! measured state is noisy.
+//!
+//! # Why least squares fails, and what an instrument is
+//! Every equation of a structure is a scalar regression `y_i = h_i(r, z, u)ᵀ p + ε_i`
+//! ([`Structure::regression`]). With noise `w` on the measured state `r = x + w`, the
+//! regressor `h` carries the noise and so does the error (`ε ∋ −pᵀ ∂h/∂x · w`): `E[h ε] ≠ 0`,
+//! and least squares (the thesis' Kalman identifier, Eq 4.3–4.7) converges to the wrong
+//! parameters (the attenuation bias of Eq 2.20; Ch. IV.D, VII of the thesis). An *instrument*
+//! `ζ` is a vector correlated with `h` (so `E[ζ hᵀ]` is invertible) and uncorrelated with `ε`;
+//! then `θ̂ = (Σ ζ hᵀ)⁻¹ Σ ζ y` is consistent (Söderström & Stoica, *System Identification*,
+//! 1989, §8.1; Ljung, *System Identification*, 2nd ed., 1999, §7.6).
+//!
+//! # The instruments here: the regressors `delay` samples earlier
+//! `ζ_i(k) = h_i(r(k−d), z(k−d), u(k−d))`, equation `i`'s regressor computed by the same
+//! structure from the sample `d = delay` steps back (kept in a fixed ring: no allocation).
+//! They are valid when
+//! - the sensor noise is white from sample to sample (independent `w(k)`, `v(k)`), so the
+//!   noise in `ζ(k)` (at `k − d`) is independent of the noise in `ε(k)` (at `k`);
+//! - the equation error's other part — the unmeasured road input `B u(k)` — is independent
+//!   of the past: with the road held over each interval (Eq 4.25), `x(k−d)` depends on
+//!   `u(k−d−1), u(k−d−2), …` only;
+//! - the true state is autocorrelated over `d` samples (the suspension's modes are much slower
+//!   than the sample interval: `E[ζ hᵀ]` is then well conditioned).
+//!
+//! They are **not** valid when the sensor noise is coloured (filtered, drifting, quantized
+//! with memory): `w(k)` and `w(k−d)` are then correlated and the estimate is biased again.
+//! The delay must exceed the noise's correlation time (for a first-order low-pass noise of
+//! time constant `τ`, the bias falls like `exp(−d·dt/τ)`) while staying well within the
+//! state's own correlation time (the slowest pole); a derivative computed from the measured
+//! state by differencing is coloured by construction. They are also invalid when the road
+//! input is coloured and enters the equation, and they lose accuracy (not consistency) as
+//! `E[ζ hᵀ]` approaches singularity; a step whose correlation `r + hᵀPζ` vanishes is refused
+//! ([`Error::Singular`], the identifier unchanged).
+//!
+//! # The filter
+//! One [`IvFilter`] per independent parameter group ([`Structure::partition`]), exactly as
+//! [`super::Structured`] runs one least-squares filter per group: the groups are independent
+//! problems (no equation links them), so the estimate is the same as one filter over all
+//! parameters, at `Σ_g d_g²` instead of `(Σ_g d_g)²` per sample (for the thesis' full rows:
+//! one `n`-parameter filter per row, the decoupled form of Eq 6.16–6.18). Equations that share
+//! parameters are updated in turn in their group's filter, weighted by `√(r_g / r_i)` like
+//! [`super::Structured`]. The start is exact (batch IV on the first samples, then the
+//! recursion: every estimate is batch IV on all samples so far) or from a prior `P(0) = p0`.
+//!
+//! # Refined instruments ([`InstrumentalVariables::with_lags`])
+//! The delayed regressors are weak instruments for the fast wheel mode (time constant
+//! 0.025 s, half a sample interval: the wheel velocity one sample back says little about the
+//! wheel velocity now), so their estimate, though consistent, scatters widely on the thesis'
+//! full rows. The optimal instruments are the regressors' noise-free part, and with a white
+//! equation error no prefilter is needed (Söderström & Stoica §8.2: the optimal prefilter is
+//! the inverse noise model). `with_lags(L)` estimates that noise-free part from the past with
+//! an auxiliary model — a recursive linear predictor of the current sample from the `L`
+//! samples before `k − d + 1` (`iv_predictor.rs`) — and evaluates the regressors there. The
+//! past state *and its measured derivative* carry the road input that moved the state since,
+//! so the prediction recovers the fast mode too. For regressors linear in the sample the
+//! result is two-stage least squares on those `L` lags.
+//!
+//! Not implemented: SRIVC/RIVC proper (Young & Garnier: the auxiliary model is the estimated
+//! continuous-time system simulated from the measured input, with prefilters from the
+//! estimated denominator, iterated). The road input is never measured, so that model
+//! cannot be simulated here; the predictor above is its data-driven stand-in.
+
+use super::interface::check_lengths;
+use super::iv_filter::IvFilter;
+use super::iv_predictor::{Predictor, SAMPLE_VALUES};
+use super::{Dims, Flat, Identifier, StructuredPrior, OVERFLOW};
+use crate::structure::{Partition, Structure, MAX_EQUATIONS, MAX_PARAMS};
+use crate::{Error, Real, Result};
+use nalgebra::{SMatrix, SVector};
+
+/// Values the ring of past samples holds: `delay × (2 n + m) ≤ RING_VALUES`.
+pub const RING_VALUES: usize = 512;
+
+/// The last `delay` samples `(x, z, u)` (fixed capacity, no allocation).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Ring<T> {
+    buf: [T; RING_VALUES],
+    /// Values per sample (`2 n + m`), slots (`delay`), the next slot, slots filled.
+    width: u16,
+    slots: u16,
+    head: u16,
+    filled: u16,
+}
+
+impl<T: Real> Ring<T> {
+    /// A ring of `slots` samples of `n` states and `m` inputs (`arg` names the setting).
+    pub(crate) fn new(n: usize, m: usize, delay: usize, slots: usize) -> Result<Self> {
+        if delay == 0 {
+            return Err(Error::InvalidArgument {
+                arg: "delay",
+                expected: "at least 1 sample (delay 0 makes the instruments the noisy regressors: least squares)",
+            });
+        }
+        let width = 2 * n + m;
+        let need = slots.saturating_mul(width);
+        if need > RING_VALUES {
+            return Err(Error::Capacity { arg: "delay", needed: need, capacity: RING_VALUES });
+        }
+        Ok(Self { buf: [T::zero(); RING_VALUES], width: width as u16, slots: slots as u16, head: 0, filled: 0 })
+    }
+
+    /// `true` once every slot holds a sample.
+    #[inline(always)]
+    pub(crate) fn full(&self) -> bool {
+        self.filled == self.slots
+    }
+
+    /// The sample `age` steps back (`1 ≤ age ≤ slots`, the ring full).
+    #[inline(always)]
+    pub(crate) fn ago(&self, age: usize) -> &[T] {
+        let w = self.width as usize;
+        let slots = self.slots as usize;
+        let at = (self.head as usize + slots - age) % slots * w;
+        &self.buf[at..at + w]
+    }
+
+    /// Stores a sample (over the oldest).
+    #[inline(always)]
+    pub(crate) fn push(&mut self, x: &[T], z: &[T], u: &[T]) {
+        let w = self.width as usize;
+        let at = self.head as usize * w;
+        let slot = &mut self.buf[at..at + w];
+        let (n, m) = (x.len(), u.len());
+        slot[..n].copy_from_slice(x);
+        slot[n..2 * n].copy_from_slice(z);
+        slot[2 * n..2 * n + m].copy_from_slice(u);
+        self.head = (self.head + 1) % self.slots;
+        self.filled = (self.filled + 1).min(self.slots);
+    }
+}
+
+/// Recursive instrumental variables on a [`Structure`] over group storage `F` (module docs):
+/// [`IvIdentifier`] (arrays, no allocation at all) or [`IvIdentifierVec`] (heap, sized at
+/// construction). `Q` is the capacity of the refined instruments' predictor
+/// ([`InstrumentalVariables::with_lags`]; 0: the delayed regressors only).
+#[derive(Debug, Clone)]
+pub struct InstrumentalVariables<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize = 0> {
+    structure: Structure<T>,
+    part: Partition,
+    filters: F,
+    /// The filters before the current update (of the groups it touched).
+    backup: F,
+    ring: Ring<T>,
+    delay: u16,
+    /// Past samples the predictor reads (0: instruments are the delayed regressors).
+    lags: u16,
+    pred: Predictor<T, Q>,
+    rows: [usize; MAX_EQUATIONS],
+    r: [T; MAX_EQUATIONS],
+    scale: [T; MAX_EQUATIONS],
+    /// Per equation: Σ of squared a-posteriori residuals (own units) and samples behind it.
+    eq_ssr: [T; MAX_EQUATIONS],
+    eq_nobs: [T; MAX_EQUATIONS],
+    samples: u64,
+}
+
+/// [`InstrumentalVariables`] with its `G` groups' filters in an array and a predictor of
+/// capacity `Q` (0: none): no allocation.
+pub type IvIdentifier<T, const P: usize, const G: usize, const Q: usize = 0> =
+    InstrumentalVariables<T, P, [IvFilter<T, P>; G], Q>;
+
+/// [`InstrumentalVariables`] with its groups' filters in a `Vec` sized at construction
+/// (requires `alloc`): one monomorphization per `(P, Q)` serves any number of groups.
+#[cfg(feature = "alloc")]
+pub type IvIdentifierVec<T, const P: usize, const Q: usize = 0> =
+    InstrumentalVariables<T, P, alloc::vec::Vec<IvFilter<T, P>>, Q>;
+
+/// Each equation's variance (`r`: one value or one per equation) and its row weight
+/// `√(r_g / r_i)` within its group `g`, and each group's `r_g` (its first equation's).
+pub(crate) fn equation_weights<T: Real>(
+    part: &Partition,
+    ne: usize,
+    r: &[T],
+) -> Result<([T; MAX_EQUATIONS], [T; MAX_EQUATIONS], [T; MAX_EQUATIONS])> {
+    let mut r_all = [T::one(); MAX_EQUATIONS];
+    match r.len() {
+        1 => r_all[..ne].fill(r[0]),
+        k if k == ne => r_all[..ne].copy_from_slice(r),
+        k => return Err(Error::Shape { arg: "r", expected: ne, got: k }),
+    }
+    crate::error::check_finite("r", &r_all[..ne])?;
+    if r_all[..ne].iter().any(|&v| !(v > T::zero())) {
+        return Err(Error::InvalidArgument { arg: "r", expected: "variances > 0 (one per identified equation)" });
+    }
+    let (mut r_group, mut seen, mut scale) =
+        ([T::zero(); MAX_EQUATIONS], [false; MAX_EQUATIONS], [T::one(); MAX_EQUATIONS]);
+    for i in 0..ne {
+        let g = part.group_of_eq[i] as usize;
+        if !seen[g] {
+            seen[g] = true;
+            r_group[g] = r_all[i];
+        }
+        scale[i] = (r_group[g] / r_all[i]).sqrt();
+    }
+    Ok((r_all, scale, r_group))
+}
+
+/// Equation `i`'s regression `(y, h)` at `(x, z, u)` in its group's local parameter order,
+/// scaled by `w`.
+#[inline(always)]
+pub(crate) fn local_regression<T: Real, const P: usize>(
+    s: &Structure<T>,
+    part: &Partition,
+    i: usize,
+    w: T,
+    x: &[T],
+    z: &[T],
+    u: &[T],
+) -> (T, SVector<T, P>) {
+    let mut h = SVector::<T, P>::zeros();
+    let mut y = z.get(s.equation_state(i)).copied().unwrap_or_else(T::zero);
+    for t in s.terms(i) {
+        let phi = t.coef * s.basis(t.basis, x, z, u);
+        match t.param {
+            Some(p) => h[part.local[p as usize] as usize] += phi,
+            None => y -= phi,
+        }
+    }
+    (y * w, h * w)
+}
+
+impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> InstrumentalVariables<T, P, F, Q> {
+    /// An IV identifier of `structure`'s parameters with instruments delayed by `delay ≥ 1`
+    /// samples, prior `p0` ([`StructuredPrior::Exact`]: batch IV on the first samples, then
+    /// recursive; otherwise `P(0)` as given, with prior mean `theta0`, `None`: 0), and equation
+    /// variances `r` (one, or one per identified equation; > 0; in the units of the equation's
+    /// measured derivative, squared; they weigh equations that share parameters and, with a
+    /// prior, `r/p0` weighs the prior against the data, as for [`super::Structured`]).
+    ///
+    /// # Errors
+    /// [`Error::NotIdentifiable`] for an unused or confounded parameter; [`Error::Capacity`]
+    /// when a group has more than `P` parameters, `F` cannot hold the groups, or
+    /// `delay × (2n + m)` exceeds [`RING_VALUES`]; [`Error::InvalidArgument`] for `delay = 0`;
+    /// [`Error::Shape`] / [`Error::InvalidArgument`] naming `p0`, `theta0` or `r`.
+    pub fn new(
+        structure: Structure<T>,
+        delay: usize,
+        p0: StructuredPrior<'_, T>,
+        theta0: Option<&[T]>,
+        r: &[T],
+    ) -> Result<Self> {
+        structure.check_identifiable()?;
+        let part = structure.partition();
+        let (np, ne, ng) = (structure.params(), structure.equations(), part.groups as usize);
+        if part.largest() > P {
+            return Err(Error::Capacity { arg: "P", needed: part.largest(), capacity: P });
+        }
+        let ring = Ring::new(structure.states(), structure.inputs(), delay, delay)?;
+        let (r_all, scale, r_group) = equation_weights(&part, ne, r)?;
+        if let Some(t) = theta0 {
+            if t.len() != np {
+                return Err(Error::Shape { arg: "theta0", expected: np, got: t.len() });
+            }
+            crate::error::check_finite("theta0", t)?;
+            if p0 == StructuredPrior::Exact {
+                return Err(Error::InvalidArgument {
+                    arg: "theta0",
+                    expected: "no prior mean with p0='exact' (give p0 too: a prior mean needs a prior covariance)",
+                });
+            }
+        }
+        let blocks = prior_blocks::<T, P>(&structure, &part, p0)?;
+        let zero = IvFilter::<T, P>::exact(1, T::one())?;
+        let mut filters = F::filled("groups", ng, zero)?;
+        for (g, slot) in filters.flat_mut().iter_mut().enumerate() {
+            let d = part.size[g] as usize;
+            *slot = match blocks {
+                None => IvFilter::exact(d, r_group[g])?,
+                Some(ref pm) => {
+                    let mut theta = SVector::<T, P>::zeros();
+                    for j in (0..np).filter(|&j| part.group_of_param[j] as usize == g) {
+                        theta[part.local[j] as usize] = theta0.map_or(T::zero(), |t| t[j]);
+                    }
+                    IvFilter::with_prior(d, theta, pm.block(g), r_group[g])?
+                }
+            };
+        }
+        let mut rows = [0usize; MAX_EQUATIONS];
+        for (i, s) in structure.equation_states().enumerate() {
+            rows[i] = s;
+        }
+        Ok(Self {
+            structure,
+            part,
+            backup: filters.clone(),
+            filters,
+            ring,
+            delay: delay as u16,
+            lags: 0,
+            pred: Predictor::new(0, 0),
+            rows,
+            r: r_all,
+            scale,
+            eq_ssr: [T::zero(); MAX_EQUATIONS],
+            eq_nobs: [T::zero(); MAX_EQUATIONS],
+            samples: 0,
+        })
+    }
+
+    /// The exact start with unit weights: the common case.
+    ///
+    /// # Errors
+    /// As [`InstrumentalVariables::new`].
+    pub fn exact(structure: Structure<T>, delay: usize) -> Result<Self> {
+        Self::new(structure, delay, StructuredPrior::Exact, None, &[T::one()])
+    }
+
+    /// The thesis' full unknown rows of an `n`-state linear model
+    /// ([`Structure::full_rows`]): parameters the rows of `A`, row-major, as every
+    /// identifier's `θ`.
+    ///
+    /// # Errors
+    /// As [`Structure::full_rows`] and [`InstrumentalVariables::new`].
+    pub fn full_rows(n: usize, rows: &[usize], delay: usize, p0: StructuredPrior<'_, T>, r: &[T]) -> Result<Self> {
+        Self::new(Structure::full_rows(n, rows)?, delay, p0, None, r)
+    }
+
+    /// Refined instruments (see `iv_predictor.rs`): the regressors of the current sample as
+    /// predicted from the `lags ≥ 1` samples `k − d, …, k − d − lags + 1` by a recursive
+    /// least-squares predictor (the auxiliary model; exact start), `ζ_i = h_i(ŝ(k))`. With
+    /// regressors linear in the sample this is two-stage least squares on the instruments
+    /// `[s(k−d); …; 1]`. `lags = 0` restores the delayed regressors. Call before the first
+    /// sample.
+    ///
+    /// # Errors
+    /// [`Error::Capacity`] naming `lags` when `lags × (2n + m) + 1 > Q`, or `delay` when the
+    /// ring cannot hold `delay + lags − 1` samples; [`Error::InvalidArgument`] after samples.
+    pub fn with_lags(mut self, lags: usize) -> Result<Self> {
+        if self.samples > 0 {
+            return Err(Error::InvalidArgument { arg: "lags", expected: "set before the first sample" });
+        }
+        let (n, m) = (self.structure.states(), self.structure.inputs());
+        let d = self.delay as usize;
+        let slots = if lags == 0 { d } else { d + lags - 1 };
+        let dim = lags.saturating_mul(2 * n + m).saturating_add(1);
+        if lags > 0 && dim > Q {
+            return Err(Error::Capacity { arg: "lags", needed: dim, capacity: Q });
+        }
+        self.ring = Ring::new(n, m, d, slots)?;
+        self.lags = lags as u16;
+        self.pred = Predictor::new(if lags == 0 { 0 } else { dim }, 2 * n + m);
+        Ok(self)
+    }
+
+    /// Past samples the refined instruments' predictor reads (0: delayed regressors).
+    pub fn lags(&self) -> usize {
+        self.lags as usize
+    }
+
+    /// The structure identified.
+    pub fn structure(&self) -> &Structure<T> {
+        &self.structure
+    }
+
+    /// The instruments' delay `d`, samples.
+    pub fn delay(&self) -> usize {
+        self.delay as usize
+    }
+
+    /// The filter of group `g`.
+    pub fn filter(&self, g: usize) -> &IvFilter<T, P> {
+        &self.filters.flat()[g]
+    }
+
+    /// `true` while some group has no estimate yet (the ring is filling, the predictor or the
+    /// exact start is absorbing samples).
+    pub fn starting(&self) -> bool {
+        self.filters.flat().iter().any(|f| f.starting())
+    }
+
+    /// Innovations against the current estimate (prior, or 0 while starting), when there is
+    /// no instrument for this sample yet.
+    fn innovations(&self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
+        for i in 0..self.structure.equations() {
+            let g = self.part.group_of_eq[i] as usize;
+            let (y, h) = local_regression::<T, P>(&self.structure, &self.part, i, self.scale[i], x, z, u);
+            let f = &self.filters.flat()[g];
+            let pred = if f.starting() { T::zero() } else { h.dot(f.theta()) };
+            e[i] = (y - pred) / self.scale[i];
+            if !e[i].finite() {
+                return Err(OVERFLOW);
+            }
+        }
+        Ok(())
+    }
+
+    fn restore(&mut self, touched: u32) {
+        for g in 0..self.part.groups as usize {
+            if touched & (1 << g) != 0 {
+                self.filters.flat_mut()[g] = self.backup.flat()[g];
+            }
+        }
+    }
+}
+
+/// Per-group prior covariances (`None` for the exact start).
+struct PriorBlocks<T: Real, const P: usize> {
+    diag: [T; MAX_PARAMS],
+    matrix: Option<[T; MAX_PARAMS * MAX_PARAMS]>,
+    part: Partition,
+    params: usize,
+}
+
+impl<T: Real, const P: usize> PriorBlocks<T, P> {
+    fn block(&self, g: usize) -> SMatrix<T, P, P> {
+        let np = self.params;
+        let mut pm = SMatrix::<T, P, P>::zeros();
+        let member = |j: usize| self.part.group_of_param[j] as usize == g && (self.part.local[j] as usize) < P;
+        for a in (0..np).filter(|&a| member(a)) {
+            let la = self.part.local[a] as usize;
+            match &self.matrix {
+                Some(m) => {
+                    for b in (0..np).filter(|&b| member(b)) {
+                        pm[(la, self.part.local[b] as usize)] = m[a * np + b];
+                    }
+                }
+                None => pm[(la, la)] = self.diag[a],
+            }
+        }
+        pm
+    }
+}
+
+fn prior_blocks<T: Real, const P: usize>(
+    s: &Structure<T>,
+    part: &Partition,
+    p0: StructuredPrior<'_, T>,
+) -> Result<Option<PriorBlocks<T, P>>> {
+    let (np, ne) = (s.params(), s.equations());
+    let mut out = PriorBlocks { diag: [T::zero(); MAX_PARAMS], matrix: None, part: *part, params: np };
+    match p0 {
+        StructuredPrior::Exact => return Ok(None),
+        StructuredPrior::Scalar(v) => {
+            crate::error::check_positive("p0", v)?;
+            out.diag[..np].fill(v);
+        }
+        StructuredPrior::PerEquation(v) => {
+            if v.len() != ne {
+                return Err(Error::Shape { arg: "p0", expected: ne, got: v.len() });
+            }
+            for &x in v {
+                crate::error::check_positive("p0", x)?;
+            }
+            for i in (0..ne).rev() {
+                for t in s.terms(i) {
+                    if let Some(j) = t.param {
+                        out.diag[j as usize] = v[i];
+                    }
+                }
+            }
+        }
+        StructuredPrior::Matrix(m) => {
+            if m.len() != np * np {
+                return Err(Error::Shape { arg: "p0", expected: np * np, got: m.len() });
+            }
+            crate::error::check_finite("p0", m)?;
+            let mut a = [T::zero(); MAX_PARAMS * MAX_PARAMS];
+            for x in 0..np {
+                for y in 0..np {
+                    if part.group_of_param[x] != part.group_of_param[y] && m[x * np + y] != T::zero() {
+                        return Err(Error::InvalidArgument {
+                            arg: "p0",
+                            expected: "no prior covariance between parameters of independent groups (no equation \
+                                       links them)",
+                        });
+                    }
+                    a[x * np + y] = m[x * np + y];
+                }
+            }
+            out.matrix = Some(a);
+        }
+    }
+    Ok(Some(out))
+}
+
+impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> Identifier<T>
+    for InstrumentalVariables<T, P, F, Q>
+{
+    fn dims(&self) -> Dims {
+        Dims {
+            states: self.structure.states(),
+            inputs: self.structure.inputs(),
+            equations: self.structure.equations(),
+            params: self.structure.params(),
+        }
+    }
+
+    fn rows(&self) -> &[usize] {
+        &self.rows[..self.structure.equations()]
+    }
+
+    /// One sample (see [`Identifier::update_into`]). For the first `delay` samples there is
+    /// no instrument yet: they are stored and their innovations reported, nothing else.
+    fn update_into(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
+        check_lengths(self.dims(), x, z, u, e)?;
+        // Every value is kept for later samples' instruments, whose products must stay finite:
+        // a value that would overflow when squared is refused now (accepted, it would make
+        // every later sample overflow while it stays in the ring).
+        let limit = T::biggest().sqrt() / T::of(256.0);
+        for (arg, v) in [("r_k", x), ("z_k", z), ("u_k", u)] {
+            crate::error::check_finite(arg, v)?;
+            if v.iter().any(|a| !(a.abs() < limit)) {
+                return Err(Error::InvalidArgument {
+                    arg,
+                    expected: "values below √(largest float)/256 (about 5e151 in f64, 7e16 in f32), whose squares \
+                               stay finite (rescale the units)",
+                });
+            }
+        }
+        if !self.ring.full() {
+            self.innovations(x, z, u, e)?;
+            self.ring.push(x, z, u);
+            self.samples += 1;
+            return Ok(());
+        }
+        let (n, m) = (self.structure.states(), self.structure.inputs());
+        let (d, lags) = (self.delay as usize, self.lags as usize);
+        // The instruments' sample: the delayed one, or the predicted current one.
+        let mut q = [T::zero(); Q];
+        let mut at = [T::zero(); SAMPLE_VALUES];
+        let width = 2 * n + m;
+        let have = if lags == 0 {
+            at[..width].copy_from_slice(self.ring.ago(d));
+            true
+        } else {
+            for j in 0..lags {
+                q[j * width..(j + 1) * width].copy_from_slice(self.ring.ago(d + j));
+            }
+            q[lags * width] = T::one();
+            if !self.pred.starting() {
+                self.pred.predict(&q, &mut at[..width]);
+            }
+            !self.pred.starting()
+        };
+        // The predictor's step is checked first, so that once the groups are updated it
+        // cannot fail.
+        let mut now = [T::zero(); SAMPLE_VALUES];
+        let step = if lags > 0 {
+            now[..n].copy_from_slice(x);
+            now[n..2 * n].copy_from_slice(z);
+            now[2 * n..width].copy_from_slice(u);
+            Some(self.pred.plan(&q, &now[..width])?)
+        } else {
+            None
+        };
+        let (ssr0, nobs0) = (self.eq_ssr, self.eq_nobs);
+        let mut touched = 0u32;
+        let mut failed = None;
+        if have {
+            let (ax, rest) = at[..width].split_at(n);
+            let (az, au) = rest.split_at(n);
+            let (s, part) = (&self.structure, &self.part);
+            for i in 0..s.equations() {
+                let g = part.group_of_eq[i] as usize;
+                if touched & (1 << g) == 0 {
+                    touched |= 1 << g;
+                    self.backup.flat_mut()[g] = self.filters.flat()[g];
+                }
+                let w = self.scale[i];
+                let (y, h) = local_regression::<T, P>(s, part, i, w, x, z, u);
+                let (_, zeta) = local_regression::<T, P>(s, part, i, w, ax, az, au);
+                if !(y.finite() && h.iter().chain(zeta.iter()).all(|v| v.finite())) {
+                    failed = Some(OVERFLOW);
+                    break;
+                }
+                match self.filters.flat_mut()[g].update(&h, &zeta, y) {
+                    Ok((inn, post)) => {
+                        e[i] = inn / w;
+                        if let Some(res) = post {
+                            let res = res / w;
+                            self.eq_ssr[i] += res * res;
+                            self.eq_nobs[i] += T::one();
+                        }
+                    }
+                    Err(err) => {
+                        failed = Some(err);
+                        break;
+                    }
+                }
+            }
+        } else if let Err(err) = self.innovations(x, z, u, e) {
+            failed = Some(err);
+        }
+        if let Some(err) = failed {
+            self.restore(touched);
+            (self.eq_ssr, self.eq_nobs) = (ssr0, nobs0);
+            return Err(err);
+        }
+        if let Some(step) = step {
+            self.pred.apply(&step, &q, &now[..width]);
+        }
+        self.ring.push(x, z, u);
+        self.samples += 1;
+        Ok(())
+    }
+
+    fn params_into(&self, out: &mut [T]) -> Result<()> {
+        let np = self.structure.params();
+        if out.len() != np {
+            return Err(Error::Shape { arg: "out", expected: np, got: out.len() });
+        }
+        if self.starting() {
+            let rank = self.filters.flat().iter().filter(|f| !f.starting()).map(|f| f.dim()).sum();
+            return Err(Error::RankDeficient { rank, needed: np });
+        }
+        for (j, o) in out.iter_mut().enumerate() {
+            let g = self.part.group_of_param[j] as usize;
+            *o = self.filters.flat()[g].theta()[self.part.local[j] as usize];
+        }
+        Ok(())
+    }
+
+    fn samples(&self) -> u64 {
+        self.samples
+    }
+
+    /// The sandwich covariance `P M Pᵀ / r_g` per group (see [`IvFilter::covariance`]): times
+    /// the residual scale `σ²/r` (what [`super::estimate_stats`] multiplies by) it is the
+    /// asymptotic covariance of the IV estimate, `σ² (Σζhᵀ)⁻¹ (Σζζᵀ) (Σhζᵀ)⁻¹` (Söderström &
+    /// Stoica Eq 8.26, white equation errors).
+    fn covariance_into(&self, out: &mut [T]) -> Result<()> {
+        let np = self.structure.params();
+        if out.len() != np * np {
+            return Err(Error::Shape { arg: "out", expected: np * np, got: out.len() });
+        }
+        if self.starting() {
+            let rank = self.filters.flat().iter().filter(|f| !f.starting()).map(|f| f.dim()).sum();
+            return Err(Error::RankDeficient { rank, needed: np });
+        }
+        out.fill(T::zero());
+        for (g, f) in self.filters.flat().iter().enumerate() {
+            let cov = f.covariance();
+            let members = (0..np).filter(|&j| self.part.group_of_param[j] as usize == g);
+            for a in members.clone() {
+                for b in members.clone() {
+                    out[a * np + b] = cov[(self.part.local[a] as usize, self.part.local[b] as usize)];
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn noise_into(&self, out: &mut [T]) -> Result<()> {
+        let ne = self.structure.equations();
+        if out.len() != ne * ne {
+            return Err(Error::Shape { arg: "out", expected: ne * ne, got: out.len() });
+        }
+        out.fill(T::zero());
+        for i in 0..ne {
+            out[i * ne + i] = self.r[i];
+        }
+        Ok(())
+    }
+
+    /// Each equation's sum of squared a-posteriori residuals `y − hᵀθ̂(k)` (own units) over the
+    /// samples filtered after the start, and their number.
+    fn residuals_into(&self, ssr: &mut [T], nobs: &mut [T]) -> Result<()> {
+        let ne = self.structure.equations();
+        if ssr.len() != ne || nobs.len() != ne {
+            return Err(Error::Shape { arg: "ssr", expected: ne, got: ssr.len().min(nobs.len()) });
+        }
+        ssr.copy_from_slice(&self.eq_ssr[..ne]);
+        nobs.copy_from_slice(&self.eq_nobs[..ne]);
+        Ok(())
+    }
+
+    fn groups_into(&self, group_of_param: &mut [usize], group_of_eq: &mut [usize]) -> Result<()> {
+        let (np, ne) = (self.structure.params(), self.structure.equations());
+        if group_of_param.len() != np {
+            return Err(Error::Shape { arg: "group_of_param", expected: np, got: group_of_param.len() });
+        }
+        if group_of_eq.len() != ne {
+            return Err(Error::Shape { arg: "group_of_eq", expected: ne, got: group_of_eq.len() });
+        }
+        for (j, g) in group_of_param.iter_mut().enumerate() {
+            *g = self.part.group_of_param[j] as usize;
+        }
+        for (i, g) in group_of_eq.iter_mut().enumerate() {
+            *g = self.part.group_of_eq[i] as usize;
+        }
+        Ok(())
+    }
+}

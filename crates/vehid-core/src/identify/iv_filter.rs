@@ -1,0 +1,327 @@
+//! One recursive instrumental-variable filter for one group of parameters: the engine of
+//! [`super::InstrumentalVariables`].
+//!
+//! For scalar equations `y = hᵀθ + ε` whose regressor `h` is correlated with `ε` (noise on the
+//! measured state enters both), an instrument `ζ` correlated with `h` but not with `ε` gives
+//! the consistent estimate `θ̂ = (Σ ζ hᵀ)⁻¹ Σ ζ y` (Söderström & Stoica, *System
+//! Identification*, 1989, §8.1, Eq 8.12). Its recursive form (§8.3, Eq 8.29; Ljung, *System
+//! Identification*, 2nd ed., 1999, §11.2, Eq 11.44) is Sherman–Morrison applied to the
+//! non-symmetric `Σ ζ hᵀ`:
+//!
+//! ```text
+//! s = r + hᵀ P ζ                       (a scalar; not positive in general)
+//! θ ← θ + P ζ (y − hᵀθ) / s
+//! P ← P − P ζ hᵀ P / s                  P = r (Σ ζ hᵀ)⁻¹ after an exact start
+//! ```
+//!
+//! Unlike recursive least squares (`ζ = h`, `s ≥ r > 0`), `s` can vanish: the step then
+//! divides by (nearly) zero, and the filter refuses the sample with [`Error::Singular`]. `P`
+//! is not a covariance: the estimate's covariance is the sandwich
+//! `σ² (Σ ζ hᵀ)⁻¹ (Σ ζ ζᵀ) (Σ h ζᵀ)⁻¹` (Söderström & Stoica Eq 8.26, white `ε`), for which the
+//! filter also accumulates `M = Σ ζ ζᵀ`.
+//!
+//! The exact start accumulates `Σ ζ hᵀ` and `Σ ζ y` until the former is well conditioned
+//! (after equilibration by `diag(M)^{-1/2}`, every LU pivot above `√ε · d` of the largest),
+//! then sets `P = r (Σ ζ hᵀ)⁻¹`, `θ̂ = (Σ ζ hᵀ)⁻¹ Σ ζ y`: from then on every estimate is the
+//! batch IV estimate on all samples so far (up to rounding), with no prior at all.
+
+use crate::identify::OVERFLOW;
+use crate::{Error, Real, Result};
+use nalgebra::{SMatrix, SVector};
+
+/// The error of a step whose instrument correlation `s = r + hᵀPζ` (nearly) vanishes.
+pub(crate) const SINGULAR: Error = Error::Singular {
+    what: "the instrument correlation s = r + hᵀPζ of the instruments ζ = h(k − delay) (the regressors \
+           `delay` samples earlier) with this sample's regressors h (this sample would divide by ~0; the \
+           identifier is unchanged: excite the system, or choose a delay over which the states stay correlated)",
+};
+
+/// One group's recursive IV filter (module docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IvFilter<T: Real, const P: usize> {
+    /// `θ̂`; during the exact start `Σ ζ y`.
+    theta: SVector<T, P>,
+    /// `P = r (Σ ζ hᵀ + r P₀⁻¹)⁻¹`; during the exact start `Σ ζ hᵀ`.
+    p: SMatrix<T, P, P>,
+    /// `Σ ζ ζᵀ`.
+    m: SMatrix<T, P, P>,
+    r: T,
+    start: bool,
+    /// Parameters in use (the leading `dim ≤ P`; the rest stays 0).
+    dim: u8,
+    /// Samples absorbed.
+    count: u64,
+}
+
+impl<T: Real, const P: usize> IvFilter<T, P> {
+    /// A filter of `dim` parameters with the exact start (weight `r > 0`).
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for `dim` outside `1..=P` or `r` not finite and > 0.
+    pub fn exact(dim: usize, r: T) -> Result<Self> {
+        check_dim::<P>(dim)?;
+        crate::error::check_positive("r", r)?;
+        Ok(Self {
+            theta: SVector::zeros(),
+            p: SMatrix::zeros(),
+            m: SMatrix::zeros(),
+            r,
+            start: true,
+            dim: dim as u8,
+            count: 0,
+        })
+    }
+
+    /// A filter of `dim` parameters with prior mean `theta0` and `P(0) = p0` (only the leading
+    /// `dim × dim` block is used) and equation variance `r ≥ 0`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for `dim` outside `1..=P`, `r` negative or not finite;
+    /// [`Error::NonFinite`] naming `p0` or `theta0`.
+    pub fn with_prior(dim: usize, theta0: SVector<T, P>, p0: SMatrix<T, P, P>, r: T) -> Result<Self> {
+        check_dim::<P>(dim)?;
+        crate::error::check_nonneg("r", r)?;
+        crate::error::check_finite("p0", p0.as_slice())?;
+        crate::error::check_finite("theta0", theta0.as_slice())?;
+        let mut f = Self { theta: theta0, p: p0, m: SMatrix::zeros(), r, start: false, dim: dim as u8, count: 0 };
+        f.clear_unused();
+        Ok(f)
+    }
+
+    fn clear_unused(&mut self) {
+        let d = self.dim as usize;
+        for a in 0..P {
+            for b in 0..P {
+                if a >= d || b >= d {
+                    self.p[(a, b)] = T::zero();
+                    self.m[(a, b)] = T::zero();
+                }
+            }
+            if a >= d {
+                self.theta[a] = T::zero();
+            }
+        }
+    }
+
+    /// One equation's sample: regressor `h`, instrument `zeta`, output `y`. Returns the
+    /// innovation `y − hᵀθ̂` (before the update) and, once filtering, the a-posteriori residual
+    /// `y − hᵀθ̂⁺ = e r / s`. Transactional: on an error nothing changed.
+    ///
+    /// # Errors
+    /// [`Error::Singular`] when `|s| ≤ √ε (r + Σ|h_a (Pζ)_a|)`; the overflow error when the
+    /// step would not be finite.
+    #[inline]
+    pub fn update(&mut self, h: &SVector<T, P>, zeta: &SVector<T, P>, y: T) -> Result<(T, Option<T>)> {
+        if self.start {
+            return self.absorb(h, zeta, y).map(|e| (e, None));
+        }
+        let pz = self.p * zeta;
+        let hp = self.p.tr_mul(h); // Pᵀh: (hᵀP)ᵀ
+        let mut s = self.r;
+        let mut scale = self.r;
+        for a in 0..P {
+            s += h[a] * pz[a];
+            scale += (h[a] * pz[a]).abs();
+        }
+        if !(s.abs() > T::default_epsilon().sqrt() * scale) {
+            return Err(if s.finite() && scale.finite() { SINGULAR } else { OVERFLOW });
+        }
+        let e = y - h.dot(&self.theta);
+        let k = pz / s;
+        let theta = self.theta + k * e;
+        let mut p = self.p;
+        p.ger(-T::one(), &k, &hp, T::one());
+        let mut m = self.m;
+        m.ger(T::one(), zeta, zeta, T::one());
+        if !(theta.iter().all(|v| v.finite()) && p.iter().all(|v| v.finite()) && m.iter().all(|v| v.finite())) {
+            return Err(OVERFLOW);
+        }
+        (self.theta, self.p, self.m) = (theta, p, m);
+        self.count += 1;
+        Ok((e, Some(e * self.r / s)))
+    }
+
+    /// The exact start: accumulate, and end the start when `Σ ζ hᵀ` is well conditioned.
+    fn absorb(&mut self, h: &SVector<T, P>, zeta: &SVector<T, P>, y: T) -> Result<T> {
+        let mut c = self.p;
+        c.ger(T::one(), zeta, h, T::one());
+        let b = self.theta + zeta * y;
+        let mut m = self.m;
+        m.ger(T::one(), zeta, zeta, T::one());
+        if !(c.iter().all(|v| v.finite()) && b.iter().all(|v| v.finite()) && m.iter().all(|v| v.finite())) {
+            return Err(OVERFLOW);
+        }
+        (self.p, self.theta, self.m) = (c, b, m);
+        self.count += 1;
+        if self.count >= u64::from(self.dim) {
+            self.try_start();
+        }
+        Ok(y)
+    }
+
+    /// Ends the exact start when the accumulated correlation is well conditioned.
+    fn try_start(&mut self) {
+        let d = self.dim as usize;
+        // Equilibrate by diag(M)^{-1/2} (the instruments' scales; the regressors' are the same
+        // signals delayed), so the pivot test does not depend on the units.
+        let mut w = SVector::<T, P>::repeat(T::one());
+        for a in 0..d {
+            let v = self.m[(a, a)];
+            if !(v > T::zero()) {
+                return;
+            }
+            w[a] = T::one() / v.sqrt();
+        }
+        let mut c = self.p;
+        for a in 0..d {
+            for b in 0..d {
+                c[(a, b)] *= w[a] * w[b];
+            }
+        }
+        let Some(inv) = invert(&c, d) else { return };
+        // (D C D)⁻¹ = D⁻¹ C⁻¹ D⁻¹, so C⁻¹ = D (D C D)⁻¹ D.
+        let mut cinv = SMatrix::<T, P, P>::zeros();
+        for a in 0..d {
+            for b in 0..d {
+                cinv[(a, b)] = inv[(a, b)] * w[a] * w[b];
+            }
+        }
+        let theta = cinv * self.theta;
+        let p = cinv * self.r;
+        if theta.iter().all(|v| v.finite()) && p.iter().all(|v| v.finite()) {
+            (self.theta, self.p, self.start) = (theta, p, false);
+        }
+    }
+
+    /// `true` while the exact start is absorbing samples (no estimate yet).
+    pub fn starting(&self) -> bool {
+        self.start
+    }
+
+    /// The estimate `θ̂` (the leading `dim` entries are the group's parameters). Meaningless
+    /// while [`IvFilter::starting`].
+    pub fn theta(&self) -> &SVector<T, P> {
+        &self.theta
+    }
+
+    /// `P = r (Σ ζ hᵀ)⁻¹` (not symmetric, not a covariance). Meaningless while starting.
+    pub fn p(&self) -> &SMatrix<T, P, P> {
+        &self.p
+    }
+
+    /// `M = Σ ζ ζᵀ` of the samples absorbed.
+    pub fn instrument_moment(&self) -> &SMatrix<T, P, P> {
+        &self.m
+    }
+
+    /// The covariance of `θ̂` per unit `σ²/r` (so that `σ²/r` times it is the sandwich
+    /// `σ² (Σζhᵀ)⁻¹ (Σζζᵀ) (Σhζᵀ)⁻¹`): `P M Pᵀ / r`; the leading `dim × dim` block.
+    pub fn covariance(&self) -> SMatrix<T, P, P> {
+        (self.p * self.m * self.p.transpose()) / self.r
+    }
+
+    /// The equation weight `r`.
+    pub fn r(&self) -> T {
+        self.r
+    }
+
+    /// Parameters in use.
+    pub fn dim(&self) -> usize {
+        self.dim as usize
+    }
+
+    /// Samples absorbed.
+    pub fn count(&self) -> u64 {
+        self.count
+    }
+}
+
+/// The inverse of the leading `d × d` block of `c` (Gauss–Jordan with partial pivoting; the
+/// rest 0), or `None` when a pivot falls below `√ε · d` times the largest entry: the block is
+/// then numerically singular (its entries are equilibrated to unit diagonal scale).
+pub(crate) fn invert<T: Real, const P: usize>(c: &SMatrix<T, P, P>, d: usize) -> Option<SMatrix<T, P, P>> {
+    let mut a = *c;
+    let mut inv = SMatrix::<T, P, P>::zeros();
+    for i in 0..d {
+        inv[(i, i)] = T::one();
+    }
+    let big = (0..d).flat_map(|i| (0..d).map(move |j| (i, j))).fold(T::zero(), |m, ij| m.max(c[ij].abs()));
+    let tol = T::default_epsilon().sqrt() * T::of(d as f64) * big;
+    for col in 0..d {
+        let (piv, val) =
+            (col..d).map(|r| (r, a[(r, col)].abs())).fold((col, -T::one()), |b, x| if x.1 > b.1 { x } else { b });
+        if !(val > tol) {
+            return None;
+        }
+        a.swap_rows(col, piv);
+        inv.swap_rows(col, piv);
+        let p = a[(col, col)];
+        for j in 0..d {
+            a[(col, j)] /= p;
+            inv[(col, j)] /= p;
+        }
+        for r in (0..d).filter(|&r| r != col) {
+            let f = a[(r, col)];
+            if f != T::zero() {
+                for j in 0..d {
+                    let (x, y) = (a[(col, j)], inv[(col, j)]);
+                    a[(r, j)] -= f * x;
+                    inv[(r, j)] -= f * y;
+                }
+            }
+        }
+    }
+    Some(inv)
+}
+
+fn check_dim<const P: usize>(dim: usize) -> Result<()> {
+    if dim == 0 || dim > P {
+        return Err(Error::Capacity { arg: "P", needed: dim, capacity: P });
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// After the exact start every estimate is batch IV on all samples so far.
+    #[test]
+    fn exact_start_then_recursion_is_batch_iv() {
+        let mut f = IvFilter::<f64, 3>::exact(2, 0.7).unwrap();
+        let (mut c, mut b) = (nalgebra::Matrix2::<f64>::zeros(), nalgebra::Vector2::<f64>::zeros());
+        let mut state = 0.3f64;
+        let mut prev = [1.0, 0.5];
+        for k in 0..60 {
+            state = (state * 3.7 + 0.11).fract();
+            let h = [state - 0.5, (k as f64 * 0.37).sin()];
+            let y = 2.0 * h[0] - 1.0 * h[1] + 0.1 * (state - 0.5);
+            let zeta = prev;
+            f.update(&SVector::from([h[0], h[1], 0.0]), &SVector::from([zeta[0], zeta[1], 0.0]), y).unwrap();
+            c += nalgebra::Vector2::from(zeta) * nalgebra::Vector2::from(h).transpose();
+            b += nalgebra::Vector2::from(zeta) * y;
+            prev = h;
+            if !f.starting() {
+                let want = c.lu().solve(&b).unwrap();
+                for a in 0..2 {
+                    assert!((f.theta()[a] - want[a]).abs() < 1e-9 * want[a].abs().max(1.0), "k {k}");
+                }
+                assert_eq!(f.theta()[2], 0.0);
+            }
+        }
+        assert!(!f.starting());
+    }
+
+    #[test]
+    fn a_vanishing_correlation_is_refused_and_changes_nothing() {
+        let p0 = SMatrix::<f64, 1, 1>::from_element(2.0);
+        let mut f = IvFilter::<f64, 1>::with_prior(1, SVector::zeros(), p0, 1.0).unwrap();
+        let before = f;
+        // s = r + h p ζ = 1 + 1·2·(−0.5) = 0.
+        let err = f.update(&SVector::from([1.0]), &SVector::from([-0.5]), 3.0).unwrap_err();
+        assert_eq!(err, SINGULAR);
+        assert_eq!(f, before);
+        assert!(f.update(&SVector::from([1.0]), &SVector::from([f64::MAX]), f64::MAX).is_err());
+        assert_eq!(f, before);
+    }
+}

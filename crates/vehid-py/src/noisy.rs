@@ -1,0 +1,392 @@
+//! Identifiers for noisy state sensors: `vehid.IVIdentifier` (recursive instrumental
+//! variables, the core's `InstrumentalVariables`) and `vehid.BiasCompensated` (bias-compensated
+//! least squares, the core's `BiasCompensated`). Both subclass `vehid.Identifier`; on a
+//! linear model they identify its full unknown rows (`Structure::full_rows`), so `theta` and
+//! `a_hat` read as for the Kalman identifier. This file only converts and dispatches.
+
+use crate::convert::{array, finite, shape_str};
+use crate::identify::PyIdentifier;
+use crate::model::PyLinearModel;
+use crate::structure::PyStructure;
+use crate::{core_err, VehidError};
+use pyo3::prelude::*;
+use pyo3::types::PyTuple;
+use vehid_core::identify::{BiasCompensatedVec, DynIdentifier, IvIdentifierVec, StructuredPrior, RING_VALUES};
+use vehid_core::structure::Structure;
+
+/// Capacity of the refined instruments' predictor in the Python classes:
+/// `lags × (2n + m) + 1 ≤ PREDICTOR` (the predictor keeps a matrix of this size squared).
+pub const PREDICTOR: usize = 64;
+
+/// The default `lags`: 6 past samples (what the quarter car's full rows need at 8 % state
+/// noise), fewer when the samples are wide.
+fn default_lags(width: usize) -> usize {
+    ((PREDICTOR - 1) / width.max(1)).clamp(1, 6)
+}
+
+/// The model's structure and, for a linear model, its data (for `theta`/`a_hat`).
+enum Target<'py> {
+    Model(Bound<'py, PyLinearModel>),
+    Structure(Bound<'py, PyStructure>),
+}
+
+impl<'py> Target<'py> {
+    fn of(model: &Bound<'py, PyAny>) -> PyResult<Self> {
+        if let Ok(s) = model.cast::<PyStructure>() {
+            return Ok(Target::Structure(s.clone()));
+        }
+        model.cast::<PyLinearModel>().map(|m| Target::Model(m.clone())).map_err(|_| {
+            VehidError::new_err("`model` must be a LinearModel (QuarterCar, HalfCar, ...) or a vehid.Structure")
+        })
+    }
+
+    fn structure(&self) -> PyResult<Structure<f64>> {
+        match self {
+            Target::Structure(s) => Ok(s.get().core),
+            Target::Model(m) => {
+                let d = &m.get().data;
+                Structure::full_rows(d.n, &d.rows).map_err(core_err)
+            }
+        }
+    }
+
+    fn wrap(&self, inner: Box<dyn DynIdentifier<f64>>) -> PyIdentifier {
+        match self {
+            Target::Structure(s) => PyIdentifier::on_structure(inner, s),
+            Target::Model(m) => PyIdentifier::new(inner, m.get().data.clone()),
+        }
+    }
+}
+
+/// The largest parameter group's filter size bucket.
+fn bucket(s: &Structure<f64>) -> usize {
+    match s.partition().largest() {
+        0..=2 => 2,
+        3..=4 => 4,
+        5..=8 => 8,
+        9..=16 => 16,
+        _ => 32,
+    }
+}
+
+/// `p0` for a structure of `np` parameters and `ne` equations: "exact" (or None), a scalar,
+/// one per equation, or the (np, np) matrix. Returns the kind and its data.
+fn prior_arg(p0: Option<&Bound<'_, PyAny>>, np: usize, ne: usize, model: bool) -> PyResult<(u8, Vec<f64>)> {
+    let Some(p0) = p0 else { return Ok((0, vec![])) };
+    if let Ok(text) = p0.extract::<String>() {
+        return match text.as_str() {
+            "exact" => Ok((0, vec![])),
+            other => Err(VehidError::new_err(format!(
+                "unknown `p0` {other:?}: expected \"exact\", a number, one per {}, or a ({np}, {np}) matrix",
+                if model { "unknown row" } else { "identified equation" }
+            ))),
+        };
+    }
+    let a = array(p0, "p0")?;
+    finite("p0", &a.data)?;
+    match a.shape[..] {
+        [] => Ok((1, a.data)),
+        [len] if len == ne => Ok((2, a.data)),
+        [r, c] if r == np && c == np => Ok((3, a.data)),
+        _ => Err(VehidError::new_err(format!(
+            "`p0` must be \"exact\", a scalar, one per {} ({ne},) or a ({np}, {np}) matrix, got {}",
+            if model { "unknown row" } else { "identified equation" },
+            shape_str(&a.shape)
+        ))),
+    }
+}
+
+fn prior(kind: u8, data: &[f64]) -> StructuredPrior<'_, f64> {
+    match kind {
+        0 => StructuredPrior::Exact,
+        1 => StructuredPrior::Scalar(data[0]),
+        2 => StructuredPrior::PerEquation(data),
+        _ => StructuredPrior::Matrix(data),
+    }
+}
+
+/// `r`: a scalar or one per identified equation (default 1).
+fn r_arg(r: Option<&Bound<'_, PyAny>>, ne: usize) -> PyResult<Vec<f64>> {
+    let Some(r) = r else { return Ok(vec![1.0]) };
+    let a = array(r, "r")?;
+    finite("r", &a.data)?;
+    if !(a.shape.is_empty() || a.shape == [ne]) {
+        return Err(VehidError::new_err(format!(
+            "`r` must be a scalar or one variance per identified equation, shape ({ne},), got {}",
+            shape_str(&a.shape)
+        )));
+    }
+    Ok(a.data)
+}
+
+/// The IV identifier with filters of `P` parameters and a predictor of capacity `Q`.
+fn iv_pq<const P: usize, const Q: usize>(
+    s: Structure<f64>,
+    delay: usize,
+    lags: usize,
+    p0: StructuredPrior<'_, f64>,
+    theta0: Option<&[f64]>,
+    r: &[f64],
+) -> vehid_core::Result<Box<dyn DynIdentifier<f64>>> {
+    Ok(Box::new(IvIdentifierVec::<f64, P, Q>::new(s, delay, p0, theta0, r)?.with_lags(lags)?))
+}
+
+fn iv_p<const P: usize>(
+    s: Structure<f64>,
+    delay: usize,
+    lags: usize,
+    p0: StructuredPrior<'_, f64>,
+    theta0: Option<&[f64]>,
+    r: &[f64],
+) -> vehid_core::Result<Box<dyn DynIdentifier<f64>>> {
+    if lags == 0 {
+        iv_pq::<P, 0>(s, delay, lags, p0, theta0, r)
+    } else {
+        iv_pq::<P, PREDICTOR>(s, delay, lags, p0, theta0, r)
+    }
+}
+
+/// Recursive instrumental variables: consistent when the measured state is noisy (white
+/// sensor noise), where the Kalman identifier (least squares) is biased.
+///
+/// `model`: a LinearModel (its full unknown rows: `theta` (k, n)) or a Structure.
+/// Instruments: each equation's regressors computed `delay` samples earlier (`lags=0`), or
+/// (the default) refined — the regressors of the current sample as a recursive linear
+/// predictor forecasts them from the `lags` samples `delay`, `delay`+1, … back (an
+/// auxiliary model; two-stage least squares for regressors linear in the state). The
+/// default `lags` is 6 (fewer when `lags × (2n + m) + 1` would exceed 64). Valid while the
+/// sensor noise is white from sample to sample; with coloured noise choose `delay` longer
+/// than its correlation time. `p0`: "exact" (default: batch IV on the first samples, then
+/// recursive), a scalar, one per equation/row, or the (n_params, n_params) matrix, with prior
+/// mean `theta0`; `r`: one variance per equation (weighs equations that share parameters).
+/// A sample whose instruments make the step singular raises VehidError, the identifier
+/// unchanged. `stats()` gives the IV sandwich covariance.
+#[pyclass(name = "IVIdentifier", module = "vehid._vehid", extends = PyIdentifier)]
+pub struct PyIVIdentifier {
+    delay: usize,
+    lags: usize,
+}
+
+#[pymethods]
+impl PyIVIdentifier {
+    #[new]
+    #[pyo3(signature = (model, delay = 1, lags = None, p0 = None, r = None, *, theta0 = None))]
+    fn py_new(
+        model: &Bound<'_, PyAny>,
+        delay: i128,
+        lags: Option<i128>,
+        p0: Option<&Bound<'_, PyAny>>,
+        r: Option<&Bound<'_, PyAny>>,
+        theta0: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<PyClassInitializer<Self>> {
+        let target = Target::of(model)?;
+        let s = target.structure()?;
+        let (np, ne) = (s.params(), s.equations());
+        let delay = usize::try_from(delay)
+            .ok()
+            .filter(|&d| d >= 1)
+            .ok_or_else(|| VehidError::new_err(format!("`delay` must be an integer >= 1 (samples), got {delay}")))?;
+        let width = 2 * s.states() + s.inputs();
+        let lags = match lags {
+            None => default_lags(width),
+            Some(l) => usize::try_from(l)
+                .map_err(|_| VehidError::new_err(format!("`lags` must be an integer >= 0, got {l}")))?,
+        };
+        if lags > 0 && lags.saturating_mul(width).saturating_add(1) > PREDICTOR {
+            return Err(VehidError::new_err(format!(
+                "`lags` = {lags} is too many for this model: lags × (2·{} states + {} inputs) + 1 must be at most \
+                 {PREDICTOR}, so at most {} (or 0 for the plain delayed regressors)",
+                s.states(),
+                s.inputs(),
+                (PREDICTOR - 1) / width
+            )));
+        }
+        let slots = delay.saturating_add(lags.saturating_sub(1));
+        if slots.saturating_mul(width) > RING_VALUES {
+            return Err(VehidError::new_err(format!(
+                "`delay` = {delay} with `lags` = {lags} needs {slots} past samples of {width} values, more than the \
+                 {RING_VALUES} values the identifier keeps: at most delay + lags - 1 = {} here",
+                RING_VALUES / width
+            )));
+        }
+        let is_model = matches!(target, Target::Model(_));
+        let (kind, p0_data) = prior_arg(p0, np, ne, is_model)?;
+        let theta0 = match theta0 {
+            None => None,
+            Some(t) => {
+                let a = array(t, "theta0")?;
+                finite("theta0", &a.data)?;
+                if a.data.len() != np || a.shape.len() > 2 {
+                    return Err(VehidError::new_err(format!(
+                        "`theta0` must hold the {np} parameters (a linear model: its unknown rows, (k, n)), got shape {}",
+                        shape_str(&a.shape)
+                    )));
+                }
+                Some(a.data)
+            }
+        };
+        let r = r_arg(r, ne)?;
+        let p0 = prior(kind, &p0_data);
+        let th = theta0.as_deref();
+        let inner = match bucket(&s) {
+            2 => iv_p::<2>(s, delay, lags, p0, th, &r),
+            4 => iv_p::<4>(s, delay, lags, p0, th, &r),
+            8 => iv_p::<8>(s, delay, lags, p0, th, &r),
+            16 => iv_p::<16>(s, delay, lags, p0, th, &r),
+            _ => iv_p::<32>(s, delay, lags, p0, th, &r),
+        }
+        .map_err(core_err)?;
+        Ok(PyClassInitializer::from(target.wrap(inner)).add_subclass(Self { delay, lags }))
+    }
+
+    /// The instruments' delay, samples.
+    #[getter]
+    fn delay(&self) -> usize {
+        self.delay
+    }
+
+    /// Past samples the refined instruments' predictor reads (0: the delayed regressors).
+    #[getter]
+    fn lags(&self) -> usize {
+        self.lags
+    }
+
+    /// A copy with its own core.
+    fn __copy__(slf: &Bound<'_, Self>) -> PyResult<Py<Self>> {
+        let py = slf.py();
+        let (delay, lags) = {
+            let b = slf.try_borrow()?;
+            (b.delay, b.lags)
+        };
+        let base = copy_base(slf.as_super())?;
+        Py::new(py, PyClassInitializer::from(base).add_subclass(Self { delay, lags }))
+    }
+
+    /// The same as `__copy__`: the core shares nothing.
+    fn __deepcopy__(slf: &Bound<'_, Self>, _memo: &Bound<'_, PyAny>) -> PyResult<Py<Self>> {
+        Self::__copy__(slf)
+    }
+
+    /// Not picklable yet (its core has no serialized form): copy.copy / copy.deepcopy work.
+    fn __reduce__(&self) -> PyResult<Py<PyTuple>> {
+        Err(not_picklable("IVIdentifier"))
+    }
+
+    fn __repr__(slf: PyRef<'_, Self>) -> String {
+        let base = slf.as_super();
+        format!(
+            "IVIdentifier(delay={}, lags={}, unknown_rows={:?}, samples={})",
+            slf.delay,
+            slf.lags,
+            base.inner.rows(),
+            base.inner.samples()
+        )
+    }
+}
+
+fn not_picklable(what: &str) -> PyErr {
+    VehidError::new_err(format!(
+        "{what} cannot be pickled yet (copy.copy and copy.deepcopy work): pickle its data or the estimate \
+         (`params`, `stats()`)"
+    ))
+}
+
+/// A fresh base object with a copy of `base`'s core and model.
+fn copy_base(base: &Bound<'_, PyIdentifier>) -> PyResult<PyIdentifier> {
+    let b = base.try_borrow()?;
+    let inner = b.inner.clone_box();
+    Ok(match &b.structure {
+        Some(s) => PyIdentifier::on_structure(inner, s.bind(base.py())),
+        None => PyIdentifier::new(inner, b.model.clone()),
+    })
+}
+
+fn bc_p<const P: usize>(
+    s: Structure<f64>,
+    sw: &[f64],
+    sv: &[f64],
+    r: &[f64],
+) -> vehid_core::Result<Box<dyn DynIdentifier<f64>>> {
+    Ok(Box::new(BiasCompensatedVec::<f64, P>::new(s, sw, sv, r)?))
+}
+
+/// A noise covariance argument: a scalar (every component), one per state (n,), or (n, n).
+fn noise_arg(v: Option<&Bound<'_, PyAny>>, arg: &str, n: usize) -> PyResult<Vec<f64>> {
+    let Some(v) = v else { return Ok(vec![]) };
+    let a = array(v, arg)?;
+    finite(arg, &a.data)?;
+    match a.shape[..] {
+        [] => Ok(a.data),
+        [len] if len == n => Ok(a.data),
+        [r, c] if r == n && c == n => Ok(a.data),
+        _ => Err(VehidError::new_err(format!(
+            "`{arg}` must be a variance (scalar), one per state ({n},) or a ({n}, {n}) covariance, got {}",
+            shape_str(&a.shape)
+        ))),
+    }
+}
+
+/// Bias-compensated least squares: `(XᵀX − N Σ_w)⁻¹ Xᵀz` for the full rows of a linear model,
+/// and its generalization to a Structure whose terms are linear in the noisy variables
+/// (states, `der(·)` with `deriv_noise_var`; inputs are taken as exact; sign/pos/neg of a noisy
+/// variable is refused).
+///
+/// `state_noise_var`: Σ_w, the covariance of the state sensors' noise (state units²): a
+/// scalar, one per state, or (n, n). It must be known: too small leaves part of the bias, too
+/// large makes the corrected matrix indefinite (VehidError when the estimate is read).
+/// `deriv_noise_var`: Σ_v of the derivative sensors, needed only for structures whose
+/// regressors read `der(·)` (default 0). `r`: one variance per equation (weighs equations
+/// that share parameters). The estimate is solved when read (`theta`, `params`), from sums
+/// kept per sample (nothing stored); `update` returns NaN innovations, as BatchLeastSquares.
+/// `stats()` is not available (use IVIdentifier for standard errors).
+#[pyclass(name = "BiasCompensated", module = "vehid._vehid", extends = PyIdentifier)]
+pub struct PyBiasCompensated;
+
+#[pymethods]
+impl PyBiasCompensated {
+    #[new]
+    #[pyo3(signature = (model, state_noise_var, deriv_noise_var = None, r = None))]
+    fn py_new(
+        model: &Bound<'_, PyAny>,
+        state_noise_var: &Bound<'_, PyAny>,
+        deriv_noise_var: Option<&Bound<'_, PyAny>>,
+        r: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<PyClassInitializer<Self>> {
+        let target = Target::of(model)?;
+        let s = target.structure()?;
+        let n = s.states();
+        let sw = noise_arg(Some(state_noise_var), "state_noise_var", n)?;
+        let sv = noise_arg(deriv_noise_var, "deriv_noise_var", n)?;
+        let r = r_arg(r, s.equations())?;
+        let inner = match bucket(&s) {
+            2 => bc_p::<2>(s, &sw, &sv, &r),
+            4 => bc_p::<4>(s, &sw, &sv, &r),
+            8 => bc_p::<8>(s, &sw, &sv, &r),
+            16 => bc_p::<16>(s, &sw, &sv, &r),
+            _ => bc_p::<32>(s, &sw, &sv, &r),
+        }
+        .map_err(core_err)?;
+        Ok(PyClassInitializer::from(target.wrap(inner)).add_subclass(Self))
+    }
+
+    /// A copy with its own core.
+    fn __copy__(slf: &Bound<'_, Self>) -> PyResult<Py<Self>> {
+        let base = copy_base(slf.as_super())?;
+        Py::new(slf.py(), PyClassInitializer::from(base).add_subclass(Self))
+    }
+
+    /// The same as `__copy__`: the core shares nothing.
+    fn __deepcopy__(slf: &Bound<'_, Self>, _memo: &Bound<'_, PyAny>) -> PyResult<Py<Self>> {
+        Self::__copy__(slf)
+    }
+
+    /// Not picklable yet (its core has no serialized form): copy.copy / copy.deepcopy work.
+    fn __reduce__(&self) -> PyResult<Py<PyTuple>> {
+        Err(not_picklable("BiasCompensated"))
+    }
+
+    fn __repr__(slf: PyRef<'_, Self>) -> String {
+        let base = slf.as_super();
+        format!("BiasCompensated(unknown_rows={:?}, samples={})", base.inner.rows(), base.inner.samples())
+    }
+}
