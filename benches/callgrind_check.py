@@ -70,6 +70,12 @@ BENCHES = [
     "half_rows_forget",   # update_f64/half/kalman_rows_forget
     "quarter_rows_exact",  # update_f64/quarter/kalman_rows_exact (after the exact start)
     "half_rows_exact",    # update_f64/half/kalman_rows_exact
+    "quarter_structured_rows",      # update_f64/quarter/structured_rows (issue 14: <= 1.5x quarter_rows_vec)
+    "quarter_structured_physical",  # update_f64/quarter/structured_physical
+    "quarter_structured_sg",        # update_f64/quarter/structured_sg_venter
+    "quarter_iv_rows",              # update_f64/quarter/iv_rows (issue 15)
+    "quarter_iv_physical",          # update_f64/quarter/iv_physical
+    "quarter_bcls_rows",            # update_f64/quarter/bcls_rows
 ]
 
 
