@@ -19,7 +19,7 @@
 mod parse;
 
 #[cfg(feature = "std")]
-pub use parse::{Names, StructureBuilder};
+pub use parse::{Names, StructureBuilder, StructureError};
 
 use crate::{Error, Real, Result};
 
