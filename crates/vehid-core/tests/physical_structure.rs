@@ -80,14 +80,16 @@ fn sustained(xis: &[(usize, f64)]) -> Option<usize> {
 /// Issue 14's must-show: the Fig 4-2 scenario (road σ 0.1, σ_v 0.005, dt 0.05, m known),
 /// online from an exact start. The physical structure holds ξ ≤ 0.08 from within 4000
 /// samples on at least 90 % of 50 seeds; the thesis' full rows (exact start, the true R) on
-/// the same data beside it.
+/// the same data beside it. Seeds 9000-9049; `SEED0=30000` runs 30000-30049 instead (to measure
+/// on seeds the structure was not developed on).
 #[test]
 fn fig_4_2_physical_structure_converges_within_4000_samples() {
+    let seed0: u64 = std::env::var("SEED0").ok().and_then(|s| s.parse().ok()).unwrap_or(9000);
     let car = QuarterCar::<f64>::thesis();
     let ps = QuarterCar::structure([None, Some(1.0), None, None, None]).unwrap();
     let (n, every) = (4000, 50);
     let (mut ok_struct, mut ok_rows) = (0, 0);
-    for seed in 9000..9050 {
+    for seed in seed0..seed0 + 50 {
         let mut sim =
             Simulator::new(car.model(), SimConfig::new(0.05).road_sigma(0.1).deriv_noise(0.005), seed).unwrap();
         let mut id = StructuredKalman::<f64, 2, 2>::exact(*ps.structure(), KalmanOptions::default()).unwrap();
@@ -113,6 +115,9 @@ fn fig_4_2_physical_structure_converges_within_4000_samples() {
         ok_struct += usize::from(sustained(&xs).is_some());
         ok_rows += usize::from(sustained(&xr).is_some());
     }
-    eprintln!("sustained ξ ≤ 0.08 within {n} samples: physical structure {ok_struct}/50, full rows {ok_rows}/50");
+    eprintln!(
+        "seeds {seed0}-{}: sustained ξ ≤ 0.08 within {n} samples: physical structure {ok_struct}/50, full rows {ok_rows}/50",
+        seed0 + 49
+    );
     assert!(ok_struct >= 45, "physical structure: {ok_struct}/50");
 }
