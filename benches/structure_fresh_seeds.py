@@ -24,8 +24,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
-import vehid  # noqa: E402
 from test_structure import RIG, damper_fit, rig_data, rig_regression  # noqa: E402
+
+import vehid  # noqa: E402
 
 
 def rig_fit(seed: int) -> tuple[np.ndarray, np.ndarray]:
