@@ -2,6 +2,7 @@
 
 import doctest
 import re
+import sys
 from pathlib import Path
 from typing import Any, Dict
 
@@ -32,3 +33,23 @@ def test_readme_python_blocks() -> None:
         # Pad with newlines so that tracebacks point at the README's own line numbers.
         line = text.count("\n", 0, block.start(1))
         exec(compile("\n" * line + block.group(1), str(README), "exec"), namespace)
+
+
+@pytest.mark.skipif(not README.exists(), reason="no README.md")
+def test_readme_python_blocks_pass_mypy_strict(tmp_path: Path) -> None:
+    """Every ```python block of the README, as one module, type-checks under ``mypy --strict``
+    against the package's stubs (``_vehid.pyi``): what a user's typed script meets."""
+    mypy = pytest.importorskip("mypy.api")
+    text = README.read_text(encoding="utf-8")
+    source = ""
+    for block in re.finditer(r"```python\n(.*?)```", text, flags=re.S):
+        # Padded with newlines so that mypy's line numbers are the README's.
+        source += "\n" * (text.count("\n", 0, block.start(1)) - source.count("\n")) + block.group(1)
+    module = tmp_path / "readme_blocks.py"
+    module.write_text(source, encoding="utf-8")
+    package = Path(vehid.__file__).resolve().parent.parent
+    out, err, status = mypy.run(
+        ["--strict", "--no-incremental", "--cache-dir", str(tmp_path / "cache"), "--python-executable", sys.executable,
+         str(module)]
+    )
+    assert status == 0, f"README.md, mypy --strict (package at {package}):\n{out}{err}"
