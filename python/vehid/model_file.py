@@ -132,7 +132,7 @@ def identify(
     conf_int, sigma2."""
     import numpy as np
 
-    from ._vehid import BatchLeastSquares, KalmanIdentifier
+    from ._vehid import BatchLeastSquares, Identifier, KalmanIdentifier
 
     s = model.structure
     wanted: Dict[str, str] = {}
@@ -155,6 +155,7 @@ def identify(
     order = cols + list(dcols.values()) + ucols
     what = {table.names.index(c): w for c, w in wanted.items()}
     labels = [f"{table.names[i]!r} ({what[i]})" for i in order]
+    ident: Identifier
     if method == "kalman":
         ident = KalmanIdentifier(s)
     elif method == "ls":
@@ -174,14 +175,14 @@ def identify(
         u = np.ascontiguousarray(data[:, n + nd :]) if inputs else None
         ident.fit(x, z, u=u)
         samples += len(data)
-    st = ident.stats(alpha=alpha)
+    stats = ident.stats(alpha=alpha)
     return {
         "samples": samples,
-        "names": list(st.names),
-        "params": st.params.tolist(),
-        "bse": st.bse.tolist(),
-        "conf_int": st.conf_int.tolist(),
-        "sigma2": dict(zip(s.identified, st.sigma2.tolist())),
+        "names": list(stats.names),
+        "params": stats.params.tolist(),
+        "bse": stats.bse.tolist(),
+        "conf_int": stats.conf_int.tolist(),
+        "sigma2": dict(zip(s.identified, stats.sigma2.tolist())),
         "alpha": alpha,
     }
 
