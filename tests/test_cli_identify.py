@@ -68,10 +68,13 @@ def test_text_report(quarter_csv: Path, capsys: pytest.CaptureFixture[str]) -> N
     assert "  row 1 " in out and "  row 3 " in out and "  true " in out
     assert "physical constants (known: m = 1 kg)" in out
     car = vehid.QuarterCar()
-    kf = vehid.KalmanIdentifier(car, p0=1000.0, road_sigma=0.1, deriv_noise=0.005)
+    kf = vehid.KalmanIdentifier(car, road_sigma=0.1, deriv_noise=0.005)  # the exact start, as the CLI's default
     run = run_of(car, 3000, 2)
     kf.fit(run.r, run.z)
     assert "time: 't' (time, s) from 0 to 149.95 s, median sample interval 0.05 s\n" in out
+    assert "(p0 exact," in out and "  ± 95 % " in out
+    assert "physical constants in the car's physical structure (least squares on the same samples, known: m = 1 kg), " \
+        "95 % intervals:" in out
     # The true rows are fitted to the file's noise-free columns, not assumed to be the thesis car.
     xi_line = "xi (Eq 3.17, vs the true rows from the file's true_* columns) = "
     assert f"{xi_line}{vehid.xi(car.theta, kf.theta):.6g}" in out
@@ -97,6 +100,40 @@ def test_kalman_equals_the_library_in_any_chunking(
                               "median_interval": pytest.approx(0.05), "gaps": 0}
     assert report["options"] == {"p0": 500.0, "road_sigma": 0.2, "deriv_noise": 0.005, "mode": "rows", "reinit": False}
     assert report["physical"] == physical_or_none(car, kf.theta, m=1.0)
+
+
+def test_honest_defaults_exact_start_and_intervals(quarter_csv: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The default is the exact start (no prior); the rows come with the 95 % intervals of
+    ``stats()``, and the quarter car's constants with the intervals of its physical structure
+    identified on the same samples; a prior the user chose is reported where it still
+    carries weight."""
+    car = vehid.QuarterCar()
+    run = run_of(car, 3000, 2)
+    report = identify_json(capsys, str(quarter_csv), "--model", "quarter")
+    assert report["options"]["p0"] == "exact" and report["prior_note"] is None
+    kf = vehid.KalmanIdentifier(car, road_sigma=0.1, deriv_noise=0.005)
+    kf.fit(run.r, run.z)
+    assert np.array_equal(np.array(report["theta"]), kf.theta)
+    np.testing.assert_array_equal(np.array(report["conf_int"]), kf.stats().conf_int.reshape(2, 4, 2))
+    ps = vehid.KalmanIdentifier(car.structure(known={"m": 1.0}), gate=0.0)
+    ps.fit(run.r, run.z)
+    expected = car.physical(ps.stats(), m=1.0)
+    assert report["physical_intervals"] == {k: list(v) for k, v in expected.items()}
+    ls = identify_json(capsys, str(quarter_csv), "--model", "quarter", "--method", "ls")
+    ref = vehid.BatchLeastSquares(car)
+    ref.fit(run.r, run.z)
+    np.testing.assert_array_equal(np.array(ls["conf_int"]), ref.stats().conf_int.reshape(2, 4, 2))
+    # A prior chosen by the user: 3000 samples leave some entries' variance near P(0).
+    prior = identify_json(capsys, str(quarter_csv), "--model", "quarter", "--p0", "1000")
+    assert prior["options"]["p0"] == 1000.0
+    kp = vehid.KalmanIdentifier(car, p0=1000.0, road_sigma=0.1, deriv_noise=0.005)
+    kp.fit(run.r, run.z)
+    ratio = np.diagonal(kp.covariance, axis1=1, axis2=2) / 1000.0
+    assert ratio.max() > 0.1 and prior["prior_note"] is not None
+    for i, j in zip(*np.nonzero(ratio > 0.1)):
+        assert f"a[{[1, 3][i]},{j}]" in prior["prior_note"]
+    sg = identify_json(capsys, str(quarter_csv), "--model", "quarter", "--method", "sg")
+    assert sg["conf_int"] is None and sg["physical_intervals"] is None
 
 
 def test_every_method_and_mode(quarter_csv: Path, capsys: pytest.CaptureFixture[str]) -> None:

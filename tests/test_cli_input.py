@@ -245,7 +245,7 @@ def test_irregular_sampling_is_fine_and_gaps_are_reported(
     assert report["samples"] == 1500 and report["time"]["gaps"] == 0
     car = vehid.QuarterCar()
     sub = vehid.Simulator(car, seed=6).run(N)
-    kf = vehid.KalmanIdentifier(car, p0=1000.0, road_sigma=0.1, deriv_noise=0.005)
+    kf = vehid.KalmanIdentifier(car, road_sigma=0.1, deriv_noise=0.005)  # the CLI's default: the exact start
     kf.fit(sub.r[keep], sub.z[keep])
     assert np.array_equal(np.array(report["theta"]), kf.theta)  # the update never sees the interval
     # Gaps: samples 500..559 and six more stretches missing.

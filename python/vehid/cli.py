@@ -591,6 +591,27 @@ class Progress:
 # --- identify: the identifiers ----------------------------------------------------------
 
 
+def parse_p0(text: str) -> Union[str, float, List[float]]:
+    """``--p0``: ``"exact"`` (the exact start: least squares on the first samples, no prior)
+    or the prior covariance as :func:`parse_floats` reads it."""
+    if text.strip().lower() == "exact":
+        return "exact"
+    return parse_floats(text)
+
+
+#: The prior used where the exact start does not apply (modes shared and full, two axles):
+#: the thesis' P(0) = 1000 I.
+THESIS_P0 = 1000.0
+
+
+def kalman_p0(args: argparse.Namespace) -> Union[str, float, List[float]]:
+    """The ``p0`` the Kalman identifier gets: the exact start unless the user chose a prior,
+    or the mode has no exact start (then the thesis' prior, and the report says so)."""
+    if args.p0 == "exact" and args.mode != "rows":
+        return THESIS_P0
+    return cast(Union[str, float, List[float]], args.p0)
+
+
 def parse_floats(text: str) -> Union[float, List[float]]:
     """``"1000"`` -> 1000.0; ``"1000,8"`` -> [1000.0, 8.0] (one value per unknown row)."""
     try:
@@ -646,7 +667,7 @@ def make_identifier(args: argparse.Namespace, model: LinearModel) -> Identifier:
     if args.method == "kalman":
         return KalmanIdentifier(
             model,
-            p0=args.p0,
+            p0=kalman_p0(args),
             road_sigma=args.road_sigma,
             deriv_noise=args.deriv_noise,
             mode=args.mode,
@@ -657,7 +678,8 @@ def make_identifier(args: argparse.Namespace, model: LinearModel) -> Identifier:
     if args.method == "two-axle":
         if args.model != "half":
             raise CliError("--method two-axle needs --model half (two axles on one road)")
-        p0 = args.p0 if isinstance(args.p0, float) else args.p0[0] if len(args.p0) == 1 else None
+        given = THESIS_P0 if args.p0 == "exact" else args.p0
+        p0 = given if isinstance(given, float) else given[0] if len(given) == 1 else None
         if p0 is None:
             raise CliError("--method two-axle takes one --p0 value (the body rows' prior is the thesis' 8)")
         return TwoAxleIdentifier(
@@ -694,14 +716,47 @@ def feed(ident: Identifier, r: NDArray[np.float64], z: NDArray[np.float64]) -> N
 def method_options(args: argparse.Namespace) -> Dict[str, Any]:
     """The settings that shaped the estimate, for the report."""
     if args.method == "kalman":
-        return {"p0": args.p0, "road_sigma": args.road_sigma, "deriv_noise": args.deriv_noise,
+        return {"p0": kalman_p0(args), "road_sigma": args.road_sigma, "deriv_noise": args.deriv_noise,
                 "mode": args.mode, "reinit": args.reinit}
     if args.method == "sg":
         return {"gain": args.gain, "h": 1.0 if args.h is None else args.h}
     if args.method == "two-axle":
-        return {"p0": args.p0, "road_sigma": args.road_sigma, "deriv_noise": args.deriv_noise,
-                "spacing": args.spacing, "wheel_method": args.wheel_method}
+        return {"p0": THESIS_P0 if args.p0 == "exact" else args.p0, "road_sigma": args.road_sigma,
+                "deriv_noise": args.deriv_noise, "spacing": args.spacing, "wheel_method": args.wheel_method}
     return {}
+
+
+def physical_identifier(
+    args: argparse.Namespace, model: LinearModel, known: Dict[str, float]
+) -> Optional[KalmanIdentifier]:
+    """The quarter car's physical structure with the known wheel mass, identified by least
+    squares on the same samples (exact start, no gate): its constants come with 95 %
+    intervals (``car.physical(stats)``). ``None`` for the other methods and for the half car
+    (its physical structure also needs the lever arms, and on one road it is biased: see the
+    README's "Models linear in their parameters")."""
+    if args.model != "quarter" or args.method not in ("kalman", "ls"):
+        return None
+    return KalmanIdentifier(model.structure(known=known), gate=0.0)
+
+
+#: Posterior / prior variance above which a direction is reported as still leaning on the
+#: prior: the data have not reduced its variance tenfold.
+PRIOR_WEIGHT = 0.1
+
+
+def prior_note(args: argparse.Namespace, ident: Identifier, rows: List[int]) -> Optional[str]:
+    """When the user chose a prior (``--p0``) and it still carries weight in some entries of
+    the rows (posterior variance above :data:`PRIOR_WEIGHT` × the prior's): which entries."""
+    if args.method != "kalman" or args.mode != "rows" or kalman_p0(args) == "exact":
+        return None
+    p0 = np.broadcast_to(np.asarray(kalman_p0(args), dtype=float), (len(rows),))
+    cov = np.asarray(cast(KalmanIdentifier, ident).covariance)
+    ratio = np.diagonal(cov, axis1=1, axis2=2) / p0[:, None]
+    heavy = [f"a[{rows[i]},{j}] ({ratio[i, j]:.2g})" for i, j in zip(*np.nonzero(ratio > PRIOR_WEIGHT))]
+    if not heavy:
+        return None
+    return (f"the prior (--p0) still carries weight in {', '.join(heavy)} (posterior / prior variance): those "
+            "entries lean on P(0), not only on the data; the exact start (--p0 exact, the default) has no prior")
 
 
 def known_masses(args: argparse.Namespace) -> Dict[str, float]:
@@ -781,6 +836,8 @@ def cmd_identify(args: argparse.Namespace) -> int:
         raise CliError(str(e)) from None
     truth = parse_truth(args.truth, args.model)
     ident = make_identifier(args, model)  # option errors before any reading
+    known = known_masses(args)
+    structured = physical_identifier(args, model, known)
     with open_table(args.file, delimiter=args.delimiter) as table:
         source = table.source
         layout = resolve_layout(table, args.model, model, mapping, args.no_time, truth is None, sys.stderr)
@@ -793,7 +850,10 @@ def cmd_identify(args: argparse.Namespace) -> int:
             data = chunk.data
             if time is not None and layout.t is not None:
                 time.add(data[:, layout.t], chunk.lines)
-            feed(ident, np.ascontiguousarray(data[:, layout.x]), np.ascontiguousarray(data[:, layout.dx]))
+            x, dx = np.ascontiguousarray(data[:, layout.x]), np.ascontiguousarray(data[:, layout.dx])
+            feed(ident, x, dx)
+            if structured is not None:
+                structured.fit(x, dx)
             if fit is not None:
                 fit.add(data[:, layout.true_x], data[:, layout.u], data[:, layout.true_dx])
             progress.step(len(data), table.consumed)
@@ -806,7 +866,24 @@ def cmd_identify(args: argparse.Namespace) -> int:
             f"needs at least {n} (one per state), and many more for a useful estimate"
         )
     theta = ident.theta
-    known = known_masses(args)
+    rows = list(model.unknown_rows)
+    # 95 % intervals of the rows' entries, where the identifier keeps the statistics.
+    conf_int: Optional[NDArray[np.float64]] = None
+    if args.method in ("kalman", "ls"):
+        try:
+            stats = cast(Union[KalmanIdentifier, BatchLeastSquares], ident).stats()
+            conf_int = np.asarray(stats.conf_int).reshape(len(rows), n, 2)
+        except VehidError:
+            conf_int = None
+    intervals: Optional[Dict[str, Tuple[float, float, float]]] = None
+    if structured is not None:
+        try:
+            intervals = model.physical(structured.stats(), **known)
+        except VehidError:
+            intervals = None
+    note = prior_note(args, ident, rows)
+    if note is not None:
+        print(f"vehid: note: {note}", file=sys.stderr)
     physical: Optional[Dict[str, float]] = None
     physical_error: Optional[str] = None
     try:
@@ -827,7 +904,6 @@ def cmd_identify(args: argparse.Namespace) -> int:
                 constants = None
             truth = Truth(true_theta, "the file's true_* columns", constants)
     xi_value = xi(truth.theta, theta) if truth is not None else None
-    rows = list(model.unknown_rows)
     if args.json:
         report = {
             "source": source,
@@ -839,8 +915,11 @@ def cmd_identify(args: argparse.Namespace) -> int:
             "time": None if time is None else time.report(),
             "unknown_rows": rows,
             "theta": _json_array(theta),
+            "conf_int": None if conf_int is None else [_json_array(block) for block in conf_int],
             "known": known,
             "physical": physical,
+            "physical_intervals": None if intervals is None else {k: list(v) for k, v in intervals.items()},
+            "prior_note": note,
             "physical_error": physical_error,
             "truth": None if truth is None else {"source": truth.source, "constants": truth.constants},
             "true_theta": None if truth is None else _json_array(truth.theta),
@@ -863,6 +942,9 @@ def cmd_identify(args: argparse.Namespace) -> int:
     print("identified rows of A (0-based)" + (", and the true rows" if truth is not None else "") + ":")
     for i, row in enumerate(rows):
         print(f"  row {row}  " + "".join(f"{v:{width}.6g}" for v in theta[i]))
+        if conf_int is not None:
+            half = (conf_int[i, :, 1] - conf_int[i, :, 0]) / 2
+            print("  ± 95 % " + "".join(f"{v:{width}.2g}" for v in half))
         if truth is not None:
             print("  true   " + "".join(f"{v:{width}.6g}" for v in truth.theta[i]))
     print()
@@ -876,6 +958,17 @@ def cmd_identify(args: argparse.Namespace) -> int:
             print(f"  {k:3s} = {v:<12.6g} {unit:6s} {true_v}".rstrip())
     else:
         print(f"physical constants (known: {given}): not available: {physical_error}")
+    if intervals is not None:
+        print()
+        print(f"physical constants in the car's physical structure (least squares on the same samples, known: "
+              f"{given}), 95 % intervals:")
+        for k, (v, lo, hi) in intervals.items():
+            if k in known:
+                continue
+            unit = UNITS.get(k.rstrip("0123456789"), "")
+            true_v = f"true {true_constants[k]:.6g}" if k in true_constants else ""
+            band = f"[{lo:.6g}, {hi:.6g}]"
+            print(f"  {k:3s} = {v:<12.6g} {band:24s} {unit:6s} {true_v}".rstrip())
     if truth is not None and xi_value is not None:
         print()
         print(f"xi (Eq 3.17, vs the true rows from {truth.source}) = {xi_value:.6g}")
@@ -1007,9 +1100,10 @@ def build_parser() -> argparse.ArgumentParser:
                        help="two-axle: metres between samples, as simulated (default 0.3)")
     ident.add_argument("--wheel-method", choices=["none", "thesis", "cancel"], default="cancel",
                        help="two-axle: wheel rows by plain rows, Eq 6.14, or road cancellation (default)")
-    ident.add_argument("--p0", type=parse_floats, default=1000.0, metavar="P0",
-                       help="kalman: prior covariance P(0), one value or one per unknown row, comma-separated "
-                            "(default 1000)")
+    ident.add_argument("--p0", type=parse_p0, default="exact", metavar="P0",
+                       help="kalman: 'exact' (default: the exact start, least squares on the first samples, no "
+                            "prior; modes shared/full and two-axle use the thesis' 1000) or a prior covariance "
+                            "P(0), one value or one per unknown row, comma-separated")
     ident.add_argument("--road-sigma", type=float, default=0.1,
                        help="kalman: road input std sigma_u, m, for R (Eq 4.7) (default 0.1)")
     ident.add_argument("--deriv-noise", type=float, default=0.005,
