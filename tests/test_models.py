@@ -234,3 +234,24 @@ def test_version_and_exports() -> None:
     for name in vehid.__all__:
         assert hasattr(vehid, name), name
     assert issubclass(vehid.VehidError, ValueError)
+
+
+def test_reprs_use_python_quoting_and_tuples() -> None:
+    """Every repr quotes strings as Python does (single quotes) and shows row indices as a
+    tuple, as ``LinearModel``'s and ``car.unknown_rows`` do."""
+    car = vehid.QuarterCar()
+    s = car.structure(known={"m": 1.0})
+    t = vehid.Structure(["q", "v"], ["f"], {"v": "-k*q + g*f"}, known={"q": "v"})
+    objs = [
+        vehid.KalmanIdentifier(car), vehid.StochasticGradient(car), vehid.BatchLeastSquares(car),
+        vehid.IVIdentifier(s), vehid.BiasCompensated(s, state_noise_var=1e-4), vehid.TwoAxleIdentifier(vehid.HalfCar()),
+        vehid.Simulator(car), t, s, car,
+    ]
+    for obj in objs:
+        assert '"' not in repr(obj), repr(obj)
+    kf = "KalmanIdentifier(mode='rows', unknown_rows=(1, 3), samples=0, reinit_count=0)"
+    assert repr(vehid.KalmanIdentifier(car)) == kf
+    sg = repr(vehid.StochasticGradient(car, gain="ljung"))
+    assert sg.startswith("StochasticGradient(gain='ljung', unknown_rows=(1, 3)"), sg
+    assert repr(t) == "Structure(states=['q', 'v'], inputs=['f'], equations={'v': '-k*q + g*f'}, parameters=['k', 'g'])"
+    assert tuple(car.unknown_rows) == (1, 3) and str(car.unknown_rows) in repr(vehid.BatchLeastSquares(car))

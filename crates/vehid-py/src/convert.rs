@@ -178,3 +178,21 @@ impl<'py> Table<'py> {
         }
     }
 }
+
+/// Python's repr of a tuple of row indices: `(1, 3)`, `(0,)`.
+pub fn py_tuple(rows: &[usize]) -> String {
+    match rows {
+        [one] => format!("({one},)"),
+        _ => format!("({})", rows.iter().map(|r| r.to_string()).collect::<Vec<_>>().join(", ")),
+    }
+}
+
+/// Python's repr of a string: single quotes, `\\` and `'` escaped (`'rows'`).
+pub fn py_str(s: &str) -> String {
+    format!("'{}'", s.replace('\\', "\\\\").replace('\'', "\\'"))
+}
+
+/// Python's repr of a list of strings: `['x', 'v']`.
+pub fn py_str_list(v: &[String]) -> String {
+    format!("[{}]", v.iter().map(|s| py_str(s)).collect::<Vec<_>>().join(", "))
+}

@@ -577,9 +577,9 @@ impl PyKalmanIdentifier {
         let slf = borrow(slf)?;
         let base = slf.as_super();
         Ok(format!(
-            "KalmanIdentifier(mode={:?}, unknown_rows={:?}, samples={}, reinit_count={})",
-            slf.mode.as_str(),
-            base.inner.rows(),
+            "KalmanIdentifier(mode={}, unknown_rows={}, samples={}, reinit_count={})",
+            crate::convert::py_str(slf.mode.as_str()),
+            crate::convert::py_tuple(base.inner.rows()),
             base.inner.samples(),
             base.inner.reinit_count()
         ))
@@ -671,9 +671,9 @@ impl PyStochasticGradient {
         let slf = borrow(slf)?;
         let base = slf.as_super();
         Ok(format!(
-            "StochasticGradient(gain={:?}, unknown_rows={:?}, samples={})",
-            slf.gain.as_str(),
-            base.inner.rows(),
+            "StochasticGradient(gain={}, unknown_rows={}, samples={})",
+            crate::convert::py_str(slf.gain.as_str()),
+            crate::convert::py_tuple(base.inner.rows()),
             base.inner.samples()
         ))
     }
@@ -781,6 +781,10 @@ impl PyBatchLeastSquares {
     fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
         let slf = borrow(slf)?;
         let base = slf.as_super();
-        Ok(format!("BatchLeastSquares(unknown_rows={:?}, samples={})", base.inner.rows(), base.inner.samples()))
+        Ok(format!(
+            "BatchLeastSquares(unknown_rows={}, samples={})",
+            crate::convert::py_tuple(base.inner.rows()),
+            base.inner.samples()
+        ))
     }
 }

@@ -437,7 +437,7 @@ impl PyLinearModel {
                 "LinearModel(n_states={}, n_inputs={}, unknown_rows={})",
                 self.data.n,
                 self.data.m,
-                rows_repr(&self.data.rows)
+                crate::convert::py_tuple(&self.data.rows)
             ),
             Kind::Quarter(c) => format!(
                 "QuarterCar(M={:?}, m={:?}, k1={:?}, k2={:?}, b={:?})",
@@ -456,13 +456,6 @@ impl PyLinearModel {
                 )
             }
         }
-    }
-}
-
-fn rows_repr(rows: &[usize]) -> String {
-    match rows {
-        [one] => format!("({one},)"),
-        _ => format!("({})", rows.iter().map(|r| r.to_string()).collect::<Vec<_>>().join(", ")),
     }
 }
 

@@ -275,10 +275,10 @@ impl PyIVIdentifier {
     fn __repr__(slf: PyRef<'_, Self>) -> String {
         let base = slf.as_super();
         format!(
-            "IVIdentifier(delay={}, lags={}, unknown_rows={:?}, samples={})",
+            "IVIdentifier(delay={}, lags={}, unknown_rows={}, samples={})",
             slf.delay,
             slf.lags,
-            base.inner.rows(),
+            crate::convert::py_tuple(base.inner.rows()),
             base.inner.samples()
         )
     }
@@ -387,6 +387,10 @@ impl PyBiasCompensated {
 
     fn __repr__(slf: PyRef<'_, Self>) -> String {
         let base = slf.as_super();
-        format!("BiasCompensated(unknown_rows={:?}, samples={})", base.inner.rows(), base.inner.samples())
+        format!(
+            "BiasCompensated(unknown_rows={}, samples={})",
+            crate::convert::py_tuple(base.inner.rows()),
+            base.inner.samples()
+        )
     }
 }

@@ -2,7 +2,7 @@
 //! core's `StructureBuilder`) or from a car's physical constants (`QuarterCar.structure`,
 //! `HalfCar.structure`: the core's `PhysicalStructure`); and the identifiers built on one.
 
-use crate::convert::{array, finite, shape_str};
+use crate::convert::{array, finite, py_str, py_str_list, shape_str};
 use crate::{core_err, VehidError};
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
@@ -349,19 +349,28 @@ impl PyStructure {
     fn __repr__(&self) -> String {
         match &self.origin {
             Origin::Text { equations, .. } => {
-                let eqs: Vec<String> = equations.iter().map(|(s, t)| format!("{s:?}: {t:?}")).collect();
+                let eqs: Vec<String> = equations.iter().map(|(s, t)| format!("{}: {}", py_str(s), py_str(t))).collect();
                 format!(
-                    "Structure(states={:?}, inputs={:?}, equations={{{}}}, parameters={:?})",
-                    self.states,
-                    self.inputs,
+                    "Structure(states={}, inputs={}, equations={{{}}}, parameters={})",
+                    py_str_list(&self.states),
+                    py_str_list(&self.inputs),
                     eqs.join(", "),
-                    self.params
+                    py_str_list(&self.params)
                 )
             }
             Origin::Physical { car, known, .. } => {
-                let k: Vec<String> =
-                    car.constants().iter().zip(known).filter_map(|(c, v)| v.map(|v| format!("{c:?}: {v}"))).collect();
-                format!("{}.structure(known={{{}}}) (parameters {:?})", car.name(), k.join(", "), self.params)
+                let k: Vec<String> = car
+                    .constants()
+                    .iter()
+                    .zip(known)
+                    .filter_map(|(c, v)| v.map(|v| format!("{}: {v:?}", py_str(c))))
+                    .collect();
+                format!(
+                    "{}.structure(known={{{}}}) (parameters {})",
+                    car.name(),
+                    k.join(", "),
+                    py_str_list(&self.params)
+                )
             }
         }
     }

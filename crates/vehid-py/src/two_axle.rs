@@ -161,8 +161,8 @@ impl PyTwoAxleIdentifier {
         let slf = borrow(slf)?;
         let id = Self::core(&slf);
         Ok(format!(
-            "TwoAxleIdentifier(method={:?}, spacing={:?}, delay={}, samples={})",
-            id.config().method.as_str(),
+            "TwoAxleIdentifier(method={}, spacing={:?}, delay={}, samples={})",
+            crate::convert::py_str(id.config().method.as_str()),
             slf.spacing,
             id.delay(),
             id.samples()
