@@ -235,7 +235,11 @@ fn rejected_samples_leave_the_identifier_unchanged() {
     assert_eq!(sg.theta(), sg_before.theta());
     assert_eq!(sg.samples(), sg_before.samples());
     assert_eq!(full.theta(), full_before.theta());
-    assert_eq!(full.p_block(0, 1), full_before.p_block(0, 1));
+    for (i, j) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+        assert_eq!(full.p_block(i, j), full_before.p_block(i, j), "P block ({i}, {j}) unchanged");
+    }
+    assert_eq!((full.samples(), full.reinit_count()), (full_before.samples(), full_before.reinit_count()));
+    // Everything else, in every identifier kind and form: tests/claims.rs.
 }
 
 #[test]
