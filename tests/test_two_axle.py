@@ -119,3 +119,52 @@ def test_axle_sampler_pairs_within_tolerance_at_varying_speed():
     assert s.feed(0.0) == (len(positions), 0, 0.0, None)
     with pytest.raises(vehid.VehidError, match="capacity"):
         vehid.AxleSampler(wheelbase=3.0, spacing=0.0003)
+
+
+def kalman_row(theta: np.ndarray, p: np.ndarray, x: np.ndarray, e: float, r: float) -> None:
+    """One recursive least-squares step (Eq 4.3–4.6, standard form), in place."""
+    px = p @ x
+    s = x @ px + r
+    theta += px * (e / s)
+    p -= np.outer(px, px) / s
+
+
+def thesis_wheel_rows(half: vehid.HalfCar, r: np.ndarray, z: np.ndarray, d: int, p0: float,
+                      road_sigma: float, deriv_noise: float, sign: float = -1.0) -> tuple:
+    """Eq 6.12–6.14 in numpy: the front wheel row's innovation ``e1(k) = z2(k) − x(k)ᵀθ̂_2``
+    estimates ``b21 u1(k)``; the rear row's innovation is
+    ``e2(k) = z4(k) − x(k)ᵀθ̂_4 − (b42/b21) e1(k − d)``, from its first pair on; each row a
+    Kalman row with ``P(0) = p0 I`` and the variance of Eq 4.7, ``σ_v² + b² σ_u²``.
+    (``sign=+1`` is the deliberately wrong Eq 6.14, to show the test can tell.)"""
+    b = np.asarray(half.b)
+    b21, b42 = b[1, 0], b[3, 1]
+    rho = b42 / b21
+    rf = deriv_noise**2 + b21**2 * road_sigma**2
+    rr = deriv_noise**2 + b42**2 * road_sigma**2
+    n = r.shape[1]
+    tf, pf = np.zeros(n), p0 * np.eye(n)
+    tr, pr = np.zeros(n), p0 * np.eye(n)
+    e1 = np.zeros(len(r))
+    for k in range(len(r)):
+        x = r[k]
+        e1[k] = z[k, 1] - tf @ x
+        kalman_row(tf, pf, x, e1[k], rf)
+        if k >= d:
+            kalman_row(tr, pr, x, z[k, 3] - tr @ x + sign * rho * e1[k - d], rr)
+    return tf, tr, (rf, rr)
+
+
+def test_thesis_wheel_method_is_eq_6_14() -> None:
+    half = vehid.HalfCar()
+    run = vehid.Simulator(half, speed=6.0, spacing=0.3, road_sigma=0.1, deriv_noise=0.005, seed=4).run(3000)
+    two = vehid.TwoAxleIdentifier(half, spacing=0.3, method="thesis", p0=1000.0, road_sigma=0.1, deriv_noise=0.005)
+    for k in range(0, 3000, 500):  # along the run, not only at its end
+        two.fit(run.r[k:k + 500], run.z[k:k + 500])
+        front, rear, (rf, rr) = thesis_wheel_rows(half, run.r[:k + 500], run.z[:k + 500], two.delay, 1000.0, 0.1, 0.005)
+        np.testing.assert_allclose(two.theta[0], front, rtol=1e-8, atol=1e-8 * np.max(np.abs(front)))
+        np.testing.assert_allclose(two.theta[1], rear, rtol=1e-8, atol=1e-8 * np.max(np.abs(rear)))
+    assert two.wheel_variances[:2] == pytest.approx((rf, rr), rel=1e-12)
+    # The reference can tell the sign of Eq 6.14's correction: the rows differ far beyond the
+    # tolerance above.
+    _, wrong, _ = thesis_wheel_rows(half, run.r, run.z, two.delay, 1000.0, 0.1, 0.005, sign=+1.0)
+    assert np.max(np.abs(wrong - rear)) > 1e-3 * np.max(np.abs(rear))

@@ -91,17 +91,24 @@ fn correct_r(noise: Noise) -> [f64; 2] {
 
 const FIG_4_2: Noise = Noise { ic: 0.0, road: 0.1, state: 0.0, deriv: 0.005 };
 
+/// Iterations of the Fig 4-2 runs (long enough for every seed to settle; see below).
+const FIG_4_2_RUN: usize = 200_000;
+
 #[test]
 fn fig_4_2_body_row_fast_wheel_row_slow() {
     // Road noise only: it enters the wheel row, so that row is learned against noise
     // 90·σ_u while the body row sees only σ_v. Claim: the body row converges within 1,000
-    // iterations; ξ needs tens of thousands of iterations to fall below 0.08.
+    // iterations; ξ needs tens of thousands of iterations to fall below 0.08 (the thesis:
+    // more than 40,000), and it does fall below it. Two-sided (issue 18): a seed that never
+    // settles fails the test (with 60,000 iterations four of the eight did not, and the old
+    // median test passed on ∞).
+    // Measured (seeds 11..88): settled after 23,500 to 86,000 iterations, median 72,750.
     let mut body_1000 = vec![];
     let mut xi_1000 = vec![];
     let mut settle = vec![];
     for seed in SEEDS {
         let mut id = kalman(1000.0, correct_r(FIG_4_2), false);
-        let tr = run(seed, FIG_4_2, 60_000, 500, &mut id);
+        let tr = run(seed, FIG_4_2, FIG_4_2_RUN, 500, &mut id);
         body_1000.push(tr.body_at(1000));
         xi_1000.push(tr.at(1000));
         settle.push(tr.settles_below(0.08).map(|k| k as f64).unwrap_or(f64::INFINITY));
@@ -110,7 +117,12 @@ fn fig_4_2_body_row_fast_wheel_row_slow() {
     eprintln!("Fig 4-2: median body-row ξ at 1,000 = {b:.2e}; median ξ at 1,000 = {x:.3}; median iterations until ξ stays < 0.08 = {s}; per seed {settle:?}");
     assert!(body_1000.iter().all(|&v| v < 1e-3), "body row converged by 1,000 on every seed: {body_1000:?}");
     assert!(x > 0.08, "ξ not yet acceptable at 1,000");
-    assert!(s >= 10_000.0, "ξ < 0.08 needs tens of thousands of iterations");
+    // Slow: no seed before 10,000 (measured 23,500 at the earliest), half of them after the
+    // thesis' 40,000 (median measured 72,750).
+    assert!(settle.iter().all(|&k| k >= 10_000.0), "ξ < 0.08 needs tens of thousands of iterations: {settle:?}");
+    assert!(s >= 40_000.0, "median iterations until ξ stays < 0.08: {s} (the thesis: > 40,000)");
+    // ... but it converges: every seed holds ξ < 0.08 by 120,000 (measured 86,000 at the latest).
+    assert!(settle.iter().all(|&k| k <= 120_000.0), "every seed settles below 0.08: {settle:?}");
 }
 
 #[test]

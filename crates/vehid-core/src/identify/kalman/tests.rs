@@ -235,7 +235,11 @@ fn rejected_samples_leave_the_identifier_unchanged() {
     assert_eq!(sg.theta(), sg_before.theta());
     assert_eq!(sg.samples(), sg_before.samples());
     assert_eq!(full.theta(), full_before.theta());
-    assert_eq!(full.p_block(0, 1), full_before.p_block(0, 1));
+    for (i, j) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+        assert_eq!(full.p_block(i, j), full_before.p_block(i, j), "P block ({i}, {j}) unchanged");
+    }
+    assert_eq!((full.samples(), full.reinit_count()), (full_before.samples(), full_before.reinit_count()));
+    // Everything else, in every identifier kind and form: tests/claims.rs.
 }
 
 #[test]
@@ -315,7 +319,7 @@ fn cost_reports_size_and_arithmetic() {
 }
 
 #[test]
-fn f32_long_run_keeps_covariance_symmetric_positive_definite() {
+fn f32_long_run_keeps_covariance_positive_definite() {
     let car = QuarterCar::<f32>::thesis();
     let cfg = SimConfig::<f32, 4, 1>::new(0.05).road_sigma(0.1).ic_sigma(0.1).deriv_noise(0.005);
     let mut sim = Simulator::new(car.model(), cfg, 6).unwrap();
@@ -326,8 +330,9 @@ fn f32_long_run_keeps_covariance_symmetric_positive_definite() {
         id.update(&s.r, &s.z).unwrap();
     }
     for f in (0..2).map(|i| id.filter(i)) {
+        // The lanes store one triangle of P and `p()` mirrors it: its symmetry would be a
+        // tautology here (the forms that store whole matrices are checked in tests/claims.rs).
         let p = f.p();
-        assert_eq!(p, p.transpose(), "exactly symmetric");
         let mut l = p;
         assert!(crate::linalg::cholesky_in_place(l.as_mut_slice(), 4), "positive definite: {p}");
         assert!(f.theta().iter().all(|v| v.is_finite()));

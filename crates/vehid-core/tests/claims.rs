@@ -1,0 +1,556 @@
+//! Claims that had no test failing when they broke (issue 18), each against an independent
+//! reference:
+//!
+//! - the stochastic gradient (Eq 2.56, 5.2–5.18: Venter, Lyapunov and Ljung gains, the `Σ_w`
+//!   bias removal, the spacing) step by step against a plain reimplementation of the
+//!   equations written here;
+//! - transactional updates: every identifier refuses a NaN, an inf, and a finite sample whose
+//!   update overflows only after a multiplication, and its whole state (every field, through
+//!   its `Debug` form: shortest round-trip floats, so equal text is equal values) is as before;
+//!   it then continues exactly as a twin that never saw the bad samples.
+//!
+//! `docs/claims.md` lists the deliberate breaks these tests were seen to catch.
+
+use nalgebra::SVector;
+use vehid_core::identify::{
+    BatchLeastSquares, BiasCompensatedVec, CovarianceForm, FullKalmanIdentifier, FullKalmanIdentifierVec, Gain,
+    Identifier, IvIdentifierVec, KalmanFull, KalmanIdentifier, KalmanIdentifierVec, KalmanOptions,
+    SharedKalmanIdentifier, SharedKalmanIdentifierVec, StochasticGradient, StochasticGradientVec, Store,
+    StructuredGradient, StructuredKalmanVec, StructuredPrior,
+};
+use vehid_core::model::{HalfCar, QuarterCar};
+use vehid_core::sim::{SimConfig, Simulator};
+use vehid_core::structure::Structure;
+
+type V4 = SVector<f64, 4>;
+type V8 = SVector<f64, 8>;
+
+/// Half-car samples (8 states: six unknown rows make two lane groups of the heap store).
+fn half_samples(seed: u64, n: usize) -> Vec<(V8, V8)> {
+    let cfg = SimConfig::new(0.05).road_sigma(0.1).ic_sigma(0.1).deriv_noise(0.005);
+    let mut sim = Simulator::new(HalfCar::<f64>::thesis().model(), cfg, seed).unwrap();
+    (0..n).map(|_| sim.next_sample()).map(|s| (s.r, s.z)).collect()
+}
+
+/// Six unknown rows of the half car in the heap store: two lane groups (on x86-64), so the
+/// plan of several groups before any applies is exercised.
+fn half_six_rows(form: CovarianceForm) -> KalmanIdentifierVec<f64, 8> {
+    let o = KalmanOptions { form, ..Default::default() };
+    KalmanIdentifierVec::<f64, 8>::from_slices(&[0, 1, 2, 3, 5, 7], &[1000.0], &[1.0, 81.0, 1.0, 2.5e-5, 1.0, 1.0], o)
+        .unwrap()
+}
+
+/// Quarter-car samples `(r, z)` with road, derivative and state noise.
+fn samples(seed: u64, n: usize, state_noise: f64) -> Vec<(V4, V4)> {
+    let cfg = SimConfig::new(0.05).road_sigma(0.1).ic_sigma(0.1).deriv_noise(0.005).state_noise(state_noise);
+    let mut sim = Simulator::new(QuarterCar::<f64>::thesis().model(), cfg, seed).unwrap();
+    (0..n).map(|_| sim.next_sample()).map(|s| (s.r, s.z)).collect()
+}
+
+// ---------------------------------------------------------------------------------------
+// Stochastic gradient against the equations
+// ---------------------------------------------------------------------------------------
+
+#[derive(Clone, Copy, Debug)]
+enum RefGain {
+    Venter(f64),
+    Lyapunov,
+    Ljung { lambda0: f64, lambda_init: f64 },
+}
+
+/// The thesis' stochastic gradient written from the equations, one row at a time:
+/// `e_i = z_row − xᵀθ_i`; on every `spacing`-th sample `k ← k + 1`, the gain
+/// (Eq 5.8 `γ = k^(−p)`; Eq 5.9 `γ = 1 / Σ_ij h_ij x_j²`; Eq 5.15–5.18 `λ ← λ₀λ + 1 − λ₀`,
+/// `γ ← γ / (γ + λ)`, `γ(0) = 1`, `λ(0) = λ_init`), and Eq 2.56 with `H = I ⊗ xᵀ`:
+/// `θ_ij ← θ_ij + γ h_ij (Σ_w,j θ_ij + x_j e_i)` (`Σ_w` diagonal).
+struct RefSg {
+    rows: Vec<usize>,
+    theta: Vec<[f64; 4]>,
+    h: Vec<[f64; 4]>,
+    sw: [f64; 4],
+    gain: RefGain,
+    spacing: u64,
+    seen: u64,
+    k: u64,
+    gamma: f64,
+    lambda: f64,
+}
+
+impl RefSg {
+    fn new(rows: &[usize], gain: RefGain, h: Vec<[f64; 4]>, sw: [f64; 4], spacing: u64) -> Self {
+        let lambda = match gain {
+            RefGain::Ljung { lambda_init, .. } => lambda_init,
+            _ => 1.0,
+        };
+        let theta = vec![[0.0; 4]; rows.len()];
+        Self { rows: rows.to_vec(), theta, h, sw, gain, spacing, seen: 0, k: 0, gamma: 1.0, lambda }
+    }
+
+    fn step(&mut self, x: &V4, z: &V4) -> Vec<f64> {
+        let e: Vec<f64> = self
+            .rows
+            .iter()
+            .zip(&self.theta)
+            .map(|(&row, th)| z[row] - (0..4).map(|j| th[j] * x[j]).sum::<f64>())
+            .collect();
+        let active = self.seen % self.spacing == 0;
+        self.seen += 1;
+        if !active {
+            return e;
+        }
+        let gamma = match self.gain {
+            RefGain::Venter(p) => (self.k as f64 + 1.0).powf(-p),
+            RefGain::Lyapunov => {
+                let den: f64 = self.h.iter().map(|h| (0..4).map(|j| h[j] * x[j] * x[j]).sum::<f64>()).sum();
+                if den <= 0.0 {
+                    return e;
+                }
+                1.0 / den
+            }
+            RefGain::Ljung { lambda0, .. } => {
+                self.lambda = lambda0 * self.lambda + (1.0 - lambda0);
+                self.gamma / (self.gamma + self.lambda)
+            }
+        };
+        self.k += 1;
+        self.gamma = gamma;
+        for (i, th) in self.theta.iter_mut().enumerate() {
+            let old = *th;
+            for j in 0..4 {
+                th[j] = old[j] + gamma * self.h[i][j] * (self.sw[j] * old[j] + x[j] * e[i]);
+            }
+        }
+        e
+    }
+}
+
+/// Runs the identifier and the reference side by side; θ̂ (and the innovations) must agree
+/// at every step to `tol` relative to the largest |θ| so far.
+fn compare_sg(name: &str, id: &mut dyn Identifier<f64>, reference: &mut RefSg, data: &[(V4, V4)], tol: f64) {
+    let k = reference.rows.len();
+    let mut e = vec![0.0; k];
+    let mut th = vec![0.0; 4 * k];
+    let mut scale = 1e-300f64;
+    let mut moved = 0.0f64;
+    for (step, (x, z)) in data.iter().enumerate() {
+        id.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+        let e_ref = reference.step(x, z);
+        id.params_into(&mut th).unwrap();
+        let th_ref: Vec<f64> = reference.theta.iter().flatten().copied().collect();
+        scale = th_ref.iter().fold(scale, |m, v| m.max(v.abs()));
+        moved = moved.max(scale);
+        let d = th.iter().zip(&th_ref).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        assert!(d <= tol * scale, "{name}: step {step}: θ̂ {th:?} against the equations {th_ref:?} (|Δ| {d:e})");
+        for (a, b) in e.iter().zip(&e_ref) {
+            let bound = tol * (scale * x.abs().sum() + b.abs());
+            assert!((a - b).abs() <= bound, "{name}: step {step}: innovation {a} against {b}");
+        }
+    }
+    assert!(moved > 1e-3, "{name}: the estimate never moved: nothing was compared");
+}
+
+#[test]
+fn stochastic_gradient_follows_the_equations_step_by_step() {
+    let data = samples(7, 400, 0.01);
+    let rows = [1usize, 3];
+    // Per-parameter weights, the wheel row one tenth of the body row (Eq 5.10), not all equal.
+    let h_body = [0.4, 0.3, 0.2, 0.1];
+    let h = vec![h_body.map(|v| v * 0.1), h_body];
+    let h_flat: Vec<f64> = h.iter().flatten().copied().collect();
+    let sw = [1e-2, 4e-2, 1e-2, 3e-2];
+    let gains = [
+        (RefGain::Venter(0.51), Gain::Venter { p: 0.51 }),
+        (RefGain::Venter(0.95), Gain::Venter { p: 0.95 }),
+        (RefGain::Lyapunov, Gain::Lyapunov),
+        (RefGain::Ljung { lambda0: 0.99, lambda_init: 0.95 }, Gain::Ljung { lambda0: 0.99, lambda_init: 0.95 }),
+    ];
+    for (rg, g) in gains {
+        for noise in [[0.0; 4], sw] {
+            for spacing in [1u32, 3] {
+                let name = format!("{rg:?}, Σ_w {noise:?}, spacing {spacing}");
+                let mut reference = RefSg::new(&rows, rg, h.clone(), noise, spacing.into());
+                let mut id = StochasticGradientVec::<f64, 4>::from_slices(&rows, g, &h_flat, &noise, spacing).unwrap();
+                compare_sg(&name, &mut id, &mut reference, &data, 1e-12);
+                // The fixed store: the same code, the same numbers.
+                let mut reference = RefSg::new(&rows, rg, h.clone(), noise, spacing.into());
+                let mut id = StochasticGradient::<f64, 4, 2>::from_slices(&rows, g, &h_flat, &noise, spacing).unwrap();
+                compare_sg(&format!("{name} (fixed)"), &mut id, &mut reference, &data, 1e-12);
+            }
+        }
+    }
+}
+
+#[test]
+fn bias_removal_term_matters_in_the_comparison() {
+    // The Σ_w term must move θ̂ by far more than the comparison's tolerance, or a flipped sign
+    // would pass unseen.
+    let data = samples(7, 400, 0.01);
+    let sw = [1e-2, 4e-2, 1e-2, 3e-2];
+    let mut with = RefSg::new(&[1, 3], RefGain::Venter(0.51), vec![[0.04; 4], [0.4; 4]], sw, 1);
+    let mut flipped = RefSg::new(&[1, 3], RefGain::Venter(0.51), vec![[0.04; 4], [0.4; 4]], sw.map(|v| -v), 1);
+    for (x, z) in &data {
+        with.step(x, z);
+        flipped.step(x, z);
+    }
+    let a: Vec<f64> = with.theta.iter().flatten().copied().collect();
+    let b: Vec<f64> = flipped.theta.iter().flatten().copied().collect();
+    let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let d = a.iter().zip(&b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+    assert!(d > 1e-6 * scale, "the bias-removal term is invisible: {d:e} of {scale:e}");
+}
+
+// ---------------------------------------------------------------------------------------
+// Transactional updates
+// ---------------------------------------------------------------------------------------
+
+/// The whole state of a persistable identifier: its serialized bytes (every field but the
+/// scratch space of the plan, which holds nothing between updates; floats bit for bit).
+fn ser<I: serde::Serialize>(id: &I) -> Vec<u8> {
+    postcard::to_allocvec(id).unwrap()
+}
+
+/// The whole state of an identifier without serialization or scratch space: every field
+/// through the derived `Debug` (floats in shortest round-trip form, so equal text is equal
+/// values).
+fn dbg<I: core::fmt::Debug>(id: &I) -> Vec<u8> {
+    format!("{id:?}").into_bytes()
+}
+
+/// Everything the [`Identifier`] interface reads (estimate, covariance, noise, residual
+/// statistics, trace, counters), or its error.
+fn getters<I: Identifier<f64>>(id: &I) -> String {
+    let d = id.dims();
+    let mut th = vec![0.0; d.params];
+    let mut cov = vec![0.0; d.params * d.params];
+    let mut noise = vec![0.0; d.equations * d.equations];
+    let (mut ssr, mut nobs) = (vec![0.0; d.equations], vec![0.0; d.equations]);
+    let r = (id.params_into(&mut th), id.covariance_into(&mut cov), id.noise_into(&mut noise));
+    let res = id.residuals_into(&mut ssr, &mut nobs);
+    format!(
+        "{r:?} {th:?} {cov:?} {noise:?} {res:?} {ssr:?} {nobs:?} {:?} {} {}",
+        id.trace(),
+        id.reinit_count(),
+        id.samples()
+    )
+}
+
+/// The state of the identifiers on a structure, which keep a backup of the groups an update
+/// touches (scratch space: it holds nothing between updates): every group's filter, every
+/// equation's statistics, and the interface's getters.
+fn structured(id: &StructuredKalmanVec<f64, 8>) -> Vec<u8> {
+    let groups: Vec<_> = (0..id.partition().groups as usize).map(|g| format!("{:?}", id.filter(g))).collect();
+    let eqs: Vec<_> = (0..id.structure().equations()).map(|i| (id.equation_ssr(i), id.equation_r(i))).collect();
+    format!("{groups:?} {eqs:?} {}", getters(id)).into_bytes()
+}
+
+/// The full form's state without its scratch (`P x`, the gain columns and the factor of
+/// `S`, which it also serializes): θ̂, every block of `P`, and the interface's getters.
+fn full<S: Store<f64, 4>>(id: &KalmanFull<f64, 4, S>) -> Vec<u8> {
+    let k = id.dims().equations;
+    let blocks: Vec<_> = (0..k * k).map(|ij| id.p_block(ij / k, ij % k).as_slice().to_vec()).collect();
+    format!("{blocks:?} {}", getters(id)).into_bytes()
+}
+
+fn iv(id: &IvIdentifierVec<f64, 8>) -> Vec<u8> {
+    let groups: Vec<_> =
+        (0..id.structure().partition().groups as usize).map(|g| format!("{:?}", id.filter(g))).collect();
+    format!("{groups:?} {} {}", id.starting(), getters(id)).into_bytes()
+}
+
+fn bc(id: &BiasCompensatedVec<f64, 8>) -> Vec<u8> {
+    let groups: Vec<_> =
+        (0..id.structure().partition().groups as usize).map(|g| format!("{:?}", id.correction(g))).collect();
+    format!("{groups:?} {}", getters(id)).into_bytes()
+}
+
+/// Runs `warm` samples, offers every bad sample (each must be refused and change nothing),
+/// then runs `after` samples on it and on a twin cloned before the bad samples: the two must
+/// stay identical.
+fn refuses_and_continues<const S: usize, I>(
+    name: &str,
+    state: fn(&I) -> Vec<u8>,
+    mut id: I,
+    warm: &[(SVector<f64, S>, SVector<f64, S>)],
+    bad: &[(SVector<f64, S>, SVector<f64, S>)],
+    after: &[(SVector<f64, S>, SVector<f64, S>)],
+) where
+    I: Identifier<f64> + Clone,
+{
+    let d = id.dims();
+    let mut e = vec![0.0; d.equations];
+    for (x, z) in warm {
+        id.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+    }
+    let mut twin = id.clone();
+    let before = state(&id);
+    for (i, (x, z)) in bad.iter().enumerate() {
+        let r = id.update_into(x.as_slice(), z.as_slice(), &[], &mut e);
+        assert!(r.is_err(), "{name}: bad sample {i} ({x:?}, {z:?}) was accepted");
+        assert!(state(&id) == before, "{name}: bad sample {i} ({r:?}) changed the state");
+    }
+    let mut e2 = e.clone();
+    for (x, z) in after {
+        id.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+        twin.update_into(x.as_slice(), z.as_slice(), &[], &mut e2).unwrap();
+        assert_eq!(
+            e.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+            e2.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+        );
+    }
+    assert!(state(&id) == state(&twin), "{name}: the run after the bad samples differs from the twin's");
+    let (mut a, mut b) = (vec![0.0; d.params], vec![0.0; d.params]);
+    if id.params_into(&mut a).is_ok() {
+        twin.params_into(&mut b).unwrap();
+        assert!(a.iter().all(|v| v.is_finite()), "{name}: θ̂ not finite: {a:?}");
+    }
+}
+
+/// NaN and inf in the state and in the derivative, at the first and at a middle index.
+fn non_finite<const S: usize>(x: SVector<f64, S>, z: SVector<f64, S>) -> Vec<(SVector<f64, S>, SVector<f64, S>)> {
+    let mut out = Vec::new();
+    for (i, v) in [(0, f64::NAN), (2, f64::INFINITY), (3, f64::NEG_INFINITY), (1, f64::NAN)] {
+        let mut bx = x;
+        bx[i] = v;
+        out.push((bx, z));
+        let mut bz = z;
+        bz[i] = v;
+        out.push((x, bz));
+    }
+    out
+}
+
+fn opts(form: CovarianceForm) -> KalmanOptions<f64> {
+    KalmanOptions { form, ..Default::default() }
+}
+
+#[test]
+fn every_identifier_refuses_non_finite_samples_and_changes_nothing() {
+    let data = samples(11, 300, 0.0);
+    let (warm, after) = (&data[..150], &data[150..]);
+    let bad = non_finite(data[150].0, data[150].1);
+    let rows = [1usize, 3];
+    let r = [81.0, 2.5e-5];
+    for form in [CovarianceForm::Standard, CovarianceForm::Joseph, CovarianceForm::Sqrt] {
+        let o = opts(form);
+        let name = format!("rows {form:?}");
+        refuses_and_continues(
+            &name,
+            ser,
+            KalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &r, o).unwrap(),
+            warm,
+            &bad,
+            after,
+        );
+        refuses_and_continues(
+            &name,
+            ser,
+            KalmanIdentifier::<f64, 4, 2>::from_slices(&rows, &[1000.0], &r, o).unwrap(),
+            warm,
+            &bad,
+            after,
+        );
+        let exact = KalmanIdentifierVec::<f64, 4>::exact(&rows, &r, o).unwrap();
+        refuses_and_continues(&format!("{name} exact start"), ser, exact.clone(), &[], &bad, after);
+        refuses_and_continues(&format!("{name} exact start, started"), ser, exact, warm, &bad, after);
+        let t = KalmanOptions { forgetting: 0.99, drift: 1e-6, gate: 4.0, ..o };
+        let t = KalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &r, t).unwrap();
+        refuses_and_continues(&format!("{name} tracking"), ser, t, warm, &bad, after);
+        if form != CovarianceForm::Sqrt {
+            let re = KalmanOptions { reinit: true, ..o };
+            let re = KalmanIdentifier::<f64, 4, 2>::from_slices(&rows, &[1.0], &r, re).unwrap();
+            refuses_and_continues(&format!("{name} reinit"), ser, re, warm, &bad, after);
+        }
+        let four = KalmanIdentifierVec::<f64, 4>::from_slices(&[0, 1, 2, 3], &[1000.0], &[1.0, 81.0, 1.0, 2.5e-5], o);
+        refuses_and_continues(&format!("{name} four rows"), ser, four.unwrap(), warm, &bad, after);
+        let h = half_samples(3, 300);
+        let hbad = non_finite(h[150].0, h[150].1);
+        refuses_and_continues(
+            &format!("{name} half car, two groups"),
+            ser,
+            half_six_rows(form),
+            &h[..150],
+            &hbad,
+            &h[150..],
+        );
+        if form != CovarianceForm::Sqrt {
+            let name = format!("shared {form:?}");
+            let s = SharedKalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &[0.3], o).unwrap();
+            refuses_and_continues(&name, ser, s, warm, &bad, after);
+            let s = SharedKalmanIdentifier::<f64, 4, 2>::from_slices(&rows, &[1000.0], &[0.3], o).unwrap();
+            refuses_and_continues(&name, ser, s, warm, &bad, after);
+        }
+        if form == CovarianceForm::Standard {
+            let f = FullKalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &r, o).unwrap();
+            refuses_and_continues("full", full, f, warm, &bad, after);
+            let f = FullKalmanIdentifier::<f64, 4, 2>::from_slices(&rows, &[1000.0], &r, o).unwrap();
+            refuses_and_continues("full", full, f, warm, &bad, after);
+        }
+        let st = Structure::full_rows(4, &rows).unwrap();
+        let sk = StructuredKalmanVec::<f64, 8>::new(st, StructuredPrior::Scalar(1000.0), None, &r, o).unwrap();
+        refuses_and_continues(&format!("structured {form:?}"), structured, sk, warm, &bad, after);
+    }
+    for g in [Gain::Venter { p: 0.51 }, Gain::Lyapunov, Gain::Ljung { lambda0: 0.99, lambda_init: 0.95 }] {
+        let sg = StochasticGradientVec::<f64, 4>::from_slices(&rows, g, &[0.04, 0.4], &[1e-4], 1).unwrap();
+        refuses_and_continues(&format!("SG {g:?}"), ser, sg, warm, &bad, after);
+        let sg = StochasticGradient::<f64, 4, 2>::from_slices(&rows, g, &[0.04, 0.4], &[0.0], 2).unwrap();
+        refuses_and_continues(&format!("SG {g:?} fixed"), ser, sg, warm, &bad, after);
+        let st = Structure::full_rows(4, &rows).unwrap();
+        let sg = StructuredGradient::<f64, 8>::new(st, g, &[0.04], None, 1).unwrap();
+        refuses_and_continues(&format!("structured SG {g:?}"), dbg, sg, warm, &bad, after);
+    }
+    refuses_and_continues("batch LS", ser, BatchLeastSquares::<f64, 4>::new(&rows).unwrap(), warm, &bad, after);
+    let iv = IvIdentifierVec::<f64, 8>::full_rows(4, &rows, 1, StructuredPrior::Exact, &[1.0]).unwrap();
+    refuses_and_continues("IV", self::iv, iv, warm, &bad, after);
+    let st = Structure::full_rows(4, &rows).unwrap();
+    let bc = BiasCompensatedVec::<f64, 8>::new(st, &[1e-6], &[], &[1.0]).unwrap();
+    refuses_and_continues("bias compensated", self::bc, bc, warm, &bad, after);
+}
+
+/// A finite sample whose update overflows only after a multiplication: the innovation is
+/// finite (one derivative near the largest float) and so is `s = xᵀPx + r`, but the step
+/// `P x e / s` is not. Applied, it would change θ̂ (to inf) and `P` (finitely): the refusal must come
+/// before anything is written.
+#[test]
+fn kalman_refuses_a_step_that_overflows_after_multiplication_and_changes_nothing() {
+    let data = samples(13, 300, 0.0);
+    let (warm, after) = (&data[..150], &data[150..]);
+    let rows = [1usize, 3];
+    let r = [81.0, 2.5e-5];
+    // The body row's derivative near the largest float (the others as measured, so that the
+    // sum of |e| stays finite too), and a measured state scaled until the gain `P x / s` of a
+    // row exceeds 2 (so `g e` overflows): the first power of ten that does, on an independent
+    // reading of a rows filter's `P`; s and e finite.
+    let mut huge = data[150].1;
+    huge[3] = f64::MAX * 0.5;
+    let mut probe =
+        KalmanIdentifier::<f64, 4, 2>::from_slices(&rows, &[1000.0], &r, opts(CovarianceForm::Standard)).unwrap();
+    for (x, z) in warm {
+        probe.update(x, z).unwrap();
+    }
+    let overflows = |x: &V4| {
+        (0..2).any(|i| {
+            let px = probe.filter(i).p() * x;
+            let s = x.dot(&px) + r[i];
+            let e = huge[rows[i]] - probe.theta_row(i).dot(x);
+            s.is_finite() && e.is_finite() && px.iter().any(|v| !(v / s * e).is_finite())
+        })
+    };
+    let x = (-12..=2).map(|k| data[150].0 * 10f64.powi(k)).find(overflows).expect("a state whose step overflows");
+    let bad = [(x, huge)];
+    for form in [CovarianceForm::Standard, CovarianceForm::Joseph, CovarianceForm::Sqrt] {
+        let o = opts(form);
+        let name = format!("rows {form:?}");
+        refuses_and_continues(
+            &name,
+            ser,
+            KalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &r, o).unwrap(),
+            warm,
+            &bad,
+            after,
+        );
+        refuses_and_continues(
+            &name,
+            ser,
+            KalmanIdentifier::<f64, 4, 2>::from_slices(&rows, &[1000.0], &r, o).unwrap(),
+            warm,
+            &bad,
+            after,
+        );
+        let four = KalmanIdentifierVec::<f64, 4>::from_slices(&[0, 1, 2, 3], &[1000.0], &[1.0, 81.0, 1.0, 2.5e-5], o);
+        refuses_and_continues(&format!("{name} four rows"), ser, four.unwrap(), warm, &bad, after);
+        let h = half_samples(3, 300);
+        let mut hz = h[150].1;
+        hz[3] = f64::MAX * 0.5;
+        let hbad = [(h[150].0, hz)];
+        refuses_and_continues(
+            &format!("{name} half car, two groups"),
+            ser,
+            half_six_rows(form),
+            &h[..150],
+            &hbad,
+            &h[150..],
+        );
+        let t = KalmanOptions { forgetting: 0.99, drift: 1e-6, ..o };
+        let t = KalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &r, t).unwrap();
+        refuses_and_continues(&format!("{name} tracking"), ser, t, warm, &bad, after);
+        let st = Structure::full_rows(4, &rows).unwrap();
+        let sk = StructuredKalmanVec::<f64, 8>::new(st, StructuredPrior::Scalar(1000.0), None, &r, o).unwrap();
+        refuses_and_continues(&format!("structured {form:?}"), structured, sk, warm, &bad, after);
+        if form != CovarianceForm::Sqrt {
+            let s = SharedKalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &[0.3], o).unwrap();
+            refuses_and_continues(&format!("shared {form:?}"), ser, s, warm, &bad, after);
+        }
+        if form == CovarianceForm::Standard {
+            let f = FullKalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &r, o).unwrap();
+            refuses_and_continues("full", full, f, warm, &bad, after);
+        }
+    }
+    // The stochastic gradient (Venter and Ljung: the normalized gain bounds the step):
+    // γ h x e overflows with a large state component.
+    let mut bx = x;
+    bx[0] = 1e3;
+    let huge = V4::repeat(f64::MAX * 0.5);
+    for g in [Gain::Venter { p: 0.51 }, Gain::Ljung { lambda0: 0.99, lambda_init: 0.95 }] {
+        let sg = StochasticGradientVec::<f64, 4>::from_slices(&rows, g, &[0.4], &[1e-4], 1).unwrap();
+        refuses_and_continues(&format!("SG {g:?}"), ser, sg, warm, &[(bx, huge)], after);
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Exact symmetry of the covariances stored as whole matrices
+// ---------------------------------------------------------------------------------------
+
+/// The forms that store a whole matrix and update both triangles keep it exactly symmetric:
+/// the shared `Q` (entry `(a, b)` and `(b, a)` from the same product), the full form's `P`
+/// (diagonal blocks symmetrized, the lower blocks the transposes of the upper ones) and the
+/// standalone row filter. (The decoupled rows in lanes store one triangle: their `P` is
+/// symmetric by construction, and checking the matrix mirrored from it would prove nothing.)
+#[test]
+fn whole_matrix_covariances_stay_exactly_symmetric() {
+    use vehid_core::identify::RowIdentifier;
+    let data = samples(17, 2000, 0.0);
+    let rows = [1usize, 3];
+    let shared_of =
+        |form| SharedKalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &[0.3], opts(form)).unwrap();
+    let mut shared = [shared_of(CovarianceForm::Standard), shared_of(CovarianceForm::Joseph)];
+    // R with a covariance between the rows: P's off-diagonal blocks are not zero.
+    let r_full = [81.0, 0.01, 0.01, 2.5e-5];
+    let mut full =
+        FullKalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &r_full, opts(CovarianceForm::Standard))
+            .unwrap();
+    let row_of = |form| RowIdentifier::<f64, 4>::new(1000.0, 2.5e-5).unwrap().configured(form, &opts(form)).unwrap();
+    let mut row = [row_of(CovarianceForm::Standard), row_of(CovarianceForm::Joseph)];
+    let mut e = [0.0; 2];
+    let mut asymmetric = vec![];
+    for (k, (x, z)) in data.iter().enumerate() {
+        for (i, s) in shared.iter_mut().enumerate() {
+            s.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+            if s.q() != &s.q().transpose() {
+                asymmetric.push(("shared Q", i, k));
+            }
+        }
+        full.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+        for i in 0..2 {
+            for j in 0..2 {
+                if full.p_block(i, j) != &full.p_block(j, i).transpose() {
+                    asymmetric.push(("full P", i * 2 + j, k));
+                }
+            }
+        }
+        for (i, f) in row.iter_mut().enumerate() {
+            f.update(x, z[3]).unwrap();
+            if f.p() != f.p().transpose() {
+                asymmetric.push(("row filter P", i, k));
+            }
+        }
+    }
+    assert!(
+        asymmetric.is_empty(),
+        "not exactly symmetric (what, which, sample): {:?}",
+        &asymmetric[..asymmetric.len().min(8)]
+    );
+    // Not a vacuous check: the updates filled every matrix.
+    assert!(shared.iter().all(|s| s.q().iter().all(|v| *v != 0.0)));
+    assert!(full.p_block(0, 0).iter().all(|v| *v != 0.0) && full.p_block(0, 1).iter().all(|v| *v != 0.0));
+    assert!(row.iter().all(|f| f.p().iter().all(|v| *v != 0.0)));
+}

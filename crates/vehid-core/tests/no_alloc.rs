@@ -1,0 +1,170 @@
+//! "No allocation per sample" (ARCHITECTURE.md's first invariant), for every identifier:
+//! a counting global allocator counts the allocations of this test's thread while each
+//! identifier takes `N` samples after a warm-up, and the count must be zero.
+//!
+//! `BatchLeastSquares` stores its samples (it allocates as its store grows, by design) and
+//! is left out.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+
+use nalgebra::SVector;
+use vehid_core::identify::{
+    BiasCompensatedVec, CovarianceForm, FullKalmanIdentifier, FullKalmanIdentifierVec, Gain, Identifier,
+    IvIdentifierVec, KalmanIdentifier, KalmanIdentifierVec, KalmanOptions, SharedKalmanIdentifier,
+    SharedKalmanIdentifierVec, StochasticGradient, StochasticGradientVec, StructuredGradient, StructuredKalman,
+    StructuredKalmanVec, StructuredPrior, TwoAxleConfig, TwoAxleIdentifierVec, WheelMethod,
+};
+use vehid_core::model::{HalfCar, QuarterCar};
+use vehid_core::sim::{SimConfig, Simulator};
+use vehid_core::structure::Structure;
+
+struct Counting;
+
+thread_local! {
+    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
+}
+
+// SAFETY: forwards to the system allocator; only counts.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+        let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
+        unsafe { System.alloc_zeroed(layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn allocations() -> u64 {
+    ALLOCATIONS.with(|c| c.get())
+}
+
+const WARM: usize = 50;
+const N: usize = 200;
+
+/// Allocations of this thread during `N` updates after `WARM` (the samples are made before).
+fn count<const S: usize, I: Identifier<f64>>(name: &str, id: &mut I, data: &[(SVector<f64, S>, SVector<f64, S>)]) {
+    let d = id.dims();
+    let mut e = vec![0.0; d.equations];
+    for (x, z) in &data[..WARM] {
+        id.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+    }
+    let before = allocations();
+    for (x, z) in &data[WARM..WARM + N] {
+        id.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+    }
+    let n = allocations() - before;
+    assert_eq!(n, 0, "{name}: {n} allocations in {N} updates");
+}
+
+fn quarter(seed: u64) -> Vec<(SVector<f64, 4>, SVector<f64, 4>)> {
+    let cfg = SimConfig::new(0.05).road_sigma(0.1).ic_sigma(0.1).deriv_noise(0.005);
+    let mut sim = Simulator::new(QuarterCar::<f64>::thesis().model(), cfg, seed).unwrap();
+    (0..WARM + N).map(|_| sim.next_sample()).map(|s| (s.r, s.z)).collect()
+}
+
+#[test]
+fn no_identifier_allocates_per_sample() {
+    let data = quarter(3);
+    let rows = [1usize, 3];
+    let r = [81.0, 2.5e-5];
+    // The counter sees allocations: the test would not pass vacuously.
+    let before = allocations();
+    let v = std::hint::black_box(vec![1u8; 3]);
+    assert!(allocations() > before && v.len() == 3);
+
+    for form in [CovarianceForm::Standard, CovarianceForm::Joseph, CovarianceForm::Sqrt] {
+        let o = KalmanOptions { form, ..Default::default() };
+        let t = KalmanOptions { forgetting: 0.995, drift: 1e-7, directional: false, gate: 4.0, ..o };
+        let name = |what: &str| format!("{what} {form:?}");
+        count(&name("rows"), &mut KalmanIdentifier::<f64, 4, 2>::from_slices(&rows, &[1000.0], &r, o).unwrap(), &data);
+        count(
+            &name("rows Vec"),
+            &mut KalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &r, o).unwrap(),
+            &data,
+        );
+        let four = [1.0, 81.0, 1.0, 2.5e-5];
+        let mut id = KalmanIdentifierVec::<f64, 4>::from_slices(&[0, 1, 2, 3], &[1000.0], &four, o).unwrap();
+        count(&name("rows Vec, four rows"), &mut id, &data);
+        count(
+            &name("rows tracking"),
+            &mut KalmanIdentifier::<f64, 4, 2>::from_slices(&rows, &[1000.0], &r, t).unwrap(),
+            &data,
+        );
+        count(
+            &name("rows Vec tracking"),
+            &mut KalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &r, t).unwrap(),
+            &data,
+        );
+        let dir = KalmanOptions { forgetting: 0.995, directional: true, ..o };
+        count(
+            &name("rows directional"),
+            &mut KalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &r, dir).unwrap(),
+            &data,
+        );
+        // The exact start after it has started (the warm-up absorbs the first samples).
+        count(&name("rows exact"), &mut KalmanIdentifier::<f64, 4, 2>::exact(&rows, &r, o).unwrap(), &data);
+        count(&name("rows Vec exact"), &mut KalmanIdentifierVec::<f64, 4>::exact(&rows, &r, o).unwrap(), &data);
+        if form != CovarianceForm::Sqrt {
+            let s = SharedKalmanIdentifier::<f64, 4, 2>::from_slices(&rows, &[1000.0], &[0.3], o).unwrap();
+            count(&name("shared"), &mut { s }, &data);
+            let s = SharedKalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &[0.3], o).unwrap();
+            count(&name("shared Vec"), &mut { s }, &data);
+        }
+        if form == CovarianceForm::Standard {
+            let f = FullKalmanIdentifier::<f64, 4, 2>::from_slices(&rows, &[1000.0], &r, o).unwrap();
+            count(&name("full"), &mut { f }, &data);
+            let f = FullKalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &r, o).unwrap();
+            count(&name("full Vec"), &mut { f }, &data);
+        }
+        let st = Structure::full_rows(4, &rows).unwrap();
+        let sk = StructuredKalman::<f64, 4, 2>::new(st, StructuredPrior::Scalar(1000.0), None, &r, o).unwrap();
+        count(&name("structured"), &mut { sk }, &data);
+        let sk = StructuredKalmanVec::<f64, 8>::new(st, StructuredPrior::Exact, None, &r, t).unwrap();
+        count(&name("structured Vec exact tracking"), &mut { sk }, &data);
+    }
+    for g in [Gain::Venter { p: 0.51 }, Gain::Lyapunov, Gain::Ljung { lambda0: 0.99, lambda_init: 0.95 }] {
+        let sg = StochasticGradient::<f64, 4, 2>::from_slices(&rows, g, &[0.04, 0.4], &[1e-4], 2).unwrap();
+        count(&format!("SG {g:?}"), &mut { sg }, &data);
+        let sg = StochasticGradientVec::<f64, 4>::from_slices(&rows, g, &[0.04, 0.4], &[1e-4], 1).unwrap();
+        count(&format!("SG Vec {g:?}"), &mut { sg }, &data);
+        let st = Structure::full_rows(4, &rows).unwrap();
+        let sg = StructuredGradient::<f64, 8>::new(st, g, &[0.04], None, 1).unwrap();
+        count(&format!("structured SG {g:?}"), &mut { sg }, &data);
+    }
+    let iv = IvIdentifierVec::<f64, 8>::full_rows(4, &rows, 1, StructuredPrior::Exact, &[1.0]).unwrap();
+    count("IV", &mut { iv }, &data);
+    let st = Structure::full_rows(4, &rows).unwrap();
+    let bc = BiasCompensatedVec::<f64, 8>::new(st, &[1e-6], &[], &[1.0]).unwrap();
+    count("bias compensated", &mut { bc }, &data);
+
+    // The half car: six unknown rows (two lane groups of the heap store), and its two axles
+    // on one road, each wheel method.
+    let half = HalfCar::<f64>::thesis();
+    let cfg = SimConfig::new(0.05).road_sigma(0.1).ic_sigma(0.1).deriv_noise(0.005);
+    let mut sim = Simulator::new(half.model(), cfg, 5).unwrap();
+    let hdata: Vec<_> = (0..WARM + N).map(|_| sim.next_sample()).map(|s| (s.r, s.z)).collect();
+    for form in [CovarianceForm::Standard, CovarianceForm::Joseph, CovarianceForm::Sqrt] {
+        let o = KalmanOptions { form, ..Default::default() };
+        let r = [1.0, 81.0, 1.0, 2.5e-5, 1.0, 1.0];
+        let mut id = KalmanIdentifierVec::<f64, 8>::from_slices(&[0, 1, 2, 3, 5, 7], &[1000.0], &r, o).unwrap();
+        count(&format!("half car six rows {form:?}"), &mut id, &hdata);
+    }
+    for method in [WheelMethod::None, WheelMethod::Thesis, WheelMethod::Cancel] {
+        let cfg = TwoAxleConfig::new(method, 1000.0, 0.1, 0.005);
+        let mut two = TwoAxleIdentifierVec::<f64, 8, 16>::new(&half.model(), 10, cfg).unwrap();
+        count(&format!("two axles {method:?}"), &mut two, &hdata);
+    }
+}
