@@ -11,12 +11,16 @@
 //!   no-change drives with the alarm switched off, the peak of every CUSUM excursion
 //!   recorded, and the false-alarm rate each threshold would give (`--hours` hours).
 //!
-//! Usage: `health_experiment [--seed0 N] [--seeds N] [--hours H] [--threshold h] [--calibrate]`.
+//! - `--vary`: the no-change hours (and the calibration) under changing conditions instead:
+//!   speed `16 + 8 sin(2π t / 240 s)` m/s (8–24 m/s) and the road class cycling C, B, C, D
+//!   every 300 s (the reference is learned in the first 20 s, on class C near 16 m/s).
+//!
+//! Usage: `health_experiment [--seed0 N] [--seeds N] [--hours H] [--threshold h] [--window s] [--calibrate] [--vary]`.
 
 use std::time::Instant;
 use vehid_core::health::{Constant, Event, HealthConfig, HealthMonitor};
 use vehid_core::model::QuarterCar;
-use vehid_core::sim::{Change, DriveConfig, QuarterDrive};
+use vehid_core::sim::{Change, DriveConfig, QuarterDrive, RoadClass};
 
 const DT: f64 = 0.005;
 const T_CHANGE: f64 = 60.0;
@@ -27,11 +31,14 @@ struct Args {
     seeds: u64,
     hours: u64,
     threshold: Option<f64>,
+    window: Option<f64>,
     calibrate: bool,
+    vary: bool,
 }
 
 fn parse() -> Args {
-    let mut a = Args { seed0: 1000, seeds: 50, hours: 100, threshold: None, calibrate: false };
+    let mut a =
+        Args { seed0: 1000, seeds: 50, hours: 100, threshold: None, window: None, calibrate: false, vary: false };
     let argv: Vec<String> = std::env::args().skip(1).collect();
     let mut i = 0;
     while i < argv.len() {
@@ -41,8 +48,14 @@ fn parse() -> Args {
             "--seeds" => a.seeds = val().parse().expect("--seeds: an integer"),
             "--hours" => a.hours = val().parse().expect("--hours: an integer"),
             "--threshold" => a.threshold = Some(val().parse().expect("--threshold: a number")),
+            "--window" => a.window = Some(val().parse().expect("--window: seconds")),
             "--calibrate" => {
                 a.calibrate = true;
+                i += 1;
+                continue;
+            }
+            "--vary" => {
+                a.vary = true;
                 i += 1;
                 continue;
             }
@@ -53,10 +66,16 @@ fn parse() -> Args {
     a
 }
 
-fn config(car: QuarterCar<f64>, threshold: Option<f64>) -> HealthConfig<f64> {
+/// The monitor's settings: the defaults, with the threshold and the window if given.
+type Tune = (Option<f64>, Option<f64>);
+
+fn config(car: QuarterCar<f64>, (threshold, window): Tune) -> HealthConfig<f64> {
     let mut c = HealthConfig::new(DT, car);
     if let Some(h) = threshold {
         c.threshold = h;
+    }
+    if let Some(w) = window {
+        c.window = w;
     }
     c
 }
@@ -72,10 +91,10 @@ struct Outcome {
     early: usize,
 }
 
-fn detect(car: QuarterCar<f64>, seed: u64, name: &str, value: f64, threshold: Option<f64>) -> Outcome {
+fn detect(car: QuarterCar<f64>, seed: u64, name: &str, value: f64, tune: Tune) -> Outcome {
     let cfg = DriveConfig::new(DT).with_change(Change::step(T_CHANGE, name, value).unwrap()).unwrap();
     let mut drive = QuarterDrive::new(car, cfg, seed).unwrap();
-    let mut mon = HealthMonitor::new(config(car, threshold)).unwrap();
+    let mut mon = HealthMonitor::new(config(car, tune)).unwrap();
     let mut out = Outcome { first: None, early: 0 };
     for _ in 0..((T_CHANGE + T_AFTER) / DT) as usize {
         let s = drive.next_sample();
@@ -93,15 +112,24 @@ fn detect(car: QuarterCar<f64>, seed: u64, name: &str, value: f64, threshold: Op
 
 /// One hour without change; returns the alarms (events) and, with `peaks`, every CUSUM
 /// excursion's peak.
-fn hour(car: QuarterCar<f64>, seed: u64, threshold: Option<f64>, peaks: Option<&mut Vec<f64>>) -> usize {
+fn hour(car: QuarterCar<f64>, seed: u64, tune: Tune, vary: bool, peaks: Option<&mut Vec<f64>>) -> usize {
     let mut drive = QuarterDrive::new(car, DriveConfig::new(DT), seed).unwrap();
-    let mut mon = HealthMonitor::new(config(car, threshold)).unwrap();
+    let mut mon = HealthMonitor::new(config(car, tune)).unwrap();
     let mut alarms = 0;
     let mut peak = 0.0f64;
     let mut sink = Vec::new();
     let peaks = peaks.unwrap_or(&mut sink);
-    for _ in 0..(3600.0 / DT) as usize {
-        let s = drive.next_sample();
+    let classes = [RoadClass::C, RoadClass::B, RoadClass::C, RoadClass::D];
+    for k in 0..(3600.0 / DT) as usize {
+        let t = k as f64 * DT;
+        let s = if vary {
+            if k % (300.0 / DT) as usize == 0 {
+                drive.set_road(classes[(k / (300.0 / DT) as usize) % classes.len()]);
+            }
+            drive.next_sample_at(16.0 + 8.0 * (2.0 * std::f64::consts::PI * t / 240.0).sin()).unwrap()
+        } else {
+            drive.next_sample()
+        };
         if mon.update(s.y()).unwrap().is_some() {
             alarms += 1;
         }
@@ -124,7 +152,7 @@ fn calibrate(car: QuarterCar<f64>, a: &Args) {
     let mut peaks = Vec::new();
     let t0 = Instant::now();
     for i in 0..a.hours {
-        hour(car, a.seed0 + 1_000_000 + i, Some(f64::MAX), Some(&mut peaks));
+        hour(car, a.seed0 + 1_000_000 + i, (Some(f64::MAX), a.window), a.vary, Some(&mut peaks));
         let top = peaks.iter().fold(0.0f64, |m, v| m.max(*v));
         println!(
             "  hour {:>3}/{}: {} excursions so far, highest peak {top:.3} ({:.0} s)",
@@ -144,10 +172,11 @@ fn calibrate(car: QuarterCar<f64>, a: &Args) {
 fn main() {
     let a = parse();
     let car = QuarterCar::<f64>::passenger();
-    let h = config(car, a.threshold).threshold;
+    let cfg = config(car, (a.threshold, a.window));
+    let (h, window) = (cfg.threshold, cfg.window);
     println!(
         "health_experiment: passenger quarter car (M 320 kg, m 40 kg, k1 200 kN/m, k2 22 kN/m, b 1.5 kN s/m), \
-         ISO 8608 class C at 15 m/s, realistic sensors at {} Hz, threshold h = {h}, seed0 = {}",
+         ISO 8608 class C at 15 m/s, realistic sensors at {} Hz, threshold h = {h}, window {window} s, seed0 = {}",
         1.0 / DT,
         a.seed0
     );
@@ -169,7 +198,7 @@ fn main() {
         let (mut named, mut early, mut missed) = (0, 0, 0);
         for i in 0..a.seeds {
             let seed = a.seed0 + 10_000 * si as u64 + i;
-            let o = detect(car, seed, name, *value, a.threshold);
+            let o = detect(car, seed, name, *value, (a.threshold, a.window));
             early += o.early;
             match o.first {
                 Some(e) => {
@@ -206,11 +235,16 @@ fn main() {
             early,
         ));
     }
-    println!("false alarms: {} h without change, one hour per seed from {}", a.hours, a.seed0 + 500_000);
+    println!(
+        "false alarms: {} h without change{}, one hour per seed from {}",
+        a.hours,
+        if a.vary { " (varying speed and road class)" } else { "" },
+        a.seed0 + 500_000
+    );
     let t0 = Instant::now();
     let mut alarms = 0;
     for i in 0..a.hours {
-        alarms += hour(car, a.seed0 + 500_000 + i, a.threshold, None);
+        alarms += hour(car, a.seed0 + 500_000 + i, (a.threshold, a.window), a.vary, None);
         println!("  hour {:>3}/{}: {alarms} alarms so far ({:.0} s)", i + 1, a.hours, t0.elapsed().as_secs_f64());
     }
     println!();

@@ -31,7 +31,7 @@
 //! 3. **Delay line**: a sample is used only after `stuck_samples` newer intact samples, so
 //!    that the first values of a stuck run never reach the estimates.
 //! 4. **Tracking** ([`Rls3`], `rls.rs`): `θ = [k2/M, b/M, c]` by recursive least squares
-//!    with forgetting `λ = 1 − dt/T_f` (window `T_f`, default 2 s) and a wind-up cap.
+//!    with forgetting `λ = 1 − dt/T_f` (window `T_f`, default 6 s) and a wind-up cap.
 //! 5. **Reference**: the first `warmup` seconds (default 20) of usable data give
 //!    `θ_ref` by least squares without forgetting, its variances `σ² P_jj`, and the noise
 //!    variance `σ²` of the body equation (the a-priori residuals after the first second);
@@ -68,7 +68,8 @@
 //! # Cannot judge
 //!
 //! No event is ever raised while [`Status::CannotJudge`]: too little excitation (a ratio's
-//! `s_j > δ/3`: smooth road, car standing; the CUSUMs hold), missing samples (NaN: gaps in
+//! `s_j` above [`HealthConfig::judge_error`], default 0.8 %: smooth road, slow or standing
+//! car; the CUSUMs hold), missing samples (NaN: gaps in
 //! a log are fed as NaN rows), a stuck channel, and the `reacquire` seconds after either.
 //! During the warm-up there is no reference yet ([`Status::Warmup`]).
 //!

@@ -27,13 +27,14 @@ pub struct Rls3<T: Real> {
     theta: SVector<T, 3>,
     p: SMatrix<T, 3, 3>,
     lambda: T,
+    inv_lambda: T,
     cap: [T; 3],
 }
 
 impl<T: Real> Rls3<T> {
     /// Starts at `theta` with covariance `p`, forgetting factor `lambda` in `(0, 1]`, no cap.
     pub fn new(theta: SVector<T, 3>, p: SMatrix<T, 3, 3>, lambda: T) -> Self {
-        Self { theta, p, lambda, cap: [T::biggest(); 3] }
+        Self { theta, p, lambda, inv_lambda: T::one() / lambda, cap: [T::biggest(); 3] }
     }
 
     /// Sets the cap on the diagonal of `P` above which forgetting pauses.
@@ -65,9 +66,10 @@ impl<T: Real> Rls3<T> {
         let wound = (0..3).any(|i| self.p[(i, i)] > self.cap[i]);
         let lam = if wound { T::one() } else { self.lambda };
         let den = lam + phi.dot(&pphi);
-        let k = pphi / den;
+        let k = pphi * (T::one() / den);
         let theta = self.theta + k * e;
-        let mut p = (self.p - k * pphi.transpose()) / lam;
+        let inv_lam = if wound { T::one() } else { self.inv_lambda };
+        let mut p = (self.p - k * pphi.transpose()) * inv_lam;
         p = (p + p.transpose()) * T::of(0.5);
         if !(den > T::zero()) || theta.iter().chain(p.iter()).any(|v| !v.finite()) {
             return None;

@@ -440,6 +440,13 @@ impl<T: Real> QuarterDrive<T> {
         self.c.map(T::of)
     }
 
+    /// Drives on onto a road of class `road` (from the current height; see
+    /// [`IsoRoad::set_class`]).
+    pub fn set_road(&mut self, road: RoadClass) {
+        self.cfg.road = road;
+        self.road.set_class(road);
+    }
+
     /// Index of the next sample.
     pub fn k(&self) -> u64 {
         self.k

@@ -246,3 +246,30 @@ fn bad_settings_are_typed_errors() {
     }
     assert!(matches!(cfg.with_change(Change::step(1.0, "b", 1.0).unwrap()), Err(Error::Capacity { .. })));
 }
+
+#[test]
+fn a_new_road_class_changes_the_height_spread_by_the_root_of_the_level_ratio() {
+    // 100 km at 0.5 m per step, correlation length 1/(2π n_c) = 16 m: about 6000
+    // independent heights, so the standard deviation is known to ~1 %; 8 % allowed.
+    let rng = rand::rngs::Xoshiro256PlusPlus::seed_from_u64(77);
+    let mut road = IsoRoad::new(RoadClass::C, DEFAULT_CUTOFF, rng).unwrap();
+    let spread = |road: &mut IsoRoad| {
+        for _ in 0..1000 {
+            road.advance(0.5);
+        }
+        let n = 200_000;
+        let mut sq = 0.0;
+        for _ in 0..n {
+            road.advance(0.5);
+            sq += road.height() * road.height();
+        }
+        (sq / n as f64).sqrt()
+    };
+    let c = spread(&mut road);
+    // σ_r² = π n0² G_d(n0) / (2 n_c) for class C: 4.0e-4 m², σ_r = 2.0 cm.
+    let want = (core::f64::consts::PI * N0 * N0 * RoadClass::C.gd0() / (2.0 * DEFAULT_CUTOFF)).sqrt();
+    assert!((c / want - 1.0).abs() < 0.08, "{c} vs {want}");
+    road.set_class(RoadClass::E);
+    let e = spread(&mut road);
+    assert!((e / c / 4.0 - 1.0).abs() < 0.08, "E/C spread {}", e / c);
+}

@@ -82,6 +82,12 @@ impl IsoRoad {
         self.sigma
     }
 
+    /// Continues on a road of another class from the current height (the height's
+    /// spread relaxes to the new class over a few `1/(2π n_c)` metres, 16 m by default).
+    pub fn set_class(&mut self, class: RoadClass) {
+        self.sigma = libm::sqrt(core::f64::consts::PI * N0 * N0 * class.gd0() / (2.0 * self.cutoff));
+    }
+
     /// Moves `ds ≥ 0` metres along the road: `z ← φ z + σ_r √(1 − φ²) ε`,
     /// `φ = exp(−2π n_c ds)` (nothing moves for `ds = 0`).
     pub fn advance(&mut self, ds: f64) {
