@@ -18,7 +18,7 @@
 //! Usage: `health_experiment [--seed0 N] [--seeds N] [--hours H] [--threshold h] [--window s] [--calibrate] [--vary]`.
 
 use std::time::Instant;
-use vehid_core::health::{Constant, Event, HealthConfig, HealthMonitor};
+use vehid_core::health::{Constant, Event, HealthConfig, HealthMonitor, Reason, Status};
 use vehid_core::model::QuarterCar;
 use vehid_core::sim::{Change, DriveConfig, QuarterDrive, RoadClass};
 
@@ -110,12 +110,14 @@ fn detect(car: QuarterCar<f64>, seed: u64, name: &str, value: f64, tune: Tune) -
     out
 }
 
-/// One hour without change; returns the alarms (events) and, with `peaks`, every CUSUM
+/// One hour without change; returns the alarms (events) and the samples the monitor could
+/// not judge (low excitation, after the warm-up), and, with `peaks`, records every CUSUM
 /// excursion's peak.
-fn hour(car: QuarterCar<f64>, seed: u64, tune: Tune, vary: bool, peaks: Option<&mut Vec<f64>>) -> usize {
+fn hour(car: QuarterCar<f64>, seed: u64, tune: Tune, vary: bool, peaks: Option<&mut Vec<f64>>) -> (usize, usize) {
     let mut drive = QuarterDrive::new(car, DriveConfig::new(DT), seed).unwrap();
     let mut mon = HealthMonitor::new(config(car, tune)).unwrap();
     let mut alarms = 0;
+    let mut blind = 0;
     let mut peak = 0.0f64;
     let mut sink = Vec::new();
     let peaks = peaks.unwrap_or(&mut sink);
@@ -133,6 +135,7 @@ fn hour(car: QuarterCar<f64>, seed: u64, tune: Tune, vary: bool, peaks: Option<&
         if mon.update(s.y()).unwrap().is_some() {
             alarms += 1;
         }
+        blind += usize::from(mon.status() == Status::CannotJudge(Reason::LowExcitation));
         let g = mon.cusum().iter().flatten().fold(0.0f64, |m, v| m.max(*v));
         if g > 0.0 {
             peak = peak.max(g);
@@ -144,7 +147,7 @@ fn hour(car: QuarterCar<f64>, seed: u64, tune: Tune, vary: bool, peaks: Option<&
     if peak > 0.0 {
         peaks.push(peak);
     }
-    alarms
+    (alarms, blind)
 }
 
 fn calibrate(car: QuarterCar<f64>, a: &Args) {
@@ -242,10 +245,18 @@ fn main() {
         a.seed0 + 500_000
     );
     let t0 = Instant::now();
-    let mut alarms = 0;
+    let (mut alarms, mut blind) = (0, 0);
     for i in 0..a.hours {
-        alarms += hour(car, a.seed0 + 500_000 + i, (a.threshold, a.window), a.vary, None);
-        println!("  hour {:>3}/{}: {alarms} alarms so far ({:.0} s)", i + 1, a.hours, t0.elapsed().as_secs_f64());
+        let (n, b) = hour(car, a.seed0 + 500_000 + i, (a.threshold, a.window), a.vary, None);
+        alarms += n;
+        blind += b;
+        println!(
+            "  hour {:>3}/{}: {alarms} alarms so far, {:.2} % of the time too little excitation to judge ({:.0} s)",
+            i + 1,
+            a.hours,
+            100.0 * blind as f64 * DT / (3600.0 * (i + 1) as f64),
+            t0.elapsed().as_secs_f64()
+        );
     }
     println!();
     println!(

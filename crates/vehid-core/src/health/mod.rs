@@ -74,14 +74,16 @@
 //! During the warm-up there is no reference yet ([`Status::Warmup`]).
 //!
 //! Files: `kinematic.rs` ([`DeflectionFilter`]), `rls.rs` ([`Rls3`]), `monitor.rs`
-//! ([`HealthMonitor`], [`HealthConfig`], [`Event`], [`Status`]).
+//! ([`HealthMonitor`], [`HealthConfig`]), `event.rs` ([`Event`], [`Status`], [`Estimate`]).
 
+mod event;
 mod kinematic;
 mod monitor;
 mod rls;
 
+pub use event::{Constant, Estimate, Event, Reason, Status};
 pub use kinematic::DeflectionFilter;
-pub use monitor::{Constant, Estimate, Event, HealthConfig, HealthMonitor, Reason, Status, CHANNELS, MAX_DELAY};
+pub use monitor::{HealthConfig, HealthMonitor, CHANNELS, MAX_DELAY};
 pub use rls::Rls3;
 
 #[cfg(test)]

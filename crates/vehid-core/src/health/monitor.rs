@@ -1,6 +1,7 @@
 //! [`HealthMonitor`]: tracking of `k2/M`, `b/M` and change detection (module documentation
 //! of [`crate::health`] for the design).
 
+use super::event::{Constant, Estimate, Event, Reason, Status};
 use super::kinematic::DeflectionFilter;
 use super::rls::Rls3;
 use crate::error::{check_nonneg, check_positive};
@@ -14,94 +15,6 @@ pub const MAX_DELAY: usize = 64;
 /// Number of channels [`HealthMonitor::update`] reads: `a_body` (m/s²), `a_wheel` (m/s²),
 /// `deflection` (m), the realistic sensor set of `sim::REALISTIC_CHANNELS`.
 pub const CHANNELS: usize = 3;
-
-/// A constant the monitor can name in an [`Event`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Constant {
-    /// Body (sprung) mass `M`, kg: `k2/M` and `b/M` changed by the same factor.
-    BodyMass,
-    /// Suspension spring stiffness `k2`, N/m: `k2/M` alone changed.
-    Spring,
-    /// Damping `b`, N·s/m: `b/M` alone changed.
-    Damper,
-}
-
-impl Constant {
-    /// The thesis' name: `"M"`, `"k2"` or `"b"`.
-    pub fn as_str(&self) -> &'static str {
-        match self {
-            Constant::BodyMass => "M",
-            Constant::Spring => "k2",
-            Constant::Damper => "b",
-        }
-    }
-}
-
-impl core::fmt::Display for Constant {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.write_str(self.as_str())
-    }
-}
-
-/// Why the monitor cannot judge at the moment (it then never raises an event).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Reason {
-    /// The road excites too little: a tracked ratio's relative standard error exceeds
-    /// `judge_error` (a smooth road, a slow car, the car standing).
-    LowExcitation,
-    /// The last sample had a missing channel (NaN), e.g. a gap in the log.
-    Missing,
-    /// A channel has repeated the same value for `stuck_samples` samples.
-    Stuck,
-    /// Restarting the kinematic filter after missing or stuck data (`reacquire` seconds).
-    Reacquiring,
-}
-
-/// What the monitor is doing.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Status {
-    /// Learning the reference (the first `warmup` seconds of usable data).
-    Warmup,
-    /// Comparing the tracked ratios with the reference.
-    Monitoring,
-    /// A change was detected; measuring its new value for `settle` seconds.
-    Settling,
-    /// No judgement possible now; the reason.
-    CannotJudge(Reason),
-}
-
-/// A detected change of one constant.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Event<T> {
-    /// When the event was reported, s (sample index × dt).
-    pub t: T,
-    /// Estimated onset, s: the last time the alarming CUSUM was zero.
-    pub t_change: T,
-    /// The constant that changed.
-    pub parameter: Constant,
-    /// Its value before, in its unit (kg, N/m, N·s/m): the nominal car's, or the previous
-    /// event's `after`.
-    pub before: T,
-    /// Its value after.
-    pub after: T,
-    /// Lower end of the `confidence` interval of `after`.
-    pub low: T,
-    /// Upper end of the interval.
-    pub high: T,
-    /// The relative change `after / before − 1`.
-    pub change: T,
-}
-
-/// The tracked ratios with their intervals.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Estimate<T> {
-    /// `[k2/M (1/s²), b/M (1/s), c (m/s²)]`.
-    pub value: [T; 3],
-    /// Lower ends of the `confidence` intervals.
-    pub low: [T; 3],
-    /// Upper ends.
-    pub high: [T; 3],
-}
 
 /// Settings of a [`HealthMonitor`].
 #[derive(Debug, Clone, Copy, PartialEq)]
