@@ -15,6 +15,10 @@
 //!   speed `16 + 8 sin(2π t / 240 s)` m/s (8–24 m/s) and the road class cycling C, B, C, D
 //!   every 300 s (the reference is learned in the first 20 s, on class C near 16 m/s).
 //!
+//! - `--count N`: only `N` ≤ 200,000 monitor updates (monitoring phase, f64) on 200,000
+//!   pre-generated samples (generated whatever `N` is), for instruction counting: `valgrind --tool=callgrind` with `N`
+//!   and with 0, the difference divided by `N` is the instructions per update.
+//!
 //! Usage: `health_experiment [--seed0 N] [--seeds N] [--hours H] [--threshold h] [--window s] [--calibrate] [--vary]`.
 
 use std::time::Instant;
@@ -34,11 +38,20 @@ struct Args {
     window: Option<f64>,
     calibrate: bool,
     vary: bool,
+    count: Option<usize>,
 }
 
 fn parse() -> Args {
-    let mut a =
-        Args { seed0: 1000, seeds: 50, hours: 100, threshold: None, window: None, calibrate: false, vary: false };
+    let mut a = Args {
+        seed0: 1000,
+        seeds: 50,
+        hours: 100,
+        threshold: None,
+        window: None,
+        calibrate: false,
+        vary: false,
+        count: None,
+    };
     let argv: Vec<String> = std::env::args().skip(1).collect();
     let mut i = 0;
     while i < argv.len() {
@@ -48,6 +61,7 @@ fn parse() -> Args {
             "--seeds" => a.seeds = val().parse().expect("--seeds: an integer"),
             "--hours" => a.hours = val().parse().expect("--hours: an integer"),
             "--threshold" => a.threshold = Some(val().parse().expect("--threshold: a number")),
+            "--count" => a.count = Some(val().parse().expect("--count: an integer")),
             "--window" => a.window = Some(val().parse().expect("--window: seconds")),
             "--calibrate" => {
                 a.calibrate = true;
@@ -172,9 +186,34 @@ fn calibrate(car: QuarterCar<f64>, a: &Args) {
     }
 }
 
+/// `n` updates of a monitor past its warm-up on cycled samples (see `--count`).
+#[inline(never)]
+fn count(car: QuarterCar<f64>, n: usize) {
+    let mut drive = QuarterDrive::new(car, DriveConfig::new(DT), 42).unwrap();
+    let mut mon = HealthMonitor::new(HealthConfig::new(DT, car)).unwrap();
+    for _ in 0..6000 {
+        mon.update(drive.next_sample().y()).unwrap();
+    }
+    let data: Vec<[f64; 3]> = (0..200_000)
+        .map(|_| {
+            let s = drive.next_sample();
+            [s.y()[0], s.y()[1], s.y()[2]]
+        })
+        .collect();
+    let mut events = 0;
+    for y in data.iter().take(n) {
+        events += usize::from(std::hint::black_box(mon.update(std::hint::black_box(y)).unwrap()).is_some());
+    }
+    println!("{n} updates, {events} events, status {:?}, estimate {:?}", mon.status(), mon.estimate().value);
+}
+
 fn main() {
     let a = parse();
     let car = QuarterCar::<f64>::passenger();
+    if let Some(n) = a.count {
+        count(car, n);
+        return;
+    }
     let cfg = config(car, (a.threshold, a.window));
     let (h, window) = (cfg.threshold, cfg.window);
     println!(
