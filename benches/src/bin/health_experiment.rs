@@ -22,7 +22,7 @@
 //! Usage: `health_experiment [--seed0 N] [--seeds N] [--hours H] [--threshold h] [--window s] [--calibrate] [--vary]`.
 
 use std::time::Instant;
-use vehid_core::health::{Constant, Event, HealthConfig, HealthMonitor, Reason, Status};
+use vehid_core::health::{Constant, Event, HealthConfig, HealthMonitor, Status};
 use vehid_core::model::QuarterCar;
 use vehid_core::sim::{Change, DriveConfig, QuarterDrive, RoadClass};
 
@@ -125,7 +125,7 @@ fn detect(car: QuarterCar<f64>, seed: u64, name: &str, value: f64, tune: Tune) -
 }
 
 /// One hour without change; returns the alarms (events) and the samples the monitor could
-/// not judge (low excitation, after the warm-up), and, with `peaks`, records every CUSUM
+/// not judge (any `CannotJudge` reason, after the warm-up), and, with `peaks`, records every CUSUM
 /// excursion's peak.
 fn hour(car: QuarterCar<f64>, seed: u64, tune: Tune, vary: bool, peaks: Option<&mut Vec<f64>>) -> (usize, usize) {
     let mut drive = QuarterDrive::new(car, DriveConfig::new(DT), seed).unwrap();
@@ -149,7 +149,7 @@ fn hour(car: QuarterCar<f64>, seed: u64, tune: Tune, vary: bool, peaks: Option<&
         if mon.update(s.y()).unwrap().is_some() {
             alarms += 1;
         }
-        blind += usize::from(mon.status() == Status::CannotJudge(Reason::LowExcitation));
+        blind += usize::from(matches!(mon.status(), Status::CannotJudge(_)));
         let g = mon.cusum().iter().flatten().fold(0.0f64, |m, v| m.max(*v));
         if g > 0.0 {
             peak = peak.max(g);
@@ -290,7 +290,7 @@ fn main() {
         alarms += n;
         blind += b;
         println!(
-            "  hour {:>3}/{}: {alarms} alarms so far, {:.2} % of the time too little excitation to judge ({:.0} s)",
+            "  hour {:>3}/{}: {alarms} alarms so far, {:.3} % of the time not judged ({:.0} s)",
             i + 1,
             a.hours,
             100.0 * blind as f64 * DT / (3600.0 * (i + 1) as f64),

@@ -39,6 +39,9 @@ pub enum Reason {
     Missing,
     /// A channel has repeated the same value for `stuck_samples` samples.
     Stuck,
+    /// The deflection jumped away from the integrated accelerations by more than 8
+    /// standard deviations of the kinematic filter's innovation (a seam or glitch in the data).
+    Jump,
     /// Restarting the kinematic filter after missing or stuck data (`reacquire` seconds).
     Reacquiring,
 }

@@ -30,6 +30,7 @@ use nalgebra::{SMatrix, SVector};
 pub struct DeflectionFilter<T> {
     dt: T,
     gain: [T; 3],
+    innov_sd: T,
     s: [T; 3],
     prev_a: T,
     started: bool,
@@ -65,10 +66,12 @@ impl<T: Real> DeflectionFilter<T> {
         let r = sd * sd;
         let mut p = SMatrix::<f64, 3, 3>::identity() * (1e3 * r);
         let mut k = SVector::<f64, 3>::zeros();
+        let mut innov = r;
         let mut settled = false;
         for _ in 0..2_000_000 {
             let pm = f * p * f.transpose() + q;
-            let kn = pm.column(0) / (pm[(0, 0)] + r);
+            innov = pm[(0, 0)] + r;
+            let kn = pm.column(0) / innov;
             let mut pn = pm - kn * pm.row(0);
             pn = (pn + pn.transpose()) * 0.5;
             let change = (kn - k).abs().max();
@@ -88,6 +91,7 @@ impl<T: Real> DeflectionFilter<T> {
         Ok(Self {
             dt,
             gain: [T::of(k[0]), T::of(k[1]), T::of(k[2])],
+            innov_sd: T::of(libm::sqrt(innov)),
             s: [T::zero(); 3],
             prev_a: T::zero(),
             started: false,
@@ -99,6 +103,12 @@ impl<T: Real> DeflectionFilter<T> {
         self.gain
     }
 
+    /// The steady-state standard deviation of the innovation `y_k − d⁻`, m
+    /// (`√(h P⁻ hᵀ + σ_d²)`).
+    pub fn innovation_sd(&self) -> T {
+        self.innov_sd
+    }
+
     /// Forgets the deflection and its rate (after a gap): the next sample restarts the
     /// filter at the measured deflection with rate 0; the bias estimate is kept.
     pub fn reset(&mut self) {
@@ -108,6 +118,23 @@ impl<T: Real> DeflectionFilter<T> {
     /// The current estimate `[d, ḋ, β]`.
     pub fn state(&self) -> [T; 3] {
         self.s
+    }
+
+    /// As [`DeflectionFilter::update`], but returns `None` and changes nothing when the
+    /// innovation exceeds `gate` standard deviations ([`DeflectionFilter::innovation_sd`]):
+    /// the deflection disagrees with the integrated accelerations (a seam or a glitch).
+    #[inline]
+    pub fn update_gated(&mut self, d: T, a: T, gate: T) -> Option<(T, T)> {
+        if self.started {
+            let h = self.dt;
+            let [d0, v0, b0] = self.s;
+            let dp =
+                d0 + h * v0 + h * h * (self.prev_a * T::of(1.0 / 3.0) + a * T::of(1.0 / 6.0)) - h * h * T::of(0.5) * b0;
+            if (d - dp).abs() > gate * self.innov_sd {
+                return None;
+            }
+        }
+        Some(self.update(d, a))
     }
 
     /// One sample: deflection `d` (m) and relative acceleration `a = a_body − a_wheel`

@@ -23,8 +23,10 @@
 //! # Pipeline (per sample, ~100 flops)
 //!
 //! 1. **Checks** (`monitor.rs`): ±∞ is an error (nothing changes); a NaN channel is a
-//!    missing sample; a channel repeating the same value `stuck_samples` times is stuck.
-//!    Both restart the kinematic filter, drop the samples held back (step 3) and wait
+//!    missing sample; a channel repeating the same value `stuck_samples` times is stuck; a
+//!    deflection more than [`JUMP_GATE`] innovation standard deviations away from the
+//!    kinematic filter's prediction is a jump (a seam or glitch). All three restart the
+//!    kinematic filter, drop the samples held back (step 3) and wait
 //!    `reacquire` seconds: status [`Status::CannotJudge`].
 //! 2. **Kinematic filter** ([`DeflectionFilter`], `kinematic.rs`): `d̂` and `ḋ̂` from the
 //!    deflection and `a_body − a_wheel`, a steady-state Kalman filter with a bias state.
@@ -61,7 +63,9 @@
 //!    deviations `x = (x_k, x_b)` with covariance `C` are fitted by weighted least squares to
 //!    each pattern `u` ∈ {(1, 0) spring, (0, 1) damper, (1, 1) body mass}:
 //!    `x̂ = uᵀC⁻¹x / uᵀC⁻¹u`, variance `1/uᵀC⁻¹u`; the pattern with the smallest weighted
-//!    residual is named. The event reports `before`, `after` (`b`, `k2`: `before (1 + x̂)`;
+//!    residual is named. A settled change smaller than `δ/2` is no event (a transient, e.g. a
+//!    jump in the data, set the alarm off): the alarm is dropped, the reference kept. The
+//!    event reports `before`, `after` (`b`, `k2`: `before (1 + x̂)`;
 //!    `M`: `before / (1 + x̂)`) and a normal `confidence` interval of `after`. The reference
 //!    then moves to the settled estimate and the tracker continues from it.
 //!
@@ -70,7 +74,8 @@
 //! No event is ever raised while [`Status::CannotJudge`]: too little excitation (a ratio's
 //! `s_j` above [`HealthConfig::judge_error`], default 0.8 %: smooth road, slow or standing
 //! car; the CUSUMs hold), missing samples (NaN: gaps in
-//! a log are fed as NaN rows), a stuck channel, and the `reacquire` seconds after either.
+//! a log are fed as NaN rows), a stuck channel, a jump, and the `reacquire` seconds after
+//! any of them.
 //! During the warm-up there is no reference yet ([`Status::Warmup`]).
 //!
 //! Files: `kinematic.rs` ([`DeflectionFilter`]), `rls.rs` ([`Rls3`]), `monitor.rs`
@@ -83,7 +88,7 @@ mod rls;
 
 pub use event::{Constant, Estimate, Event, Reason, Status};
 pub use kinematic::DeflectionFilter;
-pub use monitor::{HealthConfig, HealthMonitor, CHANNELS, MAX_DELAY};
+pub use monitor::{HealthConfig, HealthMonitor, CHANNELS, JUMP_GATE, MAX_DELAY};
 pub use rls::Rls3;
 
 #[cfg(test)]

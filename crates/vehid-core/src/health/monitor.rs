@@ -12,6 +12,10 @@ use nalgebra::{SMatrix, SVector};
 /// Most samples the monitor holds back before using them (the stuck-sensor delay line).
 pub const MAX_DELAY: usize = 64;
 
+/// Innovation gate of the kinematic filter, standard deviations: a larger jump of the
+/// deflection against the integrated accelerations is [`Reason::Jump`].
+pub const JUMP_GATE: f64 = 8.0;
+
 /// Number of channels [`HealthMonitor::update`] reads: `a_body` (m/s²), `a_wheel` (m/s²),
 /// `deflection` (m), the realistic sensor set of `sim::REALISTIC_CHANNELS`.
 pub const CHANNELS: usize = 3;
@@ -333,13 +337,18 @@ impl<T: Real> HealthMonitor<T> {
             self.interrupt(Reason::Stuck);
             return Ok(None);
         }
-        let (d, v) = self.kf.update(y[2], y[0] - y[1]);
+        // No gate while the filter re-converges after a restart (its rate starts at 0).
+        let gate = if self.reacq_left > 0 { T::biggest() } else { T::of(JUMP_GATE) };
+        let Some((d, v)) = self.kf.update_gated(y[2], y[0] - y[1], gate) else {
+            self.interrupt(Reason::Jump);
+            return Ok(None);
+        };
         if self.reacq_left > 0 {
             self.reacq_left -= 1;
             self.reason = Some(Reason::Reacquiring);
             return Ok(None);
         }
-        if matches!(self.reason, Some(Reason::Missing | Reason::Stuck | Reason::Reacquiring)) {
+        if matches!(self.reason, Some(Reason::Missing | Reason::Stuck | Reason::Jump | Reason::Reacquiring)) {
             self.reason = None;
         }
         // The delay line: a sample is used once `stuck_samples` newer ones arrived intact.
@@ -395,7 +404,11 @@ impl<T: Real> HealthMonitor<T> {
                 self.fast.update(&phi, a);
                 self.post.update(&phi, a);
                 self.post_n += 1;
-                (self.post_n >= self.n_settle).then(|| self.finish())
+                if self.post_n >= self.n_settle {
+                    self.finish()
+                } else {
+                    None
+                }
             }
         }
     }
@@ -470,7 +483,9 @@ impl<T: Real> HealthMonitor<T> {
     }
 
     /// Ends the settling: names the constant, reports it, moves the reference.
-    fn finish(&mut self) -> Event<T> {
+    /// (`None`: the settled change is smaller than `min_change / 2`, a transient such as a
+    /// jump in the data; the alarm is dropped and the reference kept.)
+    fn finish(&mut self) -> Option<Event<T>> {
         let th = *self.post.theta();
         let p = *self.post.p();
         let s2 = self.sigma2;
@@ -502,6 +517,11 @@ impl<T: Real> HealthMonitor<T> {
             }
         }
         let (_, parameter, dx, sd) = best.unwrap_or((T::zero(), Constant::Damper, x[1], c11.sqrt()));
+        if !(dx.abs() >= self.cfg.min_change * T::of(0.5)) {
+            self.g = [[T::zero(); 2]; 2];
+            self.phase = Phase::Monitoring;
+            return None;
+        }
         let idx = match parameter {
             Constant::BodyMass => 0,
             Constant::Spring => 1,
@@ -541,6 +561,6 @@ impl<T: Real> HealthMonitor<T> {
             self.reference = Rls3::new(th, p * T::of(1e3), T::one());
         }
         self.events += 1;
-        ev
+        Some(ev)
     }
 }
