@@ -62,6 +62,25 @@ impl<T: Real> QuarterCar<T> {
         Self { m_body: T::of(10.0), m_wheel: T::of(1.0), k1: T::of(90.0), k2: T::of(50.0), b: T::of(40.0) }
     }
 
+    /// A typical passenger-car quarter (one corner of a mid-size sedan): M = 320 kg,
+    /// m = 40 kg, k1 = 200 kN/m, k2 = 22 kN/m, b = 1.5 kN·s/m.
+    ///
+    /// Typical ranges (Gillespie, *Fundamentals of Vehicle Dynamics*, SAE 1992, Ch. 5 "Ride":
+    /// body bounce 1–1.5 Hz, wheel hop 10–12 Hz, body damping ratio 0.2–0.4; Wong, *Theory of
+    /// Ground Vehicles*, 4th ed. 2008, Ch. 7): sprung quarter mass 250–400 kg, unsprung
+    /// 30–50 kg, tyre 150–250 kN/m, spring 15–35 kN/m, damper 1–3 kN·s/m. These values give a
+    /// body mode of √(k2/M)/2π = 1.32 Hz, a wheel hop of √((k1+k2)/m)/2π = 11.9 Hz and a body
+    /// damping ratio b/(2√(k2 M)) = 0.28.
+    pub fn passenger() -> Self {
+        Self {
+            m_body: T::of(320.0),
+            m_wheel: T::of(40.0),
+            k1: T::of(200_000.0),
+            k2: T::of(22_000.0),
+            b: T::of(1_500.0),
+        }
+    }
+
     /// Body mass `M`, kg.
     pub fn m_body(&self) -> T {
         self.m_body

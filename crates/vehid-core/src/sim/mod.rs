@@ -18,15 +18,25 @@
 //!
 //! Files: `config.rs` (settings, pulses, the integration method), `time.rs` ([`Simulator`],
 //! samples at a fixed interval), `road.rs` ([`RoadSimulator`]: two axles on one road, samples
-//! by distance at a speed profile), `run.rs` ([`Run`], a whole simulation in memory).
+//! by distance at a speed profile), `run.rs` ([`Run`], a whole simulation in memory),
+//! `drive.rs` ([`QuarterDrive`]: realistic drives of issue 17 — an ISO 8608 road by distance,
+//! parameter changes at given times, accelerometers and a deflection sensor; `iso8608.rs`:
+//! the road by distance).
 
 mod config;
+mod drive;
+mod iso8608;
 mod road;
 #[cfg(feature = "alloc")]
 mod run;
 mod time;
 
 pub use config::{per_component, Method, Pulse, SimConfig, SimSettings, MAX_PULSES, MAX_SIGMA};
+pub use drive::{
+    Change, DriveConfig, DriveSample, QuarterConstant, QuarterDrive, SensorNoise, SensorSet, GRAVITY, MAX_CHANGES,
+    MAX_CHANNELS, REALISTIC_CHANNELS, STATE_CHANNELS,
+};
+pub use iso8608::{IsoRoad, RoadClass, DEFAULT_CUTOFF, N0};
 pub use road::{RoadConfig, RoadMode, RoadSample, RoadSimulator, SpeedProfile};
 #[cfg(feature = "alloc")]
 pub use run::Run;

@@ -1,0 +1,313 @@
+//! The health monitor's experiment (issue 17): quarter car with passenger-car constants,
+//! ISO 8608 class C at 15 m/s, realistic sensors at 200 Hz.
+//!
+//! - Detection: damper −10 %, spring −10 %, body mass +20 % at t = 60 s, `--seeds` seeds each
+//!   (seeds `seed0 + i`, one block per scenario): detection delay (median, 95th percentile;
+//!   a miss counts as infinite), the reported change against the truth (points of percent),
+//!   the constant named.
+//! - False alarms: `--hours` hours without change, one hour per seed
+//!   (`seed0 + 500_000 + i`), a progress line per hour: alarms per 10 h.
+//! - `--calibrate`: the threshold's calibration on other seeds (`seed0 + 1_000_000 + i`):
+//!   no-change drives with the alarm switched off, the peak of every CUSUM excursion
+//!   recorded, and the false-alarm rate each threshold would give (`--hours` hours).
+//!
+//! - `--vary`: the no-change hours (and the calibration) under changing conditions instead:
+//!   speed `16 + 8 sin(2π t / 240 s)` m/s (8–24 m/s) and the road class cycling C, B, C, D
+//!   every 300 s (the reference is learned in the first 20 s, on class C near 16 m/s).
+//!
+//! - `--count N`: only `N` ≤ 200,000 monitor updates (monitoring phase, f64) on 200,000
+//!   pre-generated samples (generated whatever `N` is), for instruction counting: `valgrind --tool=callgrind` with `N`
+//!   and with 0, the difference divided by `N` is the instructions per update.
+//!
+//! Usage: `health_experiment [--seed0 N] [--seeds N] [--hours H] [--threshold h] [--window s] [--calibrate] [--vary]`.
+
+use std::time::Instant;
+use vehid_core::health::{Constant, Event, HealthConfig, HealthMonitor, Status};
+use vehid_core::model::QuarterCar;
+use vehid_core::sim::{Change, DriveConfig, QuarterDrive, RoadClass};
+
+const DT: f64 = 0.005;
+const T_CHANGE: f64 = 60.0;
+const T_AFTER: f64 = 60.0;
+
+struct Args {
+    seed0: u64,
+    seeds: u64,
+    hours: u64,
+    threshold: Option<f64>,
+    window: Option<f64>,
+    calibrate: bool,
+    vary: bool,
+    count: Option<usize>,
+}
+
+fn parse() -> Args {
+    let mut a = Args {
+        seed0: 1000,
+        seeds: 50,
+        hours: 100,
+        threshold: None,
+        window: None,
+        calibrate: false,
+        vary: false,
+        count: None,
+    };
+    let argv: Vec<String> = std::env::args().skip(1).collect();
+    let mut i = 0;
+    while i < argv.len() {
+        let val = || argv.get(i + 1).unwrap_or_else(|| panic!("{} needs a value", argv[i])).clone();
+        match argv[i].as_str() {
+            "--seed0" => a.seed0 = val().parse().expect("--seed0: an integer"),
+            "--seeds" => a.seeds = val().parse().expect("--seeds: an integer"),
+            "--hours" => a.hours = val().parse().expect("--hours: an integer"),
+            "--threshold" => a.threshold = Some(val().parse().expect("--threshold: a number")),
+            "--count" => a.count = Some(val().parse().expect("--count: an integer")),
+            "--window" => a.window = Some(val().parse().expect("--window: seconds")),
+            "--calibrate" => {
+                a.calibrate = true;
+                i += 1;
+                continue;
+            }
+            "--vary" => {
+                a.vary = true;
+                i += 1;
+                continue;
+            }
+            other => panic!("unknown argument {other}"),
+        }
+        i += 2;
+    }
+    a
+}
+
+/// The monitor's settings: the defaults, with the threshold and the window if given.
+type Tune = (Option<f64>, Option<f64>);
+
+fn config(car: QuarterCar<f64>, (threshold, window): Tune) -> HealthConfig<f64> {
+    let mut c = HealthConfig::new(DT, car);
+    if let Some(h) = threshold {
+        c.threshold = h;
+    }
+    if let Some(w) = window {
+        c.window = w;
+    }
+    c
+}
+
+/// Nearest-rank percentile of sorted values.
+fn pct(sorted: &[f64], p: f64) -> f64 {
+    let r = ((p / 100.0) * sorted.len() as f64).ceil() as usize;
+    sorted[r.clamp(1, sorted.len()) - 1]
+}
+
+struct Outcome {
+    first: Option<Event<f64>>,
+    early: usize,
+}
+
+fn detect(car: QuarterCar<f64>, seed: u64, name: &str, value: f64, tune: Tune) -> Outcome {
+    let cfg = DriveConfig::new(DT).with_change(Change::step(T_CHANGE, name, value).unwrap()).unwrap();
+    let mut drive = QuarterDrive::new(car, cfg, seed).unwrap();
+    let mut mon = HealthMonitor::new(config(car, tune)).unwrap();
+    let mut out = Outcome { first: None, early: 0 };
+    for _ in 0..((T_CHANGE + T_AFTER) / DT) as usize {
+        let s = drive.next_sample();
+        if let Some(e) = mon.update(s.y()).unwrap() {
+            if e.t < T_CHANGE {
+                out.early += 1;
+            } else {
+                out.first = Some(e);
+                break;
+            }
+        }
+    }
+    out
+}
+
+/// One hour without change; returns the alarms (events) and the samples the monitor could
+/// not judge (any `CannotJudge` reason, after the warm-up), and, with `peaks`, records every CUSUM
+/// excursion's peak.
+fn hour(car: QuarterCar<f64>, seed: u64, tune: Tune, vary: bool, peaks: Option<&mut Vec<f64>>) -> (usize, usize) {
+    let mut drive = QuarterDrive::new(car, DriveConfig::new(DT), seed).unwrap();
+    let mut mon = HealthMonitor::new(config(car, tune)).unwrap();
+    let mut alarms = 0;
+    let mut blind = 0;
+    let mut peak = 0.0f64;
+    let mut sink = Vec::new();
+    let peaks = peaks.unwrap_or(&mut sink);
+    let classes = [RoadClass::C, RoadClass::B, RoadClass::C, RoadClass::D];
+    for k in 0..(3600.0 / DT) as usize {
+        let t = k as f64 * DT;
+        let s = if vary {
+            if k % (300.0 / DT) as usize == 0 {
+                drive.set_road(classes[(k / (300.0 / DT) as usize) % classes.len()]);
+            }
+            drive.next_sample_at(16.0 + 8.0 * (2.0 * std::f64::consts::PI * t / 240.0).sin()).unwrap()
+        } else {
+            drive.next_sample()
+        };
+        if mon.update(s.y()).unwrap().is_some() {
+            alarms += 1;
+        }
+        blind += usize::from(matches!(mon.status(), Status::CannotJudge(_)));
+        let g = mon.cusum().iter().flatten().fold(0.0f64, |m, v| m.max(*v));
+        if g > 0.0 {
+            peak = peak.max(g);
+        } else if peak > 0.0 {
+            peaks.push(peak);
+            peak = 0.0;
+        }
+    }
+    if peak > 0.0 {
+        peaks.push(peak);
+    }
+    (alarms, blind)
+}
+
+fn calibrate(car: QuarterCar<f64>, a: &Args) {
+    println!("calibration: {} h without change, seeds {}.., alarm off", a.hours, a.seed0 + 1_000_000);
+    let mut peaks = Vec::new();
+    let t0 = Instant::now();
+    for i in 0..a.hours {
+        hour(car, a.seed0 + 1_000_000 + i, (Some(f64::MAX), a.window), a.vary, Some(&mut peaks));
+        let top = peaks.iter().fold(0.0f64, |m, v| m.max(*v));
+        println!(
+            "  hour {:>3}/{}: {} excursions so far, highest peak {top:.3} ({:.0} s)",
+            i + 1,
+            a.hours,
+            peaks.len(),
+            t0.elapsed().as_secs_f64()
+        );
+    }
+    println!("threshold h | excursions above h | alarms per 10 h");
+    for h in [0.01, 0.1, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0] {
+        let n = peaks.iter().filter(|&&p| p > h).count();
+        println!("{h:>11} | {n:>18} | {:.3}", n as f64 * 10.0 / a.hours as f64);
+    }
+}
+
+/// `n` updates of a monitor past its warm-up on cycled samples (see `--count`).
+#[inline(never)]
+fn count(car: QuarterCar<f64>, n: usize) {
+    let mut drive = QuarterDrive::new(car, DriveConfig::new(DT), 42).unwrap();
+    let mut mon = HealthMonitor::new(HealthConfig::new(DT, car)).unwrap();
+    for _ in 0..6000 {
+        mon.update(drive.next_sample().y()).unwrap();
+    }
+    let data: Vec<[f64; 3]> = (0..200_000)
+        .map(|_| {
+            let s = drive.next_sample();
+            [s.y()[0], s.y()[1], s.y()[2]]
+        })
+        .collect();
+    let mut events = 0;
+    for y in data.iter().take(n) {
+        events += usize::from(std::hint::black_box(mon.update(std::hint::black_box(y)).unwrap()).is_some());
+    }
+    println!("{n} updates, {events} events, status {:?}, estimate {:?}", mon.status(), mon.estimate().value);
+}
+
+fn main() {
+    let a = parse();
+    let car = QuarterCar::<f64>::passenger();
+    if let Some(n) = a.count {
+        count(car, n);
+        return;
+    }
+    let cfg = config(car, (a.threshold, a.window));
+    let (h, window) = (cfg.threshold, cfg.window);
+    println!(
+        "health_experiment: passenger quarter car (M 320 kg, m 40 kg, k1 200 kN/m, k2 22 kN/m, b 1.5 kN s/m), \
+         ISO 8608 class C at 15 m/s, realistic sensors at {} Hz, threshold h = {h}, window {window} s, seed0 = {}",
+        1.0 / DT,
+        a.seed0
+    );
+    if a.calibrate {
+        calibrate(car, &a);
+        return;
+    }
+    let scenarios = [
+        ("damper -10 %", "b", 1350.0, Constant::Damper, 1500.0),
+        ("spring -10 %", "k2", 19_800.0, Constant::Spring, 22_000.0),
+        ("body mass +20 %", "M", 384.0, Constant::BodyMass, 320.0),
+    ];
+    let mut rows = Vec::new();
+    for (si, (label, name, value, want, before)) in scenarios.iter().enumerate() {
+        let truth = 100.0 * (value / before - 1.0);
+        let t0 = Instant::now();
+        let mut delays = Vec::new();
+        let mut errs = Vec::new();
+        let (mut named, mut early, mut missed) = (0, 0, 0);
+        for i in 0..a.seeds {
+            let seed = a.seed0 + 10_000 * si as u64 + i;
+            let o = detect(car, seed, name, *value, (a.threshold, a.window));
+            early += o.early;
+            match o.first {
+                Some(e) => {
+                    delays.push(e.t - T_CHANGE);
+                    named += usize::from(e.parameter == *want);
+                    errs.push(100.0 * e.change - truth);
+                }
+                None => {
+                    delays.push(f64::INFINITY);
+                    missed += 1;
+                }
+            }
+        }
+        delays.sort_by(f64::total_cmp);
+        let mut abs: Vec<f64> = errs.iter().map(|e: &f64| e.abs()).collect();
+        abs.sort_by(f64::total_cmp);
+        let mean_err = errs.iter().sum::<f64>() / errs.len().max(1) as f64;
+        println!(
+            "  {label}: {} seeds in {:.1} s: median delay {:.2} s, p95 {:.2} s, named {named}, missed {missed}",
+            a.seeds,
+            t0.elapsed().as_secs_f64(),
+            pct(&delays, 50.0),
+            pct(&delays, 95.0)
+        );
+        rows.push((
+            *label,
+            pct(&delays, 50.0),
+            pct(&delays, 95.0),
+            mean_err,
+            if abs.is_empty() { f64::NAN } else { pct(&abs, 95.0) },
+            if abs.is_empty() { f64::NAN } else { abs[abs.len() - 1] },
+            named,
+            missed,
+            early,
+        ));
+    }
+    println!(
+        "false alarms: {} h without change{}, one hour per seed from {}",
+        a.hours,
+        if a.vary { " (varying speed and road class)" } else { "" },
+        a.seed0 + 500_000
+    );
+    let t0 = Instant::now();
+    let (mut alarms, mut blind) = (0, 0);
+    for i in 0..a.hours {
+        let (n, b) = hour(car, a.seed0 + 500_000 + i, (a.threshold, a.window), a.vary, None);
+        alarms += n;
+        blind += b;
+        println!(
+            "  hour {:>3}/{}: {alarms} alarms so far, {:.3} % of the time not judged ({:.0} s)",
+            i + 1,
+            a.hours,
+            100.0 * blind as f64 * DT / (3600.0 * (i + 1) as f64),
+            t0.elapsed().as_secs_f64()
+        );
+    }
+    println!();
+    println!(
+        "| change | seeds | median delay (s) | p95 delay (s) | mean error (points) | p95 abs error | max abs error | named right | missed | alarms before the change |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|");
+    for (label, med, p95, mean, p95e, maxe, named, missed, early) in rows {
+        println!("| {label} | {} | {med:.2} | {p95:.2} | {mean:+.2} | {p95e:.2} | {maxe:.2} | {named}/{} | {missed} | {early} |", a.seeds, a.seeds);
+    }
+    println!(
+        "| no change | {} h | | | | | | | | {alarms} alarms = {:.3} per 10 h |",
+        a.hours,
+        alarms as f64 * 10.0 / a.hours as f64
+    );
+}

@@ -1,0 +1,95 @@
+//! Suspension health monitoring (issue 17): from a car's own sensors to the physical
+//! constants that changed, online, without allocation, in `no_std`.
+//!
+//! # What the sensors can tell
+//!
+//! The realistic sensor set is a body accelerometer, a wheel accelerometer and a
+//! suspension deflection sensor (`sim::REALISTIC_CHANNELS`). The road is not measured, so
+//! the wheel equation `m v̇w = k2 d + b ḋ − k1 (zw − u)` (`d = zb − zw`) cannot be used: the
+//! tyre deflection `zw − u` is unobservable. Only the body equation (Eq 3.10 / M) is:
+//!
+//! ```text
+//! a_body = −(k2/M) d − (b/M) ḋ + c
+//! ```
+//!
+//! where `c` absorbs the accelerometer bias and the static offsets (sensor zero, spring
+//! preload; it moves when the static load moves). So **only the ratios `k2/M` and `b/M` are
+//! identifiable**; `k1`, `m` and `M` alone are not. Changes are attributed by their
+//! pattern: `b/M` alone changed → the damper `b`; `k2/M` alone → the spring `k2`; both by
+//! the same factor → the body mass `M` (cargo). Physical values are reported relative to
+//! the nominal car given in [`HealthConfig::car`] (its `M`, `k2`, `b` are the "before" of
+//! the first events).
+//!
+//! # Pipeline (per sample, ~100 flops)
+//!
+//! 1. **Checks** (`monitor.rs`): ±∞ is an error (nothing changes); a NaN channel is a
+//!    missing sample; a channel repeating the same value `stuck_samples` times is stuck; a
+//!    deflection more than [`JUMP_GATE`] innovation standard deviations away from the
+//!    kinematic filter's prediction is a jump (a seam or glitch). All three restart the
+//!    kinematic filter, drop the samples held back (step 3) and wait
+//!    `reacquire` seconds: status [`Status::CannotJudge`].
+//! 2. **Kinematic filter** ([`DeflectionFilter`], `kinematic.rs`): `d̂` and `ḋ̂` from the
+//!    deflection and `a_body − a_wheel`, a steady-state Kalman filter with a bias state.
+//! 3. **Delay line**: a sample is used only after `stuck_samples` newer intact samples, so
+//!    that the first values of a stuck run never reach the estimates.
+//! 4. **Tracking** ([`Rls3`], `rls.rs`): `θ = [k2/M, b/M, c]` by recursive least squares
+//!    with forgetting `λ = 1 − dt/T_f` (window `T_f`, default 6 s) and a wind-up cap.
+//! 5. **Reference**: the first `warmup` seconds (default 20) of usable data give
+//!    `θ_ref` by least squares without forgetting, its variances `σ² P_jj`, and the noise
+//!    variance `σ²` of the body equation (the a-priori residuals after the first second);
+//!    both are then frozen.
+//! 6. **Detection** (Page's CUSUM): for each ratio `j` the relative deviation
+//!    `r_j = θ_j/θ_ref,j − 1` has the standard error
+//!    `s_j² = (σ² P_jj/(1+λ) + Var θ_ref,j)/θ_ref,j²` (`σ² P/(1+λ)` is the variance of an
+//!    exponentially weighted estimate with stationary regressors). Two one-sided CUSUMs per
+//!    ratio accumulate the log-likelihood ratio of a relative shift `±δ` (`δ` =
+//!    `min_change`, default 5 %) against none, for a Gaussian `r_j` with standard error
+//!    `s_j`, counted as one independent observation per window (weight `1 − λ` per sample):
+//!
+//!    ```text
+//!    g ← max(0, g + (1 − λ) (δ / s_j²) (±r_j − δ/2)),   alarm when g > h
+//!    ```
+//!
+//!    Why this design: the tracked estimate already pools the data optimally for a slowly
+//!    varying `θ`, and `c` (whose static part moves with the load and the spring) stays a
+//!    free parameter, which a CUSUM on innovations of a fixed model would not allow. The
+//!    allowance `δ/2` makes the detector blind to changes smaller than `δ/2` however clean
+//!    the data: a 1 % drift of a sensor gain is no maintenance event. Because the
+//!    deviations of a tracked estimate are autocorrelated, `h` is calibrated by simulation
+//!    (`benches/src/bin/health_experiment.rs --calibrate`: the false-alarm rate on drives
+//!    without change, on seeds apart from the reported ones).
+//! 7. **Settling and naming**: after an alarm a fresh least-squares estimate (no
+//!    forgetting) runs for `settle` seconds (default 4) on data after the alarm. Its relative
+//!    deviations `x = (x_k, x_b)` with covariance `C` are fitted by weighted least squares to
+//!    each pattern `u` ∈ {(1, 0) spring, (0, 1) damper, (1, 1) body mass}:
+//!    `x̂ = uᵀC⁻¹x / uᵀC⁻¹u`, variance `1/uᵀC⁻¹u`; the pattern with the smallest weighted
+//!    residual is named. A settled change smaller than `δ/2` is no event (a transient, e.g. a
+//!    jump in the data, set the alarm off): the alarm is dropped, the reference kept. The
+//!    event reports `before`, `after` (`b`, `k2`: `before (1 + x̂)`;
+//!    `M`: `before / (1 + x̂)`) and a normal `confidence` interval of `after`. The reference
+//!    then moves to the settled estimate and the tracker continues from it.
+//!
+//! # Cannot judge
+//!
+//! No event is ever raised while [`Status::CannotJudge`]: too little excitation (a ratio's
+//! `s_j` above [`HealthConfig::judge_error`], default 0.8 %: smooth road, slow or standing
+//! car; the CUSUMs hold), missing samples (NaN: gaps in
+//! a log are fed as NaN rows), a stuck channel, a jump, and the `reacquire` seconds after
+//! any of them.
+//! During the warm-up there is no reference yet ([`Status::Warmup`]).
+//!
+//! Files: `kinematic.rs` ([`DeflectionFilter`]), `rls.rs` ([`Rls3`]), `monitor.rs`
+//! ([`HealthMonitor`], [`HealthConfig`]), `event.rs` ([`Event`], [`Status`], [`Estimate`]).
+
+mod event;
+mod kinematic;
+mod monitor;
+mod rls;
+
+pub use event::{Constant, Estimate, Event, Reason, Status};
+pub use kinematic::DeflectionFilter;
+pub use monitor::{HealthConfig, HealthMonitor, CHANNELS, JUMP_GATE, MAX_DELAY};
+pub use rls::Rls3;
+
+#[cfg(test)]
+mod tests;

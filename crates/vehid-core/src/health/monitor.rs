@@ -1,0 +1,566 @@
+//! [`HealthMonitor`]: tracking of `k2/M`, `b/M` and change detection (module documentation
+//! of [`crate::health`] for the design).
+
+use super::event::{Constant, Estimate, Event, Reason, Status};
+use super::kinematic::DeflectionFilter;
+use super::rls::Rls3;
+use crate::error::{check_nonneg, check_positive};
+use crate::model::QuarterCar;
+use crate::{Error, Real, Result};
+use nalgebra::{SMatrix, SVector};
+
+/// Most samples the monitor holds back before using them (the stuck-sensor delay line).
+pub const MAX_DELAY: usize = 64;
+
+/// Innovation gate of the kinematic filter, standard deviations: a larger jump of the
+/// deflection against the integrated accelerations is [`Reason::Jump`].
+pub const JUMP_GATE: f64 = 8.0;
+
+/// Number of channels [`HealthMonitor::update`] reads: `a_body` (m/s²), `a_wheel` (m/s²),
+/// `deflection` (m), the realistic sensor set of `sim::REALISTIC_CHANNELS`.
+pub const CHANNELS: usize = 3;
+
+/// Settings of a [`HealthMonitor`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HealthConfig<T> {
+    /// Sample interval, s (> 0).
+    pub dt: T,
+    /// The nominal car: its `M`, `k2`, `b` are the "before" of the first events.
+    pub car: QuarterCar<T>,
+    /// Noise of `a_body − a_wheel` per sample, m/s² (the kinematic filter's design;
+    /// default √(0.02² + 0.1²), the defaults of `sim::SensorNoise`).
+    pub accel_noise: T,
+    /// Deflection sensor noise, m (default 0.3e-3).
+    pub deflection_noise: T,
+    /// Random-walk density of the relative accelerometer bias, m/s² per √s (default 0.01).
+    pub bias_walk: T,
+    /// Time constant of the tracker's forgetting, `T_f = dt / (1 − λ)`, s (default 6: with
+    /// 2 s and 4 s the tracked `k2/M` strayed past `δ/2` on class B at 8 m/s, with 6 s it did
+    /// not in 100 h of varying speed and road, `health_experiment --calibrate --vary`).
+    pub window: T,
+    /// Seconds of usable data that form the reference (default 20).
+    pub warmup: T,
+    /// Seconds of usable data after an alarm that measure the new value (default 4).
+    pub settle: T,
+    /// Seconds the kinematic filter re-converges after missing or stuck data (default 2).
+    pub reacquire: T,
+    /// Smallest relative change of a ratio worth an event, `δ` (default 0.05).
+    pub min_change: T,
+    /// Largest relative standard error `s_j` of a tracked ratio at which the monitor
+    /// judges (default 0.008, about `δ/6`, so that the allowance `δ/2` is three standard
+    /// errors away); above it the status is `CannotJudge(LowExcitation)`.
+    pub judge_error: T,
+    /// CUSUM threshold `h` (log-likelihood-ratio units; default 8, calibrated by
+    /// `benches/src/bin/health_experiment.rs`).
+    pub threshold: T,
+    /// Confidence level of the intervals (default 0.95).
+    pub confidence: T,
+    /// Identical consecutive values that make a channel "stuck" (default 20, at most
+    /// [`MAX_DELAY`]); also the delay (samples) before a sample is used.
+    pub stuck_samples: usize,
+}
+
+impl<T: Real> HealthConfig<T> {
+    /// The defaults for samples every `dt` seconds of `car`.
+    pub fn new(dt: T, car: QuarterCar<T>) -> Self {
+        Self {
+            dt,
+            car,
+            accel_noise: T::of(libm::sqrt(0.02 * 0.02 + 0.1 * 0.1)),
+            deflection_noise: T::of(0.3e-3),
+            bias_walk: T::of(0.01),
+            window: T::of(6.0),
+            warmup: T::of(20.0),
+            settle: T::of(4.0),
+            reacquire: T::of(2.0),
+            min_change: T::of(0.05),
+            judge_error: T::of(0.008),
+            threshold: T::of(8.0),
+            confidence: T::of(0.95),
+            stuck_samples: 20,
+        }
+    }
+}
+
+/// Samples of a duration (at least 1).
+fn samples_of<T: Real>(seconds: T, dt: T) -> u64 {
+    let n = libm::ceil(seconds.to_f64() / dt.to_f64());
+    if n >= 1.0 {
+        n as u64
+    } else {
+        1
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Phase {
+    Warmup,
+    Monitoring,
+    Settling,
+}
+
+/// The suspension health monitor of the quarter car with realistic sensors (module
+/// documentation of [`crate::health`]).
+///
+/// # Examples
+/// ```
+/// use vehid_core::health::{HealthConfig, HealthMonitor, Status};
+/// use vehid_core::model::QuarterCar;
+/// let mut mon = HealthMonitor::new(HealthConfig::new(0.005, QuarterCar::<f64>::passenger())).unwrap();
+/// assert_eq!(mon.update(&[0.1, -0.3, 0.002]).unwrap(), None);
+/// assert_eq!(mon.status(), Status::Warmup);
+/// assert!(mon.update(&[0.1, f64::INFINITY, 0.0]).is_err()); // rejected: nothing changed
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+pub struct HealthMonitor<T: Real> {
+    cfg: HealthConfig<T>,
+    n_warm: u64,
+    n_burn: u64,
+    n_settle: u64,
+    n_reacq: u64,
+    z: T,
+    kf: DeflectionFilter<T>,
+    ring: [[T; 3]; MAX_DELAY],
+    ring_k: [u64; MAX_DELAY],
+    head: usize,
+    len: usize,
+    prev: [T; 3],
+    run: [usize; 3],
+    have_prev: bool,
+    reacq_left: u64,
+    k: u64,
+    phase: Phase,
+    reason: Option<Reason>,
+    reference: Rls3<T>,
+    fast: Rls3<T>,
+    post: Rls3<T>,
+    warm_n: u64,
+    post_n: u64,
+    e2_sum: T,
+    e2_n: u64,
+    sigma2: T,
+    theta_ref: [T; 2],
+    inv_ref: [T; 2],
+    var_ref: [T; 2],
+    g: [[T; 2]; 2],
+    zero_k: [[u64; 2]; 2],
+    onset: u64,
+    belief: [T; 3],
+    events: u64,
+}
+
+impl<T: Real> HealthMonitor<T> {
+    /// A monitor with settings `cfg`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] naming the setting: `dt`, `window`, `warmup`, `settle`,
+    /// `min_change` (< 1), `judge_error`, `threshold`, `deflection_noise` not finite and > 0; `reacquire`,
+    /// `accel_noise`, `bias_walk` not finite and ≥ 0; `confidence` outside (0, 1);
+    /// `stuck_samples` outside `2..=MAX_DELAY`; a `window` shorter than 10 samples.
+    pub fn new(cfg: HealthConfig<T>) -> Result<Self> {
+        check_positive("dt", cfg.dt)?;
+        check_positive("window", cfg.window)?;
+        check_positive("warmup", cfg.warmup)?;
+        check_positive("settle", cfg.settle)?;
+        check_nonneg("reacquire", cfg.reacquire)?;
+        check_positive("min_change", cfg.min_change)?;
+        check_positive("judge_error", cfg.judge_error)?;
+        check_positive("threshold", cfg.threshold)?;
+        if !(cfg.min_change < T::one()) {
+            return Err(Error::InvalidArgument { arg: "min_change", expected: "a relative change in (0, 1)" });
+        }
+        let conf = cfg.confidence.to_f64();
+        if !(conf > 0.0 && conf < 1.0) {
+            return Err(Error::InvalidArgument { arg: "confidence", expected: "a level in (0, 1)" });
+        }
+        if !(2..=MAX_DELAY).contains(&cfg.stuck_samples) {
+            return Err(Error::InvalidArgument { arg: "stuck_samples", expected: "between 2 and 64" });
+        }
+        if cfg.window.to_f64() < 10.0 * cfg.dt.to_f64() {
+            return Err(Error::InvalidArgument { arg: "window", expected: "at least 10 sample intervals" });
+        }
+        let kf = DeflectionFilter::new(cfg.dt, cfg.accel_noise, cfg.deflection_noise, cfg.bias_walk)?;
+        let z = T::of(crate::stats::normal_ppf(0.5 + conf / 2.0)?);
+        let lambda = T::one() - cfg.dt / cfg.window;
+        let p0 = SMatrix::<T, 3, 3>::identity() * T::of(1e6);
+        let start = Rls3::new(SVector::zeros(), p0, T::one());
+        Ok(Self {
+            n_warm: samples_of(cfg.warmup, cfg.dt),
+            n_burn: samples_of(T::of(1.0), cfg.dt),
+            n_settle: samples_of(cfg.settle, cfg.dt),
+            n_reacq: if cfg.reacquire > T::zero() { samples_of(cfg.reacquire, cfg.dt) } else { 0 },
+            z,
+            kf,
+            ring: [[T::zero(); 3]; MAX_DELAY],
+            ring_k: [0; MAX_DELAY],
+            head: 0,
+            len: 0,
+            prev: [T::zero(); 3],
+            run: [0; 3],
+            have_prev: false,
+            reacq_left: 0,
+            k: 0,
+            phase: Phase::Warmup,
+            reason: None,
+            reference: start,
+            fast: Rls3::new(SVector::zeros(), p0, lambda),
+            post: start,
+            warm_n: 0,
+            post_n: 0,
+            e2_sum: T::zero(),
+            e2_n: 0,
+            sigma2: T::zero(),
+            theta_ref: [T::zero(); 2],
+            inv_ref: [T::zero(); 2],
+            var_ref: [T::zero(); 2],
+            g: [[T::zero(); 2]; 2],
+            zero_k: [[0; 2]; 2],
+            onset: 0,
+            belief: [cfg.car.m_body(), cfg.car.k2(), cfg.car.b()],
+            events: 0,
+            cfg,
+        })
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &HealthConfig<T> {
+        &self.cfg
+    }
+
+    /// What the monitor is doing now.
+    pub fn status(&self) -> Status {
+        if let Some(r) = self.reason {
+            return Status::CannotJudge(r);
+        }
+        match self.phase {
+            Phase::Warmup => Status::Warmup,
+            Phase::Monitoring => Status::Monitoring,
+            Phase::Settling => Status::Settling,
+        }
+    }
+
+    /// Samples seen (accepted calls of [`HealthMonitor::update`]).
+    pub fn samples(&self) -> u64 {
+        self.k
+    }
+
+    /// Events reported so far.
+    pub fn events(&self) -> u64 {
+        self.events
+    }
+
+    /// The current belief `[M (kg), k2 (N/m), b (N·s/m)]`: the nominal car's, moved by
+    /// every event.
+    pub fn constants(&self) -> [T; 3] {
+        self.belief
+    }
+
+    /// The reference `[k2/M, b/M]` the tracked ratios are compared with (`None` during
+    /// the warm-up).
+    pub fn reference(&self) -> Option<[T; 2]> {
+        (self.phase != Phase::Warmup).then_some(self.theta_ref)
+    }
+
+    /// The CUSUM statistics `[[k2/M up, down], [b/M up, down]]` (threshold
+    /// [`HealthConfig::threshold`]).
+    pub fn cusum(&self) -> [[T; 2]; 2] {
+        self.g
+    }
+
+    /// The noise variance of the body equation, (m/s²)²: the warm-up's residual variance
+    /// once the reference is formed, its running value before.
+    pub(crate) fn noise_var(&self) -> T {
+        if self.phase != Phase::Warmup {
+            self.sigma2
+        } else if self.e2_n > 0 {
+            self.e2_sum / T::of(self.e2_n as f64)
+        } else {
+            T::biggest().sqrt()
+        }
+    }
+
+    /// The tracked `[k2/M, b/M, c]` with `confidence` intervals from `σ² P / (1 + λ)` (the
+    /// variance of an exponentially weighted least-squares estimate with stationary
+    /// regressors).
+    pub fn estimate(&self) -> Estimate<T> {
+        let s2 = self.noise_var() / (T::one() + self.fast.lambda());
+        let th = self.fast.theta();
+        let mut out = Estimate { value: [th[0], th[1], th[2]], low: [T::zero(); 3], high: [T::zero(); 3] };
+        for j in 0..3 {
+            let half = self.z * (s2 * self.fast.p()[(j, j)]).max(T::zero()).sqrt();
+            out.low[j] = th[j] - half;
+            out.high[j] = th[j] + half;
+        }
+        out
+    }
+
+    /// One sample `y = [a_body (m/s²), a_wheel (m/s²), deflection (m)]`; returns the event
+    /// it completes, if any. A NaN channel marks a missing sample (a gap: status
+    /// `CannotJudge(Missing)`). No allocation.
+    ///
+    /// # Errors
+    /// [`Error::Shape`] for a length other than 3, [`Error::NonFinite`] for ±∞; the monitor
+    /// is then unchanged.
+    pub fn update(&mut self, y: &[T]) -> Result<Option<Event<T>>> {
+        if y.len() != CHANNELS {
+            return Err(Error::Shape { arg: "y", expected: CHANNELS, got: y.len() });
+        }
+        let mut missing = false;
+        for (index, v) in y.iter().enumerate() {
+            let f = v.to_f64();
+            if f.is_nan() {
+                missing = true;
+            } else if !f.is_finite() {
+                return Err(Error::NonFinite { arg: "y", index });
+            }
+        }
+        let k = self.k;
+        self.k += 1;
+        if missing {
+            self.have_prev = false;
+            self.run = [0; 3];
+            self.interrupt(Reason::Missing);
+            return Ok(None);
+        }
+        let mut stuck = false;
+        for i in 0..CHANNELS {
+            if self.have_prev && y[i] == self.prev[i] {
+                self.run[i] += 1;
+            } else {
+                self.run[i] = 0;
+            }
+            self.prev[i] = y[i];
+            stuck |= self.run[i] + 1 >= self.cfg.stuck_samples;
+        }
+        self.have_prev = true;
+        if stuck {
+            self.interrupt(Reason::Stuck);
+            return Ok(None);
+        }
+        // No gate while the filter re-converges after a restart (its rate starts at 0).
+        let gate = if self.reacq_left > 0 { T::biggest() } else { T::of(JUMP_GATE) };
+        let Some((d, v)) = self.kf.update_gated(y[2], y[0] - y[1], gate) else {
+            self.interrupt(Reason::Jump);
+            return Ok(None);
+        };
+        if self.reacq_left > 0 {
+            self.reacq_left -= 1;
+            self.reason = Some(Reason::Reacquiring);
+            return Ok(None);
+        }
+        if matches!(self.reason, Some(Reason::Missing | Reason::Stuck | Reason::Jump | Reason::Reacquiring)) {
+            self.reason = None;
+        }
+        // The delay line: a sample is used once `stuck_samples` newer ones arrived intact.
+        let at = (self.head + self.len) % MAX_DELAY;
+        self.ring[at] = [d, v, y[0]];
+        self.ring_k[at] = k;
+        self.len += 1;
+        if self.len < self.cfg.stuck_samples {
+            return Ok(None);
+        }
+        let [d, v, a] = self.ring[self.head];
+        let kr = self.ring_k[self.head];
+        self.head = (self.head + 1) % MAX_DELAY;
+        self.len -= 1;
+        Ok(self.feed(kr, d, v, a))
+    }
+
+    /// Drops the held-back samples and restarts the kinematic filter.
+    fn interrupt(&mut self, reason: Reason) {
+        self.len = 0;
+        self.kf.reset();
+        self.reacq_left = self.n_reacq;
+        self.reason = Some(reason);
+    }
+
+    /// Uses one regression row `a_body = −(k2/M) d − (b/M) ḋ + c` of sample `kr`.
+    fn feed(&mut self, kr: u64, d: T, v: T, a: T) -> Option<Event<T>> {
+        let phi = SVector::<T, 3>::new(-d, -v, T::one());
+        match self.phase {
+            Phase::Warmup => {
+                let e = self.reference.update(&phi, a);
+                self.fast.update(&phi, a);
+                self.warm_n += 1;
+                if let Some(e) = e {
+                    if self.warm_n > self.n_burn {
+                        self.e2_sum += e * e;
+                        self.e2_n += 1;
+                    }
+                }
+                if self.warm_n >= self.n_warm && self.e2_n > 0 {
+                    let sigma2 = self.e2_sum / T::of(self.e2_n as f64);
+                    let (th, p) = (*self.reference.theta(), *self.reference.p());
+                    self.try_reference(sigma2, [th[0], th[1]], [sigma2 * p[(0, 0)], sigma2 * p[(1, 1)]]);
+                }
+                None
+            }
+            Phase::Monitoring => {
+                self.fast.update(&phi, a);
+                self.detect(kr);
+                None
+            }
+            Phase::Settling => {
+                self.fast.update(&phi, a);
+                self.post.update(&phi, a);
+                self.post_n += 1;
+                if self.post_n >= self.n_settle {
+                    self.finish()
+                } else {
+                    None
+                }
+            }
+        }
+    }
+
+    /// Adopts `theta` (variances `var`) as the reference when both ratios are positive and
+    /// known to `min_change / 6`; sets the tracker's wind-up cap to the largest covariance
+    /// the detector judges (`s_j = judge_error`).
+    fn try_reference(&mut self, sigma2: T, theta: [T; 2], var: [T; 2]) -> bool {
+        let lim = self.cfg.min_change / T::of(6.0);
+        let ok = (0..2).all(|j| theta[j] > T::zero() && var[j].sqrt() < lim * theta[j]) && sigma2 > T::zero();
+        if !ok {
+            return false;
+        }
+        self.sigma2 = sigma2;
+        self.theta_ref = theta;
+        self.inv_ref = [T::one() / theta[0], T::one() / theta[1]];
+        self.var_ref = var;
+        let lim = self.cfg.judge_error;
+        let onep = T::one() + self.fast.lambda();
+        let cap = |j: usize| lim * lim * theta[j] * theta[j] * onep / sigma2;
+        self.fast.set_cap([cap(0), cap(1), T::biggest()]);
+        self.g = [[T::zero(); 2]; 2];
+        self.phase = Phase::Monitoring;
+        true
+    }
+
+    /// The CUSUM step on the tracked ratios' relative deviations from the reference.
+    fn detect(&mut self, kr: u64) {
+        let th = *self.fast.theta();
+        let p = *self.fast.p();
+        let onep = T::one() + self.fast.lambda();
+        let delta = self.cfg.min_change;
+        let half = delta * T::of(0.5);
+        let mut r = [T::zero(); 2];
+        let mut s2 = [T::zero(); 2];
+        let scale = self.sigma2 / onep;
+        for j in 0..2 {
+            let inv = self.inv_ref[j];
+            r[j] = th[j] * inv - T::one();
+            s2[j] = (scale * p[(j, j)] + self.var_ref[j]) * inv * inv;
+        }
+        let lim = self.cfg.judge_error;
+        if s2.iter().any(|&s| !(s <= lim * lim)) {
+            self.reason = Some(Reason::LowExcitation);
+            return;
+        }
+        self.reason = None;
+        let w = (T::one() - self.fast.lambda()) * delta;
+        let mut best = (T::zero(), 0usize, 0usize);
+        for j in 0..2 {
+            let wj = w / s2[j];
+            for (side, sign) in [T::one(), -T::one()].into_iter().enumerate() {
+                let inc = wj * (sign * r[j] - half);
+                let g = (self.g[j][side] + inc).max(T::zero());
+                self.g[j][side] = g;
+                if g == T::zero() {
+                    self.zero_k[j][side] = kr;
+                }
+                if g > best.0 {
+                    best = (g, j, side);
+                }
+            }
+        }
+        if best.0 > self.cfg.threshold {
+            self.onset = self.zero_k[best.1][best.2];
+            let mut p0 = *self.fast.p() * T::of(1e3);
+            p0[(2, 2)] = p0[(2, 2)].max(T::one());
+            self.post = Rls3::new(*self.fast.theta(), p0, T::one());
+            self.post_n = 0;
+            self.phase = Phase::Settling;
+        }
+    }
+
+    /// Ends the settling: names the constant, reports it, moves the reference.
+    /// (`None`: the settled change is smaller than `min_change / 2`, a transient such as a
+    /// jump in the data; the alarm is dropped and the reference kept.)
+    fn finish(&mut self) -> Option<Event<T>> {
+        let th = *self.post.theta();
+        let p = *self.post.p();
+        let s2 = self.sigma2;
+        let (t0, t1) = (self.theta_ref[0], self.theta_ref[1]);
+        let x = [th[0] / t0 - T::one(), th[1] / t1 - T::one()];
+        // Covariance of the relative deviations: the new estimate's and the reference's.
+        let c00 = s2 * p[(0, 0)] / (t0 * t0) + self.var_ref[0] / (t0 * t0);
+        let c11 = s2 * p[(1, 1)] / (t1 * t1) + self.var_ref[1] / (t1 * t1);
+        let c01 = s2 * p[(0, 1)] / (t0 * t1);
+        let det = c00 * c11 - c01 * c01;
+        let (i00, i11, i01) = if det > T::zero() {
+            (c11 / det, c00 / det, -c01 / det)
+        } else {
+            (T::one() / c00, T::one() / c11, T::zero())
+        };
+        let quad = |u: [T; 2], v: [T; 2]| u[0] * (i00 * v[0] + i01 * v[1]) + u[1] * (i01 * v[0] + i11 * v[1]);
+        let xx = quad(x, x);
+        let mut best: Option<(T, Constant, T, T)> = None;
+        for (u, c) in [
+            ([T::one(), T::zero()], Constant::Spring),
+            ([T::zero(), T::one()], Constant::Damper),
+            ([T::one(), T::one()], Constant::BodyMass),
+        ] {
+            let a = quad(u, x);
+            let b = quad(u, u);
+            let ssr = xx - a * a / b;
+            if best.is_none_or(|(s, ..)| ssr < s) {
+                best = Some((ssr, c, a / b, (T::one() / b).sqrt()));
+            }
+        }
+        let (_, parameter, dx, sd) = best.unwrap_or((T::zero(), Constant::Damper, x[1], c11.sqrt()));
+        if !(dx.abs() >= self.cfg.min_change * T::of(0.5)) {
+            self.g = [[T::zero(); 2]; 2];
+            self.phase = Phase::Monitoring;
+            return None;
+        }
+        let idx = match parameter {
+            Constant::BodyMass => 0,
+            Constant::Spring => 1,
+            Constant::Damper => 2,
+        };
+        let before = self.belief[idx];
+        let one = T::one();
+        let (after, low, high) = match parameter {
+            Constant::BodyMass => {
+                let hi_den = (one + dx - self.z * sd).max(T::of(1e-9));
+                (before / (one + dx), before / (one + dx + self.z * sd), before / hi_den)
+            }
+            _ => (before * (one + dx), before * (one + dx - self.z * sd), before * (one + dx + self.z * sd)),
+        };
+        self.belief[idx] = after;
+        let dt = self.cfg.dt;
+        let ev = Event {
+            t: T::of((self.k - 1) as f64 * dt.to_f64()),
+            t_change: T::of(self.onset as f64 * dt.to_f64()),
+            parameter,
+            before,
+            after,
+            low,
+            high,
+            change: after / before - one,
+        };
+        // The reference moves to the settled new value; the tracker continues from it.
+        self.fast = Rls3::new(th, p, self.fast.lambda());
+        self.phase = Phase::Monitoring;
+        let var = [s2 * p[(0, 0)], s2 * p[(1, 1)]];
+        if !self.try_reference(s2, [th[0], th[1]], var) {
+            // Too uncertain to be a reference: learn it again.
+            self.phase = Phase::Warmup;
+            self.warm_n = 0;
+            self.e2_sum = T::zero();
+            self.e2_n = 0;
+            self.reference = Rls3::new(th, p * T::of(1e3), T::one());
+        }
+        self.events += 1;
+        Some(ev)
+    }
+}
