@@ -320,12 +320,7 @@ const MAX_PARAMS_LOCAL: usize = crate::structure::MAX_PARAMS;
 
 impl<T: Real, const P: usize, F: Flat<BcGroup<T, P>>> Identifier<T> for BiasCompensated<T, P, F> {
     fn dims(&self) -> Dims {
-        Dims {
-            states: self.structure.states(),
-            inputs: self.structure.inputs(),
-            equations: self.structure.equations(),
-            params: self.structure.params(),
-        }
+        super::interface::structure_dims(&self.structure)
     }
 
     fn rows(&self) -> &[usize] {
@@ -410,18 +405,6 @@ impl<T: Real, const P: usize, F: Flat<BcGroup<T, P>>> Identifier<T> for BiasComp
 
     fn groups_into(&self, group_of_param: &mut [usize], group_of_eq: &mut [usize]) -> Result<()> {
         let (np, ne) = (self.structure.params(), self.structure.equations());
-        if group_of_param.len() != np {
-            return Err(Error::Shape { arg: "group_of_param", expected: np, got: group_of_param.len() });
-        }
-        if group_of_eq.len() != ne {
-            return Err(Error::Shape { arg: "group_of_eq", expected: ne, got: group_of_eq.len() });
-        }
-        for (j, g) in group_of_param.iter_mut().enumerate() {
-            *g = self.part.group_of_param[j] as usize;
-        }
-        for (i, g) in group_of_eq.iter_mut().enumerate() {
-            *g = self.part.group_of_eq[i] as usize;
-        }
-        Ok(())
+        super::interface::partition_groups_into(&self.part, np, ne, group_of_param, group_of_eq)
     }
 }

@@ -395,6 +395,59 @@ pub(crate) fn with_innovations<T: Real, R>(
     })
 }
 
+/// The dimensions of an identifier on `structure` (states, inputs, identified equations,
+/// parameters): what every identifier on a [`Structure`](crate::structure::Structure) reports.
+#[inline(always)]
+pub(crate) fn structure_dims<T: Real>(structure: &crate::structure::Structure<T>) -> Dims {
+    Dims {
+        states: structure.states(),
+        inputs: structure.inputs(),
+        equations: structure.equations(),
+        params: structure.params(),
+    }
+}
+
+/// [`Identifier::groups_into`] of an identifier on a structure with `np` parameters and `ne`
+/// identified equations, grouped by `part`.
+pub(crate) fn partition_groups_into(
+    part: &crate::structure::Partition,
+    np: usize,
+    ne: usize,
+    group_of_param: &mut [usize],
+    group_of_eq: &mut [usize],
+) -> Result<()> {
+    if group_of_param.len() != np {
+        return Err(Error::Shape { arg: "group_of_param", expected: np, got: group_of_param.len() });
+    }
+    if group_of_eq.len() != ne {
+        return Err(Error::Shape { arg: "group_of_eq", expected: ne, got: group_of_eq.len() });
+    }
+    for (j, g) in group_of_param.iter_mut().enumerate() {
+        *g = part.group_of_param[j] as usize;
+    }
+    for (i, g) in group_of_eq.iter_mut().enumerate() {
+        *g = part.group_of_eq[i] as usize;
+    }
+    Ok(())
+}
+
+/// [`Identifier::residuals_into`] from per-equation sums `eq_ssr` and counts `eq_nobs` (the
+/// first `ssr.len()` of them, which must equal `nobs.len()` and the equations `ne`).
+pub(crate) fn copy_residuals<T: Real>(
+    ne: usize,
+    eq_ssr: &[T],
+    eq_nobs: &[T],
+    ssr: &mut [T],
+    nobs: &mut [T],
+) -> Result<()> {
+    if ssr.len() != ne || nobs.len() != ne {
+        return Err(Error::Shape { arg: "ssr", expected: ne, got: ssr.len().min(nobs.len()) });
+    }
+    ssr.copy_from_slice(&eq_ssr[..ne]);
+    nobs.copy_from_slice(&eq_nobs[..ne]);
+    Ok(())
+}
+
 /// Checks the lengths of one sample against `dims` (`x`, `z`: `n`; `u`: `m`; `e`: equations).
 #[inline(always)]
 pub(crate) fn check_lengths<T>(dims: Dims, x: &[T], z: &[T], u: &[T], e: &[T]) -> Result<()> {

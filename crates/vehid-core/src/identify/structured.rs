@@ -316,12 +316,7 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Structured<T, P, F> 
 
 impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Identifier<T> for Structured<T, P, F> {
     fn dims(&self) -> Dims {
-        Dims {
-            states: self.structure.states(),
-            inputs: self.structure.inputs(),
-            equations: self.structure.equations(),
-            params: self.structure.params(),
-        }
+        super::interface::structure_dims(&self.structure)
     }
 
     fn rows(&self) -> &[usize] {
@@ -397,30 +392,12 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Identifier<T> for St
     }
 
     fn residuals_into(&self, ssr: &mut [T], nobs: &mut [T]) -> Result<()> {
-        let ne = self.structure.equations();
-        if ssr.len() != ne || nobs.len() != ne {
-            return Err(Error::Shape { arg: "ssr", expected: ne, got: ssr.len().min(nobs.len()) });
-        }
-        ssr.copy_from_slice(&self.eq_ssr[..ne]);
-        nobs.copy_from_slice(&self.eq_nobs[..ne]);
-        Ok(())
+        super::interface::copy_residuals(self.structure.equations(), &self.eq_ssr, &self.eq_nobs, ssr, nobs)
     }
 
     fn groups_into(&self, group_of_param: &mut [usize], group_of_eq: &mut [usize]) -> Result<()> {
         let (np, ne) = (self.structure.params(), self.structure.equations());
-        if group_of_param.len() != np {
-            return Err(Error::Shape { arg: "group_of_param", expected: np, got: group_of_param.len() });
-        }
-        if group_of_eq.len() != ne {
-            return Err(Error::Shape { arg: "group_of_eq", expected: ne, got: group_of_eq.len() });
-        }
-        for (j, g) in group_of_param.iter_mut().enumerate() {
-            *g = self.part.group_of_param[j] as usize;
-        }
-        for (i, g) in group_of_eq.iter_mut().enumerate() {
-            *g = self.part.group_of_eq[i] as usize;
-        }
-        Ok(())
+        super::interface::partition_groups_into(&self.part, np, ne, group_of_param, group_of_eq)
     }
 
     fn covariance_into(&self, out: &mut [T]) -> Result<()> {

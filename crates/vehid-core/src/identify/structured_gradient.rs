@@ -96,8 +96,7 @@ impl<T: Real, const P: usize> StructuredGradient<T, P> {
 
 impl<T: Real, const P: usize> Identifier<T> for StructuredGradient<T, P> {
     fn dims(&self) -> Dims {
-        let s = &self.structure;
-        Dims { states: s.states(), inputs: s.inputs(), equations: s.equations(), params: s.params() }
+        super::interface::structure_dims(&self.structure)
     }
 
     fn rows(&self) -> &[usize] {
