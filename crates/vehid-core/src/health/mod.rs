@@ -88,7 +88,7 @@ mod rls;
 
 pub use event::{Constant, Estimate, Event, Reason, Status};
 pub use kinematic::DeflectionFilter;
-pub use monitor::{HealthConfig, HealthMonitor, CHANNELS, JUMP_GATE, MAX_DELAY};
+pub use monitor::{HealthConfig, HealthMonitor, CHANNELS, JUMP_GATE, MAX_DELAY, MIN_DEFLECTION_NOISE, STATE_CHANNELS};
 pub use rls::Rls3;
 
 #[cfg(test)]

@@ -6,6 +6,7 @@ use super::kinematic::DeflectionFilter;
 use super::rls::Rls3;
 use crate::error::{check_nonneg, check_positive};
 use crate::model::QuarterCar;
+use crate::sim::{SensorNoise, SensorSet};
 use crate::{Error, Real, Result};
 use nalgebra::{SMatrix, SVector};
 
@@ -16,9 +17,17 @@ pub const MAX_DELAY: usize = 64;
 /// deflection against the integrated accelerations is [`Reason::Jump`].
 pub const JUMP_GATE: f64 = 8.0;
 
-/// Number of channels [`HealthMonitor::update`] reads: `a_body` (m/s²), `a_wheel` (m/s²),
-/// `deflection` (m), the realistic sensor set of `sim::REALISTIC_CHANNELS`.
+/// Number of channels [`HealthMonitor::update`] reads with the realistic sensors:
+/// `a_body` (m/s²), `a_wheel` (m/s²), `deflection` (m), `sim::REALISTIC_CHANNELS`.
 pub const CHANNELS: usize = 3;
+
+/// Number of channels [`HealthMonitor::update`] reads with the state sensors: the measured
+/// state and derivative of `sim::STATE_CHANNELS`.
+pub const STATE_CHANNELS: usize = 8;
+
+/// Smallest deflection noise the state sensors' kinematic filter is designed for, m (the
+/// state set may be noise-free; the filter needs a positive measurement noise).
+pub const MIN_DEFLECTION_NOISE: f64 = 1e-6;
 
 /// Settings of a [`HealthMonitor`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -27,6 +36,11 @@ pub struct HealthConfig<T> {
     pub dt: T,
     /// The nominal car: its `M`, `k2`, `b` are the "before" of the first events.
     pub car: QuarterCar<T>,
+    /// The sensors read by [`HealthMonitor::update`]: [`SensorSet::Realistic`] (default;
+    /// `[a_body, a_wheel, deflection]`) or [`SensorSet::State`] (the thesis' measured state
+    /// and derivative `[zw, vw, zb, vb, dzw, dvw, dzb, dvb]`, of which the monitor uses the
+    /// same three quantities: `a_body = dvb`, `a_wheel = dvw`, `deflection = zb − zw`).
+    pub sensors: SensorSet,
     /// Noise of `a_body − a_wheel` per sample, m/s² (the kinematic filter's design;
     /// default √(0.02² + 0.1²), the defaults of `sim::SensorNoise`).
     pub accel_noise: T,
@@ -66,6 +80,7 @@ impl<T: Real> HealthConfig<T> {
         Self {
             dt,
             car,
+            sensors: SensorSet::Realistic,
             accel_noise: T::of(libm::sqrt(0.02 * 0.02 + 0.1 * 0.1)),
             deflection_noise: T::of(0.3e-3),
             bias_walk: T::of(0.01),
@@ -78,6 +93,35 @@ impl<T: Real> HealthConfig<T> {
             threshold: T::of(8.0),
             confidence: T::of(0.95),
             stuck_samples: 20,
+        }
+    }
+
+    /// The same settings for the sensor set `sensors` with noise `noise` (the noise levels
+    /// of a drive, `sim::SensorNoise`): the kinematic filter's `accel_noise` and
+    /// `deflection_noise` follow from them. Realistic: `√(σ_ab² + σ_aw²)` and `σ_d`. State:
+    /// `√2 σ_v` and `√2 σ_w` (differences of two measured channels), the deflection noise at
+    /// least [`MIN_DEFLECTION_NOISE`].
+    pub fn with_sensors(mut self, sensors: SensorSet, noise: &SensorNoise<T>) -> Self {
+        self.sensors = sensors;
+        let two = T::of(2.0);
+        match sensors {
+            SensorSet::Realistic => {
+                self.accel_noise = (noise.a_body * noise.a_body + noise.a_wheel * noise.a_wheel).sqrt();
+                self.deflection_noise = noise.deflection;
+            }
+            SensorSet::State => {
+                self.accel_noise = (two * noise.deriv * noise.deriv).sqrt();
+                self.deflection_noise = (two * noise.state * noise.state).sqrt().max(T::of(MIN_DEFLECTION_NOISE));
+            }
+        }
+        self
+    }
+
+    /// Channels per sample of this sensor set ([`CHANNELS`] or [`STATE_CHANNELS`]).
+    pub fn channels(&self) -> usize {
+        match self.sensors {
+            SensorSet::Realistic => CHANNELS,
+            SensorSet::State => STATE_CHANNELS,
         }
     }
 }
@@ -294,16 +338,18 @@ impl<T: Real> HealthMonitor<T> {
         out
     }
 
-    /// One sample `y = [a_body (m/s²), a_wheel (m/s²), deflection (m)]`; returns the event
-    /// it completes, if any. A NaN channel marks a missing sample (a gap: status
-    /// `CannotJudge(Missing)`). No allocation.
+    /// One sample: `y = [a_body (m/s²), a_wheel (m/s²), deflection (m)]` with the realistic
+    /// sensors, `y = [zw, vw, zb, vb, dzw, dvw, dzb, dvb]` (m, m/s, m/s²) with the state
+    /// sensors ([`HealthConfig::sensors`]); returns the event it completes, if any. A NaN
+    /// channel marks a missing sample (a gap: status `CannotJudge(Missing)`). No allocation.
     ///
     /// # Errors
-    /// [`Error::Shape`] for a length other than 3, [`Error::NonFinite`] for ±∞; the monitor
-    /// is then unchanged.
+    /// [`Error::Shape`] for a length other than [`HealthConfig::channels`],
+    /// [`Error::NonFinite`] for ±∞; the monitor is then unchanged.
     pub fn update(&mut self, y: &[T]) -> Result<Option<Event<T>>> {
-        if y.len() != CHANNELS {
-            return Err(Error::Shape { arg: "y", expected: CHANNELS, got: y.len() });
+        let n = self.cfg.channels();
+        if y.len() != n {
+            return Err(Error::Shape { arg: "y", expected: n, got: y.len() });
         }
         let mut missing = false;
         for (index, v) in y.iter().enumerate() {
@@ -314,6 +360,10 @@ impl<T: Real> HealthMonitor<T> {
                 return Err(Error::NonFinite { arg: "y", index });
             }
         }
+        let y: [T; CHANNELS] = match self.cfg.sensors {
+            SensorSet::Realistic => [y[0], y[1], y[2]],
+            SensorSet::State => [y[7], y[5], y[2] - y[0]],
+        };
         let k = self.k;
         self.k += 1;
         if missing {

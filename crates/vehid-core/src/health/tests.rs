@@ -240,3 +240,35 @@ fn a_jump_in_the_data_is_no_event() {
     // Every seam (12 of them) was seen as a jump.
     assert_eq!(jumps, 100_000 / 8192);
 }
+
+#[test]
+fn the_state_sensors_feed_the_same_three_quantities() {
+    // The thesis' state set with 1 % noise on every channel level: a_body = dvb,
+    // a_wheel = dvw, deflection = zb − zw. A damper −10 % is found and named as with the
+    // realistic sensors; an 8-channel sample is required and a 3-channel one refused.
+    use crate::sim::{SensorNoise, SensorSet};
+    let car = QuarterCar::<f64>::passenger();
+    let noise = SensorNoise { state: 1e-4, deriv: 0.02, ..SensorNoise::default() };
+    let cfg = DriveConfig::new(0.005)
+        .sensors(SensorSet::State)
+        .noise(noise)
+        .with_change(Change::step(40.0, "b", 1350.0).unwrap())
+        .unwrap();
+    let mut drive = QuarterDrive::new(car, cfg, 9201).unwrap();
+    let hc = HealthConfig::new(0.005, car).with_sensors(SensorSet::State, &noise);
+    assert_eq!(hc.channels(), STATE_CHANNELS);
+    assert!((hc.deflection_noise - 2f64.sqrt() * 1e-4).abs() < 1e-12);
+    let mut mon = HealthMonitor::new(hc).unwrap();
+    assert!(matches!(mon.update(&[0.0; 3]), Err(Error::Shape { expected: 8, got: 3, .. })));
+    assert_eq!(mon.samples(), 0);
+    let mut events = Vec::new();
+    for _ in 0..(70.0 / 0.005) as usize {
+        if let Some(e) = mon.update(drive.next_sample().y()).unwrap() {
+            events.push(e);
+        }
+    }
+    assert_eq!(events.len(), 1, "{events:?}");
+    assert_eq!(events[0].parameter, Constant::Damper, "{:?}", events[0]);
+    assert!((events[0].change + 0.10).abs() < 0.03, "{:?}", events[0]);
+    assert!(events[0].t > 40.0 && events[0].t < 60.0, "{:?}", events[0]);
+}
