@@ -66,7 +66,11 @@
 //!    residual is named. A settled change smaller than `δ/2` is no event (a transient, e.g. a
 //!    jump in the data, set the alarm off): the alarm is dropped, the reference kept. The
 //!    event reports `before`, `after` (`b`, `k2`: `before (1 + x̂)`;
-//!    `M`: `before / (1 + x̂)`) and a normal `confidence` interval of `after`. The reference
+//!    `M`: `before / (1 + x̂)`) and a normal `confidence` interval of `after` with the
+//!    standard error `√(f σ_x̂² + s_sys²)`: `f = (1 + ρ)/(1 − ρ)` for the lag-1
+//!    autocorrelation `ρ` of the warm-up's residuals (the kinematic filter's rate error is
+//!    coloured), and the systematic allowance `s_sys` ([`HealthConfig::systematic`]) for the
+//!    bias the rate estimate leaves in a relative change. The reference
 //!    then moves to the settled estimate and the tracker continues from it.
 //!
 //! # Cannot judge
