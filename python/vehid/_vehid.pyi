@@ -26,6 +26,8 @@ __all__ = [
     "AxleSampler",
     "Structure",
     "Stats",
+    "HealthMonitor",
+    "Event",
     "_physical_structure",
     "validate",
     "xi",
@@ -101,6 +103,8 @@ class QuarterCar(LinearModel):
     def __new__(
         cls, M: float = 10.0, m: float = 1.0, k1: float = 90.0, k2: float = 50.0, b: float = 40.0
     ) -> QuarterCar: ...
+    @classmethod
+    def passenger(cls) -> Self: ...
     @property
     def params(self) -> dict[str, float]: ...
 
@@ -150,9 +154,19 @@ class Run:
     def n_inputs(self) -> int: ...
     @property
     def s(self) -> Optional[NDArray[np.float64]]: ...
+    @property
+    def y(self) -> NDArray[np.float64]: ...
+    @property
+    def channels(self) -> Tuple[str, ...]: ...
+    @property
+    def constants(self) -> Optional[NDArray[np.float64]]: ...
     def __len__(self) -> int: ...
 
-_Road = Literal["white", "independent"]
+_Road = Literal[
+    "white", "independent", "flat", "iso8608-A", "iso8608-B", "iso8608-C", "iso8608-D", "iso8608-E"
+]
+_Sensors = Literal["realistic", "state"]
+_Change = Union[Tuple[float, Dict[str, float]], Tuple[float, Dict[str, float], float]]
 
 @final
 class Simulator:
@@ -174,6 +188,9 @@ class Simulator:
         speed: Optional[_Floats] = None,
         spacing: Optional[float] = None,
         road: Optional[_Road] = None,
+        changes: Optional[Sequence[_Change]] = None,
+        sensors: Optional[_Sensors] = None,
+        sensor_noise: Optional[Dict[str, float]] = None,
     ) -> Simulator: ...
     def run(self, n: int) -> Run: ...
     @property
@@ -184,6 +201,10 @@ class Simulator:
     def spacing(self) -> Optional[float]: ...
     @property
     def road(self) -> Optional[_Road]: ...
+    @property
+    def channels(self) -> Optional[Tuple[str, ...]]: ...
+    @property
+    def sensors(self) -> Optional[_Sensors]: ...
     @property
     def seed(self) -> int: ...
     @property
@@ -482,3 +503,71 @@ def validate(
     dt: float,
     substeps: int = 10,
 ) -> Dict[str, NDArray[np.float64]]: ...
+
+_Parameter = Literal["M", "k2", "b"]
+
+@final
+class Event:
+    """A detected change of one physical constant (reported by ``HealthMonitor``)."""
+
+    @property
+    def t(self) -> float: ...
+    @property
+    def t_change(self) -> float: ...
+    @property
+    def parameter(self) -> _Parameter: ...
+    @property
+    def before(self) -> float: ...
+    @property
+    def after(self) -> float: ...
+    @property
+    def low(self) -> float: ...
+    @property
+    def high(self) -> float: ...
+    @property
+    def change(self) -> float: ...
+    def to_dict(self) -> Dict[str, Union[float, str]]: ...
+    def __eq__(self, value: object, /) -> bool: ...
+
+@final
+class HealthMonitor:
+    """The suspension health monitor of a quarter car: which constant changed, when, to what."""
+
+    def __new__(
+        cls,
+        car: QuarterCar,
+        dt: float = 0.005,
+        sensors: _Sensors = "realistic",
+        sensor_noise: Optional[Dict[str, float]] = None,
+        *,
+        window: Optional[float] = None,
+        warmup: Optional[float] = None,
+        settle: Optional[float] = None,
+        reacquire: Optional[float] = None,
+        min_change: Optional[float] = None,
+        judge_error: Optional[float] = None,
+        threshold: Optional[float] = None,
+        confidence: Optional[float] = None,
+        systematic: Optional[float] = None,
+        stuck_samples: Optional[int] = None,
+    ) -> HealthMonitor: ...
+    def update(self, y_k: ArrayLike) -> list[Event]: ...
+    def fit(self, y: ArrayLike) -> list[Event]: ...
+    @property
+    def status(self) -> str: ...
+    @property
+    def samples(self) -> int: ...
+    @property
+    def events(self) -> int: ...
+    @property
+    def constants(self) -> dict[str, float]: ...
+    @property
+    def estimate(self) -> dict[str, Tuple[float, float, float]]: ...
+    @property
+    def reference(self) -> Optional[dict[str, float]]: ...
+    @property
+    def dt(self) -> float: ...
+    @property
+    def sensors(self) -> _Sensors: ...
+    @property
+    def channels(self) -> Tuple[str, ...]: ...

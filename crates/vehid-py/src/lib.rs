@@ -9,7 +9,9 @@ use pyo3::prelude::*;
 
 mod convert;
 mod dispatch;
+mod drive;
 mod guard;
+mod health;
 mod identify;
 mod model;
 mod noisy;
@@ -117,6 +119,8 @@ fn _vehid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<two_axle::PyAxleSampler>()?;
     m.add_class::<structure::PyStructure>()?;
     m.add_class::<stats::PyStats>()?;
+    m.add_class::<health::PyHealthMonitor>()?;
+    m.add_class::<health::PyEvent>()?;
     m.add_function(wrap_pyfunction!(structure::_physical_structure, m)?)?;
     m.add_function(wrap_pyfunction!(structure::validate, m)?)?;
     m.add_function(wrap_pyfunction!(xi, m)?)?;

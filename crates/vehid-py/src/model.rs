@@ -503,6 +503,15 @@ impl PyQuarterCar {
         Ok(PyClassInitializer::from(base).add_subclass(Self))
     }
 
+    /// A typical passenger car's corner (Rust `QuarterCar::passenger()`): M = 320 kg,
+    /// m = 40 kg, k1 = 200 kN/m, k2 = 22 kN/m, b = 1500 N s/m (body mode 1.32 Hz, wheel hop
+    /// 11.9 Hz, body damping ratio 0.28).
+    #[classmethod]
+    fn passenger<'py>(cls: &Bound<'py, pyo3::types::PyType>) -> PyResult<Bound<'py, PyAny>> {
+        let c = QuarterCar::<f64>::passenger();
+        cls.call1((c.m_body(), c.m_wheel(), c.k1(), c.k2(), c.b()))
+    }
+
     /// The physical constants {"M", "m", "k1", "k2", "b"}.
     #[getter]
     fn params<'py>(slf: PyRef<'py, Self>, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {

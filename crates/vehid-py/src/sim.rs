@@ -2,6 +2,7 @@
 
 use crate::convert::{array, shape_str, size, uint, values};
 use crate::dispatch::{dispatch_nm, reserve_run, sim_chunk, simulator_nm, SimDyn, SimParams};
+use crate::drive::{DriveRun, DriveSim, Unused};
 use crate::guard::{borrow, borrow_mut, Interrupts};
 use crate::identify::raise;
 use crate::model::{to_array2, PyLinearModel};
@@ -9,6 +10,7 @@ use crate::two_axle::{half_dims, wheelbase_of};
 use crate::{core_err, option, VehidError};
 use numpy::{IntoPyArray, PyArray1, PyArray2};
 use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyTuple};
 use vehid_core::sim::{Method, Pulse, RoadConfig, RoadMode, RoadSimulator, Run, SimConfig, SpeedProfile};
 use vehid_core::Result;
 
@@ -140,15 +142,14 @@ pub struct PyRun {
     /// Road input u(k), held until the next sample, (N, m).
     #[pyo3(get)]
     u: Py<PyArray2<f64>>,
-    /// Measured state r(k) = x(k) + w(k), (N, n).
-    #[pyo3(get)]
-    r: Py<PyArray2<f64>>,
-    /// Measured derivative z(k) = ẋ(k) + v(k), (N, n).
-    #[pyo3(get)]
-    z: Py<PyArray2<f64>>,
+    r: Option<Py<PyArray2<f64>>>,
+    z: Option<Py<PyArray2<f64>>>,
     /// Distance travelled, m, (N,), when the simulator was given speed=/spacing=/road=; else None.
     #[pyo3(get)]
     s: Option<Py<PyArray1<f64>>>,
+    y: Option<Py<PyArray2<f64>>>,
+    channels: Option<Vec<&'static str>>,
+    constants: Option<Py<PyArray2<f64>>>,
     len: usize,
     n_states: usize,
     n_inputs: usize,
@@ -156,6 +157,43 @@ pub struct PyRun {
 
 #[pymethods]
 impl PyRun {
+    /// Measured state r(k) = x(k) + w(k), (N, n). A drive with sensors='realistic' measures
+    /// no state: VehidError (its measurements are `y`).
+    #[getter]
+    fn r(&self, py: Python<'_>) -> PyResult<Py<PyArray2<f64>>> {
+        self.r.as_ref().map(|a| a.clone_ref(py)).ok_or_else(|| no_state("r"))
+    }
+
+    /// Measured derivative z(k) = ẋ(k) + v(k), (N, n). A drive with sensors='realistic'
+    /// measures no state: VehidError (its measurements are `y`).
+    #[getter]
+    fn z(&self, py: Python<'_>) -> PyResult<Py<PyArray2<f64>>> {
+        self.z.as_ref().map(|a| a.clone_ref(py)).ok_or_else(|| no_state("z"))
+    }
+
+    /// A drive's sensor channels (N, len(channels)) in the order of `channels`. A run of the
+    /// thesis' simulator has no `y`: VehidError (its measurements are `r` and `z`).
+    #[getter]
+    fn y(&self, py: Python<'_>) -> PyResult<Py<PyArray2<f64>>> {
+        self.y.as_ref().map(|a| a.clone_ref(py)).ok_or_else(no_channels)
+    }
+
+    /// The names of a drive's sensor channels: ('a_body', 'a_wheel', 'deflection') (m/s²,
+    /// m/s², m) with sensors='realistic', ('zw', 'vw', 'zb', 'vb', 'dzw', 'dvw', 'dzb', 'dvb')
+    /// with sensors='state'. VehidError for a run of the thesis' simulator.
+    #[getter]
+    fn channels<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyTuple>> {
+        let c = self.channels.as_ref().ok_or_else(no_channels)?;
+        PyTuple::new(py, c)
+    }
+
+    /// A drive's true constants per sample (N, 5): columns M (kg), m (kg), k1 (N/m), k2 (N/m),
+    /// b (N s/m), moved by `changes`; None for a run of the thesis' simulator.
+    #[getter]
+    fn constants(&self, py: Python<'_>) -> Option<Py<PyArray2<f64>>> {
+        self.constants.as_ref().map(|a| a.clone_ref(py))
+    }
+
     /// Number of states n.
     #[getter]
     fn n_states(&self) -> usize {
@@ -177,6 +215,72 @@ impl PyRun {
     }
 }
 
+fn no_state(name: &str) -> PyErr {
+    VehidError::new_err(format!(
+        "run.{name}: a drive with sensors='realistic' measures no state; its measurements are run.y (channels \
+         run.channels), the true state is run.x (or simulate with sensors='state')"
+    ))
+}
+
+fn no_channels() -> PyErr {
+    VehidError::new_err(
+        "this run has no sensor channels (y, channels): the thesis' simulator measures run.r and run.z; give \
+         road='iso8608-C' (and sensors=, changes=) for a drive with sensor channels",
+    )
+}
+
+/// The `Run` of a drive: the state channels also fill `r` and `z`.
+fn drive_run(py: Python<'_>, run: DriveRun, names: &'static [&'static str]) -> PyResult<PyRun> {
+    let (len, c) = (run.len, run.channels);
+    let (r, z) = if c == 8 {
+        let (mut r, mut z) = (Vec::with_capacity(len * 4), Vec::with_capacity(len * 4));
+        for row in run.y.chunks_exact(8) {
+            r.extend_from_slice(&row[..4]);
+            z.extend_from_slice(&row[4..]);
+        }
+        (Some(to_array2(py, len, 4, r)?.unbind()), Some(to_array2(py, len, 4, z)?.unbind()))
+    } else {
+        (None, None)
+    };
+    Ok(PyRun {
+        t: run.t.into_pyarray(py).unbind(),
+        s: Some(run.s.into_pyarray(py).unbind()),
+        x: to_array2(py, len, 4, run.x)?.unbind(),
+        xdot: to_array2(py, len, 4, run.xdot)?.unbind(),
+        u: to_array2(py, len, 1, run.u)?.unbind(),
+        r,
+        z,
+        y: Some(to_array2(py, len, c, run.y)?.unbind()),
+        channels: Some(names.to_vec()),
+        constants: Some(to_array2(py, len, 5, run.constants)?.unbind()),
+        len,
+        n_states: 4,
+        n_inputs: 1,
+    })
+}
+
+/// What a `Simulator` runs: the thesis' linear simulator or a quarter-car drive.
+enum Engine {
+    Linear(Box<dyn SimDyn>),
+    Drive(Box<DriveSim>),
+}
+
+impl Engine {
+    fn substeps(&self) -> usize {
+        match self {
+            Engine::Linear(s) => s.substeps(),
+            Engine::Drive(_) => 0,
+        }
+    }
+
+    fn samples(&self) -> u64 {
+        match self {
+            Engine::Linear(s) => s.samples(),
+            Engine::Drive(d) => d.drive.k(),
+        }
+    }
+}
+
 /// A seeded simulator of `ẋ = A x + B u` with the thesis' noise sources (Ch. III.C).
 ///
 /// `road_sigma` (per input), `state_noise` and `deriv_noise` (per state) are scalars or one
@@ -192,9 +296,21 @@ impl PyRun {
 /// later; "independent": independent roads, Fig 6-7). Samples are then taken every `spacing`
 /// metres (irregular in time when the speed varies), the road is a white height per `spacing`
 /// metres held over distance, and `run.s` is the distance travelled.
+///
+/// A drive (issue 17; a `QuarterCar` only): `road="iso8608-A"` .. `"iso8608-E"` (or `"flat"`)
+/// is an ISO 8608 road profile by distance, `speed` m/s (a scalar, default 15, or one value
+/// per sample), `changes=[(t, {"b": 1350.0}), (t, {"k2": 19800.0}, ramp), ...]` steps (or
+/// ramps over `ramp` seconds) of the constants 'M', 'm', 'k1', 'k2', 'b' from `t` seconds,
+/// `sensors="realistic"` (body and wheel accelerometers, m/s², with noise and a constant bias;
+/// a deflection sensor, m) or `"state"` (the thesis' measured state and derivative, noise
+/// `state_noise`, `deriv_noise`), `sensor_noise={"a_body": 0.02, "a_body_bias": 0.1,
+/// "a_wheel": 0.1, "a_wheel_bias": 0.3, "deflection": 3e-4}` (standard deviations; these are
+/// the defaults). `run.y` holds the channels named by `run.channels`, `run.x`/`run.xdot` the
+/// true state, `run.u` the road height (m), `run.s` the distance (m), `run.constants` the
+/// constants in effect. The integration is exact (zero-order hold of the road per sample).
 #[pyclass(name = "Simulator", module = "vehid._vehid")]
 pub struct PySimulator {
-    inner: Box<dyn SimDyn>,
+    inner: Engine,
     road: Option<(f64, RoadMode)>,
     model: Py<PyLinearModel>,
     dt: f64,
@@ -209,10 +325,12 @@ impl PySimulator {
     #[new]
     #[pyo3(signature = (model, dt = 0.05, road_sigma = None, ic_sigma = 0.0, state_noise = None,
                         deriv_noise = None, seed = 1, substeps = None, method = "rk4", pulses = None,
-                        instrumentation = false, speed = None, spacing = None, road = None),
+                        instrumentation = false, speed = None, spacing = None, road = None, changes = None,
+                        sensors = None, sensor_noise = None),
            text_signature = "(model, dt=0.05, road_sigma=0.1, ic_sigma=0.0, state_noise=0.0, \
                              deriv_noise=0.005, seed=1, substeps=None, method='rk4', pulses=None, \
-                             instrumentation=False, speed=None, spacing=None, road=None)")]
+                             instrumentation=False, speed=None, spacing=None, road=None, changes=None, \
+                             sensors=None, sensor_noise=None)")]
     #[allow(clippy::too_many_arguments)]
     fn py_new(
         model: Bound<'_, PyLinearModel>,
@@ -229,7 +347,60 @@ impl PySimulator {
         speed: Option<&Bound<'_, PyAny>>,
         spacing: Option<f64>,
         road: Option<&str>,
+        changes: Option<&Bound<'_, PyAny>>,
+        sensors: Option<&str>,
+        sensor_noise: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Self> {
+        let drive_road = road.filter(|r| !matches!(*r, "white" | "independent"));
+        if drive_road.is_some() || changes.is_some() || sensors.is_some() || sensor_noise.is_some() {
+            let Some(road) = drive_road else {
+                return Err(VehidError::new_err(
+                    "`changes`, `sensors` and `sensor_noise` are settings of a drive on an ISO 8608 road: give \
+                     road='iso8608-A' .. 'iso8608-E' (e.g. road='iso8608-C', an average road)",
+                ));
+            };
+            let scalar = |v: Option<&Bound<'_, PyAny>>, arg: &str| -> PyResult<Option<f64>> {
+                v.map(|o| {
+                    o.extract::<f64>().map_err(|_| {
+                        VehidError::new_err(format!("`{arg}` of a drive is one standard deviation (a number)"))
+                    })
+                })
+                .transpose()
+            };
+            let seed = uint(seed, "seed")?;
+            let unused = Unused {
+                road_sigma: road_sigma.is_some(),
+                ic_sigma,
+                substeps: substeps.is_some(),
+                method,
+                pulses: pulses.is_some(),
+                instrumentation,
+                spacing: spacing.is_some(),
+            };
+            let drive = DriveSim::new(
+                model.get(),
+                dt,
+                road,
+                speed,
+                changes,
+                sensors,
+                sensor_noise,
+                scalar(state_noise, "state_noise")?,
+                scalar(deriv_noise, "deriv_noise")?,
+                seed,
+                unused,
+            )?;
+            return Ok(Self {
+                inner: Engine::Drive(Box::new(drive)),
+                road: None,
+                dt,
+                seed,
+                method: Method::Exact,
+                n_states: 4,
+                n_inputs: 1,
+                model: model.unbind(),
+            });
+        }
         let p = SimParams {
             dt,
             road_sigma: values(road_sigma, "road_sigma", 0.1)?,
@@ -255,7 +426,7 @@ impl PySimulator {
             (model.py().detach(|| dispatch_nm!(d.n, d.m, simulator_nm(d, &p))).map_err(core_err)?, None)
         };
         Ok(Self {
-            inner,
+            inner: Engine::Linear(inner),
             road,
             dt,
             seed: p.seed,
@@ -275,8 +446,20 @@ impl PySimulator {
         let py = slf.py();
         let n = size(n, "n")?;
         let mut this = borrow_mut(slf)?;
-        let inner = &mut this.inner;
         let mut signals = Interrupts::new();
+        let inner = match &mut this.inner {
+            Engine::Drive(d) => {
+                let run = match py.detach(|| d.run(n, &mut || signals.check())) {
+                    Ok(run) => run,
+                    Err(e @ vehid_core::Error::Interrupted) => {
+                        return Err(signals.raise().unwrap_or_else(|| core_err(e)))
+                    }
+                    Err(e) => return Err(raise(e)),
+                };
+                return drive_run(py, run, d.channels());
+            }
+            Engine::Linear(inner) => inner,
+        };
         let run = match py.detach(|| inner.run(n, &mut || signals.check())) {
             Ok(run) => run,
             Err(e @ vehid_core::Error::Interrupted) => return Err(signals.raise().unwrap_or_else(|| core_err(e))),
@@ -290,8 +473,11 @@ impl PySimulator {
             x: to_array2(py, len, ns, run.x)?.unbind(),
             xdot: to_array2(py, len, ns, run.xdot)?.unbind(),
             u: to_array2(py, len, ni, run.u)?.unbind(),
-            r: to_array2(py, len, ns, run.r)?.unbind(),
-            z: to_array2(py, len, ns, run.z)?.unbind(),
+            r: Some(to_array2(py, len, ns, run.r)?.unbind()),
+            z: Some(to_array2(py, len, ns, run.z)?.unbind()),
+            y: None,
+            channels: None,
+            constants: None,
             len,
             n_states: ns,
             n_inputs: ni,
@@ -316,10 +502,33 @@ impl PySimulator {
         Ok(borrow(slf)?.road.map(|r| r.0))
     }
 
-    /// "white" or "independent" for a road simulation, else None.
+    /// "white" or "independent" for a road simulation, the ISO 8608 class ("iso8608-C") of a
+    /// drive, else None.
     #[getter]
     fn road(slf: &Bound<'_, Self>) -> PyResult<Option<&'static str>> {
-        Ok(borrow(slf)?.road.map(|r| r.1.as_str()))
+        let this = borrow(slf)?;
+        if let Engine::Drive(d) = &this.inner {
+            return Ok(Some(d.drive.config().road.as_str()));
+        }
+        Ok(this.road.map(|r| r.1.as_str()))
+    }
+
+    /// The sensor channel names of a drive (as `Run.channels`), else None.
+    #[getter]
+    fn channels<'py>(slf: &Bound<'py, Self>) -> PyResult<Option<Bound<'py, PyTuple>>> {
+        match &borrow(slf)?.inner {
+            Engine::Drive(d) => Ok(Some(PyTuple::new(slf.py(), d.channels())?)),
+            Engine::Linear(_) => Ok(None),
+        }
+    }
+
+    /// "realistic" or "state" for a drive, else None.
+    #[getter]
+    fn sensors(slf: &Bound<'_, Self>) -> PyResult<Option<&'static str>> {
+        match &borrow(slf)?.inner {
+            Engine::Drive(d) => Ok(Some(d.drive.config().sensors.as_str())),
+            Engine::Linear(_) => Ok(None),
+        }
     }
 
     /// The seed.

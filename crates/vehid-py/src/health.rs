@@ -1,0 +1,378 @@
+//! `HealthMonitor` and `Event` (issue 17): the core's [`HealthMonitor`] for the quarter car.
+//! Conversion and validation only; the core does every computation.
+
+use crate::convert::{array, py_str, shape_str, Table};
+use crate::guard::{borrow, borrow_mut, Interrupts};
+use crate::model::{Kind, PyLinearModel};
+use crate::{core_err, option, VehidError};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyTuple};
+use vehid_core::health::{self, HealthConfig, Reason, Status};
+use vehid_core::sim::{SensorNoise, SensorSet};
+
+/// Samples between two looks at pending signals in `fit` (some 100 ns each).
+const CHECK: usize = 1 << 16;
+
+/// A detected change of one physical constant (reported by `HealthMonitor`).
+///
+/// `t` is when it was reported and `t_change` the estimated onset (s); `parameter` names the
+/// constant ('b' damper, N s/m; 'k2' spring, N/m; 'M' body mass, kg); `before` and `after` are
+/// its values, `low` .. `high` the interval of `after` (the monitor's `confidence`, 95 % by
+/// default), `change` the relative change `after / before - 1`.
+#[pyclass(name = "Event", module = "vehid._vehid", frozen, eq)]
+#[derive(Clone, PartialEq)]
+pub struct PyEvent {
+    /// When the event was reported, s (sample index × dt).
+    #[pyo3(get)]
+    t: f64,
+    /// Estimated onset, s.
+    #[pyo3(get)]
+    t_change: f64,
+    /// The constant: 'b', 'k2' or 'M'.
+    #[pyo3(get)]
+    parameter: &'static str,
+    /// Its value before, in its unit (N s/m, N/m, kg).
+    #[pyo3(get)]
+    before: f64,
+    /// Its value after.
+    #[pyo3(get)]
+    after: f64,
+    /// Lower end of the interval of `after`.
+    #[pyo3(get)]
+    low: f64,
+    /// Upper end of the interval of `after`.
+    #[pyo3(get)]
+    high: f64,
+    /// The relative change after / before - 1.
+    #[pyo3(get)]
+    change: f64,
+}
+
+impl From<health::Event<f64>> for PyEvent {
+    fn from(e: health::Event<f64>) -> Self {
+        Self {
+            t: e.t,
+            t_change: e.t_change,
+            parameter: e.parameter.as_str(),
+            before: e.before,
+            after: e.after,
+            low: e.low,
+            high: e.high,
+            change: e.change,
+        }
+    }
+}
+
+#[pymethods]
+impl PyEvent {
+    /// The event as a dict (JSON-ready): t, t_change, parameter, before, after, low, high, change.
+    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        d.set_item("t", self.t)?;
+        d.set_item("t_change", self.t_change)?;
+        d.set_item("parameter", self.parameter)?;
+        for (k, v) in [
+            ("before", self.before),
+            ("after", self.after),
+            ("low", self.low),
+            ("high", self.high),
+            ("change", self.change),
+        ] {
+            d.set_item(k, v)?;
+        }
+        Ok(d)
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Event(t={:?}, parameter={}, before={:?}, after={:?}, low={:?}, high={:?}, change={:?})",
+            self.t,
+            py_str(self.parameter),
+            self.before,
+            self.after,
+            self.low,
+            self.high,
+            self.change
+        )
+    }
+}
+
+/// The suspension health monitor of a quarter car (Rust: `vehid_core::health`): tracks
+/// `k2/M` and `b/M` from the car's sensors and reports which constant changed, when, and
+/// to what, with an interval.
+///
+/// `car` is the nominal `QuarterCar` (its M, k2, b are the `before` of the first events);
+/// `dt` the sample interval, s; `sensors` "realistic" (`y` rows `[a_body, a_wheel,
+/// deflection]`, m/s², m/s², m) or "state" (`[zw, vw, zb, vb, dzw, dvw, dzb, dvb]`, the
+/// thesis' measured state and derivative). `sensor_noise` (the Simulator's keys) designs the
+/// kinematic filter; the other settings are those of `HealthConfig` (defaults: window 6 s,
+/// warmup 20 s, settle 4 s, reacquire 2 s, min_change 0.05, judge_error 0.008, threshold 8,
+/// confidence 0.95, systematic 0.005, stuck_samples 20).
+///
+/// Only `k2/M` and `b/M` are observable without a road measurement: a change of both by the
+/// same factor is reported as the body mass. A NaN channel is a missing sample (a gap); the
+/// monitor then cannot judge for a while and never reports meanwhile (`status`).
+#[pyclass(name = "HealthMonitor", module = "vehid._vehid")]
+pub struct PyHealthMonitor {
+    inner: health::HealthMonitor<f64>,
+}
+
+/// The status as a string: "warmup", "monitoring", "settling", or "cannot judge: <reason>".
+fn status_str(s: Status) -> &'static str {
+    match s {
+        Status::Warmup => "warmup",
+        Status::Monitoring => "monitoring",
+        Status::Settling => "settling",
+        Status::CannotJudge(r) => match r {
+            Reason::LowExcitation => "cannot judge: low excitation",
+            Reason::Missing => "cannot judge: missing samples",
+            Reason::Stuck => "cannot judge: stuck sensor",
+            Reason::Jump => "cannot judge: jump in the data",
+            Reason::Reacquiring => "cannot judge: reacquiring",
+        },
+    }
+}
+
+#[pymethods]
+impl PyHealthMonitor {
+    #[new]
+    #[pyo3(signature = (car, dt = 0.005, sensors = "realistic", sensor_noise = None, *, window = None, warmup = None,
+                        settle = None, reacquire = None, min_change = None, judge_error = None, threshold = None,
+                        confidence = None, systematic = None, stuck_samples = None))]
+    #[allow(clippy::too_many_arguments)]
+    fn py_new(
+        car: &Bound<'_, PyLinearModel>,
+        dt: f64,
+        sensors: &str,
+        sensor_noise: Option<&Bound<'_, PyDict>>,
+        window: Option<f64>,
+        warmup: Option<f64>,
+        settle: Option<f64>,
+        reacquire: Option<f64>,
+        min_change: Option<f64>,
+        judge_error: Option<f64>,
+        threshold: Option<f64>,
+        confidence: Option<f64>,
+        systematic: Option<f64>,
+        stuck_samples: Option<i128>,
+    ) -> PyResult<Self> {
+        let Kind::Quarter(c) = car.get().kind else {
+            return Err(VehidError::new_err(
+                "`car` must be a vehid.QuarterCar (the health monitor of the half car is not there yet)",
+            ));
+        };
+        let set: SensorSet = option(sensors)?;
+        let mut noise = SensorNoise::<f64>::default();
+        if let Some(d) = sensor_noise {
+            for (k, v) in d.iter() {
+                let key: String =
+                    k.extract().map_err(|_| VehidError::new_err("`sensor_noise` keys must be strings"))?;
+                let v: f64 = v
+                    .extract()
+                    .map_err(|_| VehidError::new_err(format!("`sensor_noise[{}]` must be a number", py_str(&key))))?;
+                match key.as_str() {
+                    "a_body" => noise.a_body = v,
+                    "a_wheel" => noise.a_wheel = v,
+                    "deflection" => noise.deflection = v,
+                    "state" => noise.state = v,
+                    "deriv" => noise.deriv = v,
+                    "a_body_bias" | "a_wheel_bias" => {}
+                    other => {
+                        return Err(VehidError::new_err(format!(
+                            "`sensor_noise` has no entry {}: use 'a_body', 'a_wheel', 'deflection' \
+                             (realistic sensors) or 'state', 'deriv' (state sensors)",
+                            py_str(other)
+                        )))
+                    }
+                }
+                if !(v.is_finite() && v >= 0.0) {
+                    return Err(VehidError::new_err(format!(
+                        "`sensor_noise[{}]` is {v}: a standard deviation, finite and >= 0",
+                        py_str(&key)
+                    )));
+                }
+            }
+        }
+        let mut cfg = HealthConfig::new(dt, c).with_sensors(set, &noise);
+        for (v, slot) in [
+            (window, &mut cfg.window),
+            (warmup, &mut cfg.warmup),
+            (settle, &mut cfg.settle),
+            (reacquire, &mut cfg.reacquire),
+            (min_change, &mut cfg.min_change),
+            (judge_error, &mut cfg.judge_error),
+            (threshold, &mut cfg.threshold),
+            (confidence, &mut cfg.confidence),
+            (systematic, &mut cfg.systematic),
+        ] {
+            if let Some(v) = v {
+                *slot = v;
+            }
+        }
+        if let Some(n) = stuck_samples {
+            cfg.stuck_samples = usize::try_from(n).map_err(|_| {
+                VehidError::new_err(format!("`stuck_samples` must be an integer between 2 and 64, got {n}"))
+            })?;
+        }
+        Ok(Self { inner: health::HealthMonitor::new(cfg).map_err(core_err)? })
+    }
+
+    /// One sample `y_k` (its channels, as `sensors` says); returns the event it completes, as
+    /// a list of 0 or 1 `Event`. ±inf is a VehidError (nothing changes); NaN marks a
+    /// missing channel.
+    fn update(slf: &Bound<'_, Self>, y_k: &Bound<'_, PyAny>) -> PyResult<Vec<PyEvent>> {
+        let mut this = borrow_mut(slf)?;
+        let n = this.inner.config().channels();
+        let a = array(y_k, "y_k")?;
+        if a.shape != [n] {
+            return Err(VehidError::new_err(format!(
+                "`y_k` must have shape ({n},) ({}), got {}",
+                channel_names(this.inner.config().sensors),
+                shape_str(&a.shape)
+            )));
+        }
+        let ev = this.inner.update(&a.data).map_err(|e| VehidError::new_err(format!("`y_k`: {e}")))?;
+        Ok(ev.into_iter().map(PyEvent::from).collect())
+    }
+
+    /// Many samples `y` (N, channels), in order (the GIL is released); returns the events
+    /// they complete. All or nothing: a row with ±inf is a VehidError naming it, and the
+    /// monitor is unchanged. NaN marks missing channels (gaps in a log: rows of NaN).
+    fn fit(slf: &Bound<'_, Self>, y: &Bound<'_, PyAny>) -> PyResult<Vec<PyEvent>> {
+        let py = slf.py();
+        let mut this = borrow_mut(slf)?;
+        let n = this.inner.config().channels();
+        let sensors = this.inner.config().sensors;
+        let table = Table::new(y, "y", None, n, channel_names(sensors))?;
+        let data = table.data();
+        if let Some(i) = data.iter().position(|v| v.is_infinite()) {
+            return Err(VehidError::new_err(format!(
+                "`y[{}, {}]` is infinite: drop that sample or mark it missing with NaN; the monitor is unchanged",
+                i / n,
+                i % n
+            )));
+        }
+        let mut signals = Interrupts::new();
+        let start = this.inner.clone();
+        let mon = &mut this.inner;
+        let result = py.detach(|| {
+            let mut events = Vec::new();
+            for (k, row) in data.chunks_exact(n).enumerate() {
+                if k % CHECK == 0 && k > 0 && signals.check() {
+                    return Err(None);
+                }
+                match mon.update(row) {
+                    Ok(Some(e)) => events.push(PyEvent::from(e)),
+                    Ok(None) => {}
+                    Err(e) => return Err(Some((k, e))),
+                }
+            }
+            Ok(events)
+        });
+        match result {
+            Ok(events) => Ok(events),
+            Err(e) => {
+                this.inner = start;
+                match e {
+                    None => Err(signals.raise().unwrap_or_else(|| core_err(vehid_core::Error::Interrupted))),
+                    Some((k, e)) => {
+                        Err(VehidError::new_err(format!("sample {k} was rejected ({e}); the monitor is unchanged")))
+                    }
+                }
+            }
+        }
+    }
+
+    /// What the monitor is doing: "warmup", "monitoring", "settling", or "cannot judge:
+    /// low excitation" / "missing samples" / "stuck sensor" / "jump in the data" /
+    /// "reacquiring".
+    #[getter]
+    fn status(slf: &Bound<'_, Self>) -> PyResult<&'static str> {
+        Ok(status_str(borrow(slf)?.inner.status()))
+    }
+
+    /// Samples seen.
+    #[getter]
+    fn samples(slf: &Bound<'_, Self>) -> PyResult<u64> {
+        Ok(borrow(slf)?.inner.samples())
+    }
+
+    /// Events reported so far.
+    #[getter]
+    fn events(slf: &Bound<'_, Self>) -> PyResult<u64> {
+        Ok(borrow(slf)?.inner.events())
+    }
+
+    /// The current belief {"M": kg, "k2": N/m, "b": N s/m}: the nominal car's, moved by every
+    /// event.
+    #[getter]
+    fn constants<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyDict>> {
+        let [m, k2, b] = borrow(slf)?.inner.constants();
+        let d = PyDict::new(slf.py());
+        d.set_item("M", m)?;
+        d.set_item("k2", k2)?;
+        d.set_item("b", b)?;
+        Ok(d)
+    }
+
+    /// The tracked ratios {"k2/M": (value, low, high) 1/s², "b/M": (...) 1/s, "c": (...) m/s²}
+    /// with the `confidence` intervals.
+    #[getter]
+    fn estimate<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyDict>> {
+        let e = borrow(slf)?.inner.estimate();
+        let d = PyDict::new(slf.py());
+        for (j, name) in ["k2/M", "b/M", "c"].into_iter().enumerate() {
+            d.set_item(name, (e.value[j], e.low[j], e.high[j]))?;
+        }
+        Ok(d)
+    }
+
+    /// The reference ratios {"k2/M": 1/s², "b/M": 1/s} the tracked ones are compared with
+    /// (None during the warm-up).
+    #[getter]
+    fn reference<'py>(slf: &Bound<'py, Self>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let Some([k, b]) = borrow(slf)?.inner.reference() else { return Ok(None) };
+        let d = PyDict::new(slf.py());
+        d.set_item("k2/M", k)?;
+        d.set_item("b/M", b)?;
+        Ok(Some(d))
+    }
+
+    /// Sample interval, s.
+    #[getter]
+    fn dt(slf: &Bound<'_, Self>) -> PyResult<f64> {
+        Ok(borrow(slf)?.inner.config().dt)
+    }
+
+    /// "realistic" or "state".
+    #[getter]
+    fn sensors(slf: &Bound<'_, Self>) -> PyResult<&'static str> {
+        Ok(borrow(slf)?.inner.config().sensors.as_str())
+    }
+
+    /// The channel names a sample holds, in order.
+    #[getter]
+    fn channels<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyTuple>> {
+        PyTuple::new(slf.py(), borrow(slf)?.inner.config().sensors.channels())
+    }
+
+    fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
+        let this = borrow(slf)?;
+        let c = this.inner.config();
+        Ok(format!(
+            "HealthMonitor(dt={:?}, sensors={}, samples={}, events={}, status={})",
+            c.dt,
+            py_str(c.sensors.as_str()),
+            this.inner.samples(),
+            this.inner.events(),
+            py_str(status_str(this.inner.status()))
+        ))
+    }
+}
+
+fn channel_names(s: SensorSet) -> &'static str {
+    match s {
+        SensorSet::Realistic => "a_body, a_wheel, deflection per row",
+        SensorSet::State => "zw, vw, zb, vb, dzw, dvw, dzb, dvb per row",
+    }
+}
