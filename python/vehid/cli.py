@@ -6,6 +6,8 @@ Subcommands:
 * ``identify``: read a run (CSV in any common dialect, or Parquet; a file or ``-`` for
   stdin), identify the unknown rows of A, and print them, the physical constants and, when
   the truth is known (``--truth`` or the file's ``true_*`` columns), ξ;
+* ``monitor``: the suspension health monitor over a log of a car's sensors, one line per
+  change found (:mod:`vehid.monitor`);
 * ``demo``: a quarter-car run compared with the analytic standard deviations;
 * ``reproduce``: the thesis' figures and tables, regenerated, into a report (``vehid.reproduce``).
 
@@ -1122,6 +1124,15 @@ def build_parser() -> argparse.ArgumentParser:
     ident.add_argument("--m2", type=positive_float, default=1.0, help="half: known rear wheel mass m2, kg (default 1)")
     ident.add_argument("--json", action="store_true", help="print one JSON object instead of text")
     ident.set_defaults(func=cmd_identify)
+
+    from .monitor import DESCRIPTION as _monitor_description
+    from .monitor import add_arguments as _monitor_arguments
+    from .monitor import cmd_monitor
+
+    mon = sub.add_parser("monitor", help="watch a log of a car's sensors for suspension changes (damper, spring, "
+                         "body mass)", description=_monitor_description)
+    _monitor_arguments(mon, delimiter)
+    mon.set_defaults(func=cmd_monitor)
 
     demo = sub.add_parser("demo", help="quarter-car run vs the analytic standard deviations")
     demo.add_argument("--n", type=count(2), default=40_000, help="number of samples, at least 2 (default 40000)")

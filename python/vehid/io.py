@@ -350,10 +350,14 @@ class Table:
         """``"run.csv, line 12"``."""
         return f"{self.source}, {self.unit} {line}"
 
-    def chunks(self, columns: Sequence[int], labels: Sequence[str], rows: int) -> Iterator[Chunk]:
+    def chunks(
+        self, columns: Sequence[int], labels: Sequence[str], rows: int, missing: bool = False
+    ) -> Iterator[Chunk]:
         """Yields the header columns ``columns`` (positions in :attr:`names`) in blocks of at
         most ``rows`` samples. ``labels`` name them in messages (``"column 'x3' (body_pos, m)"``).
-        A cell that is not a finite number raises :class:`TableError` naming its line."""
+        A cell that is not a finite number raises :class:`TableError` naming its line; with
+        ``missing=True`` NaN (``nan`` in a CSV, null in Parquet) is kept as a missing value and
+        only ±inf, empty cells (CSV) and text raise."""
         raise NotImplementedError
 
     def close(self) -> None:
@@ -634,7 +638,9 @@ class _CsvTable(Table):
         return TableError(f"{self.where(number)}: {cells} cell{'s' if cells != 1 else ''}, but the header "
                           f"has {self.width} columns (separated by {_show(self.delimiter)}){hint}")
 
-    def chunks(self, columns: Sequence[int], labels: Sequence[str], rows: int) -> Iterator[Chunk]:
+    def chunks(
+        self, columns: Sequence[int], labels: Sequence[str], rows: int, missing: bool = False
+    ) -> Iterator[Chunk]:
         cols = list(columns)
         delim = None if self.delimiter == WHITESPACE else self.delimiter
         while True:
@@ -659,7 +665,7 @@ class _CsvTable(Table):
                                       ndmin=2, dtype=np.float64)
             except (ValueError, Warning) as e:
                 raise self._cell_error(lines, numbers, cols, labels, str(e)) from None
-            finite = np.isfinite(data)
+            finite = np.isfinite(data) | np.isnan(data) if missing else np.isfinite(data)
             if not finite.all():
                 row = int(np.argmin(finite.all(axis=1)))
                 col = int(np.argmin(finite[row]))
@@ -758,7 +764,9 @@ class _ParquetTable(Table):
         values = self._pc.cast(array, pa.float64(), safe=False).fill_null(float("nan"))
         return np.asarray(values.to_numpy(zero_copy_only=False), dtype=np.float64), nulls
 
-    def chunks(self, columns: Sequence[int], labels: Sequence[str], rows: int) -> Iterator[Chunk]:
+    def chunks(
+        self, columns: Sequence[int], labels: Sequence[str], rows: int, missing: bool = False
+    ) -> Iterator[Chunk]:
         names = [self.names[c] for c in columns]
         first = 1
         try:
@@ -770,7 +778,7 @@ class _ParquetTable(Table):
                 blocks = [self._floats(batch.column(i), label) for i, label in enumerate(labels)]
                 data = np.column_stack([b[0] for b in blocks])
                 numbers = np.arange(first, first + k, dtype=np.int64)
-                finite = np.isfinite(data)
+                finite = np.isfinite(data) | np.isnan(data) if missing else np.isfinite(data)
                 if not finite.all():
                     row = int(np.argmin(finite.all(axis=1)))
                     col = int(np.argmin(finite[row]))

@@ -1,0 +1,352 @@
+"""``vehid monitor``: the suspension health monitor (:class:`vehid.HealthMonitor`) over a
+log of a car's sensors, printing one line per change it finds (issue 17).
+
+The log is read in chunks through :mod:`vehid.io` (CSV in any common dialect, or Parquet);
+its columns are the sensor channels (``a_body, a_wheel, deflection`` for the realistic
+sensors, m/s², m/s², m; the thesis' ``zw, vw, zb, vb, dzw, dvw, dzb, dvb`` for the state
+sensors) and a time column ``t`` (s). A ``nan`` cell is a missing value; a step of the time
+column over 1.5 sample intervals is a gap, fed to the monitor as missing samples: in both
+cases it reports "cannot judge" for a while, never a change. Times must increase strictly,
+at a fixed rate (``--dt``, or the median interval of the first chunk); an interval under
+half of it is refused (resample such a log first).
+
+Nothing numerical happens here: the monitor runs in the Rust core; this module reads,
+checks the time column, prints and plots.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import math
+import sys
+from dataclasses import dataclass, field
+from typing import IO, Any, Callable, Dict, List, Literal, Optional, Sequence, Tuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from . import Event, HealthMonitor, QuarterCar
+from .io import Column, Table, TableError, match_columns, open_table, parse_column_map
+
+#: Samples read per chunk.
+CHUNK = 100_000
+#: Runs longer than this report their progress on stderr.
+PROGRESS_ABOVE = 200_000
+#: Seconds between two records of the tracked ratios and the status (plot and summary).
+RECORD = 0.5
+#: Most missing samples one gap of the time column may stand for (about 58 days at 200 Hz).
+MAX_GAP_SAMPLES = 1_000_000_000
+
+#: The channels of each sensor set, with an alias and the unit.
+SENSOR_COLUMNS: Dict[str, Tuple[Column, ...]] = {
+    "realistic": (
+        Column("a_body", "body_acc", "m/s^2"),
+        Column("a_wheel", "wheel_acc", "m/s^2"),
+        Column("deflection", "susp_defl", "m"),
+    ),
+    "state": tuple(
+        Column(name, None, unit)
+        for name, unit in zip(
+            ("zw", "vw", "zb", "vb", "dzw", "dvw", "dzb", "dvb"),
+            ("m", "m/s", "m", "m/s", "m/s", "m/s^2", "m/s", "m/s^2"),
+        )
+    ),
+}
+
+#: What each named constant is, and its unit, for the printed lines.
+PARAMETERS = {"b": ("damper", "N s/m"), "k2": ("spring", "N/m"), "M": ("body mass", "kg")}
+
+CARS = {"quarter": QuarterCar, "passenger": QuarterCar.passenger}
+
+
+def _cli_error(message: str) -> Exception:
+    from .cli import CliError
+
+    return CliError(message)
+
+
+def nominal_car(model: str, constants: Optional[str]) -> QuarterCar:
+    """The nominal car of ``--model`` with ``--car`` overrides (``"M=320,b=1500"``).
+
+    >>> nominal_car("passenger", "b=1400").params["b"]
+    1400.0
+    """
+    if model not in CARS:
+        if model == "half" or model.endswith(".toml"):
+            raise _cli_error(f"--model {model}: the health monitor covers the quarter car (--model quarter or "
+                             "passenger, with --car for your car's constants); the half car's is not there yet")
+        raise _cli_error(f"--model {model}: choose quarter (the thesis' car) or passenger (a typical passenger car)")
+    params = dict(CARS[model]().params)
+    for item in (constants or "").split(","):
+        if not item.strip():
+            continue
+        name, sep, value = item.partition("=")
+        name = name.strip()
+        if not sep or name not in params:
+            raise _cli_error(f"--car {constants}: expected NAME=VALUE pairs with NAME in {', '.join(params)} "
+                             f"(e.g. --car M=320,b=1500), got {item.strip()!r}")
+        try:
+            params[name] = float(value)
+        except ValueError:
+            raise _cli_error(f"--car {constants}: {name}={value.strip()!r} is not a number") from None
+    return QuarterCar(**params)
+
+
+@dataclass
+class Record:
+    """The tracked ratios and the status every :data:`RECORD` seconds."""
+
+    t: List[float] = field(default_factory=list)
+    k2m: List[Tuple[float, float, float]] = field(default_factory=list)
+    bm: List[Tuple[float, float, float]] = field(default_factory=list)
+    status: List[str] = field(default_factory=list)
+
+
+class Feeder:
+    """Feeds samples and missing samples to the monitor in blocks of :data:`RECORD`
+    seconds, prints each event as it comes and records what the plot and the summary show."""
+
+    def __init__(self, mon: HealthMonitor, t0: float, out: IO[str], as_json: bool) -> None:
+        self.mon, self.t0, self.out, self.as_json = mon, t0, out, as_json
+        self.block = max(1, int(round(RECORD / mon.dt)))
+        self.record = Record()
+        self.events: List[Event] = []
+        self.missing = 0
+
+    def feed(self, y: NDArray[np.float64]) -> None:
+        for i in range(0, len(y), self.block):
+            self._step(y[i : i + self.block])
+
+    def gap(self, samples: int) -> None:
+        """``samples`` missing samples (a gap in the time column)."""
+        self.missing += samples
+        width = len(self.mon.channels)
+        while samples > 0:
+            k = min(samples, self.block)
+            self._step(np.full((k, width), math.nan))
+            samples -= k
+
+    def _step(self, y: NDArray[np.float64]) -> None:
+        for ev in self.mon.fit(y):
+            self.events.append(ev)
+            self.print_event(ev)
+        est = self.mon.estimate
+        self.record.t.append(self.t0 + self.mon.samples * self.mon.dt)
+        self.record.k2m.append(est["k2/M"])
+        self.record.bm.append(est["b/M"])
+        self.record.status.append(self.mon.status)
+
+    def print_event(self, ev: Event) -> None:
+        if self.as_json:
+            d: Dict[str, Any] = ev.to_dict()
+            d["t"] = round(self.t0 + ev.t, 9)
+            d["t_change"] = round(self.t0 + ev.t_change, 9)
+            d["name"] = PARAMETERS[ev.parameter][0]
+            d["unit"] = PARAMETERS[ev.parameter][1]
+            print(json.dumps(d), file=self.out, flush=True)
+            return
+        name, unit = PARAMETERS[ev.parameter]
+        print(f"{self.t0 + ev.t:.3f} s  {ev.parameter} ({name}): {ev.before:.6g} -> {ev.after:.6g} {unit} "
+              f"({100 * ev.change:+.1f} %; 95 % interval {ev.low:.6g} .. {ev.high:.6g}; "
+              f"onset {self.t0 + ev.t_change:.2f} s)", file=self.out, flush=True)
+
+
+def _time_steps(t: NDArray[np.float64], prev: Optional[float], dt: float, table: Table,
+                lines: NDArray[np.int64], prev_line: int) -> NDArray[np.int64]:
+    """Missing samples before each sample: ``round(Δt/dt) − 1``; refuses a time that does
+    not increase, or an interval under half of ``dt``."""
+    tt = t if prev is None else np.concatenate([[prev], t])
+    ll = lines if prev is None else np.concatenate([[prev_line], lines])
+    d = np.diff(tt)
+    if len(d) and not (d >= 0.5 * dt).all():
+        i = int(np.argmin(d >= 0.5 * dt))
+        where = table.where(int(ll[i + 1]))
+        if d[i] <= 0:
+            raise _cli_error(f"{where}: time {float(tt[i + 1])!r} s does not increase after {float(tt[i])!r} s: "
+                             "the time column must increase strictly (sort the log, drop duplicated samples)")
+        raise _cli_error(f"{where}: the sample interval {float(d[i]):.6g} s is under half the sample interval "
+                         f"{dt:.6g} s: the monitor needs a fixed rate (resample the log, or give --dt)")
+    steps = np.rint(d / dt).astype(np.int64) - 1
+    if len(steps) and int(steps.max()) > MAX_GAP_SAMPLES:
+        i = int(np.argmax(steps))
+        raise _cli_error(f"{table.where(int(ll[i + 1]))}: a gap of {float(d[i]):.6g} s in the time column: "
+                         "split the log at it")
+    return steps if prev is not None else np.concatenate([[0], steps]).astype(np.int64)
+
+
+def cmd_monitor(args: argparse.Namespace) -> int:
+    car = nominal_car(args.model, args.car)
+    sensors: Literal["realistic", "state"] = args.sensors
+    try:
+        mapping = parse_column_map(args.columns or [])
+    except TableError as e:
+        raise _cli_error(str(e)) from None
+    settings = {k: getattr(args, k) for k in ("window", "warmup", "min_change", "threshold", "confidence")
+                if getattr(args, k) is not None}
+    channels = SENSOR_COLUMNS[sensors]
+    columns = (Column("t", "time", "s"),) + channels
+    with open_table(args.file, delimiter=args.delimiter) as table:
+        match = match_columns(table.names, columns, mapping, where=table.source)
+        absent = [c for c in channels if c.name not in match.index]
+        if absent:
+            shown = ", ".join(repr(h) for h in table.names[:12]) + (", ..." if len(table.names) > 12 else "")
+            raise _cli_error(
+                f"{table.source} has no column {', '.join(c.describe() for c in absent)} for "
+                f"--sensors {sensors} (its columns: {shown}); map yours with --columns "
+                f"{absent[0].name}=NAME")
+        has_t = "t" in match.index
+        if not has_t and args.dt is None:
+            raise _cli_error(f"{table.source} has no time column t: give the sample interval with --dt SECONDS")
+        cols = ([match.index["t"]] if has_t else []) + [match.index[c.name] for c in channels]
+        labels = (["t"] if has_t else []) + [c.describe() for c in channels]
+        mon: Optional[HealthMonitor] = None
+        feeder: Optional[Feeder] = None
+        prev: Optional[float] = None
+        prev_line = 0
+        samples = 0
+        for chunk in table.chunks(cols, labels, CHUNK, missing=True):
+            data = chunk.data
+            if has_t and np.isnan(data[:, 0]).any():
+                row = int(np.argmax(np.isnan(data[:, 0])))
+                raise _cli_error(f"{table.where(int(chunk.lines[row]))}: the time is missing (nan): every sample "
+                                 "needs its time (drop the sample: the gap is then seen in the time column)")
+            y = np.ascontiguousarray(data[:, 1:] if has_t else data)
+            if mon is None:
+                dt = args.dt
+                if dt is None:
+                    d = np.diff(data[:, 0])
+                    if len(d) == 0:
+                        raise _cli_error(f"{table.source}: one sample cannot give the sample interval: give --dt")
+                    dt = float(np.median(d))
+                mon = HealthMonitor(car, dt=dt, sensors=sensors, **settings)
+                feeder = Feeder(mon, float(data[0, 0]) if has_t else 0.0, sys.stdout, args.json)
+            assert feeder is not None
+            if has_t:
+                steps = _time_steps(data[:, 0], prev, mon.dt, table, chunk.lines, prev_line)
+                prev, prev_line = float(data[-1, 0]), int(chunk.lines[-1])
+                start = 0
+                for g in np.flatnonzero(steps).tolist():
+                    feeder.feed(y[start:g])
+                    feeder.gap(int(steps[g]))
+                    start = g
+                feeder.feed(y[start:])
+            else:
+                feeder.feed(y)
+            samples += len(y)
+            if table.size and samples > PROGRESS_ABOVE:
+                pct = min(100, 100 * table.consumed // table.size)
+                print(f"vehid: monitored {samples} samples ({pct}% of {table.source})", file=sys.stderr, flush=True)
+            elif samples > PROGRESS_ABOVE:
+                print(f"vehid: monitored {samples} samples", file=sys.stderr, flush=True)
+        if mon is None or feeder is None:
+            raise _cli_error(f"{table.source} has no samples")
+        summary(feeder, table.source, samples, sys.stderr)
+        if args.plot:
+            plot(feeder, car, args.plot)
+    return 0
+
+
+def summary(feeder: Feeder, source: str, samples: int, out: IO[str]) -> None:
+    """One line on stderr: what was monitored, the events, and how much of the time the
+    monitor could not judge."""
+    st = feeder.record.status
+    judged = sum(s in ("monitoring", "settling") for s in st)
+    warmup = sum(s == "warmup" for s in st)
+    cannot = [s for s in st if s.startswith("cannot judge")]
+    reasons: Dict[str, int] = {}
+    for s in cannot:
+        reasons[s.split(": ", 1)[1]] = reasons.get(s.split(": ", 1)[1], 0) + 1
+    why = ", ".join(f"{k} {100 * v / len(st):.0f} %" for k, v in sorted(reasons.items(), key=lambda kv: -kv[1]))
+    mon = feeder.mon
+    n = len(feeder.events)
+    print(f"vehid: {source}: {samples} samples ({mon.samples * mon.dt:.1f} s, {feeder.missing} missing), "
+          f"{n} event{'s' if n != 1 else ''}; warm-up {100 * warmup / max(1, len(st)):.0f} %, judged "
+          f"{100 * judged / max(1, len(st)):.0f} % of the time"
+          + (f", cannot judge {100 * len(cannot) / len(st):.0f} % ({why})" if cannot else "")
+          + f"; now {mon.status}", file=out, flush=True)
+
+
+def plot(feeder: Feeder, car: QuarterCar, path: str) -> None:
+    """The tracked ratios with their 95 % bands, the times the monitor could not judge
+    (grey) and the events (vertical lines), into ``path`` (PNG, with the plot extra)."""
+    try:
+        mpl = importlib.import_module("matplotlib")
+        mpl.use("Agg")
+        plt: Any = importlib.import_module("matplotlib.pyplot")
+    except ImportError:
+        raise _cli_error("--plot needs matplotlib: pip install 'vehid[plot]'") from None
+    rec = feeder.record
+    t = np.asarray(rec.t)
+    fig, axes = plt.subplots(2, 1, sharex=True, figsize=(9, 6))
+    p = car.params
+    for ax, values, name, unit, nominal in (
+        (axes[0], rec.k2m, r"$k_2/M$", r"s$^{-2}$", p["k2"] / p["M"]),
+        (axes[1], rec.bm, r"$b/M$", r"s$^{-1}$", p["b"] / p["M"]),
+    ):
+        v = np.asarray(values)
+        judged = np.array([s in ("monitoring", "settling") for s in rec.status])
+        shown = np.where(judged, v[:, 0], np.nan)
+        ax.fill_between(t, np.where(judged, v[:, 1], np.nan), np.where(judged, v[:, 2], np.nan), alpha=0.3,
+                        label="95 % band")
+        ax.plot(t, shown, lw=1, label="tracked")
+        ax.axhline(nominal, color="k", ls=":", lw=1, label="nominal car")
+        for i in np.flatnonzero(~judged):
+            ax.axvspan(t[i] - RECORD, t[i], color="0.85", lw=0)
+        for ev in feeder.events:
+            ax.axvline(feeder.t0 + ev.t, color="r", lw=1)
+            ax.annotate(f"{ev.parameter} {100 * ev.change:+.1f} %", (feeder.t0 + ev.t, 1.0),
+                        xycoords=("data", "axes fraction"), va="top", ha="left", color="r", fontsize=8)
+        ax.set_ylabel(f"{name} ({unit})")
+    axes[0].legend(loc="lower left", fontsize=8)
+    axes[1].set_xlabel("time (s)")
+    axes[0].set_title("Tracked ratios (grey: cannot judge; red: events)")
+    fig.tight_layout()
+    try:
+        fig.savefig(path, dpi=100)
+    except OSError as e:
+        raise _cli_error(f"--plot {path}: cannot write ({e.strerror or e})") from None
+    finally:
+        plt.close(fig)
+
+
+#: ``vehid monitor --help``.
+DESCRIPTION = (
+    "Runs the suspension health monitor over a log and prints one line per change it finds: which constant "
+    "(b damper, k2 spring, M body mass), when, from what to what, with a 95 % interval. Only k2/M and b/M are "
+    "observable without a road measurement: equal relative changes of both are the body mass. Missing values "
+    "(nan) and gaps in the time column make the monitor 'cannot judge' for a while, never report. A summary "
+    "goes to stderr."
+)
+
+
+def add_arguments(p: argparse.ArgumentParser, delimiter: Callable[[str], str]) -> None:
+    """The options of ``vehid monitor`` (``delimiter``: the parser of ``--delimiter``)."""
+    p.add_argument("file", metavar="FILE", help="CSV or Parquet log, '-' for stdin (CSV)")
+    p.add_argument("--model", default="quarter", metavar="MODEL",
+                   help="the nominal car: quarter (the thesis' values, default) or passenger (M=320 kg, m=40 kg, "
+                        "k1=200 kN/m, k2=22 kN/m, b=1500 N s/m); --car overrides its constants")
+    p.add_argument("--car", default=None, metavar="CONSTANTS",
+                   help="your car's nominal constants, e.g. M=320,k2=22000,b=1500 (kg, N/m, N s/m): the 'before' "
+                        "of the first events")
+    p.add_argument("--sensors", choices=["realistic", "state"], default="realistic",
+                   help="realistic (default): columns a_body, a_wheel (m/s^2), deflection (m); state: the thesis' "
+                        "zw, vw, zb, vb, dzw, dvw, dzb, dvb")
+    p.add_argument("--dt", type=float, default=None,
+                   help="sample interval, s (default: the median interval of the time column)")
+    p.add_argument("--columns", action="append", metavar="MAP",
+                   help="NAME=COLUMN,...: which file column holds each channel (e.g. a_body=acc_z_body)")
+    p.add_argument("--delimiter", type=delimiter, default=None, metavar="D", help="CSV separator (default: sniffed)")
+    p.add_argument("--window", type=float, default=None, help="tracking window T_f, s (default 6)")
+    p.add_argument("--warmup", type=float, default=None, help="seconds of data forming the reference (default 20)")
+    p.add_argument("--min-change", type=float, default=None,
+                   help="smallest relative change worth an event (default 0.05)")
+    p.add_argument("--threshold", type=float, default=None, help="CUSUM threshold h (default 8, calibrated)")
+    p.add_argument("--confidence", type=float, default=None, help="level of the intervals (default 0.95)")
+    p.add_argument("--json", action="store_true", help="one JSON object per event instead of text")
+    p.add_argument("--plot", default=None, metavar="PNG",
+                   help="write the tracked ratios with their bands and the events (needs vehid[plot])")
+
+
+__all__: Sequence[str] = ["DESCRIPTION", "SENSOR_COLUMNS", "add_arguments", "cmd_monitor", "nominal_car"]
