@@ -16,11 +16,12 @@ comment style cannot empty the page silently.
 from __future__ import annotations
 
 import ast
+import os
 import re
 from collections import defaultdict
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Dict, Iterator, List, Optional, Tuple
+from typing import Any, Callable, Dict, Iterator, List, Optional, Tuple
 
 from mkdocs.exceptions import PluginError
 
@@ -304,18 +305,37 @@ def _key(eq: str) -> Tuple[int, int]:
     return int(a), int(b)
 
 
-def _cell(sites: List[Site]) -> str:
+def _source_links(doc: Optional[Path]) -> Callable[[str], Optional[str]]:
+    """File -> its page in rustdoc's source view (``rustdoc/src/<crate>/…rs.html``), when
+    ``cargo doc`` wrote one (library files of the documented crates only)."""
+
+    def link(path: str) -> Optional[str]:
+        parts = Path(path).parts  # crates/<crate>/src/...
+        if doc is None or len(parts) < 4 or parts[0] != "crates" or parts[2] != "src":
+            return None
+        rel = Path("src", parts[1].replace("-", "_"), *parts[3:])
+        page = rel.with_name(rel.name + ".html")
+        return f"rustdoc/{page.as_posix()}" if (doc / page).is_file() else None
+
+    return link
+
+
+def _cell(sites: List[Site], link: Callable[[str], Optional[str]]) -> str:
     seen: Dict[Tuple[str, str], Site] = {}
     for s in sites:
         seen.setdefault((s.path, s.item), s)
     parts = []
     for s in seen.values():
         rng = f" (cites {s.cited})" if s.cited != s.cited.split("–")[0] or "," in s.cited else ""
-        parts.append(f"`{s.item}` <small>{s.path}:{s.line}{rng}</small>")
+        where = f"{s.path}:{s.line}"
+        target = link(s.path)
+        if target:
+            where = f"[{where}]({target}#{s.line})"
+        parts.append(f"`{s.item}` <small>{where}{rng}</small>")
     return "<br>".join(parts) if parts else "—"
 
 
-def render(index: Dict[str, List[Site]]) -> str:
+def render(index: Dict[str, List[Site]], link: Callable[[str], Optional[str]] = lambda _: None) -> str:
     n_sites = sum(len({(s.path, s.line) for s in v}) for v in index.values())
     out = [
         f"{len(index)} equations, cited at {n_sites} places "
@@ -330,12 +350,9 @@ def render(index: Dict[str, List[Site]]) -> str:
         for eq in eqs:
             code = [s for s in index[eq] if not s.test]
             tests = [s for s in index[eq] if s.test]
-            out.append(f"| {eq} | {TITLES.get(eq, '')} | {_cell(code)} | {_cell(tests)} |")
+            out.append(f"| {eq} | {TITLES.get(eq, '')} | {_cell(code, link)} | {_cell(tests, link)} |")
         out.append("")
     return "\n".join(out)
-
-
-_cache: Dict[str, Any] = {}
 
 
 def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:
@@ -350,5 +367,5 @@ def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:
     missing = [eq for eq in REQUIRED if eq not in index]
     if missing:
         raise PluginError(f"eq_index: no reference found to Eq {', '.join(missing)} (the scan is broken)")
-    _cache["count"] = len(index)
-    return markdown.replace(MARKER, render(index))
+    doc = Path(os.environ.get("CARGO_TARGET_DIR", root / "target")) / "doc"
+    return markdown.replace(MARKER, render(index, _source_links(doc if (doc / "src").is_dir() else None)))
