@@ -2,6 +2,10 @@
 #   make venv     .venv with maturin, numpy, pytest, mypy, ruff, scipy (tests: derivatives, t quantiles) (from PyPI)
 #   make develop  build the extension (release) into .venv, editable
 #   make demo     build with the plot extra (matplotlib), reproduce the thesis (--quick) into report/, print its path
+#   make docs     the documentation site into site/ (open site/index.html): mkdocs-material with the
+#                 tools pinned in docs/requirements.txt, every page's examples run at build time,
+#                 the Python API from the docstrings, rustdoc (cargo doc) under site/rustdoc/, the
+#                 thesis-equation index generated from the sources; --strict: any warning fails it
 #   make test     lint, every Rust test (unit, integration, bins, benches in test mode, doctests), the
 #                 release-mode SIMD bit check, the no_std build, pytest on the fresh extension, stub check
 #   make lint     cargo fmt --check, clippy -D warnings, ruff (part of `make test`)
@@ -38,7 +42,7 @@ VENV   := .venv
 VBIN   := $(VENV)/bin
 CARGO  ?= cargo
 
-.PHONY: venv develop demo test lint test-rust test-python install-check bench-python bench-fit bench-peers bench-budgets bench-check bench-check-update soak fuzz clean
+.PHONY: venv develop demo docs test lint test-rust test-python install-check bench-python bench-fit bench-peers bench-budgets bench-check bench-check-update soak fuzz clean
 
 venv: $(VENV)/.installed
 
@@ -59,6 +63,15 @@ demo: develop
 	$(VBIN)/python -m pip install --quiet matplotlib
 	$(VBIN)/vehid reproduce --quick --out report/
 	@echo "report: $(abspath report/index.html) (and report/index.md)"
+
+# cargo doc first: the site takes target/doc in as site/rustdoc/ (docs/hooks/site.py), so that
+# its links are checked like the others. NO_MKDOCS_2_WARNING silences mkdocs-material's notice
+# about MkDocs 2.0 (advice on the tool's future, not about this site).
+docs: develop
+	$(VBIN)/python -m pip install --quiet -r docs/requirements.txt
+	$(CARGO) doc --no-deps -p vehid-core -p vehid-thesis
+	NO_MKDOCS_2_WARNING=1 $(VBIN)/mkdocs build --strict --site-dir site
+	@echo "docs: $(abspath site/index.html)"
 
 test: lint test-rust test-python
 
@@ -164,6 +177,6 @@ fuzz: develop
 
 clean:
 	rm -f python/vehid/*.so python/vehid/*.pyd
-	rm -rf $(VENV) $(PEERS_VENV) dist .pytest_cache .mypy_cache
+	rm -rf $(VENV) $(PEERS_VENV) dist site .pytest_cache .mypy_cache
 	find python tests -name __pycache__ -type d -prune -exec rm -rf {} +
 	$(CARGO) clean
