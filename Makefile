@@ -69,7 +69,7 @@ demo: develop
 # about MkDocs 2.0 (advice on the tool's future, not about this site).
 docs: develop
 	$(VBIN)/python -m pip install --quiet -r docs/requirements.txt
-	$(CARGO) doc --no-deps -p vehid-core -p vehid-thesis
+	RUSTDOCFLAGS="-D warnings" $(CARGO) doc --no-deps -p vehid-core -p vehid-thesis
 	NO_MKDOCS_2_WARNING=1 $(VBIN)/mkdocs build --strict --site-dir site
 	@echo "docs: $(abspath site/index.html)"
 

@@ -143,7 +143,7 @@ pub trait Store<T: Real, const N: usize>: Clone + core::fmt::Debug {
     type Scalars: Flat<T>;
     /// One `N`-vector per row (`K`).
     type Vecs: Flat<SVector<T, N>>;
-    /// The decoupled row filters, side by side in groups of lanes ([`lanes::RowLanes`]).
+    /// The decoupled row filters, side by side in groups of lanes (the private `lanes::RowLanes`).
     type Group: RowGroup<T, N>;
     /// The groups (`⌈K / lanes⌉`).
     type Groups: Flat<Self::Group>;

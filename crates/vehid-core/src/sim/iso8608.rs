@@ -64,7 +64,7 @@ impl IsoRoad {
     /// from the stationary distribution `N(0, π n0² G_d(n0) / (2 n_c))`.
     ///
     /// # Errors
-    /// [`Error::InvalidArgument`] for a cutoff not finite and > 0.
+    /// [`Error::InvalidArgument`](crate::Error::InvalidArgument) for a cutoff not finite and > 0.
     pub fn new(class: RoadClass, cutoff: f64, mut rng: Xoshiro256PlusPlus) -> Result<Self> {
         check_positive("cutoff", cutoff)?;
         let sigma = libm::sqrt(core::f64::consts::PI * N0 * N0 * class.gd0() / (2.0 * cutoff));

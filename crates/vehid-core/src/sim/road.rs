@@ -209,7 +209,7 @@ pub struct RoadSimulator<T: Real, const N: usize, const C: usize> {
 
 impl<T: Real, const N: usize, const C: usize> RoadSimulator<T, N, C> {
     /// Builds the road simulator; the initial state and the road behind the start are drawn
-    /// here. The random streams are the [`Simulator`]'s for the same seed.
+    /// here. The random streams are the [`Simulator`](super::Simulator)'s for the same seed.
     ///
     /// # Errors
     /// [`Error::InvalidArgument`] for bad noise levels, `substeps = 0`, or a spacing or

@@ -58,7 +58,7 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
     /// matrix (row-major, `K²` values), or its diagonal (one value per row, or one value).
     ///
     /// # Errors
-    /// As [`KalmanRows::from_slices`], plus [`Error::Shape`] / [`Error::Singular`] for an `R`
+    /// As [`KalmanRows::from_slices`](super::KalmanRows::from_slices), plus [`Error::Shape`] / [`Error::Singular`] for an `R`
     /// of the wrong size or not symmetric with a non-negative diagonal.
     pub fn from_slices(rows: &[usize], p0: &[T], r: &[T], opts: KalmanOptions<T>) -> Result<Self> {
         opts.validate()?;

@@ -13,7 +13,7 @@ use nalgebra::{SMatrix, SVector};
 /// The decoupled (`rows`) Kalman-filter identifier over a [`Store`]; see [`KalmanIdentifier`]
 /// for the allocation-free form.
 ///
-/// The row filters are kept side by side in lanes ([`super::lanes`]): one update treats all
+/// The row filters are kept side by side in lanes (the private `lanes` module): one update treats all
 /// rows at once with vector instructions, and only the upper triangle of each `P` is stored.
 #[derive(Debug, Clone)]
 #[cfg_attr(

@@ -45,7 +45,7 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
     /// Builds the shared form from per-row `p0` and `r` (one value or one per row).
     ///
     /// # Errors
-    /// As [`KalmanRows::from_slices`], plus [`Error::InvalidArgument`] when `r_i / p0_i`
+    /// As [`KalmanRows::from_slices`](super::KalmanRows::from_slices), plus [`Error::InvalidArgument`] when `r_i / p0_i`
     /// differs between rows (the shared form would then be a different filter; use `rows`),
     /// or when every `r_i` is zero (the common ratio must be > 0) and `retire_below` is set.
     pub fn from_slices(rows: &[usize], p0: &[T], r: &[T], opts: KalmanOptions<T>) -> Result<Self> {
