@@ -19,12 +19,19 @@
 //!   pre-generated samples (generated whatever `N` is), for instruction counting: `valgrind --tool=callgrind` with `N`
 //!   and with 0, the difference divided by `N` is the instructions per update.
 //!
-//! Usage: `health_experiment [--seed0 N] [--seeds N] [--hours H] [--threshold h] [--window s] [--calibrate] [--vary]`.
+//! - `--state-noise F`: the thesis' state sensors instead (`zw, vw, zb, vb` and their
+//!   derivatives), with noise `F` times each quantity's standard deviation (the thesis'
+//!   signal-to-noise definition, Eq 4.31): `σ_w = F · std(zb)` on every position and velocity,
+//!   `σ_v = F · std(dvb)` on every derivative, the standard deviations measured
+//!   on a noise-free pilot drive of 600 s (seed `seed0 + 2_000_000`). The monitor reads the
+//!   body and wheel accelerations `dvb`, `dvw` and the deflection `zb − zw` from them.
+//!
+//! Usage: `health_experiment [--seed0 N] [--seeds N] [--hours H] [--threshold h] [--window s] [--calibrate] [--vary] [--state-noise F]`.
 
 use std::time::Instant;
 use vehid_core::health::{Constant, Event, HealthConfig, HealthMonitor, Status};
 use vehid_core::model::QuarterCar;
-use vehid_core::sim::{Change, DriveConfig, QuarterDrive, RoadClass};
+use vehid_core::sim::{Change, DriveConfig, QuarterDrive, RoadClass, SensorNoise, SensorSet};
 
 const DT: f64 = 0.005;
 const T_CHANGE: f64 = 60.0;
@@ -39,6 +46,7 @@ struct Args {
     calibrate: bool,
     vary: bool,
     count: Option<usize>,
+    state_noise: Option<f64>,
 }
 
 fn parse() -> Args {
@@ -51,6 +59,7 @@ fn parse() -> Args {
         calibrate: false,
         vary: false,
         count: None,
+        state_noise: None,
     };
     let argv: Vec<String> = std::env::args().skip(1).collect();
     let mut i = 0;
@@ -63,6 +72,7 @@ fn parse() -> Args {
             "--threshold" => a.threshold = Some(val().parse().expect("--threshold: a number")),
             "--count" => a.count = Some(val().parse().expect("--count: an integer")),
             "--window" => a.window = Some(val().parse().expect("--window: seconds")),
+            "--state-noise" => a.state_noise = Some(val().parse().expect("--state-noise: a fraction")),
             "--calibrate" => {
                 a.calibrate = true;
                 i += 1;
@@ -83,8 +93,51 @@ fn parse() -> Args {
 /// The monitor's settings: the defaults, with the threshold and the window if given.
 type Tune = (Option<f64>, Option<f64>);
 
+/// The sensors of every drive and monitor (set once in `main`).
+static SENSORS: std::sync::OnceLock<(SensorSet, SensorNoise<f64>)> = std::sync::OnceLock::new();
+
+fn sensors() -> (SensorSet, SensorNoise<f64>) {
+    *SENSORS.get_or_init(|| (SensorSet::Realistic, SensorNoise::default()))
+}
+
+/// A drive's settings with the experiment's sensors.
+fn drive_config() -> DriveConfig<f64> {
+    let (set, noise) = sensors();
+    DriveConfig::new(DT).sensors(set).noise(noise)
+}
+
+/// The state sensors' noise: `f` times the standard deviations of `zb` and `dvb` on a
+/// noise-free pilot drive of 600 s.
+fn state_noise(car: QuarterCar<f64>, f: f64, seed: u64) -> SensorNoise<f64> {
+    let mut drive = QuarterDrive::new(car, DriveConfig::new(DT).sensors(SensorSet::State), seed).unwrap();
+    let n = (600.0 / DT) as usize;
+    let (mut s, mut s2) = ([0.0f64; 3], [0.0f64; 3]);
+    for _ in 0..n {
+        let y = drive.next_sample();
+        let y = y.y();
+        for (j, v) in [y[2], y[7], y[2] - y[0]].into_iter().enumerate() {
+            s[j] += v;
+            s2[j] += v * v;
+        }
+    }
+    let sd = |j: usize| (s2[j] / n as f64 - (s[j] / n as f64).powi(2)).sqrt();
+    let noise = SensorNoise { state: f * sd(0), deriv: f * sd(1), ..SensorNoise::default() };
+    println!(
+        "state sensors: std(zb) {:.4} m, std(dvb) {:.3} m/s^2, std(zb - zw) {:.4} m; noise sigma_w {:.3e} m, \
+         sigma_v {:.3e} m/s^2 (the deflection formed from zb - zw carries {:.1} % noise)",
+        sd(0),
+        sd(1),
+        sd(2),
+        noise.state,
+        noise.deriv,
+        100.0 * 2f64.sqrt() * noise.state / sd(2)
+    );
+    noise
+}
+
 fn config(car: QuarterCar<f64>, (threshold, window): Tune) -> HealthConfig<f64> {
-    let mut c = HealthConfig::new(DT, car);
+    let (set, noise) = sensors();
+    let mut c = HealthConfig::new(DT, car).with_sensors(set, &noise);
     if let Some(h) = threshold {
         c.threshold = h;
     }
@@ -106,7 +159,7 @@ struct Outcome {
 }
 
 fn detect(car: QuarterCar<f64>, seed: u64, name: &str, value: f64, tune: Tune) -> Outcome {
-    let cfg = DriveConfig::new(DT).with_change(Change::step(T_CHANGE, name, value).unwrap()).unwrap();
+    let cfg = drive_config().with_change(Change::step(T_CHANGE, name, value).unwrap()).unwrap();
     let mut drive = QuarterDrive::new(car, cfg, seed).unwrap();
     let mut mon = HealthMonitor::new(config(car, tune)).unwrap();
     let mut out = Outcome { first: None, early: 0 };
@@ -128,7 +181,7 @@ fn detect(car: QuarterCar<f64>, seed: u64, name: &str, value: f64, tune: Tune) -
 /// not judge (any `CannotJudge` reason, after the warm-up), and, with `peaks`, records every CUSUM
 /// excursion's peak.
 fn hour(car: QuarterCar<f64>, seed: u64, tune: Tune, vary: bool, peaks: Option<&mut Vec<f64>>) -> (usize, usize) {
-    let mut drive = QuarterDrive::new(car, DriveConfig::new(DT), seed).unwrap();
+    let mut drive = QuarterDrive::new(car, drive_config(), seed).unwrap();
     let mut mon = HealthMonitor::new(config(car, tune)).unwrap();
     let mut alarms = 0;
     let mut blind = 0;
@@ -214,11 +267,16 @@ fn main() {
         count(car, n);
         return;
     }
+    if let Some(f) = a.state_noise {
+        let noise = state_noise(car, f, a.seed0 + 2_000_000);
+        SENSORS.set((SensorSet::State, noise)).expect("set once");
+    }
     let cfg = config(car, (a.threshold, a.window));
     let (h, window) = (cfg.threshold, cfg.window);
     println!(
         "health_experiment: passenger quarter car (M 320 kg, m 40 kg, k1 200 kN/m, k2 22 kN/m, b 1.5 kN s/m), \
-         ISO 8608 class C at 15 m/s, realistic sensors at {} Hz, threshold h = {h}, window {window} s, seed0 = {}",
+         ISO 8608 class C at 15 m/s, {} sensors at {} Hz, threshold h = {h}, window {window} s, seed0 = {}",
+        sensors().0.as_str(),
         1.0 / DT,
         a.seed0
     );
