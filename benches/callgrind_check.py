@@ -76,7 +76,11 @@ BENCHES = [
     "quarter_iv_rows",              # update_f64/quarter/iv_rows (issue 15)
     "quarter_iv_physical",          # update_f64/quarter/iv_physical
     "quarter_bcls_rows",            # update_f64/quarter/bcls_rows
+    "quarter_health",               # health/monitor_update_f64 (issue 17; binary count_health)
 ]
+# Benches counted by a binary other than count_updates (kept apart so that their code does not
+# change how count_updates is compiled).
+OTHER_BINARIES = {"quarter_health": "count_health"}
 
 
 @dataclass
@@ -161,22 +165,33 @@ def per_update(binary: Path, bench: str, n: int) -> float:
     return (instructions(binary, bench, n) - instructions(binary, bench, 0)) / n
 
 
-def build() -> Path:
-    """Builds count_updates (release) and returns the executable cargo reports for it: the
-    hashed path of this checkout's build, not ``target/release/count_updates``, which another
-    checkout sharing the target directory (``CARGO_TARGET_DIR``) may have overwritten."""
+def build() -> Dict[str, Path]:
+    """Builds count_updates and the other counting binaries (release) and returns the
+    executables cargo reports for them, by name: the hashed paths of this checkout's build, not
+    ``target/release/count_updates``, which another checkout sharing the target directory
+    (``CARGO_TARGET_DIR``) may have overwritten."""
     cargo = os.environ.get("CARGO", "cargo")
-    out = subprocess.run(
-        [cargo, "build", "--quiet", "--release", "-p", "vehid-benches", "--bin", "count_updates",
-         "--message-format=json-render-diagnostics"],
-        cwd=ROOT, check=True, capture_output=True, text=True,
-    ).stdout
+    names = ["count_updates", *sorted(set(OTHER_BINARIES.values()))]
+    cmd = [cargo, "build", "--quiet", "--release", "-p", "vehid-benches"]
+    for name in names:
+        cmd += ["--bin", name]
+    out = subprocess.run(cmd + ["--message-format=json-render-diagnostics"],
+                         cwd=ROOT, check=True, capture_output=True, text=True).stdout
+    found: Dict[str, Path] = {}
     for line in out.splitlines():
         msg = json.loads(line)
-        if msg.get("reason") == "compiler-artifact" and msg.get("target", {}).get("name") == "count_updates":
-            if msg.get("executable"):
-                return Path(msg["executable"])
-    raise SystemExit("callgrind_check: cargo did not report the count_updates executable")
+        name = msg.get("target", {}).get("name")
+        if msg.get("reason") == "compiler-artifact" and name in names and msg.get("executable"):
+            found[name] = Path(msg["executable"])
+    missing = [n for n in names if n not in found]
+    if missing:
+        raise SystemExit(f"callgrind_check: cargo did not report the executable of {', '.join(missing)}")
+    return found
+
+
+def binary_for(bench: str, binaries: Mapping[str, Path]) -> Path:
+    """The executable that counts ``bench``."""
+    return binaries[OTHER_BINARIES.get(bench, "count_updates")]
 
 
 def toolchain() -> Dict[str, str]:
@@ -207,15 +222,18 @@ def main(argv: Optional[List[str]] = None) -> int:
     ap.add_argument("--update", action="store_true", help="rewrite the baseline with the measured counts")
     ap.add_argument("--no-build", action="store_true", help="use the existing target/release/count_updates")
     ap.add_argument("--binary", type=Path, default=BINARY,
-                    help="count this count_updates binary instead (with --no-build)")
+                    help="count this count_updates binary instead (with --no-build; the other counting "
+                         "binaries are taken from its directory)")
     args = ap.parse_args(argv)
 
     if shutil.which("valgrind") is None:
         print("callgrind_check: valgrind is not installed", file=sys.stderr)
         return 2
-    binary = args.binary
-    if not args.no_build:
-        binary = build()
+    if args.no_build:
+        binaries = {"count_updates": args.binary}
+        binaries.update({b: args.binary.parent / b for b in OTHER_BINARIES.values()})
+    else:
+        binaries = build()
     base = load_baseline(args.baseline)
     n = args.n or int(base.get("n_updates", N_UPDATES))
     tolerance = args.tolerance if args.tolerance is not None else float(base.get("tolerance", TOLERANCE))
@@ -227,7 +245,7 @@ def main(argv: Optional[List[str]] = None) -> int:
                       f"for that reason alone (re-baseline in a commit of its own)")
 
     benches = args.bench or BENCHES
-    measured = {b: per_update(binary, b, n) for b in benches}
+    measured = {b: per_update(binary_for(b, binaries), b, n) for b in benches}
     rows = compare(measured, base.get("counts", {}), tolerance)
     print(f"instructions per update under callgrind ({n} updates, minus a 0-update run)")
     print(format_table(rows, tolerance))
