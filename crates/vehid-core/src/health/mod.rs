@@ -4,7 +4,7 @@
 //! # What the sensors can tell
 //!
 //! The realistic sensor set is a body accelerometer, a wheel accelerometer and a
-//! suspension deflection sensor (`sim::REALISTIC_CHANNELS`). The road is not measured, so
+//! suspension deflection sensor (`model::REALISTIC_CHANNELS`). The road is not measured, so
 //! the wheel equation `m v̇w = k2 d + b ḋ − k1 (zw − u)` (`d = zb − zw`) cannot be used: the
 //! tyre deflection `zw − u` is unobservable. Only the body equation (Eq 3.10 / M) is:
 //!

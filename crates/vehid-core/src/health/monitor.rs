@@ -5,8 +5,7 @@ use super::event::{Constant, Estimate, Event, Reason, Status};
 use super::kinematic::DeflectionFilter;
 use super::rls::Rls3;
 use crate::error::{check_nonneg, check_positive};
-use crate::model::QuarterCar;
-use crate::sim::{SensorNoise, SensorSet};
+use crate::model::{QuarterCar, SensorNoise, SensorSet};
 use crate::{Error, Real, Result};
 use nalgebra::{SMatrix, SVector};
 
@@ -18,11 +17,11 @@ pub const MAX_DELAY: usize = 64;
 pub const JUMP_GATE: f64 = 8.0;
 
 /// Number of channels [`HealthMonitor::update`] reads with the realistic sensors:
-/// `a_body` (m/s²), `a_wheel` (m/s²), `deflection` (m), `sim::REALISTIC_CHANNELS`.
+/// `a_body` (m/s²), `a_wheel` (m/s²), `deflection` (m), `model::REALISTIC_CHANNELS`.
 pub const CHANNELS: usize = 3;
 
 /// Number of channels [`HealthMonitor::update`] reads with the state sensors: the measured
-/// state and derivative of `sim::STATE_CHANNELS`.
+/// state and derivative of `model::STATE_CHANNELS`.
 pub const STATE_CHANNELS: usize = 8;
 
 /// Smallest deflection noise the state sensors' kinematic filter is designed for, m (the
@@ -42,7 +41,7 @@ pub struct HealthConfig<T> {
     /// same three quantities: `a_body = dvb`, `a_wheel = dvw`, `deflection = zb − zw`).
     pub sensors: SensorSet,
     /// Noise of `a_body − a_wheel` per sample, m/s² (the kinematic filter's design;
-    /// default √(0.02² + 0.1²), the defaults of `sim::SensorNoise`).
+    /// default √(0.02² + 0.1²), the defaults of `model::SensorNoise`).
     pub accel_noise: T,
     /// Deflection sensor noise, m (default 0.3e-3).
     pub deflection_noise: T,
@@ -106,7 +105,7 @@ impl<T: Real> HealthConfig<T> {
     }
 
     /// The same settings for the sensor set `sensors` with noise `noise` (the noise levels
-    /// of a drive, `sim::SensorNoise`): the kinematic filter's `accel_noise` and
+    /// of a drive, `model::SensorNoise`): the kinematic filter's `accel_noise` and
     /// `deflection_noise` follow from them. Realistic: `√(σ_ab² + σ_aw²)` and `σ_d`. State:
     /// `√2 σ_v` and `√2 σ_w` (differences of two measured channels), the deflection noise at
     /// least [`MIN_DEFLECTION_NOISE`].

@@ -20,11 +20,13 @@ mod discretize;
 mod half;
 mod physical;
 mod quarter;
+mod sensors;
 
 pub use discretize::{auto_substeps, rk4_map, zoh, MAX_SUBSTEPS};
 pub use half::{HalfCar, HalfCarParams};
 pub use physical::{PhysicalStructure, MAX_CONSTANTS};
 pub use quarter::{QuarterCar, QuarterKnown};
+pub use sensors::{SensorNoise, SensorSet, REALISTIC_CHANNELS, STATE_CHANNELS};
 
 use crate::error::{check_finite, check_nonneg};
 use crate::{Error, Real, Result};

@@ -49,6 +49,7 @@ use super::streams;
 use crate::error::{check_nonneg, check_positive};
 use crate::linalg::expm_with_integral;
 use crate::model::QuarterCar;
+pub use crate::model::{SensorNoise, SensorSet, REALISTIC_CHANNELS, STATE_CHANNELS};
 use crate::{Error, Real, Result};
 use nalgebra::{SMatrix, SVector};
 use rand::rngs::Xoshiro256PlusPlus;
@@ -62,14 +63,6 @@ pub const MAX_CHANGES: usize = 8;
 
 /// Most sensor channels of a sample.
 pub const MAX_CHANNELS: usize = 8;
-
-/// Channel names of [`SensorSet::Realistic`]: body and wheel acceleration (m/s²),
-/// suspension deflection `zb − zw` (m).
-pub const REALISTIC_CHANNELS: [&str; 3] = ["a_body", "a_wheel", "deflection"];
-
-/// Channel names of [`SensorSet::State`]: the measured state `r` (wheel position m, wheel
-/// velocity m/s, body position m, body velocity m/s) then the measured derivative `z`.
-pub const STATE_CHANNELS: [&str; 8] = ["zw", "vw", "zb", "vb", "dzw", "dvw", "dzb", "dvb"];
 
 /// A quarter-car constant a [`Change`] can name (the thesis' names of [`QuarterCar`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -144,83 +137,6 @@ impl<T: Real> Change<T> {
         check_nonneg("changes.t", self.t)?;
         check_positive("changes.value", self.value)?;
         check_nonneg("changes.ramp", self.ramp)
-    }
-}
-
-/// Which sensors a drive reports (module documentation).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum SensorSet {
-    /// The thesis' measured state and derivative ([`STATE_CHANNELS`]).
-    State,
-    /// Accelerometers and a deflection sensor ([`REALISTIC_CHANNELS`]).
-    #[default]
-    Realistic,
-}
-
-option_names!(SensorSet, "sensors", { State => "state", Realistic => "realistic" });
-
-impl SensorSet {
-    /// The channel names of this set.
-    pub fn channels(&self) -> &'static [&'static str] {
-        match self {
-            SensorSet::State => &STATE_CHANNELS,
-            SensorSet::Realistic => &REALISTIC_CHANNELS,
-        }
-    }
-}
-
-/// Sensor noise levels (standard deviations per sample at the drive's rate).
-///
-/// Defaults, typical of automotive sensors sampled at 100–1000 Hz:
-/// - body accelerometer: 0.02 m/s² white noise (a low-g MEMS part of ~150 µg/√Hz over a
-///   100 Hz band: 150e-6 · 9.81 · √100 ≈ 0.015 m/s²), constant bias ~ N(0, 0.1²) m/s²
-///   (zero-g offset ±10 mg after mounting);
-/// - wheel accelerometer: 0.1 m/s² white noise (a high-g, ±50 g, MEMS part of
-///   ~1 mg/√Hz), bias ~ N(0, 0.3²) m/s²;
-/// - deflection (ride-height) sensor: 0.3 mm white noise (a Hall-effect angle sensor on
-///   the control arm, 12 bits over ±100 mm of travel: 0.05 mm steps, ~0.3 mm noise);
-/// - state set: no noise (set `state`, `deriv` for the thesis' σ_w, σ_v).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SensorNoise<T> {
-    /// Body accelerometer white noise, m/s².
-    pub a_body: T,
-    /// Standard deviation of the body accelerometer's constant bias, m/s².
-    pub a_body_bias: T,
-    /// Wheel accelerometer white noise, m/s².
-    pub a_wheel: T,
-    /// Standard deviation of the wheel accelerometer's constant bias, m/s².
-    pub a_wheel_bias: T,
-    /// Deflection sensor white noise, m.
-    pub deflection: T,
-    /// State set: noise on every measured state (state units).
-    pub state: T,
-    /// State set: noise on every measured derivative (state units per second).
-    pub deriv: T,
-}
-
-impl<T: Real> Default for SensorNoise<T> {
-    fn default() -> Self {
-        Self {
-            a_body: T::of(0.02),
-            a_body_bias: T::of(0.1),
-            a_wheel: T::of(0.1),
-            a_wheel_bias: T::of(0.3),
-            deflection: T::of(0.3e-3),
-            state: T::zero(),
-            deriv: T::zero(),
-        }
-    }
-}
-
-impl<T: Real> SensorNoise<T> {
-    fn validate(&self) -> Result<()> {
-        check_nonneg("noise.a_body", self.a_body)?;
-        check_nonneg("noise.a_body_bias", self.a_body_bias)?;
-        check_nonneg("noise.a_wheel", self.a_wheel)?;
-        check_nonneg("noise.a_wheel_bias", self.a_wheel_bias)?;
-        check_nonneg("noise.deflection", self.deflection)?;
-        check_nonneg("noise.state", self.state)?;
-        check_nonneg("noise.deriv", self.deriv)
     }
 }
 
