@@ -9,7 +9,9 @@ from the true state, the sensor noise levels)."""
 
 from __future__ import annotations
 
+import copy
 import json
+import pickle
 from pathlib import Path
 from typing import Any, Dict, List, Literal, Optional, Tuple
 
@@ -380,3 +382,36 @@ def test_the_readme_monitor_example_prints_what_the_readme_shows(tmp_path: Path,
     out, err = capsys.readouterr()
     assert out.strip() == out_line
     assert err.strip() == err_line.replace("drive.csv", str(log))
+
+
+@pytest.mark.parametrize("protocol", [0, 2, pickle.HIGHEST_PROTOCOL])
+def test_a_pickled_monitor_continues_bit_for_bit(damper_run: vehid.Run, protocol: int) -> None:
+    # A fleet's monitors are saved and restored across restarts: saved after the warm-up,
+    # before the change, the restored one reports the same event and ends in the same state.
+    y = damper_run.y
+    mon = vehid.HealthMonitor(CAR, dt=DT)
+    mon.fit(y[: int(40 / DT)])
+    back = pickle.loads(pickle.dumps(mon, protocol=protocol))
+    twin = copy.deepcopy(mon)
+    assert back.samples == mon.samples and back.estimate == mon.estimate and back.status == mon.status
+    rest = y[int(40 / DT):]
+    events = mon.fit(rest)
+    assert len(events) == 1
+    assert back.fit(rest) == events and twin.fit(rest) == events
+    assert back.estimate == mon.estimate and back.constants == mon.constants and back.reference == mon.reference
+    assert pickle.loads(pickle.dumps(events[0], protocol=protocol)) == events[0]
+
+
+def test_a_corrupt_monitor_pickle_is_refused() -> None:
+    mon = vehid.HealthMonitor(CAR, dt=DT)
+    fn, args, (fmt, version, payload) = mon.__reduce__()
+    fresh = fn(*args)
+    with pytest.raises(vehid.VehidError, match="format 99"):
+        fresh.__setstate__((99, version, payload))
+    with pytest.raises(vehid.VehidError, match="does not decode"):
+        fresh.__setstate__((fmt, version, payload[: len(payload) // 2]))
+    with pytest.raises(vehid.VehidError, match="not a \\(format, version, bytes\\) tuple"):
+        fresh.__setstate__("junk")
+    assert fresh.samples == 0
+    with pytest.raises(vehid.VehidError, match="'M', 'k2' or 'b'"):
+        vehid.Event(1.0, 0.5, "q", 1.0, 2.0, 1.5, 2.5, 1.0)  # type: ignore[arg-type]

@@ -6,12 +6,16 @@ use crate::guard::{borrow, borrow_mut, Interrupts};
 use crate::model::{Kind, PyLinearModel};
 use crate::{core_err, option, VehidError};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyTuple};
+use pyo3::types::{PyBytes, PyDict, PyTuple};
 use vehid_core::health::{self, HealthConfig, Reason, Status};
 use vehid_core::sim::{SensorNoise, SensorSet};
 
 /// Samples between two looks at pending signals in `fit` (some 100 ns each).
 const CHECK: usize = 1 << 16;
+
+/// Version of a pickled monitor's state layout (raise it when the core's serialized form
+/// changes in a way older readers cannot follow).
+pub const STATE_FORMAT: u32 = 1;
 
 /// A detected change of one physical constant (reported by `HealthMonitor`).
 ///
@@ -65,6 +69,37 @@ impl From<health::Event<f64>> for PyEvent {
 
 #[pymethods]
 impl PyEvent {
+    /// An event from its fields (what unpickling calls; the monitor makes them otherwise).
+    #[new]
+    #[pyo3(signature = (t, t_change, parameter, before, after, low, high, change))]
+    #[allow(clippy::too_many_arguments)]
+    fn py_new(
+        t: f64,
+        t_change: f64,
+        parameter: &str,
+        before: f64,
+        after: f64,
+        low: f64,
+        high: f64,
+        change: f64,
+    ) -> PyResult<Self> {
+        let parameter = match parameter {
+            "M" => "M",
+            "k2" => "k2",
+            "b" => "b",
+            other => {
+                return Err(VehidError::new_err(format!("`parameter` must be 'M', 'k2' or 'b', got {}", py_str(other))))
+            }
+        };
+        Ok(Self { t, t_change, parameter, before, after, low, high, change })
+    }
+
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyTuple>> {
+        let e = slf.get();
+        let args = (e.t, e.t_change, e.parameter, e.before, e.after, e.low, e.high, e.change);
+        (slf.get_type(), args).into_pyobject(slf.py())
+    }
+
     /// The event as a dict (JSON-ready): t, t_change, parameter, before, after, low, high, change.
     fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(py);
@@ -354,6 +389,58 @@ impl PyHealthMonitor {
     #[getter]
     fn channels<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyTuple>> {
         PyTuple::new(slf.py(), borrow(slf)?.inner.config().sensors.channels())
+    }
+
+    /// Pickling: `(copyreg.__newobj__, (HealthMonitor, car, dt), state)`, the state
+    /// `(FORMAT, "vehid <version>", postcard bytes of the core monitor)`; a restored monitor
+    /// continues bit for bit.
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyTuple>> {
+        let py = slf.py();
+        let this = borrow(slf)?;
+        let c = this.inner.config().car;
+        let car = py.import("vehid._vehid")?.getattr("QuarterCar")?.call1((
+            c.m_body(),
+            c.m_wheel(),
+            c.k1(),
+            c.k2(),
+            c.b(),
+        ))?;
+        let bytes = postcard::to_allocvec(&this.inner)
+            .map_err(|e| VehidError::new_err(format!("the monitor cannot be saved: {e}")))?;
+        let state = (STATE_FORMAT, format!("vehid {}", env!("CARGO_PKG_VERSION")), PyBytes::new(py, &bytes));
+        let newobj = py.import("copyreg")?.getattr("__newobj__")?;
+        (newobj, (slf.get_type(), car, this.inner.config().dt), state).into_pyobject(py)
+    }
+
+    /// Restores a pickled monitor's state (checked: a corrupt state is a VehidError).
+    fn __setstate__(slf: &Bound<'_, Self>, state: &Bound<'_, PyAny>) -> PyResult<()> {
+        let corrupt = |what: &str| {
+            VehidError::new_err(format!(
+                "cannot restore the health monitor: {what} (the pickle is corrupt, or was not made by vehid)"
+            ))
+        };
+        let Ok((format, version, payload)) = state.extract::<(u32, String, Vec<u8>)>() else {
+            return Err(corrupt("its state is not a (format, version, bytes) tuple"));
+        };
+        if format != STATE_FORMAT {
+            return Err(VehidError::new_err(format!(
+                "cannot restore the health monitor: it was pickled by {version} in state format {format}, and \
+                 this vehid ({}) reads format {STATE_FORMAT} only",
+                env!("CARGO_PKG_VERSION")
+            )));
+        }
+        let inner: health::HealthMonitor<f64> =
+            postcard::from_bytes(&payload).map_err(|e| corrupt(&format!("its payload does not decode ({e})")))?;
+        borrow_mut(slf)?.inner = inner;
+        Ok(())
+    }
+
+    fn __copy__(slf: &Bound<'_, Self>) -> PyResult<Self> {
+        Ok(Self { inner: borrow(slf)?.inner.clone() })
+    }
+
+    fn __deepcopy__(slf: &Bound<'_, Self>, _memo: &Bound<'_, PyAny>) -> PyResult<Self> {
+        Ok(Self { inner: borrow(slf)?.inner.clone() })
     }
 
     fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {

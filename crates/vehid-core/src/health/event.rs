@@ -3,6 +3,7 @@
 
 /// A constant the monitor can name in an [`Event`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum Constant {
     /// Body (sprung) mass `M`, kg: `k2/M` and `b/M` changed by the same factor.
     BodyMass,
@@ -31,6 +32,7 @@ impl core::fmt::Display for Constant {
 
 /// Why the monitor cannot judge at the moment (it then never raises an event).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum Reason {
     /// The road excites too little: a tracked ratio's relative standard error exceeds
     /// `judge_error` (a smooth road, a slow car, the car standing).
@@ -61,6 +63,7 @@ pub enum Status {
 
 /// A detected change of one constant.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Event<T> {
     /// When the event was reported, s (sample index × dt).
     pub t: T,

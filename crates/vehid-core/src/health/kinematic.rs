@@ -27,6 +27,7 @@ use nalgebra::{SMatrix, SVector};
 /// A steady-state gain costs about 20 flops per sample and behaves identically on every
 /// vehicle of a fleet.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct DeflectionFilter<T> {
     dt: T,
     gain: [T; 3],

@@ -30,6 +30,7 @@ pub const MIN_DEFLECTION_NOISE: f64 = 1e-6;
 
 /// Settings of a [`HealthMonitor`].
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct HealthConfig<T> {
     /// Sample interval, s (> 0).
     pub dt: T,
@@ -145,6 +146,7 @@ fn samples_of<T: Real>(seconds: T, dt: T) -> u64 {
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 enum Phase {
     Warmup,
     Monitoring,
@@ -164,6 +166,11 @@ enum Phase {
 /// assert!(mon.update(&[0.1, f64::INFINITY, 0.0]).is_err()); // rejected: nothing changed
 /// ```
 #[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+)]
 pub struct HealthMonitor<T: Real> {
     cfg: HealthConfig<T>,
     n_warm: u64,
@@ -172,7 +179,9 @@ pub struct HealthMonitor<T: Real> {
     n_reacq: u64,
     z: T,
     kf: DeflectionFilter<T>,
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::array2"))]
     ring: [[T; 3]; MAX_DELAY],
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::array"))]
     ring_k: [u64; MAX_DELAY],
     head: usize,
     len: usize,
@@ -279,6 +288,27 @@ impl<T: Real> HealthMonitor<T> {
             events: 0,
             cfg,
         })
+    }
+
+    /// Checks a deserialized monitor (feature `serde`): its settings as [`HealthMonitor::new`]
+    /// checks them, the delay line's indices, and finite statistics, so that a corrupt
+    /// input is an error, never a panic later.
+    #[cfg(feature = "serde")]
+    pub(crate) fn restored(&mut self) -> Result<()> {
+        let fresh = Self::new(self.cfg)?;
+        let corrupt = Error::InvalidArgument { arg: "state", expected: "a health monitor's saved state" };
+        if self.head >= MAX_DELAY || self.len >= self.cfg.stuck_samples || self.run.iter().any(|&r| r > MAX_DELAY) {
+            return Err(corrupt);
+        }
+        if fresh.n_warm != self.n_warm || fresh.n_burn != self.n_burn || fresh.n_settle != self.n_settle {
+            return Err(corrupt);
+        }
+        let finite = |v: T| v.to_f64().is_finite();
+        let stats = [self.sigma2, self.e2_sum, self.e1_sum, self.inflate, self.z];
+        if !stats.iter().all(|&v| finite(v)) || !self.belief.iter().all(|&v| finite(v) && v > T::zero()) {
+            return Err(corrupt);
+        }
+        Ok(())
     }
 
     /// The settings.

@@ -23,6 +23,11 @@ use nalgebra::{SMatrix, SVector};
 /// equation per sample at a few tens of nanoseconds, so a dedicated 3-parameter form is
 /// both simpler and cheaper.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+)]
 pub struct Rls3<T: Real> {
     theta: SVector<T, 3>,
     p: SMatrix<T, 3, 3>,

@@ -272,3 +272,38 @@ fn the_state_sensors_feed_the_same_three_quantities() {
     assert!((events[0].change + 0.10).abs() < 0.03, "{:?}", events[0]);
     assert!(events[0].t > 40.0 && events[0].t < 60.0, "{:?}", events[0]);
 }
+
+#[cfg(feature = "serde")]
+#[test]
+fn a_saved_monitor_continues_bit_for_bit_and_a_corrupt_one_is_refused() {
+    // Saved mid-drive (after the warm-up, before the damper change at 40 s), restored, and
+    // both fed the rest of the drive: the same events and the same state, bit for bit.
+    let car = QuarterCar::<f64>::passenger();
+    let cfg = DriveConfig::new(0.005).with_change(Change::step(40.0, "b", 1350.0).unwrap()).unwrap();
+    let mut drive = QuarterDrive::new(car, cfg, 9301).unwrap();
+    let mut mon = HealthMonitor::new(HealthConfig::new(0.005, car)).unwrap();
+    for _ in 0..(30.0 / 0.005) as usize {
+        assert_eq!(mon.update(drive.next_sample().y()).unwrap(), None);
+    }
+    let bytes = postcard::to_allocvec(&mon).unwrap();
+    let mut back: HealthMonitor<f64> = postcard::from_bytes(&bytes).unwrap();
+    assert_eq!(back, mon);
+    let (mut a, mut b) = (Vec::new(), Vec::new());
+    for _ in 0..(40.0 / 0.005) as usize {
+        let s = drive.next_sample();
+        a.extend(mon.update(s.y()).unwrap());
+        b.extend(back.update(s.y()).unwrap());
+    }
+    assert_eq!(a.len(), 1, "{a:?}");
+    assert_eq!(a, b);
+    assert_eq!(back, mon);
+    // A corrupt delay-line index or settings are a serde error, not a panic later (JSON, to
+    // edit one field).
+    let text = serde_json::to_string(&mon).unwrap();
+    let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    v["head"] = serde_json::json!(99);
+    assert!(serde_json::from_value::<HealthMonitor<f64>>(v).is_err());
+    let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    v["cfg"]["dt"] = serde_json::json!(-1.0);
+    assert!(serde_json::from_value::<HealthMonitor<f64>>(v).is_err());
+}

@@ -34,6 +34,7 @@ pub enum QuarterKnown<T> {
 /// assert!((car.model().a()[(1, 0)] + 140.0).abs() < 1e-12); // -(k1 + k2)/m
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct QuarterCar<T> {
     m_body: T,
     m_wheel: T,

@@ -15,6 +15,7 @@ pub const STATE_CHANNELS: [&str; 8] = ["zw", "vw", "zb", "vb", "dzw", "dvw", "dz
 /// Which sensors a vehicle has: what a drive (`sim::QuarterDrive`) reports and what the
 /// health monitor (`health::HealthMonitor`) reads.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum SensorSet {
     /// The thesis' measured state and derivative ([`STATE_CHANNELS`]).
     State,
