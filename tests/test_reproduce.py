@@ -110,3 +110,16 @@ def test_reproduce_cli_rejects_bad_arguments(capsys: pytest.CaptureFixture[str])
     assert "only" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["reproduce", "--seeds", "0"])
+
+
+def test_reproduce_defines_xi_once_in_words_and_formula(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = _reproduce(tmp_path, 1, capsys)
+    md = (out / "index.md").read_text(encoding="utf-8")
+    html = (out / "index.html").read_text(encoding="utf-8")
+    # Near the top: before the summary, once.
+    assert md.count("## ξ, the error measure") == 1 and md.index("## ξ, the error measure") < md.index("## Summary")
+    assert "sum of the squared relative errors" in md and "ξ_k = Σ_i ((θ_i − θ̂_i(k)) / θ_i)²" in md
+    assert "ξ < 0.08 is the thesis' \"acceptable\"" in md
+    assert html.count("<h2>ξ, the error measure</h2>") == 1
+    assert html.index("<h2>ξ, the error measure</h2>") < html.index("<h2>Summary</h2>")
+    assert "sum of the squared relative errors" in html and "θ̂<sub>i</sub>(k)" in html
