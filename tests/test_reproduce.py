@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import math
 import re
+from html import escape as html_escape
 from pathlib import Path
 
 import pytest
@@ -31,10 +32,10 @@ def test_reproduce_writes_a_report_with_verdicts(tmp_path: Path, capsys: pytest.
     md = (out / "index.md").read_text(encoding="utf-8")
     for fig in ONE_PER_CHAPTER.split(","):
         assert f"### Fig {fig}:" in md
-    marks = re.findall(r"\*(agrees|differs)\*", md)
+    marks = re.findall(r"\*(agrees|differs|inconclusive)\*", md)
     assert len(marks) >= 4
     html = (out / "index.html").read_text(encoding="utf-8")
-    assert "<html>" in html and ("agrees" in html or "differs" in html)
+    assert "<html>" in html and ("agrees" in html or "differs" in html or "inconclusive" in html)
     try:
         import matplotlib  # noqa: F401
     except ImportError:
@@ -123,3 +124,43 @@ def test_reproduce_defines_xi_once_in_words_and_formula(tmp_path: Path, capsys: 
     assert html.count("<h2>ξ, the error measure</h2>") == 1
     assert html.index("<h2>ξ, the error measure</h2>") < html.index("<h2>Summary</h2>")
     assert "sum of the squared relative errors" in html and "θ̂<sub>i</sub>(k)" in html
+
+
+COUNTS = re.compile(r"^reproduce: (\d+) agree, (\d+) differ, (\d+) inconclusive, in (\d+\.\d) s$")
+
+
+def test_reproduce_a_lower_bound_is_inconclusive_not_agrees(tmp_path: Path,
+                                                            capsys: pytest.CaptureFixture[str]) -> None:
+    # Fig 4-2 claims ξ < 0.08 takes more than 40,000 iterations; 400 iterations can only bound
+    # that from below: the runner says "lower bound only" (and agrees = true), the report
+    # says inconclusive, everywhere it counts or marks verdicts.
+    out = tmp_path / "lb"
+    assert main(["reproduce", "--quick", "--only", "4-2", "--out", str(out), "--seeds", "2",
+                 "--max-iterations", "400", "--no-tables"]) == 0
+    captured = capsys.readouterr()
+    data = json.loads((out / "report.json").read_text(encoding="utf-8"))
+    verdicts = data["figures"][0]["verdicts"]
+    lower = [v for v in verdicts if "lower bound only" in v["note"]]
+    assert len(lower) == 1 and lower[0]["agrees"] is True
+    decided = [v for v in verdicts if v not in lower]
+    n_agree = sum(v["agrees"] for v in decided)
+    last = captured.err.strip().splitlines()[-1].split("\r")[-1].strip()
+    m = COUNTS.match(last)
+    assert m, last
+    assert (int(m[1]), int(m[2]), int(m[3])) == (n_agree, len(decided) - n_agree, 1)
+
+    md = (out / "index.md").read_text(encoding="utf-8")
+    assert f"{n_agree} claims and table rows *agree*, {len(decided) - n_agree} *differ*, 1 *inconclusive*" in md
+    confirms = md.split("### Claims vehid confirms")[1].split("### Claims vehid does not confirm")[0]
+    undecided = md.split("### Claims this run cannot decide (*inconclusive*)")[1].split("## Figures")[0]
+    assert lower[0]["claim"] not in confirms and lower[0]["claim"] in undecided
+    row = next(line for line in md.splitlines() if line.startswith(f"| {lower[0]['claim']} |"))
+    assert "| *inconclusive* |" in row
+    assert sorted(re.findall(r"\| \*(agrees|differs|inconclusive)\* \|", md)) == sorted(
+        ["inconclusive"] + ["agrees" if v["agrees"] else "differs" for v in decided])
+
+    html = (out / "index.html").read_text(encoding="utf-8")
+    assert "1 inconclusive" in html and "<h3>Claims this run cannot decide (inconclusive)</h3>" in html
+    assert html.count('<em class="inconclusive">inconclusive</em>') == 1
+    html_undecided = html.split("cannot decide (inconclusive)</h3>")[1].split("</ul>")[0]
+    assert html_escape(lower[0]["claim"]) in html_undecided

@@ -5,7 +5,8 @@ runner live in Rust (the ``vehid-thesis`` crate); this module renders what the r
 measured: one PNG per figure (ξ_k against iterations, log scale, median and 10–90 % band
 over seeds; needs the optional ``vehid[plot]`` extra, i.e. matplotlib) and
 ``index.md`` / ``index.html`` with, per figure, the thesis' claim and vehid's measured
-counterpart marked *agrees* or *differs*, and the tables for Eq 4.28, Eq 4.32, Eq 4.34 and
+counterpart marked *agrees*, *differs* or *inconclusive* (the run was shorter than the claim
+and bounds the measured number from below only), and the tables for Eq 4.28, Eq 4.32, Eq 4.34 and
 Table I. Every number in the report is computed by the run.
 
 >>> data = run(quick=True, only=["3-5"], seeds=2, max_iterations=100, tables=False)
@@ -127,16 +128,40 @@ def _plot_figure(plt: Any, fig: Json, path: Path) -> None:
     plt.close(f)
 
 
-def _mark(agrees: bool) -> str:
-    return "*agrees*" if agrees else "*differs*"
+#: The three verdicts, in the order the report lists them.
+VERDICTS = ("agrees", "differs", "inconclusive")
+
+#: What the runner writes into a verdict's note when the run was shorter than the claim and
+#: only bounds the measured number from below (crates/vehid-thesis/src/verdict.rs, the
+#: SettlesAfter claims); the runner's ``agrees`` is then true, but nothing was decided.
+LOWER_BOUND = "lower bound only"
 
 
-def _claim_rows(data: Json) -> Tuple[List[Tuple[str, Json]], List[Tuple[str, Json]]]:
-    ok: List[Tuple[str, Json]] = []
-    bad: List[Tuple[str, Json]] = []
+def _verdict(v: Json) -> str:
+    """``agrees``, ``differs``, or ``inconclusive`` where the run only bounds the claim from below."""
+    if LOWER_BOUND in v["note"]:
+        return "inconclusive"
+    return "agrees" if v["agrees"] else "differs"
+
+
+def _mark(verdict: str) -> str:
+    return f"*{verdict}*"
+
+
+Rows = Dict[str, List[Tuple[str, Json]]]
+
+INCONCLUSIVE = (
+    "the run was shorter than the claim and bounds the measured number from below only; "
+    "the full mode runs the thesis' iterations"
+)
+
+
+def _claim_rows(data: Json) -> Rows:
+    """Every figure claim and table row, as ``(where, verdict)``, by verdict (keys VERDICTS)."""
+    rows: Rows = {k: [] for k in VERDICTS}
     for fig in data["figures"]:
         for v in fig["verdicts"]:
-            (ok if v["agrees"] else bad).append((f"Fig {fig['id']}", v))
+            rows[_verdict(v)].append((f"Fig {fig['id']}", v))
     for t in data["tables"]:
         for r in t["rows"]:
             item = {
@@ -145,8 +170,13 @@ def _claim_rows(data: Json) -> Tuple[List[Tuple[str, Json]], List[Tuple[str, Jso
                 "agrees": r["agrees"],
                 "note": r["note"],
             }
-            (ok if r["agrees"] else bad).append((t["title"].split(":")[0], item))
-    return ok, bad
+            rows[_verdict(item)].append((t["title"].split(":")[0], item))
+    return rows
+
+
+def _counts(rows: Rows) -> str:
+    """``N agree, M differ, K inconclusive`` (the final stderr line's words)."""
+    return f"{len(rows['agrees'])} agree, {len(rows['differs'])} differ, {len(rows['inconclusive'])} inconclusive"
 
 
 #: ξ in words and formula, once per report (Eq 3.17; thesis notes §5).
@@ -180,7 +210,8 @@ def write_report(data: Json, out: Path, command: str = "vehid reproduce") -> Pat
                 name = f"fig-{fig['id']}.png"
                 _plot_figure(plt, fig, out / name)
                 images[fig["id"]] = name
-    ok, bad = _claim_rows(data)
+    rows = _claim_rows(data)
+    ok, bad, open_ = rows["agrees"], rows["differs"], rows["inconclusive"]
     skipped = [f for f in data["figures"] if f["skipped"]]
     mode = "quick" if data["quick"] else "full"
     seeds = max((f["seeds"] for f in data["figures"]), default=0)
@@ -200,7 +231,8 @@ def write_report(data: Json, out: Path, command: str = "vehid reproduce") -> Pat
     md += [
         "## Summary",
         "",
-        f"{len(ok)} claims and table rows *agree*, {len(bad)} *differ*, {len(skipped)} figures skipped.",
+        f"{len(ok)} claims and table rows *agree*, {len(bad)} *differ*, {len(open_)} *inconclusive* "
+        f"({INCONCLUSIVE}), {len(skipped)} figures skipped.",
         "",
         "### Claims vehid confirms",
         "",
@@ -214,6 +246,11 @@ def write_report(data: Json, out: Path, command: str = "vehid reproduce") -> Pat
     md += [
         f"- {w}: {_md_cell(v['claim'])} — {_md_cell(v['measured'])}. {_md_cell(v['note'])}"
         for w, v in bad
+    ] or ["- none"]
+    md += ["", "### Claims this run cannot decide (*inconclusive*)", ""]
+    md += [
+        f"- {w}: {_md_cell(v['claim'])} — {_md_cell(v['measured'])}. {_md_cell(v['note'])}"
+        for w, v in open_
     ] or ["- none"]
     if skipped:
         md += ["", "### Not run", ""]
@@ -247,7 +284,7 @@ def write_report(data: Json, out: Path, command: str = "vehid reproduce") -> Pat
             md += ["| thesis | vehid | verdict | explanation |", "|---|---|---|---|"]
             for v in fig["verdicts"]:
                 md.append(
-                    f"| {_md_cell(v['claim'])} | {_md_cell(v['measured'])} | {_mark(v['agrees'])} | "
+                    f"| {_md_cell(v['claim'])} | {_md_cell(v['measured'])} | {_mark(_verdict(v))} | "
                     f"{_md_cell(v['note'])} |"
                 )
             md.append("")
@@ -265,12 +302,12 @@ def write_report(data: Json, out: Path, command: str = "vehid reproduce") -> Pat
         for r in t["rows"]:
             md.append(
                 f"| {_md_cell(r['label'])} | {_md_cell(r['thesis'])} | {_md_cell(r['vehid'])} | "
-                f"{_mark(r['agrees'])} | {_md_cell(r['note'])} |"
+                f"{_mark(_verdict(r))} | {_md_cell(r['note'])} |"
             )
         md.append("")
     index_md = out / "index.md"
     index_md.write_text("\n".join(md), encoding="utf-8")
-    (out / "index.html").write_text(_html(data, images, head, plots, ok, bad, skipped), encoding="utf-8")
+    (out / "index.html").write_text(_html(data, images, head, plots, rows, skipped), encoding="utf-8")
     (out / "report.json").write_text(json.dumps(data, default=str), encoding="utf-8")
     return index_md
 
@@ -280,20 +317,21 @@ def _html(
     images: Dict[str, str],
     head: str,
     plots: str,
-    ok: List[Tuple[str, Json]],
-    bad: List[Tuple[str, Json]],
+    rows: Rows,
     skipped: List[Json],
 ) -> str:
     e = html.escape
 
-    def mark(a: bool) -> str:
-        return '<em class="ok">agrees</em>' if a else '<em class="bad">differs</em>'
+    ok, bad, open_ = rows["agrees"], rows["differs"], rows["inconclusive"]
+
+    def mark(verdict: str) -> str:
+        return f'<em class="{verdict}">{verdict}</em>'
 
     h: List[str] = [
         "<!doctype html><html><head><meta charset='utf-8'><title>vehid reproduces Kessler (1986)</title>",
         "<style>body{font-family:sans-serif;max-width:1000px;margin:auto;padding:1em}"
         "table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #ccc;padding:3px 6px;font-size:90%}"
-        ".formula{font-family:serif;font-size:120%;margin-left:2em}.ok{color:#176117}.bad{color:#a01b1b}img{max-width:100%}</style></head><body>",
+        ".formula{font-family:serif;font-size:120%;margin-left:2em}.agrees{color:#176117}.differs{color:#a01b1b}.inconclusive{color:#8a5a00}img{max-width:100%}</style></head><body>",
         "<h1>vehid reproduces Kessler (1986), Ch. III–VI</h1>",
         f"<p>{e(head)}<br>{e(plots)}</p>",
         "<h2>ξ, the error measure</h2>",
@@ -301,7 +339,7 @@ def _html(
         "<p class='formula'>ξ<sub>k</sub> = Σ<sub>i</sub> ((θ<sub>i</sub> − θ̂<sub>i</sub>(k)) / θ<sub>i</sub>)²</p>",
         f"<p>{e(XI_ACCEPT)}</p>",
         f"<h2>Summary</h2><p>{len(ok)} claims and table rows agree, {len(bad)} differ, "
-        f"{len(skipped)} figures skipped.</p>",
+        f"{len(open_)} inconclusive ({e(INCONCLUSIVE)}), {len(skipped)} figures skipped.</p>",
         "<h3>Claims vehid confirms</h3><ul>",
     ]
     h += [
@@ -310,6 +348,8 @@ def _html(
     ]
     h += ["</ul><h3>Claims vehid does not confirm</h3><ul>"]
     h += [f"<li>{e(w)}: {e(v['claim'])} — {e(v['measured'])}. {e(v['note'])}</li>" for w, v in bad]
+    h += ["</ul><h3>Claims this run cannot decide (inconclusive)</h3><ul>"]
+    h += [f"<li>{e(w)}: {e(v['claim'])} — {e(v['measured'])}. {e(v['note'])}</li>" for w, v in open_]
     h += ["</ul>"]
     if skipped:
         h += ["<h3>Not run</h3><ul>"] + [f"<li>Fig {e(f['id'])}: {e(f['skipped'])}</li>" for f in skipped] + ["</ul>"]
@@ -326,7 +366,7 @@ def _html(
             for v in fig["verdicts"]:
                 h.append(
                     f"<tr><td>{e(v['claim'])}</td><td>{e(v['measured'])}</td>"
-                    f"<td>{mark(v['agrees'])}</td><td>{e(v['note'])}</td></tr>"
+                    f"<td>{mark(_verdict(v))}</td><td>{e(v['note'])}</td></tr>"
                 )
             h.append("</table>")
         h.append(f"<p><small>Assumptions: {e(fig['assumptions'])}</small></p>")
@@ -337,7 +377,7 @@ def _html(
         for r in t["rows"]:
             h.append(
                 f"<tr><td>{e(r['label'])}</td><td>{e(r['thesis'])}</td><td>{e(r['vehid'])}</td>"
-                f"<td>{mark(r['agrees'])}</td><td>{e(r['note'])}</td></tr>"
+                f"<td>{mark(_verdict(r))}</td><td>{e(r['note'])}</td></tr>"
             )
         h.append("</table>")
     h.append("</body></html>")
@@ -385,10 +425,9 @@ def command(args: argparse.Namespace) -> int:
     )
     argv = ["vehid", "reproduce"] + (["--quick"] if args.quick else []) + (["--only", args.only] if args.only else [])
     path = write_report(data, Path(args.out), " ".join(argv))
-    ok, bad = _claim_rows(data)
     if not args.quiet:
         print(
-            f"reproduce: {len(ok)} agree, {len(bad)} differ, in {time.perf_counter() - t0:.1f} s",
+            f"reproduce: {_counts(_claim_rows(data))}, in {time.perf_counter() - t0:.1f} s",
             file=sys.stderr,
         )
     print(path)
