@@ -164,3 +164,38 @@ def test_reproduce_a_lower_bound_is_inconclusive_not_agrees(tmp_path: Path,
     assert html.count('<em class="inconclusive">inconclusive</em>') == 1
     html_undecided = html.split("cannot decide (inconclusive)</h3>")[1].split("</ul>")[0]
     assert html_escape(lower[0]["claim"]) in html_undecided
+
+
+def test_reproduce_header_gives_the_end_to_end_time(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    # The time the user waits includes drawing the figures: make each take 0.25 s more and
+    # the header's end-to-end time (not the runner's) must show it.
+    import time
+
+    import vehid.reproduce as rep
+
+    draw = rep._plot_figure
+
+    def slow(*args: object) -> None:
+        time.sleep(0.25)
+        draw(*args)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(rep, "_plot_figure", slow)
+    monkeypatch.setattr(rep, "_load_pyplot", lambda: pytest.importorskip("matplotlib.pyplot"))
+    out = tmp_path / "t"
+    assert main(["reproduce", "--quick", "--only", ONE_PER_CHAPTER, "--out", str(out), "--seeds", "2",
+                 "--max-iterations", "100", "--no-tables"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()[-1].split("\r")[-1].strip()
+    md = (out / "index.md").read_text(encoding="utf-8")
+    html = (out / "index.html").read_text(encoding="utf-8")
+    m = re.search(r"in (\d+\.\d) s end to end \(from the command's start to writing this report; "
+                  r"the runner (\d+\.\d) s of it", md)
+    assert m, md.splitlines()[2]
+    total, runner = float(m[1]), float(m[2])
+    data = json.loads((out / "report.json").read_text(encoding="utf-8"))
+    assert runner == round(data["seconds"], 1)
+    assert total >= runner + 4 * 0.25 - 0.05
+    line = COUNTS.match(err)
+    assert line, err
+    assert float(line[4]) >= total - 0.05  # the final line: the whole command, the report written
+    assert f"in {m[1]} s end to end" in html
