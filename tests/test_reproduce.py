@@ -8,6 +8,7 @@ import math
 import re
 from html import escape as html_escape
 from pathlib import Path
+from typing import Any, Dict, List
 
 import pytest
 
@@ -199,3 +200,83 @@ def test_reproduce_header_gives_the_end_to_end_time(tmp_path: Path, capsys: pyte
     assert line, err
     assert float(line[4]) >= total - 0.05  # the final line: the whole command, the report written
     assert f"in {m[1]} s end to end" in html
+
+
+def _drawn(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, data: Dict[str, Any]) -> Dict[str, Any]:
+    """Renders the report and keeps every matplotlib figure open: {figure id: Axes}."""
+    plt = pytest.importorskip("matplotlib.pyplot")
+    kept: List[Any] = []
+    monkeypatch.setattr(plt, "close", kept.append)
+    vehid.reproduce.write_report(data, tmp_path / "figs")
+    axes = {}
+    for f in kept:
+        ax = f.axes[0]
+        axes[ax.get_title().split(":")[0].removeprefix("Fig ")] = ax
+    return axes
+
+
+def _outside_math(text: str) -> str:
+    return re.sub(r"\$[^$]*\$", "", text)
+
+
+def test_reproduce_figures_label_in_mathtext_with_units(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    data = vehid.reproduce.run(quick=True, only=["4-4", "4-6", "4-7", "6-9"], seed=1, seeds=2,
+                               max_iterations=2000, tables=False)
+    axes = _drawn(tmp_path, monkeypatch, data)
+    assert set(axes) == {"4-4", "4-6", "4-7", "6-9"}
+    for fid, ax in axes.items():
+        texts = [ax.get_title(), ax.get_xlabel(), ax.get_ylabel()]
+        texts += [t.get_text() for t in ax.get_legend().get_texts()]
+        texts += [t.get_text() for t in ax.figure.texts]
+        for t in texts:
+            # σ, ξ and subscripts only inside mathtext: no raw underscores, no bare σ_w.
+            assert "_" not in _outside_math(t) and "σ" not in _outside_math(t), (fid, t)
+        if fid != "4-7":
+            legend = [t.get_text() for t in ax.get_legend().get_texts()]
+            assert all(r"$\sigma_u$ = " in t and " m, " in t for t in legend[:-1]), legend
+            assert legend[-1] == r"$\xi$ = 0.08 (acceptable)"
+            assert ax.get_ylabel().startswith(r"$\xi_k = \sum_i")
+            assert "iteration $k$ (one sample = 0.05 s" in ax.get_xlabel()
+            caption = ax.figure.texts[0].get_text()
+            assert "road input, m" in caption and "m/s²" in caption
+            assert ("rad/s" in caption) == (fid == "6-9")
+    assert r"$\sigma_{w}$ = 2 % of $\sigma_{u}$" in axes["4-6"].get_title()
+
+
+def test_reproduce_pulse_legends_give_the_width(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    data = vehid.reproduce.run(quick=True, only=["4-4"], seed=1, seeds=2, max_iterations=300, tables=False)
+    legend = [t.get_text() for t in _drawn(tmp_path, monkeypatch, data)["4-4"].get_legend().get_texts()]
+    assert [t.split(":")[0] for t in legend[:4]] == [
+        f"pulse {w}, pulse width {w} × 0.05 s = {0.05 * w:.2f} s" for w in (1, 2, 3, 4)]
+    md = (tmp_path / "figs" / "index.md").read_text(encoding="utf-8")
+    assert "| pulse 3 (pulse width 3 × 0.05 s = 0.15 s) |" in md
+    assert "| curve | σ_ic (m, m/s) | σ_u (m) | σ_w (m, m/s) | σ_v (m/s, m/s²) |" in md
+
+
+def test_reproduce_log_iterations_where_the_action_is_early(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # Fig 4-4: the pulses act at the ninth sample and ξ is flat after about 100: on a linear
+    # axis of 2000 iterations that is the first 5 %.
+    data = vehid.reproduce.run(quick=True, only=["4-4"], seed=1, seeds=2, max_iterations=2000, tables=False)
+    fig = data["figures"][0]
+    assert vehid.reproduce._action_is_early(fig)
+    # A curve that changes evenly over the run keeps a linear axis.
+    even = [10 ** (-k / 500) for k in range(1, 1001)]
+    slow = dict(fig, id="9-9", k=list(range(1, 1001)),
+                curves=[dict(fig["curves"][0], label="slow", pulse_width=0, median=even,
+                             p10=[v / 2 for v in even], p90=[v * 2 for v in even])])
+    assert not vehid.reproduce._action_is_early(slow)
+    axes = _drawn(tmp_path, monkeypatch, dict(data, figures=[fig, slow]))
+    assert axes["4-4"].get_xscale() == "log" and "log axis" in axes["4-4"].get_xlabel()
+    assert axes["9-9"].get_xscale() == "linear" and "linear axis" in axes["9-9"].get_xlabel()
+
+
+def test_reproduce_analytic_figures_say_so_and_draw_no_band(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    data = vehid.reproduce.run(quick=True, only=["4-7", "4-2"], seed=1, seeds=1, max_iterations=100, tables=False)
+    axes = _drawn(tmp_path, monkeypatch, data)
+    title = axes["4-7"].get_title()
+    assert "analytic" in title.split("\n")[1] and "not simulated" in title
+    assert "seeds" not in title.replace("no seeds", "")
+    assert "band over" not in title and not axes["4-7"].collections
+    assert "Eq 4.25" in axes["4-7"].get_legend().get_texts()[0].get_text()
+    # One seed: no band either, and the title says so.
+    assert "one seed (no band)" in axes["4-2"].get_title() and not axes["4-2"].collections

@@ -2,8 +2,9 @@
 
 The experiments (one per figure of Ch. III–VI, with the captions' noise levels) and the
 runner live in Rust (the ``vehid-thesis`` crate); this module renders what the runner
-measured: one PNG per figure (ξ_k against iterations, log scale, median and 10–90 % band
-over seeds; needs the optional ``vehid[plot]`` extra, i.e. matplotlib) and
+measured: one PNG per figure (ξ_k on a log scale against iterations, themselves on a log
+axis where the action is early; median and 10–90 % band over seeds; analytic figures drawn
+from their formula; needs the optional ``vehid[plot]`` extra, i.e. matplotlib) and
 ``index.md`` / ``index.html`` with, per figure, the thesis' claim and vehid's measured
 counterpart marked *agrees*, *differs* or *inconclusive* (the run was shorter than the claim
 and bounds the measured number from below only), and the tables for Eq 4.28, Eq 4.32, Eq 4.34 and
@@ -21,6 +22,7 @@ import html
 import importlib
 import json
 import math
+import re
 import sys
 import time
 from pathlib import Path
@@ -81,11 +83,74 @@ def _median(xs: List[float]) -> float:
     return v[n // 2] if n % 2 else 0.5 * (v[n // 2 - 1] + v[n // 2])
 
 
+#: The sample interval of every experiment, s (one iteration = one sample; vehid-thesis' DT).
+DT = 0.05
+
+
+def _tex(text: str) -> str:
+    """A runner label as matplotlib mathtext: ``σ_u`` → ``$\\sigma_u$``, ``σ_ic`` → ``$\\sigma_{ic}$``,
+    ``ξ`` → ``$\\xi$``; no raw underscore is left (one outside a symbol becomes a space)."""
+    text = text.replace("$", r"\$")
+    text = re.sub(r"σ_(\w+)", lambda m: rf"$\sigma_{{{m[1]}}}$", text)
+    text = text.replace("ξ", r"$\xi$")
+    return re.sub(r"(?<!\\sigma)_(?![{])", " ", text)
+
+
+def _units(model: str) -> Tuple[str, str]:
+    """The units of (σ_ic and σ_w, σ_v) for a model: per state, and per state derivative."""
+    if model.startswith("Half"):
+        return "m, m/s, rad, rad/s", "m/s, m/s², rad/s, rad/s²"
+    return "m, m/s", "m/s, m/s²"
+
+
+def _pulse(c: Json) -> str:
+    """The pulse's width, e.g. ``pulse width 2 × 0.05 s = 0.10 s``; empty without a pulse."""
+    w = c["pulse_width"]
+    return f"pulse width {w} × {DT:g} s = {w * DT:.2f} s" if w else ""
+
+
 def _sigmas(c: Json) -> str:
-    s = f"σ_ic={c['ic']:g}, σ_u={c['road']:g}, σ_w={c['state']:g}, σ_v={c['deriv']:g}"
-    if c["pulse_width"] and "pulse" not in c["label"]:
-        s += f", pulse {c['pulse_width']} cycles"
+    """The curve's noise levels in mathtext; σ_u with its unit (m), the per-state ones in the caption."""
+    s = (
+        rf"$\sigma_{{ic}}$ = {c['ic']:g}, $\sigma_u$ = {c['road']:g} m, "
+        rf"$\sigma_w$ = {c['state']:g}, $\sigma_v$ = {c['deriv']:g}"
+    )
     return s
+
+
+def _legend_label(c: Json) -> str:
+    """The curve's legend entry: its name, its pulse's width if it has one, its noise levels."""
+    pulse = f", {_pulse(c)}" if c["pulse_width"] else ""
+    return f"{_tex(c['label'])}{pulse}: {_sigmas(c)}"
+
+
+#: Fraction of the iterations that counts as "early", and the share of a median curve's
+#: range (in decades of ξ) that must happen in it for the iterations to go on a log axis.
+EARLY, EARLY_SHARE = 0.1, 0.5
+
+
+def _action_is_early(fig: Json) -> bool:
+    """Whether some median curve covers at least half of its range of log ξ within the first
+    10 % of the iterations (the identifiers' transients): then a linear axis would squeeze
+    it into a sliver at the left and the iterations go on a log axis."""
+    k = fig["k"]
+    if not k or k[0] < 1:
+        return False
+    cut = EARLY * k[-1]
+    for c in fig["curves"]:
+        pts = [(kk, math.log10(v)) for kk, v in zip(k, c["median"]) if math.isfinite(v) and v > 0]
+        if len(pts) < 2:
+            continue
+        total = max(y for _, y in pts) - min(y for _, y in pts)
+        early = [y for kk, y in pts if kk <= cut]
+        if total > 0 and early and (max(early) - min(early)) >= EARLY_SHARE * total:
+            return True
+    return False
+
+
+def _is_analytic(fig: Json) -> bool:
+    """A figure drawn from a formula (no simulation, no seeds): the runner gives it no curves."""
+    return fig["skipped"] is None and not fig["curves"]
 
 
 def _load_pyplot() -> Any:
@@ -98,32 +163,47 @@ def _load_pyplot() -> Any:
 
 
 def _plot_figure(plt: Any, fig: Json, path: Path) -> None:
-    f, ax = plt.subplots(figsize=(7.5, 4.6))
+    f, ax = plt.subplots(figsize=(7.5, 4.9))
     fid = fig["id"]
-    if fid == "4-7":
+    if _is_analytic(fig):
         # Eq 4.25: triangular autocorrelation of the held road noise, T = 0.05 s.
-        t = 0.05
+        t = DT
         taus = [t * (i / 50.0 - 2.0) for i in range(201)]
-        ax.plot(taus, [max(0.0, 1.0 - abs(tau) / t) for tau in taus], color="C0")
-        ax.set_xlabel("τ, s")
-        ax.set_ylabel("R_u(τ) / σ_u²")
+        ax.plot(taus, [max(0.0, 1.0 - abs(tau) / t) for tau in taus], color="C0",
+                label=rf"$R_u(\tau) / \sigma_u^2 = \max(0, 1 - |\tau| / T)$, $T$ = {t:g} s (Eq 4.25)")
+        ax.set_xlabel(r"lag $\tau$ (s)")
+        ax.set_ylabel(r"$R_u(\tau) / \sigma_u^2$ (dimensionless)")
+        ax.legend(fontsize=8, loc="upper right")
+        ax.grid(True, alpha=0.25)
+        sub = "analytic: drawn from the formula (Eq 4.25), not simulated: no seeds, no band"
     else:
         k = fig["k"]
         for i, c in enumerate(fig["curves"]):
             med = [v if math.isfinite(v) and v > 0 else math.nan for v in c["median"]]
-            lo = [v if math.isfinite(v) and v > 0 else math.nan for v in c["p10"]]
-            hi = [v if math.isfinite(v) and v > 0 else math.nan for v in c["p90"]]
             color = f"C{i}"
-            ax.plot(k, med, color=color, lw=1.4, label=f"{c['label']}: {_sigmas(c)}")
-            ax.fill_between(k, lo, hi, color=color, alpha=0.18, lw=0)
-        ax.axhline(0.08, color="k", ls="--", lw=0.8, label="ξ = 0.08 (acceptable)")
+            ax.plot(k, med, color=color, lw=1.4, label=_legend_label(c))
+            if fig["seeds"] > 1:
+                lo = [v if math.isfinite(v) and v > 0 else math.nan for v in c["p10"]]
+                hi = [v if math.isfinite(v) and v > 0 else math.nan for v in c["p90"]]
+                ax.fill_between(k, lo, hi, color=color, alpha=0.18, lw=0)
+        ax.axhline(0.08, color="k", ls="--", lw=0.8, label=r"$\xi$ = 0.08 (acceptable)")
         ax.set_yscale("log")
-        ax.set_xlabel("iterations k")
-        ax.set_ylabel("ξ_k (Eq 3.17)")
-        ax.legend(fontsize=7, loc="best")
+        early = _action_is_early(fig)
+        if early:
+            ax.set_xscale("log")
+        ax.set_xlabel(rf"iteration $k$ (one sample = {DT:g} s; {'log' if early else 'linear'} axis)")
+        ax.set_ylabel(r"$\xi_k = \sum_i\,((\theta_i - \hat{\theta}_i(k)) / \theta_i)^2$")
+        ax.legend(fontsize=6.5, loc="best")
         ax.grid(True, which="both", alpha=0.25)
-    ax.set_title(f"Fig {fid}: {fig['title']}\nvehid, median and 10–90 % band over {fig['seeds']} seeds", fontsize=9)
-    f.tight_layout()
+        state, deriv = _units(fig["model"])
+        f.text(0.01, 0.005,
+               rf"$\sigma_{{ic}}$ initial state, $\sigma_w$ state measurement noise: per state, in {state}; "
+               rf"$\sigma_u$ road input, m; $\sigma_v$ derivative measurement noise, in {deriv}",
+               fontsize=6.5, color="0.3", ha="left", va="bottom")
+        sub = (f"vehid, median and 10–90 % band over {fig['seeds']} seeds" if fig["seeds"] > 1
+               else "vehid, one seed (no band)")
+    ax.set_title(f"Fig {fid}: {_tex(fig['title'])}\n{sub}", fontsize=9)
+    f.tight_layout(rect=(0, 0.03, 1, 1))
     f.savefig(path, dpi=110)
     plt.close(f)
 
@@ -232,7 +312,9 @@ def write_report(data: Json, out: Path, command: str = "vehid reproduce", starte
             f"{seeds} seeds per curve, base seed {data['base_seed']}, {data['threads']} threads."
         )
     plots = (
-        "Figures: ξ_k against iterations on a log axis, median over seeds (line) and 10–90 % band (shaded)."
+        "Figures: ξ_k (log axis) against iterations, median over seeds (line) and 10–90 % band (shaded); "
+        "the iterations on a log axis where the action is early (each figure's axis says which), "
+        "Fig 4-7 drawn from its formula."
         if plt is not None
         else "matplotlib is not installed (`pip install vehid[plot]`): the report has no images; "
         "every number below is still computed."
@@ -279,14 +361,16 @@ def write_report(data: Json, out: Path, command: str = "vehid reproduce", starte
             iters = fig["iterations"]
             note = "" if iters == fig["thesis_iterations"] else f" (the table's full run: {fig['thesis_iterations']})"
             md += [f"{iters} iterations{note}, {fig['seeds']} seeds.", ""]
+            state, deriv = _units(fig["model"])
             md += [
-                "| curve | σ_ic | σ_u | σ_w | σ_v | identifier | median ξ at end [10–90 %] |",
+                f"| curve | σ_ic ({state}) | σ_u (m) | σ_w ({state}) | σ_v ({deriv}) | identifier "
+                "| median ξ at end [10–90 %] |",
                 "|---|---|---|---|---|---|---|",
             ]
             for c in fig["curves"]:
                 fin = c["final_xi"]
                 lo, hi = c["p10"][-1], c["p90"][-1]
-                label = c["label"] + (f" (pulse {c['pulse_width']})" if c["pulse_width"] else "")
+                label = c["label"] + (f" ({_pulse(c)})" if c["pulse_width"] else "")
                 md.append(
                     f"| {_md_cell(label)} | {c['ic']:g} | {c['road']:g} | {c['state']:g} | {c['deriv']:g} | "
                     f"`{_md_cell(c['ident'])}` | {_fmt(_median(fin))} [{_fmt(lo)}, {_fmt(hi)}] |"
