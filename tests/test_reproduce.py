@@ -265,6 +265,13 @@ def test_reproduce_log_iterations_where_the_action_is_early(tmp_path: Path, monk
                 curves=[dict(fig["curves"][0], label="slow", pulse_width=0, median=even,
                              p10=[v / 2 for v in even], p90=[v * 2 for v in even])])
     assert not vehid.reproduce._action_is_early(slow)
+    # Nor does a figure whose one moving curve moves late, beside curves that hardly move
+    # early (Fig 5-2: the Lyapunov gain diverges after 100 iterations, the Venter gains sit).
+    late = [10.0 if k < 500 else 10.0 ** (1 + (k - 500) / 250) for k in range(1, 1001)]
+    early_flat = [8.0 if k < 50 else 6.0 for k in range(1, 1001)]
+    mixed = dict(slow, id="9-8", curves=[dict(slow["curves"][0], median=late),
+                                         dict(slow["curves"][0], median=early_flat)])
+    assert not vehid.reproduce._action_is_early(mixed)
     axes = _drawn(tmp_path, monkeypatch, dict(data, figures=[fig, slow]))
     assert axes["4-4"].get_xscale() == "log" and "log axis" in axes["4-4"].get_xlabel()
     assert axes["9-9"].get_xscale() == "linear" and "linear axis" in axes["9-9"].get_xlabel()

@@ -130,22 +130,23 @@ EARLY, EARLY_SHARE = 0.1, 0.5
 
 
 def _action_is_early(fig: Json) -> bool:
-    """Whether some median curve covers at least half of its range of log ξ within the first
-    10 % of the iterations (the identifiers' transients): then a linear axis would squeeze
-    it into a sliver at the left and the iterations go on a log axis."""
+    """Whether the median curves cover at least half of their range of log ξ (summed over
+    the curves, so a curve that hardly moves weighs little) within the first 10 % of the
+    iterations (the identifiers' transients): then a linear axis would squeeze the action
+    into a sliver at the left and the iterations go on a log axis."""
     k = fig["k"]
     if not k or k[0] < 1:
         return False
     cut = EARLY * k[-1]
+    early_range = total_range = 0.0
     for c in fig["curves"]:
         pts = [(kk, math.log10(v)) for kk, v in zip(k, c["median"]) if math.isfinite(v) and v > 0]
-        if len(pts) < 2:
-            continue
-        total = max(y for _, y in pts) - min(y for _, y in pts)
         early = [y for kk, y in pts if kk <= cut]
-        if total > 0 and early and (max(early) - min(early)) >= EARLY_SHARE * total:
-            return True
-    return False
+        if len(pts) < 2 or not early:
+            continue
+        total_range += max(y for _, y in pts) - min(y for _, y in pts)
+        early_range += max(early) - min(early)
+    return total_range > 0 and early_range >= EARLY_SHARE * total_range
 
 
 def _is_analytic(fig: Json) -> bool:
