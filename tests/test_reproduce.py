@@ -287,3 +287,20 @@ def test_reproduce_analytic_figures_say_so_and_draw_no_band(tmp_path: Path, monk
     assert "Eq 4.25" in axes["4-7"].get_legend().get_texts()[0].get_text()
     # One seed: no band either, and the title says so.
     assert "one seed (no band)" in axes["4-2"].get_title() and not axes["4-2"].collections
+
+
+def test_reproduce_draws_each_figure_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # Drawing is most of the time a user waits for the report; tight_layout draws every
+    # figure once more to measure its text: the figures use fixed margins instead.
+    figure = pytest.importorskip("matplotlib.figure")
+    draws: List[int] = []
+    draw = figure.Figure.draw
+
+    def counted(self: Any, renderer: Any) -> None:
+        draws.append(1)
+        draw(self, renderer)
+
+    monkeypatch.setattr(figure.Figure, "draw", counted)
+    data = vehid.reproduce.run(quick=True, only=["4-4", "4-7"], seed=1, seeds=2, max_iterations=100, tables=False)
+    vehid.reproduce.write_report(data, tmp_path / "once")
+    assert (tmp_path / "once" / "fig-4-4.png").exists() and len(draws) == 2
