@@ -6,7 +6,9 @@ from __future__ import annotations
 import json
 import math
 import re
+from html import escape as html_escape
 from pathlib import Path
+from typing import Any, Dict, List
 
 import pytest
 
@@ -31,10 +33,10 @@ def test_reproduce_writes_a_report_with_verdicts(tmp_path: Path, capsys: pytest.
     md = (out / "index.md").read_text(encoding="utf-8")
     for fig in ONE_PER_CHAPTER.split(","):
         assert f"### Fig {fig}:" in md
-    marks = re.findall(r"\*(agrees|differs)\*", md)
+    marks = re.findall(r"\*(agrees|differs|inconclusive)\*", md)
     assert len(marks) >= 4
     html = (out / "index.html").read_text(encoding="utf-8")
-    assert "<html>" in html and ("agrees" in html or "differs" in html)
+    assert "<html>" in html and ("agrees" in html or "differs" in html or "inconclusive" in html)
     try:
         import matplotlib  # noqa: F401
     except ImportError:
@@ -110,3 +112,195 @@ def test_reproduce_cli_rejects_bad_arguments(capsys: pytest.CaptureFixture[str])
     assert "only" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["reproduce", "--seeds", "0"])
+
+
+def test_reproduce_defines_xi_once_in_words_and_formula(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = _reproduce(tmp_path, 1, capsys)
+    md = (out / "index.md").read_text(encoding="utf-8")
+    html = (out / "index.html").read_text(encoding="utf-8")
+    # Near the top: before the summary, once.
+    assert md.count("## ξ, the error measure") == 1 and md.index("## ξ, the error measure") < md.index("## Summary")
+    assert "sum of the squared relative errors" in md and "ξ_k = Σ_i ((θ_i − θ̂_i(k)) / θ_i)²" in md
+    assert "ξ < 0.08 is the thesis' \"acceptable\"" in md
+    assert html.count("<h2>ξ, the error measure</h2>") == 1
+    assert html.index("<h2>ξ, the error measure</h2>") < html.index("<h2>Summary</h2>")
+    assert "sum of the squared relative errors" in html and "θ̂<sub>i</sub>(k)" in html
+
+
+COUNTS = re.compile(r"^reproduce: (\d+) agree, (\d+) differ, (\d+) inconclusive, in (\d+\.\d) s$")
+
+
+def test_reproduce_a_lower_bound_is_inconclusive_not_agrees(tmp_path: Path,
+                                                            capsys: pytest.CaptureFixture[str]) -> None:
+    # Fig 4-2 claims ξ < 0.08 takes more than 40,000 iterations; 400 iterations can only bound
+    # that from below: the runner says "lower bound only" (and agrees = true), the report
+    # says inconclusive, everywhere it counts or marks verdicts.
+    out = tmp_path / "lb"
+    assert main(["reproduce", "--quick", "--only", "4-2", "--out", str(out), "--seeds", "2",
+                 "--max-iterations", "400", "--no-tables"]) == 0
+    captured = capsys.readouterr()
+    data = json.loads((out / "report.json").read_text(encoding="utf-8"))
+    verdicts = data["figures"][0]["verdicts"]
+    lower = [v for v in verdicts if "lower bound only" in v["note"]]
+    assert len(lower) == 1 and lower[0]["agrees"] is True
+    decided = [v for v in verdicts if v not in lower]
+    n_agree = sum(v["agrees"] for v in decided)
+    last = captured.err.strip().splitlines()[-1].split("\r")[-1].strip()
+    m = COUNTS.match(last)
+    assert m, last
+    assert (int(m[1]), int(m[2]), int(m[3])) == (n_agree, len(decided) - n_agree, 1)
+
+    md = (out / "index.md").read_text(encoding="utf-8")
+    assert f"{n_agree} claims and table rows *agree*, {len(decided) - n_agree} *differ*, 1 *inconclusive*" in md
+    confirms = md.split("### Claims vehid confirms")[1].split("### Claims vehid does not confirm")[0]
+    undecided = md.split("### Claims this run cannot decide (*inconclusive*)")[1].split("## Figures")[0]
+    assert lower[0]["claim"] not in confirms and lower[0]["claim"] in undecided
+    row = next(line for line in md.splitlines() if line.startswith(f"| {lower[0]['claim']} |"))
+    assert "| *inconclusive* |" in row
+    assert sorted(re.findall(r"\| \*(agrees|differs|inconclusive)\* \|", md)) == sorted(
+        ["inconclusive"] + ["agrees" if v["agrees"] else "differs" for v in decided])
+
+    html = (out / "index.html").read_text(encoding="utf-8")
+    assert "1 inconclusive" in html and "<h3>Claims this run cannot decide (inconclusive)</h3>" in html
+    assert html.count('<em class="inconclusive">inconclusive</em>') == 1
+    html_undecided = html.split("cannot decide (inconclusive)</h3>")[1].split("</ul>")[0]
+    assert html_escape(lower[0]["claim"]) in html_undecided
+
+
+def test_reproduce_header_gives_the_end_to_end_time(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    # The time the user waits includes drawing the figures: make each take 0.25 s more and
+    # the header's end-to-end time (not the runner's) must show it.
+    import time
+
+    import vehid.reproduce as rep
+
+    draw = rep._plot_figure
+
+    def slow(*args: object) -> None:
+        time.sleep(0.25)
+        draw(*args)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(rep, "_plot_figure", slow)
+    monkeypatch.setattr(rep, "_load_pyplot", lambda: pytest.importorskip("matplotlib.pyplot"))
+    out = tmp_path / "t"
+    assert main(["reproduce", "--quick", "--only", ONE_PER_CHAPTER, "--out", str(out), "--seeds", "2",
+                 "--max-iterations", "100", "--no-tables"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()[-1].split("\r")[-1].strip()
+    md = (out / "index.md").read_text(encoding="utf-8")
+    html = (out / "index.html").read_text(encoding="utf-8")
+    m = re.search(r"in (\d+\.\d) s end to end \(from the command's start to writing this report; "
+                  r"the runner (\d+\.\d) s of it", md)
+    assert m, md.splitlines()[2]
+    total, runner = float(m[1]), float(m[2])
+    data = json.loads((out / "report.json").read_text(encoding="utf-8"))
+    assert runner == round(data["seconds"], 1)
+    assert total >= runner + 4 * 0.25 - 0.05
+    line = COUNTS.match(err)
+    assert line, err
+    assert float(line[4]) >= total - 0.05  # the final line: the whole command, the report written
+    assert f"in {m[1]} s end to end" in html
+
+
+def _drawn(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, data: Dict[str, Any]) -> Dict[str, Any]:
+    """Renders the report and keeps every matplotlib figure open: {figure id: Axes}."""
+    plt = pytest.importorskip("matplotlib.pyplot")
+    kept: List[Any] = []
+    monkeypatch.setattr(plt, "close", kept.append)
+    vehid.reproduce.write_report(data, tmp_path / "figs")
+    axes = {}
+    for f in kept:
+        ax = f.axes[0]
+        axes[ax.get_title().split(":")[0].removeprefix("Fig ")] = ax
+    return axes
+
+
+def _outside_math(text: str) -> str:
+    return re.sub(r"\$[^$]*\$", "", text)
+
+
+def test_reproduce_figures_label_in_mathtext_with_units(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    data = vehid.reproduce.run(quick=True, only=["4-4", "4-6", "4-7", "6-9"], seed=1, seeds=2,
+                               max_iterations=2000, tables=False)
+    axes = _drawn(tmp_path, monkeypatch, data)
+    assert set(axes) == {"4-4", "4-6", "4-7", "6-9"}
+    for fid, ax in axes.items():
+        texts = [ax.get_title(), ax.get_xlabel(), ax.get_ylabel()]
+        texts += [t.get_text() for t in ax.get_legend().get_texts()]
+        texts += [t.get_text() for t in ax.figure.texts]
+        for t in texts:
+            # σ, ξ and subscripts only inside mathtext: no raw underscores, no bare σ_w.
+            assert "_" not in _outside_math(t) and "σ" not in _outside_math(t), (fid, t)
+        if fid != "4-7":
+            legend = [t.get_text() for t in ax.get_legend().get_texts()]
+            assert all(r"$\sigma_u$ = " in t and " m, " in t for t in legend[:-1]), legend
+            assert legend[-1] == r"$\xi$ = 0.08 (acceptable)"
+            assert ax.get_ylabel().startswith(r"$\xi_k = \sum_i")
+            assert "iteration $k$ (one sample = 0.05 s" in ax.get_xlabel()
+            caption = ax.figure.texts[0].get_text()
+            assert "road input, m" in caption and "m/s²" in caption
+            assert ("rad/s" in caption) == (fid == "6-9")
+    assert r"$\sigma_{w}$ = 2 % of $\sigma_{u}$" in axes["4-6"].get_title()
+
+
+def test_reproduce_pulse_legends_give_the_width(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    data = vehid.reproduce.run(quick=True, only=["4-4"], seed=1, seeds=2, max_iterations=300, tables=False)
+    legend = [t.get_text() for t in _drawn(tmp_path, monkeypatch, data)["4-4"].get_legend().get_texts()]
+    assert [t.split(":")[0] for t in legend[:4]] == [
+        f"pulse {w}, pulse width {w} × 0.05 s = {0.05 * w:.2f} s" for w in (1, 2, 3, 4)]
+    md = (tmp_path / "figs" / "index.md").read_text(encoding="utf-8")
+    assert "| pulse 3 (pulse width 3 × 0.05 s = 0.15 s) |" in md
+    assert "| curve | σ_ic (m, m/s) | σ_u (m) | σ_w (m, m/s) | σ_v (m/s, m/s²) |" in md
+
+
+def test_reproduce_log_iterations_where_the_action_is_early(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # Fig 4-4: the pulses act at the ninth sample and ξ is flat after about 100: on a linear
+    # axis of 2000 iterations that is the first 5 %.
+    data = vehid.reproduce.run(quick=True, only=["4-4"], seed=1, seeds=2, max_iterations=2000, tables=False)
+    fig = data["figures"][0]
+    assert vehid.reproduce._action_is_early(fig)
+    # A curve that changes evenly over the run keeps a linear axis.
+    even = [10 ** (-k / 500) for k in range(1, 1001)]
+    slow = dict(fig, id="9-9", k=list(range(1, 1001)),
+                curves=[dict(fig["curves"][0], label="slow", pulse_width=0, median=even,
+                             p10=[v / 2 for v in even], p90=[v * 2 for v in even])])
+    assert not vehid.reproduce._action_is_early(slow)
+    # Nor does a figure whose one moving curve moves late, beside curves that hardly move
+    # early (Fig 5-2: the Lyapunov gain diverges after 100 iterations, the Venter gains sit).
+    late = [10.0 if k < 500 else 10.0 ** (1 + (k - 500) / 250) for k in range(1, 1001)]
+    early_flat = [8.0 if k < 50 else 6.0 for k in range(1, 1001)]
+    mixed = dict(slow, id="9-8", curves=[dict(slow["curves"][0], median=late),
+                                         dict(slow["curves"][0], median=early_flat)])
+    assert not vehid.reproduce._action_is_early(mixed)
+    axes = _drawn(tmp_path, monkeypatch, dict(data, figures=[fig, slow]))
+    assert axes["4-4"].get_xscale() == "log" and "log axis" in axes["4-4"].get_xlabel()
+    assert axes["9-9"].get_xscale() == "linear" and "linear axis" in axes["9-9"].get_xlabel()
+
+
+def test_reproduce_analytic_figures_say_so_and_draw_no_band(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    data = vehid.reproduce.run(quick=True, only=["4-7", "4-2"], seed=1, seeds=1, max_iterations=100, tables=False)
+    axes = _drawn(tmp_path, monkeypatch, data)
+    title = axes["4-7"].get_title()
+    assert "analytic" in title.split("\n")[1] and "not simulated" in title
+    assert "seeds" not in title.replace("no seeds", "")
+    assert "band over" not in title and not axes["4-7"].collections
+    assert "Eq 4.25" in axes["4-7"].get_legend().get_texts()[0].get_text()
+    # One seed: no band either, and the title says so.
+    assert "one seed (no band)" in axes["4-2"].get_title() and not axes["4-2"].collections
+
+
+def test_reproduce_draws_each_figure_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # Drawing is most of the time a user waits for the report; tight_layout draws every
+    # figure once more to measure its text: the figures use fixed margins instead.
+    figure = pytest.importorskip("matplotlib.figure")
+    draws: List[int] = []
+    draw = figure.Figure.draw
+
+    def counted(self: Any, renderer: Any) -> None:
+        draws.append(1)
+        draw(self, renderer)
+
+    monkeypatch.setattr(figure.Figure, "draw", counted)
+    data = vehid.reproduce.run(quick=True, only=["4-4", "4-7"], seed=1, seeds=2, max_iterations=100, tables=False)
+    vehid.reproduce.write_report(data, tmp_path / "once")
+    assert (tmp_path / "once" / "fig-4-4.png").exists() and len(draws) == 2

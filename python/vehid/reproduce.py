@@ -2,10 +2,12 @@
 
 The experiments (one per figure of Ch. III–VI, with the captions' noise levels) and the
 runner live in Rust (the ``vehid-thesis`` crate); this module renders what the runner
-measured: one PNG per figure (ξ_k against iterations, log scale, median and 10–90 % band
-over seeds; needs the optional ``vehid[plot]`` extra, i.e. matplotlib) and
+measured: one PNG per figure (ξ_k on a log scale against iterations, themselves on a log
+axis where the action is early; median and 10–90 % band over seeds; analytic figures drawn
+from their formula; needs the optional ``vehid[plot]`` extra, i.e. matplotlib) and
 ``index.md`` / ``index.html`` with, per figure, the thesis' claim and vehid's measured
-counterpart marked *agrees* or *differs*, and the tables for Eq 4.28, Eq 4.32, Eq 4.34 and
+counterpart marked *agrees*, *differs* or *inconclusive* (the run was shorter than the claim
+and bounds the measured number from below only), and the tables for Eq 4.28, Eq 4.32, Eq 4.34 and
 Table I. Every number in the report is computed by the run.
 
 >>> data = run(quick=True, only=["3-5"], seeds=2, max_iterations=100, tables=False)
@@ -20,6 +22,7 @@ import html
 import importlib
 import json
 import math
+import re
 import sys
 import time
 from pathlib import Path
@@ -80,11 +83,75 @@ def _median(xs: List[float]) -> float:
     return v[n // 2] if n % 2 else 0.5 * (v[n // 2 - 1] + v[n // 2])
 
 
+#: The sample interval of every experiment, s (one iteration = one sample; vehid-thesis' DT).
+DT = 0.05
+
+
+def _tex(text: str) -> str:
+    """A runner label as matplotlib mathtext: ``σ_u`` → ``$\\sigma_u$``, ``σ_ic`` → ``$\\sigma_{ic}$``,
+    ``ξ`` → ``$\\xi$``; no raw underscore is left (one outside a symbol becomes a space)."""
+    text = text.replace("$", r"\$")
+    text = re.sub(r"σ_(\w+)", lambda m: rf"$\sigma_{{{m[1]}}}$", text)
+    text = text.replace("ξ", r"$\xi$")
+    return re.sub(r"(?<!\\sigma)_(?![{])", " ", text)
+
+
+def _units(model: str) -> Tuple[str, str]:
+    """The units of (σ_ic and σ_w, σ_v) for a model: per state, and per state derivative."""
+    if model.startswith("Half"):
+        return "m, m/s, rad, rad/s", "m/s, m/s², rad/s, rad/s²"
+    return "m, m/s", "m/s, m/s²"
+
+
+def _pulse(c: Json) -> str:
+    """The pulse's width, e.g. ``pulse width 2 × 0.05 s = 0.10 s``; empty without a pulse."""
+    w = c["pulse_width"]
+    return f"pulse width {w} × {DT:g} s = {w * DT:.2f} s" if w else ""
+
+
 def _sigmas(c: Json) -> str:
-    s = f"σ_ic={c['ic']:g}, σ_u={c['road']:g}, σ_w={c['state']:g}, σ_v={c['deriv']:g}"
-    if c["pulse_width"] and "pulse" not in c["label"]:
-        s += f", pulse {c['pulse_width']} cycles"
+    """The curve's noise levels in mathtext; σ_u with its unit (m), the per-state ones in the caption."""
+    s = (
+        rf"$\sigma_{{ic}}$ = {c['ic']:g}, $\sigma_u$ = {c['road']:g} m, "
+        rf"$\sigma_w$ = {c['state']:g}, $\sigma_v$ = {c['deriv']:g}"
+    )
     return s
+
+
+def _legend_label(c: Json) -> str:
+    """The curve's legend entry: its name, its pulse's width if it has one, its noise levels."""
+    pulse = f", {_pulse(c)}" if c["pulse_width"] else ""
+    return f"{_tex(c['label'])}{pulse}: {_sigmas(c)}"
+
+
+#: Fraction of the iterations that counts as "early", and the share of a median curve's
+#: range (in decades of ξ) that must happen in it for the iterations to go on a log axis.
+EARLY, EARLY_SHARE = 0.1, 0.5
+
+
+def _action_is_early(fig: Json) -> bool:
+    """Whether the median curves cover at least half of their range of log ξ (summed over
+    the curves, so a curve that hardly moves weighs little) within the first 10 % of the
+    iterations (the identifiers' transients): then a linear axis would squeeze the action
+    into a sliver at the left and the iterations go on a log axis."""
+    k = fig["k"]
+    if not k or k[0] < 1:
+        return False
+    cut = EARLY * k[-1]
+    early_range = total_range = 0.0
+    for c in fig["curves"]:
+        pts = [(kk, math.log10(v)) for kk, v in zip(k, c["median"]) if math.isfinite(v) and v > 0]
+        early = [y for kk, y in pts if kk <= cut]
+        if len(pts) < 2 or not early:
+            continue
+        total_range += max(y for _, y in pts) - min(y for _, y in pts)
+        early_range += max(early) - min(early)
+    return total_range > 0 and early_range >= EARLY_SHARE * total_range
+
+
+def _is_analytic(fig: Json) -> bool:
+    """A figure drawn from a formula (no simulation, no seeds): the runner gives it no curves."""
+    return fig["skipped"] is None and not fig["curves"]
 
 
 def _load_pyplot() -> Any:
@@ -97,46 +164,87 @@ def _load_pyplot() -> Any:
 
 
 def _plot_figure(plt: Any, fig: Json, path: Path) -> None:
-    f, ax = plt.subplots(figsize=(7.5, 4.6))
+    f, ax = plt.subplots(figsize=(7.5, 4.9))
     fid = fig["id"]
-    if fid == "4-7":
+    if _is_analytic(fig):
         # Eq 4.25: triangular autocorrelation of the held road noise, T = 0.05 s.
-        t = 0.05
+        t = DT
         taus = [t * (i / 50.0 - 2.0) for i in range(201)]
-        ax.plot(taus, [max(0.0, 1.0 - abs(tau) / t) for tau in taus], color="C0")
-        ax.set_xlabel("τ, s")
-        ax.set_ylabel("R_u(τ) / σ_u²")
+        ax.plot(taus, [max(0.0, 1.0 - abs(tau) / t) for tau in taus], color="C0",
+                label=rf"$R_u(\tau) / \sigma_u^2 = \max(0, 1 - |\tau| / T)$, $T$ = {t:g} s (Eq 4.25)")
+        ax.set_xlabel(r"lag $\tau$ (s)")
+        ax.set_ylabel(r"$R_u(\tau) / \sigma_u^2$ (dimensionless)")
+        ax.legend(fontsize=8, loc="upper right")
+        ax.grid(True, alpha=0.25)
+        sub = "analytic: drawn from the formula (Eq 4.25), not simulated: no seeds, no band"
     else:
         k = fig["k"]
         for i, c in enumerate(fig["curves"]):
             med = [v if math.isfinite(v) and v > 0 else math.nan for v in c["median"]]
-            lo = [v if math.isfinite(v) and v > 0 else math.nan for v in c["p10"]]
-            hi = [v if math.isfinite(v) and v > 0 else math.nan for v in c["p90"]]
             color = f"C{i}"
-            ax.plot(k, med, color=color, lw=1.4, label=f"{c['label']}: {_sigmas(c)}")
-            ax.fill_between(k, lo, hi, color=color, alpha=0.18, lw=0)
-        ax.axhline(0.08, color="k", ls="--", lw=0.8, label="ξ = 0.08 (acceptable)")
+            ax.plot(k, med, color=color, lw=1.4, label=_legend_label(c))
+            if fig["seeds"] > 1:
+                lo = [v if math.isfinite(v) and v > 0 else math.nan for v in c["p10"]]
+                hi = [v if math.isfinite(v) and v > 0 else math.nan for v in c["p90"]]
+                ax.fill_between(k, lo, hi, color=color, alpha=0.18, lw=0)
+        ax.axhline(0.08, color="k", ls="--", lw=0.8, label=r"$\xi$ = 0.08 (acceptable)")
         ax.set_yscale("log")
-        ax.set_xlabel("iterations k")
-        ax.set_ylabel("ξ_k (Eq 3.17)")
-        ax.legend(fontsize=7, loc="best")
+        early = _action_is_early(fig)
+        if early:
+            ax.set_xscale("log")
+        ax.set_xlabel(rf"iteration $k$ (one sample = {DT:g} s; {'log' if early else 'linear'} axis)")
+        ax.set_ylabel(r"$\xi_k = \sum_i\,((\theta_i - \hat{\theta}_i(k)) / \theta_i)^2$")
+        ax.legend(fontsize=6.5, loc="best")
         ax.grid(True, which="both", alpha=0.25)
-    ax.set_title(f"Fig {fid}: {fig['title']}\nvehid, median and 10–90 % band over {fig['seeds']} seeds", fontsize=9)
-    f.tight_layout()
+        state, deriv = _units(fig["model"])
+        f.text(0.01, 0.005,
+               rf"$\sigma_{{ic}}$ initial state, $\sigma_w$ state measurement noise: per state, in {state}; "
+               rf"$\sigma_u$ road input, m; $\sigma_v$ derivative measurement noise, in {deriv}",
+               fontsize=6.5, color="0.3", ha="left", va="bottom")
+        sub = (f"vehid, median and 10–90 % band over {fig['seeds']} seeds" if fig["seeds"] > 1
+               else "vehid, one seed (no band)")
+    ax.set_title(f"Fig {fid}: {_tex(fig['title'])}\n{sub}", fontsize=9)
+    # Fixed margins: tight_layout would draw every figure twice (it measures the text by
+    # drawing), and drawing is most of the time the user waits for the report.
+    f.subplots_adjust(left=0.11, right=0.98, top=0.89, bottom=0.15)
     f.savefig(path, dpi=110)
     plt.close(f)
 
 
-def _mark(agrees: bool) -> str:
-    return "*agrees*" if agrees else "*differs*"
+#: The three verdicts, in the order the report lists them.
+VERDICTS = ("agrees", "differs", "inconclusive")
+
+#: What the runner writes into a verdict's note when the run was shorter than the claim and
+#: only bounds the measured number from below (crates/vehid-thesis/src/verdict.rs, the
+#: SettlesAfter claims); the runner's ``agrees`` is then true, but nothing was decided.
+LOWER_BOUND = "lower bound only"
 
 
-def _claim_rows(data: Json) -> Tuple[List[Tuple[str, Json]], List[Tuple[str, Json]]]:
-    ok: List[Tuple[str, Json]] = []
-    bad: List[Tuple[str, Json]] = []
+def _verdict(v: Json) -> str:
+    """``agrees``, ``differs``, or ``inconclusive`` where the run only bounds the claim from below."""
+    if LOWER_BOUND in v["note"]:
+        return "inconclusive"
+    return "agrees" if v["agrees"] else "differs"
+
+
+def _mark(verdict: str) -> str:
+    return f"*{verdict}*"
+
+
+Rows = Dict[str, List[Tuple[str, Json]]]
+
+INCONCLUSIVE = (
+    "the run was shorter than the claim and bounds the measured number from below only; "
+    "the full mode runs the thesis' iterations"
+)
+
+
+def _claim_rows(data: Json) -> Rows:
+    """Every figure claim and table row, as ``(where, verdict)``, by verdict (keys VERDICTS)."""
+    rows: Rows = {k: [] for k in VERDICTS}
     for fig in data["figures"]:
         for v in fig["verdicts"]:
-            (ok if v["agrees"] else bad).append((f"Fig {fig['id']}", v))
+            rows[_verdict(v)].append((f"Fig {fig['id']}", v))
     for t in data["tables"]:
         for r in t["rows"]:
             item = {
@@ -145,16 +253,42 @@ def _claim_rows(data: Json) -> Tuple[List[Tuple[str, Json]], List[Tuple[str, Jso
                 "agrees": r["agrees"],
                 "note": r["note"],
             }
-            (ok if r["agrees"] else bad).append((t["title"].split(":")[0], item))
-    return ok, bad
+            rows[_verdict(item)].append((t["title"].split(":")[0], item))
+    return rows
+
+
+def _counts(rows: Rows) -> str:
+    """``N agree, M differ, K inconclusive`` (the final stderr line's words)."""
+    return f"{len(rows['agrees'])} agree, {len(rows['differs'])} differ, {len(rows['inconclusive'])} inconclusive"
+
+
+#: ξ in words and formula, once per report (Eq 3.17; thesis notes §5).
+XI_WORDS = (
+    "ξ_k, the error measure of every figure (Eq 3.17), is the sum of the squared relative errors "
+    "of the identified entries after k iterations (one iteration = one sample, 0.05 s): over the "
+    "entries θ_i of the unknown rows of A that are not zero in the true car, θ̂_i(k) the estimate "
+    "after k samples,"
+)
+XI_FORMULA = "ξ_k = Σ_i ((θ_i − θ̂_i(k)) / θ_i)²"
+XI_ACCEPT = (
+    "ξ = 0 is a perfect identification; the root-mean-square relative error of the entries is "
+    "√(ξ / number of entries). ξ < 0.08 is the thesis' \"acceptable\" (the dashed line in the figures): "
+    "for the quarter car's 8 entries it is necessary for every entry to be within 10 % (8 × 0.1² = 0.08); "
+    "the half car has 28 entries."
+)
 
 
 def _md_cell(s: str) -> str:
     return s.replace("|", "\\|").replace("\n", " ")
 
 
-def write_report(data: Json, out: Path, command: str = "vehid reproduce") -> Path:
-    """Writes the PNGs, ``index.md`` and ``index.html`` into ``out``; returns index.md's path."""
+def write_report(data: Json, out: Path, command: str = "vehid reproduce", started: Optional[float] = None) -> Path:
+    """Writes the PNGs, ``index.md`` and ``index.html`` into ``out``; returns index.md's path.
+
+    ``started``: the :func:`time.perf_counter` value at the start of the whole command; the
+    header then gives the end-to-end time (from it to writing the report) beside the
+    runner's own.
+    """
     out.mkdir(parents=True, exist_ok=True)
     plt = _load_pyplot()
     images: Dict[str, str] = {}
@@ -164,7 +298,8 @@ def write_report(data: Json, out: Path, command: str = "vehid reproduce") -> Pat
                 name = f"fig-{fig['id']}.png"
                 _plot_figure(plt, fig, out / name)
                 images[fig["id"]] = name
-    ok, bad = _claim_rows(data)
+    rows = _claim_rows(data)
+    ok, bad, open_ = rows["agrees"], rows["differs"], rows["inconclusive"]
     skipped = [f for f in data["figures"] if f["skipped"]]
     mode = "quick" if data["quick"] else "full"
     seeds = max((f["seeds"] for f in data["figures"]), default=0)
@@ -172,18 +307,29 @@ def write_report(data: Json, out: Path, command: str = "vehid reproduce") -> Pat
         f"Generated by `{command}` ({mode} mode: {seeds} seeds per curve, base seed {data['base_seed']}, "
         f"{data['threads']} threads, runner wall time {data['seconds']:.1f} s)."
     )
+    if started is not None:
+        total = time.perf_counter() - started
+        head = (
+            f"Generated by `{command}` in {total:.1f} s end to end (from the command's start to writing this "
+            f"report; the runner {data['seconds']:.1f} s of it, the figures and pages the rest); {mode} mode: "
+            f"{seeds} seeds per curve, base seed {data['base_seed']}, {data['threads']} threads."
+        )
     plots = (
-        "Figures: ξ_k against iterations on a log axis, median over seeds (line) and 10–90 % band (shaded)."
+        "Figures: ξ_k (log axis) against iterations, median over seeds (line) and 10–90 % band (shaded); "
+        "the iterations on a log axis where the action is early (each figure's axis says which), "
+        "Fig 4-7 drawn from its formula."
         if plt is not None
         else "matplotlib is not installed (`pip install vehid[plot]`): the report has no images; "
         "every number below is still computed."
     )
 
     md: List[str] = ["# vehid reproduces Kessler (1986), Ch. III–VI", "", head, plots, ""]
+    md += ["## ξ, the error measure", "", XI_WORDS, "", f"    {XI_FORMULA}", "", XI_ACCEPT, ""]
     md += [
         "## Summary",
         "",
-        f"{len(ok)} claims and table rows *agree*, {len(bad)} *differ*, {len(skipped)} figures skipped.",
+        f"{len(ok)} claims and table rows *agree*, {len(bad)} *differ*, {len(open_)} *inconclusive* "
+        f"({INCONCLUSIVE}), {len(skipped)} figures skipped.",
         "",
         "### Claims vehid confirms",
         "",
@@ -197,6 +343,11 @@ def write_report(data: Json, out: Path, command: str = "vehid reproduce") -> Pat
     md += [
         f"- {w}: {_md_cell(v['claim'])} — {_md_cell(v['measured'])}. {_md_cell(v['note'])}"
         for w, v in bad
+    ] or ["- none"]
+    md += ["", "### Claims this run cannot decide (*inconclusive*)", ""]
+    md += [
+        f"- {w}: {_md_cell(v['claim'])} — {_md_cell(v['measured'])}. {_md_cell(v['note'])}"
+        for w, v in open_
     ] or ["- none"]
     if skipped:
         md += ["", "### Not run", ""]
@@ -213,14 +364,16 @@ def write_report(data: Json, out: Path, command: str = "vehid reproduce") -> Pat
             iters = fig["iterations"]
             note = "" if iters == fig["thesis_iterations"] else f" (the table's full run: {fig['thesis_iterations']})"
             md += [f"{iters} iterations{note}, {fig['seeds']} seeds.", ""]
+            state, deriv = _units(fig["model"])
             md += [
-                "| curve | σ_ic | σ_u | σ_w | σ_v | identifier | median ξ at end [10–90 %] |",
+                f"| curve | σ_ic ({state}) | σ_u (m) | σ_w ({state}) | σ_v ({deriv}) | identifier "
+                "| median ξ at end [10–90 %] |",
                 "|---|---|---|---|---|---|---|",
             ]
             for c in fig["curves"]:
                 fin = c["final_xi"]
                 lo, hi = c["p10"][-1], c["p90"][-1]
-                label = c["label"] + (f" (pulse {c['pulse_width']})" if c["pulse_width"] else "")
+                label = c["label"] + (f" ({_pulse(c)})" if c["pulse_width"] else "")
                 md.append(
                     f"| {_md_cell(label)} | {c['ic']:g} | {c['road']:g} | {c['state']:g} | {c['deriv']:g} | "
                     f"`{_md_cell(c['ident'])}` | {_fmt(_median(fin))} [{_fmt(lo)}, {_fmt(hi)}] |"
@@ -230,7 +383,7 @@ def write_report(data: Json, out: Path, command: str = "vehid reproduce") -> Pat
             md += ["| thesis | vehid | verdict | explanation |", "|---|---|---|---|"]
             for v in fig["verdicts"]:
                 md.append(
-                    f"| {_md_cell(v['claim'])} | {_md_cell(v['measured'])} | {_mark(v['agrees'])} | "
+                    f"| {_md_cell(v['claim'])} | {_md_cell(v['measured'])} | {_mark(_verdict(v))} | "
                     f"{_md_cell(v['note'])} |"
                 )
             md.append("")
@@ -248,12 +401,12 @@ def write_report(data: Json, out: Path, command: str = "vehid reproduce") -> Pat
         for r in t["rows"]:
             md.append(
                 f"| {_md_cell(r['label'])} | {_md_cell(r['thesis'])} | {_md_cell(r['vehid'])} | "
-                f"{_mark(r['agrees'])} | {_md_cell(r['note'])} |"
+                f"{_mark(_verdict(r))} | {_md_cell(r['note'])} |"
             )
         md.append("")
     index_md = out / "index.md"
     index_md.write_text("\n".join(md), encoding="utf-8")
-    (out / "index.html").write_text(_html(data, images, head, plots, ok, bad, skipped), encoding="utf-8")
+    (out / "index.html").write_text(_html(data, images, head, plots, rows, skipped), encoding="utf-8")
     (out / "report.json").write_text(json.dumps(data, default=str), encoding="utf-8")
     return index_md
 
@@ -263,24 +416,29 @@ def _html(
     images: Dict[str, str],
     head: str,
     plots: str,
-    ok: List[Tuple[str, Json]],
-    bad: List[Tuple[str, Json]],
+    rows: Rows,
     skipped: List[Json],
 ) -> str:
     e = html.escape
 
-    def mark(a: bool) -> str:
-        return '<em class="ok">agrees</em>' if a else '<em class="bad">differs</em>'
+    ok, bad, open_ = rows["agrees"], rows["differs"], rows["inconclusive"]
+
+    def mark(verdict: str) -> str:
+        return f'<em class="{verdict}">{verdict}</em>'
 
     h: List[str] = [
         "<!doctype html><html><head><meta charset='utf-8'><title>vehid reproduces Kessler (1986)</title>",
         "<style>body{font-family:sans-serif;max-width:1000px;margin:auto;padding:1em}"
         "table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #ccc;padding:3px 6px;font-size:90%}"
-        ".ok{color:#176117}.bad{color:#a01b1b}img{max-width:100%}</style></head><body>",
+        ".formula{font-family:serif;font-size:120%;margin-left:2em}.agrees{color:#176117}.differs{color:#a01b1b}.inconclusive{color:#8a5a00}img{max-width:100%}</style></head><body>",
         "<h1>vehid reproduces Kessler (1986), Ch. III–VI</h1>",
         f"<p>{e(head)}<br>{e(plots)}</p>",
+        "<h2>ξ, the error measure</h2>",
+        f"<p>{e(XI_WORDS)}</p>",
+        "<p class='formula'>ξ<sub>k</sub> = Σ<sub>i</sub> ((θ<sub>i</sub> − θ̂<sub>i</sub>(k)) / θ<sub>i</sub>)²</p>",
+        f"<p>{e(XI_ACCEPT)}</p>",
         f"<h2>Summary</h2><p>{len(ok)} claims and table rows agree, {len(bad)} differ, "
-        f"{len(skipped)} figures skipped.</p>",
+        f"{len(open_)} inconclusive ({e(INCONCLUSIVE)}), {len(skipped)} figures skipped.</p>",
         "<h3>Claims vehid confirms</h3><ul>",
     ]
     h += [
@@ -289,6 +447,8 @@ def _html(
     ]
     h += ["</ul><h3>Claims vehid does not confirm</h3><ul>"]
     h += [f"<li>{e(w)}: {e(v['claim'])} — {e(v['measured'])}. {e(v['note'])}</li>" for w, v in bad]
+    h += ["</ul><h3>Claims this run cannot decide (inconclusive)</h3><ul>"]
+    h += [f"<li>{e(w)}: {e(v['claim'])} — {e(v['measured'])}. {e(v['note'])}</li>" for w, v in open_]
     h += ["</ul>"]
     if skipped:
         h += ["<h3>Not run</h3><ul>"] + [f"<li>Fig {e(f['id'])}: {e(f['skipped'])}</li>" for f in skipped] + ["</ul>"]
@@ -305,7 +465,7 @@ def _html(
             for v in fig["verdicts"]:
                 h.append(
                     f"<tr><td>{e(v['claim'])}</td><td>{e(v['measured'])}</td>"
-                    f"<td>{mark(v['agrees'])}</td><td>{e(v['note'])}</td></tr>"
+                    f"<td>{mark(_verdict(v))}</td><td>{e(v['note'])}</td></tr>"
                 )
             h.append("</table>")
         h.append(f"<p><small>Assumptions: {e(fig['assumptions'])}</small></p>")
@@ -316,7 +476,7 @@ def _html(
         for r in t["rows"]:
             h.append(
                 f"<tr><td>{e(r['label'])}</td><td>{e(r['thesis'])}</td><td>{e(r['vehid'])}</td>"
-                f"<td>{mark(r['agrees'])}</td><td>{e(r['note'])}</td></tr>"
+                f"<td>{mark(_verdict(r))}</td><td>{e(r['note'])}</td></tr>"
             )
         h.append("</table>")
     h.append("</body></html>")
@@ -363,11 +523,10 @@ def command(args: argparse.Namespace) -> int:
         progress=not args.quiet,
     )
     argv = ["vehid", "reproduce"] + (["--quick"] if args.quick else []) + (["--only", args.only] if args.only else [])
-    path = write_report(data, Path(args.out), " ".join(argv))
-    ok, bad = _claim_rows(data)
+    path = write_report(data, Path(args.out), " ".join(argv), started=t0)
     if not args.quiet:
         print(
-            f"reproduce: {len(ok)} agree, {len(bad)} differ, in {time.perf_counter() - t0:.1f} s",
+            f"reproduce: {_counts(_claim_rows(data))}, in {time.perf_counter() - t0:.1f} s",
             file=sys.stderr,
         )
     print(path)
