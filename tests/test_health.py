@@ -366,22 +366,26 @@ def test_event_intervals_cover_the_truth() -> None:
         assert covered >= 36, (name, covered)
 
 
-def test_the_readme_monitor_example_prints_what_the_readme_shows(tmp_path: Path,
+def test_the_readme_monitor_example_prints_what_the_readme_shows(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                                                   capsys: pytest.CaptureFixture[str]) -> None:
-    # README.md's `vehid monitor` block, rerun: the drive of its Python example saved as its
-    # text says, then the command; stdout and stderr must be the lines the README prints.
+    # README.md's `vehid simulate` / `vehid monitor` block, rerun command by command in an
+    # empty directory: each command's stdout and stderr must be the lines the README prints
+    # after it.
     readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
-    block = readme.split("$ vehid monitor drive.csv", 1)[1].split("```", 1)[0]
-    argv, out_line, err_line = block.strip("\n").splitlines()
-    run = vehid.Simulator(CAR, dt=DT, road="iso8608-C", speed=15.0, changes=[(60.0, {"b": 1350.0})],
-                          sensors="realistic", seed=1).run(20_000)
-    log = tmp_path / "drive.csv"
-    np.savetxt(log, np.column_stack([run.t, run.y]), delimiter=",", header="t,a_body,a_wheel,deflection",
-               comments="")
-    assert cli.main(["monitor", str(log), *argv.split()]) == 0
-    out, err = capsys.readouterr()
-    assert out.strip() == out_line
-    assert err.strip() == err_line.replace("drive.csv", str(log))
+    block = readme.split("$ vehid simulate --model quarter --road iso8608-C", 1)[1].split("```", 1)[0]
+    block = "$ vehid simulate --model quarter --road iso8608-C" + block
+    steps: List[Tuple[List[str], List[str]]] = []
+    for line in block.strip("\n").splitlines():
+        if line.startswith("$ vehid "):
+            steps.append((line[len("$ vehid "):].split(), []))
+        else:
+            steps[-1][1].append(line)
+    assert [argv[0] for argv, _ in steps] == ["simulate", "monitor"]
+    monkeypatch.chdir(tmp_path)
+    for argv, expected in steps:
+        assert cli.main(argv) == 0
+        out, err = capsys.readouterr()
+        assert (out + err).strip().splitlines() == expected, (argv, out, err)
 
 
 @pytest.mark.parametrize("protocol", [0, 2, pickle.HIGHEST_PROTOCOL])
@@ -415,3 +419,31 @@ def test_a_corrupt_monitor_pickle_is_refused() -> None:
     assert fresh.samples == 0
     with pytest.raises(vehid.VehidError, match="'M', 'k2' or 'b'"):
         vehid.Event(1.0, 0.5, "q", 1.0, 2.0, 1.5, 2.5, 1.0)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("args, match", [
+    (["--model", "half", "--road", "iso8608-C"], "simulates the quarter car"),
+    (["--model", "quarter", "--change", "60:b=1350"], "give --road iso8608-A..E"),
+    (["--model", "quarter", "--road", "iso8608-C", "--change", "b=1350"], "expected T:NAME=VALUE"),
+    (["--model", "quarter", "--road", "iso8608-C", "--change", "60:q=1"], "changes"),
+    (["--model", "quarter", "--road", "iso8608-C", "--method", "exact"], "--method does not apply"),
+    (["--model", "quarter", "--car", "passenger"], "--car applies to a drive"),
+])
+def test_vehid_simulate_refuses_a_bad_drive_in_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                        args: List[str], match: str) -> None:
+    assert cli.main(["simulate", *args, "--n", "10", "-o", str(tmp_path / "x.csv")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("vehid: error: ") and match in err and err.count("\n") == 1, err
+
+
+def test_vehid_simulate_writes_a_drive_with_its_truth(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "ramp.csv"
+    assert cli.main(["simulate", "--model", "quarter", "--road", "iso8608-B", "--car", "thesis,b=30", "--speed", "10",
+                     "--change", "1:k2=40:1", "--sensors", "state", "--n", "600", "-o", str(out)]) == 0
+    data = np.genfromtxt(out, delimiter=",", names=True)
+    assert data.dtype.names is not None and data.dtype.names[:9] == (
+        "t", "zw", "vw", "zb", "vb", "dzw", "dvw", "dzb", "dvb")
+    np.testing.assert_allclose(data["s"], data["t"] * 10.0, rtol=1e-12)
+    assert (data["true_b"] == 30.0).all() and (data["true_M"] == 10.0).all()
+    k2 = data["true_k2"]
+    assert k2[0] == 50.0 and k2[-1] == 40.0 and 40.0 < k2[300] < 50.0  # the ramp from 1 s to 2 s

@@ -168,7 +168,7 @@ def cmd_simulate_file(args: argparse.Namespace) -> int:
         mf = model_file.load(args.model)
         params = model_file.parse_params(mf, args.params)
         with open_table(args.input) as table:
-            header, rows = model_file.simulate(mf, table, params, args.dt, x0, CHUNK)
+            header, rows = model_file.simulate(mf, table, params, 0.05 if args.dt is None else args.dt, x0, CHUNK)
     except model_file.ModelFileError as e:
         raise CliError(str(e)) from None
     out = sys.stdout if args.output == "-" else _open_output(args.output)
@@ -183,6 +183,12 @@ def cmd_simulate_file(args: argparse.Namespace) -> int:
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
+    if args.road not in ("white", "independent") or args.sensors is not None or args.change:
+        from .monitor import cmd_simulate_drive
+
+        return cmd_simulate_drive(args)
+    if args.car is not None:
+        raise CliError("--car applies to a drive (--road iso8608-A..E, --sensors, --change)")
     if args.model not in MODELS:
         return cmd_simulate_file(args)
     if args.input is not None or args.params is not None or args.x0 is not None:
@@ -194,7 +200,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         road_kw = {"speed": args.speed, "spacing": args.spacing, "road": args.road}
     sim = Simulator(
         model,
-        dt=args.dt,
+        dt=0.05 if args.dt is None else args.dt,
         road_sigma=args.road_sigma,
         ic_sigma=args.ic_sigma,
         state_noise=args.state_noise,
@@ -1052,7 +1058,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="model file: the parameters, NAME=VALUE pairs, comma-separated")
     sim.add_argument("--x0", default=None, metavar="VALUES", help="model file: initial state, comma-separated (0)")
     sim.add_argument("--n", type=count(0), default=40_000, help="number of samples (default 40000)")
-    sim.add_argument("--dt", type=float, default=0.05, help="sample interval, s (default 0.05)")
+    sim.add_argument("--dt", type=float, default=None, help="sample interval, s (default 0.05; a drive 0.005)")
     sim.add_argument("--road-sigma", type=float, default=0.1, help="road input std sigma_u, m (default 0.1)")
     sim.add_argument("--ic-sigma", type=float, default=0.0, help="initial-state std (default 0)")
     sim.add_argument("--state-noise", type=float, default=0.0, help="state measurement noise std sigma_w (default 0)")
@@ -1063,8 +1069,21 @@ def build_parser() -> argparse.ArgumentParser:
                      help="half car on one road: drive at this speed, m/s, sampling every --spacing metres "
                           "(adds the distance column s)")
     sim.add_argument("--spacing", type=float, default=0.3, help="with --speed: metres between samples (default 0.3)")
-    sim.add_argument("--road", choices=["white", "independent"], default="white",
-                     help="with --speed: one road under both axles (white) or independent inputs (Fig 6-7)")
+    sim.add_argument("--road", choices=["white", "independent", "flat", "iso8608-A", "iso8608-B", "iso8608-C",
+                                        "iso8608-D", "iso8608-E"], default="white",
+                     help="with --speed: one road under both axles (white) or independent inputs (Fig 6-7); "
+                          "iso8608-A..E (or flat): a drive of the quarter car on an ISO 8608 road, writing its "
+                          "sensors (columns t, the channels, s, true_M, true_m, true_k1, true_k2, true_b) for "
+                          "vehid monitor")
+    sim.add_argument("--sensors", choices=["realistic", "state"], default=None,
+                     help="a drive's sensors: realistic (a_body, a_wheel in m/s^2, deflection in m; default) or "
+                          "state (the thesis' zw, vw, zb, vb and their derivatives)")
+    sim.add_argument("--change", action="append", default=None, metavar="T:NAME=VALUE[:RAMP]",
+                     help="a drive's parameter change: at T seconds NAME (M, m, k1, k2, b) becomes VALUE, in a "
+                          "step or a RAMP of that many seconds, e.g. 60:b=1350 (repeatable)")
+    sim.add_argument("--car", default=None, metavar="CONSTANTS",
+                     help="a drive's car: passenger (M=320 kg, m=40 kg, k1=200 kN/m, k2=22 kN/m, b=1500 N s/m; "
+                          "default) or thesis, and/or NAME=VALUE overrides, e.g. passenger,b=1400")
     sim.add_argument("-o", "--output", required=True, metavar="FILE",
                      help="CSV file to write, '-' for stdout "
                           "(columns t, x1..xn, dx1..dxn, true_x1.., true_dx1.., u1..)")

@@ -61,6 +61,90 @@ PARAMETERS = {"b": ("damper", "N s/m"), "k2": ("spring", "N/m"), "M": ("body mas
 CARS = {"quarter": QuarterCar, "passenger": QuarterCar.passenger}
 
 
+def parse_change(text: str) -> Tuple[float, Dict[str, float], float]:
+    """``--change T:NAME=VALUE[,NAME=VALUE][:RAMP]`` of ``vehid simulate``.
+
+    >>> parse_change("60:b=1350"), parse_change("30:k2=19800,b=1400:5")
+    ((60.0, {'b': 1350.0}, 0.0), (30.0, {'k2': 19800.0, 'b': 1400.0}, 5.0))
+    """
+    parts = text.split(":")
+    usage = f"--change {text}: expected T:NAME=VALUE[,NAME=VALUE][:RAMP], e.g. 60:b=1350 or 60:b=1350:10"
+    if len(parts) not in (2, 3):
+        raise _cli_error(usage)
+    try:
+        t = float(parts[0])
+        ramp = float(parts[2]) if len(parts) == 3 else 0.0
+        values: Dict[str, float] = {}
+        for item in parts[1].split(","):
+            name, sep, value = item.partition("=")
+            if not sep:
+                raise ValueError
+            values[name.strip()] = float(value)
+    except ValueError:
+        raise _cli_error(usage) from None
+    return t, values, ramp
+
+
+def drive_car(text: Optional[str]) -> QuarterCar:
+    """``--car`` of a drive: ``passenger`` (default) or ``thesis``, then ``NAME=VALUE``
+    overrides.
+
+    >>> drive_car("thesis,b=30").params["b"], drive_car(None).params["M"]
+    (30.0, 320.0)
+    """
+    tokens = [t.strip() for t in (text or "").split(",") if t.strip()]
+    base = "passenger"
+    if tokens and tokens[0] in ("passenger", "thesis"):
+        base = tokens.pop(0)
+    return nominal_car("quarter" if base == "thesis" else "passenger", ",".join(tokens) or None)
+
+
+def cmd_simulate_drive(args: argparse.Namespace) -> int:
+    """``vehid simulate --road iso8608-C [--sensors] [--change ...] [--car ...]``: a drive of
+    the quarter car, its sensor channels, distance and true constants as CSV."""
+    if args.model != "quarter":
+        raise _cli_error(f"--model {args.model}: a drive (--road iso8608-A..E, --sensors, --change) simulates the "
+                         "quarter car: --model quarter, with --car passenger (default), thesis or your constants")
+    if args.road in ("white", "independent"):
+        raise _cli_error("--sensors and --change apply to a drive on an ISO 8608 road: give --road iso8608-A..E")
+    for given, name in ((args.input or args.params or args.x0, "--input/--params/--x0"),
+                        (args.method != "rk4", "--method"), (args.ic_sigma != 0.0, "--ic-sigma")):
+        if given:
+            raise _cli_error(f"{name} does not apply to a drive (the road's roughness is its class)")
+    from . import Simulator
+
+    car = drive_car(args.car)
+    sensors: Literal["realistic", "state"] = args.sensors or "realistic"
+    kw: Dict[str, Any] = {}
+    if sensors == "state":
+        kw = {"state_noise": args.state_noise, "deriv_noise": args.deriv_noise}
+    sim = Simulator(car, dt=0.005 if args.dt is None else args.dt, road=args.road,
+                    speed=15.0 if args.speed is None else args.speed,
+                    changes=[parse_change(c) for c in args.change or []], sensors=sensors, seed=args.seed, **kw)
+    from .cli import _close_quietly, _open_output, run_chunks
+
+    header = ["t", *(sim.channels or ()), "s", "true_M", "true_m", "true_k1", "true_k2", "true_b"]
+    to_stdout = args.output == "-"
+    out: IO[str] = sys.stdout if to_stdout else _open_output(args.output)
+    try:
+        out.write(",".join(header) + "\n")
+        for run in run_chunks(sim, args.n, progress=sys.stderr):
+            assert run.s is not None and run.constants is not None  # a drive has both
+            data = np.column_stack([run.t, run.y, run.s, run.constants])
+            out.writelines(",".join(map(repr, row)) + "\n" for row in data.tolist())
+        out.flush()
+        if not to_stdout:
+            out.close()
+    except OSError as e:
+        if not to_stdout:
+            _close_quietly(out)
+        raise _cli_error(f"-o {args.output}: cannot write ({e.strerror or e})") from None
+    if not to_stdout:
+        print(f"vehid: wrote {args.n} samples of a drive on {args.road} ({sensors} sensors) to {args.output}",
+              file=sys.stderr)
+    return 0
+
+
 def _cli_error(message: str) -> Exception:
     from .cli import CliError
 
@@ -349,4 +433,7 @@ def add_arguments(p: argparse.ArgumentParser, delimiter: Callable[[str], str]) -
                    help="write the tracked ratios with their bands and the events (needs vehid[plot])")
 
 
-__all__: Sequence[str] = ["DESCRIPTION", "SENSOR_COLUMNS", "add_arguments", "cmd_monitor", "nominal_car"]
+__all__: Sequence[str] = [
+    "DESCRIPTION", "SENSOR_COLUMNS", "add_arguments", "cmd_monitor", "cmd_simulate_drive", "drive_car", "nominal_car",
+    "parse_change",
+]
