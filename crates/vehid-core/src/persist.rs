@@ -293,6 +293,16 @@ mod impls {
     checked!("BatchLeastSquares", [T: Real, const N: usize] crate::identify::BatchLeastSquares<T, N>,
         ser: [T: Serialize], de: [T: Deserialize<'de>]);
 
+    checked!("Structure", [T: Real] crate::structure::Structure<T>,
+        ser: [T: Serialize], de: [T: Deserialize<'de>]);
+
+    checked!("Structured", [T: Real, const P: usize, F: crate::identify::Flat<crate::identify::RowIdentifier<T, P>>]
+        crate::identify::Structured<T, P, F>,
+        ser: [T: Serialize], de: [T: Deserialize<'de>]);
+
+    checked!("StructuredGradient", [T: Real, const P: usize] crate::identify::StructuredGradient<T, P>,
+        ser: [T: Serialize], de: [T: Deserialize<'de>]);
+
     checked!("HealthMonitor", [T: Real] crate::health::HealthMonitor<T>,
         ser: [T: Serialize], de: [T: Deserialize<'de>]);
 

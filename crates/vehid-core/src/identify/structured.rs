@@ -43,11 +43,18 @@ pub enum StructuredPrior<'a, T> {
 
 /// Recursive least squares on a [`Structure`], over filter storage `F` (see the module docs).
 #[derive(Debug, Clone)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+)]
 pub struct Structured<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> {
     structure: Structure<T>,
     part: Partition,
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::flat"))]
     filters: F,
     /// The filters before the current update (of the groups it touched).
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::flat"))]
     backup: F,
     rows: [usize; MAX_EQUATIONS],
     /// Each equation's variance `r_i` and row scale `√(r_g / r_i)`.
@@ -70,6 +77,27 @@ pub type StructuredKalman<T, const P: usize, const G: usize> = Structured<T, P, 
 pub type StructuredKalmanVec<T, const P: usize> = Structured<T, P, alloc::vec::Vec<RowIdentifier<T, P>>>;
 
 impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Structured<T, P, F> {
+    /// Checks a deserialized identifier (feature `serde`; its structure checked itself): the
+    /// partition, one filter (and one backup) per group, the equations' states, so that a
+    /// corrupt input is an error, never a panic later.
+    #[cfg(feature = "serde")]
+    pub(crate) fn restored(&mut self) -> Result<()> {
+        let corrupt = Error::InvalidArgument { arg: "state", expected: "a structured identifier's saved state" };
+        let part = self.structure.partition();
+        let ng = part.groups as usize;
+        if part != self.part || part.largest() > P || self.filters.flat().len() != ng || self.backup.flat().len() != ng
+        {
+            return Err(corrupt);
+        }
+        let ne = self.structure.equations();
+        if self.structure.equation_states().enumerate().any(|(i, s)| self.rows[i] != s)
+            || self.rows[ne..].iter().any(|&r| r != 0)
+        {
+            return Err(corrupt);
+        }
+        Ok(())
+    }
+
     /// An identifier of `structure`'s parameters with prior `p0`, prior mean `theta0`
     /// (`None`: 0; not with the exact start), equation variances `r` (one value for all, or one
     /// per identified equation; with the exact start any positive values, which only weigh

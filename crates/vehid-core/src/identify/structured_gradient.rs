@@ -17,10 +17,17 @@ use crate::{Error, Real, Result};
 
 /// Stochastic gradient on a structure of at most `P` parameters (module docs).
 #[derive(Debug, Clone)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+)]
 pub struct StructuredGradient<T: Real, const P: usize> {
     structure: Structure<T>,
     rows: [usize; MAX_EQUATIONS],
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::array"))]
     theta: [T; P],
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::array"))]
     w: [T; P],
     gain: Gain<T>,
     spacing: u32,
@@ -32,6 +39,24 @@ pub struct StructuredGradient<T: Real, const P: usize> {
 }
 
 impl<T: Real, const P: usize> StructuredGradient<T, P> {
+    /// Checks a deserialized identifier (feature `serde`; its structure checked itself): at
+    /// most `P` parameters, the equations' states, the sample spacing and phase, the gain.
+    #[cfg(feature = "serde")]
+    pub(crate) fn restored(&mut self) -> Result<()> {
+        let corrupt =
+            Error::InvalidArgument { arg: "state", expected: "a structured gradient identifier's saved state" };
+        let ne = self.structure.equations();
+        if self.structure.params() > P
+            || self.spacing == 0
+            || self.phase >= self.spacing
+            || self.structure.equation_states().enumerate().any(|(i, s)| self.rows[i] != s)
+            || self.rows[ne..].iter().any(|&r| r != 0)
+        {
+            return Err(corrupt);
+        }
+        self.gain.validate()
+    }
+
     /// The identifier of `structure`'s parameters from `theta0` (`None`: 0) with weights `w`
     /// (one value, or one per parameter), gain `gain`, using every `spacing`-th sample.
     ///

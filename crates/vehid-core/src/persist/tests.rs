@@ -431,3 +431,62 @@ fn corrupt_bytes_never_panic() {
     // (7 kB, most of it floats: one update per variant keeps the debug-build test short.)
     survives_corruption(&two, &dh[5..6], &[0xff]);
 }
+
+#[test]
+fn identifiers_on_a_structure_continue_bit_for_bit() {
+    // The full-row structure (8 parameters, two groups) with a prior and the exact start,
+    // and the physical structure (m known: 4 parameters, one of them shared), in array and
+    // heap storage; the structured stochastic gradient with a sample spacing of 3.
+    let data = quarter(300);
+    let d = slices(&data);
+    let q = QuarterCar::<f64>::thesis();
+    let full = crate::structure::Structure::<f64>::full_rows(4, &[1, 3]).unwrap();
+    let physical = *QuarterCar::<f64>::structure([None, Some(1.0), None, None, None]).unwrap().structure();
+    let r: [f64; 2] = q.model().row_noise_var(0.1, 0.005).unwrap();
+    for form in [CovarianceForm::Standard, CovarianceForm::Sqrt] {
+        let o = opts(form);
+        let id = StructuredKalman::<f64, 4, 2>::new(full, StructuredPrior::Scalar(1000.0), None, &r, o).unwrap();
+        continues(id, &d, 120);
+        let id = StructuredKalmanVec::<f64, 4>::new(full, StructuredPrior::Exact, None, &r, o).unwrap();
+        for split in [2, 150] {
+            continues(id.clone(), &d, split);
+        }
+        let id =
+            StructuredKalman::<f64, 2, 2>::new(physical, StructuredPrior::Scalar(1000.0), None, &[1.0], o).unwrap();
+        continues(id, &d, 100);
+    }
+    let sg = StructuredGradient::<f64, 8>::new(full, Gain::Venter { p: 0.51 }, &[0.4], None, 3).unwrap();
+    for split in [1, 101] {
+        continues(sg.clone(), &d, split);
+    }
+}
+
+#[test]
+fn a_corrupt_structure_is_refused_and_corrupt_bytes_never_panic() {
+    use serde_json::json;
+    let full = crate::structure::Structure::<f64>::full_rows(4, &[1, 3]).unwrap();
+    let text = serde_json::to_value(full).unwrap();
+    let back: crate::structure::Structure<f64> = serde_json::from_value(text.clone()).unwrap();
+    assert_eq!(back, full);
+    // A term reading a state the structure does not have, a parameter beyond its count, an
+    // equation past the stored terms, a second equation for a state: each refused.
+    for (path, value) in [
+        ("/terms/0/basis", json!({"Var": {"State": 9}})),
+        ("/terms/0/param", json!(40)),
+        ("/eqs/1/len", json!(90)),
+        ("/eqs/1/state", json!(1)),
+    ] {
+        let mut v = text.clone();
+        *v.pointer_mut(path).unwrap() = value;
+        assert!(serde_json::from_value::<crate::structure::Structure<f64>>(v).is_err(), "{path}");
+    }
+    let q = quarter(40);
+    let dq = slices(&q);
+    let r = [81.0, 2.5e-5];
+    let id =
+        StructuredKalman::<f64, 4, 2>::new(full, StructuredPrior::Scalar(1000.0), None, &r, KalmanOptions::default())
+            .unwrap();
+    survives_corruption(&id, &dq[..3], &[0xff]);
+    let sg = StructuredGradient::<f64, 8>::new(full, Gain::Lyapunov, &[1.0], None, 2).unwrap();
+    survives_corruption(&sg, &dq[..3], &[0x01, 0xff]);
+}

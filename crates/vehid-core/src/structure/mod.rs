@@ -39,6 +39,7 @@ pub const MAX_COMBINATION: usize = 64;
 
 /// A state, a measured input, or the measured derivative of a state.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum Var {
     /// State `i` (0-based).
     State(u8),
@@ -55,6 +56,7 @@ pub enum Var {
 
 /// The basis function of a term.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum Basis {
     /// 1: an offset.
     One,
@@ -85,6 +87,7 @@ pub enum Basis {
 
 /// One term: `coef × p_param × φ`, or `coef × φ` when `param` is `None` (a known term).
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Term<T> {
     /// The numeric coefficient.
     pub coef: T,
@@ -95,7 +98,8 @@ pub struct Term<T> {
 }
 
 /// An equation: the derivative of `state` as the terms `start..start + len`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 struct Eq {
     state: u8,
     start: u8,
@@ -104,6 +108,14 @@ struct Eq {
 
 /// A model linear in its parameters, as fixed-capacity data (see the module docs).
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(
+        remote = "Self",
+        bound(serialize = "T: serde::Serialize", deserialize = "T: crate::Real + serde::Deserialize<'de>")
+    )
+)]
 pub struct Structure<T> {
     states: u8,
     inputs: u8,
@@ -115,8 +127,10 @@ pub struct Structure<T> {
     /// The equations in an order in which every `der(·)` a term reads is computed before it
     /// (for simulation).
     order: [u8; MAX_EQUATIONS],
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::array"))]
     terms: [Term<T>; MAX_TERMS],
     n_terms: u8,
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::array"))]
     comb: [(Var, T); MAX_COMBINATION],
     n_comb: u8,
 }
@@ -127,7 +141,56 @@ const INVALID: Error = Error::InvalidArgument {
                96 terms, 64 entries in sign/pos/neg combinations)",
 };
 
+impl Default for Var {
+    /// State 0 (the filler of unused slots).
+    fn default() -> Self {
+        Var::State(0)
+    }
+}
+
+impl Default for Basis {
+    /// 1 (the filler of unused slots).
+    fn default() -> Self {
+        Basis::One
+    }
+}
+
+impl<T: Real> Default for Term<T> {
+    /// `0 × 1`, a known term (the filler of unused slots).
+    fn default() -> Self {
+        Term { coef: T::zero(), param: None, basis: Basis::One }
+    }
+}
+
 impl<T: Real> Structure<T> {
+    /// Checks a deserialized structure (feature `serde`): it is rebuilt from its parts through
+    /// [`Structure::new`], [`Structure::push_combination`] and [`Structure::push_equation`],
+    /// with every check they make, and must come out equal, so that a corrupt input is an
+    /// error, never a panic later.
+    #[cfg(feature = "serde")]
+    pub(crate) fn restored(&mut self) -> Result<()> {
+        let n_eq = self.identified as usize + self.known as usize;
+        let (nt, nc) = (self.n_terms as usize, self.n_comb as usize);
+        if n_eq > MAX_EQUATIONS || nt > MAX_TERMS || nc > MAX_COMBINATION {
+            return Err(INVALID);
+        }
+        let mut rebuilt = Self::new(self.states as usize, self.inputs as usize, self.params as usize)?;
+        if nc > 0 {
+            rebuilt.push_combination(&self.comb[..nc])?;
+        }
+        for e in &self.eqs[..n_eq] {
+            let (s, l) = (e.start as usize, e.len as usize);
+            if s + l > nt {
+                return Err(INVALID);
+            }
+            rebuilt.push_equation(e.state as usize, &self.terms[s..s + l])?;
+        }
+        if rebuilt != *self {
+            return Err(INVALID);
+        }
+        Ok(())
+    }
+
     /// An empty structure with `states` states, `inputs` measured inputs and `params`
     /// parameters (equations are added with [`Structure::push_equation`]).
     ///
@@ -666,6 +729,7 @@ impl<T: Real> Structure<T> {
 
 /// The parameters of a [`Structure`] in independent groups ([`Structure::partition`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Partition {
     /// Number of groups.
     pub groups: u8,
