@@ -28,7 +28,7 @@ use vehid_core::identify::{
 };
 use vehid_core::Error;
 
-/// The outlier gate of `KalmanIdentifier` unless `gate=` says otherwise (mode rows): a sample
+/// The outlier gate of `KalmanIdentifier` unless `gate=` says otherwise (every mode): a sample
 /// whose recursive residual exceeds 6 estimated standard deviations is left out (for
 /// Gaussian noise: one sample in 5·10⁸).
 pub const DEFAULT_GATE: f64 = 6.0;
@@ -335,9 +335,11 @@ impl PyIdentifier {
 /// Tracking: `forgetting` λ in (0, 1] (memory about 1/(1 − λ) samples; `directional=True`
 /// forgets only along excited directions), `drift` q (random walk: P += q I per sample), both
 /// only while tr P < `max_trace` (default: the trace when filtering starts). Outliers: `gate`
-/// κ (default 6 for mode "rows"; 0 turns it off, as exact least-squares equivalence needs)
+/// κ (default 6 in every mode; 0 turns it off, as exact least-squares equivalence needs)
 /// leaves out a sample whose recursive residual exceeds κ estimated standard deviations
-/// (counted in `gated`); `huber` c (e.g. 1.345) weights large residuals down (Huber).
+/// (counted in `gated`; in modes "shared" and "full" a sample beyond the gate on one row is
+/// left out by every row); `huber` c (e.g. 1.345, mode "rows") weights large residuals down
+/// (Huber).
 /// `reinit=True` applies Eq 4.36. `mode`: "rows" (decoupled filters, Eq 6.16–6.18), "shared" (one covariance
 /// for all rows; needs the same r/p0 on every row), "full" (the stacked filter, general R).
 /// With a prior the estimate depends on r/p0 only (see the README on prior regimes).
@@ -484,8 +486,8 @@ impl PyKalmanIdentifier {
             directional,
             drift,
             max_trace: max_trace.unwrap_or(0.0),
-            // On by default for online use (mode rows; the other modes have no gate).
-            gate: gate.unwrap_or(if mode == Mode::Rows { DEFAULT_GATE } else { 0.0 }),
+            // On by default for online use, in every mode.
+            gate: gate.unwrap_or(DEFAULT_GATE),
             huber,
         };
         if let Ok(st) = model.cast::<PyStructure>() {

@@ -30,7 +30,8 @@ use vehid_core::Error;
 
 /// Version of the pickled state's layout. Raise it when the payload or any serialized core
 /// type changes in a way older readers (or this reader, for older payloads) cannot follow.
-pub const FORMAT: u32 = 1;
+/// 2: modes `shared` and `full` keep the outlier gate's statistics (issue 13).
+pub const FORMAT: u32 = 2;
 
 /// The concrete core type behind a Python identifier.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
