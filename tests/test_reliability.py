@@ -382,9 +382,6 @@ def test_an_overflow_through_z_names_z_k(make: Callable[[], Any], n: int) -> Non
         assert np.all(np.isfinite(ident.theta))
 
 
-NOTE_ONLY = "pyo3 names the argument only in __notes__ ('while processing ...'), not in str(e)"
-
-
 @pytest.mark.parametrize("call, name", [
     pytest.param(lambda: vehid.Simulator(Q, dt="x"), "dt", id="Simulator-dt-str"),
     pytest.param(lambda: vehid.KalmanIdentifier(Q, reinit="yes"), "reinit", id="Kalman-reinit-str"),
@@ -398,7 +395,6 @@ NOTE_ONLY = "pyo3 names the argument only in __notes__ ('while processing ...'),
     pytest.param(lambda: vehid.KalmanIdentifier(Q).fit(np.zeros((3, 4)), np.zeros((3, 4)), record_every=2**200),
                  "record_every", id="fit-record_every-2**200"),
 ])
-@xfail(NOTE_ONLY)
 def test_conversion_errors_name_the_argument(call: Callable[[], Any], name: str) -> None:
     with pytest.raises(Exception) as e:  # noqa: B017 - the type is checked below
         call()

@@ -178,7 +178,7 @@ impl PyIdentifier {
         r: &Bound<'py, PyAny>,
         z: &Bound<'py, PyAny>,
         u: Option<&Bound<'py, PyAny>>,
-        record_every: i128,
+        #[pyo3(from_py_with = crate::args::record_every)] record_every: i128,
     ) -> PyResult<Bound<'py, PyAny>> {
         let every = size(record_every, "record_every")?;
         let mut this = borrow_mut(slf)?;
@@ -446,7 +446,7 @@ fn kalman_n<const N: usize>(spec: &KalmanSpec<f64>) -> vehid_core::Result<Box<dy
 impl PyKalmanIdentifier {
     #[new]
     #[pyo3(signature = (model, p0 = None, r = None, *, theta0 = None, road_sigma = None, deriv_noise = None,
-                        reinit = false, mode = "rows", form = None, joseph = false, retire_below = 0.0,
+                        reinit = false, mode = "rows".into(), form = None, joseph = false, retire_below = 0.0,
                         forgetting = 1.0, drift = 0.0, directional = false, max_trace = None, gate = None,
                         huber = 0.0))]
     #[allow(clippy::too_many_arguments)]
@@ -457,20 +457,20 @@ impl PyKalmanIdentifier {
         theta0: Option<&Bound<'_, PyAny>>,
         road_sigma: Option<&Bound<'_, PyAny>>,
         deriv_noise: Option<&Bound<'_, PyAny>>,
-        reinit: bool,
-        mode: &str,
-        form: Option<&str>,
-        joseph: bool,
-        retire_below: f64,
-        forgetting: f64,
-        drift: f64,
-        directional: bool,
-        max_trace: Option<f64>,
-        gate: Option<f64>,
-        huber: f64,
+        #[pyo3(from_py_with = crate::args::reinit)] reinit: bool,
+        #[pyo3(from_py_with = crate::args::mode)] mode: String,
+        #[pyo3(from_py_with = crate::args::form)] form: Option<String>,
+        #[pyo3(from_py_with = crate::args::joseph)] joseph: bool,
+        #[pyo3(from_py_with = crate::args::retire_below)] retire_below: f64,
+        #[pyo3(from_py_with = crate::args::forgetting)] forgetting: f64,
+        #[pyo3(from_py_with = crate::args::drift)] drift: f64,
+        #[pyo3(from_py_with = crate::args::directional)] directional: bool,
+        #[pyo3(from_py_with = crate::args::max_trace)] max_trace: Option<f64>,
+        #[pyo3(from_py_with = crate::args::gate)] gate: Option<f64>,
+        #[pyo3(from_py_with = crate::args::huber)] huber: f64,
     ) -> PyResult<PyClassInitializer<Self>> {
-        let mode: Mode = option(mode)?;
-        let form = match (form, joseph) {
+        let mode: Mode = option(&mode)?;
+        let form = match (form.as_deref(), joseph) {
             (None, false) => CovarianceForm::Standard,
             (None, true) => CovarianceForm::Joseph,
             (Some(f), false) => option(f)?,
@@ -614,19 +614,19 @@ fn gradient_n<const N: usize>(
 #[pymethods]
 impl PyStochasticGradient {
     #[new]
-    #[pyo3(signature = (model, gain = "venter", h = None, p = 0.51, *, spacing = 1, state_noise_var = None, lambda0 = 0.99, lambda_init = 0.95))]
+    #[pyo3(signature = (model, gain = "venter".into(), h = None, p = 0.51, *, spacing = 1, state_noise_var = None, lambda0 = 0.99, lambda_init = 0.95))]
     #[allow(clippy::too_many_arguments)]
     fn py_new(
         model: &Bound<'_, PyAny>,
-        gain: &str,
+        #[pyo3(from_py_with = crate::args::gain)] gain: String,
         h: Option<&Bound<'_, PyAny>>,
-        p: f64,
-        spacing: i128,
+        #[pyo3(from_py_with = crate::args::p)] p: f64,
+        #[pyo3(from_py_with = crate::args::spacing_int)] spacing: i128,
         state_noise_var: Option<&Bound<'_, PyAny>>,
-        lambda0: f64,
-        lambda_init: f64,
+        #[pyo3(from_py_with = crate::args::lambda0)] lambda0: f64,
+        #[pyo3(from_py_with = crate::args::lambda_init)] lambda_init: f64,
     ) -> PyResult<PyClassInitializer<Self>> {
-        let kind: GainKind = option(gain)?;
+        let kind: GainKind = option(&gain)?;
         if let Ok(st) = model.cast::<PyStructure>() {
             refuse_for_structure("state_noise_var", state_noise_var.is_some())?;
             let h = match h {
