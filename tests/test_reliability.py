@@ -729,9 +729,6 @@ def test_identify_names_the_absolute_line_of_a_bad_cell(tmp_path: Path) -> None:
         assert "sample" not in done.stderr
 
 
-@xfail("--method ls stores every sample (vehid.BatchLeastSquares keeps the data for its QR solve and remove(); "
-       "the core's memory-bounded LsAccumulator has no Python binding), so its memory grows with the file: "
-       "80 bytes per quarter-car sample, 0.8 GB for 10^7 rows")
 def test_identify_method_ls_memory_is_bounded() -> None:
     from vehid import cli
 

@@ -75,6 +75,8 @@ named_args! {
     spacing_int: i128 = "spacing";
     lambda0: f64 = "lambda0";
     lambda_init: f64 = "lambda_init";
+    // BatchLeastSquares
+    keep_samples: bool = "keep_samples";
     // LinearModel.output_std
     hold: f64 = "hold";
     // QuarterCar, HalfCar

@@ -682,18 +682,45 @@ impl PyStochasticGradient {
 }
 
 /// Batch least squares (Eq 2.14): stores every sample and solves each unknown row by
-/// column-pivoted QR when the estimate is read. On a Structure: the same least-squares
-/// estimate, computed recursively (exact start, no prior, no outlier gate), storing nothing. Missing excitation raises VehidError (rank
-/// deficiency), never NaN. `fit` stores the samples (all or nothing) and returns the history
-/// like the recursive identifiers (θ̂ over every prefix, solved at each record).
+/// column-pivoted QR when the estimate is read. With `keep_samples=False` (the memory-bounded
+/// form, what `vehid identify --method ls` uses) nothing is stored: the same least-squares
+/// estimate is computed recursively (Givens QR of the samples until they identify every
+/// parameter, then recursive least squares with no prior and no outlier gate), equal to the
+/// stored form's to rounding, with the same `stats()`; `remove()` needs the stored samples. On a
+/// Structure: always the recursive form, storing nothing. Missing excitation raises VehidError (rank
+/// deficiency), never NaN; so does (stored form) one sample that dominates the regression,
+/// named with the `remove()` that drops it. `fit` stores the samples (all or nothing) and
+/// returns the history like the recursive identifiers (θ̂ over every prefix, solved at each record).
 #[pyclass(name = "BatchLeastSquares", module = "vehid._vehid", extends = PyIdentifier)]
-pub struct PyBatchLeastSquares;
+pub struct PyBatchLeastSquares {
+    keep_samples: bool,
+}
 
 fn batch_n<const N: usize>(rows: &[usize]) -> vehid_core::Result<Box<dyn DynIdentifier<f64>>> {
     Ok(Box::new(BatchLeastSquares::<f64, N>::new(rows)?))
 }
 
+/// The memory-bounded least squares of `BatchLeastSquares(model, keep_samples=False)` for a
+/// linear model's unknown `rows`: the exact-start rows filter (`P = (XᵀX)⁻¹` with `r = 1`, the
+/// stored form's unit-noise convention), no gate.
+fn streaming_ls(m: &ModelData) -> PyResult<Box<dyn DynIdentifier<f64>>> {
+    let spec = KalmanSpec {
+        rows: m.rows.clone(),
+        p0: Prior::Exact,
+        theta0: None,
+        r: vec![1.0],
+        mode: Mode::Rows,
+        opts: KalmanOptions::default(),
+    };
+    dispatch_n!(m.n, kalman_n(&spec)).map_err(core_err)
+}
+
 impl PyBatchLeastSquares {
+    /// Whether the samples are stored (see the `keep_samples` getter).
+    pub(crate) fn keeps_samples(&self) -> bool {
+        self.keep_samples
+    }
+
     fn batch<const N: usize>(id: &dyn DynIdentifier<f64>) -> Option<&BatchLeastSquares<f64, N>> {
         id.as_any().downcast_ref::<BatchLeastSquares<f64, N>>()
     }
@@ -725,38 +752,61 @@ fn batch_remove<const N: usize>(id: &mut Box<dyn DynIdentifier<f64>>, index: usi
 #[pymethods]
 impl PyBatchLeastSquares {
     #[new]
-    fn py_new(model: &Bound<'_, PyAny>) -> PyResult<PyClassInitializer<Self>> {
+    #[pyo3(signature = (model, keep_samples = true))]
+    fn py_new(
+        model: &Bound<'_, PyAny>,
+        #[pyo3(from_py_with = crate::args::keep_samples)] keep_samples: bool,
+    ) -> PyResult<PyClassInitializer<Self>> {
         if let Ok(st) = model.cast::<PyStructure>() {
             // Least squares on all samples, solved recursively (exact start, no prior, no
             // gate): the same estimate as the normal equations, without storing samples.
             let inner = kalman_on_structure(st.get(), None, None, None, KalmanOptions::default())?;
-            return Ok(PyClassInitializer::from(PyIdentifier::on_structure(inner, st)).add_subclass(Self));
+            return Ok(PyClassInitializer::from(PyIdentifier::on_structure(inner, st))
+                .add_subclass(Self { keep_samples: false }));
         }
         let model = linear_model(model)?;
         let m = model.get();
-        let inner = dispatch_n!(m.data.n, batch_n(&m.data.rows)).map_err(core_err)?;
-        Ok(PyClassInitializer::from(PyIdentifier::new(inner, m.data.clone())).add_subclass(Self))
+        let inner = if keep_samples {
+            dispatch_n!(m.data.n, batch_n(&m.data.rows)).map_err(core_err)?
+        } else {
+            streaming_ls(&m.data)?
+        };
+        Ok(PyClassInitializer::from(PyIdentifier::new(inner, m.data.clone())).add_subclass(Self { keep_samples }))
     }
 
-    /// Bytes of sample storage (the thesis' objection to batch least squares).
+    /// Whether the samples are stored (QR solve, `remove()`), or only running sums (the
+    /// memory-bounded form: `storage_bytes` stays 0).
+    #[getter]
+    fn keep_samples(slf: &Bound<'_, Self>) -> PyResult<bool> {
+        Ok(borrow(slf)?.keep_samples)
+    }
+
+    /// Bytes of sample storage (the thesis' objection to batch least squares); 0 for the
+    /// memory-bounded form (`keep_samples=False`) and on a Structure.
     #[getter]
     fn storage_bytes(slf: &Bound<'_, Self>) -> PyResult<usize> {
         let mut slf = borrow_mut(slf)?;
+        let keep = slf.keep_samples;
         let base = slf.as_super();
-        if base.structure.is_some() {
+        if base.structure.is_some() || !keep {
             return Ok(0);
         }
         let n = base.model.n;
         dispatch_n!(n, batch_storage(&mut base.inner, false)).map_err(core_err)
     }
 
-    /// Drops the stored samples.
+    /// Drops the stored samples (the memory-bounded form: its running sums).
     fn clear(slf: &Bound<'_, Self>) -> PyResult<()> {
         let mut slf = borrow_mut(slf)?;
+        let keep = slf.keep_samples;
         let base = slf.as_super();
         if let Some(st) = &base.structure {
             let inner = kalman_on_structure(st.get(), None, None, None, KalmanOptions::default())?;
             base.inner = inner;
+            return Ok(());
+        }
+        if !keep {
+            base.inner = streaming_ls(&base.model)?;
             return Ok(());
         }
         let n = base.model.n;
@@ -765,9 +815,16 @@ impl PyBatchLeastSquares {
 
     /// Drops stored sample `index` (0-based, in the order the samples were given), e.g. the
     /// one a `VehidError` names as dominating the batch (an outlier). Later samples move up by
-    /// one. An index out of range raises and changes nothing.
+    /// one. An index out of range raises and changes nothing; so does the memory-bounded form
+    /// (`keep_samples=False`), which has no samples to drop.
     fn remove(slf: &Bound<'_, Self>, index: i128) -> PyResult<()> {
         let mut slf = borrow_mut(slf)?;
+        if !slf.keep_samples {
+            return Err(VehidError::new_err(
+                "`remove` needs the stored samples: this BatchLeastSquares keeps only running sums \
+                 (keep_samples=False); refit with BatchLeastSquares(model) to drop a sample",
+            ));
+        }
         let base = slf.as_super();
         let n = base.model.n;
         let samples = base.inner.samples();
@@ -784,9 +841,10 @@ impl PyBatchLeastSquares {
         let slf = borrow(slf)?;
         let base = slf.as_super();
         Ok(format!(
-            "BatchLeastSquares(unknown_rows={}, samples={})",
+            "BatchLeastSquares(unknown_rows={}, samples={}{})",
             crate::convert::py_tuple(base.inner.rows()),
-            base.inner.samples()
+            base.inner.samples(),
+            if slf.keep_samples || base.structure.is_some() { "" } else { ", keep_samples=False" }
         ))
     }
 }
