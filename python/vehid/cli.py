@@ -699,8 +699,8 @@ def feed_batch_least_squares(ls: BatchLeastSquares, r: NDArray[np.float64], z: N
     chunk.
 
     The identifier is the memory-bounded ``BatchLeastSquares(model, keep_samples=False)``:
-    it keeps running sums only (``storage_bytes`` stays 0), so a file of any length is
-    identified in bounded memory, like the recursive methods.
+    it keeps no samples, only its recursive solution (``storage_bytes`` stays 0), so a file
+    of any length is identified in bounded memory, like the recursive methods.
     """
     ls.fit(r, z)  # all or nothing per chunk
 

@@ -448,7 +448,10 @@ impl PyKalmanIdentifier {
     #[pyo3(signature = (model, p0 = None, r = None, *, theta0 = None, road_sigma = None, deriv_noise = None,
                         reinit = false, mode = "rows".into(), form = None, joseph = false, retire_below = 0.0,
                         forgetting = 1.0, drift = 0.0, directional = false, max_trace = None, gate = None,
-                        huber = 0.0))]
+                        huber = 0.0),
+           text_signature = "(model, p0=None, r=None, *, theta0=None, road_sigma=None, deriv_noise=None, \
+                             reinit=False, mode='rows', form=None, joseph=False, retire_below=0.0, \
+                             forgetting=1.0, drift=0.0, directional=False, max_trace=None, gate=None, huber=0.0)")]
     #[allow(clippy::too_many_arguments)]
     fn py_new(
         model: &Bound<'_, PyAny>,
@@ -614,7 +617,9 @@ fn gradient_n<const N: usize>(
 #[pymethods]
 impl PyStochasticGradient {
     #[new]
-    #[pyo3(signature = (model, gain = "venter".into(), h = None, p = 0.51, *, spacing = 1, state_noise_var = None, lambda0 = 0.99, lambda_init = 0.95))]
+    #[pyo3(signature = (model, gain = "venter".into(), h = None, p = 0.51, *, spacing = 1, state_noise_var = None, lambda0 = 0.99, lambda_init = 0.95),
+           text_signature = "(model, gain='venter', h=None, p=0.51, *, spacing=1, state_noise_var=None, lambda0=0.99, \
+                             lambda_init=0.95)")]
     #[allow(clippy::too_many_arguments)]
     fn py_new(
         model: &Bound<'_, PyAny>,
@@ -774,8 +779,8 @@ impl PyBatchLeastSquares {
         Ok(PyClassInitializer::from(PyIdentifier::new(inner, m.data.clone())).add_subclass(Self { keep_samples }))
     }
 
-    /// Whether the samples are stored (QR solve, `remove()`), or only running sums (the
-    /// memory-bounded form: `storage_bytes` stays 0).
+    /// Whether the samples are stored (QR solve, `remove()`), or none (the memory-bounded
+    /// recursive form: `storage_bytes` stays 0).
     #[getter]
     fn keep_samples(slf: &Bound<'_, Self>) -> PyResult<bool> {
         Ok(borrow(slf)?.keep_samples)
@@ -795,7 +800,7 @@ impl PyBatchLeastSquares {
         dispatch_n!(n, batch_storage(&mut base.inner, false)).map_err(core_err)
     }
 
-    /// Drops the stored samples (the memory-bounded form: its running sums).
+    /// Drops the stored samples (the memory-bounded form: starts its recursive solution anew).
     fn clear(slf: &Bound<'_, Self>) -> PyResult<()> {
         let mut slf = borrow_mut(slf)?;
         let keep = slf.keep_samples;
@@ -821,8 +826,8 @@ impl PyBatchLeastSquares {
         let mut slf = borrow_mut(slf)?;
         if !slf.keep_samples {
             return Err(VehidError::new_err(
-                "`remove` needs the stored samples: this BatchLeastSquares keeps only running sums \
-                 (keep_samples=False); refit with BatchLeastSquares(model) to drop a sample",
+                "`remove` needs the stored samples: this BatchLeastSquares keeps none (keep_samples=False: \
+                 only its recursive solution); refit with BatchLeastSquares(model) to drop a sample",
             ));
         }
         let base = slf.as_super();
