@@ -293,7 +293,11 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
     /// `W_i = C_i S⁻¹`, `C_i = [P_i1 x, …, P_iK x]`; `θ_i += W_i e`, `P_ij −= W_i C_jᵀ`.
     ///
     /// # Errors
-    /// As [`KalmanRows::update_into`]; [`Error::Singular`] when `S` is not positive definite.
+    /// As [`KalmanRows::update_into`]; [`Error::Singular`] when `S` is not positive definite,
+    /// or for a sample informative far beyond its noise on some row (`R_ii / S_ii < √ε`) whose
+    /// downdate would leave `P` indefinite (the whole `(K·N) × (K·N)` matrix is checked by
+    /// Cholesky then). A sample the outlier gate leaves out is not an error (it is counted,
+    /// [`KalmanFull::gated`]).
     pub(crate) fn update_vec(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
         check_sample(x, z)?;
         let rows = self.rows.flat();

@@ -209,7 +209,9 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
     /// One sample; innovations into `e`. No allocation.
     ///
     /// # Errors
-    /// As [`KalmanRows::update_into`].
+    /// As [`KalmanRows::update_into`]; [`Error::Singular`] for a sample informative far beyond
+    /// its noise (`1/s < √ε`) whose downdate would leave `Q` indefinite. A sample the outlier
+    /// gate leaves out is not an error (it is counted, [`KalmanShared::gated`]).
     pub(crate) fn update_vec(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
         let k = self.rows.flat().len();
         if e.len() != k {
