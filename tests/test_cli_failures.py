@@ -296,6 +296,9 @@ def test_batch_least_squares_is_fed_in_chunks(run_csv: Path, capsys: pytest.Capt
     report = json.loads(capsys.readouterr().out)
     assert sizes == [64] * 4 + [44]  # never the whole file at once
     run = vehid.Simulator(vehid.QuarterCar(), seed=2).run(300)
-    ref = vehid.BatchLeastSquares(vehid.QuarterCar())
+    ref = vehid.BatchLeastSquares(vehid.QuarterCar(), keep_samples=False)  # the CLI's memory-bounded form
     ref.fit(run.r, run.z)
     assert np.array_equal(np.array(report["theta"]), ref.theta)
+    stored = vehid.BatchLeastSquares(vehid.QuarterCar())  # the same least squares, to rounding
+    stored.fit(run.r, run.z)
+    np.testing.assert_allclose(ref.theta, stored.theta, rtol=1e-8, atol=1e-10)

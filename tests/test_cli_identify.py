@@ -120,7 +120,7 @@ def test_honest_defaults_exact_start_and_intervals(quarter_csv: Path, capsys: py
     expected = car.physical(ps.stats(), m=1.0)
     assert report["physical_intervals"] == {k: list(v) for k, v in expected.items()}
     ls = identify_json(capsys, str(quarter_csv), "--model", "quarter", "--method", "ls")
-    ref = vehid.BatchLeastSquares(car)
+    ref = vehid.BatchLeastSquares(car, keep_samples=False)  # the CLI's memory-bounded form
     ref.fit(run.r, run.z)
     np.testing.assert_array_equal(np.array(ls["conf_int"]), ref.stats().conf_int.reshape(2, 4, 2))
     # A prior chosen by the user: 3000 samples leave some entries' variance near P(0).
@@ -140,7 +140,7 @@ def test_every_method_and_mode(quarter_csv: Path, capsys: pytest.CaptureFixture[
     car = vehid.QuarterCar()
     run = run_of(car, 3000, 2)
     ls = identify_json(capsys, str(quarter_csv), "--model", "quarter", "--method", "ls")
-    ref_ls = vehid.BatchLeastSquares(car)
+    ref_ls = vehid.BatchLeastSquares(car, keep_samples=False)
     ref_ls.fit(run.r, run.z)
     assert np.array_equal(np.array(ls["theta"]), ref_ls.theta)
     sg = identify_json(capsys, str(quarter_csv), "--model", "quarter", "--method", "sg", "--gain", "ljung",
@@ -162,7 +162,7 @@ def test_half_car_and_known_masses(tmp_path: Path, capsys: pytest.CaptureFixture
     half = vehid.HalfCar()
     report = identify_json(capsys, str(path), "--model", "half", "--method", "ls", "--m1", "1.5", "--m2", "0.5")
     run = run_of(half, 2000, 5)
-    ref_half = vehid.BatchLeastSquares(half)
+    ref_half = vehid.BatchLeastSquares(half, keep_samples=False)
     ref_half.fit(run.r, run.z)
     theta = ref_half.theta
     assert np.array_equal(np.array(report["theta"]), theta)

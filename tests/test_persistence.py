@@ -153,14 +153,14 @@ def test_corrupt_or_foreign_state_is_a_clear_error() -> None:
     kf = vehid.KalmanIdentifier(CAR, p0=1000.0, r=RV)
     kf.fit(run.r[:50], run.z[:50])
     fmt, version, payload = state_of(kf)
-    assert fmt == 1 and version.startswith("vehid ")
+    assert fmt == 2 and version.startswith("vehid ")
     blank = vehid.KalmanIdentifier(CAR, p0=1000.0, r=RV)
-    with pytest.raises(vehid.VehidError, match="format 2.*reads format 1"):
-        blank.__setstate__((2, "vehid 9.9", payload))
+    with pytest.raises(vehid.VehidError, match="format 3.*reads format 2"):
+        blank.__setstate__((3, "vehid 9.9", payload))
     with pytest.raises(vehid.VehidError, match="corrupt"):
-        blank.__setstate__((1, version, payload[:-7]))
+        blank.__setstate__((2, version, payload[:-7]))
     with pytest.raises(vehid.VehidError, match="corrupt"):
-        blank.__setstate__((1, version, b"\x00garbage"))
+        blank.__setstate__((2, version, b"\x00garbage"))
     with pytest.raises(vehid.VehidError, match="corrupt"):
         blank.__setstate__("nonsense")  # type: ignore[arg-type]
     # Every single-byte change either fails cleanly or restores an identifier that works.
@@ -169,7 +169,7 @@ def test_corrupt_or_foreign_state_is_a_clear_error() -> None:
         broken[i] ^= 0xFF
         target = vehid.KalmanIdentifier(CAR, p0=1000.0, r=RV)
         try:
-            target.__setstate__((1, version, bytes(broken)))
+            target.__setstate__((2, version, bytes(broken)))
         except vehid.VehidError:
             assert target.samples == 0  # unchanged
             continue

@@ -101,15 +101,8 @@ def child_json(code: str, timeout: float) -> Dict[str, Any]:
 
 # --- one finite outlier -------------------------------------------------------------------------
 
-NO_GATE = ("mode='{}' has no outlier gate (gate defaults to 0 outside mode='rows' and gate > 0 is refused): "
-           "the outlier ruins the estimate")
 
-
-@pytest.mark.parametrize("mode", [
-    "rows",
-    pytest.param("shared", marks=xfail(NO_GATE.format("shared") + " (xi 1.4e50, clean 3.4e-3)")),
-    pytest.param("full", marks=xfail(NO_GATE.format("full") + " (xi 1.3e50, clean 1.8e-2)")),
-])
+@pytest.mark.parametrize("mode", ["rows", "shared", "full"])
 def test_an_outlier_of_1e30_is_left_out_by_the_default_gate(quarter_run: vehid.Run, mode: str) -> None:
     # The reproducer: 40,000 samples, one derivative of 1e30, then 160,000 good samples.
     r, z = quarter_run.r, quarter_run.z
@@ -127,11 +120,7 @@ def test_an_outlier_of_1e30_is_left_out_by_the_default_gate(quarter_run: vehid.R
     assert int(np.sum(kf.gated)) >= 1  # left out, and counted
 
 
-@pytest.mark.parametrize("mode", [
-    "rows",
-    pytest.param("shared", marks=xfail(NO_GATE.format("shared"))),
-    pytest.param("full", marks=xfail(NO_GATE.format("full"))),
-])
+@pytest.mark.parametrize("mode", ["rows", "shared", "full"])
 def test_an_outlier_of_1e3_times_the_signal_in_1e4_samples(quarter_run: vehid.Run, mode: str) -> None:
     r, z = quarter_run.r[:10_000], quarter_run.z[:10_000].copy()
     clean = vehid.KalmanIdentifier(Q, p0=1000.0, mode=mode, **MODE_KW[mode])
@@ -176,8 +165,6 @@ def test_batch_least_squares_can_drop_the_named_sample(quarter_run: vehid.Run) -
     np.testing.assert_allclose(ls.theta, ref.theta, rtol=1e-9)
 
 
-@xfail("a sample with x = 1e10 (2.5e11 times the typical state) keeps the regression full rank: it is not named "
-       "(Dominated is raised only on a rank deficiency) and xi is 4.1 against 2.2e-3 clean, silently")
 def test_batch_least_squares_names_or_survives_a_1e10_sample(quarter_run: vehid.Run) -> None:
     x = quarter_run.r[:10_000].copy()
     x[0] = 1e10
@@ -196,16 +183,13 @@ def test_batch_least_squares_names_or_survives_a_1e10_sample(quarter_run: vehid.
 
 # --- positive definiteness ----------------------------------------------------------------------
 
-NO_PD_CHECK = ("{} accepts the 1e10-scaled sample without a definiteness check (only the standard form of mode "
-               "'rows' has one): the stored P is indefinite after it or after 1e4 more samples")
-
 
 @pytest.mark.parametrize("mode, form", [
     ("rows", "standard"),
     ("rows", "sqrt"),
-    pytest.param("rows", "joseph", marks=xfail(NO_PD_CHECK.format("the Joseph form") + " (min eigenvalue -2e-14)")),
-    pytest.param("shared", "standard", marks=xfail(NO_PD_CHECK.format("mode='shared'") + " (-3.5e-16)")),
-    pytest.param("full", "standard", marks=xfail(NO_PD_CHECK.format("mode='full'") + " (-1e-21, then -1.1e-14)")),
+    ("rows", "joseph"),
+    ("shared", "standard"),
+    ("full", "standard"),
 ])
 def test_a_consistent_1e10_sample_keeps_p_positive_definite(quarter_run: vehid.Run, mode: str, form: str) -> None:
     # kf.update(r * 1e10, z * 1e10): either refused with advice (and nothing changes) or
@@ -228,14 +212,10 @@ def test_a_consistent_1e10_sample_keeps_p_positive_definite(quarter_run: vehid.R
 
 @pytest.mark.parametrize("mode, form", [
     ("rows", "standard"),
-    pytest.param("rows", "joseph", marks=xfail(
-        "the Joseph form dies at sample 5 (P lost positive definiteness): fed one by one, 9,992 of 10,000 samples "
-        "are refused, each with the same message, and there is no reset")),
+    ("rows", "joseph"),
     ("rows", "sqrt"),
     ("shared", "standard"),
-    pytest.param("full", "standard", marks=xfail(
-        "mode='full' rejects sample 9 with 'the innovation covariance H P Hᵀ + R is singular or not positive "
-        "definite' and no advice (what to do: form, p0)")),
+    ("full", "standard"),
 ])
 def test_p0_1e15_works_or_says_what_to_do(quarter_run: vehid.Run, mode: str, form: str) -> None:
     # p0 = 1e15 used to kill the identifier at sample 9 ("P lost positive definiteness", every
@@ -380,14 +360,11 @@ def _kalman(mode: str) -> Callable[[], Any]:
     return lambda: vehid.KalmanIdentifier(Q, p0=1000.0, mode=mode, **kw)
 
 
-Z_AS_R = "an update that overflows through a derivative of 1.7e308 is reported as `r_k`"
-
-
 @pytest.mark.parametrize("make, n", [
     pytest.param(_kalman("rows"), 4, id="rows"),
-    pytest.param(_kalman("shared"), 4, id="shared", marks=xfail(f"mode='shared': {Z_AS_R}")),
-    pytest.param(_kalman("full"), 4, id="full", marks=xfail(f"mode='full': {Z_AS_R}")),
-    pytest.param(lambda: vehid.TwoAxleIdentifier(H), 8, id="two_axle", marks=xfail(f"TwoAxleIdentifier: {Z_AS_R}")),
+    pytest.param(_kalman("shared"), 4, id="shared"),
+    pytest.param(_kalman("full"), 4, id="full"),
+    pytest.param(lambda: vehid.TwoAxleIdentifier(H), 8, id="two_axle"),
 ])
 def test_an_overflow_through_z_names_z_k(make: Callable[[], Any], n: int) -> None:
     model = Q if n == 4 else H
@@ -405,9 +382,6 @@ def test_an_overflow_through_z_names_z_k(make: Callable[[], Any], n: int) -> Non
         assert np.all(np.isfinite(ident.theta))
 
 
-NOTE_ONLY = "pyo3 names the argument only in __notes__ ('while processing ...'), not in str(e)"
-
-
 @pytest.mark.parametrize("call, name", [
     pytest.param(lambda: vehid.Simulator(Q, dt="x"), "dt", id="Simulator-dt-str"),
     pytest.param(lambda: vehid.KalmanIdentifier(Q, reinit="yes"), "reinit", id="Kalman-reinit-str"),
@@ -421,7 +395,6 @@ NOTE_ONLY = "pyo3 names the argument only in __notes__ ('while processing ...'),
     pytest.param(lambda: vehid.KalmanIdentifier(Q).fit(np.zeros((3, 4)), np.zeros((3, 4)), record_every=2**200),
                  "record_every", id="fit-record_every-2**200"),
 ])
-@xfail(NOTE_ONLY)
 def test_conversion_errors_name_the_argument(call: Callable[[], Any], name: str) -> None:
     with pytest.raises(Exception) as e:  # noqa: B017 - the type is checked below
         call()
@@ -756,9 +729,6 @@ def test_identify_names_the_absolute_line_of_a_bad_cell(tmp_path: Path) -> None:
         assert "sample" not in done.stderr
 
 
-@xfail("--method ls stores every sample (vehid.BatchLeastSquares keeps the data for its QR solve and remove(); "
-       "the core's memory-bounded LsAccumulator has no Python binding), so its memory grows with the file: "
-       "80 bytes per quarter-car sample, 0.8 GB for 10^7 rows")
 def test_identify_method_ls_memory_is_bounded() -> None:
     from vehid import cli
 

@@ -698,19 +698,19 @@ def make_identifier(args: argparse.Namespace, model: LinearModel) -> Identifier:
             road_sigma=args.road_sigma,
             deriv_noise=args.deriv_noise,
         )
-    return BatchLeastSquares(model)
+    # Memory-bounded: the same least-squares estimate, computed recursively, nothing stored.
+    return BatchLeastSquares(model, keep_samples=False)
 
 
 def feed_batch_least_squares(ls: BatchLeastSquares, r: NDArray[np.float64], z: NDArray[np.float64]) -> None:
     """The one place where ``vehid identify --method ls`` hands its samples over, chunk by
-    chunk; the rows are solved once, at the end (``ls.theta``).
+    chunk.
 
-    ``BatchLeastSquares`` keeps every sample (``storage_bytes`` grows with the file), so this
-    is the one method whose memory is not bounded. A memory-bounded accumulator (the normal
-    equations or an updated QR factor, as ``vehid_core::identify::LsAccumulator`` does in
-    Rust) belongs here once it is bound to Python; nothing else needs to change.
+    The identifier is the memory-bounded ``BatchLeastSquares(model, keep_samples=False)``:
+    it keeps no samples, only its recursive solution (``storage_bytes`` stays 0), so a file
+    of any length is identified in bounded memory, like the recursive methods.
     """
-    ls.fit(r, z)  # stores the chunk (all or nothing); solving happens when theta is read
+    ls.fit(r, z)  # all or nothing per chunk
 
 
 def feed(ident: Identifier, r: NDArray[np.float64], z: NDArray[np.float64]) -> None:
@@ -1114,9 +1114,9 @@ def build_parser() -> argparse.ArgumentParser:
                        help="the true constants, for xi: every one of the model, e.g. M=10,m=1,k1=90,k2=50,b=40, "
                             "or 'thesis' (default: the file's true_* columns if any, else no xi)")
     ident.add_argument("--method", choices=["kalman", "ls", "sg", "two-axle"], default="kalman",
-                       help="kalman (Eq 4.3-4.7, default), ls (batch least squares, Eq 2.14; keeps every sample "
-                            "in memory), sg (stochastic gradient), two-axle (half car on one road, samples every "
-                            "--spacing metres)")
+                       help="kalman (Eq 4.3-4.7, default), ls (least squares on every sample, Eq 2.14, computed "
+                            "recursively in bounded memory), sg (stochastic gradient), two-axle (half car on one "
+                            "road, samples every --spacing metres)")
     ident.add_argument("--spacing", type=float, default=0.3,
                        help="two-axle: metres between samples, as simulated (default 0.3)")
     ident.add_argument("--wheel-method", choices=["none", "thesis", "cancel"], default="cancel",

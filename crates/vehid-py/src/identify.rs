@@ -28,7 +28,7 @@ use vehid_core::identify::{
 };
 use vehid_core::Error;
 
-/// The outlier gate of `KalmanIdentifier` unless `gate=` says otherwise (mode rows): a sample
+/// The outlier gate of `KalmanIdentifier` unless `gate=` says otherwise (every mode): a sample
 /// whose recursive residual exceeds 6 estimated standard deviations is left out (for
 /// Gaussian noise: one sample in 5·10⁸).
 pub const DEFAULT_GATE: f64 = 6.0;
@@ -178,7 +178,7 @@ impl PyIdentifier {
         r: &Bound<'py, PyAny>,
         z: &Bound<'py, PyAny>,
         u: Option<&Bound<'py, PyAny>>,
-        record_every: i128,
+        #[pyo3(from_py_with = crate::args::record_every)] record_every: i128,
     ) -> PyResult<Bound<'py, PyAny>> {
         let every = size(record_every, "record_every")?;
         let mut this = borrow_mut(slf)?;
@@ -335,9 +335,11 @@ impl PyIdentifier {
 /// Tracking: `forgetting` λ in (0, 1] (memory about 1/(1 − λ) samples; `directional=True`
 /// forgets only along excited directions), `drift` q (random walk: P += q I per sample), both
 /// only while tr P < `max_trace` (default: the trace when filtering starts). Outliers: `gate`
-/// κ (default 6 for mode "rows"; 0 turns it off, as exact least-squares equivalence needs)
+/// κ (default 6 in every mode; 0 turns it off, as exact least-squares equivalence needs)
 /// leaves out a sample whose recursive residual exceeds κ estimated standard deviations
-/// (counted in `gated`); `huber` c (e.g. 1.345) weights large residuals down (Huber).
+/// (counted in `gated`; in modes "shared" and "full" a sample beyond the gate on one row is
+/// left out by every row); `huber` c (e.g. 1.345, mode "rows") weights large residuals down
+/// (Huber).
 /// `reinit=True` applies Eq 4.36. `mode`: "rows" (decoupled filters, Eq 6.16–6.18), "shared" (one covariance
 /// for all rows; needs the same r/p0 on every row), "full" (the stacked filter, general R).
 /// With a prior the estimate depends on r/p0 only (see the README on prior regimes).
@@ -444,9 +446,12 @@ fn kalman_n<const N: usize>(spec: &KalmanSpec<f64>) -> vehid_core::Result<Box<dy
 impl PyKalmanIdentifier {
     #[new]
     #[pyo3(signature = (model, p0 = None, r = None, *, theta0 = None, road_sigma = None, deriv_noise = None,
-                        reinit = false, mode = "rows", form = None, joseph = false, retire_below = 0.0,
+                        reinit = false, mode = "rows".into(), form = None, joseph = false, retire_below = 0.0,
                         forgetting = 1.0, drift = 0.0, directional = false, max_trace = None, gate = None,
-                        huber = 0.0))]
+                        huber = 0.0),
+           text_signature = "(model, p0=None, r=None, *, theta0=None, road_sigma=None, deriv_noise=None, \
+                             reinit=False, mode='rows', form=None, joseph=False, retire_below=0.0, \
+                             forgetting=1.0, drift=0.0, directional=False, max_trace=None, gate=None, huber=0.0)")]
     #[allow(clippy::too_many_arguments)]
     fn py_new(
         model: &Bound<'_, PyAny>,
@@ -455,20 +460,20 @@ impl PyKalmanIdentifier {
         theta0: Option<&Bound<'_, PyAny>>,
         road_sigma: Option<&Bound<'_, PyAny>>,
         deriv_noise: Option<&Bound<'_, PyAny>>,
-        reinit: bool,
-        mode: &str,
-        form: Option<&str>,
-        joseph: bool,
-        retire_below: f64,
-        forgetting: f64,
-        drift: f64,
-        directional: bool,
-        max_trace: Option<f64>,
-        gate: Option<f64>,
-        huber: f64,
+        #[pyo3(from_py_with = crate::args::reinit)] reinit: bool,
+        #[pyo3(from_py_with = crate::args::mode)] mode: String,
+        #[pyo3(from_py_with = crate::args::form)] form: Option<String>,
+        #[pyo3(from_py_with = crate::args::joseph)] joseph: bool,
+        #[pyo3(from_py_with = crate::args::retire_below)] retire_below: f64,
+        #[pyo3(from_py_with = crate::args::forgetting)] forgetting: f64,
+        #[pyo3(from_py_with = crate::args::drift)] drift: f64,
+        #[pyo3(from_py_with = crate::args::directional)] directional: bool,
+        #[pyo3(from_py_with = crate::args::max_trace)] max_trace: Option<f64>,
+        #[pyo3(from_py_with = crate::args::gate)] gate: Option<f64>,
+        #[pyo3(from_py_with = crate::args::huber)] huber: f64,
     ) -> PyResult<PyClassInitializer<Self>> {
-        let mode: Mode = option(mode)?;
-        let form = match (form, joseph) {
+        let mode: Mode = option(&mode)?;
+        let form = match (form.as_deref(), joseph) {
             (None, false) => CovarianceForm::Standard,
             (None, true) => CovarianceForm::Joseph,
             (Some(f), false) => option(f)?,
@@ -484,8 +489,8 @@ impl PyKalmanIdentifier {
             directional,
             drift,
             max_trace: max_trace.unwrap_or(0.0),
-            // On by default for online use (mode rows; the other modes have no gate).
-            gate: gate.unwrap_or(if mode == Mode::Rows { DEFAULT_GATE } else { 0.0 }),
+            // On by default for online use, in every mode.
+            gate: gate.unwrap_or(DEFAULT_GATE),
             huber,
         };
         if let Ok(st) = model.cast::<PyStructure>() {
@@ -612,19 +617,21 @@ fn gradient_n<const N: usize>(
 #[pymethods]
 impl PyStochasticGradient {
     #[new]
-    #[pyo3(signature = (model, gain = "venter", h = None, p = 0.51, *, spacing = 1, state_noise_var = None, lambda0 = 0.99, lambda_init = 0.95))]
+    #[pyo3(signature = (model, gain = "venter".into(), h = None, p = 0.51, *, spacing = 1, state_noise_var = None, lambda0 = 0.99, lambda_init = 0.95),
+           text_signature = "(model, gain='venter', h=None, p=0.51, *, spacing=1, state_noise_var=None, lambda0=0.99, \
+                             lambda_init=0.95)")]
     #[allow(clippy::too_many_arguments)]
     fn py_new(
         model: &Bound<'_, PyAny>,
-        gain: &str,
+        #[pyo3(from_py_with = crate::args::gain)] gain: String,
         h: Option<&Bound<'_, PyAny>>,
-        p: f64,
-        spacing: i128,
+        #[pyo3(from_py_with = crate::args::p)] p: f64,
+        #[pyo3(from_py_with = crate::args::spacing_int)] spacing: i128,
         state_noise_var: Option<&Bound<'_, PyAny>>,
-        lambda0: f64,
-        lambda_init: f64,
+        #[pyo3(from_py_with = crate::args::lambda0)] lambda0: f64,
+        #[pyo3(from_py_with = crate::args::lambda_init)] lambda_init: f64,
     ) -> PyResult<PyClassInitializer<Self>> {
-        let kind: GainKind = option(gain)?;
+        let kind: GainKind = option(&gain)?;
         if let Ok(st) = model.cast::<PyStructure>() {
             refuse_for_structure("state_noise_var", state_noise_var.is_some())?;
             let h = match h {
@@ -680,18 +687,45 @@ impl PyStochasticGradient {
 }
 
 /// Batch least squares (Eq 2.14): stores every sample and solves each unknown row by
-/// column-pivoted QR when the estimate is read. On a Structure: the same least-squares
-/// estimate, computed recursively (exact start, no prior, no outlier gate), storing nothing. Missing excitation raises VehidError (rank
-/// deficiency), never NaN. `fit` stores the samples (all or nothing) and returns the history
-/// like the recursive identifiers (θ̂ over every prefix, solved at each record).
+/// column-pivoted QR when the estimate is read. With `keep_samples=False` (the memory-bounded
+/// form, what `vehid identify --method ls` uses) nothing is stored: the same least-squares
+/// estimate is computed recursively (Givens QR of the samples until they identify every
+/// parameter, then recursive least squares with no prior and no outlier gate), equal to the
+/// stored form's to rounding, with the same `stats()`; `remove()` needs the stored samples. On a
+/// Structure: always the recursive form, storing nothing. Missing excitation raises VehidError (rank
+/// deficiency), never NaN; so does (stored form) one sample that dominates the regression,
+/// named with the `remove()` that drops it. `fit` stores the samples (all or nothing) and
+/// returns the history like the recursive identifiers (θ̂ over every prefix, solved at each record).
 #[pyclass(name = "BatchLeastSquares", module = "vehid._vehid", extends = PyIdentifier)]
-pub struct PyBatchLeastSquares;
+pub struct PyBatchLeastSquares {
+    keep_samples: bool,
+}
 
 fn batch_n<const N: usize>(rows: &[usize]) -> vehid_core::Result<Box<dyn DynIdentifier<f64>>> {
     Ok(Box::new(BatchLeastSquares::<f64, N>::new(rows)?))
 }
 
+/// The memory-bounded least squares of `BatchLeastSquares(model, keep_samples=False)` for a
+/// linear model's unknown `rows`: the exact-start rows filter (`P = (XᵀX)⁻¹` with `r = 1`, the
+/// stored form's unit-noise convention), no gate.
+fn streaming_ls(m: &ModelData) -> PyResult<Box<dyn DynIdentifier<f64>>> {
+    let spec = KalmanSpec {
+        rows: m.rows.clone(),
+        p0: Prior::Exact,
+        theta0: None,
+        r: vec![1.0],
+        mode: Mode::Rows,
+        opts: KalmanOptions::default(),
+    };
+    dispatch_n!(m.n, kalman_n(&spec)).map_err(core_err)
+}
+
 impl PyBatchLeastSquares {
+    /// Whether the samples are stored (see the `keep_samples` getter).
+    pub(crate) fn keeps_samples(&self) -> bool {
+        self.keep_samples
+    }
+
     fn batch<const N: usize>(id: &dyn DynIdentifier<f64>) -> Option<&BatchLeastSquares<f64, N>> {
         id.as_any().downcast_ref::<BatchLeastSquares<f64, N>>()
     }
@@ -723,38 +757,61 @@ fn batch_remove<const N: usize>(id: &mut Box<dyn DynIdentifier<f64>>, index: usi
 #[pymethods]
 impl PyBatchLeastSquares {
     #[new]
-    fn py_new(model: &Bound<'_, PyAny>) -> PyResult<PyClassInitializer<Self>> {
+    #[pyo3(signature = (model, keep_samples = true))]
+    fn py_new(
+        model: &Bound<'_, PyAny>,
+        #[pyo3(from_py_with = crate::args::keep_samples)] keep_samples: bool,
+    ) -> PyResult<PyClassInitializer<Self>> {
         if let Ok(st) = model.cast::<PyStructure>() {
             // Least squares on all samples, solved recursively (exact start, no prior, no
             // gate): the same estimate as the normal equations, without storing samples.
             let inner = kalman_on_structure(st.get(), None, None, None, KalmanOptions::default())?;
-            return Ok(PyClassInitializer::from(PyIdentifier::on_structure(inner, st)).add_subclass(Self));
+            return Ok(PyClassInitializer::from(PyIdentifier::on_structure(inner, st))
+                .add_subclass(Self { keep_samples: false }));
         }
         let model = linear_model(model)?;
         let m = model.get();
-        let inner = dispatch_n!(m.data.n, batch_n(&m.data.rows)).map_err(core_err)?;
-        Ok(PyClassInitializer::from(PyIdentifier::new(inner, m.data.clone())).add_subclass(Self))
+        let inner = if keep_samples {
+            dispatch_n!(m.data.n, batch_n(&m.data.rows)).map_err(core_err)?
+        } else {
+            streaming_ls(&m.data)?
+        };
+        Ok(PyClassInitializer::from(PyIdentifier::new(inner, m.data.clone())).add_subclass(Self { keep_samples }))
     }
 
-    /// Bytes of sample storage (the thesis' objection to batch least squares).
+    /// Whether the samples are stored (QR solve, `remove()`), or none (the memory-bounded
+    /// recursive form: `storage_bytes` stays 0).
+    #[getter]
+    fn keep_samples(slf: &Bound<'_, Self>) -> PyResult<bool> {
+        Ok(borrow(slf)?.keep_samples)
+    }
+
+    /// Bytes of sample storage (the thesis' objection to batch least squares); 0 for the
+    /// memory-bounded form (`keep_samples=False`) and on a Structure.
     #[getter]
     fn storage_bytes(slf: &Bound<'_, Self>) -> PyResult<usize> {
         let mut slf = borrow_mut(slf)?;
+        let keep = slf.keep_samples;
         let base = slf.as_super();
-        if base.structure.is_some() {
+        if base.structure.is_some() || !keep {
             return Ok(0);
         }
         let n = base.model.n;
         dispatch_n!(n, batch_storage(&mut base.inner, false)).map_err(core_err)
     }
 
-    /// Drops the stored samples.
+    /// Drops the stored samples (the memory-bounded form: starts its recursive solution anew).
     fn clear(slf: &Bound<'_, Self>) -> PyResult<()> {
         let mut slf = borrow_mut(slf)?;
+        let keep = slf.keep_samples;
         let base = slf.as_super();
         if let Some(st) = &base.structure {
             let inner = kalman_on_structure(st.get(), None, None, None, KalmanOptions::default())?;
             base.inner = inner;
+            return Ok(());
+        }
+        if !keep {
+            base.inner = streaming_ls(&base.model)?;
             return Ok(());
         }
         let n = base.model.n;
@@ -763,9 +820,16 @@ impl PyBatchLeastSquares {
 
     /// Drops stored sample `index` (0-based, in the order the samples were given), e.g. the
     /// one a `VehidError` names as dominating the batch (an outlier). Later samples move up by
-    /// one. An index out of range raises and changes nothing.
+    /// one. An index out of range raises and changes nothing; so does the memory-bounded form
+    /// (`keep_samples=False`), which has no samples to drop.
     fn remove(slf: &Bound<'_, Self>, index: i128) -> PyResult<()> {
         let mut slf = borrow_mut(slf)?;
+        if !slf.keep_samples {
+            return Err(VehidError::new_err(
+                "`remove` needs the stored samples: this BatchLeastSquares keeps none (keep_samples=False: \
+                 only its recursive solution); refit with BatchLeastSquares(model) to drop a sample",
+            ));
+        }
         let base = slf.as_super();
         let n = base.model.n;
         let samples = base.inner.samples();
@@ -782,9 +846,10 @@ impl PyBatchLeastSquares {
         let slf = borrow(slf)?;
         let base = slf.as_super();
         Ok(format!(
-            "BatchLeastSquares(unknown_rows={}, samples={})",
+            "BatchLeastSquares(unknown_rows={}, samples={}{})",
             crate::convert::py_tuple(base.inner.rows()),
-            base.inner.samples()
+            base.inner.samples(),
+            if slf.keep_samples || base.structure.is_some() { "" } else { ", keep_samples=False" }
         ))
     }
 }

@@ -199,7 +199,7 @@ impl PyLinearModel {
         &self,
         py: Python<'py>,
         road_sigma: Option<&Bound<'py, PyAny>>,
-        hold: f64,
+        #[pyo3(from_py_with = crate::args::hold)] hold: f64,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let road = values(road_sigma, "road_sigma", 1.0)?;
         let d = &self.data;
@@ -495,7 +495,13 @@ impl PyQuarterCar {
     #[new]
     #[pyo3(signature = (M = 10.0, m = 1.0, k1 = 90.0, k2 = 50.0, b = 40.0))]
     #[allow(non_snake_case)]
-    fn py_new(M: f64, m: f64, k1: f64, k2: f64, b: f64) -> PyResult<PyClassInitializer<Self>> {
+    fn py_new(
+        #[pyo3(from_py_with = crate::args::mass_body)] M: f64,
+        #[pyo3(from_py_with = crate::args::mass_wheel)] m: f64,
+        #[pyo3(from_py_with = crate::args::k1)] k1: f64,
+        #[pyo3(from_py_with = crate::args::k2)] k2: f64,
+        #[pyo3(from_py_with = crate::args::b)] b: f64,
+    ) -> PyResult<PyClassInitializer<Self>> {
         let car = QuarterCar::new(M, m, k1, k2, b).map_err(core_err)?;
         let data = ModelData::from_core(&car.model());
         finite_model(&data, &[(1, "`m` (the wheel mass)"), (3, "`M` (the body mass)")])?;
@@ -538,18 +544,18 @@ impl PyHalfCar {
                         m1 = 1.0, m2 = 1.0, M = 20.0, J = 60.0, l1 = 2.0, l2 = 1.0))]
     #[allow(non_snake_case, clippy::too_many_arguments)]
     fn py_new(
-        k11: f64,
-        k21: f64,
-        k12: f64,
-        k22: f64,
-        b1: f64,
-        b2: f64,
-        m1: f64,
-        m2: f64,
-        M: f64,
-        J: f64,
-        l1: f64,
-        l2: f64,
+        #[pyo3(from_py_with = crate::args::k11)] k11: f64,
+        #[pyo3(from_py_with = crate::args::k21)] k21: f64,
+        #[pyo3(from_py_with = crate::args::k12)] k12: f64,
+        #[pyo3(from_py_with = crate::args::k22)] k22: f64,
+        #[pyo3(from_py_with = crate::args::b1)] b1: f64,
+        #[pyo3(from_py_with = crate::args::b2)] b2: f64,
+        #[pyo3(from_py_with = crate::args::m1)] m1: f64,
+        #[pyo3(from_py_with = crate::args::m2)] m2: f64,
+        #[pyo3(from_py_with = crate::args::mass_body)] M: f64,
+        #[pyo3(from_py_with = crate::args::inertia)] J: f64,
+        #[pyo3(from_py_with = crate::args::l1)] l1: f64,
+        #[pyo3(from_py_with = crate::args::l2)] l2: f64,
     ) -> PyResult<PyClassInitializer<Self>> {
         let p = HalfCarParams { k11, k21, k12, k22, b1, b2, m1, m2, m_body: M, j: J, l1, l2 };
         let car = HalfCar::new(p).map_err(core_err)?;

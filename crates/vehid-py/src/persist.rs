@@ -30,7 +30,8 @@ use vehid_core::Error;
 
 /// Version of the pickled state's layout. Raise it when the payload or any serialized core
 /// type changes in a way older readers (or this reader, for older payloads) cannot follow.
-pub const FORMAT: u32 = 1;
+/// 2: modes `shared` and `full` keep the outlier gate's statistics (issue 13).
+pub const FORMAT: u32 = 2;
 
 /// The concrete core type behind a Python identifier.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -158,7 +159,9 @@ fn blank_args<'py>(obj: &Bound<'py, PyIdentifier>) -> PyResult<(Bound<'py, PyTup
             kwargs.set_item("form", obj.getattr("form")?)?;
         } else if obj.is_instance_of::<PyStochasticGradient>() {
             kwargs.set_item("gain", obj.getattr("gain")?)?;
-        } else if !obj.is_instance_of::<PyBatchLeastSquares>() {
+        } else if let Ok(ls) = obj.as_any().cast::<PyBatchLeastSquares>() {
+            kwargs.set_item("keep_samples", borrow(ls)?.keeps_samples())?;
+        } else {
             return Err(VehidError::new_err(format!(
                 "{} cannot be pickled or copied: only vehid's identifier classes can",
                 obj.get_type().name()?
@@ -231,8 +234,13 @@ pub fn set_state(obj: &Bound<'_, PyIdentifier>, state: &Bound<'_, PyAny>) -> PyR
         saved.core.mode() == Some(mode.as_str())
     } else if obj.is_instance_of::<PyStochasticGradient>() {
         saved.core == Core::Gradient
-    } else if obj.is_instance_of::<PyBatchLeastSquares>() {
-        saved.core == Core::Batch
+    } else if let Ok(ls) = obj.as_any().cast::<PyBatchLeastSquares>() {
+        // The memory-bounded form holds the exact-start rows filter.
+        if borrow(ls)?.keeps_samples() {
+            saved.core == Core::Batch
+        } else {
+            matches!(saved.core, Core::Rows2 | Core::Rows4)
+        }
     } else if obj.is_instance_of::<PyTwoAxleIdentifier>() {
         saved.core == Core::TwoAxle
     } else {

@@ -324,7 +324,7 @@ pub struct PySimulator {
 impl PySimulator {
     #[new]
     #[pyo3(signature = (model, dt = 0.05, road_sigma = None, ic_sigma = 0.0, state_noise = None,
-                        deriv_noise = None, seed = 1, substeps = None, method = "rk4", pulses = None,
+                        deriv_noise = None, seed = 1, substeps = None, method = "rk4".into(), pulses = None,
                         instrumentation = false, speed = None, spacing = None, road = None, changes = None,
                         sensors = None, sensor_noise = None),
            text_signature = "(model, dt=0.05, road_sigma=0.1, ic_sigma=0.0, state_noise=0.0, \
@@ -334,16 +334,16 @@ impl PySimulator {
     #[allow(clippy::too_many_arguments)]
     fn py_new(
         model: Bound<'_, PyLinearModel>,
-        dt: f64,
+        #[pyo3(from_py_with = crate::args::dt)] dt: f64,
         road_sigma: Option<&Bound<'_, PyAny>>,
-        ic_sigma: f64,
+        #[pyo3(from_py_with = crate::args::ic_sigma)] ic_sigma: f64,
         state_noise: Option<&Bound<'_, PyAny>>,
         deriv_noise: Option<&Bound<'_, PyAny>>,
-        seed: i128,
+        #[pyo3(from_py_with = crate::args::seed)] seed: i128,
         substeps: Option<i128>,
-        method: &str,
+        #[pyo3(from_py_with = crate::args::method)] method: String,
         pulses: Option<Vec<(i128, i128, f64)>>,
-        instrumentation: bool,
+        #[pyo3(from_py_with = crate::args::instrumentation)] instrumentation: bool,
         speed: Option<&Bound<'_, PyAny>>,
         spacing: Option<f64>,
         road: Option<&str>,
@@ -372,7 +372,7 @@ impl PySimulator {
                 road_sigma: road_sigma.is_some(),
                 ic_sigma,
                 substeps: substeps.is_some(),
-                method,
+                method: &method,
                 pulses: pulses.is_some(),
                 instrumentation,
                 spacing: spacing.is_some(),
@@ -408,7 +408,7 @@ impl PySimulator {
             state_noise: values(state_noise, "state_noise", 0.0)?,
             deriv_noise: values(deriv_noise, "deriv_noise", 0.005)?,
             substeps: substeps.map(|s| size(s, "substeps")).transpose()?,
-            method: option(method)?,
+            method: option(&method)?,
             pulses: pulses
                 .unwrap_or_default()
                 .into_iter()
@@ -442,7 +442,7 @@ impl PySimulator {
     /// samples left raises VehidError. Ctrl-C (from the main thread) raises
     /// KeyboardInterrupt within some 20 ms of work. Nothing is simulated when it raises: the
     /// next run starts where this one would have.
-    fn run(slf: &Bound<'_, Self>, n: i128) -> PyResult<PyRun> {
+    fn run(slf: &Bound<'_, Self>, #[pyo3(from_py_with = crate::args::n)] n: i128) -> PyResult<PyRun> {
         let py = slf.py();
         let n = size(n, "n")?;
         let mut this = borrow_mut(slf)?;

@@ -245,7 +245,9 @@ impl<T: Real, const N: usize> BatchLeastSquares<T, N> {
     /// # Errors
     /// [`Error::RankDeficient`] when the stored states do not span all `N` directions
     /// (fewer than `N` samples, or an unexcited direction): the diagonal of `R` falls below
-    /// `max(L, N)·ε·|R₀₀|`.
+    /// `max(L, N)·ε·|R₀₀|`. [`Error::Dominated`] naming a sample more than `1e6` times the
+    /// median state norm that makes the rank look deficient or, at full rank, decides a
+    /// direction alone (leverage above 1/2): an outlier that would bend the estimate.
     pub fn solve(&self) -> Result<std::vec::Vec<T>> {
         use faer::linalg::solvers::SolveLstsq;
         let l = self.samples();
@@ -268,6 +270,12 @@ impl<T: Real, const N: usize> BatchLeastSquares<T, N> {
             }
             return Err(Error::RankDeficient { rank, needed: N });
         }
+        // Full rank, but one sample may still dominate: far larger than the rest and alone
+        // deciding a direction (leverage above 1/2), it bends the estimate with no error to
+        // show for it. Named, as above (remove() drops it).
+        if let Some(sample) = self.dominating(true).filter(|&i| self.leverage(i) > 0.5) {
+            return Err(Error::Dominated { sample });
+        }
         let sol = qr.solve_lstsq(&zm);
         let mut out = std::vec![T::zero(); k * N];
         for i in 0..k {
@@ -282,9 +290,40 @@ impl<T: Real, const N: usize> BatchLeastSquares<T, N> {
         Ok(out)
     }
 
+    /// The leverage `h_i = x_iᵀ (XᵀX)⁻¹ x_i ∈ [0, 1]` of stored sample `i` (the share of its
+    /// own fitted value that it decides; the leverages of `n` samples sum to `N`), computed as
+    /// `a / (1 + a)` with `a = x_iᵀ G₋ᵢ⁻¹ x_i`, `G₋ᵢ` the Gram matrix of the other samples (so
+    /// that a sample far larger than the rest does not swamp the others in `XᵀX`); 1 when the
+    /// others leave a direction unexcited (`G₋ᵢ` numerically singular) or `i` is out of range.
+    /// Meant for the largest sample (the one [`Self::dominating_sample`] names): for another,
+    /// `G₋ᵢ` holds that one and may be too ill-conditioned to factor (then 1).
+    pub(crate) fn leverage(&self, i: usize) -> f64 {
+        let Some(xi) = self.x.chunks_exact(N.max(1)).nth(i) else { return 1.0 };
+        let xi = SVector::<f64, N>::from_fn(|j, _| xi[j].to_f64());
+        let mut g = SMatrix::<f64, N, N>::zeros();
+        for (k, x) in self.x.chunks_exact(N.max(1)).enumerate() {
+            if k != i {
+                let v = SVector::<f64, N>::from_fn(|j, _| x[j].to_f64());
+                g += v * v.transpose();
+            }
+        }
+        let Some(chol) = g.cholesky() else { return 1.0 };
+        let a = xi.dot(&chol.solve(&xi));
+        if !(a.is_finite() && a >= 0.0) {
+            return 1.0;
+        }
+        a / (1.0 + a)
+    }
+
     /// The stored sample whose state is more than `1e6` times the median state norm, if one
     /// is (the largest): an outlier that dominates the regression.
     pub fn dominating_sample(&self) -> Option<usize> {
+        self.dominating(false)
+    }
+
+    /// [`Self::dominating_sample`]; with `typical`, only when the median norm is > 0 (most
+    /// samples excited: a sample among mostly zero ones is not an outlier for being larger).
+    fn dominating(&self, typical: bool) -> Option<usize> {
         let norms: std::vec::Vec<f64> = self
             .x
             .chunks_exact(N.max(1))
@@ -297,7 +336,7 @@ impl<T: Real, const N: usize> BatchLeastSquares<T, N> {
         let mid = sorted.len() / 2;
         let median = *sorted.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1;
         let (i, max) = norms.iter().enumerate().fold((0, 0.0f64), |b, (i, v)| if *v > b.1 { (i, *v) } else { b });
-        (max > 1e6 * median).then_some(i)
+        (max > 1e6 * median && (median > 0.0 || !typical)).then_some(i)
     }
 
     /// Removes stored sample `index` (0-based, in the order stored), e.g. an outlier that

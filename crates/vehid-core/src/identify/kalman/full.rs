@@ -1,5 +1,7 @@
 //! The stacked (`full`) form with a general `R`.
 
+use super::lanes::overflow_culprit;
+use super::row::{risky, LOST_DEFINITENESS_JOINT, SCREEN_WARMUP};
 use super::{CovarianceForm, KalmanOptions};
 use crate::error::{check_finite, check_nonneg, check_positive};
 #[cfg(feature = "alloc")]
@@ -39,9 +41,21 @@ pub struct KalmanFull<T: Real, const N: usize, S: Store<T, N>> {
     /// Scratch: Cholesky factor of `S`.
     #[cfg_attr(feature = "serde", serde(with = "crate::persist::flat"))]
     s: S::PairScalars,
+    /// Scratch: the covariance after a risky sample, factored to check that it stays
+    /// positive definite (`K × K` blocks; used only then).
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::flat"))]
+    pn: S::Blocks,
     opts: KalmanOptions<T>,
     reinit_count: u32,
     samples: u64,
+    /// The outlier gate's statistics (kept only while [`KalmanOptions::gate`] is on): per row
+    /// `Σ w_i²` with `w_i² = e_i² R_ii / S_ii` (the row's recursive residual, as in mode `rows`;
+    /// the same when `R` is diagonal), in the row's units²; the samples behind them (accepted
+    /// and gated); and the samples gated (left out by every row).
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::flat"))]
+    ssr: S::Scalars,
+    nobs: T,
+    gated: u64,
 }
 
 /// The stacked Kalman identifier of Eq 4.3–4.7 with a general `K × K` measurement
@@ -71,10 +85,10 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
                 expected: "'standard' for mode='full' (the Joseph and square-root forms need mode='rows')",
             });
         }
-        if opts.gate > T::zero() || opts.huber > T::zero() {
+        if opts.huber > T::zero() {
             return Err(Error::InvalidArgument {
-                arg: "gate",
-                expected: "no outlier gate or Huber weighting for mode='full' (they need mode='rows')",
+                arg: "huber",
+                expected: "0 for mode='full' (Huber weighting needs mode='rows'; the outlier gate works here)",
             });
         }
         if opts.tracking() {
@@ -139,9 +153,13 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
             c: S::PairVecs::filled("unknown_rows", k * k, SVector::zeros())?,
             w: S::PairVecs::filled("unknown_rows", k * k, SVector::zeros())?,
             s: s_buf,
+            pn: S::Blocks::filled("unknown_rows", k * k, SMatrix::zeros())?,
             opts,
             reinit_count: 0,
             samples: 0,
+            ssr: S::Scalars::filled("unknown_rows", k, T::zero())?,
+            nobs: T::zero(),
+            gated: 0,
         })
     }
 
@@ -223,9 +241,16 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
         self.reinit_count
     }
 
-    /// Number of samples accepted.
+    /// Number of samples accepted (those the outlier gate left out included, as in mode
+    /// `rows`).
     pub fn samples(&self) -> u64 {
         self.samples
+    }
+
+    /// Samples left out by the outlier gate ([`KalmanOptions::gate`]; every row leaves a gated
+    /// sample out, since the rows are filtered jointly).
+    pub fn gated(&self) -> u64 {
+        self.gated
     }
 
     /// `tr P`.
@@ -268,7 +293,11 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
     /// `W_i = C_i S⁻¹`, `C_i = [P_i1 x, …, P_iK x]`; `θ_i += W_i e`, `P_ij −= W_i C_jᵀ`.
     ///
     /// # Errors
-    /// As [`KalmanRows::update_into`]; [`Error::Singular`] when `S` is not positive definite.
+    /// As [`KalmanRows::update_into`]; [`Error::Singular`] when `S` is not positive definite,
+    /// or for a sample informative far beyond its noise on some row (`R_ii / S_ii < √ε`) whose
+    /// downdate would leave `P` indefinite (the whole `(K·N) × (K·N)` matrix is checked by
+    /// Cholesky then). A sample the outlier gate leaves out is not an error (it is counted,
+    /// [`KalmanFull::gated`]).
     pub(crate) fn update_vec(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
         check_sample(x, z)?;
         let rows = self.rows.flat();
@@ -297,11 +326,29 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
                 s[j * k + i] = v;
             }
         }
-        if s.iter().any(|v| !v.finite()) || !abs_e.finite() {
+        if s.iter().any(|v| !v.finite()) {
             return Err(OVERFLOW);
         }
+        if !abs_e.finite() {
+            return Err(culprit(theta, x, e));
+        }
+        // Risky: a row informed far beyond its noise (R_ii / S_ii below √ε; noise-free rows,
+        // R_ii = 0, are exempt as in mode rows): the downdate is checked before it is made.
+        let rk = risky::<T>();
+        let risky_sample = (0..k).any(|i| r[i * k + i] > T::zero() && r[i * k + i] < rk * s[i * k + i]);
+        let gate = self.opts.gate > T::zero();
+        if gate && gate_out::<T, N>(self.opts.gate, &mut self.nobs, self.ssr.flat_mut(), e, s, r) {
+            // Taken and counted like any sample (as in mode rows), but not used; no
+            // reinitialization on an outlier.
+            self.gated += 1;
+            self.samples += 1;
+            return Ok(());
+        }
         if !cholesky_in_place(s, k) {
-            return Err(Error::Singular { what: "the innovation covariance H P Hᵀ + R" });
+            return Err(Error::Singular {
+                what: "the innovation covariance H P Hᵀ + R (P lost positive definiteness: use a smaller p0, or \
+                       mode='rows' with form='sqrt', which cannot lose it)",
+            });
         }
         // W_i = C_i S⁻¹, row by row of C_i: solve S w = (c_i1[a], …, c_iK[a]).
         let mut bound = T::zero();
@@ -320,9 +367,25 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
             }
         }
         if !bound.finite() {
-            return Err(OVERFLOW);
+            return Err(culprit(theta, x, e));
         }
-        // Apply: nothing above changed the identifier's state.
+        if risky_sample {
+            let pn = self.pn.flat_mut();
+            for i in 0..k {
+                for j in i..k {
+                    pn[i * k + j] = downdated_block(p, w, c, k, i, j);
+                    if i == j {
+                        symmetrize(&mut pn[i * k + i]);
+                    } else {
+                        pn[j * k + i] = pn[i * k + j].transpose();
+                    }
+                }
+            }
+            if !blocks_positive_definite(pn, k) {
+                return Err(LOST_DEFINITENESS_JOINT);
+            }
+        }
+        // Apply: nothing above changed the identifier's state (but the gate's count).
         for i in 0..k {
             for l in 0..k {
                 theta[i] += w[i * k + l] * e[l];
@@ -330,17 +393,21 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
         }
         for i in 0..k {
             for j in i..k {
-                let mut d = SMatrix::<T, N, N>::zeros();
-                for l in 0..k {
-                    d += w[i * k + l] * c[j * k + l].transpose();
-                }
-                p[i * k + j] -= d;
+                p[i * k + j] = downdated_block(p, w, c, k, i, j);
                 if i == j {
                     symmetrize(&mut p[i * k + i]);
                 } else {
                     p[j * k + i] = p[i * k + j].transpose();
                 }
             }
+        }
+        if gate {
+            // The recursive residuals w_i² = e_i² R_ii / S_ii (S_ii from C, as S was factored).
+            for (i, ssr) in self.ssr.flat_mut().iter_mut().enumerate() {
+                let sii = x.dot(&c[i * k + i]) + r[i * k + i];
+                *ssr += e[i] * e[i] * r[i * k + i] / sii;
+            }
+            self.nobs += T::one();
         }
         self.samples += 1;
         let trace = (0..k).fold(T::zero(), |a, i| a + p[i * k + i].trace());
@@ -359,6 +426,105 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
     }
 }
 
+/// Block `(i, j)` of the covariance after the update, `P_ij − Σ_l W_il C_jlᵀ`.
+#[inline(always)]
+fn downdated_block<T: Real, const N: usize>(
+    p: &[SMatrix<T, N, N>],
+    w: &[SVector<T, N>],
+    c: &[SVector<T, N>],
+    k: usize,
+    i: usize,
+    j: usize,
+) -> SMatrix<T, N, N> {
+    let mut d = SMatrix::<T, N, N>::zeros();
+    for l in 0..k {
+        d += w[i * k + l] * c[j * k + l].transpose();
+    }
+    p[i * k + j] - d
+}
+
+/// `true` when the symmetric `(K·N) × (K·N)` matrix held as `K × K` blocks of `N × N`
+/// (row-major) is numerically positive definite: its Cholesky factorization exists. Factors
+/// in place (the lower triangle is overwritten).
+fn blocks_positive_definite<T: Real, const N: usize>(b: &mut [SMatrix<T, N, N>], k: usize) -> bool {
+    let n = k * N;
+    let at = |i: usize, j: usize| (i / N * k + j / N, i % N, j % N);
+    let get = |b: &[SMatrix<T, N, N>], i: usize, j: usize| {
+        let (blk, a, c) = at(i, j);
+        b[blk][(a, c)]
+    };
+    for j in 0..n {
+        let mut d = get(b, j, j);
+        for q in 0..j {
+            let v = get(b, j, q);
+            d -= v * v;
+        }
+        if !(d > T::zero()) || !d.finite() {
+            return false;
+        }
+        let d = d.sqrt();
+        let (blk, a, c) = at(j, j);
+        b[blk][(a, c)] = d;
+        for i in (j + 1)..n {
+            let mut v = get(b, i, j);
+            for q in 0..j {
+                v -= get(b, i, q) * get(b, j, q);
+            }
+            let (blk, a, c) = at(i, j);
+            b[blk][(a, c)] = v / d;
+        }
+    }
+    true
+}
+
+/// The overflow error of an update that overflowed through its step: names `z_k` when the
+/// largest innovation is far beyond its prediction, `r_k` otherwise.
+#[cold]
+fn culprit<T: Real, const N: usize>(theta: &[SVector<T, N>], x: &SVector<T, N>, e: &[T]) -> Error {
+    let i = (0..e.len()).fold(0, |b, i| if !(e[i].abs() <= e[b].abs()) { i } else { b });
+    match (e.get(i), theta.get(i)) {
+        (Some(&ei), Some(th)) => overflow_culprit(ei, th.dot(x)),
+        _ => OVERFLOW,
+    }
+}
+
+/// The outlier gate of mode `full` ([`KalmanOptions::gate`] `κ`), from `S = H P Hᵀ + R` (`s`,
+/// before it is factored) and `R`: once `N + 50` samples are behind the scale, the sample is
+/// left out when any row's recursive residual `w_i = e_i √(R_ii / S_ii)` exceeds `κ σ̂_i`
+/// (`σ̂_i² = Σ w_i² / (n − N)`), as in mode `rows`; the rows are filtered jointly, so every row
+/// leaves it out. A gated sample informs the scale: each row's `w_i²` enters Winsorized at
+/// `κ² σ̂_i²` (see [`super::row::gated_scale`]). `true` when gated (the caller counts it).
+fn gate_out<T: Real, const N: usize>(gate: T, nobs: &mut T, ssr: &mut [T], e: &[T], s: &[T], r: &[T]) -> bool {
+    let k = e.len();
+    let params = T::of(N as f64);
+    if *nobs < params + T::of(SCREEN_WARMUP) {
+        return false;
+    }
+    let n = *nobs - params;
+    // S_ii = 0 (a noise-free row with nothing new along x) carries no residual.
+    let w2 = |i: usize| {
+        let sii = s[i * k + i];
+        if sii > T::zero() {
+            e[i] * e[i] * r[i * k + i] / sii
+        } else {
+            T::zero()
+        }
+    };
+    let out = (0..k).any(|i| {
+        let sigma2 = ssr[i] / n;
+        sigma2 > T::zero() && !(w2(i) <= gate * gate * sigma2)
+    });
+    if out {
+        for i in 0..k {
+            let cap = gate * gate * ssr[i] / n;
+            let v = w2(i);
+            ssr[i] += if v <= cap { v } else { cap };
+        }
+        *nobs += T::one();
+    }
+    out
+}
+
 #[cfg(feature = "serde")]
 impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
     /// Checks a deserialized identifier: valid rows and options, every buffer sized for
@@ -368,6 +534,8 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
         let k = crate::model::RowSet::<N>::new(self.rows.flat())?.len();
         let lens = [
             ("theta", self.theta.flat().len(), k),
+            ("ssr", self.ssr.flat().len(), k),
+            ("pn", self.pn.flat().len(), k * k),
             ("p", self.p.flat().len(), k * k),
             ("r", self.r.flat().len(), k * k),
             ("c", self.c.flat().len(), k * k),
@@ -463,5 +631,16 @@ impl<T: Real, const N: usize, S: Store<T, N>> Identifier<T> for KalmanFull<T, N,
 
     fn reinit_count(&self) -> u32 {
         self.reinit_count
+    }
+
+    /// The samples the gate left out, the same count for every row (see
+    /// [`KalmanFull::gated`]).
+    fn gated_into(&self, out: &mut [u64]) -> Result<()> {
+        let k = self.rows.flat().len();
+        if out.len() != k {
+            return Err(Error::Shape { arg: "out", expected: k, got: out.len() });
+        }
+        out.fill(self.gated);
+        Ok(())
     }
 }

@@ -122,7 +122,7 @@ pub(crate) fn is_fin<T: Real>(v: T) -> bool {
 /// Which argument an overflowing step is due to: the state (`x θ` not finite) or the
 /// derivative (an innovation far beyond the prediction).
 #[cold]
-fn overflow_culprit<T: Real>(e: T, xth: T) -> crate::Error {
+pub(crate) fn overflow_culprit<T: Real>(e: T, xth: T) -> crate::Error {
     if !xth.finite() {
         OVERFLOW
     } else if !e.finite() || e.abs() > (xth.abs() + T::one()) * T::of(1e6) {
@@ -307,14 +307,14 @@ pub trait RowGroup<T: Real, const N: usize>: Copy + core::fmt::Debug + PartialEq
     /// Of a plan that [`RowGroup::plan`] did not accept at once: `true` when it may be applied
     /// all the same (every lane's θ step finite, `0 < s < ∞` in the lanes that step, and the
     /// risky downdates stay positive definite).
-    fn accepts(&self, sc: &Self::Scratch) -> bool;
+    fn accepts(&self, x: &SVector<T, N>, sc: &Self::Scratch) -> bool;
     /// The error of a plan that [`RowGroup::accepts`] refuses, if a lane of this group caused
     /// it (first lane first).
     ///
     /// # Errors
     /// Overflow for a non-finite `s` or θ step, [`Error::Singular`] for `s ≤ 0` or a risky
     /// downdate that would lose positive definiteness.
-    fn check(&self, sc: &Self::Scratch) -> crate::Result<()>;
+    fn check(&self, x: &SVector<T, N>, sc: &Self::Scratch) -> crate::Result<()>;
     /// Applies a planned step (`MODE` as in the plan).
     fn apply<const MODE: u8>(&mut self, x: &SVector<T, N>, sc: &Self::Scratch);
     /// The planned step of one sample in the square-root form.
@@ -366,19 +366,33 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
             if sc.go[k] == T::zero() {
                 continue;
             }
-            let p = self.p_lane(k);
-            let g = SVector::<T, N>::from_fn(|a, _| sc.px[a][k] * sc.w[k]);
-            let a = SMatrix::<T, N, N>::identity() - g * x.transpose();
-            let px = SVector::<T, N>::from_fn(|a, _| sc.px[a][k]);
-            let mut p = a * p * a.transpose() + g * g.transpose() * sc.reff[k] + px * px.transpose() * sc.fc[k];
-            symmetrize(&mut p);
+            let p = self.joseph_lane(x, &sc, k);
             for i in 0..N {
                 for j in i..N {
-                    self.p[i][j][k] = p[(i, j)] * sc.scale[k];
+                    self.p[i][j][k] = p[(i, j)];
                 }
-                self.p[i][i][k] += sc.add[k];
             }
         }
+    }
+
+    /// Lane `k`'s covariance after Joseph's update (with the tracking the plan turned on:
+    /// directional forgetting `c (P x)(P x)ᵀ`, then `· scale` and `+ add` on the diagonal),
+    /// mirrored.
+    fn joseph_lane(&self, x: &SVector<T, N>, sc: &LaneScratch<T, N, L>, k: usize) -> SMatrix<T, N, N> {
+        let p = self.p_lane(k);
+        let g = SVector::<T, N>::from_fn(|a, _| sc.px[a][k] * sc.w[k]);
+        let a = SMatrix::<T, N, N>::identity() - g * x.transpose();
+        let px = SVector::<T, N>::from_fn(|a, _| sc.px[a][k]);
+        let mut p = a * p * a.transpose() + g * g.transpose() * sc.reff[k] + px * px.transpose() * sc.fc[k];
+        symmetrize(&mut p);
+        for i in 0..N {
+            for j in i..N {
+                let v = p[(i, j)] * sc.scale[k] + if i == j { sc.add[k] } else { T::zero() };
+                p[(i, j)] = v;
+                p[(j, i)] = v;
+            }
+        }
+        p
     }
 
     /// Lane `k`'s stored matrix, mirrored (`P`, or the packed `U D` factors).
@@ -468,18 +482,22 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
         (gated, reff)
     }
 
-    /// For the lanes whose sample is risky for the standard form (`r / s` below `√ε`), the
-    /// downdated covariance must stay positive definite (checked by Cholesky); `false` when
-    /// one would not (the sample is then refused: see [`super::row::LOST_DEFINITENESS`]).
+    /// For the lanes whose sample is risky for the standard or Joseph form (`r / s` below
+    /// `√ε`), the covariance after the update must stay positive definite (checked by
+    /// Cholesky, on exactly the arithmetic the update will do); `false` when one would not
+    /// (the sample is then refused: see [`super::row::LOST_DEFINITENESS`]).
     #[cold]
     #[inline(never)]
-    fn downdates_stay_definite(&self, sc: LaneScratch<T, N, L>) -> bool {
-        if self.form != CovarianceForm::Standard {
+    fn downdates_stay_definite(&self, x: &SVector<T, N>, sc: LaneScratch<T, N, L>) -> bool {
+        if self.form == CovarianceForm::Sqrt {
             return true;
         }
         (0..self.used).all(|k| {
             if sc.go[k] == T::zero() || sc.reff[k] == T::zero() || !(sc.reff[k] < super::row::risky::<T>() * sc.s[k]) {
                 return true;
+            }
+            if self.form == CovarianceForm::Joseph {
+                return super::row::positive_definite(&self.joseph_lane(x, &sc, k), N);
             }
             // Exactly the arithmetic of `apply`: the upper triangle, then mirrored.
             let mut p = SMatrix::<T, N, N>::zeros();
@@ -1069,7 +1087,7 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
     }
 
     #[cold]
-    fn accepts(&self, sc: &Self::Scratch) -> bool {
+    fn accepts(&self, x: &SVector<T, N>, sc: &Self::Scratch) -> bool {
         let rk = super::row::risky::<T>();
         let mut risky = false;
         for k in 0..L {
@@ -1079,11 +1097,11 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
             }
             risky |= go && sc.reff[k] > T::zero() && sc.reff[k] < rk * sc.s[k];
         }
-        !risky || self.downdates_stay_definite(*sc)
+        !risky || self.downdates_stay_definite(x, *sc)
     }
 
     #[cold]
-    fn check(&self, sc: &Self::Scratch) -> crate::Result<()> {
+    fn check(&self, x: &SVector<T, N>, sc: &Self::Scratch) -> crate::Result<()> {
         for k in 0..self.used {
             if sc.go[k] == T::zero() {
                 continue;
@@ -1103,7 +1121,7 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
                 });
             }
         }
-        if self.form == CovarianceForm::Standard && !self.downdates_stay_definite(*sc) {
+        if !self.downdates_stay_definite(x, *sc) {
             return Err(super::row::LOST_DEFINITENESS);
         }
         Ok(())

@@ -469,3 +469,81 @@ fn batch_least_squares_names_a_dominating_outlier_and_can_remove_it() {
     assert_eq!(ls.solve().unwrap(), clean.solve().unwrap());
     assert!(ls.remove(1000).is_err());
 }
+
+/// ξ and the gated count (row 0's) of `id` on the quarter car's run of
+/// [`xi_with_outliers`], through the [`Identifier`] interface.
+fn xi_of<I: Identifier<f64>>(mut id: I, seed: u64, n: usize, outlier: impl Fn(f64) -> f64) -> (f64, u64) {
+    use crate::model::QuarterCar;
+    use crate::sim::{SimConfig, Simulator};
+    let car = QuarterCar::<f64>::thesis();
+    let cfg = SimConfig::new(0.05).road_sigma(0.1).deriv_noise(0.005);
+    let mut sim = Simulator::new(car.model(), cfg, seed).unwrap();
+    let mut e = [0.0; 2];
+    for k in 0..n {
+        let s = sim.next_sample();
+        let mut z = s.z;
+        if k % 10_000 == 5_000 {
+            z[1] = outlier(z[1]);
+        }
+        id.update_into(s.r.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+    }
+    let mut gated = [0u64; 2];
+    id.gated_into(&mut gated).unwrap();
+    assert_eq!(gated[0], gated[1], "a gated sample is left out by every row");
+    let mut theta = [0.0; 8];
+    id.params_into(&mut theta).unwrap();
+    let t = car.theta().transpose();
+    (crate::metrics::xi(t.as_slice(), &theta).unwrap(), gated[0])
+}
+
+#[test]
+fn modes_shared_and_full_gate_outliers_as_rows_does() {
+    // Issue 13: the same one-in-10⁴ outliers (1e30, 1e3 times the signal) as
+    // `the_gate_keeps_outliers_out_of_the_estimate`, in modes shared and full.
+    use crate::model::QuarterCar;
+    let car = QuarterCar::<f64>::thesis();
+    let rows = car.unknown_rows();
+    let r: [f64; 2] = car.model().row_noise_var(0.1, 0.005).unwrap();
+    let gate = KalmanOptions { gate: 6.0, ..Default::default() };
+    let shared = |opts| KalmanShared::<f64, 4, Fixed<2>>::from_slices(&rows, &[1000.0], &[1.0], opts).unwrap();
+    let full = |opts| KalmanFull::<f64, 4, Fixed<2>>::from_slices(&rows, &[1000.0], &r, opts).unwrap();
+    for seed in [31u64, 32] {
+        let runs = [
+            (
+                "shared",
+                xi_of(shared(gate), seed, 40_000, |z| z),
+                xi_of(shared(gate), seed, 40_000, |_| 1e30),
+                xi_of(shared(KalmanOptions::default()), seed, 40_000, |_| 1e30),
+            ),
+            (
+                "full",
+                xi_of(full(gate), seed, 40_000, |z| z),
+                xi_of(full(gate), seed, 40_000, |z| z * 1e3),
+                xi_of(full(KalmanOptions::default()), seed, 40_000, |_| 1e30),
+            ),
+        ];
+        for (mode, (clean, g0), (gated, count), (ruined, _)) in runs {
+            assert!((gated - clean).abs() < 0.1 * clean, "{mode} seed {seed}: ξ {clean} → {gated}");
+            assert!(count >= 4 && count <= g0 + 4, "{mode}: the four outliers are gated ({count}; clean {g0})");
+            assert!(ruined > 1e3, "{mode}: without the gate one outlier ruins the estimate (ξ {ruined})");
+        }
+    }
+}
+
+#[test]
+fn an_overflow_through_z_names_z_k_in_every_mode() {
+    // Issue 13: a derivative of 1.7e308 used to be reported as `r_k` in modes shared and full.
+    let x = V4::new(0.01, -0.02, 0.03, 0.01);
+    let mut z = V4::zeros();
+    z[1] = 1.7e308;
+    let opts = KalmanOptions::default();
+    let mut shared = KalmanShared::<f64, 4, Fixed<2>>::from_slices(&[1, 3], &[1000.0], &[1.0], opts).unwrap();
+    let mut full = KalmanFull::<f64, 4, Fixed<2>>::from_slices(&[1, 3], &[1000.0], &[1.0], opts).unwrap();
+    let mut row = RowIdentifier::<f64, 4>::new(1000.0, 1.0).unwrap();
+    let (before_s, before_f, before_r) = (shared.clone().theta(), full.clone().theta(), row);
+    for res in [shared.update(&x, &z).map(|_| ()), full.update(&x, &z).map(|_| ()), row.update(&x, z[1]).map(|_| ())] {
+        assert!(matches!(res, Err(Error::InvalidArgument { arg: "z_k", .. })), "{res:?}");
+    }
+    assert_eq!((shared.theta(), full.theta(), row), (before_s, before_f, before_r));
+    assert_eq!((shared.samples(), full.samples()), (0, 0));
+}

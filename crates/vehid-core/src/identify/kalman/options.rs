@@ -73,10 +73,13 @@ pub struct KalmanOptions<T> {
     /// Outlier gate `κ` (0: off): a sample whose recursive residual `w = e √(r/s)` exceeds
     /// `κ σ̂` (`σ̂²` the residual variance estimated from the samples accepted so far) leaves
     /// the row unchanged and is counted ([`super::RowIdentifier::gated`]). Active once the
-    /// row has `N + 50` samples behind its estimate of `σ̂`. On by default in Python
-    /// (`gate=6`); off here, which keeps exact equivalence with least squares.
+    /// row has `N + 50` samples behind its estimate of `σ̂`. In [`KalmanShared`] and
+    /// [`KalmanFull`] the test is the same per row (`w_i = e_i √(r_i / s_i)`, with `s_i` the
+    /// row's innovation variance), and a sample beyond the gate on any row is left out by every
+    /// row (they share one covariance / are filtered jointly). On by default in Python
+    /// (`gate=6`, every mode); off here, which keeps exact equivalence with least squares.
     pub gate: T,
-    /// Huber weighting constant `c` (0: off; 1.345 is the usual choice): a sample with
+    /// Huber weighting constant `c` (0: off; 1.345 is the usual choice; [`KalmanRows`] only): a sample with
     /// `|w| > c σ̂` is weighted down, its variance `r` scaled by `|w| / (c σ̂)`, so that its
     /// influence grows linearly instead of quadratically (Huber's M-estimator, applied
     /// recursively).

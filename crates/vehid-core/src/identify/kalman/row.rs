@@ -373,7 +373,8 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
             next.add_drift();
         }
         if !(next.theta.iter().all(|v| v.finite()) && next.m.iter().all(|v| v.finite())) {
-            return Err(OVERFLOW);
+            // Through the state (`xᵀθ`, the covariance) or through the derivative (`e`).
+            return Err(super::lanes::overflow_culprit(e, self.theta.dot(x)));
         }
         *self = next;
         Ok(e)
@@ -458,8 +459,12 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
         match self.form {
             CovarianceForm::Joseph => {
                 let a = SMatrix::<T, N, N>::identity() - g * x.transpose();
-                self.m = a * self.m * a.transpose() + g * g.transpose() * r_eff + px * px.transpose() * fc;
-                symmetrize(&mut self.m);
+                let mut next = a * self.m * a.transpose() + g * g.transpose() * r_eff + px * px.transpose() * fc;
+                symmetrize(&mut next);
+                if r_eff > T::zero() && r_eff < risky::<T>() * s && !positive_definite(&next, self.dim()) {
+                    return Err(LOST_DEFINITENESS);
+                }
+                self.m = next;
             }
             _ => {
                 // P − (P x)(P x)ᵀ (1/s − c), the forgetting folded into the downdate. Entry
@@ -724,10 +729,19 @@ pub(crate) fn risky<T: Real>() -> T {
     T::default_epsilon().sqrt()
 }
 
-/// The error of an update the standard form cannot make without losing positive definiteness.
+/// The error of an update the standard or Joseph form cannot make without losing positive
+/// definiteness (mode `rows`).
 pub(crate) const LOST_DEFINITENESS: Error = Error::Singular {
-    what: "the covariance after this sample (the standard form would lose positive definiteness: the sample is \
+    what: "the covariance after this sample (the update would lose positive definiteness: the sample is \
            informative far beyond its noise r; use form='sqrt', which cannot, or p0='exact' / a smaller p0)",
+};
+
+/// [`LOST_DEFINITENESS`] for modes `shared` and `full`, which have neither the square-root
+/// form nor the exact start.
+pub(crate) const LOST_DEFINITENESS_JOINT: Error = Error::Singular {
+    what: "the covariance after this sample (the update would lose positive definiteness: the sample is \
+           informative far beyond its noise r; use a smaller p0, or mode='rows' with form='sqrt', which cannot \
+           lose it)",
 };
 
 /// `true` when the leading `d × d` block of the symmetric `p` is numerically positive

@@ -362,8 +362,8 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         if let [grp] = &mut *groups {
             let mut sc = S::Group::scratch();
             grp.plan::<GENERAL>(x, z, e, &mut sc);
-            if !grp.accepts(&sc) {
-                grp.check(&sc)?;
+            if !grp.accepts(x, &sc) {
+                grp.check(x, &sc)?;
                 return Err(OVERFLOW);
             }
             grp.apply::<GENERAL>(x, &sc);
@@ -375,9 +375,9 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
             let hi = (lo + lanes).min(k);
             grp.plan::<GENERAL>(x, z, &mut e[lo..hi], sc);
         }
-        if !groups.iter().zip(scratch.iter()).all(|(grp, sc)| grp.accepts(sc)) {
+        if !groups.iter().zip(scratch.iter()).all(|(grp, sc)| grp.accepts(x, sc)) {
             for (grp, sc) in groups.iter().zip(scratch.iter()) {
-                grp.check(sc)?;
+                grp.check(x, sc)?;
             }
             return Err(OVERFLOW);
         }

@@ -1,6 +1,7 @@
 //! The shared-covariance (`shared`) form.
 
-use super::lanes::{finite_probe, is_fin, lane_sum, tree_sum};
+use super::lanes::{finite_probe, is_fin, lane_sum, overflow_culprit, tree_sum};
+use super::row::{positive_definite, risky, SCREEN_WARMUP};
 use super::{CovarianceForm, KalmanOptions};
 use crate::error::{check_finite, check_positive};
 #[cfg(feature = "alloc")]
@@ -31,6 +32,14 @@ pub struct KalmanShared<T: Real, const N: usize, S: Store<T, N>> {
     opts: KalmanOptions<T>,
     reinit_count: u32,
     samples: u64,
+    /// The outlier gate's statistics (kept only while [`KalmanOptions::gate`] is on): per row
+    /// the sum of the squared recursive residuals `Σ w_i²`, `w_i² = e_i² r_i / s_i = e_i² / s`
+    /// (`s = 1 + xᵀQx`, so `s_i = r_i s`), in the row's units²; the samples behind them
+    /// (accepted and gated); and the samples gated (left out by every row).
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::flat"))]
+    ssr: S::Scalars,
+    nobs: T,
+    gated: u64,
 }
 
 /// The shared-covariance form: one `N × N` matrix for all `K` rows, no allocation. Valid
@@ -59,10 +68,10 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
                 expected: "'standard' or 'joseph' for mode='shared' (the square-root form needs mode='rows')",
             });
         }
-        if opts.gate > T::zero() || opts.huber > T::zero() {
+        if opts.huber > T::zero() {
             return Err(Error::InvalidArgument {
-                arg: "gate",
-                expected: "no outlier gate or Huber weighting for mode='shared' (they need mode='rows')",
+                arg: "huber",
+                expected: "0 for mode='shared' (Huber weighting needs mode='rows'; the outlier gate works here)",
             });
         }
         if opts.tracking() {
@@ -95,7 +104,19 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
         }
         let c = ratio.unwrap_or(T::one());
         let theta = S::Vecs::filled("unknown_rows", k, SVector::zeros())?;
-        Ok(Self { rows: rows_buf, theta, r: rv, q: SMatrix::identity() / c, opts, reinit_count: 0, samples: 0 })
+        let ssr = S::Scalars::filled("unknown_rows", k, T::zero())?;
+        Ok(Self {
+            rows: rows_buf,
+            theta,
+            r: rv,
+            q: SMatrix::identity() / c,
+            opts,
+            reinit_count: 0,
+            samples: 0,
+            ssr,
+            nobs: T::zero(),
+            gated: 0,
+        })
     }
 
     /// Sets the prior mean `θ̂(0)` (`K·N` values, row-major); before the first sample.
@@ -144,9 +165,16 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
         self.reinit_count
     }
 
-    /// Number of samples accepted.
+    /// Number of samples accepted (those the outlier gate left out included, as in mode
+    /// `rows`).
     pub fn samples(&self) -> u64 {
         self.samples
+    }
+
+    /// Samples left out by the outlier gate ([`KalmanOptions::gate`]; every row leaves a gated
+    /// sample out, since the rows share one covariance).
+    pub fn gated(&self) -> u64 {
+        self.gated
     }
 
     /// `tr P = Σ_i r_i tr Q`.
@@ -181,7 +209,9 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
     /// One sample; innovations into `e`. No allocation.
     ///
     /// # Errors
-    /// As [`KalmanRows::update_into`].
+    /// As [`KalmanRows::update_into`]; [`Error::Singular`] for a sample informative far beyond
+    /// its noise (`1/s < √ε`) whose downdate would leave `Q` indefinite. A sample the outlier
+    /// gate leaves out is not an error (it is counted, [`KalmanShared::gated`]).
     pub(crate) fn update_vec(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
         let k = self.rows.flat().len();
         if e.len() != k {
@@ -214,7 +244,7 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
         let s = tree_sum(xqx) + T::one();
         let inv_s = T::one() / s;
         let rows = self.rows.flat();
-        let theta = self.theta.flat_mut();
+        let theta = self.theta.flat();
         let mut abs_e = T::zero();
         // Zipped (no bounds checks: they would split the loop the compiler vectorizes).
         for ((th, ei), &row) in theta.iter().zip(e.iter_mut()).zip(rows) {
@@ -233,17 +263,21 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
         }
         let step = tree_sum(ag) * abs_e;
         let ok = (probe == T::zero()) & (s > T::zero()) & (s <= T::biggest()) & is_fin(step);
-        if !ok {
-            check_sample(x, z)?;
-            if !s.finite() {
-                return Err(OVERFLOW);
+        let gate = self.opts.gate > T::zero();
+        if !ok || gate || T::one() < risky::<T>() * s {
+            // The rare paths (and every sample while the gate is on): errors, the gate, a
+            // downdate that could lose positive definiteness. Nothing has changed yet.
+            match self.screen_sample(x, z, e, s, step, qx, g)? {
+                // Taken and counted like any sample (as in mode rows), but not used; no
+                // reinitialization on an outlier.
+                Screened::Gated => {
+                    self.samples += 1;
+                    return Ok(());
+                }
+                Screened::Accepted => {}
             }
-            if !(s > T::zero()) {
-                return Err(Error::Singular { what: "the shared covariance (1 + xᵀQx ≤ 0)" });
-            }
-            return Err(OVERFLOW);
         }
-        for (th, &ei) in theta.iter_mut().zip(e.iter()) {
+        for (th, &ei) in self.theta.flat_mut().iter_mut().zip(e.iter()) {
             for a in 0..N {
                 th[a] += g[a] * ei;
             }
@@ -259,9 +293,12 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
                     }
                 }
             }
-            CovarianceForm::Joseph => self.joseph(x, g),
+            CovarianceForm::Joseph => self.q = self.joseph(x, g),
             // Refused by the constructor.
             CovarianceForm::Sqrt => {}
+        }
+        if gate {
+            self.record(e, s);
         }
         self.samples += 1;
         if self.opts.reinit && T::of(10.0) * abs_e > self.trace() {
@@ -272,11 +309,113 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
 
     /// Joseph's form for the shared covariance: `Q ← (I − g xᵀ) Q (I − g xᵀ)ᵀ + g gᵀ`.
     #[inline(never)]
-    fn joseph(&mut self, x: &SVector<T, N>, g: [T; N]) {
+    fn joseph(&self, x: &SVector<T, N>, g: [T; N]) -> SMatrix<T, N, N> {
         let g = SVector::<T, N>::from_column_slice(&g);
         let a = SMatrix::<T, N, N>::identity() - g * x.transpose();
-        self.q = a * self.q * a.transpose() + g * g.transpose();
-        symmetrize(&mut self.q);
+        let mut q = a * self.q * a.transpose() + g * g.transpose();
+        symmetrize(&mut q);
+        q
+    }
+
+    /// `Q` after the measurement update with `Q x` and gain `g = Q x / s` (the arithmetic of
+    /// [`Self::step`]: the standard downdate from the upper triangle, or Joseph's form).
+    fn downdated(&self, x: &SVector<T, N>, qx: [T; N], g: [T; N]) -> SMatrix<T, N, N> {
+        if self.opts.form == CovarianceForm::Joseph {
+            return self.joseph(x, g);
+        }
+        let mut q = self.q;
+        for b in 0..N {
+            for a in 0..N {
+                let v = if a <= b { qx[a] * g[b] } else { qx[b] * g[a] };
+                q[(a, b)] -= v;
+            }
+        }
+        q
+    }
+
+    /// The checks of a sample that is not plainly acceptable (`ok` false), or of every sample
+    /// while the outlier gate is on, or of one whose downdate is risky (`1/s` below `√ε`):
+    /// the error it is rejected with; else whether the gate leaves it out (then counted, its
+    /// residuals entering the gate's scale Winsorized at the gate) or it is accepted. The
+    /// risky downdate must leave `Q` positive definite (checked by Cholesky), else the sample
+    /// is refused ([`super::row::LOST_DEFINITENESS_JOINT`]). Changes nothing unless gated.
+    ///
+    /// # Errors
+    /// [`Error::NonFinite`], an overflow error naming `r_k` or `z_k`, [`Error::Singular`].
+    #[cold]
+    #[inline(never)]
+    #[allow(clippy::too_many_arguments)]
+    fn screen_sample(
+        &mut self,
+        x: &SVector<T, N>,
+        z: &SVector<T, N>,
+        e: &[T],
+        s: T,
+        step: T,
+        qx: [T; N],
+        g: [T; N],
+    ) -> Result<Screened> {
+        check_sample(x, z)?;
+        if !s.finite() {
+            return Err(OVERFLOW);
+        }
+        if !(s > T::zero()) {
+            return Err(Error::Singular {
+                what: "the shared covariance (1 + xᵀQx ≤ 0: Q lost positive definiteness; use a smaller p0, or \
+                       mode='rows' with form='sqrt', which cannot lose it)",
+            });
+        }
+        if self.gate_out(e, s) {
+            return Ok(Screened::Gated);
+        }
+        if !is_fin(step) {
+            // The largest innovation decides which argument overflowed.
+            let (i, _) =
+                e.iter().enumerate().fold((0, T::zero()), |b, (i, v)| if !(v.abs() <= b.1) { (i, v.abs()) } else { b });
+            let xth = self.theta.flat()[i].dot(x);
+            return Err(overflow_culprit(e[i], xth));
+        }
+        if T::one() < risky::<T>() * s && !positive_definite(&self.downdated(x, qx, g), N) {
+            return Err(super::row::LOST_DEFINITENESS_JOINT);
+        }
+        Ok(Screened::Accepted)
+    }
+
+    /// The outlier gate ([`KalmanOptions::gate`] `κ`) for mode `shared`: once `N + 50` samples
+    /// are behind the scale, a sample is left out when any row's recursive residual
+    /// `w_i = e_i / √s` exceeds `κ σ̂_i` (`σ̂_i² = Σ w_i² / (n − N)`), as in mode `rows`; the
+    /// rows share one covariance, so every row leaves it out. Then counts it and lets it
+    /// inform the scale: each row's `w_i²` enters Winsorized at `κ² σ̂_i²` (see
+    /// [`super::row::gated_scale`]). `true` when gated.
+    fn gate_out(&mut self, e: &[T], s: T) -> bool {
+        let gate = self.opts.gate;
+        let params = T::of(N as f64);
+        if !(gate > T::zero()) || self.nobs < params + T::of(SCREEN_WARMUP) {
+            return false;
+        }
+        let n = self.nobs - params;
+        let out = self.ssr.flat().iter().zip(e).any(|(&ssr, &ei)| {
+            let sigma2 = ssr / n;
+            sigma2 > T::zero() && !(ei * ei / s <= gate * gate * sigma2)
+        });
+        if out {
+            for (ssr, &ei) in self.ssr.flat_mut().iter_mut().zip(e) {
+                let cap = gate * gate * *ssr / n;
+                let w2 = ei * ei / s;
+                *ssr += if w2 <= cap { w2 } else { cap };
+            }
+            self.nobs += T::one();
+            self.gated += 1;
+        }
+        out
+    }
+
+    /// The gate's statistics after an accepted sample: `Σ w_i² += e_i² / s`, one more sample.
+    fn record(&mut self, e: &[T], s: T) {
+        for (ssr, &ei) in self.ssr.flat_mut().iter_mut().zip(e) {
+            *ssr += ei * ei / s;
+        }
+        self.nobs += T::one();
     }
 
     /// Eq 4.36 for the shared form: `P_i' = P_i + 9 diag(P_i)`, `r_i' = 2 r_i`, so
@@ -294,13 +433,24 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
     }
 }
 
+/// What the rare-path checks of a sample decided ([`KalmanShared::screen_sample`]).
+enum Screened {
+    /// Left out by the outlier gate (counted; nothing else changes).
+    Gated,
+    /// To be applied.
+    Accepted,
+}
+
 #[cfg(feature = "serde")]
 impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
-    /// Checks a deserialized identifier: valid rows and options, one `θ_i` and `r_i` per row.
+    /// Checks a deserialized identifier: valid rows and options, one `θ_i`, `r_i` and gate
+    /// statistic per row.
     pub(crate) fn restored(&mut self) -> Result<()> {
         self.opts.validate()?;
         let k = crate::model::RowSet::<N>::new(self.rows.flat())?.len();
-        for (arg, len) in [("theta", self.theta.flat().len()), ("r", self.r.flat().len())] {
+        for (arg, len) in
+            [("theta", self.theta.flat().len()), ("r", self.r.flat().len()), ("ssr", self.ssr.flat().len())]
+        {
             if len != k {
                 return Err(Error::Shape { arg, expected: k, got: len });
             }
@@ -400,5 +550,16 @@ impl<T: Real, const N: usize, S: Store<T, N>> Identifier<T> for KalmanShared<T, 
 
     fn reinit_count(&self) -> u32 {
         self.reinit_count
+    }
+
+    /// The samples the gate left out, the same count for every row (see
+    /// [`KalmanShared::gated`]).
+    fn gated_into(&self, out: &mut [u64]) -> Result<()> {
+        let k = self.rows.flat().len();
+        if out.len() != k {
+            return Err(Error::Shape { arg: "out", expected: k, got: out.len() });
+        }
+        out.fill(self.gated);
+        Ok(())
     }
 }
