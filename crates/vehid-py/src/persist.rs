@@ -24,7 +24,7 @@ use pyo3::types::{PyBytes, PyDict, PyTuple};
 use serde::{Deserialize, Serialize};
 use vehid_core::identify::{
     BatchLeastSquares, DynIdentifier, Dynamic, KalmanFull, KalmanRows, KalmanShared, StochasticGradientVec,
-    TwoAxleIdentifierVec,
+    StructuredGradient, StructuredKalmanVec, TwoAxleIdentifierVec,
 };
 use vehid_core::Error;
 
@@ -46,6 +46,10 @@ enum Core {
     Batch,
     /// `TwoAxleIdentifierVec<f64, 8, 16>`.
     TwoAxle,
+    /// `StructuredKalmanVec<f64, P>` (a `KalmanIdentifier` on a Structure), `P` its largest group.
+    Structured(u8),
+    /// `StructuredGradient<f64, P>` (a `StochasticGradient` on a Structure).
+    StructuredGradient(u8),
 }
 
 impl Core {
@@ -103,6 +107,40 @@ fn save_n<const N: usize>(id: &dyn DynIdentifier<f64>) -> vehid_core::Result<Opt
     Ok(None)
 }
 
+/// The core type and its bytes of an identifier on a Structure (the sizes `P` the binding
+/// builds: `structure.rs`).
+fn save_structured(id: &dyn DynIdentifier<f64>) -> vehid_core::Result<Option<(Core, Vec<u8>)>> {
+    let any = id.as_any();
+    macro_rules! try_p {
+        ($($p:literal),*) => {$(
+            if let Some(x) = any.downcast_ref::<StructuredKalmanVec<f64, $p>>() {
+                return encode(Core::Structured($p), x);
+            }
+            if let Some(x) = any.downcast_ref::<StructuredGradient<f64, $p>>() {
+                return encode(Core::StructuredGradient($p), x);
+            }
+        )*};
+    }
+    try_p!(2, 4, 8, 16, 32);
+    Ok(None)
+}
+
+/// Decodes a core on a Structure.
+fn load_structured(core: Core, bytes: &[u8]) -> Option<Loaded> {
+    Some(match core {
+        Core::Structured(2) => decode::<StructuredKalmanVec<f64, 2>>(bytes),
+        Core::Structured(4) => decode::<StructuredKalmanVec<f64, 4>>(bytes),
+        Core::Structured(8) => decode::<StructuredKalmanVec<f64, 8>>(bytes),
+        Core::Structured(16) => decode::<StructuredKalmanVec<f64, 16>>(bytes),
+        Core::Structured(32) => decode::<StructuredKalmanVec<f64, 32>>(bytes),
+        Core::StructuredGradient(4) => decode::<StructuredGradient<f64, 4>>(bytes),
+        Core::StructuredGradient(8) => decode::<StructuredGradient<f64, 8>>(bytes),
+        Core::StructuredGradient(16) => decode::<StructuredGradient<f64, 16>>(bytes),
+        Core::StructuredGradient(32) => decode::<StructuredGradient<f64, 32>>(bytes),
+        _ => return None,
+    })
+}
+
 type Loaded = Result<Box<dyn DynIdentifier<f64>>, postcard::Error>;
 
 fn decode<I: DynIdentifier<f64> + for<'de> Deserialize<'de> + 'static>(bytes: &[u8]) -> Loaded {
@@ -119,20 +157,19 @@ fn load_n<const N: usize>(core: Core, bytes: &[u8]) -> vehid_core::Result<Loaded
         Core::Gradient => decode::<StochasticGradientVec<f64, N>>(bytes),
         Core::Batch => decode::<BatchLeastSquares<f64, N>>(bytes),
         Core::TwoAxle if N == 8 => decode::<TwoAxleCore>(bytes),
-        Core::TwoAxle => return Err(crate::dispatch::bad_dims()),
+        Core::TwoAxle | Core::Structured(_) | Core::StructuredGradient(_) => return Err(crate::dispatch::bad_dims()),
     })
 }
 
 /// The identifier's state: `(FORMAT, "vehid <version>", payload)`.
 fn state<'py>(py: Python<'py>, base: &PyIdentifier) -> PyResult<Bound<'py, PyTuple>> {
-    if base.structure.is_some() {
-        return Err(VehidError::new_err(
-            "an identifier on a Structure cannot be pickled yet (copy.copy / copy.deepcopy work): pickle the \
-             Structure and its data, or the estimate (`params`, `stats()`)",
-        ));
-    }
     let n = base.model.n;
-    let saved = dispatch_n!(n, save_n(base.inner.as_ref())).map_err(crate::identify::raise)?;
+    let saved = if base.structure.is_some() {
+        save_structured(base.inner.as_ref())
+    } else {
+        dispatch_n!(n, save_n(base.inner.as_ref()))
+    }
+    .map_err(crate::identify::raise)?;
     let Some((core, bytes)) = saved else {
         return Err(VehidError::new_err("this identifier cannot be pickled (its core type is not one vehid builds)"));
     };
@@ -229,7 +266,13 @@ pub fn set_state(obj: &Bound<'_, PyIdentifier>, state: &Bound<'_, PyAny>) -> PyR
             "cannot restore the identifier: the state is of an identifier of another model than this object's",
         ));
     }
-    let class_fits = if obj.is_instance_of::<PyKalmanIdentifier>() {
+    let on_structure = borrow(obj)?.structure.is_some();
+    let class_fits = if on_structure {
+        matches!(
+            (saved.core, obj.is_instance_of::<PyKalmanIdentifier>(), obj.is_instance_of::<PyStochasticGradient>()),
+            (Core::Structured(_), true, _) | (Core::StructuredGradient(_), _, true)
+        )
+    } else if obj.is_instance_of::<PyKalmanIdentifier>() {
         let mode: String = obj.getattr("mode")?.extract()?;
         saved.core.mode() == Some(mode.as_str())
     } else if obj.is_instance_of::<PyStochasticGradient>() {
@@ -253,10 +296,19 @@ pub fn set_state(obj: &Bound<'_, PyIdentifier>, state: &Bound<'_, PyAny>) -> PyR
             saved.core
         )));
     }
-    let loaded = dispatch_n!(model.n, load_n(saved.core, &saved.state)).map_err(crate::core_err)?;
+    let loaded = match load_structured(saved.core, &saved.state) {
+        Some(loaded) => loaded,
+        None => dispatch_n!(model.n, load_n(saved.core, &saved.state)).map_err(crate::core_err)?,
+    };
     let core = loaded.map_err(|e| corrupt(&format!("its {:?} core does not decode ({e})", saved.core)))?;
     let d = core.dims();
-    if d.states != model.n || d.inputs != 0 || core.rows() != model.rows.as_slice() {
+    // Identifiers on a Structure read its measured inputs; on a linear model, none.
+    let inputs = if on_structure { model.m } else { 0 };
+    let params_fit = match &borrow(obj)?.structure {
+        Some(st) => d.params == st.get().core.params(),
+        None => true,
+    };
+    if d.states != model.n || d.inputs != inputs || core.rows() != model.rows.as_slice() || !params_fit {
         return Err(corrupt("its core does not fit the model (states or unknown rows differ)"));
     }
     borrow_mut(obj)?.inner = core;

@@ -263,20 +263,57 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
         }
         let step = tree_sum(ag) * abs_e;
         let ok = (probe == T::zero()) & (s > T::zero()) & (s <= T::biggest()) & is_fin(step);
-        let gate = self.opts.gate > T::zero();
-        if !ok || gate || T::one() < risky::<T>() * s {
+        // Non-short-circuit: one branch on the fast path.
+        let rare = !ok | (self.opts.gate > T::zero()) | (T::one() < risky::<T>() * s);
+        if rare {
             // The rare paths (and every sample while the gate is on): errors, the gate, a
-            // downdate that could lose positive definiteness. Nothing has changed yet.
-            match self.screen_sample(x, z, e, s, step, qx, g)? {
-                // Taken and counted like any sample (as in mode rows), but not used; no
-                // reinitialization on an outlier.
-                Screened::Gated => {
-                    self.samples += 1;
-                    return Ok(());
+            // downdate that could lose positive definiteness. Nothing has changed yet. A tail
+            // call, so that nothing on the fast path below lives across it.
+            return self.screened_step(x, z, e, s, step, qx, g, abs_e);
+        }
+        // (The gate is off here: a gate on takes the rare path.)
+        self.apply::<false>(x, e, qx, g, s, abs_e);
+        Ok(())
+    }
+
+    /// [`Self::step`]'s rare path: screens the sample, then applies it unless it is refused
+    /// or gated.
+    #[cold]
+    #[inline(never)]
+    #[allow(clippy::too_many_arguments)]
+    fn screened_step(
+        &mut self,
+        x: &SVector<T, N>,
+        z: &SVector<T, N>,
+        e: &mut [T],
+        s: T,
+        step: T,
+        qx: [T; N],
+        g: [T; N],
+        abs_e: T,
+    ) -> Result<()> {
+        match self.screen_sample(x, z, e, s, step, qx, g)? {
+            // Taken and counted like any sample (as in mode rows), but not used; no
+            // reinitialization on an outlier.
+            Screened::Gated => {
+                self.samples += 1;
+                Ok(())
+            }
+            Screened::Accepted => {
+                if self.opts.gate > T::zero() {
+                    self.apply::<true>(x, e, qx, g, s, abs_e);
+                } else {
+                    self.apply::<false>(x, e, qx, g, s, abs_e);
                 }
-                Screened::Accepted => {}
+                Ok(())
             }
         }
+    }
+
+    /// Applies an accepted sample: `θ += g e`, the covariance downdate, the gate's statistics
+    /// (`GATE`: the gate is on), the count, reinitialization.
+    #[inline(always)]
+    fn apply<const GATE: bool>(&mut self, x: &SVector<T, N>, e: &[T], qx: [T; N], g: [T; N], s: T, abs_e: T) {
         for (th, &ei) in self.theta.flat_mut().iter_mut().zip(e.iter()) {
             for a in 0..N {
                 th[a] += g[a] * ei;
@@ -297,14 +334,13 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
             // Refused by the constructor.
             CovarianceForm::Sqrt => {}
         }
-        if gate {
+        if GATE {
             self.record(e, s);
         }
         self.samples += 1;
         if self.opts.reinit && T::of(10.0) * abs_e > self.trace() {
             self.reinitialize();
         }
-        Ok(())
     }
 
     /// Joseph's form for the shared covariance: `Q ← (I − g xᵀ) Q (I − g xᵀ)ᵀ + g gᵀ`.
