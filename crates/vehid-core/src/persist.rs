@@ -163,6 +163,25 @@ pub(crate) mod flat {
     }
 }
 
+/// A store buffer that only holds scratch copies between updates (e.g. the filters before
+/// the current update): written empty when the store can be empty (a `Vec`), so that the
+/// serialized state does not depend on what the last update, accepted or refused, left
+/// there; its owner refills it on load. A fixed array store is written in full.
+pub(crate) mod scratch {
+    use super::*;
+
+    pub(crate) fn serialize<X: Serialize, F: Flat<X>, S: Serializer>(v: &F, s: S) -> Result<S::Ok, S::Error> {
+        let can_be_empty = matches!(F::from_items(core::iter::empty::<Result<X, ()>>()), Ok(Some(_)));
+        if can_be_empty {
+            s.collect_seq(core::iter::empty::<&X>())
+        } else {
+            s.collect_seq(v.flat())
+        }
+    }
+
+    pub(crate) use super::flat::deserialize;
+}
+
 /// A ring buffer ([`RingStore`]) as a sequence of its slots.
 pub(crate) mod ring {
     use super::*;

@@ -53,8 +53,9 @@ pub struct Structured<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> {
     part: Partition,
     #[cfg_attr(feature = "serde", serde(with = "crate::persist::flat"))]
     filters: F,
-    /// The filters before the current update (of the groups it touched).
-    #[cfg_attr(feature = "serde", serde(with = "crate::persist::flat"))]
+    /// The filters before the current update (of the groups it touched): scratch, not state
+    /// (serialized empty where the store allows, refilled on load).
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::scratch"))]
     backup: F,
     rows: [usize; MAX_EQUATIONS],
     /// Each equation's variance `r_i` and row scale `√(r_g / r_i)`.
@@ -83,6 +84,9 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Structured<T, P, F> 
     #[cfg(feature = "serde")]
     pub(crate) fn restored(&mut self) -> Result<()> {
         let corrupt = Error::InvalidArgument { arg: "state", expected: "a structured identifier's saved state" };
+        if self.backup.flat().is_empty() {
+            self.backup = self.filters.clone();
+        }
         let part = self.structure.partition();
         let ng = part.groups as usize;
         if part != self.part || part.largest() > P || self.filters.flat().len() != ng || self.backup.flat().len() != ng
