@@ -370,17 +370,10 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
             return Err(culprit(theta, x, e));
         }
         if risky_sample {
-            let pn = self.pn.flat_mut();
-            for i in 0..k {
-                for j in i..k {
-                    pn[i * k + j] = downdated_block(p, w, c, k, i, j);
-                    if i == j {
-                        symmetrize(&mut pn[i * k + i]);
-                    } else {
-                        pn[j * k + i] = pn[i * k + j].transpose();
-                    }
-                }
-            }
+            // The downdate into the candidate, checked; applied below by a copy.
+            let pn = &mut self.pn.flat_mut()[..k * k];
+            pn.copy_from_slice(&p[..k * k]);
+            downdate_blocks(pn, w, c, k);
             if !blocks_positive_definite(pn, k) {
                 return Err(LOST_DEFINITENESS_JOINT);
             }
@@ -391,15 +384,10 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
                 theta[i] += w[i * k + l] * e[l];
             }
         }
-        for i in 0..k {
-            for j in i..k {
-                p[i * k + j] = downdated_block(p, w, c, k, i, j);
-                if i == j {
-                    symmetrize(&mut p[i * k + i]);
-                } else {
-                    p[j * k + i] = p[i * k + j].transpose();
-                }
-            }
+        if risky_sample {
+            p[..k * k].copy_from_slice(&self.pn.flat()[..k * k]);
+        } else {
+            downdate_blocks(p, w, c, k);
         }
         if gate {
             // The recursive residuals w_i² = e_i² R_ii / S_ii (S_ii from C, as S was factored).
@@ -428,6 +416,26 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
 
 /// Block `(i, j)` of the covariance after the update, `P_ij − Σ_l W_il C_jlᵀ`.
 #[inline(always)]
+/// `P ← P − W Cᵀ` in place on `K × K` blocks: each upper block from [`downdated_block`] (which
+/// reads only that block of `P`), the diagonal blocks symmetrized, the lower ones mirrored.
+fn downdate_blocks<T: Real, const N: usize>(
+    p: &mut [SMatrix<T, N, N>],
+    w: &[SVector<T, N>],
+    c: &[SVector<T, N>],
+    k: usize,
+) {
+    for i in 0..k {
+        for j in i..k {
+            p[i * k + j] = downdated_block(p, w, c, k, i, j);
+            if i == j {
+                symmetrize(&mut p[i * k + i]);
+            } else {
+                p[j * k + i] = p[i * k + j].transpose();
+            }
+        }
+    }
+}
+
 fn downdated_block<T: Real, const N: usize>(
     p: &[SMatrix<T, N, N>],
     w: &[SVector<T, N>],
