@@ -241,7 +241,8 @@ def test_events_compare_print_and_serialize(damper_run: vehid.Run) -> None:
     assert d["parameter"] == "b" and d["after"] == ev.after and set(d) == {
         "t", "t_change", "parameter", "before", "after", "low", "high", "change"}
     assert repr(ev).startswith("Event(t=") and "parameter='b'" in repr(ev)
-    assert "status='monitoring'" in repr(vehid.HealthMonitor(CAR, dt=DT)).replace("warmup", "monitoring")
+    fresh = repr(vehid.HealthMonitor(CAR, dt=DT))
+    assert fresh.startswith("HealthMonitor(dt=0.005, sensors='realistic', samples=0") and "status='warmup'" in fresh
 
 
 # --- vehid monitor ------------------------------------------------------------------------

@@ -15,9 +15,7 @@
 //!   speed `16 + 8 sin(2π t / 240 s)` m/s (8–24 m/s) and the road class cycling C, B, C, D
 //!   every 300 s (the reference is learned in the first 20 s, on class C near 16 m/s).
 //!
-//! - `--count N`: only `N` ≤ 200,000 monitor updates (monitoring phase, f64) on 200,000
-//!   pre-generated samples (generated whatever `N` is), for instruction counting: `valgrind --tool=callgrind` with `N`
-//!   and with 0, the difference divided by `N` is the instructions per update.
+//! (Instructions per update are counted by `count_health`, the callgrind gate's binary.)
 //!
 //! - `--state-noise F`: the thesis' state sensors instead (`zw, vw, zb, vb` and their
 //!   derivatives), with noise `F` times each quantity's standard deviation (the thesis'
@@ -45,7 +43,6 @@ struct Args {
     window: Option<f64>,
     calibrate: bool,
     vary: bool,
-    count: Option<usize>,
     state_noise: Option<f64>,
 }
 
@@ -58,7 +55,6 @@ fn parse() -> Args {
         window: None,
         calibrate: false,
         vary: false,
-        count: None,
         state_noise: None,
     };
     let argv: Vec<String> = std::env::args().skip(1).collect();
@@ -70,7 +66,6 @@ fn parse() -> Args {
             "--seeds" => a.seeds = val().parse().expect("--seeds: an integer"),
             "--hours" => a.hours = val().parse().expect("--hours: an integer"),
             "--threshold" => a.threshold = Some(val().parse().expect("--threshold: a number")),
-            "--count" => a.count = Some(val().parse().expect("--count: an integer")),
             "--window" => a.window = Some(val().parse().expect("--window: seconds")),
             "--state-noise" => a.state_noise = Some(val().parse().expect("--state-noise: a fraction")),
             "--calibrate" => {
@@ -239,34 +234,9 @@ fn calibrate(car: QuarterCar<f64>, a: &Args) {
     }
 }
 
-/// `n` updates of a monitor past its warm-up on cycled samples (see `--count`).
-#[inline(never)]
-fn count(car: QuarterCar<f64>, n: usize) {
-    let mut drive = QuarterDrive::new(car, DriveConfig::new(DT), 42).unwrap();
-    let mut mon = HealthMonitor::new(HealthConfig::new(DT, car)).unwrap();
-    for _ in 0..6000 {
-        mon.update(drive.next_sample().y()).unwrap();
-    }
-    let data: Vec<[f64; 3]> = (0..200_000)
-        .map(|_| {
-            let s = drive.next_sample();
-            [s.y()[0], s.y()[1], s.y()[2]]
-        })
-        .collect();
-    let mut events = 0;
-    for y in data.iter().take(n) {
-        events += usize::from(std::hint::black_box(mon.update(std::hint::black_box(y)).unwrap()).is_some());
-    }
-    println!("{n} updates, {events} events, status {:?}, estimate {:?}", mon.status(), mon.estimate().value);
-}
-
 fn main() {
     let a = parse();
     let car = QuarterCar::<f64>::passenger();
-    if let Some(n) = a.count {
-        count(car, n);
-        return;
-    }
     if let Some(f) = a.state_noise {
         let noise = state_noise(car, f, a.seed0 + 2_000_000);
         SENSORS.set((SensorSet::State, noise)).expect("set once");

@@ -122,6 +122,21 @@ pub fn values(obj: Option<&Bound<'_, PyAny>>, arg: &str, default: f64) -> PyResu
     }
 }
 
+/// `speed=`: a scalar (m/s) or a 1-D array of one speed per sample; `None` gives `default`.
+/// Returns `(constant, per_sample)`, `per_sample` empty for a constant speed.
+pub fn speed_arg(obj: Option<&Bound<'_, PyAny>>, default: f64) -> PyResult<(f64, Vec<f64>)> {
+    let Some(obj) = obj else { return Ok((default, vec![])) };
+    let a = array(obj, "speed")?;
+    match a.shape[..] {
+        [] => Ok((a.data[0], vec![])),
+        [_] => Ok((0.0, a.data)),
+        _ => Err(VehidError::new_err(format!(
+            "`speed` must be a scalar or a 1-D array (one speed per sample, m/s), got shape {}",
+            shape_str(&a.shape)
+        ))),
+    }
+}
+
 /// A non-negative integer that fits a `u64`.
 pub fn uint(v: i128, arg: &str) -> PyResult<u64> {
     u64::try_from(v).map_err(|_| VehidError::new_err(format!("`{arg}` must be an integer in 0..2**64, got {v}")))

@@ -2,7 +2,7 @@
 //! ISO 8608 road with parameter changes and a sensor set (issue 17), the core's
 //! [`QuarterDrive`]. Conversion and validation only; the core simulates.
 
-use crate::convert::{array, py_str, shape_str};
+use crate::convert::{py_str, speed_arg};
 use crate::model::{Kind, PyLinearModel};
 use crate::{core_err, option, VehidError};
 use pyo3::prelude::*;
@@ -92,37 +92,7 @@ impl DriveSim {
         }
         let road: RoadClass = option(road)?;
         let sensors: SensorSet = option(sensors.unwrap_or("realistic"))?;
-        let mut noise = SensorNoise::<f64>::default();
-        if let Some(d) = sensor_noise {
-            for (k, v) in d.iter() {
-                let key: String = k.extract().map_err(|_| {
-                    VehidError::new_err("`sensor_noise` keys must be strings such as 'a_body' or 'deflection'")
-                })?;
-                let v: f64 = v.extract().map_err(|_| {
-                    VehidError::new_err(format!(
-                        "`sensor_noise[{}]` must be a number (a standard deviation)",
-                        py_str(&key)
-                    ))
-                })?;
-                let slot = match key.as_str() {
-                    "a_body" => &mut noise.a_body,
-                    "a_body_bias" => &mut noise.a_body_bias,
-                    "a_wheel" => &mut noise.a_wheel,
-                    "a_wheel_bias" => &mut noise.a_wheel_bias,
-                    "deflection" => &mut noise.deflection,
-                    "state" => &mut noise.state,
-                    "deriv" => &mut noise.deriv,
-                    other => {
-                        return Err(VehidError::new_err(format!(
-                            "`sensor_noise` has no entry {}: use 'a_body', 'a_body_bias', 'a_wheel', \
-                             'a_wheel_bias', 'deflection' (realistic sensors) or 'state', 'deriv' (state sensors)",
-                            py_str(other)
-                        )))
-                    }
-                };
-                *slot = v;
-            }
-        }
+        let mut noise = sensor_noise_arg(sensor_noise)?;
         for (v, name, slot) in [(state_noise, "state_noise", 0), (deriv_noise, "deriv_noise", 1)] {
             let Some(v) = v else { continue };
             if sensors != SensorSet::State {
@@ -137,22 +107,7 @@ impl DriveSim {
                 noise.deriv = v;
             }
         }
-        let (speed, speeds) = match speed {
-            None => (15.0, vec![]),
-            Some(obj) => {
-                let a = array(obj, "speed")?;
-                match a.shape[..] {
-                    [] => (a.data[0], vec![]),
-                    [_] => (0.0, a.data),
-                    _ => {
-                        return Err(VehidError::new_err(format!(
-                            "`speed` must be a scalar or a 1-D array (one speed per sample, m/s), got shape {}",
-                            shape_str(&a.shape)
-                        )))
-                    }
-                }
-            }
-        };
+        let (speed, speeds) = speed_arg(speed, 15.0)?;
         if let Some(i) = speeds.iter().position(|v| !(v.is_finite() && *v >= 0.0)) {
             return Err(VehidError::new_err(format!(
                 "`speed[{i}]` is {}: speeds must be finite and >= 0 m/s",
@@ -242,6 +197,41 @@ impl DriveSim {
         }
         Ok(out)
     }
+}
+
+/// `sensor_noise={"a_body": 0.02, ...}`: the defaults of [`SensorNoise`] with the given
+/// standard deviations, each checked finite and ≥ 0 (shared by `Simulator` and
+/// `HealthMonitor`).
+pub fn sensor_noise_arg(sensor_noise: Option<&Bound<'_, PyDict>>) -> PyResult<SensorNoise<f64>> {
+    let mut noise = SensorNoise::<f64>::default();
+    let Some(d) = sensor_noise else { return Ok(noise) };
+    for (k, v) in d.iter() {
+        let key: String = k
+            .extract()
+            .map_err(|_| VehidError::new_err("`sensor_noise` keys must be strings such as 'a_body' or 'deflection'"))?;
+        let v: f64 = v.extract().map_err(|_| {
+            VehidError::new_err(format!("`sensor_noise[{}]` must be a number (a standard deviation)", py_str(&key)))
+        })?;
+        let slot = match key.as_str() {
+            "a_body" => &mut noise.a_body,
+            "a_body_bias" => &mut noise.a_body_bias,
+            "a_wheel" => &mut noise.a_wheel,
+            "a_wheel_bias" => &mut noise.a_wheel_bias,
+            "deflection" => &mut noise.deflection,
+            "state" => &mut noise.state,
+            "deriv" => &mut noise.deriv,
+            other => {
+                return Err(VehidError::new_err(format!(
+                    "`sensor_noise` has no entry {}: use 'a_body', 'a_body_bias', 'a_wheel', 'a_wheel_bias', \
+                     'deflection' (realistic sensors) or 'state', 'deriv' (state sensors)",
+                    py_str(other)
+                )))
+            }
+        };
+        *slot = v;
+    }
+    noise.validate().map_err(crate::core_err)?;
+    Ok(noise)
 }
 
 /// `changes=[(t, {"b": 1350.0}), (t, {"k2": 19800.0}, ramp_seconds), ...]`.

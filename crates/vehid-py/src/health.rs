@@ -8,7 +8,7 @@ use crate::{core_err, option, VehidError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyTuple};
 use vehid_core::health::{self, HealthConfig, Reason, Status};
-use vehid_core::sim::{SensorNoise, SensorSet};
+use vehid_core::sim::SensorSet;
 
 /// Samples between two looks at pending signals in `fit` (some 100 ns each).
 const CHECK: usize = 1 << 16;
@@ -197,37 +197,7 @@ impl PyHealthMonitor {
             ));
         };
         let set: SensorSet = option(sensors)?;
-        let mut noise = SensorNoise::<f64>::default();
-        if let Some(d) = sensor_noise {
-            for (k, v) in d.iter() {
-                let key: String =
-                    k.extract().map_err(|_| VehidError::new_err("`sensor_noise` keys must be strings"))?;
-                let v: f64 = v
-                    .extract()
-                    .map_err(|_| VehidError::new_err(format!("`sensor_noise[{}]` must be a number", py_str(&key))))?;
-                match key.as_str() {
-                    "a_body" => noise.a_body = v,
-                    "a_wheel" => noise.a_wheel = v,
-                    "deflection" => noise.deflection = v,
-                    "state" => noise.state = v,
-                    "deriv" => noise.deriv = v,
-                    "a_body_bias" | "a_wheel_bias" => {}
-                    other => {
-                        return Err(VehidError::new_err(format!(
-                            "`sensor_noise` has no entry {}: use 'a_body', 'a_wheel', 'deflection' \
-                             (realistic sensors) or 'state', 'deriv' (state sensors)",
-                            py_str(other)
-                        )))
-                    }
-                }
-                if !(v.is_finite() && v >= 0.0) {
-                    return Err(VehidError::new_err(format!(
-                        "`sensor_noise[{}]` is {v}: a standard deviation, finite and >= 0",
-                        py_str(&key)
-                    )));
-                }
-            }
-        }
+        let noise = crate::drive::sensor_noise_arg(sensor_noise)?;
         let mut cfg = HealthConfig::new(dt, c).with_sensors(set, &noise);
         for (v, slot) in [
             (window, &mut cfg.window),

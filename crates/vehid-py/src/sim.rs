@@ -1,6 +1,6 @@
 //! `Simulator` and `Run`.
 
-use crate::convert::{array, shape_str, size, uint, values};
+use crate::convert::{size, speed_arg, uint, values};
 use crate::dispatch::{dispatch_nm, reserve_run, sim_chunk, simulator_nm, SimDyn, SimParams};
 use crate::drive::{DriveRun, DriveSim, Unused};
 use crate::guard::{borrow, borrow_mut, Interrupts};
@@ -97,22 +97,7 @@ fn road_simulator(
             "`pulses` are not supported with speed=/spacing=/road= (samples are by distance)",
         ));
     }
-    let (speed, speeds) = match speed {
-        None => (6.0, vec![]),
-        Some(obj) => {
-            let a = array(obj, "speed")?;
-            match a.shape[..] {
-                [] => (a.data[0], vec![]),
-                [_] => (0.0, a.data),
-                _ => {
-                    return Err(VehidError::new_err(format!(
-                        "`speed` must be a scalar or a 1-D array (one speed per sample), got shape {}",
-                        shape_str(&a.shape)
-                    )))
-                }
-            }
-        }
-    };
+    let (speed, speeds) = speed_arg(speed, 6.0)?;
     let profile = if speeds.is_empty() {
         SpeedProfile::Constant(speed)
     } else {
