@@ -370,7 +370,8 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
             return Err(culprit(theta, x, e));
         }
         if risky_sample {
-            // The downdate into the candidate, checked; applied below by a copy.
+            // The downdate into the candidate, checked (the check factors it in place, so the
+            // downdate is made again below).
             let pn = &mut self.pn.flat_mut()[..k * k];
             pn.copy_from_slice(&p[..k * k]);
             downdate_blocks(pn, w, c, k);
@@ -384,11 +385,7 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
                 theta[i] += w[i * k + l] * e[l];
             }
         }
-        if risky_sample {
-            p[..k * k].copy_from_slice(&self.pn.flat()[..k * k]);
-        } else {
-            downdate_blocks(p, w, c, k);
-        }
+        downdate_blocks(p, w, c, k);
         if gate {
             // The recursive residuals w_i² = e_i² R_ii / S_ii (S_ii from C, as S was factored).
             for (i, ssr) in self.ssr.flat_mut().iter_mut().enumerate() {
