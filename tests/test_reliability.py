@@ -242,6 +242,66 @@ def test_p0_1e15_works_or_says_what_to_do(quarter_run: vehid.Run, mode: str, for
         assert_positive_definite(kf, "after 1e4 samples")
 
 
+@pytest.mark.parametrize("mode, form", [("rows", "standard"), ("rows", "sqrt"), ("shared", "standard"),
+                                        ("full", "standard")])
+def test_reset_covariance_restarts_p_around_the_estimate(quarter_run: vehid.Run, mode: str, form: str) -> None:
+    # "A dead identifier says so once, with what to do, and can be reset": reset_covariance(p0)
+    # keeps θ̂ and continues exactly as a fresh identifier with theta0=θ̂ and that p0.
+    r, z = quarter_run.r, quarter_run.z
+    kw = dict(MODE_KW[mode], p0=1e3, mode=mode, form=form, gate=0)
+    kf = vehid.KalmanIdentifier(Q, **kw)
+    kf.fit(r[:5000], z[:5000])
+    theta = kf.theta.copy()
+    kf.reset_covariance(20.0)
+    np.testing.assert_array_equal(kf.theta, theta)
+    assert kf.samples == 5000
+    for p in covariance_blocks(kf):
+        if mode == "shared":  # r is the same on both rows here: P = p0 I on each
+            np.testing.assert_allclose(p, 20.0 * np.eye(len(p)), rtol=1e-15)
+        else:
+            np.testing.assert_array_equal(p, 20.0 * np.eye(len(p)))
+    fresh = vehid.KalmanIdentifier(Q, **dict(kw, p0=20.0, theta0=theta))
+    kf.fit(r[5000:9000], z[5000:9000])
+    fresh.fit(r[5000:9000], z[5000:9000])
+    np.testing.assert_allclose(kf.theta, fresh.theta, rtol=1e-12)
+
+
+@pytest.mark.parametrize("p0, error", [(0.0, vehid.VehidError), (-1.0, vehid.VehidError),
+                                       (float("nan"), vehid.VehidError), (float("inf"), vehid.VehidError),
+                                       ("x", TypeError)])
+def test_a_refused_reset_names_p0_and_changes_nothing(quarter_run: vehid.Run, p0: Any, error: type) -> None:
+    kf = vehid.KalmanIdentifier(Q, p0=1e3, road_sigma=0.1, deriv_noise=0.005)
+    kf.fit(quarter_run.r[:500], quarter_run.z[:500])
+    before = observable(kf)
+    with pytest.raises(error, match="p0"):
+        kf.reset_covariance(p0)
+    assert observable(kf) == before
+
+
+def test_reset_during_the_exact_start_says_why(quarter_run: vehid.Run) -> None:
+    kf = vehid.KalmanIdentifier(Q)  # the exact start: no estimate before four samples
+    kf.update(quarter_run.r[0], quarter_run.z[0])
+    with pytest.raises(vehid.VehidError, match="exact start"):
+        kf.reset_covariance(1.0)
+
+
+def test_a_reset_lets_a_settled_identifier_follow_a_sudden_change() -> None:
+    # Settled on one damper (P small after 40,000 samples), then the damper loses 20 %: without
+    # forgetting the estimate barely moves in the next 2,000 samples; reset, it follows.
+    worn = vehid.QuarterCar(b=32.0)
+    a = vehid.Simulator(Q, road_sigma=0.1, deriv_noise=0.005, seed=3).run(40_000)
+    b = vehid.Simulator(worn, road_sigma=0.1, deriv_noise=0.005, seed=4).run(2_000)
+    kept = vehid.KalmanIdentifier(Q, road_sigma=0.1, deriv_noise=0.005)
+    kept.fit(a.r, a.z)
+    reset = copy.deepcopy(kept)
+    reset.reset_covariance(1e3)
+    kept.fit(b.r, b.z)
+    reset.fit(b.r, b.z)
+    assert vehid.xi(worn.theta, reset.theta) < 0.5 * vehid.xi(worn.theta, kept.theta), (
+        vehid.xi(worn.theta, reset.theta), vehid.xi(worn.theta, kept.theta))
+    assert vehid.xi(worn.theta, reset.theta) < 0.08
+
+
 def test_a_non_psd_r_is_refused_in_mode_full() -> None:
     with pytest.raises(vehid.VehidError, match=r"\br\b.*positive semi-definite"):
         vehid.KalmanIdentifier(Q, p0=1000.0, r=[[1.0, 2.0], [2.0, 1.0]], mode="full")

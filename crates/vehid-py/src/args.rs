@@ -69,6 +69,7 @@ named_args! {
     max_trace: Option<f64> = "max_trace";
     gate: Option<f64> = "gate";
     huber: f64 = "huber";
+    p0_reset: f64 = "p0";
     // StochasticGradient
     gain: String = "gain";
     p: f64 = "p";

@@ -572,6 +572,18 @@ impl PyKalmanIdentifier {
         Ok(borrow(slf)?.as_super().inner.reinit_count())
     }
 
+    /// Covariance resetting (Goodwin & Sin 1984, §3.3): restarts P at `p0` I around the
+    /// current estimate, which is kept, as are r, the residual statistics and the counts;
+    /// retired rows update again. The way back for an identifier whose covariance lost
+    /// positive definiteness (every sample refused), or to let it move after a sudden change.
+    /// Mode "shared" keeps one r/p0 for all rows: the first row gets p0 I. Raises VehidError
+    /// for `p0` not finite and > 0, or during the exact start (no estimate yet); the
+    /// identifier is then unchanged.
+    fn reset_covariance(slf: &Bound<'_, Self>, #[pyo3(from_py_with = crate::args::p0_reset)] p0: f64) -> PyResult<()> {
+        let mut this = borrow_mut(slf)?;
+        this.as_super().inner.reset_covariance(p0).map_err(raise)
+    }
+
     /// "rows", "shared" or "full".
     #[getter]
     fn mode(slf: &Bound<'_, Self>) -> PyResult<&'static str> {

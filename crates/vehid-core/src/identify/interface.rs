@@ -318,6 +318,23 @@ pub trait Identifier<T: Real> {
         0
     }
 
+    /// Covariance resetting (Goodwin & Sin, *Adaptive Filtering, Prediction and Control*,
+    /// 1984, §3.3): `P ← p0 I` around the current estimate, which becomes the prior mean
+    /// (a filter that had seen nothing but a sample `θ̂` with variance `p0`). The way back for
+    /// an identifier whose covariance has lost positive definiteness (every sample refused),
+    /// and a way to let it move again after a sudden change. `θ̂`, the noise variances, the
+    /// residual statistics and the counts are kept; rows retired by `retire_below` update
+    /// again. `p0` in the parameters' units² (`(1/s)²` for entries of `A`).
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for `p0` not finite and > 0; [`Error::Unsupported`] for an
+    /// identifier without a covariance, or one still in its exact start (no estimate to keep
+    /// yet). The identifier is unchanged after an error.
+    fn reset_covariance(&mut self, p0: T) -> Result<()> {
+        let _ = p0;
+        Err(Error::Unsupported { what: "reset_covariance (this identifier keeps no covariance to reset)" })
+    }
+
     /// Samples each equation gated as outliers (see `KalmanOptions::gate`), one count per
     /// equation into `out`; zeros for an identifier without a gate.
     ///

@@ -476,6 +476,16 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Identifier<T> for St
         Some(self.filters.flat().iter().fold(T::zero(), |a, f| a + f.trace()))
     }
 
+    /// Every group's filter restarts at `P = p0 I` ([`RowIdentifier::reset_covariance`]).
+    fn reset_covariance(&mut self, p0: T) -> Result<()> {
+        let starting = self.filters.flat().iter().any(|f| f.starting());
+        crate::identify::kalman::check_reset(p0, starting)?;
+        for f in self.filters.flat_mut() {
+            f.reset_covariance(p0)?;
+        }
+        Ok(())
+    }
+
     fn gated_into(&self, out: &mut [u64]) -> Result<()> {
         let ne = self.structure.equations();
         if out.len() != ne {

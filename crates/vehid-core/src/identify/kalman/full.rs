@@ -346,8 +346,8 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
         }
         if !cholesky_in_place(s, k) {
             return Err(Error::Singular {
-                what: "the innovation covariance H P Hᵀ + R (P lost positive definiteness: use a smaller p0, or \
-                       mode='rows' with form='sqrt', which cannot lose it)",
+                what: "the innovation covariance H P Hᵀ + R (P lost positive definiteness: reset_covariance(p0) \
+                       restarts the identifier from its estimate; mode='rows' with form='sqrt' cannot lose it)",
             });
         }
         // W_i = C_i S⁻¹, row by row of C_i: solve S w = (c_i1[a], …, c_iK[a]).
@@ -636,6 +636,16 @@ impl<T: Real, const N: usize, S: Store<T, N>> Identifier<T> for KalmanFull<T, N,
 
     fn reinit_count(&self) -> u32 {
         self.reinit_count
+    }
+
+    /// `P ← p0 I` (every diagonal block `p0 I`, the others 0).
+    fn reset_covariance(&mut self, p0: T) -> Result<()> {
+        super::row::check_reset(p0, false)?;
+        let k = self.rows.flat().len();
+        for (ij, block) in self.p.flat_mut().iter_mut().enumerate() {
+            *block = if ij / k == ij % k { SMatrix::identity() * p0 } else { SMatrix::zeros() };
+        }
+        Ok(())
     }
 
     /// The samples the gate left out, the same count for every row (see

@@ -287,6 +287,9 @@ pub trait RowGroup<T: Real, const N: usize>: Copy + core::fmt::Debug + PartialEq
     fn retire_lane(&mut self, k: usize);
     /// Eq 4.36 on every used lane: `P_aa ← 10 P_aa`, `r ← 2 r`; used lanes step again.
     fn reinitialize(&mut self);
+    /// Covariance resetting on every used lane ([`RowIdentifier::reset_covariance`]; `p0`
+    /// checked by the caller): `P ← p0 I`, `θ̂` kept; used lanes step again.
+    fn reset_covariance(&mut self, p0: T);
     /// `true` while the lanes absorb an exact start.
     fn starting(&self) -> bool;
     /// Exact start: one sample absorbed by every used lane (innovations NaN into `e`).
@@ -991,6 +994,17 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
         self.refresh();
     }
 
+    fn reset_covariance(&mut self, p0: T) {
+        for k in 0..self.used {
+            let mut f = self.lane(k);
+            if f.reset_covariance(p0).is_ok() {
+                let zrow = self.zrow[k];
+                self.set_lane(k, zrow, &f);
+            }
+        }
+        self.refresh();
+    }
+
     fn starting(&self) -> bool {
         self.start
     }
@@ -1116,8 +1130,8 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
             }
             if !(sc.s[k] > T::zero()) {
                 return Err(Error::Singular {
-                    what: "the innovation variance xᵀPx + r (P lost positive definiteness: use form='sqrt', f64, or \
-                           reinitialization)",
+                    what: "the innovation variance xᵀPx + r (P lost positive definiteness: reset_covariance(p0) restarts the identifier from its \
+                           estimate; form='sqrt' cannot lose it)",
                 });
             }
         }

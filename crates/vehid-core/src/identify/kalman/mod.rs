@@ -81,6 +81,7 @@ pub use full::FullKalmanIdentifierVec;
 pub use full::{FullKalmanIdentifier, KalmanFull};
 pub use options::{CovarianceForm, KalmanOptions, Mode};
 pub use row::RowIdentifier;
+pub(crate) use row::check_reset;
 pub use rows::{KalmanIdentifier, KalmanRows};
 #[cfg(feature = "alloc")]
 pub use rows::{KalmanIdentifierVec, KalmanIdentifierVec2};

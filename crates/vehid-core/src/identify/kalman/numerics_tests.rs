@@ -547,3 +547,66 @@ fn an_overflow_through_z_names_z_k_in_every_mode() {
     assert_eq!((shared.theta(), full.theta(), row), (before_s, before_f, before_r));
     assert_eq!((shared.samples(), full.samples()), (0, 0));
 }
+
+/// Covariance resetting: after `reset_covariance(p0)` every mode and form continues exactly as
+/// a fresh filter built with the prior mean `θ̂` and `P(0) = p0 I` (the constructors' path,
+/// an independent route to the same filter); a refused reset changes nothing.
+#[test]
+fn reset_covariance_continues_as_a_fresh_filter_from_the_estimate() {
+    let data = regression(7, 400, [1.0, 10.0, 0.1, 1.0], 0.05);
+    let (before, after) = data.split_at(150);
+    let no_gate = |form| KalmanOptions { form, gate: 0.0, ..Default::default() };
+    let cases = [
+        (Mode::Rows, CovarianceForm::Standard),
+        (Mode::Rows, CovarianceForm::Joseph),
+        (Mode::Rows, CovarianceForm::Sqrt),
+        (Mode::Shared, CovarianceForm::Standard),
+        (Mode::Full, CovarianceForm::Standard),
+    ];
+    for (mode, form) in cases {
+        let spec = |p0: f64, theta0: Option<Vec<f64>>| KalmanSpec {
+            rows: vec![1, 3],
+            p0: Prior::PerRow(vec![p0]),
+            theta0,
+            r: vec![0.05 * 0.05],
+            mode,
+            opts: no_gate(form),
+        };
+        let mut id = boxed_kalman::<f64, 4>(&spec(1e3, None)).unwrap();
+        let mut e = [0.0; 2];
+        for (x, z) in before {
+            id.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+        }
+        let mut theta = vec![0.0; 8];
+        id.params_into(&mut theta).unwrap();
+        // Refused: nothing changes.
+        let copy = format!("{id:?}");
+        for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            assert!(matches!(id.reset_covariance(bad), Err(Error::InvalidArgument { arg: "p0", .. })), "{mode:?}");
+            assert_eq!(format!("{id:?}"), copy, "{mode:?} {form:?}: a refused reset changed the identifier");
+        }
+        id.reset_covariance(50.0).unwrap();
+        let mut p = vec![0.0; 64];
+        id.covariance_into(&mut p).unwrap();
+        let want: Vec<f64> = (0..64).map(|ij| if ij / 8 == ij % 8 { 50.0 } else { 0.0 }).collect();
+        assert!(rel_diff(&p, &want) < 1e-15, "{mode:?} {form:?}: P after the reset {p:?}");
+        let mut kept = vec![0.0; 8];
+        id.params_into(&mut kept).unwrap();
+        assert_eq!(kept, theta, "{mode:?} {form:?}: the reset moved θ̂");
+        let mut fresh = boxed_kalman::<f64, 4>(&spec(50.0, Some(theta))).unwrap();
+        for (x, z) in after {
+            id.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+            fresh.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+        }
+        let (mut a, mut b) = (vec![0.0; 8], vec![0.0; 8]);
+        id.params_into(&mut a).unwrap();
+        fresh.params_into(&mut b).unwrap();
+        assert!(rel_diff(&a, &b) < 1e-12, "{mode:?} {form:?}: {a:?} vs a fresh filter {b:?}");
+    }
+    // During the exact start there is no estimate to keep: refused, unchanged.
+    let mut id = KalmanRows::<f64, 4, Fixed<2>>::exact(&[1, 3], &[1.0], KalmanOptions::default()).unwrap();
+    id.update(&data[0].0, &data[0].1).unwrap();
+    let copy = (0..2).map(|i| id.filter(i)).collect::<Vec<_>>();
+    assert!(matches!(id.reset_covariance(1.0), Err(Error::Unsupported { .. })));
+    assert_eq!((0..2).map(|i| id.filter(i)).collect::<Vec<_>>(), copy);
+}

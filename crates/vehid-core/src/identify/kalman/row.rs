@@ -319,6 +319,24 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
         self.retired = true;
     }
 
+    /// Covariance resetting ([`crate::identify::Identifier::reset_covariance`]): `P ← p0 I`
+    /// on the parameters in use (in the square-root form `U = I`, `D = p0 I`: the same
+    /// stored matrix), `θ̂` kept, and the row updates again if it was retired.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for `p0` not finite and > 0; [`Error::Unsupported`] during
+    /// the exact start. Unchanged after an error.
+    pub fn reset_covariance(&mut self, p0: T) -> Result<()> {
+        check_reset(p0, self.start)?;
+        let mut m = SMatrix::<T, N, N>::zeros();
+        for a in 0..self.dim() {
+            m[(a, a)] = p0;
+        }
+        self.m = m;
+        self.retired = false;
+        Ok(())
+    }
+
     /// Eq 4.36: `P_aa ← 10 P_aa`, `r ← 2 r`, and the row updates again.
     pub fn reinitialize(&mut self) {
         if self.start {
@@ -443,8 +461,8 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
         }
         if !(s > T::zero()) {
             return Err(Error::Singular {
-                what: "the innovation variance xᵀPx + r (P lost positive definiteness: use form='sqrt', f64, or \
-                       reinitialization)",
+                what: "the innovation variance xᵀPx + r (P lost positive definiteness: reset_covariance(p0) restarts the identifier from its \
+                       estimate; form='sqrt' cannot lose it)",
             });
         }
         let Some(r_eff) = self.screen(e, s) else {
@@ -704,6 +722,20 @@ pub(crate) fn screen<T: Real>(gate: T, huber: T, nobs: T, ssr: T, r: T, e: T, s:
         return Some(r * z2.sqrt() / huber);
     }
     Some(r)
+}
+
+/// The checks of a covariance reset: `p0` finite and > 0, and not during an exact start
+/// (there is no estimate to keep yet).
+pub(crate) fn check_reset<T: Real>(p0: T, starting: bool) -> Result<()> {
+    if !(p0 > T::zero() && p0.finite()) {
+        return Err(Error::InvalidArgument { arg: "p0", expected: "a finite covariance > 0 to restart from" });
+    }
+    if starting {
+        return Err(Error::Unsupported {
+            what: "reset_covariance during the exact start (no estimate yet: feed samples until it has one)",
+        });
+    }
+    Ok(())
 }
 
 /// The residual statistics `(ssr, nobs)` after a gated sample: its recursive residual enters

@@ -628,6 +628,14 @@ impl<T: Real, const N: usize, S: Store<T, N>> Identifier<T> for KalmanRows<T, N,
         self.reinit_count
     }
 
+    fn reset_covariance(&mut self, p0: T) -> Result<()> {
+        super::row::check_reset(p0, self.starting())?;
+        for g in self.groups.flat_mut() {
+            g.reset_covariance(p0);
+        }
+        Ok(())
+    }
+
     fn gated_into(&self, out: &mut [u64]) -> Result<()> {
         let k = self.rows.flat().len();
         if out.len() != k {

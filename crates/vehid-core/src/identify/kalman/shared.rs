@@ -397,8 +397,8 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
         }
         if !(s > T::zero()) {
             return Err(Error::Singular {
-                what: "the shared covariance (1 + xᵀQx ≤ 0: Q lost positive definiteness; use a smaller p0, or \
-                       mode='rows' with form='sqrt', which cannot lose it)",
+                what: "the shared covariance (1 + xᵀQx ≤ 0: Q lost positive definiteness: reset_covariance(p0) \
+                       restarts the identifier from its estimate; mode='rows' with form='sqrt' cannot lose it)",
             });
         }
         if self.gate_out(e, s) {
@@ -586,6 +586,19 @@ impl<T: Real, const N: usize, S: Store<T, N>> Identifier<T> for KalmanShared<T, 
 
     fn reinit_count(&self) -> u32 {
         self.reinit_count
+    }
+
+    /// `Q ← (p0 / r_1) I`: the first row's `P_1 = p0 I`, every row `P_i = p0 (r_i / r_1) I`
+    /// (the shared form keeps one ratio `r/p0` for all rows; with equal `r`, `P_i = p0 I`).
+    fn reset_covariance(&mut self, p0: T) -> Result<()> {
+        super::row::check_reset(p0, false)?;
+        let r1 = self.r.flat().first().copied().unwrap_or(T::one());
+        let scale = p0 / r1;
+        if !(scale > T::zero() && scale.finite()) {
+            return Err(Error::InvalidArgument { arg: "p0", expected: "a covariance whose ratio to r is finite and > 0" });
+        }
+        self.q = SMatrix::identity() * scale;
+        Ok(())
     }
 
     /// The samples the gate left out, the same count for every row (see
