@@ -296,7 +296,8 @@ class Episode:
         name = type(ident).__name__
         run = self.good_run(model)
         for _ in range(steps):
-            action = g.pick(["update", "update", "update", "fit", "fit", "prop", "prop", "copy", "remove", "clear"])
+            action = g.pick(["update", "update", "update", "fit", "fit", "prop", "prop", "copy", "remove", "clear",
+                             "reset_covariance"])
             if action == "prop":
                 prop = g.pick(["theta", "params", "a_hat", "covariance", "r", "trace", "reinit_count", "samples",
                                "unknown_rows", "gated", "mode", "form", "gain", "storage_bytes", "method", "delay",
@@ -307,7 +308,7 @@ class Episode:
             if action == "copy":
                 self.check_copy(ident)
                 continue
-            if action in ("remove", "clear") and not hasattr(ident, action):
+            if action in ("remove", "clear", "reset_covariance") and not hasattr(ident, action):
                 continue
             before = observable(ident)
             if action == "update":
@@ -330,6 +331,10 @@ class Episode:
                 args = (g.value(n, k, int(g.rng.integers(-2, 50))),)
                 extra = {}
                 ok, _ = self.call(f"{name}.remove", ident.remove, *args)
+            elif action == "reset_covariance":
+                args = (g.value(n, k, float(10.0 ** g.rng.uniform(-3, 6))),)
+                extra = {}
+                ok, _ = self.call(f"{name}.reset_covariance", ident.reset_covariance, *args)
             else:
                 args, extra = (), {}
                 ok, _ = self.call(f"{name}.clear", ident.clear)
