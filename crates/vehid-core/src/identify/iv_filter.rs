@@ -39,7 +39,7 @@ pub(crate) const SINGULAR: Error = Error::Singular {
 /// One group's recursive IV filter (module docs).
 ///
 /// With the feature `serde` it is serialized field by field; a deserialized filter is checked
-/// ([`IvFilter::restored`]), so a corrupt one is a serde error.
+/// (its size, weight, finiteness and unused entries), so a corrupt one is a serde error.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(
     feature = "serde",

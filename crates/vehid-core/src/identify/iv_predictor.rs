@@ -60,7 +60,8 @@ fn axpy<T: Real>(alpha: T, x: &[T], y: &mut [T]) {
 /// `lags × (2n + m) + 1`.
 ///
 /// With the feature `serde` it is serialized field by field; a deserialized predictor is
-/// checked ([`Predictor::restored`]), so a corrupt one is a serde error.
+/// checked (its size, finiteness, unused entries and entry bound), so a corrupt one is a
+/// serde error.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(
     feature = "serde",
