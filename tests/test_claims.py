@@ -156,9 +156,9 @@ GETTERS = ["theta", "params", "samples", "covariance", "r", "trace", "reinit_cou
 
 
 def state(ident: Any, pickled: bool = True) -> Any:
-    """Every field of the core identifier: the postcard bytes behind the pickle; for the
-    classes that do not pickle yet (on a Structure, IV, bias compensated), and with
-    ``pickled=False``, every getter's bytes (or its error) and the statistics."""
+    """Every field of the core identifier: the postcard bytes behind the pickle; for a
+    class that does not pickle, and with ``pickled=False``, every getter's bytes (or its
+    error) and the statistics."""
     if pickled:
         try:
             return pickle.dumps(ident)

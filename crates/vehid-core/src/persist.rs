@@ -322,6 +322,22 @@ mod impls {
     checked!("StructuredGradient", [T: Real, const P: usize] crate::identify::StructuredGradient<T, P>,
         ser: [T: Serialize], de: [T: Deserialize<'de>]);
 
+    checked!("IvFilter", [T: Real, const P: usize] crate::identify::IvFilter<T, P>,
+        ser: [T: Serialize], de: [T: Deserialize<'de>]);
+
+    checked!("IV predictor", [T: Real, const Q: usize] crate::identify::iv_predictor::Predictor<T, Q>,
+        ser: [T: Serialize], de: [T: Deserialize<'de>]);
+
+    checked!("InstrumentalVariables",
+        [T: Real, const P: usize, F: crate::identify::Flat<crate::identify::IvFilter<T, P>>, const Q: usize]
+        crate::identify::InstrumentalVariables<T, P, F, Q>,
+        ser: [T: Serialize], de: [T: Deserialize<'de>]);
+
+    checked!("BiasCompensated",
+        [T: Real, const P: usize, F: crate::identify::Flat<crate::identify::BcGroup<T, P>>]
+        crate::identify::BiasCompensated<T, P, F>,
+        ser: [T: Serialize], de: [T: Deserialize<'de>]);
+
     checked!("HealthMonitor", [T: Real] crate::health::HealthMonitor<T>,
         ser: [T: Serialize], de: [T: Deserialize<'de>]);
 

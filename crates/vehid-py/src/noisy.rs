@@ -10,7 +10,6 @@ use crate::model::PyLinearModel;
 use crate::structure::PyStructure;
 use crate::{core_err, VehidError};
 use pyo3::prelude::*;
-use pyo3::types::PyTuple;
 use vehid_core::identify::{BiasCompensatedVec, DynIdentifier, IvIdentifierVec, StructuredPrior, RING_VALUES};
 use vehid_core::structure::Structure;
 
@@ -160,7 +159,9 @@ fn iv_p<const P: usize>(
 /// recursive), a scalar, one per equation/row, or the (n_params, n_params) matrix, with prior
 /// mean `theta0`; `r`: one variance per equation (weighs equations that share parameters).
 /// A sample whose instruments make the step singular raises VehidError, the identifier
-/// unchanged. `stats()` gives the IV sandwich covariance.
+/// unchanged. `stats()` gives the IV sandwich covariance. Pickles (every protocol), copies
+/// and deep-copies: a restored one continues bit for bit (the ring of past samples and the
+/// predictor included).
 #[pyclass(name = "IVIdentifier", module = "vehid._vehid", extends = PyIdentifier)]
 pub struct PyIVIdentifier {
     delay: usize,
@@ -267,11 +268,6 @@ impl PyIVIdentifier {
         Self::__copy__(slf)
     }
 
-    /// Not picklable yet (its core has no serialized form): copy.copy / copy.deepcopy work.
-    fn __reduce__(&self) -> PyResult<Py<PyTuple>> {
-        Err(not_picklable("IVIdentifier"))
-    }
-
     fn __repr__(slf: PyRef<'_, Self>) -> String {
         let base = slf.as_super();
         format!(
@@ -282,13 +278,6 @@ impl PyIVIdentifier {
             base.inner.samples()
         )
     }
-}
-
-fn not_picklable(what: &str) -> PyErr {
-    VehidError::new_err(format!(
-        "{what} cannot be pickled yet (copy.copy and copy.deepcopy work): pickle its data or the estimate \
-         (`params`, `stats()`)"
-    ))
 }
 
 /// A fresh base object with a copy of `base`'s core and model.
@@ -338,7 +327,8 @@ fn noise_arg(v: Option<&Bound<'_, PyAny>>, arg: &str, n: usize) -> PyResult<Vec<
 /// regressors read `der(·)` (default 0). `r`: one variance per equation (weighs equations
 /// that share parameters). The estimate is solved when read (`theta`, `params`), from sums
 /// kept per sample (nothing stored); `update` returns NaN innovations, as BatchLeastSquares.
-/// `stats()` is not available (use IVIdentifier for standard errors).
+/// `stats()` is not available (use IVIdentifier for standard errors). Pickles (every
+/// protocol), copies and deep-copies: a restored one continues bit for bit.
 #[pyclass(name = "BiasCompensated", module = "vehid._vehid", extends = PyIdentifier)]
 pub struct PyBiasCompensated;
 
@@ -378,11 +368,6 @@ impl PyBiasCompensated {
     /// The same as `__copy__`: the core shares nothing.
     fn __deepcopy__(slf: &Bound<'_, Self>, _memo: &Bound<'_, PyAny>) -> PyResult<Py<Self>> {
         Self::__copy__(slf)
-    }
-
-    /// Not picklable yet (its core has no serialized form): copy.copy / copy.deepcopy work.
-    fn __reduce__(&self) -> PyResult<Py<PyTuple>> {
-        Err(not_picklable("BiasCompensated"))
     }
 
     fn __repr__(slf: PyRef<'_, Self>) -> String {

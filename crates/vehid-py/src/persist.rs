@@ -3,8 +3,10 @@
 //! An identifier pickles as `copyreg.__newobj_ex__(cls, args, kwargs)` plus a state:
 //! `args`/`kwargs` build a fresh object of the same class and settings (the model, and for
 //! `KalmanIdentifier` its mode and form, for `StochasticGradient` its gain, for
-//! `TwoAxleIdentifier` its spacing, method and wheelbase), and `__setstate__` then replaces
-//! its core by the saved one. That works with every pickle protocol (0–5).
+//! `TwoAxleIdentifier` its spacing, method and wheelbase, for `IVIdentifier` its delay and
+//! lags; `BiasCompensated` is built with a zero noise covariance, which the saved core
+//! replaces), and `__setstate__` then replaces its core by the saved one. That works with
+//! every pickle protocol (0–5).
 //!
 //! The state is the tuple `(FORMAT, "vehid <version>", payload)`: the payload is postcard
 //! (vehid-core's `serde` feature) of [`Saved`]: which concrete core type the identifier holds
@@ -17,23 +19,27 @@ use crate::dispatch::{dispatch_n, ModelData};
 use crate::guard::{borrow, borrow_mut};
 use crate::identify::{PyBatchLeastSquares, PyIdentifier, PyKalmanIdentifier, PyStochasticGradient};
 use crate::model::{Kind, PyLinearModel};
+use crate::noisy::{PyBiasCompensated, PyIVIdentifier, PREDICTOR};
 use crate::two_axle::PyTwoAxleIdentifier;
 use crate::VehidError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyTuple};
 use serde::{Deserialize, Serialize};
 use vehid_core::identify::{
-    BatchLeastSquares, DynIdentifier, Dynamic, KalmanFull, KalmanRows, KalmanShared, StochasticGradientVec,
-    StructuredGradient, StructuredKalmanVec, TwoAxleIdentifierVec,
+    BatchLeastSquares, BiasCompensatedVec, DynIdentifier, Dynamic, IvIdentifierVec, KalmanFull, KalmanRows,
+    KalmanShared, StochasticGradientVec, StructuredGradient, StructuredKalmanVec, TwoAxleIdentifierVec,
 };
 use vehid_core::Error;
 
 /// Version of the pickled state's layout. Raise it when the payload or any serialized core
 /// type changes in a way older readers (or this reader, for older payloads) cannot follow.
 /// 2: modes `shared` and `full` keep the outlier gate's statistics (issue 13).
+/// (`Core::Iv` and `Core::BiasCompensated` were added within format 2: new variants at the
+/// end of [`Core`] leave every older payload's encoding unchanged, so it still loads.)
 pub const FORMAT: u32 = 2;
 
-/// The concrete core type behind a Python identifier.
+/// The concrete core type behind a Python identifier. Serialized by variant index: a new
+/// variant goes at the end (older payloads keep their meaning).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 enum Core {
     /// `KalmanRows` in groups of two lanes.
@@ -50,6 +56,12 @@ enum Core {
     Structured(u8),
     /// `StructuredGradient<f64, P>` (a `StochasticGradient` on a Structure).
     StructuredGradient(u8),
+    /// `IvIdentifierVec<f64, P, Q>` (an `IVIdentifier`, on a linear model's full rows or a
+    /// Structure), `P` its largest group's bucket, `Q` its predictor's capacity (0 with
+    /// `lags=0`, else `noisy::PREDICTOR`).
+    Iv(u8, u8),
+    /// `BiasCompensatedVec<f64, P>` (a `BiasCompensated`), `P` its largest group's bucket.
+    BiasCompensated(u8),
 }
 
 impl Core {
@@ -125,6 +137,68 @@ fn save_structured(id: &dyn DynIdentifier<f64>) -> vehid_core::Result<Option<(Co
     Ok(None)
 }
 
+/// The core type and its bytes of an `IVIdentifier` or a `BiasCompensated` (on a model or a
+/// Structure; the sizes `P`, `Q` the binding builds: `noisy.rs`).
+fn save_noisy(id: &dyn DynIdentifier<f64>) -> vehid_core::Result<Option<(Core, Vec<u8>)>> {
+    let any = id.as_any();
+    macro_rules! try_p {
+        ($($p:literal),*) => {$(
+            if let Some(x) = any.downcast_ref::<IvIdentifierVec<f64, $p, 0>>() {
+                return encode(Core::Iv($p, 0), x);
+            }
+            if let Some(x) = any.downcast_ref::<IvIdentifierVec<f64, $p, PREDICTOR>>() {
+                return encode(Core::Iv($p, PREDICTOR as u8), x);
+            }
+            if let Some(x) = any.downcast_ref::<BiasCompensatedVec<f64, $p>>() {
+                return encode(Core::BiasCompensated($p), x);
+            }
+        )*};
+    }
+    try_p!(2, 4, 8, 16, 32);
+    Ok(None)
+}
+
+/// Decodes the core of an `IVIdentifier` or a `BiasCompensated` (`None`: another kind, or
+/// sizes the binding does not build).
+fn load_noisy(core: Core, bytes: &[u8]) -> Option<Loaded> {
+    const Q: u8 = PREDICTOR as u8;
+    Some(match core {
+        Core::Iv(2, 0) => decode::<IvIdentifierVec<f64, 2, 0>>(bytes),
+        Core::Iv(4, 0) => decode::<IvIdentifierVec<f64, 4, 0>>(bytes),
+        Core::Iv(8, 0) => decode::<IvIdentifierVec<f64, 8, 0>>(bytes),
+        Core::Iv(16, 0) => decode::<IvIdentifierVec<f64, 16, 0>>(bytes),
+        Core::Iv(32, 0) => decode::<IvIdentifierVec<f64, 32, 0>>(bytes),
+        Core::Iv(2, Q) => decode::<IvIdentifierVec<f64, 2, PREDICTOR>>(bytes),
+        Core::Iv(4, Q) => decode::<IvIdentifierVec<f64, 4, PREDICTOR>>(bytes),
+        Core::Iv(8, Q) => decode::<IvIdentifierVec<f64, 8, PREDICTOR>>(bytes),
+        Core::Iv(16, Q) => decode::<IvIdentifierVec<f64, 16, PREDICTOR>>(bytes),
+        Core::Iv(32, Q) => decode::<IvIdentifierVec<f64, 32, PREDICTOR>>(bytes),
+        Core::BiasCompensated(2) => decode::<BiasCompensatedVec<f64, 2>>(bytes),
+        Core::BiasCompensated(4) => decode::<BiasCompensatedVec<f64, 4>>(bytes),
+        Core::BiasCompensated(8) => decode::<BiasCompensatedVec<f64, 8>>(bytes),
+        Core::BiasCompensated(16) => decode::<BiasCompensatedVec<f64, 16>>(bytes),
+        Core::BiasCompensated(32) => decode::<BiasCompensatedVec<f64, 32>>(bytes),
+        _ => return None,
+    })
+}
+
+/// The instruments' `(delay, lags)` of an `IVIdentifier`'s core (`None`: not one).
+fn iv_settings(id: &dyn DynIdentifier<f64>) -> Option<(usize, usize)> {
+    let any = id.as_any();
+    macro_rules! try_p {
+        ($($p:literal),*) => {$(
+            if let Some(x) = any.downcast_ref::<IvIdentifierVec<f64, $p, 0>>() {
+                return Some((x.delay(), x.lags()));
+            }
+            if let Some(x) = any.downcast_ref::<IvIdentifierVec<f64, $p, PREDICTOR>>() {
+                return Some((x.delay(), x.lags()));
+            }
+        )*};
+    }
+    try_p!(2, 4, 8, 16, 32);
+    None
+}
+
 /// Decodes a core on a Structure.
 fn load_structured(core: Core, bytes: &[u8]) -> Option<Loaded> {
     Some(match core {
@@ -157,17 +231,19 @@ fn load_n<const N: usize>(core: Core, bytes: &[u8]) -> vehid_core::Result<Loaded
         Core::Gradient => decode::<StochasticGradientVec<f64, N>>(bytes),
         Core::Batch => decode::<BatchLeastSquares<f64, N>>(bytes),
         Core::TwoAxle if N == 8 => decode::<TwoAxleCore>(bytes),
-        Core::TwoAxle | Core::Structured(_) | Core::StructuredGradient(_) => return Err(crate::dispatch::bad_dims()),
+        Core::TwoAxle | Core::Structured(_) | Core::StructuredGradient(_) | Core::Iv(..) | Core::BiasCompensated(_) => {
+            return Err(crate::dispatch::bad_dims())
+        }
     })
 }
 
 /// The identifier's state: `(FORMAT, "vehid <version>", payload)`.
 fn state<'py>(py: Python<'py>, base: &PyIdentifier) -> PyResult<Bound<'py, PyTuple>> {
     let n = base.model.n;
-    let saved = if base.structure.is_some() {
-        save_structured(base.inner.as_ref())
-    } else {
-        dispatch_n!(n, save_n(base.inner.as_ref()))
+    let saved = match save_noisy(base.inner.as_ref()).map_err(crate::identify::raise)? {
+        Some(saved) => Ok(Some(saved)),
+        None if base.structure.is_some() => save_structured(base.inner.as_ref()),
+        None => dispatch_n!(n, save_n(base.inner.as_ref())),
     }
     .map_err(crate::identify::raise)?;
     let Some((core, bytes)) = saved else {
@@ -198,6 +274,11 @@ fn blank_args<'py>(obj: &Bound<'py, PyIdentifier>) -> PyResult<(Bound<'py, PyTup
             kwargs.set_item("gain", obj.getattr("gain")?)?;
         } else if let Ok(ls) = obj.as_any().cast::<PyBatchLeastSquares>() {
             kwargs.set_item("keep_samples", borrow(ls)?.keeps_samples())?;
+        } else if obj.is_instance_of::<PyIVIdentifier>() {
+            kwargs.set_item("delay", obj.getattr("delay")?)?;
+            kwargs.set_item("lags", obj.getattr("lags")?)?;
+        } else if obj.is_instance_of::<PyBiasCompensated>() {
+            kwargs.set_item("state_noise_var", 0.0)?;
         } else {
             return Err(VehidError::new_err(format!(
                 "{} cannot be pickled or copied: only vehid's identifier classes can",
@@ -267,7 +348,11 @@ pub fn set_state(obj: &Bound<'_, PyIdentifier>, state: &Bound<'_, PyAny>) -> PyR
         ));
     }
     let on_structure = borrow(obj)?.structure.is_some();
-    let class_fits = if on_structure {
+    let class_fits = if obj.is_instance_of::<PyIVIdentifier>() {
+        matches!(saved.core, Core::Iv(..))
+    } else if obj.is_instance_of::<PyBiasCompensated>() {
+        matches!(saved.core, Core::BiasCompensated(_))
+    } else if on_structure {
         matches!(
             (saved.core, obj.is_instance_of::<PyKalmanIdentifier>(), obj.is_instance_of::<PyStochasticGradient>()),
             (Core::Structured(_), true, _) | (Core::StructuredGradient(_), _, true)
@@ -296,7 +381,7 @@ pub fn set_state(obj: &Bound<'_, PyIdentifier>, state: &Bound<'_, PyAny>) -> PyR
             saved.core
         )));
     }
-    let loaded = match load_structured(saved.core, &saved.state) {
+    let loaded = match load_noisy(saved.core, &saved.state).or_else(|| load_structured(saved.core, &saved.state)) {
         Some(loaded) => loaded,
         None => dispatch_n!(model.n, load_n(saved.core, &saved.state)).map_err(crate::core_err)?,
     };
@@ -310,6 +395,13 @@ pub fn set_state(obj: &Bound<'_, PyIdentifier>, state: &Bound<'_, PyAny>) -> PyR
     };
     if d.states != model.n || d.inputs != inputs || core.rows() != model.rows.as_slice() || !params_fit {
         return Err(corrupt("its core does not fit the model (states or unknown rows differ)"));
+    }
+    // An IVIdentifier's delay and lags are also the Python object's (its getters and repr).
+    if obj.is_instance_of::<PyIVIdentifier>() {
+        let settings: (usize, usize) = (obj.getattr("delay")?.extract()?, obj.getattr("lags")?.extract()?);
+        if iv_settings(core.as_ref()) != Some(settings) {
+            return Err(corrupt("its instruments' delay or lags differ from this object's"));
+        }
     }
     borrow_mut(obj)?.inner = core;
     Ok(())

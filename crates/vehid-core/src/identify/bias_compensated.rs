@@ -45,8 +45,14 @@ use nalgebra::{SMatrix, SVector};
 /// The noise variables: `n` states then `n` derivatives.
 const ETA: usize = 2 * MAX_STATES;
 
-/// One parameter group's sums and noise correction.
+/// One parameter group's sums and noise correction. Serialized as is (feature `serde`); its
+/// owner checks it on load ([`BiasCompensated`]'s `restored`).
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+)]
 pub struct BcGroup<T: Real, const P: usize> {
     /// `Σ h hᵀ`, `Σ h y` (rows weighted by `√(r_g/r_i)`).
     a: SMatrix<T, P, P>,
@@ -60,11 +66,24 @@ pub struct BcGroup<T: Real, const P: usize> {
 
 /// Bias-compensated least squares on a [`Structure`] over group storage `F` (module docs):
 /// [`BiasCompensatedLs`] (arrays, no allocation) or [`BiasCompensatedVec`] (heap).
+///
+/// With the feature `serde` the sums and the noise correction are serialized and a
+/// deserialized identifier is checked against its structure, so a corrupt input is a serde
+/// error; a restored one continues bit for bit.
 #[derive(Debug, Clone)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+)]
 pub struct BiasCompensated<T: Real, const P: usize, F: Flat<BcGroup<T, P>>> {
     structure: Structure<T>,
     part: Partition,
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::flat"))]
     groups: F,
+    /// The groups before the current update (of those it touched): scratch, not state
+    /// (serialized empty where the store allows, refilled on load).
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::scratch"))]
     backup: F,
     rows: [usize; MAX_EQUATIONS],
     r: [T; MAX_EQUATIONS],
@@ -117,6 +136,59 @@ fn noise_block<T: Real>(arg: &'static str, v: &[T], n: usize, at: usize, out: &m
 }
 
 impl<T: Real, const P: usize, F: Flat<BcGroup<T, P>>> BiasCompensated<T, P, F> {
+    /// Checks a deserialized identifier (feature `serde`; its structure checked itself)
+    /// against its structure, and refills the scratch copy of the groups. Each failure is
+    /// [`Error::InvalidArgument`] (`arg` "state") naming what is wrong: the groups (the
+    /// structure's partition, at most `P` parameters each, one entry each), the equation rows,
+    /// the variances `r` (finite, > 0) and the row weights `√(r_g / r_i)` derived from them,
+    /// each group's size and sample count (every sample adds to every group), and its sums
+    /// and correction (finite, `Σ h hᵀ` with a diagonal ≥ 0, zero beyond its parameters).
+    #[cfg(feature = "serde")]
+    pub(crate) fn restored(&mut self) -> Result<()> {
+        let corrupt = |expected| Err(Error::InvalidArgument { arg: "state", expected });
+        let s = &self.structure;
+        let ne = s.equations();
+        let part = s.partition();
+        let ng = part.groups as usize;
+        if part != self.part || part.largest() > P {
+            return corrupt("a BCLS identifier's parameter groups: its structure's, of at most P parameters each");
+        }
+        if self.backup.flat().is_empty() {
+            self.backup = self.groups.clone();
+        }
+        if self.groups.flat().len() != ng || self.backup.flat().len() != ng {
+            return corrupt("a BCLS identifier with one set of sums per parameter group");
+        }
+        if s.equation_states().enumerate().any(|(i, st)| self.rows[i] != st) || self.rows[ne..].iter().any(|&r| r != 0)
+        {
+            return corrupt("a BCLS identifier's equation rows: its structure's equation states");
+        }
+        let Ok((_, scale, _)) = equation_weights(&part, ne, &self.r[..ne]) else {
+            return corrupt("a BCLS identifier's equation variances r finite and > 0");
+        };
+        if scale[..ne] != self.scale[..ne] {
+            return corrupt("a BCLS identifier's row weights √(r_g / r_i) from its variances r");
+        }
+        for (g, grp) in self.groups.flat().iter().enumerate() {
+            let d = grp.dim as usize;
+            if d != part.size[g] as usize || grp.count != self.samples {
+                return corrupt("a BCLS identifier's groups of their sizes, each counting every sample");
+            }
+            let values = grp.a.iter().chain(grp.b.iter()).chain(grp.c.iter()).chain(grp.d.iter());
+            if !values.into_iter().all(|v| v.finite()) || (0..d).any(|i| grp.a[(i, i)] < T::zero()) {
+                return corrupt("a BCLS identifier's sums and correction finite, Σ h hᵀ with a diagonal ≥ 0");
+            }
+            let outside = (0..P).any(|i| {
+                (i >= d && (grp.b[i] != T::zero() || grp.d[i] != T::zero()))
+                    || (0..P).any(|j| (i >= d || j >= d) && (grp.a[(i, j)] != T::zero() || grp.c[(i, j)] != T::zero()))
+            });
+            if outside {
+                return corrupt("a BCLS identifier's sums and correction zero beyond each group's parameters");
+            }
+        }
+        Ok(())
+    }
+
     /// A BCLS identifier of `structure`'s parameters for state-noise covariance
     /// `state_noise_var` (`Σ_w`, state units²: one variance, one per state, or `n × n`
     /// row-major), derivative-noise covariance `deriv_noise_var` (`Σ_v`, (state units/s)²;

@@ -72,9 +72,16 @@ use nalgebra::{SMatrix, SVector};
 /// Values the ring of past samples holds: `delay × (2 n + m) ≤ RING_VALUES`.
 pub const RING_VALUES: usize = 512;
 
-/// The last `delay` samples `(x, z, u)` (fixed capacity, no allocation).
+/// The last `delay` samples `(x, z, u)` (fixed capacity, no allocation). Serialized as is
+/// (feature `serde`); its owner checks it on load ([`InstrumentalVariables`]'s `restored`).
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(bound(serialize = "T: serde::Serialize", deserialize = "T: crate::Real + serde::Deserialize<'de>"))
+)]
 pub(crate) struct Ring<T> {
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::array"))]
     buf: [T; RING_VALUES],
     /// Values per sample (`2 n + m`), slots (`delay`), the next slot, slots filled.
     width: u16,
@@ -134,12 +141,25 @@ impl<T: Real> Ring<T> {
 /// [`IvIdentifier`] (arrays, no allocation at all) or [`IvIdentifierVec`] (heap, sized at
 /// construction). `Q` is the capacity of the refined instruments' predictor
 /// ([`InstrumentalVariables::with_lags`]; 0: the delayed regressors only).
+///
+/// With the feature `serde` the whole state is serialized (the filters, the ring of past
+/// samples, the predictor, the residual sums) and a deserialized identifier is checked
+/// against its structure and settings, so a corrupt input is a serde error; a restored one
+/// continues bit for bit.
 #[derive(Debug, Clone)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+)]
 pub struct InstrumentalVariables<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize = 0> {
     structure: Structure<T>,
     part: Partition,
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::flat"))]
     filters: F,
-    /// The filters before the current update (of the groups it touched).
+    /// The filters before the current update (of the groups it touched): scratch, not state
+    /// (serialized empty where the store allows, refilled on load).
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::scratch"))]
     backup: F,
     ring: Ring<T>,
     delay: u16,
@@ -221,6 +241,84 @@ pub(crate) fn local_regression<T: Real, const P: usize>(
 }
 
 impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> InstrumentalVariables<T, P, F, Q> {
+    /// Checks a deserialized identifier (feature `serde`; its structure, filters and
+    /// predictor checked themselves) against its structure and settings, and refills the
+    /// scratch copy of the filters. Each failure is [`Error::InvalidArgument`] (`arg` "state")
+    /// naming what is wrong: the groups (the structure's partition, at most `P` parameters
+    /// each, one filter each), the equation rows, the variances `r` (finite, > 0) and the row
+    /// weights `√(r_g / r_i)` derived from them, each filter's size and weight `r_g`, the
+    /// delay (≥ 1), `lags` within `Q`, the ring (`delay + lags − 1` slots of `2n + m` values,
+    /// filled by the samples counted, values finite and below the update's limit), the
+    /// predictor's size, and the residual sums (finite, ≥ 0).
+    #[cfg(feature = "serde")]
+    pub(crate) fn restored(&mut self) -> Result<()> {
+        let corrupt = |expected| Err(Error::InvalidArgument { arg: "state", expected });
+        let s = &self.structure;
+        let (n, m, ne) = (s.states(), s.inputs(), s.equations());
+        let part = s.partition();
+        let ng = part.groups as usize;
+        if part != self.part || part.largest() > P {
+            return corrupt("an IV identifier's parameter groups: its structure's, of at most P parameters each");
+        }
+        if self.backup.flat().is_empty() {
+            self.backup = self.filters.clone();
+        }
+        if self.filters.flat().len() != ng || self.backup.flat().len() != ng {
+            return corrupt("an IV identifier with one filter per parameter group");
+        }
+        if s.equation_states().enumerate().any(|(i, st)| self.rows[i] != st) || self.rows[ne..].iter().any(|&r| r != 0)
+        {
+            return corrupt("an IV identifier's equation rows: its structure's equation states");
+        }
+        let Ok((_, scale, r_group)) = equation_weights(&part, ne, &self.r[..ne]) else {
+            return corrupt("an IV identifier's equation variances r finite and > 0");
+        };
+        if scale[..ne] != self.scale[..ne] {
+            return corrupt("an IV identifier's row weights √(r_g / r_i) from its variances r");
+        }
+        let filter_fits = |(g, f): (usize, &IvFilter<T, P>)| f.dim() == part.size[g] as usize && f.r() == r_group[g];
+        if !self.filters.flat().iter().enumerate().all(filter_fits) {
+            return corrupt("an IV identifier's filters of their groups' sizes and weights r_g");
+        }
+        let (d, lags, width) = (self.delay as usize, self.lags as usize, 2 * n + m);
+        if d == 0 {
+            return corrupt("an IV identifier's delay of at least 1 sample");
+        }
+        if lags > 0 && lags * width + 1 > Q {
+            return corrupt("an IV identifier's lags × (2n + m) + 1 within its predictor's capacity Q");
+        }
+        let ring = &self.ring;
+        let slots = if lags == 0 { d } else { d + lags - 1 };
+        if ring.width as usize != width
+            || ring.slots as usize != slots
+            || slots * width > RING_VALUES
+            || ring.head >= ring.slots
+            || ring.filled > ring.slots
+        {
+            return corrupt("an IV identifier's ring of delay + lags − 1 past samples of 2n + m values");
+        }
+        let fill = self.samples.min(u64::from(ring.slots));
+        if u64::from(ring.filled) != fill || (!ring.full() && ring.head != ring.filled) {
+            return corrupt("an IV identifier's ring filled by the samples it counts");
+        }
+        let limit = T::biggest().sqrt() / T::of(256.0);
+        let (used, rest) = ring.buf.split_at(slots * width);
+        if !used.iter().all(|v| v.abs() < limit) || rest.iter().any(|&v| v != T::zero()) {
+            return corrupt("an IV identifier's past samples below √(largest float)/256, nothing stored beyond them");
+        }
+        let (pd, po) = self.pred.size();
+        let pred_fits =
+            if lags == 0 { pd == 0 && (po == 0 || po == width) } else { pd == lags * width + 1 && po == width };
+        if !pred_fits {
+            return corrupt("an IV identifier's predictor of lags × (2n + m) + 1 regressors and 2n + m outputs");
+        }
+        let sums = self.eq_ssr[..ne].iter().chain(&self.eq_nobs[..ne]);
+        if !sums.into_iter().all(|&v| v.finite() && v >= T::zero()) {
+            return corrupt("an IV identifier's residual sums and counts finite and ≥ 0");
+        }
+        Ok(())
+    }
+
     /// An IV identifier of `structure`'s parameters with instruments delayed by `delay ≥ 1`
     /// samples, prior `p0` ([`StructuredPrior::Exact`]: batch IV on the first samples, then
     /// recursive; otherwise `P(0)` as given, with prior mean `theta0`, `None`: 0), and equation

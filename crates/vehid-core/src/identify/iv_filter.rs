@@ -37,7 +37,15 @@ pub(crate) const SINGULAR: Error = Error::Singular {
 };
 
 /// One group's recursive IV filter (module docs).
+///
+/// With the feature `serde` it is serialized field by field; a deserialized filter is checked
+/// (its size, weight, finiteness and unused entries), so a corrupt one is a serde error.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+)]
 pub struct IvFilter<T: Real, const P: usize> {
     /// `θ̂`; during the exact start `Σ ζ y`.
     theta: SVector<T, P>,
@@ -54,6 +62,39 @@ pub struct IvFilter<T: Real, const P: usize> {
 }
 
 impl<T: Real, const P: usize> IvFilter<T, P> {
+    /// Checks a deserialized filter (feature `serde`): `1 ≤ dim ≤ P`; the weight `r` finite
+    /// and `> 0` during the exact start (which divides by nothing but later multiplies
+    /// `(Σ ζ hᵀ)⁻¹` by it), `≥ 0` after; `θ̂`, `P` and `M` finite and 0 outside the leading
+    /// `dim` entries (which the update never touches); `M`'s diagonal (sums of squares) ≥ 0.
+    /// Each failure names what is wrong (`Error::InvalidArgument` with `arg` "state").
+    #[cfg(feature = "serde")]
+    pub(crate) fn restored(&mut self) -> Result<()> {
+        let corrupt = |expected| Err(Error::InvalidArgument { arg: "state", expected });
+        let d = self.dim as usize;
+        if d == 0 || d > P {
+            return corrupt("an IV filter of 1 to P parameters (dim)");
+        }
+        let r_ok = if self.start { self.r > T::zero() } else { self.r >= T::zero() };
+        if !(self.r.finite() && r_ok) {
+            return corrupt("an IV filter weight r finite and > 0 (≥ 0 after the exact start)");
+        }
+        let values = self.theta.iter().chain(self.p.iter()).chain(self.m.iter());
+        if !values.into_iter().all(|v| v.finite()) {
+            return corrupt("an IV filter's θ, P and M finite");
+        }
+        let outside = (0..P).any(|a| {
+            (a >= d && self.theta[a] != T::zero())
+                || (0..P).any(|b| (a >= d || b >= d) && (self.p[(a, b)] != T::zero() || self.m[(a, b)] != T::zero()))
+        });
+        if outside {
+            return corrupt("an IV filter's θ, P and M zero beyond its dim parameters");
+        }
+        if (0..d).any(|a| self.m[(a, a)] < T::zero()) {
+            return corrupt("an IV filter's instrument moment M = Σ ζ ζᵀ with a diagonal ≥ 0");
+        }
+        Ok(())
+    }
+
     /// A filter of `dim` parameters with the exact start (weight `r > 0`).
     ///
     /// # Errors

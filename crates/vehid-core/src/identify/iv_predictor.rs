@@ -58,7 +58,16 @@ fn axpy<T: Real>(alpha: T, x: &[T], y: &mut [T]) {
 
 /// The recursive predictor of the current sample (module docs); `Q` bounds the regressors
 /// `lags × (2n + m) + 1`.
+///
+/// With the feature `serde` it is serialized field by field; a deserialized predictor is
+/// checked (its size, finiteness, unused entries and entry bound), so a corrupt one is a
+/// serde error.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+)]
 pub struct Predictor<T: Real, const Q: usize> {
     /// `(Σ q qᵀ)⁻¹`; during the exact start `Σ q qᵀ`.
     p: SMatrix<T, Q, Q>,
@@ -74,6 +83,37 @@ pub struct Predictor<T: Real, const Q: usize> {
 }
 
 impl<T: Real, const Q: usize> Predictor<T, Q> {
+    /// Checks a deserialized predictor (feature `serde`): `dim ≤ Q` regressors and at most
+    /// [`SAMPLE_VALUES`] outputs; `P` and `Π̂` finite and 0 outside the leading `dim × dim`
+    /// and `dim × outputs` blocks (which every step reads and writes, and no other);
+    /// `big` finite and at least half the largest entry (the overflow check of
+    /// [`Predictor::plan`] relies on it: a much smaller bound would let a step overflow in
+    /// [`Predictor::apply`], which cannot fail; `plan` keeps a factor 4 of headroom, and a
+    /// saved `big` is an upper bound up to rounding, so half is safe and never refuses a
+    /// genuine state). Each failure names what is wrong.
+    #[cfg(feature = "serde")]
+    pub(crate) fn restored(&mut self) -> Result<()> {
+        let corrupt = |expected| Err(crate::Error::InvalidArgument { arg: "state", expected });
+        let (d, no) = (self.dim as usize, self.outputs as usize);
+        if d > Q || no > SAMPLE_VALUES {
+            return corrupt("a predictor of at most Q regressors and SAMPLE_VALUES outputs");
+        }
+        if !self.p.iter().chain(self.pi.iter()).all(|v| v.finite()) {
+            return corrupt("a predictor's P and Π̂ finite");
+        }
+        let outside_p = (0..Q).any(|a| (0..Q).any(|b| (a >= d || b >= d) && self.p[(a, b)] != T::zero()));
+        let outside_pi =
+            (0..Q).any(|a| (0..SAMPLE_VALUES).any(|j| (a >= d || j >= no) && self.pi[(a, j)] != T::zero()));
+        if outside_p || outside_pi {
+            return corrupt("a predictor's P and Π̂ zero beyond its regressors and outputs");
+        }
+        let largest = self.p.iter().chain(self.pi.iter()).fold(T::zero(), |m, v| m.max(v.abs()));
+        if !(self.big.finite() && self.big >= largest * T::of(0.5)) {
+            return corrupt("a predictor's entry bound `big` finite and at least half its largest entry");
+        }
+        Ok(())
+    }
+
     /// A predictor of `outputs` values from `dim ≤ Q` regressors (exact start).
     pub(crate) fn new(dim: usize, outputs: usize) -> Self {
         Self {
@@ -85,6 +125,11 @@ impl<T: Real, const Q: usize> Predictor<T, Q> {
             count: 0,
             big: T::zero(),
         }
+    }
+
+    /// Regressors and outputs in use, `(dim, outputs)`.
+    pub(crate) fn size(&self) -> (usize, usize) {
+        (self.dim as usize, self.outputs as usize)
     }
 
     /// `true` until `Σ q qᵀ` is well conditioned (no prediction yet).

@@ -39,7 +39,7 @@ mod gradient;
 mod instrumental;
 mod interface;
 mod iv_filter;
-mod iv_predictor;
+pub(crate) mod iv_predictor;
 mod kalman;
 mod least_squares;
 mod store;

@@ -490,3 +490,237 @@ fn a_corrupt_structure_is_refused_and_corrupt_bytes_never_panic() {
     let sg = StructuredGradient::<f64, 8>::new(full, Gain::Lyapunov, &[1.0], None, 2).unwrap();
     survives_corruption(&sg, &dq[..3], &[0x01, 0xff]);
 }
+
+#[test]
+fn instrumental_variables_continue_bit_for_bit() {
+    // The full rows (two groups of four) with the delayed regressors (lags 0) and with the
+    // refined instruments (lags 6, the Python default: the predictor's 49 regressors start
+    // after 49 samples), saved while the ring fills, while the exact start or the predictor
+    // is starting, and after; a prior; the fixed store; the physical structure.
+    let data = quarter(400);
+    let d = slices(&data);
+    let full = crate::structure::Structure::<f64>::full_rows(4, &[1, 3]).unwrap();
+    for delay in [1, 2] {
+        let id = IvIdentifierVec::<f64, 4>::exact(full, delay).unwrap().with_lags(0).unwrap();
+        for split in [0, 1, 3, 150] {
+            continues(id.clone(), &d, split);
+        }
+        let id = IvIdentifierVec::<f64, 4, 64>::exact(full, delay).unwrap().with_lags(6).unwrap();
+        for split in [3, 20, 60, 150] {
+            let back = continues(id.clone(), &d, split);
+            assert!(!back.starting());
+        }
+    }
+    let r = [81.0, 2.5e-5];
+    let prior = IvIdentifier::<f64, 4, 2>::new(full, 2, StructuredPrior::Scalar(1000.0), None, &r).unwrap();
+    continues(prior, &d, 100);
+    let fixed = IvIdentifier::<f64, 4, 2, 64>::exact(full, 1).unwrap().with_lags(3).unwrap();
+    continues(fixed, &d, 100);
+    // Groups smaller than P (the filters' unused entries stay 0 through the round trip).
+    continues(IvIdentifierVec::<f64, 8, 64>::exact(full, 1).unwrap().with_lags(2).unwrap(), &d, 120);
+    let physical = *QuarterCar::<f64>::structure([None, Some(1.0), None, None, None]).unwrap().structure();
+    continues(IvIdentifierVec::<f64, 4, 64>::exact(physical, 1).unwrap().with_lags(2).unwrap(), &d, 120);
+}
+
+#[test]
+fn bias_compensated_continues_bit_for_bit() {
+    let data = quarter(300);
+    let d = slices(&data);
+    for split in [0, 1, 150] {
+        continues(BiasCompensatedVec::<f64, 4>::full_rows(4, &[1, 3], &[1e-6]).unwrap(), &d, split);
+        continues(BiasCompensatedLs::<f64, 8, 2>::full_rows(4, &[1, 3], &[1e-6, 2e-6, 1e-6, 3e-6]).unwrap(), &d, split);
+    }
+    // The physical structure reads der(·): its derivative noise enters the correction.
+    let physical = *QuarterCar::<f64>::structure([None, Some(1.0), None, None, None]).unwrap().structure();
+    let id = BiasCompensatedVec::<f64, 4>::new(physical, &[1e-6], &[1e-6], &[1.0, 0.5]).unwrap();
+    continues(id, &d, 100);
+}
+
+/// `bytes` with the first occurrence of `old`'s eight bytes replaced by `new`'s.
+fn patch_f64(bytes: &[u8], old: f64, new: f64) -> Vec<u8> {
+    let (o, n) = (old.to_le_bytes(), new.to_le_bytes());
+    let at = bytes.windows(8).position(|w| w == o).expect("the value is in the bytes");
+    let mut out = bytes.to_vec();
+    out[at..at + 8].copy_from_slice(&n);
+    out
+}
+
+/// Why the check refuses `bytes` as `$ty`: postcard drops a custom error's message, so the
+/// bytes are decoded without the check (the derived inherent `deserialize`) and checked
+/// (`restored`) here, after asserting that the checked `Deserialize` refuses them too.
+macro_rules! refusal {
+    ($ty:ty, $bytes:expr) => {{
+        let bytes: &[u8] = $bytes;
+        assert!(postcard::from_bytes::<$ty>(bytes).is_err(), "the checked Deserialize accepted it");
+        let mut de = postcard::Deserializer::from_bytes(bytes);
+        let mut v = <$ty>::deserialize(&mut de).expect("decodes unchecked");
+        v.restored().expect_err("refused").to_string()
+    }};
+}
+
+#[test]
+fn a_corrupt_iv_filter_or_predictor_is_refused() {
+    use crate::identify::iv_predictor::Predictor;
+    // IvFilter<f64, 2> of one parameter: θ (2 values), P, M (4 each), r, start, dim, count.
+    let f = IvFilter::<f64, 2>::exact(1, 1.0).unwrap();
+    let good = to_bytes(&f);
+    assert_eq!((&good[80..88], good[88], good[89]), (&1.0f64.to_le_bytes()[..], 1, 1));
+    let put = |at: usize, v: &[u8]| {
+        let mut b = good.clone();
+        b[at..at + v.len()].copy_from_slice(v);
+        b
+    };
+    type F = IvFilter<f64, 2>;
+    for (bytes, needle) in [
+        (put(89, &[0]), "1 to P parameters"),
+        (put(89, &[3]), "1 to P parameters"),
+        (put(80, &0.0f64.to_le_bytes()), "weight r finite"),
+        (put(80, &f64::NAN.to_le_bytes()), "weight r finite"),
+        (put(0, &f64::INFINITY.to_le_bytes()), "θ, P and M finite"),
+        (put(8, &1.0f64.to_le_bytes()), "zero beyond its dim"),
+        (put(48, &(-1.0f64).to_le_bytes()), "diagonal ≥ 0"),
+    ] {
+        let why = refusal!(F, &bytes);
+        assert!(why.contains(needle), "{needle}: {why}");
+    }
+    // After the start r = 0 is a valid weight.
+    let mut b = put(80, &0.0f64.to_le_bytes());
+    b[88] = 0;
+    assert!(postcard::from_bytes::<F>(&b).is_ok());
+
+    // Predictor<f64, 2> of one regressor and one output: P (4 values), Π̂ (2 × 40), dim,
+    // outputs, start, count, big (the last 8 bytes).
+    let p = Predictor::<f64, 2>::new(1, 1);
+    let good = to_bytes(&p);
+    let (dim_at, big_at) = (84 * 8, good.len() - 8);
+    assert_eq!((good[dim_at], good[dim_at + 1]), (1, 1));
+    let put = |edits: &[(usize, &[u8])]| {
+        let mut b = good.clone();
+        for (at, v) in edits {
+            b[*at..*at + v.len()].copy_from_slice(v);
+        }
+        b
+    };
+    type Pr = Predictor<f64, 2>;
+    let (four, nan) = (4.0f64.to_le_bytes(), f64::NAN.to_le_bytes());
+    for (bytes, needle) in [
+        (put(&[(dim_at, &[3])]), "at most Q regressors"),
+        (put(&[(dim_at + 1, &[41])]), "at most Q regressors"),
+        (put(&[(0, &nan)]), "P and Π̂ finite"),
+        (put(&[(4 * 8 + 40 * 8, &f64::INFINITY.to_le_bytes())]), "P and Π̂ finite"),
+        (put(&[(3 * 8, &four), (big_at, &four)]), "zero beyond its regressors"),
+        (put(&[(4 * 8 + 8, &four), (big_at, &four)]), "zero beyond its regressors"),
+        (put(&[(0, &four)]), "entry bound"),
+        (put(&[(big_at, &nan)]), "entry bound"),
+    ] {
+        let why = refusal!(Pr, &bytes);
+        assert!(why.contains(needle), "{needle}: {why}");
+    }
+    assert!(postcard::from_bytes::<Pr>(&put(&[(0, &four), (big_at, &2.0f64.to_le_bytes())])).is_ok());
+}
+
+#[test]
+fn a_corrupt_iv_identifier_is_refused() {
+    use serde_json::json;
+    let data = quarter(120);
+    let full = crate::structure::Structure::<f64>::full_rows(4, &[1, 3]).unwrap();
+    let mut e = [0.0; 2];
+    let mut run = |mut id: IvIdentifierVec<f64, 8, 64>| {
+        for (x, z) in &data {
+            id.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+        }
+        serde_json::to_value(&id).unwrap()
+    };
+    type Iv = IvIdentifierVec<f64, 8, 64>;
+    let refined = run(Iv::exact(full, 1).unwrap().with_lags(2).unwrap());
+    let plain = run(Iv::exact(full, 1).unwrap().with_lags(0).unwrap());
+    assert!(
+        serde_json::from_value::<Iv>(refined.clone()).is_ok() && serde_json::from_value::<Iv>(plain.clone()).is_ok()
+    );
+    let with = |good: &serde_json::Value, path: &str, v: serde_json::Value| {
+        let mut out = good.clone();
+        *out.pointer_mut(path).unwrap_or_else(|| panic!("{path}")) = v;
+        out
+    };
+    let mut one_filter = refined.clone();
+    one_filter["filters"].as_array_mut().unwrap().pop();
+    let cases = [
+        (with(&refined, "/part/groups", json!(3)), "parameter groups"),
+        (one_filter, "one filter per parameter group"),
+        (with(&refined, "/rows/1", json!(2)), "equation rows"),
+        (with(&refined, "/r/0", json!(-1.0)), "variances r finite and > 0"),
+        (with(&refined, "/scale/1", json!(0.5)), "row weights"),
+        (with(&refined, "/filters/0/r", json!(2.0)), "filters of their groups' sizes"),
+        (with(&refined, "/filters/1/dim", json!(5)), "filters of their groups' sizes"),
+        (with(&refined, "/delay", json!(0)), "delay of at least 1"),
+        (with(&refined, "/lags", json!(8)), "capacity Q"),
+        (with(&refined, "/delay", json!(2)), "ring of delay + lags"),
+        (with(&refined, "/ring/head", json!(2)), "ring of delay + lags"),
+        (with(&refined, "/samples", json!(1)), "ring filled by the samples"),
+        (with(&refined, "/ring/buf/0", json!(1e200)), "past samples below"),
+        (with(&refined, "/ring/buf/500", json!(1.0)), "past samples below"),
+        (with(&plain, "/pred/outputs", json!(3)), "predictor of lags"),
+        (with(&refined, "/eq_ssr/1", json!(-1.0)), "residual sums"),
+        (with(&refined, "/eq_nobs/0", json!(-1.0)), "residual sums"),
+    ];
+    for (v, needle) in &cases {
+        rejects::<Iv>(v, needle);
+    }
+}
+
+#[test]
+fn a_corrupt_bias_compensated_identifier_is_refused() {
+    use serde_json::json;
+    let data = quarter(60);
+    let mut id = BiasCompensatedVec::<f64, 8>::full_rows(4, &[1, 3], &[3.7e-4]).unwrap();
+    let mut e = [0.0; 2];
+    for (x, z) in &data {
+        id.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+    }
+    type Bc = BiasCompensatedVec<f64, 8>;
+    let good = serde_json::to_value(&id).unwrap();
+    assert!(serde_json::from_value::<Bc>(good.clone()).is_ok());
+    let with = |path: &str, v: serde_json::Value| {
+        let mut out = good.clone();
+        *out.pointer_mut(path).unwrap_or_else(|| panic!("{path}")) = v;
+        out
+    };
+    let mut one_group = good.clone();
+    one_group["groups"].as_array_mut().unwrap().pop();
+    let cases = [
+        (with("/part/groups", json!(3)), "parameter groups"),
+        (one_group, "one set of sums per parameter group"),
+        (with("/rows/0", json!(3)), "equation rows"),
+        (with("/r/1", json!(0.0)), "variances r finite and > 0"),
+        (with("/scale/0", json!(2.0)), "row weights"),
+        (with("/groups/0/dim", json!(3)), "each counting every sample"),
+        (with("/groups/1/count", json!(59)), "each counting every sample"),
+        (with("/groups/0/a/0", json!(-1.0)), "diagonal ≥ 0"),
+        (with("/groups/0/b/7", json!(1.0)), "zero beyond each group's"),
+        (with("/groups/1/c/63", json!(1.0)), "zero beyond each group's"),
+    ];
+    for (v, needle) in &cases {
+        rejects::<Bc>(v, needle);
+    }
+    // A non-finite sum (postcard, which writes every float): the correction's 3.7e-4.
+    assert_eq!(id.correction(0).0[(0, 0)], 3.7e-4);
+    let why = refusal!(Bc, &patch_f64(&to_bytes(&id), 3.7e-4, f64::NAN));
+    assert!(why.contains("sums and correction finite"), "{why}");
+}
+
+#[test]
+fn corrupt_noisy_state_identifier_bytes_never_panic() {
+    let q = quarter(40);
+    let dq = slices(&q);
+    let full = crate::structure::Structure::<f64>::full_rows(4, &[1, 3]).unwrap();
+    let mut iv = IvIdentifierVec::<f64, 4>::exact(full, 2).unwrap();
+    let mut bc = BiasCompensatedVec::<f64, 4>::full_rows(4, &[1, 3], &[1e-6]).unwrap();
+    let mut e = [0.0; 2];
+    for (x, z) in &dq[..12] {
+        iv.update_into(x, z, &[], &mut e).unwrap();
+        bc.update_into(x, z, &[], &mut e).unwrap();
+    }
+    // (The ring alone is 4 kB of floats: one flip and one update per variant.)
+    survives_corruption(&iv, &dq[12..13], &[0xff]);
+    survives_corruption(&bc, &dq[12..13], &[0x01, 0xff]);
+}
