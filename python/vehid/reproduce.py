@@ -324,10 +324,12 @@ def _constants_table(fig: Json) -> Tuple[List[str], List[List[str]], str]:
         rows.append(row)
     for k in first["known"]:
         rows.append([f"{k['name']} ({k['unit']})", _fmt(k["value"])] + ["known"] * len(curves))
-    seeds = ", ".join(f"{c['label']}: {c['constants']['seed']}" for _, c in curves)
+    distinct = {c["constants"]["seed"] for _, c in curves}
+    seeds = (f"simulator seed {distinct.pop()}, the same noise for every curve" if len(distinct) == 1
+             else "simulator seeds " + ", ".join(f"{c['label']}: {c['constants']['seed']}" for _, c in curves))
     methods = "; ".join(dict.fromkeys(c["constants"]["method"] for _, c in curves))
     last = first["k"][-1] if first["k"] else 0
-    caption = (f"Identified constants after {last} iterations, first seed of each curve (simulator seeds: {seeds}), "
+    caption = (f"Identified constants after {last} iterations, first seed of each curve ({seeds}), "
                f"with their 95 % intervals [low, high] where the identifier has a covariance: {methods}.")
     return head, rows, caption
 
