@@ -74,7 +74,7 @@ REPORT_KEYS = {"quick", "base_seed", "threads", "seconds", "figures", "tables"}
 FIGURE_KEYS = {"id", "title", "model", "thesis_iterations", "iterations", "seeds", "assumptions", "skipped", "k",
                "curves", "verdicts"}
 SERIES = ("median", "p10", "p90", "final_xi", "settle", "reach", "min_xi", "argmin", "reinits")
-CURVE_KEYS = {"label", "ident", "ic", "road", "state", "deriv", "pulse_width", *SERIES}
+CURVE_KEYS = {"label", "ident", "ic", "road", "state", "deriv", "pulse_width", "constants", *SERIES}
 VERDICT_KEYS = {"claim", "measured", "agrees", "note"}
 TABLE_KEYS = {"title", "method", "rows"}
 ROW_KEYS = {"label", "thesis", "vehid", "agrees", "note"}
@@ -210,6 +210,8 @@ def _drawn(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, data: Dict[str, Any]
     vehid.reproduce.write_report(data, tmp_path / "figs")
     axes = {}
     for f in kept:
+        if "identified constants" in f.get_suptitle():
+            continue  # the constants beside the figure (tested on their own)
         ax = f.axes[0]
         axes[ax.get_title().split(":")[0].removeprefix("Fig ")] = ax
     return axes
@@ -303,4 +305,145 @@ def test_reproduce_draws_each_figure_once(tmp_path: Path, monkeypatch: pytest.Mo
     monkeypatch.setattr(figure.Figure, "draw", counted)
     data = vehid.reproduce.run(quick=True, only=["4-4", "4-7"], seed=1, seeds=2, max_iterations=100, tables=False)
     vehid.reproduce.write_report(data, tmp_path / "once")
-    assert (tmp_path / "once" / "fig-4-4.png").exists() and len(draws) == 2
+    # Fig 4-4, its identified constants, Fig 4-7.
+    assert (tmp_path / "once" / "fig-4-4-constants.png").exists() and len(draws) == 3
+
+
+# ---- The report for an engineer (issue 16, item 6): the identified physical constants ----
+
+QUARTER_CONSTANTS = [("M", "kg", 10.0), ("k1", "N/m", 90.0), ("k2", "N/m", 50.0), ("b", "N·s/m", 40.0)]
+
+
+def _constants_run() -> Dict[str, Any]:
+    return vehid.reproduce.run(quick=True, only=["3-5", "4-2", "4-3", "5-1", "6-3"], seed=7, seeds=2,
+                               max_iterations=400, tables=False)
+
+
+def test_reproduce_json_carries_the_identified_constants(tmp_path: Path) -> None:
+    data = _constants_run()
+    figs = {f["id"]: f for f in data["figures"]}
+    # Batch least squares (Ch. III) records none; every identifier of Ch. IV–VI does.
+    assert all(c["constants"] is None for c in figs["3-5"]["curves"])
+    for fid in ("4-2", "4-3", "5-1", "6-3"):
+        fig = figs[fid]
+        for c in fig["curves"]:
+            ic = c["constants"]
+            assert set(ic) == {"seed", "method", "k", "known", "constants"}
+            # A decimated subset of the figure's iterations, ending at the last one.
+            assert set(ic["k"]) <= set(fig["k"]) and ic["k"][-1] == fig["k"][-1]
+            assert ic["k"] == sorted(ic["k"]) and len(ic["k"]) <= vehid_thesis_points() + 1
+            for s in ic["constants"]:
+                assert set(s) == {"name", "unit", "truth", "value", "lo", "hi"}
+                assert len(s["value"]) == len(s["lo"]) == len(s["hi"]) == len(ic["k"])
+    quarter = figs["4-2"]["curves"] + figs["4-3"]["curves"]
+    for c in quarter:
+        ic = c["constants"]
+        assert [(s["name"], s["unit"], s["truth"]) for s in ic["constants"]] == QUARTER_CONSTANTS
+        assert ic["known"] == [{"name": "m", "unit": "kg", "value": 1.0}]
+    # The Kalman filter (Fig 4-3) and the physical structure (Fig 4-2's second curve) have a
+    # covariance: a finite 95 % interval around the final estimate.
+    for c in figs["4-3"]["curves"] + figs["4-2"]["curves"][1:]:
+        for s in c["constants"]["constants"]:
+            assert s["lo"][-1] < s["value"][-1] < s["hi"][-1], (c["label"], s)
+    # Fig 4-2's Kalman filter on road noise alone has not converged after 400 iterations: its
+    # rows give no positive constants (QuarterCar.physical refuses them too), so no value.
+    assert all(math.isnan(v) for s in figs["4-2"]["curves"][0]["constants"]["constants"] for v in s["value"][-5:])
+    # The stochastic gradient keeps no covariance: estimates, no interval.
+    for c in figs["5-1"]["curves"]:
+        assert all(math.isnan(v) for s in c["constants"]["constants"] for v in s["lo"] + s["hi"])
+        assert "no interval" in c["constants"]["method"]
+    half = figs["6-3"]["curves"][0]["constants"]
+    assert {s["name"] for s in half["constants"]} == {"M", "J", "k12", "k22", "b1", "b2", "l1", "l2"}
+    assert {k["name"] for k in half["known"]} == {"k11", "k21", "m1", "m2"}
+
+
+def vehid_thesis_points() -> int:
+    """vehid_thesis::CONSTANT_POINTS (the decimation of the constants' grid)."""
+    return 40
+
+
+def _library_run(curve: Dict[str, Any], n: int) -> vehid.Simulator:
+    sim = vehid.Simulator(vehid.QuarterCar(), dt=0.05, road_sigma=curve["road"], ic_sigma=curve["ic"],
+                          state_noise=curve["state"], deriv_noise=curve["deriv"], seed=curve["constants"]["seed"])
+    return sim.run(n)
+
+
+def test_reproduce_final_constants_are_the_librarys(tmp_path: Path) -> None:
+    # Fig 4-3's Kalman filter (σ_u = 0.025) and Fig 4-2's physical structure, run again through
+    # the Python API on the same seeds and data.
+    data = vehid.reproduce.run(quick=True, only=["4-3", "4-2"], seed=3, seeds=2, max_iterations=600, tables=False)
+    fig43, fig42 = data["figures"]
+    car = vehid.QuarterCar()
+    kalman, physical = fig43["curves"][3], fig42["curves"][1]
+    # The Kalman filter on the free rows (P(0) = 1000, R from σ_u and σ_v, no outlier gate, as
+    # the runner): the constants from its rows with the wheel mass known.
+    run = _library_run(kalman, fig43["k"][-1])
+    kf = vehid.KalmanIdentifier(car, p0=1000.0, road_sigma=kalman["road"], deriv_noise=kalman["deriv"], gate=0.0)
+    kf.fit(run.r, run.z)
+    lib = car.physical(kf.theta, m=1.0)
+    for s in kalman["constants"]["constants"]:
+        assert s["value"][-1] == pytest.approx(lib[s["name"]], rel=1e-9), s["name"]
+    # The physical structure (m known, exact start): values and 95 % intervals by the library.
+    run = _library_run(physical, fig42["k"][-1])
+    ph = vehid.KalmanIdentifier(car.structure(known={"m": 1.0}), p0="exact", gate=0.0)
+    ph.fit(run.r, run.z)
+    lib3 = car.physical(ph.stats(alpha=0.05))
+    for s in physical["constants"]["constants"]:
+        got = (s["value"][-1], s["lo"][-1], s["hi"][-1])
+        assert got == pytest.approx(lib3[s["name"]], rel=1e-7), s["name"]
+    # The report's table gives exactly these final numbers, with the truth.
+    out = tmp_path / "rep"
+    vehid.reproduce.write_report(data, out)
+    md = (out / "index.md").read_text(encoding="utf-8")
+    html = (out / "index.html").read_text(encoding="utf-8")
+    fmt = vehid.reproduce._fmt
+
+    def cell(v: float, lo: float, hi: float) -> str:
+        return f"{fmt(v)} [{fmt(lo)}, {fmt(hi)}]"
+
+    for (name, unit, truth), sk in zip(QUARTER_CONSTANTS, kalman["constants"]["constants"]):
+        row = f"| {name} ({unit}) | {fmt(truth)} | "
+        lines = [ln for ln in md.splitlines() if ln.startswith(row)]
+        # Fig 4-3 (its 4th curve last), then Fig 4-2 (its Kalman filter not converged: n/a).
+        assert len(lines) == 2 and lines[0].count(" | ") == 5, lines
+        assert lines[0].endswith(f" | {cell(lib[name], sk['lo'][-1], sk['hi'][-1])} |"), lines
+        assert lines[1] == f"{row}n/a | {cell(*lib3[name])} |", lines
+        assert html_escape(cell(*lib3[name])) in html
+    assert "| m (kg) | 1 | known | known |" in md
+    assert "| m (kg) | 1 | known | known | known | known |" in md
+
+
+def test_reproduce_report_shows_the_constants_beside_xi(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    plt = pytest.importorskip("matplotlib.pyplot")
+    data = _constants_run()
+    plt.close("all")  # figures other tests kept open (pyplot warns beyond 20)
+    close = plt.close
+    kept: List[Any] = []
+    monkeypatch.setattr(plt, "close", kept.append)
+    out = tmp_path / "figs"
+    vehid.reproduce.write_report(data, out)
+    md = (out / "index.md").read_text(encoding="utf-8")
+    html = (out / "index.html").read_text(encoding="utf-8")
+    for fid in ("4-2", "4-3", "5-1", "6-3"):
+        name = f"fig-{fid}-constants.png"
+        assert (out / name).stat().st_size > 1000
+        assert f"![Fig {fid}, identified constants]({name})" in md
+        assert f"<div class='pair'><img src='fig-{fid}.png'" in html and name in html
+    assert not (out / "fig-3-5-constants.png").exists()
+    const = {f.get_suptitle().split(":")[0]: f for f in kept if "identified constants" in f.get_suptitle()}
+    assert set(const) == {"Fig 4-2", "Fig 4-3", "Fig 5-1", "Fig 6-3"}
+    f = const["Fig 4-2"]
+    labels = [ax.get_ylabel() for ax in f.axes if ax.get_visible()]
+    assert labels == ["$M$ (kg)", "$k_{1}$ (N/m)", "$k_{2}$ (N/m)", r"$b$ (N$\cdot$s/m)"]
+    for ax, (_, _, truth) in zip(f.axes, QUARTER_CONSTANTS):
+        # The true value dashed, one estimate line and one interval band per curve.
+        dashed = [ln for ln in ax.get_lines() if ln.get_linestyle() == "--"]
+        assert len(dashed) == 1 and list(dashed[0].get_ydata()) == [truth, truth]
+        assert len(ax.get_lines()) == 1 + 2 and len(ax.collections) == 2
+    legend = [t.get_text() for t in f.legends[0].get_texts()]
+    assert legend[-2:] == ["true value", "95 % interval"]
+    assert "$m$ = 1 kg" in f.get_suptitle()
+    half = [ax.get_ylabel() for ax in const["Fig 6-3"].axes if ax.get_visible()]
+    assert half[:2] == ["$M$ (kg)", r"$J$ (kg$\cdot$m$^2$)"]
+    for f in kept:
+        close(f)

@@ -4,7 +4,10 @@ The experiments (one per figure of Ch. III–VI, with the captions' noise levels
 runner live in Rust (the ``vehid-thesis`` crate); this module renders what the runner
 measured: one PNG per figure (ξ_k on a log scale against iterations, themselves on a log
 axis where the action is early; median and 10–90 % band over seeds; analytic figures drawn
-from their formula; needs the optional ``vehid[plot]`` extra, i.e. matplotlib) and
+from their formula; needs the optional ``vehid[plot]`` extra, i.e. matplotlib); beside each
+figure where an identifier runs (Ch. IV–VI), a second PNG of the car's physical constants
+the runner identified along the first seed (M, k1, k2, b of the quarter car; the half car's),
+with their 95 % intervals and the true values; and
 ``index.md`` / ``index.html`` with, per figure, the thesis' claim and vehid's measured
 counterpart marked *agrees*, *differs* or *inconclusive* (the run was shorter than the claim
 and bounds the measured number from below only), and the tables for Eq 4.28, Eq 4.32, Eq 4.34 and
@@ -211,6 +214,126 @@ def _plot_figure(plt: Any, fig: Json, path: Path) -> None:
     plt.close(f)
 
 
+def _constants(fig: Json) -> List[Tuple[int, Json]]:
+    """The curves (index, curve) for which the runner recorded the car's constants."""
+    return [(i, c) for i, c in enumerate(fig["curves"]) if c.get("constants")]
+
+
+def _symbol(name: str) -> str:
+    """A constant's name as mathtext: ``k1`` → ``$k_{1}$``, ``M`` → ``$M$``."""
+    m = re.fullmatch(r"([A-Za-z]+?)(\d*)", name)
+    if m is None or not m[2]:
+        return f"${name}$"
+    return f"${m[1]}_{{{m[2]}}}$"
+
+
+def _unit_tex(unit: str) -> str:
+    """A unit as mathtext where it needs it: ``N·s/m`` → ``N$\\cdot$s/m``, ``kg·m²`` → ``kg$\\cdot$m$^2$``."""
+    return unit.replace("·", r"$\cdot$").replace("²", "$^2$")
+
+
+def _finite_or_nan(xs: List[float]) -> List[float]:
+    return [v if math.isfinite(v) else math.nan for v in xs]
+
+
+def _plot_constants(plt: Any, fig: Json, path: Path) -> None:
+    """The identified constants against iteration (one panel each): per curve the estimate
+    along its first seed and the runner's 95 % interval (band), the true value dashed."""
+    curves = _constants(fig)
+    names = [s["name"] for s in curves[0][1]["constants"]["constants"]]
+    cols = 2 if len(names) <= 4 else 4
+    rows = max(1, math.ceil(len(names) / cols))
+    # Shared iteration axes, tick labels on the bottom row only, no minor ticks: the ticks are
+    # most of the drawing time, and drawing is most of the time a user waits for the report.
+    f, axes = plt.subplots(rows, cols, figsize=(7.5, 4.9), squeeze=False, sharex=True)
+    null = importlib.import_module("matplotlib.ticker").NullLocator
+    early = _action_is_early(fig)
+    last = fig["k"][-1] if fig["k"] else 1
+    for p, name in enumerate(names):
+        ax = axes[p // cols][p % cols]
+        truth = math.nan
+        seen: List[float] = []
+        for i, c in curves:
+            ic = c["constants"]
+            s = next(x for x in ic["constants"] if x["name"] == name)
+            truth = s["truth"]
+            k = ic["k"]
+            val, lo, hi = _finite_or_nan(s["value"]), _finite_or_nan(s["lo"]), _finite_or_nan(s["hi"])
+            ax.plot(k, val, color=f"C{i}", lw=1.2)
+            ax.fill_between(k, lo, hi, color=f"C{i}", alpha=0.2, lw=0)
+            # The axis shows the late part of the run (where the estimate settles) and the truth.
+            seen += [v for kk, v in zip(k, val + lo + hi) if kk >= EARLY * last and math.isfinite(v)]
+        ax.axhline(truth, color="k", ls="--", lw=0.9)
+        if math.isfinite(truth) and truth > 0:
+            ys = [truth] + [v for v in seen if -2 * truth <= v <= 4 * truth]
+            pad = 0.08 * max(max(ys) - min(ys), 0.02 * truth)
+            ax.set_ylim(min(ys) - pad, max(ys) + pad)
+        if not seen:
+            ax.text(0.5, 0.5, "no positive constants from the estimate yet", transform=ax.transAxes,
+                    ha="center", va="center", fontsize=6.5, color="0.4")
+        ax.set_ylabel(f"{_symbol(name)} ({_unit_tex(s['unit'])})", fontsize=8)
+        ax.tick_params(labelsize=7)
+        ax.grid(True, alpha=0.25)
+        if p // cols == rows - 1:
+            ax.set_xlabel(rf"iteration $k$ ({'log' if early else 'linear'} axis)", fontsize=7)
+    for p in range(len(names), rows * cols):
+        axes[p // cols][p % cols].set_visible(False)
+    # Once for the shared axis (a scale set later would reset the locators).
+    if early:
+        axes[0][0].set_xscale("log")
+    axes[0][0].set_xlim(max(1, fig["k"][0]) if fig["k"] else 1, last)
+    for ax in axes.flat:
+        ax.xaxis.set_minor_locator(null())
+        ax.yaxis.set_minor_locator(null())
+    line2d = importlib.import_module("matplotlib.lines").Line2D
+    patch = importlib.import_module("matplotlib.patches").Patch
+    handles = [line2d([], [], color=f"C{i}", lw=1.2) for i, _ in curves]
+    labels = [_tex(c["label"]) for _, c in curves]
+    handles += [line2d([], [], color="k", ls="--", lw=0.9),
+                patch(color="0.5", alpha=0.3, lw=0)]
+    labels += ["true value", "95 % interval"]
+    f.legend(handles, labels, loc="lower center", ncol=min(len(labels), 4), fontsize=6.5, frameon=False)
+    known = ", ".join(f"{_symbol(k['name'])} = {k['value']:g} {_unit_tex(k['unit'])}"
+                      for k in curves[0][1]["constants"]["known"])
+    f.suptitle(f"Fig {fig['id']}: identified constants, first seed of each curve\nknown: {known}", fontsize=9)
+    f.subplots_adjust(left=0.08 if cols > 2 else 0.1, right=0.98, top=0.87, bottom=0.2, hspace=0.3,
+                      wspace=0.7 if cols > 2 else 0.35)
+    f.savefig(path, dpi=110)
+    plt.close(f)
+
+
+def _interval(v: float, lo: float, hi: float) -> str:
+    """``value [lo, hi]``; the value alone without an interval."""
+    if math.isfinite(lo) and math.isfinite(hi):
+        return f"{_fmt(v)} [{_fmt(lo)}, {_fmt(hi)}]"
+    return _fmt(v)
+
+
+def _constants_table(fig: Json) -> Tuple[List[str], List[List[str]], str]:
+    """The final identified constants: header, rows (constant, truth, one cell per curve),
+    and a caption (iteration, seeds, how the intervals were computed)."""
+    curves = _constants(fig)
+    first = curves[0][1]["constants"]
+    head = ["constant", "true"] + [c["label"] for _, c in curves]
+    rows: List[List[str]] = []
+    for s0 in first["constants"]:
+        row = [f"{s0['name']} ({s0['unit']})", _fmt(s0["truth"])]
+        for _, c in curves:
+            s = next(x for x in c["constants"]["constants"] if x["name"] == s0["name"])
+            row.append(_interval(s["value"][-1], s["lo"][-1], s["hi"][-1]) if s["value"] else "n/a")
+        rows.append(row)
+    for k in first["known"]:
+        rows.append([f"{k['name']} ({k['unit']})", _fmt(k["value"])] + ["known"] * len(curves))
+    distinct = {c["constants"]["seed"] for _, c in curves}
+    seeds = (f"simulator seed {distinct.pop()}, the same noise for every curve" if len(distinct) == 1
+             else "simulator seeds " + ", ".join(f"{c['label']}: {c['constants']['seed']}" for _, c in curves))
+    methods = "; ".join(dict.fromkeys(c["constants"]["method"] for _, c in curves))
+    last = first["k"][-1] if first["k"] else 0
+    caption = (f"Identified constants after {last} iterations, first seed of each curve ({seeds}), "
+               f"with their 95 % intervals [low, high] where the identifier has a covariance: {methods}.")
+    return head, rows, caption
+
+
 #: The three verdicts, in the order the report lists them.
 VERDICTS = ("agrees", "differs", "inconclusive")
 
@@ -298,6 +421,10 @@ def write_report(data: Json, out: Path, command: str = "vehid reproduce", starte
                 name = f"fig-{fig['id']}.png"
                 _plot_figure(plt, fig, out / name)
                 images[fig["id"]] = name
+                if _constants(fig):
+                    cname = f"fig-{fig['id']}-constants.png"
+                    _plot_constants(plt, fig, out / cname)
+                    images[f"{fig['id']}-constants"] = cname
     rows = _claim_rows(data)
     ok, bad, open_ = rows["agrees"], rows["differs"], rows["inconclusive"]
     skipped = [f for f in data["figures"] if f["skipped"]]
@@ -317,7 +444,9 @@ def write_report(data: Json, out: Path, command: str = "vehid reproduce", starte
     plots = (
         "Figures: ξ_k (log axis) against iterations, median over seeds (line) and 10–90 % band (shaded); "
         "the iterations on a log axis where the action is early (each figure's axis says which), "
-        "Fig 4-7 drawn from its formula."
+        "Fig 4-7 drawn from its formula. Beside each identifier's figure (Ch. IV–VI), the car's physical "
+        "constants it identified along the first seed of each curve, with their 95 % interval (band, where the "
+        "identifier has a covariance) and the true value (dashed)."
         if plt is not None
         else "matplotlib is not installed (`pip install vehid[plot]`): the report has no images; "
         "every number below is still computed."
@@ -360,6 +489,8 @@ def write_report(data: Json, out: Path, command: str = "vehid reproduce", starte
             continue
         if fig["id"] in images:
             md += [f"![Fig {fig['id']}]({images[fig['id']]})", ""]
+        if f"{fig['id']}-constants" in images:
+            md += [f"![Fig {fig['id']}, identified constants]({images[fig['id'] + '-constants']})", ""]
         if fig["curves"]:
             iters = fig["iterations"]
             note = "" if iters == fig["thesis_iterations"] else f" (the table's full run: {fig['thesis_iterations']})"
@@ -378,6 +509,12 @@ def write_report(data: Json, out: Path, command: str = "vehid reproduce", starte
                     f"| {_md_cell(label)} | {c['ic']:g} | {c['road']:g} | {c['state']:g} | {c['deriv']:g} | "
                     f"`{_md_cell(c['ident'])}` | {_fmt(_median(fin))} [{_fmt(lo)}, {_fmt(hi)}] |"
                 )
+            md.append("")
+        if _constants(fig):
+            head_c, rows_c, caption = _constants_table(fig)
+            md += [_md_cell(caption), "", "| " + " | ".join(_md_cell(x) for x in head_c) + " |",
+                   "|" + "---|" * len(head_c)]
+            md += ["| " + " | ".join(_md_cell(x) for x in r) + " |" for r in rows_c]
             md.append("")
         if fig["verdicts"]:
             md += ["| thesis | vehid | verdict | explanation |", "|---|---|---|---|"]
@@ -428,9 +565,10 @@ def _html(
 
     h: List[str] = [
         "<!doctype html><html><head><meta charset='utf-8'><title>vehid reproduces Kessler (1986)</title>",
-        "<style>body{font-family:sans-serif;max-width:1000px;margin:auto;padding:1em}"
+        "<style>body{font-family:sans-serif;max-width:1200px;margin:auto;padding:1em}"
         "table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #ccc;padding:3px 6px;font-size:90%}"
-        ".formula{font-family:serif;font-size:120%;margin-left:2em}.agrees{color:#176117}.differs{color:#a01b1b}.inconclusive{color:#8a5a00}img{max-width:100%}</style></head><body>",
+        ".formula{font-family:serif;font-size:120%;margin-left:2em}.agrees{color:#176117}.differs{color:#a01b1b}.inconclusive{color:#8a5a00}img{max-width:100%}"
+        ".pair{display:flex;gap:4px}.pair img{width:50%}</style></head><body>",
         "<h1>vehid reproduces Kessler (1986), Ch. III–VI</h1>",
         f"<p>{e(head)}<br>{e(plots)}</p>",
         "<h2>ξ, the error measure</h2>",
@@ -458,8 +596,18 @@ def _html(
         if fig["skipped"]:
             h.append(f"<p>Skipped: {e(fig['skipped'])}.</p>")
             continue
-        if fig["id"] in images:
+        pair = f"{fig['id']}-constants"
+        if fig["id"] in images and pair in images:
+            h.append(f"<div class='pair'><img src='{e(images[fig['id']])}' alt='Fig {e(fig['id'])}'>"
+                     f"<img src='{e(images[pair])}' alt='Fig {e(fig['id'])}, identified constants'></div>")
+        elif fig["id"] in images:
             h.append(f"<img src='{e(images[fig['id']])}' alt='Fig {e(fig['id'])}'>")
+        if _constants(fig):
+            head_c, rows_c, caption = _constants_table(fig)
+            h.append(f"<p><small>{e(caption)}</small></p><table><tr>"
+                     + "".join(f"<th>{e(x)}</th>" for x in head_c) + "</tr>")
+            h += ["<tr>" + "".join(f"<td>{e(x)}</td>" for x in r) + "</tr>" for r in rows_c]
+            h.append("</table>")
         if fig["verdicts"]:
             h.append("<table><tr><th>thesis</th><th>vehid</th><th>verdict</th><th>explanation</th></tr>")
             for v in fig["verdicts"]:

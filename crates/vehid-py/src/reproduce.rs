@@ -12,7 +12,9 @@ use pyo3::types::{PyDict, PyList};
 use std::io::Write;
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
-use vehid_thesis::{run, CurveResult, FigureResult, Progress, Report, RunOptions, Table, TableRow, Verdict};
+use vehid_thesis::{
+    run, CurveResult, FigureResult, IdentifiedConstants, Progress, Report, RunOptions, Table, TableRow, Verdict,
+};
 
 /// Runs the reproduction and returns the report as nested dicts and lists (NaN and ±inf
 /// as floats).
@@ -131,6 +133,39 @@ fn curve_dict<'py>(py: Python<'py>, c: &CurveResult) -> PyResult<Bound<'py, PyDi
     ] {
         d.set_item(key, values.as_slice())?;
     }
+    match &c.constants {
+        Some(k) => d.set_item("constants", constants_dict(py, k)?)?,
+        None => d.set_item("constants", py.None())?,
+    }
+    Ok(d)
+}
+
+fn constants_dict<'py>(py: Python<'py>, c: &IdentifiedConstants) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("seed", c.seed)?;
+    d.set_item("method", c.method.as_str())?;
+    d.set_item("k", c.k.as_slice())?;
+    let known = PyList::empty(py);
+    for k in &c.known {
+        let e = PyDict::new(py);
+        e.set_item("name", k.name)?;
+        e.set_item("unit", k.unit)?;
+        e.set_item("value", k.value)?;
+        known.append(e)?;
+    }
+    d.set_item("known", known)?;
+    let series = PyList::empty(py);
+    for s in &c.constants {
+        let e = PyDict::new(py);
+        e.set_item("name", s.name)?;
+        e.set_item("unit", s.unit)?;
+        e.set_item("truth", s.truth)?;
+        e.set_item("value", s.value.as_slice())?;
+        e.set_item("lo", s.lo.as_slice())?;
+        e.set_item("hi", s.hi.as_slice())?;
+        series.append(e)?;
+    }
+    d.set_item("constants", series)?;
     Ok(d)
 }
 

@@ -10,7 +10,9 @@
 //!   claims as checkable [`Claim`]s;
 //! - [`seeds`]: the seed of every realization, derived from one base seed ([`job_seed`]);
 //! - [`runner`]: [`run`] walks the table, every curve over `S` seeds, in parallel (scoped
-//!   threads over a shared job counter), ξ_k (Eq 3.17 / 6.10) recorded on a fixed grid;
+//!   threads over a shared job counter), ξ_k (Eq 3.17 / 6.10) recorded on a fixed grid, and
+//!   along the first seed of every identifier curve the car's physical constants (M, k1, k2,
+//!   b of the quarter car; the half car's) with their 95 % intervals on a decimated grid;
 //! - [`stats`]: the median and 10–90 % band over seeds, and per seed the settle, reach and
 //!   minimum metrics;
 //! - `verdict`: each claim evaluated against the measurements;
@@ -49,8 +51,11 @@ pub use figures::{
     curve_name, select, Claim, Curve, Experiment, GainKind, Ident, ModelKind, ThesisClaim, DT, EXPERIMENTS,
     PULSE_AMPLITUDE, PULSE_START,
 };
-pub use report::{fmt_num, CurveResult, FigureResult, Report, Table, TableRow, Verdict};
-pub use runner::{run, Progress, RunOptions, QUICK_ITERATIONS};
+pub use report::{
+    fmt_num, ConstantSeries, CurveResult, FigureResult, IdentifiedConstants, KnownConstant, Report, Table, TableRow,
+    Verdict,
+};
+pub use runner::{run, Progress, RunOptions, CONSTANT_POINTS, QUICK_ITERATIONS};
 pub use seeds::job_seed;
 pub use stats::{median, quantile};
 pub use tables::{tables, EQ_4_28, EQ_4_32, EQ_4_34};

@@ -1,5 +1,6 @@
 //! What a reproduction produced: per figure the curves (median and band over seeds, per-seed
-//! metrics) and the verdicts, and the tables. Plain data: every type derives
+//! metrics, the physical constants identified along the first seed) and the verdicts, and
+//! the tables. Plain data: every type derives
 //! [`serde::Serialize`], and [`Report::to_json`] writes it with serde_json (the criterion
 //! bench times it; the Python binding converts the same fields to Python objects directly).
 //!
@@ -12,7 +13,10 @@
 //! (`#[serde(serialize_with)]` on every float series, not left to the serializer): a JSON
 //! reader sees "no finite value". In `settle` and `reach` `null` means never (∞); in the ξ
 //! series (`median`, `p10`, `p90`, `final_xi`, `min_xi`) it means no estimate or overflow;
-//! in `argmin`, no minimum. The scalar floats (σ, `seconds`) are always finite. The Rust
+//! in `argmin`, no minimum; in a curve's identified constants (`constants`: `value`, `lo`,
+//! `hi`) it means no estimate (or no positive constants from it) and, for `lo` and `hi`, no
+//! interval (an identifier without a covariance); `constants` itself is `null` for batch
+//! least squares. The scalar floats (σ, `seconds`, `truth`) are always finite. The Rust
 //! values and the Python binding's objects keep NaN and ±∞ as they are.
 //!
 //! `ident` and `model` are serialized as their Rust `Debug` text (e.g.
@@ -67,6 +71,62 @@ pub struct CurveResult {
     /// Per seed: Eq 4.36 reinitializations (Kalman), else 0.
     #[serde(serialize_with = "ser::non_finite_as_null")]
     pub reinits: Vec<f64>,
+    /// The car's physical constants identified along the curve's first realization (seed
+    /// index 0), with their 95 % intervals; `None` for batch least squares (Ch. III).
+    pub constants: Option<IdentifiedConstants>,
+}
+
+/// A constant of the car that the identification takes as known (it fixes the scale: the
+/// equations of motion determine only ratios of the constants).
+#[derive(Debug, Clone, Serialize)]
+pub struct KnownConstant {
+    /// The model's name of it (`QuarterCar::CONSTANTS` / `HalfCar::CONSTANTS`), e.g. `m`.
+    pub name: &'static str,
+    /// Its unit, e.g. `kg`.
+    pub unit: &'static str,
+    /// Its value (the thesis' car), in `unit`.
+    pub value: f64,
+}
+
+/// One identified physical constant along the iterations of [`IdentifiedConstants::k`].
+#[derive(Debug, Clone, Serialize)]
+pub struct ConstantSeries {
+    /// The model's name of it, e.g. `M`, `k1`, `k2`, `b` (quarter car, Eq 3.8–3.13).
+    pub name: &'static str,
+    /// Its unit: `kg` (masses), `kg·m²` (J), `N/m` (stiffnesses), `N·s/m` (dampings), `m`
+    /// (lever arms).
+    pub unit: &'static str,
+    /// The true value (the thesis' car), in `unit`.
+    pub truth: f64,
+    /// The estimate at each `k` (NaN: no estimate yet, the rows give no positive constants,
+    /// or the identifier diverged).
+    #[serde(serialize_with = "ser::non_finite_as_null")]
+    pub value: Vec<f64>,
+    /// Lower end of the 95 % interval at each `k` (NaN: the identifier keeps no covariance,
+    /// or the covariance is not defined yet).
+    #[serde(serialize_with = "ser::non_finite_as_null")]
+    pub lo: Vec<f64>,
+    /// Upper end of the 95 % interval at each `k` (NaN as for `lo`).
+    #[serde(serialize_with = "ser::non_finite_as_null")]
+    pub hi: Vec<f64>,
+}
+
+/// The physical constants identified along one realization of a curve (the runner's
+/// `constants` module documents the maps from the estimate and the intervals).
+#[derive(Debug, Clone, Serialize)]
+pub struct IdentifiedConstants {
+    /// The simulator seed of the realization (seed index 0 of the curve, [`crate::job_seed`]).
+    pub seed: u64,
+    /// How the constants and their intervals follow from the estimate, one line.
+    pub method: String,
+    /// The iterations recorded: a decimated subset of the figure's `k` (about
+    /// [`crate::CONSTANT_POINTS`] points, evenly spaced on a log and on a linear axis, the last
+    /// iteration always included).
+    pub k: Vec<u64>,
+    /// The constants held known.
+    pub known: Vec<KnownConstant>,
+    /// The identified constants, in the model's order of constants.
+    pub constants: Vec<ConstantSeries>,
 }
 
 /// A claim's verdict.

@@ -62,7 +62,7 @@ pub fn minimum(xi: &[f64], k: &[u64]) -> (f64, f64) {
 }
 
 /// Curve `index` of a figure over its seeds: median and 10–90 % band at every grid point `k`,
-/// and the per-seed metrics.
+/// the per-seed metrics, and the constants the first seed recorded.
 pub(crate) fn summarize(curve: &Curve, index: usize, traces: &[Trace], k: &[u64]) -> CurveResult {
     let n = k.len();
     let col = |i: usize| traces.iter().map(|t| t.xi[i]).collect::<Vec<f64>>();
@@ -86,6 +86,7 @@ pub(crate) fn summarize(curve: &Curve, index: usize, traces: &[Trace], k: &[u64]
         min_xi: vec![],
         argmin: vec![],
         reinits: vec![],
+        constants: traces.iter().find_map(|t| t.constants.clone()),
     };
     for t in traces {
         r.final_xi.push(t.xi.last().copied().unwrap_or(f64::NAN));

@@ -1,12 +1,14 @@
 //! The identifier of a curve, built from the figure table. Jobs drive it through
 //! vehid-core's common [`Identifier`] interface.
 
+use super::constants::{rows_constants, structure_constants, Car, Estimate};
 use crate::figures::{Curve, GainKind, Ident};
+use vehid_core::identify::TwoAxleIdentifier;
 use vehid_core::identify::{
     Dims, Fixed, Gain, Identifier, KalmanIdentifier, KalmanOptions, LsAccumulator, StochasticGradient,
     StructuredKalmanVec,
 };
-use vehid_core::model::{LinearModel, QuarterCar};
+use vehid_core::model::{LinearModel, PhysicalStructure, QuarterCar};
 
 /// What a rejected sample (an update that would overflow) means for the figure.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -18,8 +20,26 @@ pub(super) enum OnFailure {
     Diverged,
 }
 
+/// An identifier a job runs: vehid-core's [`Identifier`], and the map of its estimate to the
+/// car's physical constants (see the `constants` module).
+pub(super) trait JobIdentifier: Identifier<f64> + Send {
+    /// Every constant of `car` (model order) as `[value, lo, hi]` of its 95 % interval, from
+    /// the current estimate; by default through the identified rows of A.
+    fn constants_into(&self, car: &Car, out: &mut [Estimate]) {
+        rows_constants(self, car, out);
+    }
+}
+
+impl<const N: usize, const K: usize> JobIdentifier for LsAccumulator<f64, N, Fixed<K>> {}
+impl<const N: usize, const K: usize> JobIdentifier for KalmanIdentifier<f64, N, K> {}
+impl<const N: usize, const K: usize> JobIdentifier for StochasticGradient<f64, N, K> {}
+impl<const N: usize, const P: usize, const KB: usize, const C: usize> JobIdentifier
+    for TwoAxleIdentifier<f64, N, P, KB, C>
+{
+}
+
 /// The boxed identifier of a curve.
-pub(super) type Boxed = Box<dyn Identifier<f64> + Send>;
+pub(super) type Boxed = Box<dyn JobIdentifier>;
 
 pub(super) fn make_ident<const N: usize, const M: usize, const K: usize>(
     model: &LinearModel<f64, N, M>,
@@ -85,6 +105,8 @@ pub(super) fn make_ident<const N: usize, const M: usize, const K: usize>(
 #[derive(Debug, Clone)]
 struct PhysicalRows {
     inner: StructuredKalmanVec<f64, 2>,
+    /// The structure, for the constants and their intervals.
+    ph: PhysicalStructure<f64>,
     m: f64,
     /// Position of rows 1 and 3 among the structure's equations.
     eq_of_row: [usize; 2],
@@ -102,7 +124,15 @@ impl PhysicalRows {
         let rows = inner.rows();
         let pos = |r: usize| rows.iter().position(|&x| x == r).unwrap_or(0);
         let eq_of_row = [pos(1), pos(3)];
-        Ok(Self { inner, m, eq_of_row })
+        Ok(Self { inner, ph, m, eq_of_row })
+    }
+}
+
+impl JobIdentifier for PhysicalRows {
+    /// The constants straight from the structure's parameters (exact delta method), not
+    /// through the rows of A they are read back as.
+    fn constants_into(&self, _car: &Car, out: &mut [Estimate]) {
+        structure_constants(&self.inner, &self.ph, out);
     }
 }
 

@@ -1,18 +1,28 @@
 //! One job: one curve of one figure over one seed, simulated and identified sample by
 //! sample, ξ recorded on the grid.
 
+use super::constants::{rows_constants, Car, Recorder};
 use super::ident::{make_ident, OnFailure};
 use crate::figures::{Curve, Experiment, Ident, ModelKind, DT, PULSE_AMPLITUDE, PULSE_START};
+use crate::report::IdentifiedConstants;
 use vehid_core::identify::{TwoAxleConfig, TwoAxleIdentifier};
 use vehid_core::metrics::xi;
 use vehid_core::model::{HalfCar, LinearModel, QuarterCar};
 use vehid_core::nalgebra::{SMatrix, SVector};
 use vehid_core::sim::{Pulse, RoadConfig, RoadMode, RoadSimulator, SimConfig, Simulator};
 
-/// ξ of one job on the recording grid, and the Eq 4.36 reinitializations it made.
+/// ξ of one job on the recording grid, the Eq 4.36 reinitializations it made, and the
+/// physical constants if the job recorded them.
 pub(crate) struct Trace {
     pub(crate) xi: Vec<f64>,
     pub(crate) reinits: u32,
+    pub(crate) constants: Option<IdentifiedConstants>,
+}
+
+/// Whether a job of `curve` records the car's constants when asked to: every identifier but
+/// batch least squares (Ch. III's figures, which show ξ only).
+fn records_constants(curve: &Curve) -> bool {
+    !matches!(curve.ident, Ident::BatchLs)
 }
 
 fn run_job<const N: usize, const M: usize, const K: usize>(
@@ -22,6 +32,7 @@ fn run_job<const N: usize, const M: usize, const K: usize>(
     road: [f64; M],
     grid: &[u64],
     seed: u64,
+    mut rec: Option<Recorder>,
 ) -> crate::Result<Trace> {
     let mut cfg = SimConfig::<f64, N, M>::new(DT).ic_sigma(curve.ic).state_noise(curve.state).deriv_noise(curve.deriv);
     cfg.road_sigma = SVector::from(road);
@@ -64,8 +75,17 @@ fn run_job<const N: usize, const M: usize, const K: usize>(
             };
             out.push(v);
         }
+        if let Some(r) = rec.as_mut().filter(|r| r.wants(k)) {
+            let diverged = failed && on_failure == OnFailure::Diverged;
+            // A diverged estimate has no constants (ξ is infinite there).
+            r.record(|car, est| {
+                if !diverged {
+                    ident.constants_into(car, est)
+                }
+            });
+        }
     }
-    Ok(Trace { xi: out, reinits: ident.reinit_count() })
+    Ok(Trace { xi: out, reinits: ident.reinit_count(), constants: rec.map(Recorder::finish) })
 }
 
 fn half_road(kind: ModelKind, road: f64) -> [f64; 2] {
@@ -75,17 +95,29 @@ fn half_road(kind: ModelKind, road: f64) -> [f64; 2] {
     }
 }
 
-pub(super) fn simulate(exp: &Experiment, curve: &Curve, grid: &[u64], seed: u64) -> crate::Result<Trace> {
+/// One job: `curve` of `exp` on simulator seed `seed`, ξ on `grid`; with `constants` (and an
+/// identifier other than batch least squares) also the car's physical constants on a
+/// decimated grid (the `constants` module).
+pub(super) fn simulate(
+    exp: &Experiment,
+    curve: &Curve,
+    grid: &[u64],
+    seed: u64,
+    constants: bool,
+) -> crate::Result<Trace> {
+    let rec = |car: Car| (constants && records_constants(curve)).then(|| Recorder::new(car, &curve.ident, grid, seed));
     match exp.model {
         ModelKind::Quarter => {
             let car = QuarterCar::<f64>::thesis();
-            run_job::<4, 1, 2>(car.model(), car.theta(), curve, [curve.road], grid, seed)
+            let rec = rec(Car::Quarter(car));
+            run_job::<4, 1, 2>(car.model(), car.theta(), curve, [curve.road], grid, seed, rec)
         }
         ModelKind::HalfFront | ModelKind::HalfIndependent => {
             let car = HalfCar::<f64>::thesis();
-            run_job::<8, 2, 4>(car.model(), car.theta(), curve, half_road(exp.model, curve.road), grid, seed)
+            let rec = rec(Car::Half(car));
+            run_job::<8, 2, 4>(car.model(), car.theta(), curve, half_road(exp.model, curve.road), grid, seed, rec)
         }
-        ModelKind::HalfOneRoad => run_one_road(exp, curve, grid, seed),
+        ModelKind::HalfOneRoad => run_one_road(exp, curve, grid, seed, rec(Car::Half(HalfCar::thesis()))),
     }
 }
 
@@ -95,7 +127,13 @@ const ROAD_DELAY: usize = 10;
 const ROAD_SPEED: f64 = 6.0;
 
 /// The half car on one road (Fig 6-8, 6-9): road-by-distance simulation, two-axle identifier.
-fn run_one_road(exp: &Experiment, curve: &Curve, grid: &[u64], seed: u64) -> crate::Result<Trace> {
+fn run_one_road(
+    exp: &Experiment,
+    curve: &Curve,
+    grid: &[u64],
+    seed: u64,
+    mut rec: Option<Recorder>,
+) -> crate::Result<Trace> {
     let Ident::TwoAxle { method, p0_wheel, p0_body } = curve.ident else {
         return Err(crate::Error::InvalidArgument { arg: "ident", expected: "the two-axle identifier on one road" });
     };
@@ -129,6 +167,9 @@ fn run_one_road(exp: &Experiment, curve: &Curve, grid: &[u64], seed: u64) -> cra
             };
             out.push(v);
         }
+        if let Some(r) = rec.as_mut().filter(|r| r.wants(k)) {
+            r.record(|car, est| rows_constants(&id, car, est));
+        }
     }
-    Ok(Trace { xi: out, reinits: 0 })
+    Ok(Trace { xi: out, reinits: 0, constants: rec.map(Recorder::finish) })
 }

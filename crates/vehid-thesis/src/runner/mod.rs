@@ -1,10 +1,14 @@
 //! The runner: every curve of the selected figures over `S` seeds, in parallel (scoped
 //! threads over a shared job counter), ξ_k (Eq 3.17 / 6.10) recorded on a fixed grid, then
 //! the median and the 10–90 % band over seeds and each claim evaluated against the
-//! measurements.
+//! measurements. The first seed of every identifier curve also records the car's physical
+//! constants with their 95 % intervals on a decimated grid (`constants`).
 
+mod constants;
 mod ident;
 mod job;
+
+pub use constants::CONSTANT_POINTS;
 
 pub(crate) use job::Trace;
 
@@ -129,7 +133,7 @@ pub fn run(opts: &RunOptions, progress: &(dyn Fn(Progress<'_>) + Sync)) -> crate
                 let i = next.fetch_add(1, Ordering::Relaxed);
                 let Some(&(fi, ci, s)) = jobs.get(i) else { break };
                 let e = exps[fi];
-                let tr = simulate(e, &e.curves[ci], &grids[fi], job_seed(opts.base_seed, e, ci, s));
+                let tr = simulate(e, &e.curves[ci], &grids[fi], job_seed(opts.base_seed, e, ci, s), s == 0);
                 results.lock().unwrap_or_else(|p| p.into_inner())[i] = Some(tr);
                 let d = done.fetch_add(1, Ordering::Relaxed) + 1;
                 progress(Progress { done: d, total: jobs.len(), figure: e.id });
