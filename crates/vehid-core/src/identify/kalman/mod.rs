@@ -80,8 +80,8 @@ pub use build::{boxed_kalman, KalmanSpec, Prior};
 pub use full::FullKalmanIdentifierVec;
 pub use full::{FullKalmanIdentifier, KalmanFull};
 pub use options::{CovarianceForm, KalmanOptions, Mode};
-pub use row::RowIdentifier;
 pub(crate) use row::check_reset;
+pub use row::RowIdentifier;
 pub use rows::{KalmanIdentifier, KalmanRows};
 #[cfg(feature = "alloc")]
 pub use rows::{KalmanIdentifierVec, KalmanIdentifierVec2};

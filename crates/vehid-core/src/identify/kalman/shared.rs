@@ -595,7 +595,10 @@ impl<T: Real, const N: usize, S: Store<T, N>> Identifier<T> for KalmanShared<T, 
         let r1 = self.r.flat().first().copied().unwrap_or(T::one());
         let scale = p0 / r1;
         if !(scale > T::zero() && scale.finite()) {
-            return Err(Error::InvalidArgument { arg: "p0", expected: "a covariance whose ratio to r is finite and > 0" });
+            return Err(Error::InvalidArgument {
+                arg: "p0",
+                expected: "a covariance whose ratio to r is finite and > 0",
+            });
         }
         self.q = SMatrix::identity() * scale;
         Ok(())
