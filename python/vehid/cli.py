@@ -118,7 +118,13 @@ def run_chunks(
 
 def csv_header(n_states: int, n_inputs: int, distance: bool = False) -> List[str]:
     """Column names: ``t, x1..xn, dx1..dxn, true_x1.., true_dx1.., u1..`` and, for a run
-    sampled by distance (``--speed``), ``s`` (m travelled) last."""
+    sampled by distance (``--speed``), ``s`` (m travelled) last.
+
+    >>> csv_header(2, 1)
+    ['t', 'x1', 'x2', 'dx1', 'dx2', 'true_x1', 'true_x2', 'true_dx1', 'true_dx2', 'u1']
+    >>> csv_header(1, 1, distance=True)[-2:]
+    ['u1', 's']
+    """
     cols = ["t"]
     cols += [f"x{i}" for i in range(1, n_states + 1)]
     cols += [f"dx{i}" for i in range(1, n_states + 1)]
@@ -535,7 +541,18 @@ class Truth:
 
 
 def parse_truth(text: Optional[str], name: str) -> Optional[Truth]:
-    """``--truth thesis`` or ``--truth M=10,m=1,...`` (every constant of the model)."""
+    """``--truth thesis`` or ``--truth M=10,m=1,...`` (every constant of the model).
+
+    >>> truth = parse_truth("M=10, m=1, k1=90, k2=50, b=40", "quarter")
+    >>> truth.source, truth.constants["b"]
+    ('--truth M=10,m=1,k1=90,k2=50,b=40', 40.0)
+    >>> bool((truth.theta == parse_truth("thesis", "quarter").theta).all())
+    True
+    >>> parse_truth("M=10,m=1", "quarter")
+    Traceback (most recent call last):
+    ...
+    vehid.cli.CliError: --truth: missing k1, k2, b: give every constant of the quarter car ...
+    """
     if text is None:
         return None
     default = MODELS[name]()
@@ -601,7 +618,11 @@ class Progress:
 
 def parse_p0(text: str) -> Union[str, float, List[float]]:
     """``--p0``: ``"exact"`` (the exact start: least squares on the first samples, no prior)
-    or the prior covariance as :func:`parse_floats` reads it."""
+    or the prior covariance as :func:`parse_floats` reads it.
+
+    >>> parse_p0(" Exact "), parse_p0("1000"), parse_p0("1000,8")
+    ('exact', 1000.0, [1000.0, 8.0])
+    """
     if text.strip().lower() == "exact":
         return "exact"
     return parse_floats(text)
@@ -614,14 +635,28 @@ THESIS_P0 = 1000.0
 
 def kalman_p0(args: argparse.Namespace) -> Union[str, float, List[float]]:
     """The ``p0`` the Kalman identifier gets: the exact start unless the user chose a prior,
-    or the mode has no exact start (then the thesis' prior, and the report says so)."""
+    or the mode has no exact start (then the thesis' prior, and the report says so).
+
+    >>> kalman_p0(argparse.Namespace(p0="exact", mode="rows"))
+    'exact'
+    >>> kalman_p0(argparse.Namespace(p0="exact", mode="shared")), kalman_p0(argparse.Namespace(p0=8.0, mode="full"))
+    (1000.0, 8.0)
+    """
     if args.p0 == "exact" and args.mode != "rows":
         return THESIS_P0
     return cast(Union[str, float, List[float]], args.p0)
 
 
 def parse_floats(text: str) -> Union[float, List[float]]:
-    """``"1000"`` -> 1000.0; ``"1000,8"`` -> [1000.0, 8.0] (one value per unknown row)."""
+    """``"1000"`` -> 1000.0; ``"1000,8"`` -> [1000.0, 8.0] (one value per unknown row).
+
+    >>> parse_floats("1000"), parse_floats("1000, 8")
+    (1000.0, [1000.0, 8.0])
+    >>> parse_floats("1e3,x")
+    Traceback (most recent call last):
+    ...
+    argparse.ArgumentTypeError: expected a number or comma-separated numbers, got '1e3,x'
+    """
     try:
         values = [float(v) for v in text.split(",")]
     except ValueError:
@@ -630,6 +665,15 @@ def parse_floats(text: str) -> Union[float, List[float]]:
 
 
 def positive_float(text: str) -> float:
+    """An argparse type: a mass in kg, finite and positive (``--m``, ``--m1``, ``--m2``).
+
+    >>> positive_float("1.5")
+    1.5
+    >>> positive_float("0")
+    Traceback (most recent call last):
+    ...
+    argparse.ArgumentTypeError: expected a positive mass in kg, got '0'
+    """
     try:
         v = float(text)
     except ValueError:
@@ -640,7 +684,16 @@ def positive_float(text: str) -> float:
 
 
 def count(minimum: int) -> Callable[[str], int]:
-    """An argparse type: a whole number ``>= minimum``."""
+    """An argparse type: a whole number ``>= minimum``.
+
+    >>> at_least_2 = count(2)
+    >>> at_least_2("40000")
+    40000
+    >>> at_least_2("1")
+    Traceback (most recent call last):
+    ...
+    argparse.ArgumentTypeError: expected a whole number >= 2, got 1
+    """
 
     def parse(text: str) -> int:
         try:
@@ -660,7 +713,15 @@ _DELIMITER_NAMES = {"comma": ",", "semicolon": ";", "tab": "\t", "\\t": "\t", "p
 
 def delimiter(text: str) -> str:
     """An argparse type: ``,`` ``;`` ``tab`` ``|`` ``space`` (runs of spaces or tabs), or
-    another single punctuation character."""
+    another single punctuation character.
+
+    >>> delimiter("Tab"), delimiter(";"), delimiter("space") == WHITESPACE
+    ('\\t', ';', True)
+    >>> delimiter("x")
+    Traceback (most recent call last):
+    ...
+    argparse.ArgumentTypeError: expected one of , ; tab | space (or another punctuation character), got 'x'
+    """
     d = _DELIMITER_NAMES.get(text.lower(), text)
     if d == WHITESPACE or (len(d) == 1 and (d in ",;\t|" or (not d.isalnum() and d not in ".+-\"'#_ \r\n"))):
         return d
@@ -825,7 +886,15 @@ def cmd_identify_file(args: argparse.Namespace) -> int:
 
 
 def model_arg(text: str) -> str:
-    """``--model`` of identify: a built-in model or a model file."""
+    """``--model`` of identify: a built-in model or a model file.
+
+    >>> model_arg("half"), model_arg("rig.toml")
+    ('half', 'rig.toml')
+    >>> model_arg("car")
+    Traceback (most recent call last):
+    ...
+    argparse.ArgumentTypeError: invalid choice: 'car' (choose from half, quarter, or a model file NAME.toml)
+    """
     if text in MODELS or text.endswith(".toml"):
         return text
     raise argparse.ArgumentTypeError(
@@ -1045,6 +1114,16 @@ def columns_help() -> str:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``vehid`` argument parser: one subcommand each for ``simulate``, ``identify``,
+    ``monitor``, ``demo`` and ``reproduce``, with their defaults.
+
+    >>> args = build_parser().parse_args(["identify", "run.csv", "--model", "quarter", "--p0", "1000,8"])
+    >>> args.command, args.file, args.method, args.mode, args.p0, args.m
+    ('identify', 'run.csv', 'kalman', 'rows', [1000.0, 8.0], 1.0)
+    >>> args = build_parser().parse_args(["simulate", "--model", "half", "--speed", "6", "-o", "-"])
+    >>> args.n, args.spacing, args.road, args.seed
+    (40000, 0.3, 'white', 1)
+    """
     parser = Parser(prog="vehid", description="Online identification of vehicle suspension dynamics (Kessler 1986).")
     parser.add_argument("--version", action="version", version=f"vehid {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -1200,6 +1279,17 @@ def _fail(message: str, status: int = 2) -> int:
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
+    """Runs ``vehid`` with the arguments ``argv`` (default: the command line's) and returns
+    the exit status: 0, 2 for any error (one line on stderr), 130 for an interrupt.
+
+    >>> main(["simulate", "--model", "quarter", "--n", "2", "-o", "-"])  # doctest: +ELLIPSIS
+    t,x1,x2,x3,x4,dx1,dx2,dx3,dx4,true_x1,...,u1
+    0...
+    0.05...
+    0
+    >>> main(["identify", "no-such-file.csv", "--model", "quarter"])  # the error goes to stderr
+    2
+    """
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
