@@ -12,6 +12,8 @@
 #   make install-check  `pip install .` into a fresh venv in a temp dir (the pyproject backend
 #                 builds through maturin), then `vehid --help` and `vehid simulate | vehid
 #                 identify`, which must report xi (slow: a full release build; not in `test`)
+#   make wheel-check  the wheel as the release workflow builds it (maturin build --release, into dist/),
+#                 installed into a fresh venv: the README's examples run from outside the tree (not in `test`)
 #   make bench-python   Python-level overhead of KalmanIdentifier.update()/fit() against the
 #                 budgets (RUST_NS=<ns per sample from `cargo bench`> to compare with a measured figure)
 #   make bench-fit      Python fit() against the Rust update (fixed and heap forms) on the same data,
@@ -42,7 +44,7 @@ VENV   := .venv
 VBIN   := $(VENV)/bin
 CARGO  ?= cargo
 
-.PHONY: venv develop demo docs test lint test-rust test-python install-check bench-python bench-fit bench-peers bench-budgets bench-check bench-check-update soak fuzz clean
+.PHONY: venv develop demo docs test lint test-rust test-python install-check wheel-check bench-python bench-fit bench-peers bench-budgets bench-check bench-check-update soak fuzz clean
 
 venv: $(VENV)/.installed
 
@@ -112,6 +114,14 @@ install-check:
 	echo "$$out"; \
 	case "$$out" in *"xi (Eq 3.17"*) echo "install-check: ok";; \
 	  *) echo "install-check: FAILED: no xi in the output of vehid identify" >&2; exit 1;; esac
+
+# The wheel as the release workflow builds it (`maturin build --release`, abi3), installed into
+# a fresh venv with pip alone: from outside the source tree the README's Python examples run,
+# its console examples print what it shows, and simulate | identify reports xi (issue 16).
+wheel-check: venv
+	rm -rf dist
+	env -u CONDA_PREFIX $(VBIN)/maturin build --release --out dist
+	VEHID_WHEEL="$$(ls dist/vehid-*.whl)" $(VBIN)/python -m pytest -q -rs tests/test_install_check.py -k wheel
 
 # Python fit() against the Rust update on the same data, in one run (issue 11: <= 1.25x).
 bench-fit: develop
