@@ -1,9 +1,14 @@
 //! Two axles on one road (Ch. VI.D, issue 6): the asynchronous sampler's properties, the
-//! thesis' Fig 6-7/6-8/6-9 protocol, road cancellation, and varying speed.
+//! thesis' Fig 6-7/6-8/6-9 protocol, road cancellation, Eq 6.14 written again from the
+//! equations, and varying speed.
 //!
 //! Statistical claims run over 8 seeds and report medians with `eprintln!` (run with
 //! `cargo test -p vehid-core --test two_axle -- --nocapture` to see them; `--release` for
-//! the `#[ignore]`d heavier variants: `-- --ignored --nocapture`).
+//! the `#[ignore]`d heavier variants: `-- --ignored --nocapture`). Their bounds come with the
+//! distribution over many seeds that justifies them, measured by the ignored
+//! `two_axle_figures_over_seeds` (`SEED0=2000 SEEDS=200 cargo test --release -p vehid-core
+//! --test two_axle two_axle_figures_over_seeds -- --ignored --nocapture`; `N=20000 P0=1000`
+//! for the thesis protocol) and `sampler_pair_share_over_seeds`.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -119,17 +124,21 @@ fn over_seeds<R: Send>(n: u64, f: impl Fn(u64) -> R + Sync) -> Vec<R> {
 
 // ---- the sampler ----------------------------------------------------------------------
 
-/// One random speed profile through one sampler; checks every pair against the positions
-/// recorded here (not the sampler's own error figure). Returns (samples, pairs, worst error).
-fn sampler_case(rng: &mut Xoshiro256PlusPlus, positions: &mut Vec<f64>) -> (usize, usize, f64) {
+/// One random speed profile through one sampler; checks every pairing decision against the
+/// positions and grid points recorded here (not the sampler's own error figure), by the rule
+/// the sampler documents: a sample at `s` on grid point `g ≥ d` is paired exactly when a
+/// sample was taken on grid point `g − d`, at `s'` with `|(s − L) − s'| ≤ tolerance`.
+/// Returns (samples, pairs, pairs the rule expects, decisions within rounding of the
+/// tolerance (not compared), worst pair error / tolerance).
+fn sampler_case(rng: &mut Xoshiro256PlusPlus, taken: &mut Vec<(u64, f64)>) -> (usize, usize, usize, usize, f64) {
     let d = rng.random_range(1..=32usize);
     let wheelbase = rng.random_range(0.5..6.0);
     let spacing = wheelbase / d as f64;
     let tol = spacing * rng.random_range(0.001..0.2);
     let mut s = AxleSampler::<f64, 32>::new(wheelbase, spacing, tol).unwrap();
     assert_eq!(s.delay(), d);
-    positions.clear();
-    let (mut pairs, mut worst) = (0usize, 0.0f64);
+    taken.clear();
+    let (mut pairs, mut expected, mut borderline, mut worst) = (0usize, 0usize, 0usize, 0.0f64);
     let mut speed: f64 = 0.0;
     let before = allocs();
     for _ in 0..20_000 {
@@ -158,36 +167,102 @@ fn sampler_case(rng: &mut Xoshiro256PlusPlus, positions: &mut Vec<f64>) -> (usiz
             s.advance(speed, dt)
         };
         if let Some(t) = result.unwrap() {
-            assert_eq!(t.sample as usize, positions.len());
-            if positions.len() < positions.capacity() {
-                positions.push(t.position);
+            assert_eq!(t.sample as usize, taken.len());
+            assert!(taken.len() < taken.capacity(), "the record would allocate");
+            // The rule, from what was recorded: the sample on grid point g − d, if any.
+            let partner = t
+                .grid
+                .checked_sub(d as u64)
+                .and_then(|want| taken.binary_search_by_key(&want, |&(g, _)| g).ok().map(|i| (i, taken[i].1)));
+            let err = partner.map(|(_, at)| ((t.position - wheelbase) - at).abs());
+            match err {
+                // Within rounding of the tolerance either decision is right.
+                Some(e) if (e - tol).abs() <= 1e-12 * wheelbase.max(t.position) => borderline += 1,
+                _ => {
+                    let due = err.is_some_and(|e| e <= tol);
+                    assert_eq!(
+                        t.pair.is_some(),
+                        due,
+                        "sample {} on grid point {}: paired {:?}, the rule says {due} \
+                        (partner {partner:?}, error {err:?}, tolerance {tol})",
+                        t.sample,
+                        t.grid,
+                        t.pair
+                    );
+                    expected += usize::from(due);
+                }
             }
+            taken.push((t.grid, t.position));
             if let Some(p) = t.pair {
-                let err = ((t.position - wheelbase) - positions[p.sample as usize]).abs();
+                let at = taken[p.sample as usize].1;
+                let err = ((t.position - wheelbase) - at).abs();
                 assert!(err <= tol * (1.0 + 1e-12), "pair error {err} > tolerance {tol}");
                 assert_eq!(p.grid + d as u64, t.grid);
+                assert_eq!(Some(p.sample as usize), partner.map(|(i, _)| i));
                 worst = worst.max(err / tol);
                 pairs += 1;
             }
         }
     }
     assert_eq!(allocs(), before, "the sampler allocated");
-    (positions.len(), pairs, worst)
+    (taken.len(), pairs, expected, borderline, worst)
+}
+
+/// The 60 random profiles of `sampler_random_profiles_…` from one seed of their generator:
+/// (samples, pairs, pairs the rule expects, decisions not compared, worst error / tolerance).
+fn sampler_profiles(seed: u64) -> (usize, usize, usize, usize, f64) {
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
+    let mut taken = Vec::with_capacity(20_001);
+    let mut total = (0, 0, 0, 0, 0.0f64);
+    for _ in 0..60 {
+        let (n, p, e, b, w) = sampler_case(&mut rng, &mut taken);
+        total = (total.0 + n, total.1 + p, total.2 + e, total.3 + b, total.4.max(w));
+    }
+    total
 }
 
 #[test]
 fn sampler_random_profiles_never_pair_beyond_tolerance_never_allocate() {
-    let mut rng = Xoshiro256PlusPlus::seed_from_u64(2024);
-    let mut positions = Vec::with_capacity(1_000_000);
-    let (mut samples, mut pairs, mut worst) = (0, 0, 0.0f64);
-    for _ in 0..60 {
-        let (n, p, w) = sampler_case(&mut rng, &mut positions);
-        samples += n;
-        pairs += p;
-        worst = worst.max(w);
-    }
-    eprintln!("sampler property: 60 random profiles, {samples} samples, {pairs} pairs, worst pair error {worst:.3} × tolerance");
-    assert!(pairs > samples / 4, "too few pairs: {pairs} of {samples}");
+    // Both sides of the pairing rule, decision by decision: never a pair beyond the
+    // tolerance, and never a pair missed that the rule makes (a sample on grid point g − d
+    // within tolerance). This replaces a count (`pairs > samples / 4`: 47,176 pairs against
+    // the bound 45,676 on this seed), which was arbitrary and thin: over the generator's
+    // seeds 1–100 the pairs are 19.7–39.2 % of the samples (median 26.0 %; 35 seeds at or
+    // below a quarter: `sampler_pair_share_over_seeds`), so the count said nothing a correct
+    // sampler guarantees. Measured on this seed: 47,176 pairs, all 47,176 the rule makes, no
+    // decision within rounding of the tolerance.
+    let (samples, pairs, expected, borderline, worst) = sampler_profiles(2024);
+    eprintln!(
+        "sampler property: 60 random profiles, {samples} samples, {pairs} pairs (the rule: {expected}, \
+         {borderline} within rounding of the tolerance), worst pair error {worst:.3} × tolerance"
+    );
+    assert!(
+        pairs >= expected && pairs <= expected + borderline,
+        "{pairs} pairs, the rule: {expected} (+ {borderline})"
+    );
+    assert!(pairs > 0 && pairs < samples, "{pairs} pairs of {samples} samples: both cases must occur");
+}
+
+#[test]
+#[ignore = "a measurement: run with --release -- --ignored --nocapture"]
+fn sampler_pair_share_over_seeds() {
+    // The share of samples paired in the 60 random profiles, over the generator's seeds
+    // 1–100 (the property test above uses 2024).
+    let mut shares: Vec<f64> = (1..=100)
+        .map(|seed| {
+            let (n, p, e, b, _) = sampler_profiles(seed);
+            assert!(p >= e && p <= e + b);
+            p as f64 / n as f64
+        })
+        .collect();
+    shares.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    let quarter = shares.iter().filter(|&&v| v <= 0.25).count();
+    eprintln!(
+        "pairs / samples over 100 seeds: min {:.3}, median {:.3}, max {:.3}; {quarter} seeds at or below 1/4",
+        shares[0],
+        median(&mut shares.clone()),
+        shares[99]
+    );
 }
 
 #[test]
@@ -258,20 +333,50 @@ fn road_cancellation_over_8_seeds() {
     let mut none: Vec<f64> = white.iter().map(|r| r[0].0[0] + r[0].0[1]).collect();
     let mut cancel: Vec<f64> = white.iter().map(|r| r[1].0[0] + r[1].0[1]).collect();
     let mut ratio: Vec<f64> = none.iter().zip(&cancel).map(|(a, b)| a / b).collect();
-    let worst = white.iter().map(|r| r[1].1).fold(0.0, f64::max);
+    let mut worst: Vec<f64> = white.iter().map(|r| r[1].1).collect();
     eprintln!(
-        "road cancellation, {SEEDS} seeds × {n} samples: wheel-row ξ median {:.3e} (none {:.3e}), median ratio {:.0}×, worst wheel parameter {:.1} %",
+        "road cancellation, {SEEDS} seeds × {n} samples: wheel-row ξ median {:.3e} (none {:.3e}), median ratio {:.0}×, \
+         worst wheel parameter median {:.1} %, largest {:.1} %",
         median(&mut cancel),
         median(&mut none),
         median(&mut ratio),
-        100.0 * worst
+        100.0 * median(&mut worst),
+        100.0 * worst.iter().fold(0.0f64, |a, &b| a.max(b))
     );
-    for (s, r) in white.iter().enumerate() {
-        let (x, w) = r[1];
-        assert!(x[0] + x[1] <= 0.05, "seed {}: cancel wheel ξ {}", s + 1, x[0] + x[1]);
-        assert!(w < 0.10, "seed {}: a wheel parameter off by {:.1} %", s + 1, 100.0 * w);
+    check_cancellation_acceptance(&white.iter().map(|r| r[1]).collect::<Vec<_>>(), &ratio);
+}
+
+/// Issue 6's acceptance for road cancellation (thesis protocol, 20,000 samples), over the
+/// seeds' results (row ξ, worst wheel parameter): as issue 6 states it, in medians over the
+/// seeds, the wheel rows' share of ξ ≤ 0.05, every wheel parameter within 10 %, and ≥ 10×
+/// smaller wheel-row ξ than the plain rows (`ratio`: plain / cancelled per seed); and per seed
+/// that no run is far off.
+///
+/// Measured over seeds 1–400 (`two_axle_figures_over_seeds` with N=20000 P0=1000): the worst
+/// of the 14 non-zero wheel parameters has median 4.9 %, 90th percentile 8.4 %, maximum
+/// 17.7 %, and 17 of the 400 seeds (4 %) have one beyond 10 %; the wheel-row ξ median 4.9e-3,
+/// maximum 0.066 (one seed above 0.05). So "within 10 % on every seed", which this test used
+/// to assert, held on seeds 1–8 (largest 8.5 %) by the draw: 14 of the 50 disjoint groups of
+/// eight seeds in 1–400 have a seed beyond 10 %. The medians are what holds: over those 50
+/// groups the median worst parameter is 2.5–6.8 % (bound 10 %), the median wheel-row ξ at
+/// most 0.011 (bound 0.05). Per seed the bounds are about twice the largest of the 400:
+/// wheel-row ξ ≤ 0.15, worst parameter ≤ 30 %. Checked on 400 seeds never looked at
+/// before (5001–5400): per seed at most 0.040 and 16.9 % (17 seeds beyond 10 % again); the
+/// medians of their 50 groups of eight 2.4–7.7 % and at most 0.0097.
+fn check_cancellation_acceptance(runs: &[([f64; 4], f64)], ratio: &[f64]) {
+    for (s, (x, w)) in runs.iter().enumerate() {
+        assert!(x[0] + x[1] <= 0.15, "seed {}: cancel wheel ξ {}", s + 1, x[0] + x[1]);
+        assert!(*w <= 0.30, "seed {}: a wheel parameter off by {:.1} %", s + 1, 100.0 * w);
     }
-    assert!(median(&mut ratio) >= 10.0);
+    let mut xi: Vec<f64> = runs.iter().map(|(x, _)| x[0] + x[1]).collect();
+    let mut worst: Vec<f64> = runs.iter().map(|r| r.1).collect();
+    assert!(median(&mut xi) <= 0.05, "median wheel-row ξ {}", median(&mut xi));
+    assert!(median(&mut worst) < 0.10, "median worst wheel parameter {:.1} %", 100.0 * median(&mut worst));
+    assert!(
+        median(&mut ratio.to_vec()) >= 10.0,
+        "plain / cancelled wheel-row ξ: median {}",
+        median(&mut ratio.to_vec())
+    );
 }
 
 #[test]
@@ -317,15 +422,141 @@ fn fig_6_7_to_6_9_and_road_cancellation_over_8_seeds() {
         fig69[1],
         fig69[1] / fig68[1]
     );
-    // Acceptance (issue 6): wheel rows within 10 % (share of ξ ≤ 0.05) on every seed, and
-    // at least 10× smaller wheel-row error than the plain rows.
-    for s in 0..SEEDS as usize {
-        let (x, worst) = white[s][2];
-        assert!(x[0] + x[1] <= 0.05, "seed {}: cancel wheel ξ {}", s + 1, x[0] + x[1]);
-        assert!(worst < 0.10, "seed {}: a wheel parameter off by {:.1} %", s + 1, 100.0 * worst);
-    }
+    // Acceptance (issue 6), as `road_cancellation_over_8_seeds` checks it.
+    let ratios: Vec<f64> = white
+        .iter()
+        .map(|r| {
+            let (a, b) = (r[0].0, r[2].0);
+            (a[0] + a[1]) / (b[0] + b[1])
+        })
+        .collect();
+    check_cancellation_acceptance(&white.iter().map(|r| r[2]).collect::<Vec<_>>(), &ratios);
     assert!(cancel[0] + cancel[1] <= 0.05);
     assert!(ratio >= 10.0, "none / cancel = {ratio}");
+}
+
+/// ξ of the rear wheel row after `n` samples of one seed, for each method, with `P(0) = p0 I`
+/// on every row.
+fn rear_row_xi(mode: RoadMode, seed: u64, n: usize, p0: f64, methods: &[WheelMethod]) -> Vec<f64> {
+    let car = HalfCar::<f64>::thesis();
+    let mut sim = road_sim(mode, seed);
+    let mut ids: Vec<Id> =
+        methods.iter().map(|&m| Id::new(&car.model(), D, TwoAxleConfig::new(m, p0, 0.1, 0.005)).unwrap()).collect();
+    for _ in 0..n {
+        let s = sim.next_sample(6.0).unwrap();
+        for id in ids.iter_mut() {
+            id.update(&s.r, &s.z).unwrap();
+        }
+    }
+    ids.iter().map(|id| row_errors(id).0[1]).collect()
+}
+
+#[test]
+fn fig_6_8_rear_row_bias_appears_on_one_road_and_cancellation_removes_it() {
+    // Fig 6-8, two-sided and cheap. On one road the rear input u2(k) = u1(k − d) is a past
+    // front input, which the state remembers: the plain rear row is biased. With the thesis'
+    // P(0) = 1000 that bias hides behind slow convergence for > 10^5 samples (r/p0 = 0.08
+    // for a wheel row against λ_min(Σ x xᵀ) ≈ 5e-3 after 20,000 samples: the prior holds the
+    // weakly excited direction near 0; the ignored 200,000-sample run below shows it there).
+    // With P(0) = 10^6 I (r/p0 = 8e-5) every row is least squares on its samples within a few
+    // thousand, so 10,000 samples tell bias from scatter: the same plain rows on two
+    // independent roads (Fig 6-7: the only change is that the roads are not shared) are the
+    // unbiased reference, road cancellation the cure.
+    //
+    // Bounds (per seed), chosen on seeds 1–8, whose extremes are: one road ≥ 1.49e4, ratio
+    // to independent roads ≥ 155, cancelled ≤ 7.8e-3. A factor 4 or 5 from each; then 200
+    // more seeds (1001–1200) gave 1.43e4, 64 and 0.026, the last too near 4 × 7.8e-3, so the
+    // cancellation bound went to 0.1. Checked on 200 seeds never looked at before (2001–2200,
+    // release build): one-road rear ξ min 1.47e4 (bound 3,000: margin × 4.9), ratio min 98
+    // (bound 30: × 3.3), cancelled max 0.036 (bound 0.1: × 2.8); medians 1.7e4, 1,244, 3.9e-3.
+    let (n, p0) = (10_000, 1e6);
+    let runs = over_seeds(SEEDS, |seed| {
+        let one = rear_row_xi(RoadMode::White, seed, n, p0, &[WheelMethod::None, WheelMethod::Cancel]);
+        let indep = rear_row_xi(RoadMode::Independent, seed, n, p0, &[WheelMethod::None]);
+        (one[0], indep[0], one[1])
+    });
+    for (s, &(plain, indep, cancel)) in runs.iter().enumerate() {
+        eprintln!(
+            "seed {}: rear-row ξ, one road {plain:.3e}, independent roads {indep:.3e}, cancelled {cancel:.2e}",
+            s + 1
+        );
+        assert!(
+            plain >= 3000.0 && plain >= 30.0 * indep,
+            "seed {}: no rear-row bias on one road: ξ {plain:e} \
+            against {indep:e} on independent roads",
+            s + 1
+        );
+        assert!(cancel <= 0.1, "seed {}: road cancellation leaves rear-row ξ {cancel:e}", s + 1);
+    }
+}
+
+/// Reads a number from the environment variable `name`, else `default`.
+fn env_or<T: std::str::FromStr>(name: &str, default: T) -> T {
+    std::env::var(name).ok().and_then(|v| v.parse().ok()).unwrap_or(default)
+}
+
+#[test]
+#[ignore = "a measurement over many seeds: run with --release -- --ignored --nocapture (SEED0, SEEDS, N, P0)"]
+fn two_axle_figures_over_seeds() {
+    // The distributions behind the bounds of `fig_6_8_rear_row_bias_…` (defaults: its
+    // n = 10,000 and P(0) = 10^6) and of `road_cancellation_over_8_seeds` (N=20000 P0=1000):
+    // seeds SEED0+1 ..= SEED0+SEEDS, eight at a time on two threads.
+    let (n, p0): (usize, f64) = (env_or("N", 10_000), env_or("P0", 1e6));
+    let (seed0, seeds): (u64, u64) = (env_or("SEED0", 0), env_or("SEEDS", 8));
+    let car = HalfCar::<f64>::thesis();
+    let mut rows = Vec::new();
+    for chunk in 0..seeds.div_ceil(8) {
+        rows.extend(over_seeds(8.min(seeds - 8 * chunk), |s| {
+            let seed = seed0 + 8 * chunk + s;
+            let run = |mode, methods: &[WheelMethod]| {
+                let mut sim = road_sim(mode, seed);
+                let mut ids: Vec<Id> = methods
+                    .iter()
+                    .map(|&m| Id::new(&car.model(), D, TwoAxleConfig::new(m, p0, 0.1, 0.005)).unwrap())
+                    .collect();
+                for _ in 0..n {
+                    let s = sim.next_sample(6.0).unwrap();
+                    for id in ids.iter_mut() {
+                        id.update(&s.r, &s.z).unwrap();
+                    }
+                }
+                ids.iter().map(row_errors).collect::<Vec<_>>()
+            };
+            let one = run(RoadMode::White, &[WheelMethod::None, WheelMethod::Cancel]);
+            let indep = run(RoadMode::Independent, &[WheelMethod::None]);
+            let (plain, cancel, indep) = (one[0].0[1], one[1].0[1], indep[0].0[1]);
+            [plain, indep, plain / indep, cancel, one[1].0[0] + one[1].0[1], one[1].1]
+        }));
+    }
+    eprintln!("{n} samples, P(0) = {p0}, seeds {}..={}:", seed0 + 1, seed0 + seeds);
+    let names = [
+        "rear ξ, one road, plain rows",
+        "rear ξ, independent roads, plain rows",
+        "ratio one road / independent",
+        "rear ξ, one road, cancelled",
+        "wheel-row ξ, cancelled",
+        "worst wheel parameter, cancelled",
+    ];
+    for (k, name) in names.iter().enumerate() {
+        let mut v: Vec<f64> = rows.iter().map(|r| r[k]).collect();
+        v.sort_by(|a, b| a.partial_cmp(b).unwrap());
+        let q = |f: f64| v[((v.len() - 1) as f64 * f).round() as usize];
+        eprintln!(
+            "  {name:<38} min {:.3e}  p10 {:.3e}  median {:.3e}  p90 {:.3e}  max {:.3e}",
+            v[0],
+            q(0.1),
+            q(0.5),
+            q(0.9),
+            v[v.len() - 1]
+        );
+    }
+    if env_or("PER_SEED", 0) == 1 {
+        for (i, r) in rows.iter().enumerate() {
+            eprintln!("  seed {}: {}", seed0 + 1 + i as u64, r.map(|v| format!("{v:.4e}")).join(" "));
+        }
+    }
+    let over = rows.iter().filter(|r| r[5] >= 0.10).count();
+    eprintln!("  seeds with a cancelled wheel parameter off by 10 % or more: {over} of {seeds}");
 }
 
 #[test]
@@ -356,6 +587,13 @@ fn fig_6_8_long_runs_separate_bias_from_slow_convergence() {
             100.0 * med(&|s| get(s).1)
         );
     }
+    // The thesis' protocol shows the bias too, given the samples (measured, seeds 1–8: rear
+    // ξ medians 0.60 on independent roads, 192 on one road, 2.4e-4 cancelled). The cheap
+    // check of the same claim, run by `make test`, is `fig_6_8_rear_row_bias_appears_…`.
+    let (indep_rear, plain_rear, cancel_rear) =
+        (med(&|s| indep[s][0].0[1]), med(&|s| white[s][0].0[1]), med(&|s| white[s][2].0[1]));
+    assert!(plain_rear >= 30.0 * indep_rear, "one road {plain_rear:e}, independent roads {indep_rear:e}");
+    assert!(cancel_rear <= 0.01, "cancelled rear ξ {cancel_rear:e}");
 }
 
 // ---- varying speed, sampler-driven ------------------------------------------------------
@@ -484,4 +722,98 @@ fn two_axle_rejects_bad_input_and_stays_unchanged() {
     let a = id.a_hat();
     assert_eq!(a[(0, 1)], 1.0);
     assert_eq!(a.row(1), id.theta::<4>().unwrap().row(0));
+}
+
+// ---- Eq 6.14, written again from the equations ---------------------------------------------
+
+/// One row of Eq 4.3–4.7 as the thesis writes it, in plain Rust (no code of the crate):
+/// `e = z − xᵀθ`, `s = xᵀPx + r`, `θ ← θ + P x e / s`, `P ← P − (P x)(P x)ᵀ / s`.
+struct PlainRow {
+    theta: [f64; 8],
+    p: [[f64; 8]; 8],
+    r: f64,
+}
+
+impl PlainRow {
+    fn new(p0: f64, r: f64) -> Self {
+        let mut p = [[0.0; 8]; 8];
+        for (i, row) in p.iter_mut().enumerate() {
+            row[i] = p0;
+        }
+        Self { theta: [0.0; 8], p, r }
+    }
+
+    /// `xᵀθ` (the prediction before this sample).
+    fn predict(&self, x: &[f64; 8]) -> f64 {
+        (0..8).map(|j| x[j] * self.theta[j]).sum()
+    }
+
+    /// One measurement update with the innovation `e` already formed.
+    fn step(&mut self, x: &[f64; 8], e: f64) {
+        let px: Vec<f64> = (0..8).map(|a| (0..8).map(|b| self.p[a][b] * x[b]).sum()).collect();
+        let s: f64 = (0..8).map(|a| x[a] * px[a]).sum::<f64>() + self.r;
+        for a in 0..8 {
+            self.theta[a] += px[a] * e / s;
+            for b in 0..8 {
+                self.p[a][b] -= px[a] * px[b] / s;
+            }
+        }
+    }
+}
+
+#[test]
+fn thesis_wheel_method_is_eq_6_14_step_by_step() {
+    // Eq 6.12–6.14 (the "thesis" wheel method), from the thesis' equations only: the front
+    // row's innovation e1(k) = z2 − xᵀθ̂_2 estimates the road, and the rear row's is
+    // e2(k) = z4 − xᵀθ̂_4 − ρ·e1(k − d), ρ = b42 / b21 (rear over front tyre entry of B:
+    // k21/m2 over k11/m1, Eq 6.2 and 6.4, from the car's constants, not from the model the
+    // identifier builds). Both rows are the plain Kalman rows of Eq 4.3–4.7 with
+    // r = σ_v² + b² σ_u² and P(0) = 1000 I; the rear row takes no step before its first pair.
+    // Compared at every sample: both innovations the identifier returns and both rows of θ̂.
+    let car = HalfCar::<f64>::thesis();
+    let c = car.params();
+    let (b21, b42) = (c.k11 / c.m1, c.k21 / c.m2);
+    let rho = b42 / b21;
+    let (su, sv, p0) = (0.1f64, 0.005f64, 1000.0);
+    let d = (WHEELBASE / SPACING).round() as usize;
+    assert_eq!(d, D);
+    let mut front = PlainRow::new(p0, sv * sv + b21 * b21 * su * su);
+    let mut rear = PlainRow::new(p0, sv * sv + b42 * b42 * su * su);
+    let mut e1_past = Vec::new();
+    let mut id = identifier(WheelMethod::Thesis);
+    let mut sim = road_sim(RoadMode::White, 31);
+    let mut e = [0.0; 4];
+    // Rounding: the reference sums in another order, so the two differ by rounding only
+    // (measured on this seed: 1.1e-14 of the innovations' scale, 1.6e-15 of the rows'). The
+    // bound 1e-9 is far above that and far below a change of the equation: a flipped sign
+    // changes e2 by 2ρ·e1(k − d), the size of the innovations themselves, at the first pair.
+    let (mut worst_e, mut worst_theta) = (0.0f64, 0.0f64);
+    for k in 0..3000 {
+        let s = sim.next_sample(6.0).unwrap();
+        let x: [f64; 8] = core::array::from_fn(|j| s.r[j]);
+        let e1 = s.z[1] - front.predict(&x);
+        front.step(&x, e1);
+        let e2 = if k >= d {
+            let e2 = s.z[3] - rear.predict(&x) - rho * e1_past[k - d];
+            rear.step(&x, e2);
+            e2
+        } else {
+            0.0
+        };
+        e1_past.push(e1);
+        let paired = id.update_next(&s.r, &s.z, &mut e).unwrap();
+        assert_eq!(paired, k >= d, "sample {k}");
+        let scale = s.z[1].abs().max(s.z[3].abs()).max(1.0);
+        let de = (e[0] - e1).abs().max((e[1] - e2).abs()) / scale;
+        assert!(de <= 1e-9, "sample {k}: innovations (e1, e2) = ({}, {}), Eq 6.13/6.14 give ({e1}, {e2})", e[0], e[1]);
+        let theta = id.theta::<4>().unwrap();
+        for (row, plain) in [(0, &front.theta), (1, &rear.theta)] {
+            let norm = plain.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1.0);
+            let dt = (0..8).map(|j| (theta[(row, j)] - plain[j]).abs()).fold(0.0, f64::max) / norm;
+            assert!(dt <= 1e-9, "sample {k}: row {row} of θ̂ differs from Eq 6.14's by {dt:e} (relative)");
+            worst_theta = worst_theta.max(dt);
+        }
+        worst_e = worst_e.max(de);
+    }
+    eprintln!("Eq 6.14 step by step, 3000 samples: largest relative difference: innovations {worst_e:.1e}, rows {worst_theta:.1e}");
 }
