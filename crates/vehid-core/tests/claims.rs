@@ -554,3 +554,268 @@ fn whole_matrix_covariances_stay_exactly_symmetric() {
     assert!(full.p_block(0, 0).iter().all(|v| *v != 0.0) && full.p_block(0, 1).iter().all(|v| *v != 0.0));
     assert!(row.iter().all(|f| f.p().iter().all(|v| *v != 0.0)));
 }
+
+// ---------------------------------------------------------------------------------------
+// What every identifier reports about itself (gaps found by `make mutants`)
+// ---------------------------------------------------------------------------------------
+
+/// Every identifier names the state rows it identifies (`rows()`) and, where it keeps them,
+/// its independent parameter groups (`groups_into`, which `estimate_stats` relies on): for
+/// the quarter car's full rows 1 and 3, rows `[1, 3]`, parameters 0–3 in one group and 4–7 in
+/// the other, equation `i` in group `i`. Written from the thesis' row layout (θ row-major,
+/// Eq 2.1–2.4), not read from any identifier.
+#[test]
+fn every_identifier_reports_its_rows_and_parameter_groups() {
+    let rows = [1usize, 3];
+    let r = [81.0, 2.5e-5];
+    let o = KalmanOptions::default();
+    let full = || Structure::full_rows(4, &rows).unwrap();
+    let ids: Vec<(&str, Box<dyn Identifier<f64>>)> = vec![
+        ("rows", Box::new(KalmanIdentifier::<f64, 4, 2>::from_slices(&rows, &[1000.0], &r, o).unwrap())),
+        ("rows vec", Box::new(KalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &r, o).unwrap())),
+        ("rows exact", Box::new(KalmanIdentifierVec::<f64, 4>::exact(&rows, &r, o).unwrap())),
+        ("shared", Box::new(SharedKalmanIdentifier::<f64, 4, 2>::from_slices(&rows, &[1000.0], &[0.3], o).unwrap())),
+        ("full", Box::new(FullKalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &r, o).unwrap())),
+        (
+            "SG",
+            Box::new(StochasticGradient::<f64, 4, 2>::from_slices(&rows, Gain::Lyapunov, &[1.0], &[0.0], 1).unwrap()),
+        ),
+        (
+            "SG vec",
+            Box::new(StochasticGradientVec::<f64, 4>::from_slices(&rows, Gain::Lyapunov, &[1.0], &[0.0], 1).unwrap()),
+        ),
+        ("batch LS", Box::new(BatchLeastSquares::<f64, 4>::new(&rows).unwrap())),
+        (
+            "structured",
+            Box::new(StructuredKalmanVec::<f64, 8>::new(full(), StructuredPrior::Scalar(1000.0), None, &r, o).unwrap()),
+        ),
+        (
+            "structured SG",
+            Box::new(StructuredGradient::<f64, 8>::new(full(), Gain::Lyapunov, &[1.0], None, 1).unwrap()),
+        ),
+        ("IV", Box::new(IvIdentifierVec::<f64, 8>::full_rows(4, &rows, 1, StructuredPrior::Exact, &[1.0]).unwrap())),
+        ("bias compensated", Box::new(BiasCompensatedVec::<f64, 8>::new(full(), &[1e-6], &[], &[1.0]).unwrap())),
+    ];
+    for (name, id) in &ids {
+        assert_eq!(id.rows(), &rows, "{name}: rows()");
+        let d = id.dims();
+        assert_eq!((d.states, d.equations, d.params), (4, 2, 8), "{name}: dims()");
+        let (mut gp, mut ge) = ([usize::MAX; 8], [usize::MAX; 2]);
+        match id.groups_into(&mut gp, &mut ge) {
+            Ok(()) => {
+                assert_eq!(gp, [0, 0, 0, 0, 1, 1, 1, 1], "{name}: groups of the parameters");
+                assert_eq!(ge, [0, 1], "{name}: groups of the equations");
+            }
+            Err(e) => panic!("{name}: groups_into: {e}"),
+        }
+    }
+}
+
+/// `fit` over a batch with measured inputs (the `Samples` iterator steps `x`, `z` and `u`
+/// together) gives exactly the estimate of the same samples fed one by one with
+/// `update_into`: a structure with an input, `v̇ = a·τ − b·v`.
+#[test]
+fn fit_with_measured_inputs_equals_the_samples_one_by_one() {
+    use vehid_core::identify::Samples;
+    use vehid_core::structure::StructureBuilder;
+    let st =
+        || StructureBuilder::new(&["q", "v"], &["tau"]).equation("v", "a*tau - b*v").known("q", "v").build::<f64>();
+    let make = || {
+        StructuredKalmanVec::<f64, 8>::new(
+            st().unwrap().0,
+            StructuredPrior::Exact,
+            None,
+            &[1.0],
+            KalmanOptions::default(),
+        )
+    };
+    let (mut one, mut batch) = (make().unwrap(), make().unwrap());
+    let (mut x, mut z, mut u) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut q, mut v) = (0.0f64, 0.0f64);
+    for k in 0..200 {
+        let tau = (0.37 * k as f64).sin() + 0.5 * (0.11 * k as f64).cos();
+        let dv = 2.0 * tau - 0.8 * v + 0.01 * (1.3 * k as f64).sin();
+        x.extend_from_slice(&[q, v]);
+        z.extend_from_slice(&[v, dv]);
+        u.push(tau);
+        q += 0.05 * v;
+        v += 0.05 * dv;
+    }
+    let mut e = [0.0; 1];
+    for k in 0..200 {
+        one.update_into(&x[2 * k..2 * k + 2], &z[2 * k..2 * k + 2], &u[k..k + 1], &mut e).unwrap();
+    }
+    let samples = Samples::new(2, 1, &x, &z, &u).unwrap();
+    batch.fit(&samples, |_, _, _| core::ops::ControlFlow::Continue(())).unwrap();
+    assert_eq!(batch.samples(), 200, "fit stopped early");
+    let (mut a, mut b) = ([0.0; 2], [0.0; 2]);
+    one.params_into(&mut a).unwrap();
+    batch.params_into(&mut b).unwrap();
+    assert_eq!(a.map(f64::to_bits), b.map(f64::to_bits), "fit {b:?} against update_into {a:?}");
+}
+
+/// `estimate_stats` is ordinary least squares' statistics (statsmodels' `OLS(...).fit()`):
+/// after an exact start with `r = 1`, on 12 samples of a 4-parameter row, `df = n − k = 8`,
+/// `sigma2 = ssr / df`, `bse = √diag(sigma2 (XᵀX)⁻¹)` and the 95 % interval `θ̂ ± t bse`,
+/// computed here from the normal equations, with Student's t quantile t₀.₉₇₅(8) =
+/// 2.306004135033371 from the published tables (R's `qt(0.975, 8)`).
+#[test]
+fn estimate_stats_is_ordinary_least_squares() {
+    use nalgebra::{SMatrix, SVector};
+    use vehid_core::identify::estimate_stats;
+    let rows = [1usize, 3];
+    let theta = [[-90.0, -40.0, 50.0, 40.0], [5.0, 4.0, -5.0, -4.0]];
+    let n = 12;
+    let mut id = KalmanIdentifierVec::<f64, 4>::exact(&rows, &[1.0, 1.0], KalmanOptions::default()).unwrap();
+    let mut xs = Vec::new();
+    let mut ys = [Vec::new(), Vec::new()];
+    let mut e = [0.0; 2];
+    for k in 0..n {
+        let f = k as f64;
+        let x = V4::new((0.7 * f).sin(), (1.3 * f + 0.2).cos(), (0.4 * f + 1.0).sin() * 2.0, 0.1 * f - 0.5);
+        let mut z = V4::zeros();
+        for (i, &row) in rows.iter().enumerate() {
+            let noise = 0.3 * (2.1 * f + i as f64).sin();
+            z[row] = (0..4).map(|j| theta[i][j] * x[j]).sum::<f64>() + noise;
+            ys[i].push(z[row]);
+        }
+        xs.push(x);
+        id.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+    }
+    let st = estimate_stats(&id, 0.05).unwrap();
+    let t975_8 = 2.306004135033371;
+    let close =
+        |a: f64, b: f64, what: &str| assert!((a - b).abs() <= 1e-8 * b.abs().max(1e-12), "{what}: {a} against {b}");
+    let xtx: SMatrix<f64, 4, 4> = xs.iter().map(|x| x * x.transpose()).sum();
+    let inv = xtx.try_inverse().unwrap();
+    for i in 0..2 {
+        let xty: SVector<f64, 4> = xs.iter().zip(&ys[i]).map(|(x, y)| x * *y).sum();
+        let beta = inv * xty;
+        let ssr: f64 = xs.iter().zip(&ys[i]).map(|(x, y)| (y - x.dot(&beta)).powi(2)).sum();
+        let s2 = ssr / (n - 4) as f64;
+        close(st.sigma2[i], s2, "sigma2");
+        assert_eq!(st.nobs[i], n as f64);
+        for j in 0..4 {
+            let p = 4 * i + j;
+            assert_eq!(st.df[p], (n - 4) as f64, "df");
+            close(st.params[p], beta[j], "params");
+            let bse = (s2 * inv[(j, j)]).sqrt();
+            close(st.bse[p], bse, "bse");
+            close(st.conf_int[p].0, beta[j] - t975_8 * bse, "conf_int low");
+            close(st.conf_int[p].1, beta[j] + t975_8 * bse, "conf_int high");
+        }
+    }
+}
+
+/// A symmetric positive-definite `(k·n) × (k·n)` matrix with every entry distinct and
+/// coupling every pair of rows: `G Gᵀ + kn·I` of a fixed, irregular `G`.
+fn coupled_spd(kn: usize) -> Vec<f64> {
+    let g = |i: usize, j: usize| ((i * 7 + j * 3) % 11) as f64 / 11.0 - 0.4 + 0.01 * (i as f64) * (j as f64 + 1.0);
+    let mut m = vec![0.0; kn * kn];
+    for i in 0..kn {
+        for j in 0..kn {
+            m[i * kn + j] = (0..kn).map(|l| g(i, l) * g(j, l)).sum::<f64>() + if i == j { kn as f64 } else { 0.0 };
+        }
+    }
+    m
+}
+
+/// Mode full's prior covariance as a whole matrix (`set_p0`): the covariance it reports
+/// before any sample is that matrix, entry for entry (the `(k·n) × (k·n)` layout of θ, rows
+/// of A row-major), its trace is the matrix's, and the identifier then runs as one built
+/// with the same diagonal prior when the matrix is diagonal.
+#[test]
+fn mode_full_takes_a_whole_prior_matrix_as_given() {
+    let rows = [1usize, 3];
+    let r = [81.0, 2.5e-5];
+    let o = KalmanOptions::default();
+    let p0 = coupled_spd(8);
+    let mut id = FullKalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1.0], &r, o).unwrap();
+    id.set_p0(&p0).unwrap();
+    let mut got = vec![0.0; 64];
+    id.covariance_into(&mut got).unwrap();
+    assert_eq!(got, p0, "the covariance right after set_p0");
+    let trace: f64 = (0..8).map(|i| p0[i * 8 + i]).sum();
+    assert!((id.trace() - trace).abs() <= 1e-12 * trace, "trace {} against {trace}", id.trace());
+    // Diagonal: the same bits as the scalar prior.
+    let mut diag = vec![0.0; 64];
+    for i in 0..8 {
+        diag[i * 8 + i] = 1000.0;
+    }
+    let mut a = FullKalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1.0], &r, o).unwrap();
+    a.set_p0(&diag).unwrap();
+    let mut b = FullKalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &r, o).unwrap();
+    let mut e = [0.0; 2];
+    for (x, z) in samples(21, 400, 0.0) {
+        a.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+        b.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+    }
+    let (mut ta, mut tb) = ([0.0; 8], [0.0; 8]);
+    a.params_into(&mut ta).unwrap();
+    b.params_into(&mut tb).unwrap();
+    assert_eq!(ta.map(f64::to_bits), tb.map(f64::to_bits));
+    assert!((a.trace() - b.trace()).abs() == 0.0 && a.trace() > 0.0);
+    // Wrong sizes and a non-symmetric matrix are refused, naming p0.
+    assert!(matches!(id.set_p0(&p0[..63]), Err(vehid_core::Error::Shape { arg: "p0", expected: 64, got: 63 })));
+    let mut skew = p0.clone();
+    skew[1] += 1e-3;
+    assert!(id.set_p0(&skew).is_err());
+}
+
+/// Mode full's noise: the whole `k × k` matrix `R` (any order of the diagonal entries) is
+/// taken when symmetric, refused when not.
+#[test]
+fn mode_full_takes_a_symmetric_noise_matrix() {
+    let rows = [1usize, 3];
+    let o = KalmanOptions::default();
+    for r in [[81.0, 1e-3, 1e-3, 2.5e-5], [2.5e-5, 1e-6, 1e-6, 81.0]] {
+        let id = FullKalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &r, o).unwrap();
+        let mut got = [0.0; 4];
+        id.noise_into(&mut got).unwrap();
+        assert_eq!(got, r);
+    }
+    assert!(FullKalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &[81.0, 1e-3, 1.1e-3, 2.5e-5], o).is_err());
+}
+
+/// Mode rows takes a whole prior matrix when it is block diagonal (`Prior::Full`, what Python's
+/// `p0=<matrix>` passes): the same identifier as its blocks given row by row
+/// (`Prior::RowMatrices`), bit for bit.
+#[test]
+fn mode_rows_takes_a_block_diagonal_prior_matrix() {
+    use vehid_core::identify::{boxed_kalman, KalmanSpec, Mode, Prior};
+    let rows = vec![1usize, 3];
+    let whole = coupled_spd(8);
+    let mut block_diag = vec![0.0; 64];
+    let mut blocks = Vec::new();
+    for b in 0..2 {
+        for a in 0..4 {
+            for c in 0..4 {
+                block_diag[(b * 4 + a) * 8 + b * 4 + c] = whole[(b * 4 + a) * 8 + b * 4 + c];
+                blocks.push(whole[(b * 4 + a) * 8 + b * 4 + c]);
+            }
+        }
+    }
+    let spec = |p0| KalmanSpec {
+        rows: rows.clone(),
+        p0,
+        theta0: None,
+        r: vec![81.0, 2.5e-5],
+        mode: Mode::Rows,
+        opts: KalmanOptions::default(),
+    };
+    let mut a = boxed_kalman::<f64, 4>(&spec(Prior::Full(block_diag))).unwrap();
+    let mut b = boxed_kalman::<f64, 4>(&spec(Prior::RowMatrices(blocks))).unwrap();
+    let (mut pa, mut pb) = (vec![0.0; 64], vec![0.0; 64]);
+    a.covariance_into(&mut pa).unwrap();
+    b.covariance_into(&mut pb).unwrap();
+    assert_eq!(pa, pb);
+    let mut e = [0.0; 2];
+    for (x, z) in samples(22, 300, 0.0) {
+        a.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+        b.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+    }
+    let (mut ta, mut tb) = ([0.0; 8], [0.0; 8]);
+    a.params_into(&mut ta).unwrap();
+    b.params_into(&mut tb).unwrap();
+    assert_eq!(ta.map(f64::to_bits), tb.map(f64::to_bits));
+}

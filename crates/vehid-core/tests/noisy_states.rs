@@ -145,7 +145,11 @@ fn shared_structure() -> Structure<f64> {
 
 /// After the exact start every estimate is the batch IV estimate on all samples so far:
 /// `(Σ ζ hᵀ)⁻¹ Σ ζ y` with `ζ` the regressors `delay` samples back, rows of equations that
-/// share parameters weighted by `√(r_g / r_i)` (solved directly here, for delays 1 and 3).
+/// share parameters weighted by `√(r_g / r_i)` (solved directly here, for delays 1 and 3, and
+/// with the measured states in units 10³ and 10⁻² times apart, which the exact start's
+/// equilibration must undo exactly, the derivatives 100 times larger). The first equation's
+/// innovation is its own `y − hᵀθ̂(k−1)`, in its units (the second, filtered after it in the
+/// same group, sees the estimate the first one moved).
 #[test]
 fn recursive_iv_is_batch_iv_on_every_prefix() {
     let s = shared_structure();
@@ -157,17 +161,25 @@ fn recursive_iv_is_batch_iv_on_every_prefix() {
         rng ^= rng << 17;
         (rng >> 11) as f64 / (1u64 << 53) as f64 - 0.5
     };
-    for delay in [1usize, 3] {
+    for (delay, units, zu) in [(1usize, [1.0, 1.0], 1.0), (3, [1.0, 1.0], 1.0), (1, [1e3, 1e-2], 100.0)] {
         let mut id = IvIdentifier::<f64, 3, 1>::new(s, delay, StructuredPrior::Exact, None, &r).unwrap();
+        let mut prev: Option<[f64; 3]> = None;
         let (mut xs, mut zs) = (vec![], vec![]);
         let mut state = [0.3, -0.2];
         let mut e = [0.0; 2];
         let (mut c, mut b) = (nalgebra::Matrix3::<f64>::zeros(), nalgebra::Vector3::<f64>::zeros());
         for k in 0..300 {
             state = [0.9 * state[0] + 0.2 * state[1] + g(), -0.3 * state[0] + 0.8 * state[1] + g()];
-            let x = [state[0] + 0.1 * g(), state[1] + 0.1 * g()];
-            let z = [-1.5 * state[0] + 0.7 * state[1] + 0.1 * g(), -1.5 * state[1] - state[0] + 0.4 + 0.1 * g()];
+            let x = [units[0] * (state[0] + 0.1 * g()), units[1] * (state[1] + 0.1 * g())];
+            let z = [
+                zu * (-1.5 * state[0] + 0.7 * state[1] + 0.1 * g()),
+                zu * (-1.5 * state[1] - state[0] + 0.4 + 0.1 * g()),
+            ];
             id.update_into(&x, &z, &[], &mut e).unwrap();
+            if let Some(t) = prev {
+                let want = z[0] - (t[0] * x[0] + t[1] * x[1]);
+                assert!((e[0] - want).abs() <= 1e-9 * want.abs().max(1.0), "k {k}: e {e:?} vs {want}");
+            }
             xs.push(x);
             zs.push(z);
             if k >= delay {
@@ -183,6 +195,7 @@ fn recursive_iv_is_batch_iv_on_every_prefix() {
             }
             let mut got = [0.0; 3];
             if id.params_into(&mut got).is_ok() {
+                prev = Some(got);
                 let want = c.lu().solve(&b).unwrap();
                 for j in 0..3 {
                     assert!(
@@ -192,6 +205,7 @@ fn recursive_iv_is_batch_iv_on_every_prefix() {
                 }
             } else {
                 assert!(k < 20, "delay {delay}: still starting at sample {k}");
+                prev = None;
             }
         }
         assert!(!id.starting());
