@@ -559,8 +559,8 @@ fn whole_matrix_covariances_stay_exactly_symmetric() {
 // What every identifier reports about itself (gaps found by `make mutants`)
 // ---------------------------------------------------------------------------------------
 
-/// Every identifier names the state rows it identifies (`rows()`) and, where it keeps them,
-/// its independent parameter groups (`groups_into`, which `estimate_stats` relies on): for
+/// Every identifier names the state rows it identifies (`rows()`), counts the samples it
+/// took, and reports its independent parameter groups (`groups_into`, which `estimate_stats` relies on): for
 /// the quarter car's full rows 1 and 3, rows `[1, 3]`, parameters 0–3 in one group and 4–7 in
 /// the other, equation `i` in group `i`. Written from the thesis' row layout (θ row-major,
 /// Eq 2.1–2.4), not read from any identifier.
@@ -570,7 +570,7 @@ fn every_identifier_reports_its_rows_and_parameter_groups() {
     let r = [81.0, 2.5e-5];
     let o = KalmanOptions::default();
     let full = || Structure::full_rows(4, &rows).unwrap();
-    let ids: Vec<(&str, Box<dyn Identifier<f64>>)> = vec![
+    let mut ids: Vec<(&str, Box<dyn Identifier<f64>>)> = vec![
         ("rows", Box::new(KalmanIdentifier::<f64, 4, 2>::from_slices(&rows, &[1000.0], &r, o).unwrap())),
         ("rows vec", Box::new(KalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &r, o).unwrap())),
         ("rows exact", Box::new(KalmanIdentifierVec::<f64, 4>::exact(&rows, &r, o).unwrap())),
@@ -596,8 +596,14 @@ fn every_identifier_reports_its_rows_and_parameter_groups() {
         ("IV", Box::new(IvIdentifierVec::<f64, 8>::full_rows(4, &rows, 1, StructuredPrior::Exact, &[1.0]).unwrap())),
         ("bias compensated", Box::new(BiasCompensatedVec::<f64, 8>::new(full(), &[1e-6], &[], &[1.0]).unwrap())),
     ];
-    for (name, id) in &ids {
+    let data = samples(12, 40, 0.0);
+    for (name, id) in &mut ids {
         assert_eq!(id.rows(), &rows, "{name}: rows()");
+        let mut e = [0.0; 2];
+        for (x, z) in &data {
+            id.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+        }
+        assert_eq!(id.samples(), 40, "{name}: samples()");
         let d = id.dims();
         assert_eq!((d.states, d.equations, d.params), (4, 2, 8), "{name}: dims()");
         let (mut gp, mut ge) = ([usize::MAX; 8], [usize::MAX; 2]);
@@ -818,4 +824,37 @@ fn mode_rows_takes_a_block_diagonal_prior_matrix() {
     a.params_into(&mut ta).unwrap();
     b.params_into(&mut tb).unwrap();
     assert_eq!(ta.map(f64::to_bits), tb.map(f64::to_bits));
+}
+
+/// Mode full's outlier gate: a derivative of 1e30 in one of 10⁴ samples is left out (counted
+/// as gated) and the estimate is as if it had never come; without the gate it ruins it.
+#[test]
+fn mode_full_gates_an_outlier() {
+    let rows = [1usize, 3];
+    let r = [81.0, 2.5e-5];
+    let data = samples(23, 3000, 0.0);
+    let run = |gate: f64, outlier: bool| {
+        let o = KalmanOptions { gate, ..KalmanOptions::default() };
+        let mut id = FullKalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &r, o).unwrap();
+        let mut e = [0.0; 2];
+        for (k, (x, z)) in data.iter().enumerate() {
+            let mut z = *z;
+            if outlier && k == 2000 {
+                z[1] = 1e30;
+            }
+            let _ = id.update_into(x.as_slice(), z.as_slice(), &[], &mut e);
+        }
+        let mut t = [0.0; 8];
+        id.params_into(&mut t).unwrap();
+        (t, id.gated())
+    };
+    let (clean, none) = run(6.0, false);
+    let (gated, one) = run(6.0, true);
+    assert_eq!((none, one), (0, 1), "samples gated without and with the outlier");
+    let truth = QuarterCar::<f64>::thesis();
+    let th = |t: &[f64; 8]| vehid_core::metrics::xi(truth.theta().transpose().as_slice(), t).unwrap();
+    assert!(th(&clean).is_finite() && th(&clean) < 2.0, "the clean run: ξ {}", th(&clean));
+    assert!((th(&gated) - th(&clean)).abs() <= 0.1 * th(&clean), "gated ξ {} against clean {}", th(&gated), th(&clean));
+    let (open, _) = run(0.0, true);
+    assert!(!(th(&open) < 10.0 * th(&clean)), "without the gate the outlier should show: ξ {}", th(&open));
 }

@@ -629,3 +629,52 @@ fn timing() {
     time("iv physical", &mut IvIdentifier::<f64, 2, 2>::exact(*physical().structure(), 1).unwrap());
     time("bcls rows", &mut BiasCompensatedLs::<f64, 4, 2>::full_rows(4, &[1, 3], &[6.4e-5]).unwrap());
 }
+
+/// A value whose square would overflow is refused when it comes (kept in the ring, it would
+/// make every later sample overflow): above √(largest float)/256 in any of r, z, u, naming the
+/// argument; just below it, taken.
+#[test]
+fn iv_refuses_values_whose_squares_would_overflow() {
+    let limit = f64::MAX.sqrt() / 256.0;
+    let mut id = IvIdentifier::<f64, 4, 2>::full_rows(4, &[1, 3], 1, StructuredPrior::Scalar(1.0), &[1.0]).unwrap();
+    let mut e = [0.0; 2];
+    id.update_into(&[0.1, 0.2, 0.3, 0.4], &[0.0; 4], &[], &mut e).unwrap();
+    for (x, z, arg) in
+        [([limit * 2.0, 0.0, 0.0, 0.0], [0.0; 4], "r_k"), ([0.0; 4], [0.0, -limit * 2.0, 0.0, 0.0], "z_k")]
+    {
+        match id.update_into(&x, &z, &[], &mut e) {
+            Err(Error::InvalidArgument { arg: a, expected }) => {
+                assert_eq!(a, arg);
+                assert!(expected.contains("rescale"), "{expected}");
+            }
+            other => panic!("{arg} = 2 × the limit: {other:?}"),
+        }
+    }
+    assert_eq!(id.samples(), 1);
+    id.update_into(&[limit / 2.0, 0.0, 0.0, 0.0], &[0.0; 4], &[], &mut e).unwrap();
+}
+
+/// A whole prior matrix, diagonal with 50 on the first equation's parameters and 7 on the
+/// second's, is cut into the groups' own blocks: the estimate is, bit for bit, that of two
+/// identifiers of one row each with those scalar priors (the rows are independent groups).
+/// So is the per-equation prior (50, 7).
+#[test]
+fn iv_prior_matrix_is_cut_into_its_groups_blocks() {
+    let (x, z) = quarter(300, 8.0, 12);
+    let mut m = vec![0.0; 64];
+    for i in 0..8 {
+        m[i * 8 + i] = if i < 4 { 50.0 } else { 7.0 };
+    }
+    let r = [81.0, 2.5e-5];
+    let bits = |v: &[f64]| v.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+    let mut one = |row: usize, p0: f64, r: f64| {
+        let mut id = IvIdentifier::<f64, 4, 1>::full_rows(4, &[row], 1, StructuredPrior::Scalar(p0), &[r]).unwrap();
+        run(&mut id, &x, &z)
+    };
+    let want = [one(1, 50.0, r[0]), one(3, 7.0, r[1])].concat();
+    let per = [50.0, 7.0];
+    for p0 in [StructuredPrior::Matrix(&m), StructuredPrior::PerEquation(&per)] {
+        let mut id = IvIdentifier::<f64, 4, 2>::full_rows(4, &[1, 3], 1, p0, &r).unwrap();
+        assert_eq!(bits(&run(&mut id, &x, &z)), bits(&want), "{p0:?}");
+    }
+}

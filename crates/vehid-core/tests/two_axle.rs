@@ -15,7 +15,7 @@ use std::cell::Cell;
 
 use rand::rngs::Xoshiro256PlusPlus;
 use rand::{RngExt, SeedableRng};
-use vehid_core::identify::{TwoAxleConfig, TwoAxleIdentifier, WheelMethod};
+use vehid_core::identify::{Identifier, TwoAxleConfig, TwoAxleIdentifier, WheelMethod};
 use vehid_core::metrics::xi;
 use vehid_core::model::HalfCar;
 use vehid_core::sampler::AxleSampler;
@@ -816,4 +816,7 @@ fn thesis_wheel_method_is_eq_6_14_step_by_step() {
         worst_e = worst_e.max(de);
     }
     eprintln!("Eq 6.14 step by step, 3000 samples: largest relative difference: innovations {worst_e:.1e}, rows {worst_theta:.1e}");
+    // The ρ and the sample count it reports are those of the equations.
+    assert!((id.ratio() - rho).abs() <= 1e-12 * rho.abs(), "ratio {} against ρ = {rho}", id.ratio());
+    assert_eq!(Identifier::samples(&id), 3000);
 }

@@ -578,6 +578,10 @@ fn a_corrupt_iv_filter_or_predictor_is_refused() {
         (put(80, &f64::NAN.to_le_bytes()), "weight r finite"),
         (put(0, &f64::INFINITY.to_le_bytes()), "θ, P and M finite"),
         (put(8, &1.0f64.to_le_bytes()), "zero beyond its dim"),
+        // P and M are column-major: entry (0, 1), coupling the used parameter to an unused
+        // one, is value 2 of each.
+        (put(16 + 2 * 8, &1.0f64.to_le_bytes()), "zero beyond its dim"),
+        (put(48 + 2 * 8, &1.0f64.to_le_bytes()), "zero beyond its dim"),
         (put(48, &(-1.0f64).to_le_bytes()), "diagonal ≥ 0"),
     ] {
         let why = refusal!(F, &bytes);
@@ -723,4 +727,40 @@ fn corrupt_noisy_state_identifier_bytes_never_panic() {
     // (The ring alone is 4 kB of floats: one flip and one update per variant.)
     survives_corruption(&iv, &dq[12..13], &[0xff]);
     survives_corruption(&bc, &dq[12..13], &[0x01, 0xff]);
+}
+
+#[test]
+fn instrumental_variables_with_a_measured_input_continue_bit_for_bit() {
+    // A rig with a measured force: the ring of past samples holds 2n + m = 5 values per
+    // sample (a check of that width on load must count the input).
+    use crate::structure::StructureBuilder;
+    let (st, _) = StructureBuilder::new(&["q", "v"], &["tau"])
+        .equation("v", "a*tau - b*v")
+        .known("q", "v")
+        .build::<f64>()
+        .unwrap();
+    let (mut q, mut v) = (0.0f64, 0.0f64);
+    let mut rows = Vec::new();
+    for k in 0..300 {
+        let tau = (0.37 * k as f64).sin() + 0.5 * (0.11 * k as f64).cos();
+        let dv = 2.0 * tau - 0.8 * v + 0.01 * (1.3 * k as f64).sin();
+        rows.push(([q, v], [v, dv], [tau]));
+        q += 0.05 * v;
+        v += 0.05 * dv;
+    }
+    for lags in [0, 2] {
+        let mut id = IvIdentifierVec::<f64, 2, 16>::exact(st, 1).unwrap().with_lags(lags).unwrap();
+        let mut e = [0.0; 1];
+        for (x, z, u) in &rows[..150] {
+            id.update_into(x, z, u, &mut e).unwrap();
+        }
+        let mut back: IvIdentifierVec<f64, 2, 16> = postcard::from_bytes(&to_bytes(&id)).unwrap();
+        let mut e2 = [0.0; 1];
+        for (x, z, u) in &rows[150..] {
+            id.update_into(x, z, u, &mut e).unwrap();
+            back.update_into(x, z, u, &mut e2).unwrap();
+            assert_eq!(e[0].to_bits(), e2[0].to_bits());
+        }
+        assert_eq!(to_bytes(&back), to_bytes(&id), "lags {lags}");
+    }
 }
