@@ -667,7 +667,7 @@ fn iv_prior_matrix_is_cut_into_its_groups_blocks() {
     }
     let r = [81.0, 2.5e-5];
     let bits = |v: &[f64]| v.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
-    let mut one = |row: usize, p0: f64, r: f64| {
+    let one = |row: usize, p0: f64, r: f64| {
         let mut id = IvIdentifier::<f64, 4, 1>::full_rows(4, &[row], 1, StructuredPrior::Scalar(p0), &[r]).unwrap();
         run(&mut id, &x, &z)
     };
