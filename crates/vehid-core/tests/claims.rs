@@ -858,3 +858,51 @@ fn mode_full_gates_an_outlier() {
     let (open, _) = run(0.0, true);
     assert!(!(th(&open) < 10.0 * th(&clean)), "without the gate the outlier should show: ξ {}", th(&open));
 }
+
+/// On a Structure whose equations share a parameter, each with its own variance `r_i`, the
+/// identifier reports that `R` (`noise_into`), and its residual sums are in each equation's
+/// own units: weighted by `r_g / r_i` (`r_g` the group's first) they add up to the weighted
+/// least-squares residual sum of squares at the final estimate, which after an exact start is
+/// the batch solution of the normal equations (computed here directly).
+#[test]
+fn structured_residuals_are_in_each_equations_units() {
+    use nalgebra::{Matrix3, Vector3};
+    use vehid_core::structure::StructureBuilder;
+    let (st, _) = StructureBuilder::new(&["x0", "x1"], &[])
+        .equation("x0", "a*x0 + b*x1")
+        .equation("x1", "a*x1 - x0 + c")
+        .build::<f64>()
+        .unwrap();
+    let r = [0.5, 2.0];
+    let mut id =
+        StructuredKalmanVec::<f64, 4>::new(st, StructuredPrior::Exact, None, &r, KalmanOptions::default()).unwrap();
+    let mut noise = [0.0; 4];
+    id.noise_into(&mut noise).unwrap();
+    assert_eq!(noise, [r[0], 0.0, 0.0, r[1]]);
+    let (mut c, mut b) = (Matrix3::<f64>::zeros(), Vector3::<f64>::zeros());
+    let mut rows = Vec::new();
+    let mut e = [0.0; 2];
+    for k in 0..200 {
+        let f = k as f64;
+        let x = [(0.3 * f).sin() + 0.2, (0.71 * f + 1.0).cos()];
+        let z = [-1.5 * x[0] + 0.7 * x[1] + 0.05 * (1.7 * f).sin(), -1.5 * x[1] - x[0] + 0.4 + 0.05 * (2.3 * f).cos()];
+        id.update_into(&x, &z, &[], &mut e).unwrap();
+        // (h, y, weight 1/r_i): ẋ0 = a x0 + b x1; ẋ1 + x0 = a x1 + c.
+        for (h, y, w) in
+            [(Vector3::new(x[0], x[1], 0.0), z[0], 1.0 / r[0]), (Vector3::new(x[1], 0.0, 1.0), z[1] + x[0], 1.0 / r[1])]
+        {
+            c += h * h.transpose() * w;
+            b += h * (y * w);
+            rows.push((h, y, r[0] * w));
+        }
+    }
+    let theta = c.lu().solve(&b).unwrap();
+    let want: f64 = rows.iter().map(|(h, y, w)| w * (y - h.dot(&theta)).powi(2)).sum();
+    let (mut ssr, mut nobs) = ([0.0; 2], [0.0; 2]);
+    id.residuals_into(&mut ssr, &mut nobs).unwrap();
+    let got = ssr[0] + r[0] / r[1] * ssr[1];
+    assert!((got - want).abs() <= 1e-8 * want, "weighted residual sums {got} against {want}");
+    let mut p = [0.0; 3];
+    id.params_into(&mut p).unwrap();
+    assert!((0..3).all(|j| (p[j] - theta[j]).abs() <= 1e-9 * theta[j].abs().max(1.0)), "{p:?} against {theta:?}");
+}

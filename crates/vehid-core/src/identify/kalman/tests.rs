@@ -526,3 +526,30 @@ fn batch_least_squares_names_a_full_rank_dominating_sample() {
     ls.remove(7).unwrap();
     assert!(ls.solve().is_ok() && ls.leverage(1500) < 0.05, "{}", ls.leverage(1500));
 }
+
+#[test]
+fn batch_least_squares_among_zero_samples_is_not_dominated() {
+    // A vehicle parked for 100 samples (state 0), then four excited samples that alone identify
+    // the row: a sample among mostly zero ones is not an outlier for being larger (the median
+    // norm is 0), so the batch solves, to the exact row; with the larger samples excited too,
+    // a 1e10 one is named as before.
+    let theta = Vector4::new(-90.0, -40.0, 50.0, 40.0);
+    let mut ls = BatchLeastSquares::<f64, 4>::new(&[1]).unwrap();
+    let zero = Vector4::zeros();
+    for _ in 0..100 {
+        ls.push(&zero, &zero).unwrap();
+    }
+    for x in [
+        Vector4::new(1.0, 0.2, 0.0, 0.1),
+        Vector4::new(0.0, 1.0, 0.3, 0.0),
+        Vector4::new(0.1, 0.0, 1.0, 0.4),
+        Vector4::new(0.0, 0.5, 0.0, 1.0),
+    ] {
+        ls.push(&x, &Vector4::new(0.0, theta.dot(&x), 0.0, 0.0)).unwrap();
+    }
+    assert_eq!(ls.dominating_sample(), Some(103));
+    let got = ls.solve().unwrap();
+    for j in 0..4 {
+        assert!((got[j] - theta[j]).abs() <= 1e-12 * theta[j].abs(), "{got:?}");
+    }
+}
