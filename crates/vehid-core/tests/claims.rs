@@ -678,10 +678,14 @@ fn estimate_stats_is_ordinary_least_squares() {
     let mut e = [0.0; 2];
     for k in 0..n {
         let f = k as f64;
-        let x = V4::new((0.7 * f).sin(), (1.3 * f + 0.2).cos(), (0.4 * f + 1.0).sin() * 2.0, 0.1 * f - 0.5);
+        // The first three samples lie on one line (rank 1): the exact start absorbs them with
+        // residuals, and ends only at the sixth.
+        let f = if k < 3 { 0.0 } else { f };
+        let x = V4::new((0.7 * f).sin(), (1.3 * f + 0.2).cos(), (0.4 * f + 1.0).sin() * 2.0, 0.1 * f - 0.5)
+            * if k < 3 { 1.0 + k as f64 } else { 1.0 };
         let mut z = V4::zeros();
         for (i, &row) in rows.iter().enumerate() {
-            let noise = 0.3 * (2.1 * f + i as f64).sin();
+            let noise = 0.3 * (2.1 * k as f64 + i as f64).sin();
             z[row] = (0..4).map(|j| theta[i][j] * x[j]).sum::<f64>() + noise;
             ys[i].push(z[row]);
         }
@@ -905,4 +909,68 @@ fn structured_residuals_are_in_each_equations_units() {
     let mut p = [0.0; 3];
     id.params_into(&mut p).unwrap();
     assert!((0..3).all(|j| (p[j] - theta[j]).abs() <= 1e-9 * theta[j].abs().max(1.0)), "{p:?} against {theta:?}");
+}
+
+/// Exponential forgetting alone (the rows form's fast path) keeps the covariance's trace
+/// under its bound (`max_trace`) while the vehicle is parked: 10⁵ samples of x = 0 scale P by
+/// 1/λ each until the bound, and no further; θ̂ does not move.
+#[test]
+fn forgetting_alone_stops_at_the_trace_bound_when_parked() {
+    let rows = [1usize, 3];
+    let cap = 50_000.0;
+    let o = KalmanOptions { forgetting: 0.99, max_trace: cap, ..KalmanOptions::default() };
+    for mut id in [
+        Box::new(KalmanIdentifier::<f64, 4, 2>::from_slices(&rows, &[1000.0], &[81.0, 2.5e-5], o).unwrap())
+            as Box<dyn Identifier<f64>>,
+        Box::new(KalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &[81.0, 2.5e-5], o).unwrap()),
+    ] {
+        let mut e = [0.0; 2];
+        for (x, z) in samples(24, 500, 0.0) {
+            id.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+        }
+        let mut before = [0.0; 8];
+        id.params_into(&mut before).unwrap();
+        let zero = [0.0; 4];
+        for _ in 0..100_000 {
+            id.update_into(&zero, &[0.0, 0.01, 0.0, -0.01], &[], &mut e).unwrap();
+        }
+        let mut after = [0.0; 8];
+        id.params_into(&mut after).unwrap();
+        assert_eq!(before, after, "θ̂ moved while parked");
+        let mut p = [0.0; 64];
+        id.covariance_into(&mut p).unwrap();
+        // Each row's P grows by 1/λ per sample while its trace is under the bound: it stops
+        // within one factor 1/λ of it.
+        for row in 0..2 {
+            let tr: f64 = (0..4).map(|a| p[(row * 4 + a) * 8 + row * 4 + a]).sum();
+            assert!(tr >= cap && tr <= cap / 0.99 * (1.0 + 1e-12), "row {row}: trace {tr} against the bound {cap}");
+        }
+    }
+}
+
+/// A derivative so large that the step overflows (the innovation far beyond any prediction)
+/// is refused naming `z_k` (a state that large would name `r_k`), in every form.
+#[test]
+fn an_overflowing_derivative_is_named_z_k() {
+    let rows = [1usize, 3];
+    for form in [CovarianceForm::Standard, CovarianceForm::Joseph, CovarianceForm::Sqrt] {
+        // The gain P x / s is about 1.7 on the first entry (P = 1000 I, |x|² = 0.1, r = 81):
+        // the step from z = 1.7e308 is beyond the largest float.
+        let mut id = KalmanIdentifier::<f64, 4, 2>::from_slices(&rows, &[1000.0], &[81.0, 2.5e-5], opts(form)).unwrap();
+        let mut e = [0.0; 2];
+        let err = id.update_into(&[0.3, 0.1, 0.0, 0.0], &[0.0, 1.7e308, 0.0, 0.0], &[], &mut e).unwrap_err();
+        assert!(matches!(err, vehid_core::Error::InvalidArgument { arg: "z_k", .. }), "{form:?}: {err:?}");
+    }
+}
+
+/// A row filter restricted to its first `d` parameters takes 1 ≤ d ≤ N, refusing the rest.
+#[test]
+fn a_row_filter_restricts_to_between_one_and_n_parameters() {
+    use vehid_core::identify::RowIdentifier;
+    for d in [0, 5] {
+        assert!(RowIdentifier::<f64, 4>::new(1.0, 1.0).unwrap().restricted(d).is_err(), "d = {d}");
+    }
+    for d in 1..=4 {
+        assert!(RowIdentifier::<f64, 4>::new(1.0, 1.0).unwrap().restricted(d).is_ok(), "d = {d}");
+    }
 }
