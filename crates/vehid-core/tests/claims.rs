@@ -604,6 +604,27 @@ fn every_identifier_reports_its_rows_and_parameter_groups() {
             id.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
         }
         assert_eq!(id.samples(), 40, "{name}: samples()");
+        // The covariance (every identifier but the stochastic gradients and bias compensation,
+        // which say why, keeps one) and, where reported, its trace.
+        let mut p = vec![0.0; 64];
+        match id.covariance_into(&mut p) {
+            Ok(()) => {
+                let diag: f64 = (0..8).map(|a| p[a * 8 + a]).sum();
+                assert!(diag > 0.0, "{name}: covariance {p:?}");
+                if let Some(t) = id.trace() {
+                    assert!((t - diag).abs() <= 1e-12 * diag, "{name}: trace {t} against the covariance's {diag}");
+                }
+                if name.starts_with("rows") {
+                    assert!(id.trace().is_some(), "{name}: no trace");
+                }
+                // A buffer of the wrong size is refused, saying which size it needs.
+                match id.covariance_into(&mut [0.0; 3]) {
+                    Err(vehid_core::Error::Shape { arg: "out", expected: 64, got: 3 }) => {}
+                    other => panic!("{name}: covariance_into on 3 values: {other:?}"),
+                }
+            }
+            Err(e) => assert!(name.contains("SG") || *name == "bias compensated", "{name}: covariance_into: {e}"),
+        }
         let d = id.dims();
         assert_eq!((d.states, d.equations, d.params), (4, 2, 8), "{name}: dims()");
         let (mut gp, mut ge) = ([usize::MAX; 8], [usize::MAX; 2]);
