@@ -1,0 +1,151 @@
+#!/usr/bin/env python3
+"""Mutation testing of vehid-core with cargo-mutants (issue 18): `make mutants`.
+
+Runs ``cargo mutants`` on the files given (default: ``crates/vehid-core/src/identify/**``,
+4,082 mutants) and reports the fraction of viable mutants the Rust tests catch, with its 95 %
+interval, and every surviving mutant. On this 2-core machine a mutant costs about a minute
+(an incremental rebuild of vehid-core's test targets and their run), so the whole of
+``identify/`` is days of work: ``--shard K/N`` (round-robin) takes every N-th mutant of the
+list, a systematic sample spread over every file, and a run's figure is an estimate of the
+whole with a binomial interval. Shards add up: ``--shard 2/40`` tests other mutants than
+``1/40``.
+
+A survivor is either a gap in the tests (write the test) or a mutant no test can catch: an
+equivalent mutant, unreachable code, or a change of speed only. Those are listed, each with
+its reason, in ``benches/mutants_accepted.txt`` (``<mutant as cargo-mutants names it>  #
+<reason>``); the run fails (exit 1) when a survivor is not on that list. cargo-mutants
+itself shows progress; its full output stays in ``target/mutants/<shard>/mutants.out``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from typing import Dict, List, Tuple
+
+ROOT = Path(__file__).resolve().parents[1]
+ACCEPTED = ROOT / "benches" / "mutants_accepted.txt"
+
+
+def accepted() -> Dict[str, str]:
+    """The accepted survivors: mutant name -> reason."""
+    out: Dict[str, str] = {}
+    if not ACCEPTED.exists():
+        return out
+    for line in ACCEPTED.read_text(encoding="utf-8").splitlines():
+        line = line.strip()
+        if not line or line.startswith("#"):
+            continue
+        name, _, reason = line.partition("  # ")
+        if not reason.strip():
+            raise SystemExit(f"mutants: {ACCEPTED.name}: no reason given for {name!r} (write '<name>  # <reason>')")
+        out[name.strip()] = reason.strip()
+    return out
+
+
+def wilson(k: int, n: int, z: float = 1.96) -> Tuple[float, float]:
+    """The Wilson score interval of a binomial proportion k / n (95 % by default)."""
+    if n == 0:
+        return (0.0, 1.0)
+    p = k / n
+    den = 1 + z * z / n
+    mid = (p + z * z / (2 * n)) / den
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
+    return (max(0.0, mid - half), min(1.0, mid + half))
+
+
+def read_outcomes(path: Path) -> Dict[str, str]:
+    """Mutant name -> summary, from a cargo-mutants outcomes.json (the baseline left out)."""
+    found: Dict[str, str] = {}
+    if path.exists():
+        for o in json.loads(path.read_text(encoding="utf-8")).get("outcomes", []):
+            scenario = o.get("scenario")
+            if isinstance(scenario, dict) and "Mutant" in scenario:
+                found[scenario["Mutant"]["name"]] = o.get("summary", "?")
+    return found
+
+
+def outcomes(out_dir: Path) -> List[Tuple[str, str]]:
+    """(mutant name, summary) of every mutant of the shard: the shard's run, with the outcome
+    of a later ``--iterate`` run (``recheck/``: the same mutants it had not caught, tested
+    again) in place of the first where there is one."""
+    found = read_outcomes(out_dir / "mutants.out" / "outcomes.json")
+    found.update(read_outcomes(out_dir / "recheck" / "mutants.out" / "outcomes.json"))
+    return list(found.items())
+
+
+def main(argv: List[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--file", default="crates/vehid-core/src/identify/**", help="files to mutate (a glob)")
+    ap.add_argument("--shard", default="1/40", help="K/N: every N-th mutant, from the K-th (0-based K < N)")
+    ap.add_argument("--jobs", default="1", help="cargo-mutants jobs (each builds on both cores)")
+    ap.add_argument("--report-only", action="store_true", help="only read the last run's outcomes")
+    ap.add_argument("--iterate", action="store_true",
+                    help="test again only the mutants the last run of this shard did not catch")
+    args = ap.parse_args(argv)
+    if not re.fullmatch(r"\d+/\d+", args.shard):
+        raise SystemExit(f"mutants: --shard {args.shard!r}: expected K/N, e.g. 1/40")
+    out_dir = ROOT / "target" / "mutants" / args.shard.replace("/", "-of-")
+    if not args.report_only:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        cmd = ["cargo", "mutants", "-p", "vehid-core", "--file", args.file, "--shard", args.shard,
+               "--sharding", "round-robin", "--jobs", args.jobs, "--output", str(out_dir)]
+        if args.iterate:
+            # Exactly the shard's mutants that were not caught (cargo-mutants' own --iterate
+            # would shard the list that is left, which is another sample).
+            first = read_outcomes(out_dir / "mutants.out" / "outcomes.json")
+            again = sorted(n for n, s in first.items() if s not in ("CaughtMutant", "Timeout"))
+            if not again:
+                print("mutants: nothing left to test again in this shard")
+            recheck = out_dir / "recheck"
+            recheck.mkdir(exist_ok=True)
+            cmd = ["cargo", "mutants", "-p", "vehid-core", "--file", args.file, "--jobs", args.jobs,
+                   "--output", str(recheck), "--re", "^(" + "|".join(re.escape(n) for n in again) + ")$"]
+        elif (out_dir / "recheck").exists():
+            shutil.rmtree(out_dir / "recheck")  # a fresh run of the shard: earlier rechecks are void
+        print("mutants:", " ".join(cmd)[:300], flush=True)
+        # cargo-mutants exits 2 when mutants were missed, 3 on timeouts: judged below.
+        done = subprocess.run(cmd, cwd=ROOT, env=dict(os.environ))
+        if done.returncode not in (0, 2, 3):
+            print(f"mutants: cargo mutants failed (status {done.returncode})", file=sys.stderr)
+            return 1
+    tested = outcomes(out_dir)
+    counts: Dict[str, int] = {}
+    for _, summary in tested:
+        counts[summary] = counts.get(summary, 0) + 1
+    caught, missed = counts.get("CaughtMutant", 0), counts.get("MissedMutant", 0)
+    timeout, unviable = counts.get("Timeout", 0), counts.get("Unviable", 0)
+    viable = caught + missed + timeout
+    low, high = wilson(caught + timeout, viable)
+    share = (caught + timeout) / viable if viable else float("nan")
+    print(f"mutants: {args.file}, shard {args.shard}: {len(tested)} mutants tested: {caught} caught, "
+          f"{timeout} timeouts (caught), {missed} missed, {unviable} unviable")
+    print(f"mutants: caught {caught + timeout} of {viable} viable = {100 * share:.1f} % "
+          f"(95 % interval {100 * low:.1f}-{100 * high:.1f} %)")
+    ok_list = accepted()
+    new = []
+    for name, summary in tested:
+        if summary != "MissedMutant":
+            continue
+        reason = ok_list.get(name)
+        print(f"  missed: {name}" + (f"  [accepted: {reason}]" if reason else "  [NOT ACCEPTED]"))
+        if reason is None:
+            new.append(name)
+    stale = sorted(set(ok_list) & {n for n, s in tested if s != "MissedMutant"})
+    for name in stale:
+        print(f"  accepted but now caught (remove it from {ACCEPTED.name}): {name}")
+    if new:
+        print(f"mutants: {len(new)} survivor(s) not in {ACCEPTED.name}: write a test, or accept with a reason")
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
