@@ -806,6 +806,12 @@ fn mode_full_takes_a_symmetric_noise_matrix() {
         assert_eq!(got, r);
     }
     assert!(FullKalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &[81.0, 1e-3, 1.1e-3, 2.5e-5], o).is_err());
+    // Three rows, a negative correlation (positive semi-definite: |r_02| ≤ √(r_00 r_22)).
+    let r3 = [100.0, 0.0, -5.0, 0.0, 2.0, 0.0, -5.0, 0.0, 1.0];
+    let id = FullKalmanIdentifierVec::<f64, 4>::from_slices(&[0, 1, 3], &[1000.0], &r3, o).unwrap();
+    let mut got = [0.0; 9];
+    id.noise_into(&mut got).unwrap();
+    assert_eq!(got, r3);
 }
 
 /// Mode rows takes a whole prior matrix when it is block diagonal (`Prior::Full`, what Python's
@@ -993,5 +999,70 @@ fn a_row_filter_restricts_to_between_one_and_n_parameters() {
     }
     for d in 1..=4 {
         assert!(RowIdentifier::<f64, 4>::new(1.0, 1.0).unwrap().restricted(d).is_ok(), "d = {d}");
+    }
+}
+
+/// Mode full's reinitialization (Eq 4.35–4.36): after a sample whose innovations satisfy
+/// `10 Σ|e_i| > tr P`, the diagonal of `P` is multiplied by 10 (so the trace it then reports
+/// is ten times the one the test saw) and the count grows by one; otherwise nothing. Checked
+/// at every sample, from the innovations the identifier returns and the trace it reports.
+#[test]
+fn mode_full_reinitializes_exactly_when_eq_4_35_says() {
+    let rows = [1usize, 3];
+    let o = KalmanOptions { reinit: true, ..KalmanOptions::default() };
+    let mut id = FullKalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1.0], &[81.0, 2.5e-5], o).unwrap();
+    let mut e = [0.0; 2];
+    let (mut seen, mut count) = (0, 0);
+    for (k, (x, z)) in samples(25, 2000, 0.0).into_iter().enumerate() {
+        id.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+        let abs_e = e[0].abs() + e[1].abs();
+        let now = id.reinit_count();
+        let trace = id.trace();
+        if now > count {
+            assert_eq!(now, count + 1);
+            assert!(
+                10.0 * abs_e > trace / 10.0,
+                "sample {k}: reinitialized with 10 Σ|e| = {} ≤ tr P = {}",
+                10.0 * abs_e,
+                trace / 10.0
+            );
+            seen += 1;
+        } else {
+            assert!(
+                !(10.0 * abs_e > trace),
+                "sample {k}: not reinitialized with 10 Σ|e| = {} > tr P = {trace}",
+                10.0 * abs_e
+            );
+        }
+        count = now;
+    }
+    assert!(seen > 0, "the data never called for a reinitialization");
+}
+
+/// With exponential forgetting, the identifier on the full-row Structure reports the same
+/// discounted residual sums and observation counts as the rows form (each row its own group):
+/// `ssr ← λ ssr + w²`, `n ← λ n + 1`, per equation.
+#[test]
+fn structured_residual_sums_forget_as_the_rows_do() {
+    let rows = [1usize, 3];
+    let r = [81.0, 2.5e-5];
+    let o = KalmanOptions { forgetting: 0.98, ..KalmanOptions::default() };
+    let mut a = KalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &r, o).unwrap();
+    let st = Structure::full_rows(4, &rows).unwrap();
+    let mut b = StructuredKalmanVec::<f64, 8>::new(st, StructuredPrior::Scalar(1000.0), None, &r, o).unwrap();
+    let mut e = [0.0; 2];
+    for (x, z) in samples(26, 1500, 0.0) {
+        a.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+        b.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+    }
+    let (mut sa, mut na, mut sb, mut nb) = ([0.0; 2], [0.0; 2], [0.0; 2], [0.0; 2]);
+    a.residuals_into(&mut sa, &mut na).unwrap();
+    b.residuals_into(&mut sb, &mut nb).unwrap();
+    for i in 0..2 {
+        assert!((sa[i] - sb[i]).abs() <= 1e-6 * sa[i], "row {i}: ssr {} (rows) against {} (structure)", sa[i], sb[i]);
+        assert!((na[i] - nb[i]).abs() <= 1e-9 * na[i], "row {i}: n {} against {}", na[i], nb[i]);
+        // The discounted count of 1500 samples: (1 − λ^1500) / (1 − λ), about 50.
+        let n = (1.0 - 0.98f64.powi(1500)) / 0.02;
+        assert!((na[i] - n).abs() <= 1e-9 * n, "row {i}: n {} against {n}", na[i]);
     }
 }
