@@ -127,7 +127,9 @@ impl<T: Real, const Q: usize> Predictor<T, Q> {
         }
     }
 
-    /// Regressors and outputs in use, `(dim, outputs)`.
+    /// Regressors and outputs in use, `(dim, outputs)` (checked when a saved identifier is
+    /// loaded).
+    #[cfg(feature = "serde")]
     pub(crate) fn size(&self) -> (usize, usize) {
         (self.dim as usize, self.outputs as usize)
     }
