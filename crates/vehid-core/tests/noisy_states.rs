@@ -678,3 +678,48 @@ fn iv_prior_matrix_is_cut_into_its_groups_blocks() {
         assert_eq!(bits(&run(&mut id, &x, &z)), bits(&want), "{p0:?}");
     }
 }
+
+/// The refined instruments need their predictor: until it has as many samples as regressors
+/// (6 lags of the quarter car's 8 values and the constant: 49) there is no instrument and the
+/// estimate stays at its prior mean (0); once it has them, the estimate moves.
+#[test]
+fn refined_instruments_start_when_the_predictor_has_its_samples() {
+    let (x, z) = quarter(400, 8.0, 13);
+    let mut id = IvIdentifier::<f64, 4, 2, Q>::full_rows(4, &[1, 3], 1, StructuredPrior::Scalar(1000.0), &[1.0])
+        .unwrap()
+        .with_lags(LAGS)
+        .unwrap();
+    let mut e = [0.0; 2];
+    let mut first_move = None;
+    for (k, (xk, zk)) in x.chunks(4).zip(z.chunks(4)).enumerate() {
+        id.update_into(xk, zk, &[], &mut e).unwrap();
+        let mut t = [0.0; 8];
+        id.params_into(&mut t).unwrap();
+        if t != [0.0; 8] && first_move.is_none() {
+            first_move = Some(k);
+        }
+    }
+    let k = first_move.expect("the estimate never moved: the refined instruments' predictor never started");
+    // 49 samples for the predictor after the ring holds its lags (delay 1, 6 lags).
+    assert!((49..=60).contains(&k), "the estimate first moved at sample {k}");
+}
+
+/// Batch least squares' own `fit` over a batch stores every sample, as `update_into` one by
+/// one does: the same solution, bit for bit.
+#[test]
+fn batch_least_squares_fit_stores_every_sample() {
+    use vehid_core::identify::Samples;
+    let (x, z) = quarter(300, 0.0, 14);
+    let mut one = BatchLeastSquares::<f64, 4>::new(&[1, 3]).unwrap();
+    let mut e = [0.0; 2];
+    for (xk, zk) in x.chunks(4).zip(z.chunks(4)) {
+        one.update_into(xk, zk, &[], &mut e).unwrap();
+    }
+    let mut batch = BatchLeastSquares::<f64, 4>::new(&[1, 3]).unwrap();
+    batch.fit(&Samples::new(4, 0, &x, &z, &[]).unwrap(), |_, _, _| core::ops::ControlFlow::Continue(())).unwrap();
+    assert_eq!(batch.samples(), 300);
+    let (mut a, mut b) = ([0.0; 8], [0.0; 8]);
+    one.params_into(&mut a).unwrap();
+    batch.params_into(&mut b).unwrap();
+    assert_eq!(a.map(f64::to_bits), b.map(f64::to_bits));
+}
