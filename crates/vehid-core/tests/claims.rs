@@ -738,6 +738,20 @@ fn estimate_stats_is_ordinary_least_squares() {
     }
 }
 
+/// Feeds the same quarter-car samples to two identifiers of its rows 1 and 3 and asserts the
+/// same estimate, bit for bit.
+fn same_estimates_after(a: &mut dyn Identifier<f64>, b: &mut dyn Identifier<f64>, data: Vec<(V4, V4)>) {
+    let mut e = [0.0; 2];
+    for (x, z) in data {
+        a.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+        b.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+    }
+    let (mut ta, mut tb) = ([0.0; 8], [0.0; 8]);
+    a.params_into(&mut ta).unwrap();
+    b.params_into(&mut tb).unwrap();
+    assert_eq!(ta.map(f64::to_bits), tb.map(f64::to_bits));
+}
+
 /// A symmetric positive-definite `(k·n) × (k·n)` matrix with every entry distinct and
 /// coupling every pair of rows: `G Gᵀ + kn·I` of a fixed, irregular `G`.
 fn coupled_spd(kn: usize) -> Vec<f64> {
@@ -776,15 +790,7 @@ fn mode_full_takes_a_whole_prior_matrix_as_given() {
     let mut a = FullKalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1.0], &r, o).unwrap();
     a.set_p0(&diag).unwrap();
     let mut b = FullKalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &r, o).unwrap();
-    let mut e = [0.0; 2];
-    for (x, z) in samples(21, 400, 0.0) {
-        a.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
-        b.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
-    }
-    let (mut ta, mut tb) = ([0.0; 8], [0.0; 8]);
-    a.params_into(&mut ta).unwrap();
-    b.params_into(&mut tb).unwrap();
-    assert_eq!(ta.map(f64::to_bits), tb.map(f64::to_bits));
+    same_estimates_after(&mut a, &mut b, samples(21, 400, 0.0));
     assert!((a.trace() - b.trace()).abs() == 0.0 && a.trace() > 0.0);
     // Wrong sizes and a non-symmetric matrix are refused, naming p0.
     assert!(matches!(id.set_p0(&p0[..63]), Err(vehid_core::Error::Shape { arg: "p0", expected: 64, got: 63 })));
@@ -846,15 +852,7 @@ fn mode_rows_takes_a_block_diagonal_prior_matrix() {
     a.covariance_into(&mut pa).unwrap();
     b.covariance_into(&mut pb).unwrap();
     assert_eq!(pa, pb);
-    let mut e = [0.0; 2];
-    for (x, z) in samples(22, 300, 0.0) {
-        a.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
-        b.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
-    }
-    let (mut ta, mut tb) = ([0.0; 8], [0.0; 8]);
-    a.params_into(&mut ta).unwrap();
-    b.params_into(&mut tb).unwrap();
-    assert_eq!(ta.map(f64::to_bits), tb.map(f64::to_bits));
+    same_estimates_after(a.as_mut(), b.as_mut(), samples(22, 300, 0.0));
 }
 
 /// Mode full's outlier gate: a derivative of 1e30 in one of 10⁴ samples is left out (counted
