@@ -1,19 +1,17 @@
 """Examples in docstrings and in README.md's ```python blocks run as tests."""
 
 import doctest
-import re
 import sys
 from pathlib import Path
 from typing import Any, Dict
 
 import pytest
+from readme_blocks import README, padded_source, python_blocks  # tests/ is on sys.path under pytest
 
 import vehid
 import vehid.cli
 import vehid.io
 import vehid.monitor
-
-README = Path(__file__).resolve().parent.parent / "README.md"
 
 
 @pytest.mark.parametrize("module", [vehid, vehid.cli, vehid.io, vehid.monitor])
@@ -33,10 +31,9 @@ def test_docstring_examples(module: Any) -> None:
 def test_readme_python_blocks() -> None:
     text = README.read_text(encoding="utf-8")
     namespace: Dict[str, Any] = {}
-    for block in re.finditer(r"```python\n(.*?)```", text, flags=re.S):
+    for line, code in python_blocks(text):
         # Pad with newlines so that tracebacks point at the README's own line numbers.
-        line = text.count("\n", 0, block.start(1))
-        exec(compile("\n" * line + block.group(1), str(README), "exec"), namespace)
+        exec(compile("\n" * line + code, str(README), "exec"), namespace)
 
 
 @pytest.mark.skipif(not README.exists(), reason="no README.md")
@@ -44,13 +41,8 @@ def test_readme_python_blocks_pass_mypy_strict(tmp_path: Path) -> None:
     """Every ```python block of the README, as one module, type-checks under ``mypy --strict``
     against the package's stubs (``_vehid.pyi``): what a user's typed script meets."""
     mypy = pytest.importorskip("mypy.api")
-    text = README.read_text(encoding="utf-8")
-    source = ""
-    for block in re.finditer(r"```python\n(.*?)```", text, flags=re.S):
-        # Padded with newlines so that mypy's line numbers are the README's.
-        source += "\n" * (text.count("\n", 0, block.start(1)) - source.count("\n")) + block.group(1)
-    module = tmp_path / "readme_blocks.py"
-    module.write_text(source, encoding="utf-8")
+    module = tmp_path / "readme_module.py"
+    module.write_text(padded_source(README.read_text(encoding="utf-8")), encoding="utf-8")
     package = Path(vehid.__file__).resolve().parent.parent
     out, err, status = mypy.run(
         ["--strict", "--no-incremental", "--cache-dir", str(tmp_path / "cache"), "--python-executable", sys.executable,

@@ -17,6 +17,7 @@ from typing import Any, Dict, List, Literal, Optional, Tuple
 
 import numpy as np
 import pytest
+from readme_blocks import README, console_steps  # tests/ is on sys.path under pytest
 
 import vehid
 from vehid import cli
@@ -372,15 +373,7 @@ def test_the_readme_monitor_example_prints_what_the_readme_shows(tmp_path: Path,
     # README.md's `vehid simulate` / `vehid monitor` block, rerun command by command in an
     # empty directory: each command's stdout and stderr must be the lines the README prints
     # after it.
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
-    block = readme.split("$ vehid simulate --model quarter --road iso8608-C", 1)[1].split("```", 1)[0]
-    block = "$ vehid simulate --model quarter --road iso8608-C" + block
-    steps: List[Tuple[List[str], List[str]]] = []
-    for line in block.strip("\n").splitlines():
-        if line.startswith("$ vehid "):
-            steps.append((line[len("$ vehid "):].split(), []))
-        else:
-            steps[-1][1].append(line)
+    steps = console_steps(README.read_text(encoding="utf-8"))
     assert [argv[0] for argv, _ in steps] == ["simulate", "monitor"]
     monkeypatch.chdir(tmp_path)
     for argv, expected in steps:

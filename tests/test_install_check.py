@@ -4,58 +4,59 @@ Slow (a full release build of the extension, packages from PyPI), so they run on
 ``VEHID_INSTALL_CHECK=1`` / ``VEHID_WHEEL=dist/vehid-....whl``; `make test` leaves them out."""
 
 import os
-import re
 import subprocess
 import sys
 import venv
 from pathlib import Path
-from typing import List, Tuple
+from typing import Dict, Tuple
 
 import pytest
+from readme_blocks import README, console_steps, padded_source  # tests/ is on sys.path under pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-@pytest.mark.skipif(os.environ.get("VEHID_INSTALL_CHECK") != "1", reason="slow: set VEHID_INSTALL_CHECK=1")
-def test_pip_install_in_a_fresh_venv(tmp_path: Path) -> None:
+def fresh_venv(tmp_path: Path, package: Path, timeout: float) -> Tuple[Path, Path, Dict[str, str]]:
+    """A new venv under ``tmp_path`` with ``package`` (a source tree or a wheel) installed by
+    pip alone: its python, its ``vehid`` command, and an environment free of this one's venv."""
     env_dir = tmp_path / "venv"
     venv.create(env_dir, with_pip=True)
     bindir = env_dir / ("Scripts" if sys.platform == "win32" else "bin")
-    python, vehid = bindir / "python", bindir / "vehid"
     env = {k: v for k, v in os.environ.items() if k not in ("VIRTUAL_ENV", "CONDA_PREFIX", "PYTHONPATH")}
-    subprocess.run([str(python), "-m", "pip", "install", "--quiet", str(ROOT)], env=env, check=True, timeout=3600)
-    # From a directory outside the source tree, so only the installed package can be imported.
-    helped = subprocess.run([str(vehid), "--help"], cwd=tmp_path, env=env, capture_output=True, text=True)
-    assert helped.returncode == 0 and "identify" in helped.stdout, helped.stderr
+    python = bindir / "python"
+    subprocess.run([str(python), "-m", "pip", "install", "--quiet", str(package)], env=env, check=True,
+                   timeout=timeout)
+    return python, bindir / "vehid", env
+
+
+def assert_imported_from_the_venv(python: Path, cwd: Path, env: Dict[str, str]) -> None:
+    """From ``cwd`` (outside the source tree) ``import vehid`` finds the installed package."""
+    where = subprocess.run([str(python), "-c", "import vehid; print(vehid.__file__)"], cwd=cwd, env=env,
+                           capture_output=True, text=True, check=True)
+    assert Path(where.stdout.strip()).is_relative_to(python.parent.parent), where.stdout
+
+
+def assert_simulate_identify_reports_xi(vehid: Path, cwd: Path, env: Dict[str, str]) -> None:
+    """``vehid simulate | vehid identify`` runs and reports ξ."""
     sim = subprocess.Popen([str(vehid), "simulate", "--model", "quarter", "--n", "2000", "-o", "-"],
-                           cwd=tmp_path, env=env, stdout=subprocess.PIPE)
-    ident = subprocess.run([str(vehid), "identify", "-", "--model", "quarter"], stdin=sim.stdout, cwd=tmp_path,
+                           cwd=cwd, env=env, stdout=subprocess.PIPE)
+    ident = subprocess.run([str(vehid), "identify", "-", "--model", "quarter"], stdin=sim.stdout, cwd=cwd,
                            env=env, capture_output=True, text=True, timeout=600)
     assert sim.stdout is not None
     sim.stdout.close()
     assert sim.wait(timeout=600) == 0
     assert ident.returncode == 0, ident.stderr
     assert "xi (Eq 3.17" in ident.stdout, ident.stdout
-    where = subprocess.run([str(python), "-c", "import vehid; print(vehid.__file__)"], cwd=tmp_path, env=env,
-                           capture_output=True, text=True, check=True)
-    assert Path(where.stdout.strip()).is_relative_to(env_dir), where.stdout
 
 
-def readme_python(readme: str) -> str:
-    """Every ```python block of README.md, in order, as one script (blocks share names)."""
-    return "\n".join(m.group(1) for m in re.finditer(r"```python\n(.*?)```", readme, flags=re.S))
-
-
-def readme_console(readme: str) -> List[Tuple[List[str], List[str]]]:
-    """The README's ```console blocks as (argv after ``vehid``, the lines printed after it)."""
-    steps: List[Tuple[List[str], List[str]]] = []
-    for block in re.finditer(r"```console\n(.*?)```", readme, flags=re.S):
-        for line in block.group(1).strip("\n").splitlines():
-            if line.startswith("$ vehid "):
-                steps.append((line[len("$ vehid "):].split(), []))
-            elif steps:
-                steps[-1][1].append(line)
-    return steps
+@pytest.mark.skipif(os.environ.get("VEHID_INSTALL_CHECK") != "1", reason="slow: set VEHID_INSTALL_CHECK=1")
+def test_pip_install_in_a_fresh_venv(tmp_path: Path) -> None:
+    python, vehid, env = fresh_venv(tmp_path, ROOT, timeout=3600)
+    # From a directory outside the source tree, so only the installed package can be imported.
+    helped = subprocess.run([str(vehid), "--help"], cwd=tmp_path, env=env, capture_output=True, text=True)
+    assert helped.returncode == 0 and "identify" in helped.stdout, helped.stderr
+    assert_simulate_identify_reports_xi(vehid, tmp_path, env)
+    assert_imported_from_the_venv(python, tmp_path, env)
 
 
 @pytest.mark.skipif(not os.environ.get("VEHID_WHEEL"), reason="set VEHID_WHEEL to a built wheel (make wheel-check)")
@@ -66,33 +67,19 @@ def test_the_wheel_installs_into_a_fresh_venv_and_passes_the_quickstarts(tmp_pat
     ``vehid simulate | vehid identify`` reports ξ."""
     wheel = Path(os.environ["VEHID_WHEEL"]).resolve()
     assert wheel.suffix == ".whl" and wheel.exists(), wheel
-    env_dir = tmp_path / "venv"
-    venv.create(env_dir, with_pip=True)
-    bindir = env_dir / ("Scripts" if sys.platform == "win32" else "bin")
-    python, vehid = bindir / "python", bindir / "vehid"
-    env = {k: v for k, v in os.environ.items() if k not in ("VIRTUAL_ENV", "CONDA_PREFIX", "PYTHONPATH")}
-    subprocess.run([str(python), "-m", "pip", "install", "--quiet", str(wheel)], env=env, check=True, timeout=1800)
+    python, vehid, env = fresh_venv(tmp_path, wheel, timeout=1800)
     work = tmp_path / "work"
     work.mkdir()
-    where = subprocess.run([str(python), "-c", "import vehid; print(vehid.__file__)"], cwd=work, env=env,
-                           capture_output=True, text=True, check=True)
-    assert Path(where.stdout.strip()).is_relative_to(env_dir), where.stdout
-    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert_imported_from_the_venv(python, work, env)
+    readme = README.read_text(encoding="utf-8")
     script = work / "quickstarts.py"
-    script.write_text(readme_python(readme), encoding="utf-8")
+    script.write_text(padded_source(readme), encoding="utf-8")
     done = subprocess.run([str(python), str(script)], cwd=work, env=env, capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr
-    steps = readme_console(readme)
+    steps = console_steps(readme)
     assert steps, "README.md has no ```console example"
     for argv, expected in steps:
         done = subprocess.run([str(vehid), *argv], cwd=work, env=env, capture_output=True, text=True, timeout=600)
         assert done.returncode == 0, (argv, done.stderr)
         assert (done.stdout + done.stderr).strip().splitlines() == expected, (argv, done.stdout, done.stderr)
-    sim = subprocess.Popen([str(vehid), "simulate", "--model", "quarter", "--n", "2000", "-o", "-"],
-                           cwd=work, env=env, stdout=subprocess.PIPE)
-    ident = subprocess.run([str(vehid), "identify", "-", "--model", "quarter"], stdin=sim.stdout, cwd=work,
-                           env=env, capture_output=True, text=True, timeout=600)
-    assert sim.stdout is not None
-    sim.stdout.close()
-    assert sim.wait(timeout=600) == 0
-    assert ident.returncode == 0 and "xi (Eq 3.17" in ident.stdout, (ident.stdout, ident.stderr)
+    assert_simulate_identify_reports_xi(vehid, work, env)

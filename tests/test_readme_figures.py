@@ -29,25 +29,17 @@ import re
 import sys
 import tokenize
 from decimal import Decimal
-from pathlib import Path
 from typing import Any, Dict, List, Tuple
 
 import numpy as np
 import pytest
+from readme_blocks import README, python_blocks  # tests/ is on sys.path under pytest
 
 import vehid  # noqa: F401  (the README's blocks import it; imported here so a broken build fails first)
-
-README = Path(__file__).resolve().parent.parent / "README.md"
 
 # A figure list at the end of a comment: after a colon or "about", numbers separated by
 # commas, each optionally marked approximate with "~".
 FIGURES = re.compile(r"(?:about|:)\s*(~?\s*\d[\d.]*(?:e-?\d+)?(?:\s*,\s*~?\s*\d[\d.]*(?:e-?\d+)?)*)\s*$")
-
-
-def python_blocks(text: str) -> List[Tuple[int, str]]:
-    """Each ```python block of the README: (the README line before its first line, code)."""
-    blocks = re.finditer(r"```python\n(.*?)```", text, flags=re.S)
-    return [(text.count("\n", 0, m.start(1)), m.group(1)) for m in blocks]
 
 
 def comment(line: str) -> str:
