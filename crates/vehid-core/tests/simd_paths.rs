@@ -21,7 +21,8 @@
 //! reinitializations, samples and gated samples.
 
 use rand::rngs::Xoshiro256PlusPlus;
-use rand::{RngExt, SeedableRng};
+use rand::SeedableRng;
+use rand_distr::{Distribution, StandardNormal};
 use vehid_core::identify::{
     CovarianceForm, Dynamic, Fixed, Identifier, KalmanOptions, KalmanRows, KalmanShared, Store,
 };
@@ -72,11 +73,7 @@ fn quarter_car_run(n: usize, seed: u64) -> Vec<Sample<f64>> {
 /// fixed random `A`: a model wider than the cars (the shared form in `f32` needs `N ≥ 9`).
 fn synthetic_run<T: Real, const N: usize>(n: usize, seed: u64) -> Vec<Sample<T>> {
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
-    let mut normal = move || {
-        // Box–Muller, drawn in f64.
-        let (u, v): (f64, f64) = (rng.random_range(f64::EPSILON..1.0), rng.random());
-        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-    };
+    let mut normal = move || -> f64 { StandardNormal.sample(&mut rng) };
     let a: Vec<f64> = (0..N * N).map(|_| normal()).collect();
     let mut x = [0.0f64; N];
     (0..n)
