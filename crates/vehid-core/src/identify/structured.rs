@@ -18,12 +18,22 @@
 //! is transactional (the groups it touched are restored on any error).
 
 use super::interface::check_lengths;
-use super::kalman::RowIdentifier;
+use super::kalman::{PlainStep, RowIdentifier};
 use super::{CovarianceForm, Dims, Flat, Identifier, KalmanOptions, OVERFLOW};
 use crate::error::check_finite;
 use crate::structure::{Partition, Structure, MAX_EQUATIONS, MAX_PARAMS};
 use crate::{Error, Real, Result};
 use nalgebra::SVector;
+
+/// Equations (one per group) up to which an update plans every group on the stack and takes
+/// the plain step without copying a filter (`Structured::update_plain`).
+const FAST_EQUATIONS: usize = 4;
+
+/// Empty plans (a deserialized identifier's scratch).
+#[cfg(feature = "serde")]
+fn no_plans<T: Real, const P: usize>() -> [PlainStep<T, P>; FAST_EQUATIONS] {
+    [PlainStep::empty(); FAST_EQUATIONS]
+}
 
 /// The prior of a [`Structured`] identifier.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -57,6 +67,10 @@ pub struct Structured<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> {
     /// (serialized empty where the store allows, refilled on load).
     #[cfg_attr(feature = "serde", serde(with = "crate::persist::scratch"))]
     backup: F,
+    /// The plain update's plans, one per equation (`Structured::update_plain`): scratch,
+    /// not state (kept here so that an update does not clear them on the stack).
+    #[cfg_attr(feature = "serde", serde(skip, default = "no_plans"))]
+    plans: [PlainStep<T, P>; FAST_EQUATIONS],
     rows: [usize; MAX_EQUATIONS],
     /// Each equation's variance `r_i` and row scale `√(r_g / r_i)`.
     r: [T; MAX_EQUATIONS],
@@ -257,6 +271,7 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Structured<T, P, F> 
             part,
             backup: filters.clone(),
             filters,
+            plans: [PlainStep::empty(); FAST_EQUATIONS],
             rows,
             r: r_all,
             scale,
@@ -323,18 +338,70 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Structured<T, P, F> 
     /// local parameter order, scaled by the equation's weight. `None` on overflow.
     #[inline(always)]
     fn local_regression(&self, i: usize, x: &[T], z: &[T], u: &[T]) -> (T, SVector<T, P>) {
-        let s = &self.structure;
+        Self::regression_of((&self.structure, &self.part, &self.rows, &self.scale), i, x, z, u)
+    }
+
+    /// [`Self::local_regression`] from the parts it reads (structure, partition, each
+    /// equation's state and row scale).
+    #[inline(always)]
+    fn regression_of(
+        (s, part, rows, scale): (&Structure<T>, &Partition, &[usize; MAX_EQUATIONS], &[T; MAX_EQUATIONS]),
+        i: usize,
+        x: &[T],
+        z: &[T],
+        u: &[T],
+    ) -> (T, SVector<T, P>) {
         let mut h = SVector::<T, P>::zeros();
-        let mut y = z[self.rows[i]];
+        let mut y = z[rows[i]];
         for t in s.terms(i) {
             let phi = t.coef * s.basis(t.basis, x, z, u);
             match t.param {
-                Some(p) => h[self.part.local[p as usize] as usize] += phi,
+                Some(p) => h[part.local[p as usize] as usize] += phi,
                 None => y -= phi,
             }
         }
-        let w = self.scale[i];
+        let w = scale[i];
         (y * w, h * w)
+    }
+
+    /// The update when every group has one equation (at most [`FAST_EQUATIONS`]) and every
+    /// filter takes the plain step ([`RowIdentifier::plan_plain`]): every group is planned
+    /// on the stack, then all are applied, with no copy of a filter. `false` (nothing
+    /// changed) when the update must take the general path: another configuration, or a
+    /// sample that path refuses or checks.
+    #[inline(always)]
+    fn update_plain(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> bool {
+        let ne = self.structure.equations();
+        if ne != self.part.groups as usize || ne > FAST_EQUATIONS || e.len() != ne {
+            return false;
+        }
+        let filters = self.filters.flat();
+        if !filters.iter().fold(true, |a, f| a & f.plain()) {
+            return false;
+        }
+        let mut ok = true;
+        let (parts, plans) = ((&self.structure, &self.part, &self.rows, &self.scale), &mut self.plans);
+        for (i, plan) in plans.iter_mut().enumerate().take(ne) {
+            let (y, h) = Self::regression_of(parts, i, x, z, u);
+            // 0 for finite values, NaN otherwise.
+            let probe = h.iter().fold(y * T::zero(), |a, &v| a + v * T::zero());
+            ok &= probe == T::zero();
+            ok &= filters[parts.1.group_of_eq[i] as usize].plan_plain(&h, y, plan);
+        }
+        if !ok {
+            return false;
+        }
+        for (i, plan) in self.plans.iter().enumerate().take(ne) {
+            let f = &mut self.filters.flat_mut()[self.part.group_of_eq[i] as usize];
+            let (ssr, decay) = (f.ssr(), f.forgetting());
+            f.apply_plain(plan);
+            let w = self.scale[i];
+            self.eq_ssr[i] = self.eq_ssr[i] * decay + (f.ssr() - ssr * decay) / (w * w);
+            self.eq_nobs[i] = self.eq_nobs[i] * decay + T::one();
+            e[i] = plan.e / w;
+        }
+        self.samples += 1;
+        true
     }
 
     fn restore(&mut self, touched: u32) {
@@ -360,6 +427,9 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Identifier<T> for St
         check_finite("r_k", x)?;
         check_finite("z_k", z)?;
         check_finite("u_k", u)?;
+        if self.update_plain(x, z, u, e) {
+            return Ok(());
+        }
         let ne = self.structure.equations();
         let (ssr0, nobs0, gated0) = (self.eq_ssr, self.eq_nobs, self.eq_gated);
         let mut touched = 0u32;
@@ -536,19 +606,53 @@ mod tests {
             for (x, z) in xs.iter().zip(&zs) {
                 a.update_into(x, z, &[], &mut ea).unwrap();
                 b.update_into(x, z, &[], &mut eb).unwrap();
+                // The innovations (NaN during the exact start, in both).
+                assert_eq!(ea.map(f64::to_bits), eb.map(f64::to_bits));
             }
+            // Bit for bit: the plain step has the rows identifier's arithmetic.
             let (mut ta, mut tb) = ([0.0; 8], [0.0; 8]);
             a.params_into(&mut ta).unwrap();
             b.params_into(&mut tb).unwrap();
-            for (u, v) in ta.iter().zip(&tb) {
-                assert!((u - v).abs() <= 1e-9 * v.abs().max(1.0), "{ta:?} vs {tb:?}");
-            }
+            assert_eq!(ta, tb);
             let (mut ca, mut cb) = ([0.0; 64], [0.0; 64]);
             a.covariance_into(&mut ca).unwrap();
             b.covariance_into(&mut cb).unwrap();
-            let big = cb.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-            assert!(ca.iter().zip(&cb).all(|(u, v)| (u - v).abs() <= 1e-9 * big));
+            assert_eq!(ca, cb);
+            let (mut sa, mut na, mut sb, mut nb) = ([0.0; 2], [0.0; 2], [0.0; 2], [0.0; 2]);
+            a.residuals_into(&mut sa, &mut na).unwrap();
+            b.residuals_into(&mut sb, &mut nb).unwrap();
+            assert_eq!((sa, na), (sb, nb));
         }
+    }
+
+    /// The plain step plans every group before it applies any: a sample the second group
+    /// refuses (its own regressor overflows `s`) leaves the first group unchanged too.
+    #[test]
+    fn plain_step_plans_every_group_before_applying() {
+        // ẋ0 = a x0, ẋ1 = b x1: two groups, one equation each.
+        let mut s = Structure::<f64>::new(2, 0, 2).unwrap();
+        let t = |param, i| Term { coef: 1.0, param: Some(param), basis: Basis::Var(Var::State(i)) };
+        s.push_equation(0, &[t(0, 0)]).unwrap();
+        s.push_equation(1, &[t(1, 1)]).unwrap();
+        let mut id = StructuredKalman::<f64, 1, 2>::new(
+            s,
+            StructuredPrior::Scalar(10.0),
+            None,
+            &[1.0],
+            KalmanOptions::default(),
+        )
+        .unwrap();
+        let mut e = [0.0; 2];
+        for k in 0..50 {
+            let x = [1.0 + (k % 7) as f64, 2.0 - (k % 5) as f64];
+            id.update_into(&x, &[-2.0 * x[0], 0.5 * x[1]], &[], &mut e).unwrap();
+        }
+        assert!(id.filter(0).plain() && id.filter(1).plain(), "the fast path is the one tested");
+        let before = id.clone();
+        assert!(id.update_into(&[1.0, 1e200], &[-2.0, 0.0], &[], &mut e).is_err());
+        assert_eq!((before.filter(0), before.filter(1)), (id.filter(0), id.filter(1)));
+        assert_eq!((before.equation_ssr(0), before.equation_ssr(1)), (id.equation_ssr(0), id.equation_ssr(1)));
+        assert_eq!(before.samples(), id.samples());
     }
 
     /// Two equations sharing a parameter, weighted by `r`: every estimate after the start is

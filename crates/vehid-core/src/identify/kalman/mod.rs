@@ -81,6 +81,7 @@ pub use full::FullKalmanIdentifierVec;
 pub use full::{FullKalmanIdentifier, KalmanFull};
 pub use options::{CovarianceForm, KalmanOptions, Mode};
 pub(crate) use row::check_reset;
+pub(crate) use row::PlainStep;
 pub use row::RowIdentifier;
 pub use rows::{KalmanIdentifier, KalmanRows};
 #[cfg(feature = "alloc")]
