@@ -8,6 +8,7 @@
 //! | [`Structured`] (any [`crate::structure::Structure`]: grey-box models linear in their parameters) | Eq 2.2–2.4, 6.16–6.18 | `structured.rs` |
 //! | [`InstrumentalVariables`] (noisy measured states: instruments = regressors `delay` samples earlier) | Söderström & Stoica §8 | `instrumental.rs`, `iv_filter.rs` |
 //! | [`BiasCompensated`] (noisy measured states, known noise covariance: `(XᵀX − N Σ_w)⁻¹ Xᵀz`) | Söderström 2007 §4.3 | `bias_compensated.rs` |
+//! | [`JointEkf`] (noisy measured states: states, parameters and road estimated together by an extended Kalman filter; the thesis' Ch. VII proposal) | Ljung 1979 | `joint_ekf.rs` |
 //! | [`TwoAxleIdentifier`] (two axles on one road: plain, Eq 6.14, road cancellation) | Eq 6.9, 6.12–6.14 | `two_axle.rs` |
 //!
 //! All of them regress the measured derivative of each unknown row on the measured state:
@@ -39,6 +40,7 @@ mod gradient;
 mod instrumental;
 mod interface;
 mod iv_filter;
+mod joint_ekf;
 pub(crate) mod iv_predictor;
 mod kalman;
 mod least_squares;
@@ -62,6 +64,7 @@ pub use interface::{Dims, FitError, Identifier, SampleIter, Samples, FIT_STACK_E
 #[cfg(feature = "alloc")]
 pub use interface::{DynIdentifier, FitOptions};
 pub use iv_filter::IvFilter;
+pub use joint_ekf::{EkfNoise, JointEkf, MAX_EKF_SUBSTEPS};
 #[cfg(feature = "alloc")]
 pub use kalman::{
     boxed_kalman, FullKalmanIdentifierVec, KalmanIdentifierVec, KalmanIdentifierVec2, KalmanSpec, Prior,
