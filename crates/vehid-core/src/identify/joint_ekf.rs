@@ -263,7 +263,10 @@ impl<T: Real, const N: usize, const D: usize> JointEkf<T, N, D> {
         check_positive("dt", dt)?;
         noise.check()?;
         if substeps == 0 || substeps > MAX_EKF_SUBSTEPS {
-            return Err(Error::InvalidArgument { arg: "substeps", expected: "between 1 and 1000 RK4 steps per sample" });
+            return Err(Error::InvalidArgument {
+                arg: "substeps",
+                expected: "between 1 and 1000 RK4 steps per sample",
+            });
         }
         let mut rows = [0usize; MAX_EQUATIONS];
         for (r, st) in rows.iter_mut().zip(structure.equation_states()) {
