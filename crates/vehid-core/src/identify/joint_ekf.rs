@@ -78,7 +78,10 @@
 //!
 //! # Cost
 //! `O(n D²)` for the update and the prediction and `O(terms · D)` per RK4 stage; no
-//! allocation (everything is `SMatrix` on the stack). Ljung (1979) shows that the plain EKF
+//! allocation (everything is `SMatrix` on the stack). Measured (release, a shared 2-core
+//! machine, `tests/joint_ekf.rs`'s `timing`): about 2.9 µs per sample for the quarter car
+//! with 5 RK4 sub-steps, physical structure (`D = 9`) or full rows (`D = 13`) alike, most
+//! of it in the sub-steps (0.9 µs with one); the thesis' Kalman rows identifier: 17 ns. Ljung (1979) shows that the plain EKF
 //! ignores the dependence of its gain on `p` and can then converge to a biased estimate; with
 //! a nearly measured state (the gain on `x` is set by `Σ_w`, not by `p`) the effect is small
 //! here: see `tests/joint_ekf.rs` for the measured figures.

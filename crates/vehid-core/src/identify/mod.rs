@@ -11,8 +11,9 @@
 //! | [`JointEkf`] (noisy measured states: states, parameters and road estimated together by an extended Kalman filter; the thesis' Ch. VII proposal) | Ljung 1979 | `joint_ekf.rs` |
 //! | [`TwoAxleIdentifier`] (two axles on one road: plain, Eq 6.14, road cancellation) | Eq 6.9, 6.12–6.14 | `two_axle.rs` |
 //!
-//! All of them regress the measured derivative of each unknown row on the measured state:
-//! `z_i(k) = r(k)ᵀ θ_i + ε_i(k)` (Eq 2.2–2.4 with `H = I ⊗ xᵀ`), and all of them implement
+//! All of them but [`JointEkf`] (which estimates the state too) regress the measured
+//! derivative of each unknown row on the measured state: `z_i(k) = r(k)ᵀ θ_i + ε_i(k)`
+//! (Eq 2.2–2.4 with `H = I ⊗ xᵀ`), and all of them implement
 //! one interface, [`Identifier`] (`interface.rs`): samples in through
 //! [`Identifier::update_into`], which allocates nothing and is transactional (a rejected
 //! sample — NaN, inf, a numerically singular step — returns an error and leaves the
