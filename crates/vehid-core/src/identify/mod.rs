@@ -8,10 +8,12 @@
 //! | [`Structured`] (any [`crate::structure::Structure`]: grey-box models linear in their parameters) | Eq 2.2–2.4, 6.16–6.18 | `structured.rs` |
 //! | [`InstrumentalVariables`] (noisy measured states: instruments = regressors `delay` samples earlier) | Söderström & Stoica §8 | `instrumental.rs`, `iv_filter.rs` |
 //! | [`BiasCompensated`] (noisy measured states, known noise covariance: `(XᵀX − N Σ_w)⁻¹ Xᵀz`) | Söderström 2007 §4.3 | `bias_compensated.rs` |
+//! | [`JointEkf`] (noisy measured states: states, parameters and road estimated together by an extended Kalman filter; the thesis' Ch. VII proposal) | Ljung 1979 | `joint_ekf.rs` |
 //! | [`TwoAxleIdentifier`] (two axles on one road: plain, Eq 6.14, road cancellation) | Eq 6.9, 6.12–6.14 | `two_axle.rs` |
 //!
-//! All of them regress the measured derivative of each unknown row on the measured state:
-//! `z_i(k) = r(k)ᵀ θ_i + ε_i(k)` (Eq 2.2–2.4 with `H = I ⊗ xᵀ`), and all of them implement
+//! All of them but [`JointEkf`] (which estimates the state too) regress the measured
+//! derivative of each unknown row on the measured state: `z_i(k) = r(k)ᵀ θ_i + ε_i(k)`
+//! (Eq 2.2–2.4 with `H = I ⊗ xᵀ`), and all of them implement
 //! one interface, [`Identifier`] (`interface.rs`): samples in through
 //! [`Identifier::update_into`], which allocates nothing and is transactional (a rejected
 //! sample — NaN, inf, a numerically singular step — returns an error and leaves the
@@ -40,6 +42,7 @@ mod instrumental;
 mod interface;
 mod iv_filter;
 pub(crate) mod iv_predictor;
+mod joint_ekf;
 mod kalman;
 mod least_squares;
 mod store;
@@ -62,6 +65,7 @@ pub use interface::{Dims, FitError, Identifier, SampleIter, Samples, FIT_STACK_E
 #[cfg(feature = "alloc")]
 pub use interface::{DynIdentifier, FitOptions};
 pub use iv_filter::IvFilter;
+pub use joint_ekf::{EkfNoise, JointEkf, MAX_EKF_SUBSTEPS};
 #[cfg(feature = "alloc")]
 pub use kalman::{
     boxed_kalman, FullKalmanIdentifierVec, KalmanIdentifierVec, KalmanIdentifierVec2, KalmanSpec, Prior,
