@@ -318,6 +318,22 @@ fn noisy_states(c: &mut Criterion) {
         let _ = black_box(bc.update_into(x.as_slice(), z.as_slice(), &[], &mut e));
     };
     bench_updates(c, "update_f64", &data, &mut update, "quarter/bcls_rows");
+    // The joint EKF (state, parameters and road together) on the physical structure, m known:
+    // a prior 10 % off the truth (standard deviation half the guess), Σ_w for 8 % state
+    // noise, the simulator's 5 RK4 sub-steps (as count_updates' quarter_ekf_physical).
+    use vehid_core::identify::{EkfNoise, JointEkf};
+    let ps = QuarterCar::<f64>::structure([None, Some(1.0), None, None, None]).unwrap();
+    let mut guess = [0.0; 4];
+    ps.params_of(&q.constants(), &mut guess).unwrap();
+    guess.iter_mut().for_each(|g| *g *= 1.1);
+    let var = guess.map(|g| 0.25 * g * g);
+    let b = SVector::<f64, 4>::from_column_slice(q.model().b().as_slice());
+    let noise = EkfNoise::from_sigmas(0.008, 0.005, b, 0.1);
+    let mut ekf = JointEkf::<f64, 4, 9>::new(*ps.structure(), &guess, &var, 1.0, noise, 0.05, 5).unwrap();
+    let mut update = |x: &SVector<f64, 4>, z: &SVector<f64, 4>| {
+        let _ = black_box(ekf.update_into(x.as_slice(), z.as_slice(), &[], &mut e));
+    };
+    bench_updates(c, "update_f64", &data, &mut update, "quarter/ekf_physical");
 }
 
 fn batch_least_squares(c: &mut Criterion) {

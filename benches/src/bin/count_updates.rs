@@ -11,9 +11,9 @@
 use std::hint::black_box;
 use std::process::ExitCode;
 use vehid_core::identify::{
-    BiasCompensatedLs, CovarianceForm, Gain, Identifier, IvIdentifier, KalmanIdentifier, KalmanIdentifierVec,
-    KalmanIdentifierVec2, KalmanOptions, SharedKalmanIdentifier, StochasticGradient, StructuredGradient,
-    StructuredKalman, StructuredPrior,
+    BiasCompensatedLs, CovarianceForm, EkfNoise, Gain, Identifier, IvIdentifier, JointEkf, KalmanIdentifier,
+    KalmanIdentifierVec, KalmanIdentifierVec2, KalmanOptions, SharedKalmanIdentifier, StochasticGradient,
+    StructuredGradient, StructuredKalman, StructuredPrior,
 };
 use vehid_core::model::{HalfCar, LinearModel, QuarterCar};
 use vehid_core::nalgebra::SVector;
@@ -23,7 +23,7 @@ use vehid_core::structure::Structure;
 const LEN: usize = 4096;
 
 /// The benches: name and what one update is.
-const BENCHES: [(&str, &str); 20] = [
+const BENCHES: [(&str, &str); 21] = [
     ("quarter_rows", "KalmanIdentifier<f64, 4, 2> (rows) update"),
     ("half_rows", "KalmanIdentifier<f64, 8, 4> (rows) update"),
     ("quarter_rows_sqrt", "KalmanIdentifier<f64, 4, 2> square-root form update"),
@@ -47,6 +47,7 @@ const BENCHES: [(&str, &str); 20] = [
     ("quarter_iv_rows", "IvIdentifier<f64, 4, 2> (delay 1) on the full-row structure update_into"),
     ("quarter_iv_physical", "IvIdentifier<f64, 2, 2> (delay 1, exact start) on the physical structure update_into"),
     ("quarter_bcls_rows", "BiasCompensatedLs<f64, 4, 2> on the full-row structure update_into"),
+    ("quarter_ekf_physical", "JointEkf<f64, 4, 9> (physical structure, m known, 5 RK4 sub-steps) update_into"),
 ];
 
 type Data<const N: usize> = Vec<(SVector<f64, N>, SVector<f64, N>)>;
@@ -168,7 +169,8 @@ fn run(bench: &str, n: usize) -> vehid_core::Result<String> {
         | "quarter_structured_sg"
         | "quarter_iv_rows"
         | "quarter_iv_physical"
-        | "quarter_bcls_rows" => structured(bench, n)?,
+        | "quarter_bcls_rows"
+        | "quarter_ekf_physical" => structured(bench, n)?,
         _ => unreachable!("main checks the name against BENCHES"),
     })
 }
@@ -228,7 +230,8 @@ fn structured(bench: &str, n: usize) -> vehid_core::Result<String> {
             &[1.0],
         )?),
         "quarter_iv_physical" => Box::new(IvIdentifier::<f64, 2, 2>::exact(physical, 1)?),
-        _ => Box::new(BiasCompensatedLs::<f64, 4, 2>::full_rows(4, &q.unknown_rows(), &[6.4e-5])?),
+        "quarter_bcls_rows" => Box::new(BiasCompensatedLs::<f64, 4, 2>::full_rows(4, &q.unknown_rows(), &[6.4e-5])?),
+        _ => Box::new(ekf_physical(&q)?),
     };
     let mut e = [0.0; 2];
     cycle(&data, n, |x, z| id.update_into(x.as_slice(), z.as_slice(), &[], &mut e).is_ok());
@@ -240,6 +243,19 @@ fn structured(bench: &str, n: usize) -> vehid_core::Result<String> {
         Ok(()) => format!("{:?}", &theta[..np]),
         Err(e) => format!("({e})"),
     })
+}
+
+/// The joint EKF on the quarter car's physical structure (m known) as the criterion bench
+/// update_f64/quarter/ekf_physical builds it: a prior 10 % off the truth with a standard
+/// deviation of half the guess, Σ_w for 8 % state noise, the simulator's 5 RK4 sub-steps.
+fn ekf_physical(q: &QuarterCar<f64>) -> vehid_core::Result<JointEkf<f64, 4, 9>> {
+    let ps = QuarterCar::<f64>::structure([None, Some(1.0), None, None, None])?;
+    let mut guess = [0.0; 4];
+    ps.params_of(&q.constants(), &mut guess)?;
+    guess.iter_mut().for_each(|g| *g *= 1.1);
+    let var = guess.map(|g| 0.25 * g * g);
+    let b = SVector::<f64, 4>::from_column_slice(q.model().b().as_slice());
+    JointEkf::new(*ps.structure(), &guess, &var, 1.0, EkfNoise::from_sigmas(0.008, 0.005, b, 0.1), 0.05, 5)
 }
 
 fn main() -> ExitCode {
