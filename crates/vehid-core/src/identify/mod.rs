@@ -9,6 +9,7 @@
 //! | [`InstrumentalVariables`] (noisy measured states: instruments = regressors `delay` samples earlier) | Söderström & Stoica §8 | `instrumental.rs`, `iv_filter.rs` |
 //! | [`BiasCompensated`] (noisy measured states, known noise covariance: `(XᵀX − N Σ_w)⁻¹ Xᵀz`) | Söderström 2007 §4.3 | `bias_compensated.rs` |
 //! | [`TwoAxleIdentifier`] (two axles on one road: plain, Eq 6.14, road cancellation) | Eq 6.9, 6.12–6.14 | `two_axle.rs` |
+//! | [`TwoAxleStructured`] (road cancellation on a physical [`crate::structure::Structure`]: the half car's 12 parameters) | Eq 6.1–6.9 | `two_axle_structured.rs` |
 //!
 //! All of them regress the measured derivative of each unknown row on the measured state:
 //! `z_i(k) = r(k)ᵀ θ_i + ε_i(k)` (Eq 2.2–2.4 with `H = I ⊗ xᵀ`), and all of them implement
@@ -46,6 +47,7 @@ mod store;
 mod structured;
 mod structured_gradient;
 mod two_axle;
+mod two_axle_structured;
 
 #[cfg(feature = "alloc")]
 pub use bias_compensated::BiasCompensatedVec;
@@ -82,6 +84,9 @@ pub use structured_gradient::StructuredGradient;
 #[cfg(feature = "alloc")]
 pub use two_axle::TwoAxleIdentifierVec;
 pub use two_axle::{Past, TwoAxle, TwoAxleConfig, TwoAxleIdentifier, WheelMethod};
+#[cfg(feature = "alloc")]
+pub use two_axle_structured::TwoAxleStructuredVec;
+pub use two_axle_structured::{FrontRegression, TwoAxleStructured, TwoAxleStructuredConfig, TwoAxleStructuredKalman};
 
 pub(crate) use interface::{check_lengths, vector};
 pub(crate) use store::{array_from_items, per_row, rows_buffer, rows_into};
