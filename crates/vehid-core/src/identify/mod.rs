@@ -34,6 +34,7 @@
 //! path computes the same bits. Measured figures and how to reproduce them: `benches/README.md`.
 
 mod bias_compensated;
+mod deriv_noise;
 #[cfg(feature = "alloc")]
 mod estimate_stats;
 mod gradient;
