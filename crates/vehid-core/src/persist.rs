@@ -345,6 +345,12 @@ mod impls {
         [T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<T, N>>] TwoAxle<T, N, P, S, B>,
         ser: [T: Serialize, S::Group: Serialize],
         de: [T: Deserialize<'de>, S::Group: Deserialize<'de>]);
+
+    checked!("TwoAxleStructured",
+        [T: Real, const P: usize, F: crate::identify::Flat<crate::identify::RowIdentifier<T, P>>,
+         B: RingStore<crate::identify::FrontRegression<T, P>>]
+        crate::identify::TwoAxleStructured<T, P, F, B>,
+        ser: [T: Serialize], de: [T: Deserialize<'de>]);
 }
 
 #[cfg(test)]

@@ -13,7 +13,8 @@ use vehid_core::identify::{
     BiasCompensatedVec, CovarianceForm, FullKalmanIdentifier, FullKalmanIdentifierVec, Gain, Identifier,
     IvIdentifierVec, KalmanIdentifier, KalmanIdentifierVec, KalmanOptions, SharedKalmanIdentifier,
     SharedKalmanIdentifierVec, StochasticGradient, StochasticGradientVec, StructuredGradient, StructuredKalman,
-    StructuredKalmanVec, StructuredPrior, TwoAxleConfig, TwoAxleIdentifierVec, WheelMethod,
+    StructuredKalmanVec, StructuredPrior, TwoAxleConfig, TwoAxleIdentifierVec, TwoAxleStructuredConfig,
+    TwoAxleStructuredKalman, TwoAxleStructuredVec, WheelMethod,
 };
 use vehid_core::model::{HalfCar, QuarterCar};
 use vehid_core::sim::{SimConfig, Simulator};
@@ -167,4 +168,14 @@ fn no_identifier_allocates_per_sample() {
         let mut two = TwoAxleIdentifierVec::<f64, 8, 16>::new(&half.model(), 10, cfg).unwrap();
         count(&format!("two axles {method:?}"), &mut two, &hdata);
     }
+    // Road cancellation on the half car's physical structure (m1, m2, l1, l2 known), both
+    // stores.
+    let c = half.constants();
+    let known = core::array::from_fn(|i| (i >= 8).then_some(c[i]));
+    let ps = *HalfCar::structure(known).unwrap().structure();
+    let cfg = TwoAxleStructuredConfig::new(0.1, 0.005);
+    let mut fixed = TwoAxleStructuredKalman::<f64, 4, 3, 16>::new(ps, &half.model(), 10, cfg).unwrap();
+    count("two axles, physical structure", &mut fixed, &hdata);
+    let mut heap = TwoAxleStructuredVec::<f64, 4>::new(ps, &half.model(), 10, cfg).unwrap();
+    count("two axles, physical structure Vec", &mut heap, &hdata);
 }

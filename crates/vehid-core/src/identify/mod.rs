@@ -10,6 +10,7 @@
 //! | [`BiasCompensated`] (noisy measured states, known noise covariance: `(XᵀX − N Σ_w)⁻¹ Xᵀz`) | Söderström 2007 §4.3 | `bias_compensated.rs` |
 //! | [`JointEkf`] (noisy measured states: states, parameters and road estimated together by an extended Kalman filter; the thesis' Ch. VII proposal) | Ljung 1979 | `joint_ekf.rs` |
 //! | [`TwoAxleIdentifier`] (two axles on one road: plain, Eq 6.14, road cancellation) | Eq 6.9, 6.12–6.14 | `two_axle.rs` |
+//! | [`TwoAxleStructured`] (road cancellation on a physical [`crate::structure::Structure`]: the half car's 12 parameters) | Eq 6.1–6.9 | `two_axle_structured.rs` |
 //!
 //! All of them but [`JointEkf`] (which estimates the state too) regress the measured
 //! derivative of each unknown row on the measured state: `z_i(k) = r(k)ᵀ θ_i + ε_i(k)`
@@ -35,6 +36,7 @@
 //! path computes the same bits. Measured figures and how to reproduce them: `benches/README.md`.
 
 mod bias_compensated;
+mod deriv_noise;
 #[cfg(feature = "alloc")]
 mod estimate_stats;
 mod gradient;
@@ -49,6 +51,7 @@ mod store;
 mod structured;
 mod structured_gradient;
 mod two_axle;
+mod two_axle_structured;
 
 #[cfg(feature = "alloc")]
 pub use bias_compensated::BiasCompensatedVec;
@@ -86,6 +89,9 @@ pub use structured_gradient::StructuredGradient;
 #[cfg(feature = "alloc")]
 pub use two_axle::TwoAxleIdentifierVec;
 pub use two_axle::{Past, TwoAxle, TwoAxleConfig, TwoAxleIdentifier, WheelMethod};
+#[cfg(feature = "alloc")]
+pub use two_axle_structured::TwoAxleStructuredVec;
+pub use two_axle_structured::{FrontRegression, TwoAxleStructured, TwoAxleStructuredConfig, TwoAxleStructuredKalman};
 
 pub(crate) use interface::{check_lengths, vector};
 pub(crate) use store::{array_from_items, per_row, rows_buffer, rows_into};

@@ -174,7 +174,7 @@ pub type TwoAxleIdentifierVec<T, const N: usize, const P: usize> =
     TwoAxle<T, N, P, Dynamic, alloc::vec::Vec<Past<T, N>>>;
 
 /// The wheel rows: the unknown row each input enters (exactly one each).
-fn wheel_rows<T: Real, const N: usize>(model: &LinearModel<T, N, 2>) -> Result<(usize, usize)> {
+pub(crate) fn wheel_rows<T: Real, const N: usize>(model: &LinearModel<T, N, 2>) -> Result<(usize, usize)> {
     const BAD: Error = Error::InvalidArgument {
         arg: "b",
         expected: "two inputs (front, rear road), each entering exactly one unknown row of its own \

@@ -602,6 +602,40 @@ impl<T: Real> Structure<T> {
         Ok(())
     }
 
+    /// The rows of `A` that parameters `p` give: `out` (`equations × states`, row-major, in
+    /// the order of the identified equations) receives `∂ẋ_i/∂x_j` of each identified
+    /// equation's state `i`, as `derivative(p, e_j, 0) − derivative(p, 0, 0)` (every `der(·)`
+    /// term resolved through the equation it reads, so a wheel row that reads the body's
+    /// accelerations gets the body rows' entries times its parameters). Exact for a structure
+    /// linear in the state (no `sign`/`pos`/`neg` of states; an offset cancels); the inputs
+    /// are held at 0 (their columns are `B`'s, not `A`'s). No allocation.
+    ///
+    /// # Errors
+    /// [`Error::Shape`] for `p` not of [`Structure::params`] values or `out` not of
+    /// `equations × states`; [`Error::NonFinite`] for NaN/inf in `p`.
+    pub fn linear_rows_into(&self, p: &[T], out: &mut [T]) -> Result<()> {
+        let (n, ne) = (self.states(), self.equations());
+        if p.len() != self.params() {
+            return Err(Error::Shape { arg: "params", expected: self.params(), got: p.len() });
+        }
+        if out.len() != ne * n {
+            return Err(Error::Shape { arg: "out", expected: ne * n, got: out.len() });
+        }
+        crate::error::check_finite("params", p)?;
+        let mut x = [T::zero(); MAX_STATES];
+        let (mut base, mut d) = ([T::zero(); MAX_STATES], [T::zero(); MAX_STATES]);
+        self.derivative(p, &x[..n], &[], &mut base[..n]);
+        for j in 0..n {
+            x[j] = T::one();
+            self.derivative(p, &x[..n], &[], &mut d[..n]);
+            x[j] = T::zero();
+            for (i, s) in self.equation_states().enumerate() {
+                out[i * n + j] = d[s] - base[s];
+            }
+        }
+        Ok(())
+    }
+
     /// `true` when every state has an equation (identified or known): the structure can then
     /// be simulated.
     pub fn complete(&self) -> bool {
