@@ -336,6 +336,38 @@ fn noisy_states(c: &mut Criterion) {
     bench_updates(c, "update_f64", &data, &mut update, "quarter/ekf_physical");
 }
 
+/// Road cancellation on the half car's physical structure (issue 14; count_updates'
+/// half_two_axle_physical): sampled every 0.3 m at 6 m/s, the rear axle 10 samples behind,
+/// m1, m2, l1, l2 known (12 parameters), the exact start. Compare with
+/// `half/kalman_rows` (32 parameters, no pairing).
+fn two_axle(c: &mut Criterion) {
+    use vehid_core::identify::{TwoAxleStructuredConfig, TwoAxleStructuredKalman};
+    use vehid_core::sim::{RoadConfig, RoadSimulator};
+    let car = HalfCar::<f64>::thesis();
+    let cfg = SimConfig::new(0.05).road_sigma(0.1).deriv_noise(0.005);
+    let mut sim =
+        RoadSimulator::<f64, 8, 16>::new(car.model(), cfg, RoadConfig::new(0.3, car.wheelbase()), 42).unwrap();
+    let data: Vec<_> = (0..LEN).map(|_| sim.next_sample(6.0).map(|s| (s.r, s.z)).unwrap()).collect();
+    let consts = car.constants();
+    let mut known = [None; 12];
+    for i in 8..12 {
+        known[i] = Some(consts[i]);
+    }
+    let ps = HalfCar::structure(known).unwrap();
+    let mut id = TwoAxleStructuredKalman::<f64, 4, 3, 16>::new(
+        *ps.structure(),
+        &car.model(),
+        10,
+        TwoAxleStructuredConfig::new(0.1, 0.005),
+    )
+    .unwrap();
+    let mut e = [0.0; 4];
+    let mut update = |x: &SVector<f64, 8>, z: &SVector<f64, 8>| {
+        let _ = black_box(id.update_into(x.as_slice(), z.as_slice(), &[], &mut e));
+    };
+    bench_updates(c, "update_f64", &data, &mut update, "half/two_axle_physical");
+}
+
 fn batch_least_squares(c: &mut Criterion) {
     let q = QuarterCar::<f64>::thesis();
     let data = samples(q.model());
@@ -378,5 +410,5 @@ fn config() -> Criterion {
         .sample_size(30)
 }
 
-criterion_group! { name = benches; config = config(); targets = identifiers, structured, noisy_states, batch_least_squares, simulator }
+criterion_group! { name = benches; config = config(); targets = identifiers, structured, noisy_states, two_axle, batch_least_squares, simulator }
 criterion_main!(benches);

@@ -13,17 +13,17 @@ use std::process::ExitCode;
 use vehid_core::identify::{
     BiasCompensatedLs, CovarianceForm, EkfNoise, Gain, Identifier, IvIdentifier, JointEkf, KalmanIdentifier,
     KalmanIdentifierVec, KalmanIdentifierVec2, KalmanOptions, SharedKalmanIdentifier, StochasticGradient,
-    StructuredGradient, StructuredKalman, StructuredPrior,
+    StructuredGradient, StructuredKalman, StructuredPrior, TwoAxleStructuredConfig, TwoAxleStructuredKalman,
 };
 use vehid_core::model::{HalfCar, LinearModel, QuarterCar};
 use vehid_core::nalgebra::SVector;
-use vehid_core::sim::{Method, SimConfig, Simulator};
+use vehid_core::sim::{Method, RoadConfig, RoadSimulator, SimConfig, Simulator};
 use vehid_core::structure::Structure;
 
 const LEN: usize = 4096;
 
 /// The benches: name and what one update is.
-const BENCHES: [(&str, &str); 21] = [
+const BENCHES: [(&str, &str); 22] = [
     ("quarter_rows", "KalmanIdentifier<f64, 4, 2> (rows) update"),
     ("half_rows", "KalmanIdentifier<f64, 8, 4> (rows) update"),
     ("quarter_rows_sqrt", "KalmanIdentifier<f64, 4, 2> square-root form update"),
@@ -48,6 +48,10 @@ const BENCHES: [(&str, &str); 21] = [
     ("quarter_iv_physical", "IvIdentifier<f64, 2, 2> (delay 1, exact start) on the physical structure update_into"),
     ("quarter_bcls_rows", "BiasCompensatedLs<f64, 4, 2> on the full-row structure update_into"),
     ("quarter_ekf_physical", "JointEkf<f64, 4, 9> (physical structure, m known, 5 RK4 sub-steps) update_into"),
+    (
+        "half_two_axle_physical",
+        "TwoAxleStructuredKalman<f64, 4, 3, 16> (half car, one road, 12 parameters) update_into",
+    ),
 ];
 
 type Data<const N: usize> = Vec<(SVector<f64, N>, SVector<f64, N>)>;
@@ -171,6 +175,7 @@ fn run(bench: &str, n: usize) -> vehid_core::Result<String> {
         | "quarter_iv_physical"
         | "quarter_bcls_rows"
         | "quarter_ekf_physical" => structured(bench, n)?,
+        "half_two_axle_physical" => two_axle_physical(n)?,
         _ => unreachable!("main checks the name against BENCHES"),
     })
 }
@@ -256,6 +261,36 @@ fn ekf_physical(q: &QuarterCar<f64>) -> vehid_core::Result<JointEkf<f64, 4, 9>> 
     let var = guess.map(|g| 0.25 * g * g);
     let b = SVector::<f64, 4>::from_column_slice(q.model().b().as_slice());
     JointEkf::new(*ps.structure(), &guess, &var, 1.0, EkfNoise::from_sigmas(0.008, 0.005, b, 0.1), 0.05, 5)
+}
+
+/// Road cancellation on the half car's physical structure (issue 14), as the criterion bench
+/// update_f64/half/two_axle_physical: the thesis' half car sampled every 0.3 m at 6 m/s, the
+/// rear axle 10 samples behind, m1, m2, l1, l2 known (12 parameters), the exact start.
+#[inline(never)]
+fn two_axle_physical(n: usize) -> vehid_core::Result<String> {
+    let car = HalfCar::<f64>::thesis();
+    let cfg = SimConfig::new(0.05).road_sigma(0.1).deriv_noise(0.005);
+    let mut sim = RoadSimulator::<f64, 8, 16>::new(car.model(), cfg, RoadConfig::new(0.3, car.wheelbase()), 42)?;
+    let data = (0..LEN).map(|_| sim.next_sample(6.0).map(|s| (s.r, s.z))).collect::<vehid_core::Result<Data<8>>>()?;
+    let c = car.constants();
+    let mut known = [None; 12];
+    for i in 8..12 {
+        known[i] = Some(c[i]);
+    }
+    let ps = HalfCar::structure(known)?;
+    let mut id = TwoAxleStructuredKalman::<f64, 4, 3, 16>::new(
+        *ps.structure(),
+        &car.model(),
+        10,
+        TwoAxleStructuredConfig::new(0.1, 0.005),
+    )?;
+    let mut e = [0.0; 4];
+    cycle(&data, n, |x, z| id.update_into(x.as_slice(), z.as_slice(), &[], &mut e).is_ok());
+    let mut rows = [0.0; 32];
+    Ok(match id.a_rows_into(&mut rows) {
+        Ok(()) => format!("{rows:?}"),
+        Err(e) => format!("({e})"),
+    })
 }
 
 fn main() -> ExitCode {
