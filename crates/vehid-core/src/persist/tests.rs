@@ -793,7 +793,7 @@ fn a_corrupt_joint_ekf_is_refused() {
     for (x, z) in &quarter(30) {
         id.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
     }
-    let good = serde_json::to_value(&id).unwrap();
+    let good = serde_json::to_value(id).unwrap();
     assert_eq!(serde_json::from_value::<Ekf>(good.clone()).unwrap(), id);
     let with = |path: &str, v: serde_json::Value| {
         let mut out = good.clone();
