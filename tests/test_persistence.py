@@ -56,6 +56,18 @@ CASES: List[Any] = [
     ("two-axle-cancel", lambda: vehid.TwoAxleIdentifier(HALF), "road"),
     ("two-axle-thesis", lambda: vehid.TwoAxleIdentifier(HALF, method="thesis"), "road"),
     ("two-axle-none", lambda: vehid.TwoAxleIdentifier(HALF, method="none", p0_body=8.0), "road"),
+    (
+        "two-axle-structure",
+        lambda: vehid.TwoAxleIdentifier(HALF.structure(known={"m1": 1.0, "m2": 1.0, "l1": 2.0, "l2": 1.0}), car=HALF),
+        "road",
+    ),
+    (
+        "joint-ekf-physical",
+        lambda: vehid.JointEKF(CAR.structure(known={"m": 1.0}), [2.5, 6.0, 5.0, 135.0], state_noise=1e-3,
+                               road_gain=CAR.b),
+        "quarter",
+    ),
+    ("joint-ekf-rows", lambda: vehid.JointEKF(CAR, CAR.theta * 1.2, state_noise=1e-3), "quarter"),
 ]
 
 RUNS = {"quarter": quarter_run(), "half": None, "road": half_road_run()}

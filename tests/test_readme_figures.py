@@ -135,10 +135,13 @@ def stated_figures(text: str) -> List[Tuple[int, str, List[str]]]:
 
 def test_the_readme_states_the_figures_this_test_checks() -> None:
     # The comments this test reads must exist (else it would pass by checking nothing): the
-    # two-axle example's wheel rows and the noisy-sensor example's three identifiers.
+    # two-axle example's wheel rows and physical structure, the noisy-sensor example's three
+    # identifiers and its joint EKF.
     stated = stated_figures(README.read_text(encoding="utf-8"))
     assert any("wheel rows" in ln for _, ln, _ in stated), stated
+    assert any("worst(half_phys.a_hat)" in ln for _, ln, _ in stated), stated
     assert any("print(xis)" in ln for _, ln, _ in stated), stated
+    assert any("rows(ekf.params)" in ln for _, ln, _ in stated), stated
     assert all(len(figs) >= 1 for _, _, figs in stated)
 
 

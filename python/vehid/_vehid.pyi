@@ -23,6 +23,7 @@ __all__ = [
     "TwoAxleIdentifier",
     "IVIdentifier",
     "BiasCompensated",
+    "JointEKF",
     "AxleSampler",
     "Structure",
     "Stats",
@@ -352,6 +353,36 @@ class BiasCompensated(Identifier):
         r: Optional[_Floats] = None,
     ) -> BiasCompensated: ...
 
+@final
+class JointEKF(Identifier):
+    """Joint state, parameter and road estimation: an extended Kalman filter (the thesis' Ch. VII)."""
+
+    def __new__(
+        cls,
+        model: Union[LinearModel, Structure],
+        theta0: ArrayLike,
+        p0: Optional[_Floats] = None,
+        *,
+        state_noise: _Floats,
+        deriv_noise: Optional[_Floats] = None,
+        road_sigma: float = 0.1,
+        road_gain: Optional[ArrayLike] = None,
+        dt: float = 0.05,
+        substeps: Optional[int] = None,
+        x0_var: float = 1.0,
+        drift: float = 0.0,
+    ) -> JointEKF: ...
+    @property
+    def state(self) -> NDArray[np.float64]: ...
+    @property
+    def state_covariance(self) -> NDArray[np.float64]: ...
+    @property
+    def dt(self) -> float: ...
+    @property
+    def substeps(self) -> int: ...
+    @property
+    def road_gain(self) -> NDArray[np.float64]: ...
+
 def xi(theta: ArrayLike, theta_hat: ArrayLike) -> float: ...
 @overload
 def snr_db(signal_std: float, noise_std: float) -> float: ...
@@ -363,20 +394,22 @@ _Trigger = Tuple[int, int, float, Optional[Tuple[int, int, float]]]
 
 @final
 class TwoAxleIdentifier(Identifier):
-    """Half car on one road (Ch. VI.D): plain rows, Eq 6.14, or road cancellation."""
+    """Half car on one road (Ch. VI.D): plain rows, Eq 6.14, or road cancellation (also on a Structure)."""
 
     def __new__(
         cls,
-        model: LinearModel,
+        model: Union[LinearModel, Structure],
         spacing: float = 0.3,
         method: str = "cancel",
-        p0: float = 1000.0,
+        p0: Optional[Union[float, Literal["exact"]]] = None,
         road_sigma: float = 0.1,
         deriv_noise: float = 0.005,
         *,
         p0_body: Optional[float] = None,
         wheelbase: Optional[float] = None,
         direct_front: bool = True,
+        car: Optional[LinearModel] = None,
+        compensate: bool = True,
     ) -> TwoAxleIdentifier: ...
     @property
     def method(self) -> _WheelMethod: ...
@@ -392,6 +425,8 @@ class TwoAxleIdentifier(Identifier):
     def paired(self) -> int: ...
     @property
     def model(self) -> LinearModel: ...
+    @property
+    def compensate(self) -> bool: ...
 
 @final
 class AxleSampler:

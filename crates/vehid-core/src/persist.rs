@@ -346,6 +346,9 @@ mod impls {
         ser: [T: Serialize, S::Group: Serialize],
         de: [T: Deserialize<'de>, S::Group: Deserialize<'de>]);
 
+    checked!("JointEkf", [T: Real, const N: usize, const DIM: usize] crate::identify::JointEkf<T, N, DIM>,
+        ser: [T: Serialize], de: [T: Deserialize<'de>]);
+
     checked!("TwoAxleStructured",
         [T: Real, const P: usize, F: crate::identify::Flat<crate::identify::RowIdentifier<T, P>>,
          B: RingStore<crate::identify::FrontRegression<T, P>>]

@@ -221,7 +221,7 @@ impl PyIdentifier {
     /// The estimated unknown rows of A, shape (k, n); for a structure the parameters
     /// (n_params,), like `params`.
     #[getter]
-    fn theta<'py>(slf: &Bound<'py, Self>, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+    pub(crate) fn theta<'py>(slf: &Bound<'py, Self>, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let this = borrow(slf)?;
         if this.structure.is_some() {
             return Ok(this.params_vec(py)?.into_pyarray(py).into_any());
@@ -254,7 +254,7 @@ impl PyIdentifier {
 
     /// Â: the model's A with the unknown rows replaced by the estimate, shape (n, n).
     #[getter]
-    fn a_hat<'py>(slf: &Bound<'py, Self>, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    pub(crate) fn a_hat<'py>(slf: &Bound<'py, Self>, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let this = borrow(slf)?;
         if this.structure.is_some() {
             return Err(VehidError::new_err(

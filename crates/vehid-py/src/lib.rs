@@ -14,6 +14,7 @@ mod drive;
 mod guard;
 mod health;
 mod identify;
+mod joint_ekf;
 mod model;
 mod noisy;
 mod persist;
@@ -117,6 +118,7 @@ fn _vehid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<two_axle::PyTwoAxleIdentifier>()?;
     m.add_class::<noisy::PyIVIdentifier>()?;
     m.add_class::<noisy::PyBiasCompensated>()?;
+    m.add_class::<joint_ekf::PyJointEKF>()?;
     m.add_class::<two_axle::PyAxleSampler>()?;
     m.add_class::<structure::PyStructure>()?;
     m.add_class::<stats::PyStats>()?;

@@ -3,9 +3,10 @@
 //! An identifier pickles as `copyreg.__newobj_ex__(cls, args, kwargs)` plus a state:
 //! `args`/`kwargs` build a fresh object of the same class and settings (the model, and for
 //! `KalmanIdentifier` its mode and form, for `StochasticGradient` its gain, for
-//! `TwoAxleIdentifier` its spacing, method and wheelbase, for `IVIdentifier` its delay and
-//! lags; `BiasCompensated` is built with a zero noise covariance, which the saved core
-//! replaces), and `__setstate__` then replaces its core by the saved one. That works with
+//! `TwoAxleIdentifier` its spacing, method and wheelbase (on a Structure also its `car` and
+//! `compensate`), for `IVIdentifier` its delay and lags; `BiasCompensated` is built with a
+//! zero noise covariance and `JointEKF` as a placeholder filter of the same sizes, which the
+//! saved core replaces), and `__setstate__` then replaces its core by the saved one. That works with
 //! every pickle protocol (0–5).
 //!
 //! The state is the tuple `(FORMAT, "vehid <version>", payload)`: the payload is postcard
@@ -18,6 +19,7 @@
 use crate::dispatch::{dispatch_n, ModelData};
 use crate::guard::{borrow, borrow_mut};
 use crate::identify::{PyBatchLeastSquares, PyIdentifier, PyKalmanIdentifier, PyStochasticGradient};
+use crate::joint_ekf::{PyJointEKF, EKF_STATES};
 use crate::model::{Kind, PyLinearModel};
 use crate::noisy::{PyBiasCompensated, PyIVIdentifier, PREDICTOR};
 use crate::two_axle::PyTwoAxleIdentifier;
@@ -26,16 +28,18 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyTuple};
 use serde::{Deserialize, Serialize};
 use vehid_core::identify::{
-    BatchLeastSquares, BiasCompensatedVec, DynIdentifier, Dynamic, IvIdentifierVec, KalmanFull, KalmanRows,
+    BatchLeastSquares, BiasCompensatedVec, DynIdentifier, Dynamic, IvIdentifierVec, JointEkf, KalmanFull, KalmanRows,
     KalmanShared, StochasticGradientVec, StructuredGradient, StructuredKalmanVec, TwoAxleIdentifierVec,
+    TwoAxleStructuredVec,
 };
 use vehid_core::Error;
 
 /// Version of the pickled state's layout. Raise it when the payload or any serialized core
 /// type changes in a way older readers (or this reader, for older payloads) cannot follow.
 /// 2: modes `shared` and `full` keep the outlier gate's statistics (issue 13).
-/// (`Core::Iv` and `Core::BiasCompensated` were added within format 2: new variants at the
-/// end of [`Core`] leave every older payload's encoding unchanged, so it still loads.)
+/// (`Core::Iv`, `Core::BiasCompensated`, `Core::JointEkf` and `Core::TwoAxleStructured` were
+/// added within format 2: new variants at the end of [`Core`] leave every older payload's
+/// encoding unchanged, so it still loads.)
 pub const FORMAT: u32 = 2;
 
 /// The concrete core type behind a Python identifier. Serialized by variant index: a new
@@ -62,6 +66,10 @@ enum Core {
     Iv(u8, u8),
     /// `BiasCompensatedVec<f64, P>` (a `BiasCompensated`), `P` its largest group's bucket.
     BiasCompensated(u8),
+    /// `JointEkf<f64, N, D>` (a `JointEKF`).
+    JointEkf(u8, u8),
+    /// `TwoAxleStructuredVec<f64, P>` (a `TwoAxleIdentifier` on a Structure).
+    TwoAxleStructured(u8),
 }
 
 impl Core {
@@ -158,6 +166,45 @@ fn save_noisy(id: &dyn DynIdentifier<f64>) -> vehid_core::Result<Option<(Core, V
     Ok(None)
 }
 
+/// The core type and its bytes of a `JointEKF` or of a `TwoAxleIdentifier` on a Structure
+/// (the sizes the binding builds: `joint_ekf.rs`, `two_axle.rs`).
+fn save_newer(id: &dyn DynIdentifier<f64>) -> vehid_core::Result<Option<(Core, Vec<u8>)>> {
+    let any = id.as_any();
+    const N: u8 = EKF_STATES as u8;
+    macro_rules! try_d {
+        ($($d:literal),*) => {$(
+            if let Some(x) = any.downcast_ref::<JointEkf<f64, EKF_STATES, $d>>() {
+                return encode(Core::JointEkf(N, $d), x);
+            }
+        )*};
+    }
+    try_d!(8, 9, 13);
+    macro_rules! try_p {
+        ($($p:literal),*) => {$(
+            if let Some(x) = any.downcast_ref::<TwoAxleStructuredVec<f64, $p>>() {
+                return encode(Core::TwoAxleStructured($p), x);
+            }
+        )*};
+    }
+    try_p!(4, 8, 16);
+    Ok(None)
+}
+
+/// Decodes the core of a `JointEKF` or of a `TwoAxleIdentifier` on a Structure (`None`:
+/// another kind, or sizes the binding does not build).
+fn load_newer(core: Core, bytes: &[u8]) -> Option<Loaded> {
+    const N: u8 = EKF_STATES as u8;
+    Some(match core {
+        Core::JointEkf(N, 8) => decode::<JointEkf<f64, EKF_STATES, 8>>(bytes),
+        Core::JointEkf(N, 9) => decode::<JointEkf<f64, EKF_STATES, 9>>(bytes),
+        Core::JointEkf(N, 13) => decode::<JointEkf<f64, EKF_STATES, 13>>(bytes),
+        Core::TwoAxleStructured(4) => decode::<TwoAxleStructuredVec<f64, 4>>(bytes),
+        Core::TwoAxleStructured(8) => decode::<TwoAxleStructuredVec<f64, 8>>(bytes),
+        Core::TwoAxleStructured(16) => decode::<TwoAxleStructuredVec<f64, 16>>(bytes),
+        _ => return None,
+    })
+}
+
 /// Decodes the core of an `IVIdentifier` or a `BiasCompensated` (`None`: another kind, or
 /// sizes the binding does not build).
 fn load_noisy(core: Core, bytes: &[u8]) -> Option<Loaded> {
@@ -231,19 +278,28 @@ fn load_n<const N: usize>(core: Core, bytes: &[u8]) -> vehid_core::Result<Loaded
         Core::Gradient => decode::<StochasticGradientVec<f64, N>>(bytes),
         Core::Batch => decode::<BatchLeastSquares<f64, N>>(bytes),
         Core::TwoAxle if N == 8 => decode::<TwoAxleCore>(bytes),
-        Core::TwoAxle | Core::Structured(_) | Core::StructuredGradient(_) | Core::Iv(..) | Core::BiasCompensated(_) => {
-            return Err(crate::dispatch::bad_dims())
-        }
+        Core::TwoAxle
+        | Core::Structured(_)
+        | Core::StructuredGradient(_)
+        | Core::Iv(..)
+        | Core::BiasCompensated(_)
+        | Core::JointEkf(..)
+        | Core::TwoAxleStructured(_) => return Err(crate::dispatch::bad_dims()),
     })
 }
 
 /// The identifier's state: `(FORMAT, "vehid <version>", payload)`.
 fn state<'py>(py: Python<'py>, base: &PyIdentifier) -> PyResult<Bound<'py, PyTuple>> {
     let n = base.model.n;
-    let saved = match save_noisy(base.inner.as_ref()).map_err(crate::identify::raise)? {
+    let inner = base.inner.as_ref();
+    let found = match save_noisy(inner).map_err(crate::identify::raise)? {
+        Some(saved) => Some(saved),
+        None => save_newer(inner).map_err(crate::identify::raise)?,
+    };
+    let saved = match found {
         Some(saved) => Ok(Some(saved)),
-        None if base.structure.is_some() => save_structured(base.inner.as_ref()),
-        None => dispatch_n!(n, save_n(base.inner.as_ref())),
+        None if base.structure.is_some() => save_structured(inner),
+        None => dispatch_n!(n, save_n(inner)),
     }
     .map_err(crate::identify::raise)?;
     let Some((core, bytes)) = saved else {
@@ -263,7 +319,15 @@ fn blank_args<'py>(obj: &Bound<'py, PyIdentifier>) -> PyResult<(Bound<'py, PyTup
         for key in ["spacing", "method", "wheelbase"] {
             kwargs.set_item(key, obj.getattr(key)?)?;
         }
-        obj.getattr("model")?
+        match &borrow(obj)?.structure {
+            // On a Structure: the car gives B; `compensate` decides what the structure may hold.
+            Some(st) => {
+                kwargs.set_item("car", obj.getattr("model")?)?;
+                kwargs.set_item("compensate", obj.getattr("compensate")?)?;
+                st.bind(py).clone().into_any()
+            }
+            None => obj.getattr("model")?,
+        }
     } else {
         if obj.is_instance_of::<PyKalmanIdentifier>() {
             kwargs.set_item("p0", 1.0)?;
@@ -279,6 +343,17 @@ fn blank_args<'py>(obj: &Bound<'py, PyIdentifier>) -> PyResult<(Bound<'py, PyTup
             kwargs.set_item("lags", obj.getattr("lags")?)?;
         } else if obj.is_instance_of::<PyBiasCompensated>() {
             kwargs.set_item("state_noise_var", 0.0)?;
+        } else if obj.is_instance_of::<PyJointEKF>() {
+            // Any valid filter of the same sizes: the saved core replaces it.
+            let (n, np) = {
+                let b = borrow(obj)?;
+                (b.model.n, b.inner.dims().params)
+            };
+            kwargs.set_item("theta0", vec![0.0; np])?;
+            kwargs.set_item("p0", 1.0)?;
+            kwargs.set_item("state_noise", 1.0)?;
+            kwargs.set_item("road_gain", vec![0.0; n])?;
+            kwargs.set_item("substeps", 1)?;
         } else {
             return Err(VehidError::new_err(format!(
                 "{} cannot be pickled or copied: only vehid's identifier classes can",
@@ -352,6 +427,14 @@ pub fn set_state(obj: &Bound<'_, PyIdentifier>, state: &Bound<'_, PyAny>) -> PyR
         matches!(saved.core, Core::Iv(..))
     } else if obj.is_instance_of::<PyBiasCompensated>() {
         matches!(saved.core, Core::BiasCompensated(_))
+    } else if obj.is_instance_of::<PyJointEKF>() {
+        matches!(saved.core, Core::JointEkf(..))
+    } else if obj.is_instance_of::<PyTwoAxleIdentifier>() {
+        if on_structure {
+            matches!(saved.core, Core::TwoAxleStructured(_))
+        } else {
+            saved.core == Core::TwoAxle
+        }
     } else if on_structure {
         matches!(
             (saved.core, obj.is_instance_of::<PyKalmanIdentifier>(), obj.is_instance_of::<PyStochasticGradient>()),
@@ -369,8 +452,6 @@ pub fn set_state(obj: &Bound<'_, PyIdentifier>, state: &Bound<'_, PyAny>) -> PyR
         } else {
             matches!(saved.core, Core::Rows2 | Core::Rows4)
         }
-    } else if obj.is_instance_of::<PyTwoAxleIdentifier>() {
-        saved.core == Core::TwoAxle
     } else {
         false
     };
@@ -381,7 +462,10 @@ pub fn set_state(obj: &Bound<'_, PyIdentifier>, state: &Bound<'_, PyAny>) -> PyR
             saved.core
         )));
     }
-    let loaded = match load_noisy(saved.core, &saved.state).or_else(|| load_structured(saved.core, &saved.state)) {
+    let loaded = match load_noisy(saved.core, &saved.state)
+        .or_else(|| load_structured(saved.core, &saved.state))
+        .or_else(|| load_newer(saved.core, &saved.state))
+    {
         Some(loaded) => loaded,
         None => dispatch_n!(model.n, load_n(saved.core, &saved.state)).map_err(crate::core_err)?,
     };

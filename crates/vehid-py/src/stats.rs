@@ -9,7 +9,7 @@ use crate::{core_err, VehidError};
 use numpy::{IntoPyArray, PyArray1, PyArray2};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
-use vehid_core::identify::{estimate_stats, EstimateStats};
+use vehid_core::identify::{estimate_stats, posterior_stats, EstimateStats};
 
 /// An estimate and its uncertainty, as statsmodels names them (from `Identifier.stats`).
 ///
@@ -105,6 +105,18 @@ impl PyStats {
 pub(crate) fn stats_of(py: Python<'_>, id: &PyIdentifier, alpha: f64) -> PyResult<PyStats> {
     let inner = &id.inner;
     let s = py.detach(|| estimate_stats(inner.as_ref(), alpha)).map_err(raise)?;
+    Ok(named(py, id, s))
+}
+
+/// `JointEKF.stats(alpha)`: the covariance as the filter holds it (the core's
+/// `posterior_stats`).
+pub(crate) fn posterior_stats_of(py: Python<'_>, id: &PyIdentifier, alpha: f64) -> PyResult<PyStats> {
+    let s = posterior_stats(id.inner.as_ref(), alpha).map_err(raise)?;
+    Ok(named(py, id, s))
+}
+
+/// The statistics with the parameters' names (a structure's, or `a[row,col]`).
+fn named(py: Python<'_>, id: &PyIdentifier, s: EstimateStats) -> PyStats {
     let names = match &id.structure {
         Some(st) => st.get().params.clone(),
         None => {
@@ -112,7 +124,7 @@ pub(crate) fn stats_of(py: Python<'_>, id: &PyIdentifier, alpha: f64) -> PyResul
             id.model.rows.iter().flat_map(|&r| (0..n).map(move |c| format!("a[{r},{c}]"))).collect()
         }
     };
-    Ok(PyStats { s, names, structure: id.structure.as_ref().map(|s| s.clone_ref(py)) })
+    PyStats { s, names, structure: id.structure.as_ref().map(|s| s.clone_ref(py)) }
 }
 
 /// `car.physical(stats, **known)`: every constant as `(value, low, high)`, the interval by the

@@ -1,15 +1,22 @@
-//! Two axles on one road: `TwoAxleIdentifier` and `AxleSampler` (Ch. VI.D). Thin wrappers
+//! Two axles on one road: `TwoAxleIdentifier` (the core's `TwoAxleIdentifier` on a model's
+//! rows, or `TwoAxleStructured` on a Structure) and `AxleSampler` (Ch. VI.D). Thin wrappers
 //! of the core.
 
 use crate::dispatch::ModelData;
 use crate::guard::borrow;
 use crate::identify::PyIdentifier;
-use crate::model::{Kind, PyLinearModel};
+use crate::model::{to_array2, Kind, PyLinearModel};
+use crate::structure::PyStructure;
 use crate::{core_err, option, VehidError};
+use numpy::PyArray2;
 use pyo3::exceptions::PyMemoryError;
 use pyo3::prelude::*;
-use vehid_core::identify::{TwoAxleConfig, TwoAxleIdentifierVec, WheelMethod};
+use vehid_core::identify::{
+    DynIdentifier, TwoAxleConfig, TwoAxleIdentifierVec, TwoAxleStructuredConfig, TwoAxleStructuredVec, WheelMethod,
+};
+use vehid_core::model::LinearModel;
 use vehid_core::sampler::{axle_delay, AxleSampler, Trigger};
+use vehid_core::structure::Structure;
 
 /// Ring capacity of the Python `AxleSampler`.
 pub const SAMPLER_SLOTS: usize = 4096;
@@ -39,6 +46,65 @@ pub(crate) fn half_dims(d: &ModelData, what: &str) -> PyResult<()> {
 
 type Id = TwoAxleIdentifierVec<f64, 8, 16>;
 
+/// The group sizes `P` of the road cancellation on a Structure that the binding builds (the
+/// largest group with the two wheel equations' merged: 4 for the half car's physical
+/// structure with m1, m2, l1, l2 known, 16 for its full rows).
+pub const STRUCTURED_SIZES: [usize; 3] = [4, 8, 16];
+
+fn structured<const P: usize>(
+    s: Structure<f64>,
+    car: &LinearModel<f64, 8, 2>,
+    d: usize,
+    cfg: TwoAxleStructuredConfig<f64>,
+) -> vehid_core::Result<Box<dyn DynIdentifier<f64>>> {
+    Ok(Box::new(TwoAxleStructuredVec::<f64, P>::new(s, car, d, cfg)?))
+}
+
+/// Reads the core of a `TwoAxleIdentifier` on a Structure (any built size): `$id` bound to it
+/// in `$body`; `None` for the rows identifier.
+macro_rules! with_structured {
+    ($inner:expr, |$id:ident| $body:expr) => {{
+        let any = $inner.as_any();
+        if let Some($id) = any.downcast_ref::<TwoAxleStructuredVec<f64, 4>>() {
+            Some($body)
+        } else if let Some($id) = any.downcast_ref::<TwoAxleStructuredVec<f64, 8>>() {
+            Some($body)
+        } else if let Some($id) = any.downcast_ref::<TwoAxleStructuredVec<f64, 16>>() {
+            Some($body)
+        } else {
+            None
+        }
+    }};
+}
+
+/// What the getters report, from either core: method, delay, wheel variances, paired.
+struct Info {
+    method: &'static str,
+    delay: usize,
+    variances: (f64, f64, f64),
+    paired: u64,
+}
+
+/// `p0=`: a number, "exact", or None (the default of the kind).
+enum P0 {
+    Default,
+    Exact,
+    Value(f64),
+}
+
+fn p0_arg(p0: Option<&Bound<'_, PyAny>>) -> PyResult<P0> {
+    let Some(p0) = p0.filter(|p| !p.is_none()) else { return Ok(P0::Default) };
+    if let Ok(text) = p0.extract::<String>() {
+        return match text.as_str() {
+            "exact" => Ok(P0::Exact),
+            other => Err(VehidError::new_err(format!("unknown `p0` {other:?}: expected a number > 0 or \"exact\""))),
+        };
+    }
+    p0.extract::<f64>()
+        .map(P0::Value)
+        .map_err(|_| VehidError::new_err("`p0` must be a number (P(0) on every parameter) or \"exact\""))
+}
+
 /// Identifier of the unknown rows of a half car driven along one road (Ch. VI.D).
 ///
 /// Samples must be taken every `spacing` metres (e.g. `Simulator(half, speed=..., spacing=...)`
@@ -49,8 +115,20 @@ type Id = TwoAxleIdentifierVec<f64, 8, 16>;
 /// of z4(k) − (b42/b21) z2(k−d) on [x(k), −(b42/b21) x(k−d)], in which the road input cancels;
 /// variance σ_v²(1 + (b42/b21)²), plus the direct front equation weighted by its own variance).
 /// The body rows are plain Kalman rows. `road_sigma` (m) and `deriv_noise` give every
-/// equation's variance; `p0` is P(0) on every row (`p0_body` overrides it on the body rows).
-/// `update` and `fit` take one sample per road point, in order.
+/// equation's variance; `p0` is P(0) on every row (default 1000; `p0_body` overrides it on the
+/// body rows). `update` and `fit` take one sample per road point, in order.
+///
+/// On a Structure (`model=half.structure(known={"m1": 1.0, "m2": 1.0, "l1": 2.0, "l2": 1.0})`,
+/// with `car=half`: the 8-state, 2-input model whose B gives the wheel rows and ρ = b42/b21,
+/// and the wheelbase): road cancellation on the structure's parameters (method "cancel" only):
+/// the rear wheel equation minus ρ times the front one d samples earlier, the other equations
+/// as they are, one filter per parameter group. `p0`: "exact" (the default here: least squares
+/// on every sample once identified) or a number; `compensate` (default True) removes the bias
+/// that the derivative noise in `der(·)` regressors (the wheel equations read the body's
+/// accelerations) leaves, from `deriv_noise`. `params` are the structure's parameters, `theta`
+/// (k, n) the unknown rows of A they give (in the order of `unknown_rows`, the structure's
+/// equations), `a_hat` the car's A with those rows; `fit`'s history holds `params`. No
+/// `stats()` (no residual statistics are kept).
 #[pyclass(name = "TwoAxleIdentifier", module = "vehid._vehid", extends = PyIdentifier)]
 pub struct PyTwoAxleIdentifier {
     model: Py<PyLinearModel>,
@@ -59,13 +137,35 @@ pub struct PyTwoAxleIdentifier {
 }
 
 impl PyTwoAxleIdentifier {
-    /// The core identifier behind the base class.
-    fn core<'a>(slf: &'a PyRef<'_, Self>) -> &'a Id {
+    /// The settings the getters report, from whichever core the base holds.
+    fn info(slf: &PyRef<'_, Self>) -> PyResult<Info> {
         let base: &PyIdentifier = slf.as_super();
-        // Built by `py_new` with exactly this type; the base never replaces it.
-        match base.inner.as_any().downcast_ref::<Id>() {
-            Some(id) => id,
-            None => unreachable!("TwoAxleIdentifier holds a TwoAxleIdentifierVec"),
+        if let Some(id) = base.inner.as_any().downcast_ref::<Id>() {
+            return Ok(Info {
+                method: id.config().method.as_str(),
+                delay: id.delay(),
+                variances: id.wheel_variances(),
+                paired: id.paired(),
+            });
+        }
+        with_structured!(base.inner, |id| Info {
+            method: WheelMethod::Cancel.as_str(),
+            delay: id.delay(),
+            variances: id.wheel_variances(),
+            paired: id.paired(),
+        })
+        .ok_or_else(|| VehidError::new_err("internal: TwoAxleIdentifier holds no two-axle core"))
+    }
+
+    /// The unknown rows of A from a Structure's parameters (equations × n, row-major); `None`
+    /// for the rows identifier.
+    fn structured_rows(base: &PyIdentifier, py: Python<'_>) -> PyResult<Option<Vec<f64>>> {
+        let inner = &base.inner;
+        let d = inner.dims();
+        let mut out = vec![0.0; d.equations * d.states];
+        match py.detach(|| with_structured!(inner, |id| id.a_rows_into(&mut out))) {
+            None => Ok(None),
+            Some(r) => r.map(|()| Some(out)).map_err(crate::identify::raise),
         }
     }
 }
@@ -73,22 +173,47 @@ impl PyTwoAxleIdentifier {
 #[pymethods]
 impl PyTwoAxleIdentifier {
     #[new]
-    #[pyo3(signature = (model, spacing = 0.3, method = "cancel", p0 = 1000.0, road_sigma = 0.1, deriv_noise = 0.005,
-                        *, p0_body = None, wheelbase = None, direct_front = true))]
+    #[pyo3(signature = (model, spacing = 0.3, method = "cancel", p0 = None, road_sigma = 0.1, deriv_noise = 0.005,
+                        *, p0_body = None, wheelbase = None, direct_front = true, car = None, compensate = true))]
     #[allow(clippy::too_many_arguments)]
     fn py_new(
-        model: Bound<'_, PyLinearModel>,
+        model: &Bound<'_, PyAny>,
         spacing: f64,
         method: &str,
-        p0: f64,
+        p0: Option<&Bound<'_, PyAny>>,
         road_sigma: f64,
         deriv_noise: f64,
         p0_body: Option<f64>,
         wheelbase: Option<f64>,
         direct_front: bool,
+        car: Option<Bound<'_, PyLinearModel>>,
+        compensate: bool,
     ) -> PyResult<PyClassInitializer<Self>> {
-        let m = model.get();
-        half_dims(&m.data, "TwoAxleIdentifier")?;
+        let p0 = p0_arg(p0)?;
+        let structure = model.cast::<PyStructure>().ok();
+        let car =
+            match (structure, model.cast::<PyLinearModel>(), car) {
+                (Some(_), _, Some(car)) => car,
+                (Some(_), _, None) => {
+                    return Err(VehidError::new_err(
+                        "`car` is needed with a Structure: the half car (an 8-state model with 2 road inputs) whose B \
+                     gives the wheel rows and rho = b42/b21, e.g. TwoAxleIdentifier(half.structure(known=...), \
+                     car=half)",
+                    ))
+                }
+                (None, Ok(m), None) => m.clone(),
+                (None, Ok(_), Some(_)) => {
+                    return Err(VehidError::new_err(
+                        "`car` is for a Structure only: with a model, the model itself gives B and the wheelbase",
+                    ))
+                }
+                (None, Err(_), _) => return Err(VehidError::new_err(
+                    "`model` must be a HalfCar (an 8-state LinearModel with 2 road inputs) or a vehid.Structure (with \
+                     car=)",
+                )),
+            };
+        let m = car.get();
+        half_dims(&m.data, if structure.is_some() { "`car`" } else { "TwoAxleIdentifier" })?;
         let wheelbase = wheelbase_of(m, wheelbase)?;
         let (d, residual) = axle_delay(wheelbase, spacing).map_err(core_err)?;
         if residual > 1e-9 * wheelbase {
@@ -98,11 +223,9 @@ impl PyTwoAxleIdentifier {
                 wheelbase / d as f64
             )));
         }
-        let mut cfg = TwoAxleConfig::new(option::<WheelMethod>(method)?, p0, road_sigma, deriv_noise);
-        cfg.p0_body = p0_body.unwrap_or(p0);
-        cfg.direct_front = direct_front;
+        let method = option::<WheelMethod>(method)?;
         let core = m.data.model::<8, 2>().map_err(core_err)?;
-        let inner = Id::new(&core, d, cfg).map_err(|e| match e {
+        let memory = |e: vehid_core::Error| match e {
             // The ring of the last d samples is what grows as `spacing` shrinks.
             vehid_core::Error::OutOfMemory { bytes, .. } => PyMemoryError::new_err(format!(
                 "`spacing` = {spacing} m puts d = {d} samples between the axles (wheelbase {wheelbase} m), and the \
@@ -110,21 +233,86 @@ impl PyTwoAxleIdentifier {
                  `spacing` (the thesis samples every 0.3 m)"
             )),
             e => core_err(e),
-        })?;
-        let base = PyIdentifier::new(Box::new(inner), m.data.clone());
-        Ok(PyClassInitializer::from(base).add_subclass(Self { model: model.unbind(), spacing, wheelbase }))
+        };
+        let base = if let Some(st) = structure {
+            if method != WheelMethod::Cancel {
+                return Err(VehidError::new_err(format!(
+                    "`method` {:?} is for the rows identifier: on a Structure the road is cancelled (method=\"cancel\")",
+                    method.as_str()
+                )));
+            }
+            if p0_body.is_some() {
+                return Err(VehidError::new_err(
+                    "`p0_body` is for the rows identifier: on a Structure `p0` applies to every parameter",
+                ));
+            }
+            let s = st.get().core;
+            let mut cfg = TwoAxleStructuredConfig::new(road_sigma, deriv_noise);
+            cfg.p0 = match p0 {
+                P0::Default | P0::Exact => None,
+                P0::Value(v) => Some(v),
+            };
+            cfg.direct_front = direct_front;
+            cfg.compensate = compensate;
+            // The smallest built size that holds the largest group once the core has merged the
+            // two wheel equations' groups (it says so with a capacity error).
+            let mut built = Err(vehid_core::Error::Capacity { arg: "P", needed: 0, capacity: 0 });
+            for p in STRUCTURED_SIZES {
+                built = match p {
+                    4 => structured::<4>(s, &core, d, cfg),
+                    8 => structured::<8>(s, &core, d, cfg),
+                    _ => structured::<16>(s, &core, d, cfg),
+                };
+                if !matches!(built, Err(vehid_core::Error::Capacity { arg: "P", .. })) {
+                    break;
+                }
+            }
+            let inner = match built {
+                Err(vehid_core::Error::Capacity { arg: "P", needed, .. }) => {
+                    return Err(VehidError::new_err(format!(
+                        "`model`: a parameter group of this Structure (the two wheel equations' groups merged) holds \
+                         {needed} parameters, more than the {} TwoAxleIdentifier is built for",
+                        STRUCTURED_SIZES[STRUCTURED_SIZES.len() - 1]
+                    )))
+                }
+                other => other,
+            }
+            .map_err(memory)?;
+            PyIdentifier::on_structure(inner, st)
+        } else {
+            let p0 = match p0 {
+                P0::Default => 1000.0,
+                P0::Value(v) => v,
+                P0::Exact => {
+                    return Err(VehidError::new_err(
+                        "`p0` = \"exact\" is for a Structure: the rows identifier needs a number (P(0), e.g. 1000)",
+                    ))
+                }
+            };
+            if !compensate {
+                return Err(VehidError::new_err(
+                    "`compensate` is for a Structure: the rows identifier's regressors read no measured derivative",
+                ));
+            }
+            let mut cfg = TwoAxleConfig::new(method, p0, road_sigma, deriv_noise);
+            cfg.p0_body = p0_body.unwrap_or(p0);
+            cfg.direct_front = direct_front;
+            let inner = Id::new(&core, d, cfg).map_err(memory)?;
+            PyIdentifier::new(Box::new(inner), m.data.clone())
+        };
+        Ok(PyClassInitializer::from(base).add_subclass(Self { model: car.unbind(), spacing, wheelbase }))
     }
 
     /// "none", "thesis" or "cancel".
     #[getter]
     fn method(slf: &Bound<'_, Self>) -> PyResult<&'static str> {
-        Ok(Self::core(&borrow(slf)?).config().method.as_str())
+        Ok(Self::info(&borrow(slf)?)?.method)
     }
 
     /// Samples (road points) between the axles, d = wheelbase / spacing.
     #[getter]
     fn delay(slf: &Bound<'_, Self>) -> PyResult<usize> {
-        Ok(Self::core(&borrow(slf)?).delay())
+        Ok(Self::info(&borrow(slf)?)?.delay)
     }
 
     /// Sample spacing, m.
@@ -142,30 +330,77 @@ impl PyTwoAxleIdentifier {
     /// Variances (front, rear, cancelled) of the wheel-row equations.
     #[getter]
     fn wheel_variances(slf: &Bound<'_, Self>) -> PyResult<(f64, f64, f64)> {
-        Ok(Self::core(&borrow(slf)?).wheel_variances())
+        Ok(Self::info(&borrow(slf)?)?.variances)
     }
 
     /// Samples paired with the sample d road points earlier.
     #[getter]
     fn paired(slf: &Bound<'_, Self>) -> PyResult<u64> {
-        Ok(Self::core(&borrow(slf)?).paired())
+        Ok(Self::info(&borrow(slf)?)?.paired)
     }
 
-    /// The model.
+    /// The model (on a Structure: the `car` given).
     #[getter]
     fn model(slf: &Bound<'_, Self>) -> PyResult<Py<PyLinearModel>> {
         Ok(borrow(slf)?.model.clone_ref(slf.py()))
     }
 
+    /// Whether the derivative noise's bias is removed (a Structure's `compensate`; False for
+    /// the rows identifier).
+    #[getter]
+    fn compensate(slf: &Bound<'_, Self>) -> PyResult<bool> {
+        let this = borrow(slf)?;
+        let base: &PyIdentifier = this.as_super();
+        Ok(with_structured!(base.inner, |id| id.config().compensate).unwrap_or(false))
+    }
+
+    /// The estimated unknown rows of A, shape (k, n), in the order of `unknown_rows` (on a
+    /// Structure: the rows its parameters give).
+    #[getter]
+    fn theta<'py>(slf: &Bound<'py, Self>, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let this = borrow(slf)?;
+        let base: &PyIdentifier = this.as_super();
+        match Self::structured_rows(base, py)? {
+            Some(rows) => Ok(to_array2(py, rows.len() / base.model.n, base.model.n, rows)?.into_any()),
+            None => {
+                drop(this);
+                PyIdentifier::theta(slf.as_super(), py)
+            }
+        }
+    }
+
+    /// Â: the model's A with the unknown rows replaced by the estimate, shape (n, n).
+    #[getter]
+    fn a_hat<'py>(slf: &Bound<'py, Self>, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let this = borrow(slf)?;
+        let base: &PyIdentifier = this.as_super();
+        match Self::structured_rows(base, py)? {
+            Some(rows) => {
+                let n = base.model.n;
+                let mut a = this.model.bind(py).get().data.a.clone();
+                for (i, &r) in base.inner.rows().iter().enumerate() {
+                    a[r * n..(r + 1) * n].copy_from_slice(&rows[i * n..(i + 1) * n]);
+                }
+                to_array2(py, n, n, a)
+            }
+            None => {
+                drop(this);
+                PyIdentifier::a_hat(slf.as_super(), py)
+            }
+        }
+    }
+
     fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
         let slf = borrow(slf)?;
-        let id = Self::core(&slf);
+        let info = Self::info(&slf)?;
+        let base: &PyIdentifier = slf.as_super();
+        let on = if base.structure.is_some() { "structure, " } else { "" };
         Ok(format!(
-            "TwoAxleIdentifier(method={}, spacing={:?}, delay={}, samples={})",
-            crate::convert::py_str(id.config().method.as_str()),
+            "TwoAxleIdentifier({on}method={}, spacing={:?}, delay={}, samples={})",
+            crate::convert::py_str(info.method),
             slf.spacing,
-            id.delay(),
-            id.samples()
+            info.delay,
+            base.inner.samples()
         ))
     }
 }

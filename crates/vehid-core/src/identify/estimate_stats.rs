@@ -119,3 +119,43 @@ pub fn estimate_stats<T: Real, I: Identifier<T> + ?Sized>(id: &I, alpha: f64) ->
     let nobs = nobs.iter().map(|v| v.to_f64()).collect();
     Ok(EstimateStats { params, cov, bse, conf_int, df: dfp, sigma2, nobs, alpha })
 }
+
+/// The statistics of an estimate whose covariance is a posterior, taken as it is (not scaled
+/// by a residual variance): the joint EKF's parameter block of `P`
+/// ([`super::JointEkf`], whose noise model is told, not estimated). `cov = P`, `bse =
+/// √diag(P)`, the `1 − alpha` interval `θ̂ ± z_{1−α/2} bse` (normal: `df = ∞`), `sigma2` each
+/// equation's variance under the noise model (the diagonal of its `R`), `nobs` the samples
+/// taken.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] for `alpha` outside (0, 1); [`Error::Unsupported`] for an
+/// identifier without a covariance or a noise covariance; the identifier's error while its
+/// estimate does not exist.
+pub fn posterior_stats<T: Real, I: Identifier<T> + ?Sized>(id: &I, alpha: f64) -> Result<EstimateStats> {
+    if !(alpha > 0.0 && alpha < 1.0) {
+        return Err(Error::InvalidArgument { arg: "alpha", expected: "a level in (0, 1), e.g. 0.05" });
+    }
+    let d = id.dims();
+    let (np, ne) = (d.params, d.equations);
+    let mut theta = vec![T::zero(); np];
+    id.params_into(&mut theta)?;
+    let mut p = vec![T::zero(); np * np];
+    id.covariance_into(&mut p)?;
+    let mut r = vec![T::zero(); ne * ne];
+    id.noise_into(&mut r)?;
+    let params: Vec<f64> = theta.iter().map(|v| v.to_f64()).collect();
+    let cov: Vec<f64> = p.iter().map(|v| v.to_f64()).collect();
+    let bse: Vec<f64> = (0..np).map(|j| cov[j * np + j].max(0.0).sqrt()).collect();
+    let q = crate::stats::t_ppf(1.0 - alpha / 2.0, f64::INFINITY)?;
+    let conf_int = params.iter().zip(&bse).map(|(&v, &s)| (v - q * s, v + q * s)).collect();
+    Ok(EstimateStats {
+        params,
+        cov,
+        bse,
+        conf_int,
+        df: vec![f64::INFINITY; np],
+        sigma2: (0..ne).map(|i| r[i * ne + i].to_f64()).collect(),
+        nobs: vec![id.samples() as f64; ne],
+        alpha,
+    })
+}

@@ -511,6 +511,8 @@ pub trait DynIdentifier<T: Real>: Identifier<T> + Send + Sync + core::fmt::Debug
     /// `opts.record_every` samples (the space is reserved up front, fallibly) and
     /// `interrupt()` asked every `opts.check_every` samples whether to stop (it returns
     /// `true` to stop; the fit then fails with [`Error::Interrupted`] and changes nothing).
+    /// A record where the estimate does not exist yet (`params_into` fails with
+    /// [`Error::RankDeficient`] or [`Error::Singular`]) is NaN.
     ///
     /// # Errors
     /// As [`Identifier::fit`]; [`Error::OutOfMemory`] when the history cannot be reserved.
@@ -570,9 +572,12 @@ where
                     history.resize(at + params, T::zero());
                     match id.params_into(&mut history[at..]) {
                         Ok(()) => {}
-                        // Not identified yet (too few samples): recorded as NaN, as the
-                        // estimate does not exist.
-                        Err(Error::RankDeficient { .. }) => history[at..].fill(T::of(f64::NAN)),
+                        // Not identified yet (too few samples), or an estimate solved on read
+                        // whose matrix is not yet invertible (a bias-compensated one early on):
+                        // recorded as NaN, as the estimate does not exist.
+                        Err(Error::RankDeficient { .. } | Error::Singular { .. }) => {
+                            history[at..].fill(T::of(f64::NAN))
+                        }
                         Err(e) => return ControlFlow::Break(e),
                     }
                 }

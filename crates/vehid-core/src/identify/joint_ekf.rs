@@ -189,7 +189,17 @@ impl<T: Real, const N: usize> EkfNoise<T, N> {
 /// assert!((p[0] - 5.0).abs() < 0.5 && (p[3] - 90.0).abs() < 20.0, "{p:?}");
 /// # Ok::<(), vehid_core::Error>(())
 /// ```
+///
+/// Persistence (feature `serde`): the whole filter (structure, noise model, `ŝ`, `P`, counter)
+/// round-trips; a loaded one is checked (its structure rebuilt, sizes, evaluation order,
+/// equation rows, noise model, `dt`, `substeps`, finite `ŝ` and `P`), so corrupt input is an
+/// error, and a restored filter continues bit for bit.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+)]
 pub struct JointEkf<T: Real, const N: usize, const D: usize> {
     structure: Structure<T>,
     /// Equations (identified and known) in dependency order.
@@ -288,6 +298,34 @@ impl<T: Real, const N: usize, const D: usize> JointEkf<T, N, D> {
         Ok(Self { structure, order: evaluation_order(&structure)?, rows, noise, dt, substeps, s, p, samples: 0 })
     }
 
+    /// Checks a deserialized filter (feature `serde`; its structure checked itself): the sizes
+    /// (`N` states, `D = N + params + 1`), a complete structure, the evaluation order and the
+    /// equations' rows as the constructor computes them, the noise model, `dt`, `substeps`,
+    /// and a finite `ŝ` and `P`.
+    #[cfg(feature = "serde")]
+    pub(crate) fn restored(&mut self) -> Result<()> {
+        let corrupt = Error::InvalidArgument { arg: "state", expected: "a joint EKF's saved state" };
+        let (np, ne) = (self.structure.params(), self.structure.equations());
+        if self.structure.states() != N || D != N + np + 1 || !self.structure.complete() {
+            return Err(corrupt);
+        }
+        if self.order != evaluation_order(&self.structure)? {
+            return Err(corrupt);
+        }
+        if self.structure.equation_states().enumerate().any(|(i, s)| self.rows[i] != s)
+            || self.rows[ne..].iter().any(|&r| r != 0)
+        {
+            return Err(corrupt);
+        }
+        self.noise.check()?;
+        check_positive("dt", self.dt)?;
+        if self.substeps == 0 || self.substeps > MAX_EKF_SUBSTEPS {
+            return Err(corrupt);
+        }
+        check_finite("state", self.s.as_slice())?;
+        check_finite("state", self.p.as_slice())
+    }
+
     /// The structure identified.
     pub fn structure(&self) -> &Structure<T> {
         &self.structure
@@ -296,6 +334,16 @@ impl<T: Real, const N: usize, const D: usize> JointEkf<T, N, D> {
     /// The noise model in use.
     pub fn noise(&self) -> &EkfNoise<T, N> {
         &self.noise
+    }
+
+    /// The sample interval, s.
+    pub fn dt(&self) -> T {
+        self.dt
+    }
+
+    /// RK4 sub-steps per sample.
+    pub fn substeps(&self) -> u32 {
+        self.substeps
     }
 
     /// The predicted state `x̂(k+1 | k)` after the last sample (state units).

@@ -57,7 +57,7 @@ mod two_axle_structured;
 pub use bias_compensated::BiasCompensatedVec;
 pub use bias_compensated::{BcGroup, BiasCompensated, BiasCompensatedLs};
 #[cfg(feature = "alloc")]
-pub use estimate_stats::{estimate_stats, EstimateStats};
+pub use estimate_stats::{estimate_stats, posterior_stats, EstimateStats};
 #[cfg(feature = "alloc")]
 pub use gradient::StochasticGradientVec;
 pub use gradient::{Gain, GainKind, GradientCore, StochasticGradient};

@@ -425,6 +425,16 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>, B: RingStore<FrontRe
         self.r[i]
     }
 
+    /// Variances `(front, rear, cancelled)` of the wheel equations, as
+    /// [`super::TwoAxleIdentifier::wheel_variances`]: the direct front equation's
+    /// `σ_v² + b21² σ_u²`, the plain rear one's `σ_v² + b42² σ_u²` (not used: the cancelled
+    /// equation replaces it; `b42 = ρ b21`) and the cancelled one's `σ_v² (1 + ρ²)`.
+    pub fn wheel_variances(&self) -> (T, T, T) {
+        let sv2 = self.cfg.deriv_noise * self.cfg.deriv_noise;
+        let front = self.r[self.front_eq as usize];
+        (front, sv2 + self.ratio * self.ratio * (front - sv2), self.r[self.rear_eq as usize])
+    }
+
     /// `ρ = b42 / b21`.
     pub fn ratio(&self) -> T {
         self.ratio

@@ -764,3 +764,56 @@ fn instrumental_variables_with_a_measured_input_continue_bit_for_bit() {
         assert_eq!(to_bytes(&back), to_bytes(&id), "lags {lags}");
     }
 }
+
+/// The joint EKF on the quarter car's physical structure (m known), the prior of
+/// `tests/joint_ekf.rs` (half or 1.5 times the truth, 100 % standard deviation).
+fn joint_ekf() -> JointEkf<f64, 4, 9> {
+    let physical = *QuarterCar::<f64>::structure([None, Some(1.0), None, None, None]).unwrap().structure();
+    let noise = EkfNoise::from_sigmas(0.01, 0.005, V4::from([0.0, 90.0, 0.0, 0.0]), 0.1);
+    let guess = [2.5, 6.0, 5.0, 135.0];
+    JointEkf::new(physical, &guess, &guess.map(|g| g * g), 1.0, noise, 0.05, 5).unwrap()
+}
+
+#[test]
+fn joint_ekf_continues_bit_for_bit() {
+    let data = quarter(200);
+    let d = slices(&data);
+    for split in [0, 1, 120] {
+        continues(joint_ekf(), &d, split);
+    }
+}
+
+#[test]
+fn a_corrupt_joint_ekf_is_refused() {
+    use serde_json::json;
+    type Ekf = JointEkf<f64, 4, 9>;
+    let fresh = joint_ekf();
+    let mut id = fresh;
+    let mut e = [0.0; 2];
+    for (x, z) in &quarter(30) {
+        id.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+    }
+    let good = serde_json::to_value(id).unwrap();
+    assert_eq!(serde_json::from_value::<Ekf>(good.clone()).unwrap(), id);
+    let with = |path: &str, v: serde_json::Value| {
+        let mut out = good.clone();
+        *out.pointer_mut(path).unwrap_or_else(|| panic!("{path}")) = v;
+        out
+    };
+    let cases = [
+        (with("/substeps", json!(0)), "joint EKF's saved state"),
+        (with("/rows/0", json!(2)), "joint EKF's saved state"),
+        (with("/rows/5", json!(1)), "joint EKF's saved state"),
+        (with("/order/0", json!(1)), "joint EKF's saved state"),
+        (with("/dt", json!(-0.05)), "dt"),
+        (with("/noise/state_var/2", json!(0.0)), "state_var"),
+        (with("/noise/road_var", json!(-1.0)), "road_var"),
+    ];
+    for (v, needle) in &cases {
+        rejects::<Ekf>(v, needle);
+    }
+    // A non-finite estimate (postcard writes every float): the prior's 135 on k1.
+    let why = refusal!(Ekf, &patch_f64(&to_bytes(&fresh), 135.0, f64::NAN));
+    assert!(why.contains("state"), "{why}");
+    survives_corruption(&id, &slices(&quarter(2)), &[0x01, 0xff]);
+}
