@@ -39,6 +39,7 @@
 //! ```
 #![deny(missing_docs)]
 
+pub mod beyond;
 pub mod figures;
 pub mod report;
 pub mod runner;
@@ -52,8 +53,8 @@ pub use figures::{
     PULSE_AMPLITUDE, PULSE_START,
 };
 pub use report::{
-    fmt_num, ConstantSeries, CurveResult, FigureResult, IdentifiedConstants, KnownConstant, Report, Table, TableRow,
-    Verdict,
+    fmt_num, ConstantSeries, CurveResult, FigureResult, HalfCell, HalfResult, HalfRow, IdentifiedConstants,
+    KnownConstant, Report, SweepCurve, SweepResult, Table, TableRow, Verdict,
 };
 pub use runner::{run, Progress, RunOptions, CONSTANT_POINTS, QUICK_ITERATIONS};
 pub use seeds::job_seed;
