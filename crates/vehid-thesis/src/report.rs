@@ -19,6 +19,9 @@
 //! least squares. The scalar floats (σ, `seconds`, `truth`) are always finite. The Rust
 //! values and the Python binding's objects keep NaN and ±∞ as they are.
 //!
+//! The figures beyond the thesis ([`SweepResult`], [`HalfResult`]) follow the same rule (their
+//! per-seed ξ is ∞ where an identifier gave no estimate); they are written only when they ran.
+//!
 //! `ident` and `model` are serialized as their Rust `Debug` text (e.g.
 //! `Kalman { p0_wheel: 1000.0, p0_body: 1000.0, r_scale: 1.0, reinit: false }`), which is what
 //! the report prints.
@@ -331,9 +334,14 @@ pub struct Report {
     /// Tables (with, when Fig B-1 / B-2 ran, their claims and numbers as tables too: the form
     /// a renderer that knows only figures of ξ against iterations can show).
     pub tables: Vec<Table>,
-    /// Fig B-1 (beyond the thesis), when selected.
+    /// Fig B-1 (beyond the thesis), when selected (absent from the JSON otherwise). The
+    /// Python binding does not convert it yet: there it reaches the report through its table
+    /// in [`Report::tables`].
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub sweep: Option<SweepResult>,
-    /// Fig B-2 (beyond the thesis), when selected.
+    /// Fig B-2 (beyond the thesis), when selected (absent from the JSON otherwise; as
+    /// [`Report::sweep`] for the binding).
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub half_one_road: Option<HalfResult>,
 }
 

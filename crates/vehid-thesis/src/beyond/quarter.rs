@@ -78,7 +78,7 @@ enum Runner {
     /// Its parameters are the rows (row-major).
     Rows(Box<dyn Identifier<f64> + Send>),
     /// Its parameters are a structure's: the rows are the structure's derivative.
-    Structure(Box<dyn Identifier<f64> + Send>, Structure<f64>),
+    Structure(Box<dyn Identifier<f64> + Send>, Box<Structure<f64>>),
 }
 
 impl Runner {
@@ -92,7 +92,7 @@ impl Runner {
     fn xi(&self, truth: &[f64]) -> Result<f64, String> {
         let (id, s) = match self {
             Runner::Rows(id) => (id, None),
-            Runner::Structure(id, s) => (id, Some(s)),
+            Runner::Structure(id, s) => (id, Some(s.as_ref())),
         };
         let mut p = vec![0.0; id.dims().params];
         id.params_into(&mut p).map_err(|e| e.to_string())?;
@@ -119,7 +119,7 @@ fn make(method: QuarterMethod, sigma_w: f64, substeps: u32) -> crate::Result<Run
         )),
         QuarterMethod::IvPhysical => {
             let s = physical()?;
-            Runner::Structure(Box::new(IvIdentifier::<f64, 2, 2, Q>::exact(s, 1)?.with_lags(IV_LAGS)?), s)
+            Runner::Structure(Box::new(IvIdentifier::<f64, 2, 2, Q>::exact(s, 1)?.with_lags(IV_LAGS)?), Box::new(s))
         }
         QuarterMethod::BclsRows => {
             Runner::Rows(Box::new(BiasCompensatedLs::<f64, 4, 2>::full_rows(4, &[1, 3], &[var])?))
@@ -127,7 +127,7 @@ fn make(method: QuarterMethod, sigma_w: f64, substeps: u32) -> crate::Result<Run
         QuarterMethod::BclsPhysical => {
             let s = physical()?;
             let id = BiasCompensatedLs::<f64, 2, 2>::new(s, &[var], &[DERIV_SIGMA * DERIV_SIGMA], &[1.0])?;
-            Runner::Structure(Box::new(id), s)
+            Runner::Structure(Box::new(id), Box::new(s))
         }
         QuarterMethod::EkfRows | QuarterMethod::EkfPhysical => {
             let g = SVector::<f64, 4>::from_column_slice(model.b().as_slice());
@@ -135,11 +135,17 @@ fn make(method: QuarterMethod, sigma_w: f64, substeps: u32) -> crate::Result<Run
             if method == QuarterMethod::EkfRows {
                 let s = full_rows_complete()?;
                 let (p0, v0) = rough_prior(car.theta().transpose().as_slice());
-                Runner::Structure(Box::new(JointEkf::<f64, 4, 13>::new(s, &p0, &v0, 1.0, noise, DT, substeps)?), s)
+                Runner::Structure(
+                    Box::new(JointEkf::<f64, 4, 13>::new(s, &p0, &v0, 1.0, noise, DT, substeps)?),
+                    Box::new(s),
+                )
             } else {
                 let s = physical()?;
                 let (p0, v0) = rough_prior(&physical_truth());
-                Runner::Structure(Box::new(JointEkf::<f64, 4, 9>::new(s, &p0, &v0, 1.0, noise, DT, substeps)?), s)
+                Runner::Structure(
+                    Box::new(JointEkf::<f64, 4, 9>::new(s, &p0, &v0, 1.0, noise, DT, substeps)?),
+                    Box::new(s),
+                )
             }
         }
     })

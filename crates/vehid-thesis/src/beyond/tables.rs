@@ -78,15 +78,15 @@ pub fn tables(sweep: Option<&SweepResult>, half: Option<&HalfResult>) -> Vec<Tab
     let mut out = vec![];
     if let Some(r) = sweep {
         out.push(Table {
-            title: format!("Fig {SWEEP_ID} ({}): {}", r.origin, r.title),
-            method: format!("{} {}", r.setup, sweep_numbers(r)),
+            title: format!("Fig {SWEEP_ID}, beyond the thesis (not from Kessler 1986): {}", r.title),
+            method: format!("{}. {} {}", r.origin, r.setup, sweep_numbers(r)),
             rows: r.verdicts.iter().map(row).collect(),
         });
     }
     if let Some(r) = half {
         out.push(Table {
-            title: format!("Fig {HALF_ID} ({}): {}", r.origin, r.title),
-            method: format!("{} {}", r.setup, half_numbers(r)),
+            title: format!("Fig {HALF_ID}, beyond the thesis (not from Kessler 1986): {}", r.title),
+            method: format!("{}. {} {}", r.origin, r.setup, half_numbers(r)),
             rows: r.verdicts.iter().map(row).collect(),
         });
     }

@@ -144,7 +144,7 @@ pub fn run(opts: &RunOptions, progress: &(dyn Fn(Progress<'_>) + Sync)) -> crate
         Job::Half(..) => beyond_samples * 30,
     };
     jobs.sort_by_key(|j| core::cmp::Reverse(cost(j)));
-    let results: Mutex<Vec<Option<(crate::Result<Out>, f64)>>> = Mutex::new((0..jobs.len()).map(|_| None).collect());
+    let results: Mutex<Vec<Slot>> = Mutex::new((0..jobs.len()).map(|_| None).collect());
     let next = AtomicUsize::new(0);
     let done = AtomicUsize::new(0);
     std::thread::scope(|scope| {
@@ -278,6 +278,9 @@ impl Job {
     }
 }
 
+/// A job's output and its wall time, s (`None` until it ran).
+type Slot = Option<(crate::Result<Out>, f64)>;
+
 /// What a job produced.
 enum Out {
     Trace(Trace),
@@ -286,7 +289,7 @@ enum Out {
 }
 
 /// Job `ji`'s output and its wall time, taken out of the results (each is read once).
-fn take(results: &mut [Option<(crate::Result<Out>, f64)>], ji: usize) -> crate::Result<(Out, f64)> {
+fn take(results: &mut [Slot], ji: usize) -> crate::Result<(Out, f64)> {
     let (out, t) = results[ji].take().expect("every job ran");
     Ok((out?, t))
 }
