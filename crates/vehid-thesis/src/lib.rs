@@ -5,6 +5,10 @@
 //! An application of [`vehid_core`], kept out of it: it needs `std` (threads, clocks).
 //!
 //! Modules, one per concept:
+//! - [`beyond`]: figures beyond the thesis (not in Kessler 1986), run by the same runner and
+//!   selected by id: Fig B-1, ξ after the run against the state noise σ_w for every identifier
+//!   for noisy states and the thesis' own (quarter car), and Fig B-2, the half car on one road
+//!   with noisy states; their claims checked like the thesis', mirrored as report tables;
 //! - [`figures`]: [`EXPERIMENTS`], one [`Experiment`] per figure of Chapters III–VI (3-2 …
 //!   3-7, 4-1 … 4-9, 5-1 … 5-4, 6-2 … 6-9) with its curves, identifiers and the thesis'
 //!   claims as checkable [`Claim`]s;
@@ -39,6 +43,7 @@
 //! ```
 #![deny(missing_docs)]
 
+pub mod beyond;
 pub mod figures;
 pub mod report;
 pub mod runner;
@@ -52,8 +57,8 @@ pub use figures::{
     PULSE_AMPLITUDE, PULSE_START,
 };
 pub use report::{
-    fmt_num, ConstantSeries, CurveResult, FigureResult, IdentifiedConstants, KnownConstant, Report, Table, TableRow,
-    Verdict,
+    fmt_num, ConstantSeries, CurveResult, FigureResult, HalfCell, HalfResult, HalfRow, IdentifiedConstants,
+    KnownConstant, Report, SweepCurve, SweepResult, Table, TableRow, Verdict,
 };
 pub use runner::{run, Progress, RunOptions, CONSTANT_POINTS, QUICK_ITERATIONS};
 pub use seeds::job_seed;

@@ -19,6 +19,9 @@
 //! least squares. The scalar floats (σ, `seconds`, `truth`) are always finite. The Rust
 //! values and the Python binding's objects keep NaN and ±∞ as they are.
 //!
+//! The figures beyond the thesis ([`SweepResult`], [`HalfResult`]) follow the same rule (their
+//! per-seed ξ is ∞ where an identifier gave no estimate); they are written only when they ran.
+//!
 //! `ident` and `model` are serialized as their Rust `Debug` text (e.g.
 //! `Kalman { p0_wheel: 1000.0, p0_body: 1000.0, r_scale: 1.0, reinit: false }`), which is what
 //! the report prints.
@@ -196,6 +199,125 @@ pub struct Table {
     pub rows: Vec<TableRow>,
 }
 
+/// One method of Fig B-1 (beyond the thesis): ξ after the run at each σ_w, over seeds.
+#[derive(Debug, Clone, Serialize)]
+pub struct SweepCurve {
+    /// The legend text.
+    pub label: &'static str,
+    /// How the method is set up and what it is told.
+    pub setup: &'static str,
+    /// Median ξ over seeds at each level of [`SweepResult::levels`] (an estimate that could
+    /// not be read counts as ∞).
+    #[serde(serialize_with = "ser::non_finite_as_null")]
+    pub median: Vec<f64>,
+    /// 25 % quantile at each level.
+    #[serde(serialize_with = "ser::non_finite_as_null")]
+    pub q25: Vec<f64>,
+    /// 75 % quantile at each level.
+    #[serde(serialize_with = "ser::non_finite_as_null")]
+    pub q75: Vec<f64>,
+    /// Smallest ξ over seeds at each level.
+    #[serde(serialize_with = "ser::non_finite_as_null")]
+    pub min: Vec<f64>,
+    /// Largest ξ over seeds at each level (the worst seed).
+    #[serde(serialize_with = "ser::non_finite_as_null")]
+    pub max: Vec<f64>,
+    /// ξ per level, per seed (seed index order).
+    #[serde(serialize_with = "ser::nested_non_finite_as_null")]
+    pub xi: Vec<Vec<f64>>,
+    /// Samples the identifier refused, per level, summed over seeds.
+    pub refused: Vec<u64>,
+    /// Per level, the seeds with no estimate at the end and the identifier's error (empty
+    /// when every seed has one).
+    pub errors: Vec<Vec<(usize, String)>>,
+}
+
+/// Fig B-1 (beyond the thesis): ξ after the run against the state noise σ_w, per method.
+#[derive(Debug, Clone, Serialize)]
+pub struct SweepResult {
+    /// `"B-1"`.
+    pub id: &'static str,
+    /// Caption.
+    pub title: &'static str,
+    /// Where the figure comes from: not from the thesis.
+    pub origin: &'static str,
+    /// Samples per run.
+    pub samples: usize,
+    /// Samples per run of the full mode.
+    pub full_samples: usize,
+    /// Seeds per method and level.
+    pub seeds: usize,
+    /// The state-noise levels σ_w, % of σ_u.
+    pub levels: Vec<f64>,
+    /// The simulation and the seeds, one paragraph.
+    pub setup: String,
+    /// One curve per method.
+    pub curves: Vec<SweepCurve>,
+    /// The figure's claims evaluated.
+    pub verdicts: Vec<Verdict>,
+    /// Wall time of its jobs summed over the worker threads, s.
+    pub cpu_seconds: f64,
+}
+
+/// One method at one σ_w in Fig B-2: per seed ξ of the wheel rows, of the body rows, and the
+/// worst entry.
+#[derive(Debug, Clone, Serialize)]
+pub struct HalfCell {
+    /// σ_w, % of σ_u.
+    pub level: f64,
+    /// Per seed: ξ of the wheel rows 1 and 3 (∞: no estimate).
+    #[serde(serialize_with = "ser::non_finite_as_null")]
+    pub wheel: Vec<f64>,
+    /// Per seed: ξ of the body rows 5 and 7.
+    #[serde(serialize_with = "ser::non_finite_as_null")]
+    pub body: Vec<f64>,
+    /// Per seed: the largest relative error over the 28 non-zero entries.
+    #[serde(serialize_with = "ser::non_finite_as_null")]
+    pub worst_entry: Vec<f64>,
+    /// Samples refused, summed over seeds.
+    pub refused: u64,
+    /// The seeds with no estimate and the identifier's error.
+    pub errors: Vec<(usize, String)>,
+}
+
+/// One method of Fig B-2.
+#[derive(Debug, Clone, Serialize)]
+pub struct HalfRow {
+    /// The row label.
+    pub label: &'static str,
+    /// How the method is set up and what it is told.
+    pub setup: &'static str,
+    /// One cell per level of [`HalfResult::levels`].
+    pub cells: Vec<HalfCell>,
+}
+
+/// Fig B-2 (beyond the thesis, a table): the half car on one road with noisy states.
+#[derive(Debug, Clone, Serialize)]
+pub struct HalfResult {
+    /// `"B-2"`.
+    pub id: &'static str,
+    /// Caption.
+    pub title: &'static str,
+    /// Where it comes from: not from the thesis.
+    pub origin: &'static str,
+    /// Samples per run.
+    pub samples: usize,
+    /// Seeds per method and level.
+    pub seeds: usize,
+    /// σ_w levels, % of σ_u (the noise-free reference and the level of the claims).
+    pub levels: Vec<f64>,
+    /// The simulation and the seeds, one paragraph.
+    pub setup: String,
+    /// One row per method run.
+    pub rows: Vec<HalfRow>,
+    /// Methods not run, and why.
+    pub not_run: Vec<(String, String)>,
+    /// Its claims evaluated.
+    pub verdicts: Vec<Verdict>,
+    /// Wall time of its jobs summed over the worker threads, s.
+    pub cpu_seconds: f64,
+}
+
 /// Everything a reproduction produced.
 #[derive(Debug, Clone, Serialize)]
 pub struct Report {
@@ -209,8 +331,18 @@ pub struct Report {
     pub seconds: f64,
     /// Figures.
     pub figures: Vec<FigureResult>,
-    /// Tables.
+    /// Tables (with, when Fig B-1 / B-2 ran, their claims and numbers as tables too: the form
+    /// a renderer that knows only figures of ξ against iterations can show).
     pub tables: Vec<Table>,
+    /// Fig B-1 (beyond the thesis), when selected (absent from the JSON otherwise). The
+    /// Python binding does not convert it yet: there it reaches the report through its table
+    /// in [`Report::tables`].
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sweep: Option<SweepResult>,
+    /// Fig B-2 (beyond the thesis), when selected (absent from the JSON otherwise; as
+    /// [`Report::sweep`] for the binding).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub half_one_road: Option<HalfResult>,
 }
 
 impl Report {
@@ -246,6 +378,11 @@ mod ser {
     /// A float series with every non-finite value (NaN, ±∞) written as `None` (JSON `null`).
     pub(super) fn non_finite_as_null<S: Serializer>(v: &[f64], s: S) -> Result<S::Ok, S::Error> {
         s.collect_seq(v.iter().map(|x| x.is_finite().then_some(*x)))
+    }
+
+    /// Nested float series, every non-finite value written as `None`.
+    pub(super) fn nested_non_finite_as_null<S: Serializer>(v: &[Vec<f64>], s: S) -> Result<S::Ok, S::Error> {
+        s.collect_seq(v.iter().map(|row| row.iter().map(|x| x.is_finite().then_some(*x)).collect::<Vec<_>>()))
     }
 
     /// A value as its `Debug` text.

@@ -22,3 +22,9 @@ pub fn job_seed(base: u64, exp: &Experiment, curve: usize, seed_index: usize) ->
     let c = if exp.distinct_ensembles { curve as u64 + 1 } else { 0 };
     mix(mix(base ^ fig_hash(exp.id)) ^ mix(c.wrapping_mul(1_000_003) ^ seed_index as u64))
 }
+
+/// The seed of realization `seed_index` of a figure beyond the thesis (`id`, e.g. `"B-1"`):
+/// every level and method of that figure shares it (common random numbers).
+pub fn beyond_seed(base: u64, id: &str, seed_index: usize) -> u64 {
+    mix(mix(base ^ fig_hash(id)) ^ mix(0xB_E70D ^ seed_index as u64))
+}

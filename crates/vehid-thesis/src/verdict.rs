@@ -1,7 +1,9 @@
-//! Claims evaluated against the measurements: one [`Verdict`] per [`ThesisClaim`].
+//! Claims evaluated against the measurements: one [`Verdict`] per [`ThesisClaim`], and per
+//! claim of the figures beyond the thesis ([`SweepClaim`], [`HalfClaim`]).
 
+use crate::beyond::{HalfCheck, HalfClaim, HalfMethod, Part, QuarterMethod, SweepCheck, SweepClaim};
 use crate::figures::{Claim, ThesisClaim};
-use crate::report::{fmt_num, CurveResult, Verdict};
+use crate::report::{fmt_num, CurveResult, HalfCell, HalfResult, SweepResult, Verdict};
 use crate::stats::median;
 
 fn iters_text(v: f64, n: usize) -> String {
@@ -115,5 +117,152 @@ pub(crate) fn evaluate(claim: &ThesisClaim, curves: &[CurveResult], n: usize, qu
     if !agrees && !claim.why.is_empty() {
         note = claim.why.to_string();
     }
+    Verdict { claim: claim.text.to_string(), measured, agrees, note }
+}
+
+/// The index of σ_w `level` among `levels` (`None`: not run).
+fn level_index(levels: &[f64], level: f64) -> Option<usize> {
+    levels.iter().position(|&l| l == level)
+}
+
+fn in_range(v: f64, lo: f64, hi: f64) -> bool {
+    v >= lo && v <= hi
+}
+
+fn range_text(lo: f64, hi: f64) -> String {
+    format!("[{}, {}]", fmt_num(lo), fmt_num(hi))
+}
+
+/// A claim about a level the run did not include: it cannot agree.
+fn missing_level(text: &str, level: f64) -> Verdict {
+    Verdict {
+        claim: text.to_string(),
+        measured: format!("σ_w = {level} % was not run"),
+        agrees: false,
+        note: "the claim's level is not among the run's levels".to_string(),
+    }
+}
+
+/// Fig B-1's claim evaluated against its runs (medians over seeds after the run).
+pub(crate) fn evaluate_sweep(claim: &SweepClaim, r: &SweepResult) -> Verdict {
+    let n = r.samples;
+    let curve = |m: QuarterMethod| {
+        let i = QuarterMethod::ALL.iter().position(|&x| x == m).unwrap_or(0);
+        &r.curves[i]
+    };
+    let (measured, agrees) = match claim.check {
+        SweepCheck::Median { methods, level, lo, hi } => {
+            let Some(li) = level_index(&r.levels, level) else { return missing_level(claim.text, level) };
+            let vals: Vec<(f64, &str)> = methods.iter().map(|&m| (curve(m).median[li], m.label())).collect();
+            let ok = vals.iter().all(|&(v, _)| in_range(v, lo, hi));
+            let txt = vals.iter().map(|(v, l)| format!("{l} {}", fmt_num(*v))).collect::<Vec<_>>().join("; ");
+            (format!("median ξ at {n} samples, σ_w = {level} %: {txt} (claimed range {})", range_text(lo, hi)), ok)
+        }
+        SweepCheck::Ratio { a, b, level, lo, hi } => {
+            let Some(li) = level_index(&r.levels, level) else { return missing_level(claim.text, level) };
+            let ratios: Vec<f64> = curve(a).xi[li].iter().zip(&curve(b).xi[li]).map(|(x, y)| x / y).collect();
+            let m = median(&ratios);
+            (
+                format!(
+                    "median over seeds of ξ({}) / ξ({}) at {n} samples, σ_w = {level} %: {} (claimed range {})",
+                    a.label(),
+                    b.label(),
+                    fmt_num(m),
+                    range_text(lo, hi)
+                ),
+                in_range(m, lo, hi),
+            )
+        }
+        SweepCheck::Increasing { method, from, to } => {
+            let c = curve(method);
+            let sel: Vec<(f64, f64)> = r
+                .levels
+                .iter()
+                .zip(&c.median)
+                .filter(|(l, _)| **l >= from && **l <= to)
+                .map(|(l, v)| (*l, *v))
+                .collect();
+            let ok = sel.len() >= 2 && sel.windows(2).all(|w| w[0].1 < w[1].1);
+            let txt = sel.iter().map(|(l, v)| format!("{l} %: {}", fmt_num(*v))).collect::<Vec<_>>().join(", ");
+            (format!("median ξ of {} at {n} samples: {txt}", method.label()), ok)
+        }
+    };
+    let note = if agrees { String::new() } else { "outside the claimed range".to_string() };
+    Verdict { claim: claim.text.to_string(), measured, agrees, note }
+}
+
+/// Per seed, `part` of one method's cell (the larger pair for [`Part::WorstPair`]).
+fn half_part(cell: &HalfCell, part: Part) -> Vec<f64> {
+    match part {
+        Part::Wheel => cell.wheel.clone(),
+        Part::Body => cell.body.clone(),
+        Part::WorstPair => cell.wheel.iter().zip(&cell.body).map(|(a, b)| a.max(*b)).collect(),
+    }
+}
+
+fn part_text(part: Part) -> &'static str {
+    match part {
+        Part::Wheel => "ξ of the wheel rows",
+        Part::Body => "ξ of the body rows",
+        Part::WorstPair => "ξ of the larger pair",
+    }
+}
+
+/// Fig B-2's claim evaluated against its runs.
+pub(crate) fn evaluate_half(claim: &HalfClaim, r: &HalfResult) -> Verdict {
+    let n = r.samples;
+    let row = |m: HalfMethod| {
+        let i = HalfMethod::ALL.iter().position(|&x| x == m).unwrap_or(0);
+        &r.rows[i]
+    };
+    let (measured, agrees) = match claim.check {
+        HalfCheck::Median { method, part, level, lo, hi } => {
+            let Some(li) = level_index(&r.levels, level) else { return missing_level(claim.text, level) };
+            let m = median(&half_part(&row(method).cells[li], part));
+            (
+                format!(
+                    "median {} for {} at {n} samples, σ_w = {level} %: {} (claimed range {})",
+                    part_text(part),
+                    method.label(),
+                    fmt_num(m),
+                    range_text(lo, hi)
+                ),
+                in_range(m, lo, hi),
+            )
+        }
+        HalfCheck::Ratio { a, b, part, level, lo, hi } => {
+            let Some(li) = level_index(&r.levels, level) else { return missing_level(claim.text, level) };
+            let (x, y) = (half_part(&row(a).cells[li], part), half_part(&row(b).cells[li], part));
+            let m = median(&x.iter().zip(&y).map(|(x, y)| x / y).collect::<Vec<_>>());
+            (
+                format!(
+                    "median over seeds of the ratio of {} ({} / {}) at σ_w = {level} %: {} (claimed range {})",
+                    part_text(part),
+                    a.label(),
+                    b.label(),
+                    fmt_num(m),
+                    range_text(lo, hi)
+                ),
+                in_range(m, lo, hi),
+            )
+        }
+        HalfCheck::Best { level, lo, hi } => {
+            let Some(li) = level_index(&r.levels, level) else { return missing_level(claim.text, level) };
+            let (best, label) = r
+                .rows
+                .iter()
+                .map(|row| (median(&half_part(&row.cells[li], Part::WorstPair)), row.label))
+                .fold((f64::INFINITY, ""), |acc, x| if x.0 < acc.0 { x } else { acc });
+            (
+                format!(
+                    "best median of the larger pair's ξ at σ_w = {level} %: {} ({label}; claimed range {})",
+                    fmt_num(best),
+                    range_text(lo, hi)
+                ),
+                in_range(best, lo, hi),
+            )
+        }
+    };
+    let note = if agrees { String::new() } else { "outside the claimed range".to_string() };
     Verdict { claim: claim.text.to_string(), measured, agrees, note }
 }

@@ -79,7 +79,7 @@ pub fn select(only: &[String]) -> crate::Result<Vec<&'static Experiment>> {
             None => {
                 return Err(crate::Error::InvalidArgument {
                     arg: "only",
-                    expected: "figure ids of Ch. III–VI such as 4-2 (3-2 … 3-7, 4-1 … 4-9, 5-1 … 5-4, 6-2 … 6-9)",
+                    expected: "figure ids of Ch. III–VI such as 4-2 (3-2 … 3-7, 4-1 … 4-9, 5-1 … 5-4, 6-2 … 6-9), or B-1, B-2 (beyond the thesis: the runner selects those)",
                 })
             }
         }

@@ -12,9 +12,10 @@ pub use constants::CONSTANT_POINTS;
 
 pub(crate) use job::Trace;
 
+use crate::beyond;
 use crate::figures::{select, Experiment, ModelKind};
 use crate::report::{FigureResult, Report};
-use crate::seeds::job_seed;
+use crate::seeds::{beyond_seed, job_seed};
 use crate::stats::summarize;
 use crate::tables::tables;
 use crate::verdict::evaluate;
@@ -92,51 +93,86 @@ fn grid(n: usize) -> Vec<u64> {
 /// An unknown figure id in `only`; a simulation or identifier error (a bug in the table).
 pub fn run(opts: &RunOptions, progress: &(dyn Fn(Progress<'_>) + Sync)) -> crate::Result<Report> {
     let start = std::time::Instant::now();
-    let exps = select(&opts.only)?;
+    // Figures beyond the thesis (B-1, B-2) are selected by id like the thesis' figures; an
+    // empty selection runs everything.
+    let (beyond_ids, thesis_ids): (Vec<String>, Vec<String>) =
+        opts.only.iter().cloned().partition(|id| beyond::is_beyond(id));
+    let exps = if !opts.only.is_empty() && thesis_ids.is_empty() { vec![] } else { select(&thesis_ids)? };
+    let wants = |id: &str| opts.only.is_empty() || beyond_ids.iter().any(|b| b.trim() == id);
+    let (run_sweep, run_half) = (wants(beyond::SWEEP_ID), wants(beyond::HALF_ID));
     let seeds = opts.seeds.unwrap_or(if opts.quick { 5 } else { 16 }).max(1);
+    // The figures beyond the thesis keep at least MIN_SEEDS seeds unless `seeds` is given.
+    let beyond_seeds = opts.seeds.unwrap_or(seeds.max(beyond::MIN_SEEDS)).max(1);
     let threads =
         opts.threads.unwrap_or_else(|| std::thread::available_parallelism().map(|n| n.get()).unwrap_or(2)).clamp(1, 64);
-    let iters_of = |e: &Experiment| {
-        let mut n = e.iterations;
-        if opts.quick {
-            n = n.min(QUICK_ITERATIONS);
-        }
+    let cap = |mut n: usize| {
         if let Some(m) = opts.max_iterations {
             n = n.min(m.max(1));
         }
         n
     };
-    // Jobs: (figure, curve, seed), longest first for a balanced finish.
+    let iters_of = |e: &Experiment| cap(if opts.quick { e.iterations.min(QUICK_ITERATIONS) } else { e.iterations });
+    let beyond_samples = cap(if opts.quick { beyond::QUICK_SWEEP_SAMPLES } else { beyond::SWEEP_SAMPLES });
+    // Jobs: a curve × seed of a thesis figure, or a level × seed of B-1 / B-2; longest first
+    // for a balanced finish (a B job runs every method on its samples: 7 or 6 identifiers).
     let grids: Vec<Vec<u64>> = exps.iter().map(|e| grid(iters_of(e))).collect();
-    let mut jobs: Vec<(usize, usize, usize)> = vec![];
+    let mut jobs: Vec<Job> = vec![];
     for (fi, e) in exps.iter().enumerate() {
         if e.needs.is_some() {
             continue;
         }
         for ci in 0..e.curves.len() {
             for s in 0..seeds {
-                jobs.push((fi, ci, s));
+                jobs.push(Job::Curve(fi, ci, s));
             }
         }
     }
-    let cost = |j: &(usize, usize, usize)| {
-        let e = exps[j.0];
-        iters_of(e) * if e.model == ModelKind::Quarter { 1 } else { 4 }
+    for s in 0..beyond_seeds {
+        if run_sweep {
+            jobs.extend((0..beyond::SWEEP_LEVELS.len()).map(|li| Job::Sweep(li, s)));
+        }
+        if run_half {
+            jobs.extend((0..beyond::HALF_LEVELS.len()).map(|li| Job::Half(li, s)));
+        }
+    }
+    let cost = |j: &Job| match *j {
+        Job::Curve(fi, _, _) => {
+            let e = exps[fi];
+            iters_of(e) * if e.model == ModelKind::Quarter { 1 } else { 4 }
+        }
+        Job::Sweep(..) => beyond_samples * 20,
+        Job::Half(..) => beyond_samples * 30,
     };
     jobs.sort_by_key(|j| core::cmp::Reverse(cost(j)));
-    let results: Mutex<Vec<Option<crate::Result<Trace>>>> = Mutex::new((0..jobs.len()).map(|_| None).collect());
+    let results: Mutex<Vec<Slot>> = Mutex::new((0..jobs.len()).map(|_| None).collect());
     let next = AtomicUsize::new(0);
     let done = AtomicUsize::new(0);
     std::thread::scope(|scope| {
         for _ in 0..threads.min(jobs.len().max(1)) {
             scope.spawn(|| loop {
                 let i = next.fetch_add(1, Ordering::Relaxed);
-                let Some(&(fi, ci, s)) = jobs.get(i) else { break };
-                let e = exps[fi];
-                let tr = simulate(e, &e.curves[ci], &grids[fi], job_seed(opts.base_seed, e, ci, s), s == 0);
-                results.lock().unwrap_or_else(|p| p.into_inner())[i] = Some(tr);
+                let Some(&job) = jobs.get(i) else { break };
+                let t0 = std::time::Instant::now();
+                let (out, figure) = match job {
+                    Job::Curve(fi, ci, s) => {
+                        let e = exps[fi];
+                        let seed = job_seed(opts.base_seed, e, ci, s);
+                        (simulate(e, &e.curves[ci], &grids[fi], seed, s == 0).map(Out::Trace), e.id)
+                    }
+                    Job::Sweep(li, s) => {
+                        let seed = beyond_seed(opts.base_seed, beyond::SWEEP_ID, s);
+                        let out = beyond::sweep_job(beyond::SWEEP_LEVELS[li], beyond_samples, seed);
+                        (out.map(Out::Sweep), beyond::SWEEP_ID)
+                    }
+                    Job::Half(li, s) => {
+                        let seed = beyond_seed(opts.base_seed, beyond::HALF_ID, s);
+                        let out = beyond::half_job(beyond::HALF_LEVELS[li], beyond_samples, seed);
+                        (out.map(Out::Half), beyond::HALF_ID)
+                    }
+                };
+                results.lock().unwrap_or_else(|p| p.into_inner())[i] = Some((out, t0.elapsed().as_secs_f64()));
                 let d = done.fetch_add(1, Ordering::Relaxed) + 1;
-                progress(Progress { done: d, total: jobs.len(), figure: e.id });
+                progress(Progress { done: d, total: jobs.len(), figure });
             });
         }
     });
@@ -167,8 +203,10 @@ pub fn run(opts: &RunOptions, progress: &(dyn Fn(Progress<'_>) + Sync)) -> crate
         for (ci, curve) in e.curves.iter().enumerate() {
             let mut traces = vec![];
             for (ji, j) in jobs.iter().enumerate() {
-                if j.0 == fi && j.1 == ci {
-                    traces.push(results[ji].take().expect("every job ran")?);
+                if *j == Job::Curve(fi, ci, j.seed()) {
+                    if let (Out::Trace(t), _) = take(&mut results, ji)? {
+                        traces.push(t);
+                    }
                 }
             }
             curves.push(summarize(curve, ci, &traces, &grids[fi]));
@@ -176,10 +214,39 @@ pub fn run(opts: &RunOptions, progress: &(dyn Fn(Progress<'_>) + Sync)) -> crate
         let verdicts = e.claims.iter().map(|c| evaluate(c, &curves, n, opts.quick)).collect();
         figures.push(FigureResult { k: grids[fi].clone(), curves, verdicts, ..figure(e, n) });
     }
-    let tables = match table_out {
+    // Figures beyond the thesis: outputs indexed [level][seed].
+    let (mut sweep_out, mut half_out) = (
+        vec![vec![vec![]; beyond_seeds]; beyond::SWEEP_LEVELS.len()],
+        vec![vec![vec![]; beyond_seeds]; beyond::HALF_LEVELS.len()],
+    );
+    let (mut sweep_cpu, mut half_cpu) = (0.0, 0.0);
+    for (ji, j) in jobs.iter().enumerate() {
+        match *j {
+            Job::Sweep(li, s) => {
+                if let (Out::Sweep(v), t) = take(&mut results, ji)? {
+                    sweep_out[li][s] = v;
+                    sweep_cpu += t;
+                }
+            }
+            Job::Half(li, s) => {
+                if let (Out::Half(v), t) = take(&mut results, ji)? {
+                    half_out[li][s] = v;
+                    half_cpu += t;
+                }
+            }
+            Job::Curve(..) => {}
+        }
+    }
+    let sweep = run_sweep.then(|| {
+        beyond::sweep_result(&beyond::SWEEP_LEVELS, &sweep_out, beyond_samples, beyond::SWEEP_SAMPLES, sweep_cpu)
+    });
+    let half_one_road =
+        run_half.then(|| beyond::half_result(&beyond::HALF_LEVELS, &half_out, beyond_samples, half_cpu));
+    let mut tables = match table_out {
         Some(t) => t?,
         None => vec![],
     };
+    tables.extend(beyond::tables(sweep.as_ref(), half_one_road.as_ref()));
     Ok(Report {
         quick: opts.quick,
         base_seed: opts.base_seed,
@@ -187,5 +254,42 @@ pub fn run(opts: &RunOptions, progress: &(dyn Fn(Progress<'_>) + Sync)) -> crate
         seconds: start.elapsed().as_secs_f64(),
         figures,
         tables,
+        sweep,
+        half_one_road,
     })
+}
+
+/// One job of the pool.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Job {
+    /// A thesis figure's (figure, curve, seed index).
+    Curve(usize, usize, usize),
+    /// Fig B-1's (level, seed index).
+    Sweep(usize, usize),
+    /// Fig B-2's (level, seed index).
+    Half(usize, usize),
+}
+
+impl Job {
+    fn seed(&self) -> usize {
+        match *self {
+            Job::Curve(_, _, s) | Job::Sweep(_, s) | Job::Half(_, s) => s,
+        }
+    }
+}
+
+/// A job's output and its wall time, s (`None` until it ran).
+type Slot = Option<(crate::Result<Out>, f64)>;
+
+/// What a job produced.
+enum Out {
+    Trace(Trace),
+    Sweep(Vec<beyond::QuarterXi>),
+    Half(Vec<beyond::HalfXi>),
+}
+
+/// Job `ji`'s output and its wall time, taken out of the results (each is read once).
+fn take(results: &mut [Slot], ji: usize) -> crate::Result<(Out, f64)> {
+    let (out, t) = results[ji].take().expect("every job ran");
+    Ok((out?, t))
 }

@@ -1,0 +1,45 @@
+//! Fig B-1 and B-2 (beyond the thesis) alone: runs them through the reproduction runner and
+//! writes `fig-B-1.svg`, `beyond.md` and `beyond.json` into a directory.
+//!
+//! `cargo run --release -p vehid-thesis --example beyond -- [--quick] [--seeds N] [--seed S] [OUT]`
+//! (OUT defaults to `report-beyond/`).
+
+use std::io::Write;
+use vehid_thesis::{beyond, run, Progress, RunOptions};
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let mut opts = RunOptions { only: vec!["B-1".into(), "B-2".into()], tables: false, ..RunOptions::default() };
+    let mut out = std::path::PathBuf::from("report-beyond");
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        match a.as_str() {
+            "--quick" => opts.quick = true,
+            "--seeds" => opts.seeds = Some(args.next().ok_or("--seeds N")?.parse()?),
+            "--seed" => opts.base_seed = args.next().ok_or("--seed S")?.parse()?,
+            "--threads" => opts.threads = Some(args.next().ok_or("--threads N")?.parse()?),
+            other => out = other.into(),
+        }
+    }
+    let t0 = std::time::Instant::now();
+    let report = run(&opts, &|p: Progress<'_>| {
+        eprint!("\rbeyond: {}/{} runs (Fig {})   ", p.done, p.total, p.figure);
+        let _ = std::io::stderr().flush();
+    })?;
+    eprintln!();
+    std::fs::create_dir_all(&out)?;
+    let cmd = format!(
+        "cargo run --release -p vehid-thesis --example beyond --{}{} (base seed {}, {} threads, {:.1} s)",
+        if opts.quick { " --quick" } else { "" },
+        opts.seeds.map(|s| format!(" --seeds {s}")).unwrap_or_default(),
+        report.base_seed,
+        report.threads,
+        t0.elapsed().as_secs_f64()
+    );
+    if let Some(s) = &report.sweep {
+        std::fs::write(out.join("fig-B-1.svg"), beyond::sweep_svg(s))?;
+    }
+    std::fs::write(out.join("beyond.md"), beyond::markdown(&report, &cmd))?;
+    std::fs::write(out.join("beyond.json"), report.to_json())?;
+    println!("{}", out.join("beyond.md").display());
+    Ok(())
+}

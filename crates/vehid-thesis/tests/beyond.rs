@@ -1,0 +1,109 @@
+//! The figures beyond the thesis (Fig B-1: ξ against σ_w for every method for noisy states;
+//! Fig B-2: the half car on one road with noisy states): selected by id, seeded and
+//! reproducible, their claims computed from the runs (fed another method's results, they
+//! fail), mirrored as report tables marked as not the thesis'.
+
+use vehid_thesis::beyond::{self, QuarterMethod, HALF_CLAIMS, NOT_THESIS, SWEEP_CLAIMS, SWEEP_LEVELS};
+use vehid_thesis::{run, Report, RunOptions};
+
+fn beyond_run(seed: u64, only: &[&str], samples: usize, seeds: usize) -> Report {
+    let opts = RunOptions {
+        quick: true,
+        seeds: Some(seeds),
+        max_iterations: Some(samples),
+        base_seed: seed,
+        threads: Some(2),
+        only: only.iter().map(|s| s.to_string()).collect(),
+        tables: false,
+    };
+    run(&opts, &|_| {}).unwrap()
+}
+
+#[test]
+fn selected_by_id_seeded_and_reproducible() {
+    let a = beyond_run(1, &["B-1", "B-2"], 400, 2);
+    let a2 = beyond_run(1, &["B-1", "B-2"], 400, 2);
+    let b = beyond_run(2, &["B-1", "B-2"], 400, 2);
+    assert!(a.figures.is_empty(), "no thesis figure was selected");
+    let (s, s2, sb) = (a.sweep.as_ref().unwrap(), a2.sweep.as_ref().unwrap(), b.sweep.as_ref().unwrap());
+    assert_eq!((s.samples, s.seeds, s.full_samples), (400, 2, beyond::SWEEP_SAMPLES));
+    assert_eq!(s.levels, SWEEP_LEVELS);
+    assert_eq!(s.curves.len(), QuarterMethod::ALL.len());
+    assert!(s.origin.contains("not a figure of Kessler"));
+    for ((c, c2), cb) in s.curves.iter().zip(&s2.curves).zip(&sb.curves) {
+        assert_eq!(c.xi.len(), SWEEP_LEVELS.len());
+        assert!(c.xi.iter().all(|v| v.len() == 2));
+        let bits = |v: &[Vec<f64>]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&c.xi), bits(&c2.xi), "{}: reproducible from the base seed", c.label);
+        assert_ne!(bits(&c.xi), bits(&cb.xi), "{}: computed from it", c.label);
+        for i in 0..SWEEP_LEVELS.len() {
+            assert!(c.min[i] <= c.q25[i] && c.q25[i] <= c.median[i] && c.median[i] <= c.q75[i] && c.q75[i] <= c.max[i]);
+        }
+    }
+    assert_eq!(s.verdicts.len(), SWEEP_CLAIMS.len());
+    let h = a.half_one_road.as_ref().unwrap();
+    assert_eq!(h.verdicts.len(), HALF_CLAIMS.len());
+    assert!(h.rows.iter().all(|r| r.cells.len() == beyond::HALF_LEVELS.len()));
+    assert!(h.not_run.iter().any(|(m, _)| m.contains("EKF")));
+    // Mirrored as tables, every row marked as vehid's claim.
+    assert_eq!(a.tables.len(), 2);
+    assert!(a
+        .tables
+        .iter()
+        .all(|t| t.title.contains("beyond the thesis") && t.rows.iter().all(|r| r.thesis == NOT_THESIS)));
+    let json = a.to_json();
+    assert!(json.contains("\"sweep\"") && json.contains("\"half_one_road\"") && !json.contains("inf"));
+    // One figure alone.
+    let one = beyond_run(1, &["B-2"], 300, 1);
+    assert!(one.sweep.is_none() && one.half_one_road.is_some() && one.figures.is_empty());
+    let thesis = beyond_run(1, &["3-5"], 50, 1);
+    assert!(thesis.sweep.is_none() && thesis.half_one_road.is_none() && thesis.figures.len() == 1);
+    assert!(vehid_thesis::select(&["B-3".into()]).is_err());
+}
+
+/// The claims are computed from the runs: given the thesis' identifier's results in place of
+/// IV on the physical structure (as if that identifier had run), the claims on IV fail.
+#[test]
+fn claims_fail_when_fed_another_methods_results() {
+    let r = beyond_run(3, &["B-1", "B-2"], 3000, 3);
+    let mut s = r.sweep.clone().unwrap();
+    let idx = |m: QuarterMethod| QuarterMethod::ALL.iter().position(|&x| x == m).unwrap();
+    let iv_ok = |s: &vehid_thesis::SweepResult| {
+        beyond::sweep_verdicts(s)
+            .into_iter()
+            .filter(|v| {
+                v.claim.contains("IV on the physical structure") || v.claim.contains("every method on the physical")
+            })
+            .map(|v| v.agrees)
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(iv_ok(&s), [true, true], "{:?}", beyond::sweep_verdicts(&s));
+    let kalman = s.curves[idx(QuarterMethod::KalmanRows)].clone();
+    let iv = idx(QuarterMethod::IvPhysical);
+    s.curves[iv] = vehid_thesis::SweepCurve { label: s.curves[iv].label, setup: s.curves[iv].setup, ..kalman };
+    assert_eq!(iv_ok(&s), [false, false]);
+    // Fig B-2: road cancellation on the physical structure given the plain rows' results.
+    let mut h = r.half_one_road.clone().unwrap();
+    let before = beyond::half_verdicts(&h);
+    assert!(before[1].agrees, "{:?}", before[1]);
+    h.rows[2].cells = h.rows[0].cells.clone();
+    assert!(!beyond::half_verdicts(&h)[1].agrees);
+}
+
+/// The claims of both figures agree in the quick mode (10,000 samples, 10 seeds, base seed
+/// 1986; about 9 s of CPU in release): `cargo test --release -p vehid-thesis --test beyond
+/// -- --ignored --nocapture`. `VEHID_FULL=1` runs the full mode (40,000 samples, 16 seeds).
+#[test]
+#[ignore]
+fn claims_agree() {
+    let quick = std::env::var("VEHID_FULL").is_err();
+    let opts = RunOptions { quick, only: vec!["B-1".into(), "B-2".into()], tables: false, ..RunOptions::default() };
+    let r = run(&opts, &|_| {}).unwrap();
+    let (s, h) = (r.sweep.unwrap(), r.half_one_road.unwrap());
+    eprintln!("{}\n\n{}", beyond::sweep_numbers(&s), beyond::half_numbers(&h));
+    for v in s.verdicts.iter().chain(&h.verdicts) {
+        eprintln!("[{}] {} -> {}", if v.agrees { "agrees" } else { "DIFFERS" }, v.claim, v.measured);
+    }
+    eprintln!("wall {:.1} s; B-1 {:.1} s and B-2 {:.1} s of CPU", r.seconds, s.cpu_seconds, h.cpu_seconds);
+    assert!(s.verdicts.iter().chain(&h.verdicts).all(|v| v.agrees));
+}
