@@ -191,7 +191,9 @@ impl<T: Real, const P: usize, F: Flat<BcGroup<T, P>>, FI: Flat<IvFilter<T, P>>, 
     pub(crate) fn restored(&mut self) -> Result<()> {
         let corrupt = |expected| Err(Error::InvalidArgument { arg: "state", expected });
         if self.bc.structure() != self.iv.structure() || self.bc.samples() != self.iv.samples() {
-            return corrupt("a noise-estimating BCLS identifier whose sums and instruments share structure and samples");
+            return corrupt(
+                "a noise-estimating BCLS identifier whose sums and instruments share structure and samples",
+            );
         }
         if read_states(self.bc.structure()).ok() != Some(self.estimated) {
             return corrupt("a noise-estimating BCLS identifier estimating the states its structure reads");
