@@ -338,6 +338,12 @@ mod impls {
         crate::identify::BiasCompensated<T, P, F>,
         ser: [T: Serialize], de: [T: Deserialize<'de>]);
 
+    checked!("NoiseEstimatingBcls",
+        [T: Real, const P: usize, F: crate::identify::Flat<crate::identify::BcGroup<T, P>>,
+         FI: crate::identify::Flat<crate::identify::IvFilter<T, P>>, const Q: usize]
+        crate::identify::NoiseEstimatingBcls<T, P, F, FI, Q>,
+        ser: [T: Serialize], de: [T: Deserialize<'de>]);
+
     checked!("HealthMonitor", [T: Real] crate::health::HealthMonitor<T>,
         ser: [T: Serialize], de: [T: Deserialize<'de>]);
 

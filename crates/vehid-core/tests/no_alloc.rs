@@ -11,10 +11,10 @@ use std::cell::Cell;
 use nalgebra::SVector;
 use vehid_core::identify::{
     BiasCompensatedVec, CovarianceForm, FullKalmanIdentifier, FullKalmanIdentifierVec, Gain, Identifier,
-    IvIdentifierVec, KalmanIdentifier, KalmanIdentifierVec, KalmanOptions, SharedKalmanIdentifier,
-    SharedKalmanIdentifierVec, StochasticGradient, StochasticGradientVec, StructuredGradient, StructuredKalman,
-    StructuredKalmanVec, StructuredPrior, TwoAxleConfig, TwoAxleIdentifierVec, TwoAxleStructuredConfig,
-    TwoAxleStructuredKalman, TwoAxleStructuredVec, WheelMethod,
+    IvIdentifierVec, KalmanIdentifier, KalmanIdentifierVec, KalmanOptions, NoiseEstimatingBclsVec,
+    SharedKalmanIdentifier, SharedKalmanIdentifierVec, StochasticGradient, StochasticGradientVec, StructuredGradient,
+    StructuredKalman, StructuredKalmanVec, StructuredPrior, TwoAxleConfig, TwoAxleIdentifierVec,
+    TwoAxleStructuredConfig, TwoAxleStructuredKalman, TwoAxleStructuredVec, WheelMethod,
 };
 use vehid_core::model::{HalfCar, QuarterCar};
 use vehid_core::sim::{SimConfig, Simulator};
@@ -150,6 +150,8 @@ fn no_identifier_allocates_per_sample() {
     let st = Structure::full_rows(4, &rows).unwrap();
     let bc = BiasCompensatedVec::<f64, 8>::new(st, &[1e-6], &[], &[1.0]).unwrap();
     count("bias compensated", &mut { bc }, &data);
+    let ne = NoiseEstimatingBclsVec::<f64, 8, 17>::full_rows(4, &rows, 1, 2).unwrap();
+    count("bias compensated, noise estimated", &mut { ne }, &data);
 
     // The half car: six unknown rows (two lane groups of the heap store), and its two axles
     // on one road, each wheel method.

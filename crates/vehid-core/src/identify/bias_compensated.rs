@@ -29,8 +29,9 @@
 //! the full rows of any linear model (with `Σ_w`) and the vehicles' physical structures (the
 //! quarter car's wheel equation reads `der(vb)`: give `Σ_v` too).
 //!
-//! `Σ` estimated from the data is not implemented (it needs more equations than parameters
-//! or a noise model: Söderström 2007 §4.3); nor is a covariance of the estimate (the
+//! `Σ_w` estimated from the data (it needs more equations than parameters: Söderström 2007
+//! §4.3) is [`super::NoiseEstimatingBcls`], which takes them from an instrumental-variable
+//! estimate run alongside. Not implemented: a covariance of the estimate (the
 //! errors-in-variables sandwich needs fourth moments of the regressors): use
 //! [`super::InstrumentalVariables`] for standard errors.
 
@@ -43,7 +44,7 @@ use crate::{Error, Real, Result};
 use nalgebra::{SMatrix, SVector};
 
 /// The noise variables: `n` states then `n` derivatives.
-const ETA: usize = 2 * MAX_STATES;
+pub(crate) const ETA: usize = 2 * MAX_STATES;
 
 /// One parameter group's sums and noise correction. Serialized as is (feature `serde`); its
 /// owner checks it on load ([`BiasCompensated`]'s `restored`).
@@ -55,13 +56,13 @@ const ETA: usize = 2 * MAX_STATES;
 )]
 pub struct BcGroup<T: Real, const P: usize> {
     /// `Σ h hᵀ`, `Σ h y` (rows weighted by `√(r_g/r_i)`).
-    a: SMatrix<T, P, P>,
-    b: SVector<T, P>,
+    pub(crate) a: SMatrix<T, P, P>,
+    pub(crate) b: SVector<T, P>,
     /// Per sample: `Σ_i w_i² S_i Σ S_iᵀ` and `Σ_i w_i² S_i Σ g_i`.
-    c: SMatrix<T, P, P>,
-    d: SVector<T, P>,
-    dim: u8,
-    count: u64,
+    pub(crate) c: SMatrix<T, P, P>,
+    pub(crate) d: SVector<T, P>,
+    pub(crate) dim: u8,
+    pub(crate) count: u64,
 }
 
 /// Bias-compensated least squares on a [`Structure`] over group storage `F` (module docs):
@@ -133,6 +134,68 @@ fn noise_block<T: Real>(arg: &'static str, v: &[T], n: usize, at: usize, out: &m
         }
     }
     Ok(())
+}
+
+/// The regressor's and the output's sensitivity to the noise `η = [w; v]` in equation `i`
+/// (weighted by `w`), in its group's local parameter order: `S` (local parameter × `η`) and
+/// `g` (`η`), so that the regressor's noise is `S η` and the output's is `gᵀ η` (module docs).
+/// `noisy(k)` says whether `η_k` carries noise, for the check that no `sign`/`pos`/`neg` term
+/// reads a noisy variable.
+///
+/// # Errors
+/// [`Error::Unsupported`] for a `sign`/`pos`/`neg` term of a noisy variable.
+#[allow(clippy::type_complexity)]
+pub(crate) fn noise_sensitivity<T: Real>(
+    structure: &Structure<T>,
+    part: &Partition,
+    i: usize,
+    w: T,
+    noisy_var: impl Fn(usize) -> bool,
+) -> Result<([[T; ETA]; MAX_PARAMS_LOCAL], [T; ETA])> {
+    let n = structure.states();
+    let noisy = |v: Var| match v {
+        Var::State(j) => Some(j as usize),
+        Var::Deriv(j) => Some(n + j as usize),
+        Var::Input(_) => None,
+    };
+    let mut s = [[T::zero(); ETA]; MAX_PARAMS_LOCAL];
+    let mut gy = [T::zero(); ETA];
+    gy[n + structure.equation_state(i)] = w;
+    for t in structure.terms(i) {
+        let mut sens = [T::zero(); ETA];
+        match t.basis {
+            Basis::One => {}
+            Basis::Var(v) => {
+                if let Some(k) = noisy(v) {
+                    sens[k] = T::one();
+                }
+            }
+            Basis::Sign { start, len } | Basis::Pos { start, len } | Basis::Neg { start, len } => {
+                let reads_noise =
+                    structure.combination(start, len).iter().any(|&(v, _)| noisy(v).is_some_and(&noisy_var));
+                if reads_noise {
+                    return Err(Error::Unsupported {
+                        what: "bias compensation of a sign/pos/neg term of a noisy state or derivative (its bias \
+                               depends on the unknown true state): use instrumental variables",
+                    });
+                }
+            }
+        }
+        match t.param {
+            Some(p) => {
+                let l = part.local[p as usize] as usize;
+                for k in 0..2 * n {
+                    s[l][k] += w * t.coef * sens[k];
+                }
+            }
+            None => {
+                for k in 0..2 * n {
+                    gy[k] -= w * t.coef * sens[k];
+                }
+            }
+        }
+    }
+    Ok((s, gy))
 }
 
 impl<T: Real, const P: usize, F: Flat<BcGroup<T, P>>> BiasCompensated<T, P, F> {
@@ -226,53 +289,9 @@ impl<T: Real, const P: usize, F: Flat<BcGroup<T, P>>> BiasCompensated<T, P, F> {
         for (g, grp) in groups.flat_mut().iter_mut().enumerate() {
             grp.dim = part.size[g];
         }
-        let noisy = |v: Var| match v {
-            Var::State(j) => Some(j as usize),
-            Var::Deriv(j) => Some(n + j as usize),
-            Var::Input(_) => None,
-        };
         for i in 0..ne {
-            let w = scale[i];
-            // Noise sensitivities of the regressor (S: local parameter × η) and of the output (g).
-            let mut s = [[T::zero(); ETA]; MAX_PARAMS_LOCAL];
-            let mut gy = [T::zero(); ETA];
-            gy[n + structure.equation_state(i)] = w;
-            for t in structure.terms(i) {
-                let mut sens = [T::zero(); ETA];
-                match t.basis {
-                    Basis::One => {}
-                    Basis::Var(v) => {
-                        if let Some(k) = noisy(v) {
-                            sens[k] = T::one();
-                        }
-                    }
-                    Basis::Sign { start, len } | Basis::Pos { start, len } | Basis::Neg { start, len } => {
-                        let reads_noise = structure
-                            .combination(start, len)
-                            .iter()
-                            .any(|&(v, _)| noisy(v).is_some_and(|k| sigma[k][k] > T::zero()));
-                        if reads_noise {
-                            return Err(Error::Unsupported {
-                                what: "bias compensation of a sign/pos/neg term of a noisy state or derivative (its \
-                                       bias depends on the unknown true state): use instrumental variables",
-                            });
-                        }
-                    }
-                }
-                match t.param {
-                    Some(p) => {
-                        let l = part.local[p as usize] as usize;
-                        for k in 0..2 * n {
-                            s[l][k] += w * t.coef * sens[k];
-                        }
-                    }
-                    None => {
-                        for k in 0..2 * n {
-                            gy[k] -= w * t.coef * sens[k];
-                        }
-                    }
-                }
-            }
+            let noisy_given = |k: usize| sigma[k][k] > T::zero();
+            let (s, gy) = noise_sensitivity(&structure, &part, i, scale[i], noisy_given)?;
             let grp = &mut groups.flat_mut()[part.group_of_eq[i] as usize];
             let d = grp.dim as usize;
             for a in 0..d {
@@ -323,8 +342,19 @@ impl<T: Real, const P: usize, F: Flat<BcGroup<T, P>>> BiasCompensated<T, P, F> {
         (&grp.c, &grp.d)
     }
 
-    /// Group `g`'s estimate into `out` (its `dim` leading entries).
+    /// Group `g`'s estimate (its `dim` leading entries) with its own noise correction.
     fn solve(&self, g: usize) -> Result<SVector<T, P>> {
+        let grp = &self.groups.flat()[g];
+        self.solve_with(g, &grp.c, &grp.d)
+    }
+
+    /// Group `g`'s estimate `(Σ h hᵀ − N c)⁻¹ (Σ h y − N d)` with the per-sample noise
+    /// correction `(c, d)` given (its leading `dim` entries are read).
+    ///
+    /// # Errors
+    /// [`Error::RankDeficient`] while the data do not span the group's parameters;
+    /// [`Error::Singular`] when the corrected matrix is not positive definite.
+    pub(crate) fn solve_with(&self, g: usize, c: &SMatrix<T, P, P>, dv: &SVector<T, P>) -> Result<SVector<T, P>> {
         let grp = &self.groups.flat()[g];
         let d = grp.dim as usize;
         let nn = T::of(grp.count as f64);
@@ -334,9 +364,9 @@ impl<T: Real, const P: usize, F: Flat<BcGroup<T, P>>> BiasCompensated<T, P, F> {
         for i in 0..d {
             for j in 0..d {
                 a[(i, j)] = grp.a[(i, j)];
-                m[(i, j)] = grp.a[(i, j)] - nn * grp.c[(i, j)];
+                m[(i, j)] = grp.a[(i, j)] - nn * c[(i, j)];
             }
-            v[i] = grp.b[i] - nn * grp.d[i];
+            v[i] = grp.b[i] - nn * dv[i];
         }
         // Equilibrate by diag(Σ h hᵀ)^{-1/2} before judging definiteness.
         let mut w = SVector::<T, P>::repeat(T::one());
@@ -378,6 +408,31 @@ impl<T: Real, const P: usize, F: Flat<BcGroup<T, P>>> BiasCompensated<T, P, F> {
         Ok(SVector::from_fn(|i, _| if i < d { z[i] * w[i] } else { T::zero() }))
     }
 
+    /// Group `g`'s sums and correction.
+    pub(crate) fn group(&self, g: usize) -> &BcGroup<T, P> {
+        &self.groups.flat()[g]
+    }
+
+    /// The parameter groups (the structure's partition).
+    pub(crate) fn partition(&self) -> &Partition {
+        &self.part
+    }
+
+    /// Each equation's row weight `√(r_g / r_i)`.
+    pub(crate) fn scale(&self, i: usize) -> T {
+        self.scale[i]
+    }
+
+    /// Undoes the last accepted [`Identifier::update_into`] bit for bit (every group is touched
+    /// by every sample, as every group has an equation, so the scratch copy holds them all as
+    /// they were). Only right after an accepted update: the caller's transaction failed later.
+    pub(crate) fn revert_last(&mut self) {
+        // At most MAX_EQUATIONS (16) groups.
+        let all = (1u32 << self.part.groups) - 1;
+        self.restore(all);
+        self.samples -= 1;
+    }
+
     fn restore(&mut self, touched: u32) {
         for g in 0..self.part.groups as usize {
             if touched & (1 << g) != 0 {
@@ -388,7 +443,7 @@ impl<T: Real, const P: usize, F: Flat<BcGroup<T, P>>> BiasCompensated<T, P, F> {
 }
 
 /// Local parameters a group can have (the structure's capacity).
-const MAX_PARAMS_LOCAL: usize = crate::structure::MAX_PARAMS;
+pub(crate) const MAX_PARAMS_LOCAL: usize = crate::structure::MAX_PARAMS;
 
 impl<T: Real, const P: usize, F: Flat<BcGroup<T, P>>> Identifier<T> for BiasCompensated<T, P, F> {
     fn dims(&self) -> Dims {

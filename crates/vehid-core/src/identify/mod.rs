@@ -8,6 +8,7 @@
 //! | [`Structured`] (any [`crate::structure::Structure`]: grey-box models linear in their parameters) | Eq 2.2–2.4, 6.16–6.18 | `structured.rs` |
 //! | [`InstrumentalVariables`] (noisy measured states: instruments = regressors `delay` samples earlier) | Söderström & Stoica §8 | `instrumental.rs`, `iv_filter.rs` |
 //! | [`BiasCompensated`] (noisy measured states, known noise covariance: `(XᵀX − N Σ_w)⁻¹ Xᵀz`) | Söderström 2007 §4.3 | `bias_compensated.rs` |
+//! | [`NoiseEstimatingBcls`] (noisy measured states, `Σ_w` estimated from the least-squares residual at an instrumental estimate, then compensated) | Zheng 1998, 2002; Söderström 2018 Ch. 7 | `noise_estimating.rs` |
 //! | [`JointEkf`] (noisy measured states: states, parameters and road estimated together by an extended Kalman filter; the thesis' Ch. VII proposal) | Ljung 1979 | `joint_ekf.rs` |
 //! | [`TwoAxleIdentifier`] (two axles on one road: plain, Eq 6.14, road cancellation) | Eq 6.9, 6.12–6.14 | `two_axle.rs` |
 //! | [`TwoAxleStructured`] (road cancellation on a physical [`crate::structure::Structure`]: the half car's 12 parameters) | Eq 6.1–6.9 | `two_axle_structured.rs` |
@@ -47,6 +48,7 @@ pub(crate) mod iv_predictor;
 mod joint_ekf;
 mod kalman;
 mod least_squares;
+mod noise_estimating;
 mod store;
 mod structured;
 mod structured_gradient;
@@ -81,6 +83,9 @@ pub use kalman::{
 #[cfg(feature = "std")]
 pub use least_squares::BatchLeastSquares;
 pub use least_squares::LsAccumulator;
+#[cfg(feature = "alloc")]
+pub use noise_estimating::NoiseEstimatingBclsVec;
+pub use noise_estimating::{NoiseEstimatingBcls, NoiseEstimatingBclsLs};
 pub use store::{Dynamic, Fixed, Flat, NoScratch, Store, DYNAMIC_LANES};
 #[cfg(feature = "alloc")]
 pub use structured::StructuredKalmanVec;
