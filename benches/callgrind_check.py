@@ -77,6 +77,7 @@ BENCHES = [
     "quarter_iv_physical",          # update_f64/quarter/iv_physical
     "quarter_bcls_rows",            # update_f64/quarter/bcls_rows
     "quarter_ekf_physical",         # update_f64/quarter/ekf_physical (issue 15: the joint EKF's cost)
+    "quarter_nebcls_rows",          # update_f64/quarter/nebcls_rows (issue 15: Sigma_w estimated)
     "half_two_axle_physical",       # update_f64/half/two_axle_physical (issue 14: road cancellation, physical)
     "quarter_health",               # health/monitor_update_f64 (issue 17; binary count_health)
 ]

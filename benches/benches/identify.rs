@@ -334,6 +334,14 @@ fn noisy_states(c: &mut Criterion) {
         let _ = black_box(ekf.update_into(x.as_slice(), z.as_slice(), &[], &mut e));
     };
     bench_updates(c, "update_f64", &data, &mut update, "quarter/ekf_physical");
+    // Σ_w estimated from the data: the bias-compensated sums beside a delayed-regressor IV
+    // (count_updates' quarter_nebcls_rows); the noise fit runs when the estimate is read.
+    let mut ne =
+        vehid_core::identify::NoiseEstimatingBclsLs::<f64, 4, 2>::full_rows(4, &q.unknown_rows(), 1, 0).unwrap();
+    let mut update = |x: &SVector<f64, 4>, z: &SVector<f64, 4>| {
+        let _ = black_box(ne.update_into(x.as_slice(), z.as_slice(), &[], &mut e));
+    };
+    bench_updates(c, "update_f64", &data, &mut update, "quarter/nebcls_rows");
 }
 
 /// Road cancellation on the half car's physical structure (issue 14; count_updates'
