@@ -13,7 +13,8 @@ use std::io::Write;
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 use vehid_thesis::{
-    run, CurveResult, FigureResult, IdentifiedConstants, Progress, Report, RunOptions, Table, TableRow, Verdict,
+    run, CurveResult, FigureResult, HalfCell, HalfResult, HalfRow, IdentifiedConstants, Progress, Report, RunOptions,
+    SweepCurve, SweepResult, Table, TableRow, Verdict,
 };
 
 /// Runs the reproduction and returns the report as nested dicts and lists (NaN and ±inf
@@ -71,7 +72,8 @@ pub fn reproduce_report<'py>(
     report_dict(py, &report.map_err(core_err)?)
 }
 
-/// The report as nested dicts and lists, with the keys of its JSON (`Report::to_json`).
+/// The report as nested dicts and lists, with the keys of its JSON (`Report::to_json`): as
+/// there, `sweep` (Fig B-1) and `half_one_road` (Fig B-2) only when they ran.
 fn report_dict<'py>(py: Python<'py>, r: &Report) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     d.set_item("quick", r.quick)?;
@@ -80,6 +82,12 @@ fn report_dict<'py>(py: Python<'py>, r: &Report) -> PyResult<Bound<'py, PyDict>>
     d.set_item("seconds", r.seconds)?;
     d.set_item("figures", list(py, &r.figures, figure_dict)?)?;
     d.set_item("tables", list(py, &r.tables, table_dict)?)?;
+    if let Some(s) = &r.sweep {
+        d.set_item("sweep", sweep_dict(py, s)?)?;
+    }
+    if let Some(h) = &r.half_one_road {
+        d.set_item("half_one_road", half_dict(py, h)?)?;
+    }
     Ok(d)
 }
 
@@ -193,5 +201,92 @@ fn row_dict<'py>(py: Python<'py>, r: &TableRow) -> PyResult<Bound<'py, PyDict>> 
     d.set_item("vehid", r.vehid.as_str())?;
     d.set_item("agrees", r.agrees)?;
     d.set_item("note", r.note.as_str())?;
+    Ok(d)
+}
+
+/// Fig B-1 (beyond the thesis), with the keys of `SweepResult`'s JSON.
+fn sweep_dict<'py>(py: Python<'py>, r: &SweepResult) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("id", r.id)?;
+    d.set_item("title", r.title)?;
+    d.set_item("origin", r.origin)?;
+    d.set_item("samples", r.samples)?;
+    d.set_item("full_samples", r.full_samples)?;
+    d.set_item("seeds", r.seeds)?;
+    d.set_item("levels", r.levels.as_slice())?;
+    d.set_item("setup", r.setup.as_str())?;
+    d.set_item("curves", list(py, &r.curves, sweep_curve_dict)?)?;
+    d.set_item("verdicts", list(py, &r.verdicts, verdict_dict)?)?;
+    d.set_item("cpu_seconds", r.cpu_seconds)?;
+    Ok(d)
+}
+
+fn sweep_curve_dict<'py>(py: Python<'py>, c: &SweepCurve) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("label", c.label)?;
+    d.set_item("setup", c.setup)?;
+    for (key, values) in [("median", &c.median), ("q25", &c.q25), ("q75", &c.q75), ("min", &c.min), ("max", &c.max)] {
+        d.set_item(key, values.as_slice())?;
+    }
+    let xi = PyList::empty(py);
+    for per_seed in &c.xi {
+        xi.append(per_seed.as_slice())?;
+    }
+    d.set_item("xi", xi)?;
+    d.set_item("refused", c.refused.as_slice())?;
+    let errors = PyList::empty(py);
+    for level in &c.errors {
+        errors.append(errors_list(py, level)?)?;
+    }
+    d.set_item("errors", errors)?;
+    Ok(d)
+}
+
+/// `(seed index, message)` pairs as a list of 2-tuples (JSON: 2-element arrays).
+fn errors_list<'py>(py: Python<'py>, errors: &[(usize, String)]) -> PyResult<Bound<'py, PyList>> {
+    let l = PyList::empty(py);
+    for (seed, message) in errors {
+        l.append((*seed, message.as_str()))?;
+    }
+    Ok(l)
+}
+
+/// Fig B-2 (beyond the thesis), with the keys of `HalfResult`'s JSON.
+fn half_dict<'py>(py: Python<'py>, r: &HalfResult) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("id", r.id)?;
+    d.set_item("title", r.title)?;
+    d.set_item("origin", r.origin)?;
+    d.set_item("samples", r.samples)?;
+    d.set_item("seeds", r.seeds)?;
+    d.set_item("levels", r.levels.as_slice())?;
+    d.set_item("setup", r.setup.as_str())?;
+    d.set_item("rows", list(py, &r.rows, half_row_dict)?)?;
+    let not_run = PyList::empty(py);
+    for (method, why) in &r.not_run {
+        not_run.append((method.as_str(), why.as_str()))?;
+    }
+    d.set_item("not_run", not_run)?;
+    d.set_item("verdicts", list(py, &r.verdicts, verdict_dict)?)?;
+    d.set_item("cpu_seconds", r.cpu_seconds)?;
+    Ok(d)
+}
+
+fn half_row_dict<'py>(py: Python<'py>, r: &HalfRow) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("label", r.label)?;
+    d.set_item("setup", r.setup)?;
+    d.set_item("cells", list(py, &r.cells, half_cell_dict)?)?;
+    Ok(d)
+}
+
+fn half_cell_dict<'py>(py: Python<'py>, c: &HalfCell) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("level", c.level)?;
+    for (key, values) in [("wheel", &c.wheel), ("body", &c.body), ("worst_entry", &c.worst_entry)] {
+        d.set_item(key, values.as_slice())?;
+    }
+    d.set_item("refused", c.refused)?;
+    d.set_item("errors", errors_list(py, &c.errors)?)?;
     Ok(d)
 }

@@ -334,13 +334,12 @@ pub struct Report {
     /// Tables (with, when Fig B-1 / B-2 ran, their claims and numbers as tables too: the form
     /// a renderer that knows only figures of ξ against iterations can show).
     pub tables: Vec<Table>,
-    /// Fig B-1 (beyond the thesis), when selected (absent from the JSON otherwise). The
-    /// Python binding does not convert it yet: there it reaches the report through its table
-    /// in [`Report::tables`].
+    /// Fig B-1 (beyond the thesis), when selected (absent from the JSON otherwise; the Python
+    /// binding converts it the same way, and `vehid reproduce` draws it).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sweep: Option<SweepResult>,
     /// Fig B-2 (beyond the thesis), when selected (absent from the JSON otherwise; as
-    /// [`Report::sweep`] for the binding).
+    /// [`Report::sweep`] for the binding; `vehid reproduce` shows it as a table).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub half_one_road: Option<HalfResult>,
 }

@@ -1,6 +1,8 @@
 //! Fig B-1 and B-2 as report tables: the claims as rows (with the verdict), the numbers in
 //! the table's text. This is the form a renderer that draws only figures of ξ against
-//! iterations shows (the Python report today); [`super::render`] draws B-1 against σ_w.
+//! iterations can show; [`super::render`] draws B-1 against σ_w (SVG), and so does the
+//! Python report (`vehid reproduce`, from [`crate::Report::sweep`]), which keeps these tables
+//! for the claims and their verdicts.
 
 use super::{HALF_ID, SWEEP_ID};
 use crate::report::{fmt_num, HalfResult, SweepResult, Table, TableRow, Verdict};
