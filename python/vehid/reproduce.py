@@ -27,6 +27,7 @@ import json
 import math
 import re
 import sys
+import textwrap
 import time
 from pathlib import Path
 from typing import Any, Dict, List, Optional, Sequence, Tuple
@@ -334,6 +335,195 @@ def _constants_table(fig: Json) -> Tuple[List[str], List[List[str]], str]:
     return head, rows, caption
 
 
+# ---- Beyond the thesis: Fig B-1 (ξ against σ_w) and Fig B-2 (the half car on one road) ----
+
+#: The legend's name of each Fig B-1 method, as docs/capabilities/noisy-states.md names them
+#: (the Python class, the model it runs on), keyed by the runner's label
+#: (vehid_thesis::beyond::QuarterMethod::label); an unknown label is shown as it is.
+BEYOND_NAMES = {
+    "thesis' Kalman identifier, full rows": "KalmanIdentifier, full rows (the thesis')",
+    "IV (refined), full rows": "IVIdentifier, full rows (refined, lags=6)",
+    "IV (refined), physical structure": "IVIdentifier, physical structure (m known)",
+    "bias-compensated LS, full rows": "BiasCompensated, full rows",
+    "bias-compensated LS, physical structure": "BiasCompensated, physical structure",
+    "joint EKF, full rows": "JointEKF, full rows",
+    "joint EKF, physical structure": "JointEKF, physical structure",
+}
+
+
+def _beyond_name(label: str) -> str:
+    return BEYOND_NAMES.get(label, label)
+
+
+def _positive_or_nan(xs: List[float]) -> List[float]:
+    """Values a log axis can show; NaN (a gap) for the rest (∞: no estimate on most seeds)."""
+    return [v if math.isfinite(v) and v > 0 else math.nan for v in xs]
+
+
+def _sweep_subtitle(sweep: Json) -> str:
+    band = (f"median and 25–75 % band over {sweep['seeds']} seeds" if sweep["seeds"] > 1
+            else "one seed (no band)")
+    return f"beyond the thesis (not a figure of Kessler 1986); vehid, {band}, {sweep['samples']} samples per run"
+
+
+def _plot_sweep(plt: Any, sweep: Json, path: Path) -> None:
+    """Fig B-1: per method the median ξ after the run (log axis) against σ_w (% of σ_u; a
+    symlog axis, linear below 0.5 %, since the levels start at 0) and the runner's 25–75 %
+    band; ξ = 0.08 dashed."""
+    f, ax = plt.subplots(figsize=(7.5, 5.8))
+    levels = sweep["levels"]
+    for i, c in enumerate(sweep["curves"]):
+        color = f"C{i}"
+        ax.plot(levels, _positive_or_nan(c["median"]), color=color, lw=1.4, marker="o", ms=3,
+                label=_beyond_name(c["label"]))
+        if sweep["seeds"] > 1:
+            ax.fill_between(levels, _positive_or_nan(c["q25"]), _positive_or_nan(c["q75"]),
+                            color=color, alpha=0.15, lw=0)
+    ax.axhline(0.08, color="k", ls="--", lw=0.8, label=r"$\xi$ = 0.08 (acceptable)")
+    ax.set_yscale("log")
+    # Base 2 and a linear part [0, 0.5] one factor of 2 wide: the levels 0, 0.5, 2, ..., 32
+    # sit at nearly even steps, each at its true value.
+    ax.set_xscale("symlog", base=2, linthresh=0.5, linscale=0.5)
+    ax.set_xticks(levels)
+    ax.set_xlim(-0.1 * max(levels[1], 0.5), 1.25 * max(levels))  # symlog's margins would reach far left of 0
+    ax.set_xticklabels([f"{v:g}" for v in levels])
+    ax.xaxis.set_minor_locator(importlib.import_module("matplotlib.ticker").NullLocator())
+    ax.set_xlabel(r"state noise $\sigma_w$, % of $\sigma_u$ (symlog axis: linear below 0.5 %)")
+    ax.set_ylabel(rf"$\xi$ after {sweep['samples']} samples (Eq 3.17)")
+    ax.grid(True, which="both", alpha=0.25)
+    ax.legend(fontsize=6.5, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, frameon=False)
+    title = textwrap.wrap(f"Fig {sweep['id']}: {sweep['title']}", 95)
+    ax.set_title("\n".join(_tex(t) for t in title) + "\n" + _sweep_subtitle(sweep), fontsize=9)
+    f.text(0.01, 0.005,
+           r"$\sigma_w$ state measurement noise, per state in m and m/s, given as % of $\sigma_u$ (road input, m); "
+           r"$\xi$ of rows 1 and 3 of $A$; every method on the same samples",
+           fontsize=6.5, color="0.3", ha="left", va="bottom")
+    f.subplots_adjust(left=0.11, right=0.98, top=0.85, bottom=0.26)
+    f.savefig(path, dpi=110)
+    plt.close(f)
+
+
+def _worst(xs: List[float]) -> float:
+    """The worst seed (NaN counts as ∞, as the runner's tables count it)."""
+    return max((math.inf if math.isnan(v) else v for v in xs), default=math.nan)
+
+
+def _worst_pair(cell: Json) -> List[float]:
+    """Per seed, ξ of the larger pair of rows (wheel or body), as the runner's B-2 claims."""
+    return [max(a, b) for a, b in zip(cell["wheel"], cell["body"])]
+
+
+def _sweep_table(sweep: Json) -> Tuple[List[str], List[List[str]], str]:
+    """Fig B-1's numbers: one row per method, one cell per σ_w: median [25 %, 75 %] (worst)."""
+    head = ["method", "runner's label"] + [f"σ_w = {v:g} %" for v in sweep["levels"]]
+    rows = []
+    for c in sweep["curves"]:
+        cells = [f"{_fmt(m)} [{_fmt(lo)}, {_fmt(hi)}] ({_fmt(w)})"
+                 for m, lo, hi, w in zip(c["median"], c["q25"], c["q75"], c["max"])]
+        rows.append([_beyond_name(c["label"]), c["label"]] + cells)
+    caption = (f"Median ξ [25 %, 75 %] (worst seed) after {sweep['samples']} samples, {sweep['seeds']} seeds "
+               "(∞: no estimate). ")
+    runs = len(sweep["levels"]) * sweep["seeds"]
+    errors = [f"{_beyond_name(c['label'])}: no estimate on {sum(len(e) for e in c['errors'])} of {runs} runs "
+              f"({next(m for e in c['errors'] for _, m in e)})"
+              for c in sweep["curves"] if any(c["errors"])]
+    if errors:
+        caption += "; ".join(errors) + ". "
+    caption += sweep["setup"]
+    return head, rows, caption
+
+
+def _half_table(half: Json) -> Tuple[List[str], List[List[str]], str]:
+    """Fig B-2's numbers: one row per method and σ_w: median (worst) ξ of the wheel rows, the
+    body rows, the larger pair, and the worst entry's relative error; seeds with no estimate."""
+    head = ["method", "σ_w", "ξ wheel rows 1, 3", "ξ body rows 5, 7", "ξ larger pair",
+            "worst entry (relative error)", "no estimate"]
+    rows = []
+    for r in half["rows"]:
+        for c in r["cells"]:
+            pair = _worst_pair(c)
+            none = f"{len(c['errors'])}/{half['seeds']}: {c['errors'][0][1]}" if c["errors"] else "—"
+            rows.append([r["label"], f"{c['level']:g} %"]
+                        + [f"{_fmt(_median(x))} ({_fmt(_worst(x))})"
+                           for x in (c["wheel"], c["body"], pair, c["worst_entry"])]
+                        + [none])
+    caption = (f"Median (worst seed) over {half['seeds']} seeds after {half['samples']} samples "
+               f"(∞: no estimate). {half['setup']}")
+    return head, rows, caption
+
+
+def _half_conclusion(half: Json) -> str:
+    """The table's reading at the largest σ_w run: the best median ξ of the larger pair of
+    rows, and whether any method is acceptable there (ξ ≤ 0.08)."""
+    level = max(half["levels"])
+    li = half["levels"].index(level)
+    best, label = min(((_median(_worst_pair(r["cells"][li])), r["label"]) for r in half["rows"]),
+                      key=lambda x: math.inf if math.isnan(x[0]) else x[0])
+    if not best <= 0.08:
+        return (f"At σ_w = {level:g} % no method identifies the half car on one road: the best median ξ of the "
+                f"larger pair of rows is {_fmt(best)} ({label}), above the acceptable 0.08.")
+    return (f"At σ_w = {level:g} %, {label} identifies the half car on one road: median ξ of the larger pair "
+            f"of rows {_fmt(best)} (acceptable: ≤ 0.08).")
+
+
+def _not_run(half: Json) -> List[str]:
+    return [f"Not run, {m}: {why}." for m, why in half["not_run"]]
+
+
+def _beyond_md(data: Json, images: Dict[str, str]) -> List[str]:
+    """The section of the figures beyond the thesis (their claims and verdicts: in Tables)."""
+    sweep, half = data.get("sweep"), data.get("half_one_road")
+    if sweep is None and half is None:
+        return []
+    md = ["## Beyond the thesis", "",
+          "Not figures of Kessler (1986): vehid's comparison of its identifiers for noisy states. Their claims "
+          "and verdicts are in the tables \"Fig B-1\" and \"Fig B-2\" below.", ""]
+    for fig, table in ((sweep, _sweep_table), (half, _half_table)):
+        if fig is None:
+            continue
+        md += [f"### Fig {fig['id']}: {fig['title']}", "", f"**{fig['origin']}.**", ""]
+        if fig["id"] in images:
+            md += [f"![Fig {fig['id']}]({images[fig['id']]})", ""]
+        head, rows, caption = table(fig)
+        md += [_md_cell(caption), "", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+        md += ["| " + " | ".join(_md_cell(x) for x in r) + " |" for r in rows]
+        md.append("")
+        if fig is half:
+            md += [f"**{_half_conclusion(half)}**", ""] + [f"- {_md_cell(s)}" for s in _not_run(half)] + [""]
+        else:
+            md += [f"- {_beyond_name(c['label'])}: {_md_cell(c['setup'])}" for c in fig["curves"]] + [""]
+    return md
+
+
+def _beyond_html(data: Json, images: Dict[str, str]) -> List[str]:
+    """:func:`_beyond_md` as HTML."""
+    e = html.escape
+    sweep, half = data.get("sweep"), data.get("half_one_road")
+    if sweep is None and half is None:
+        return []
+    h = ["<h2>Beyond the thesis</h2>",
+         "<p>Not figures of Kessler (1986): vehid's comparison of its identifiers for noisy states. Their claims "
+         "and verdicts are in the tables “Fig B-1” and “Fig B-2” below.</p>"]
+    for fig, table in ((sweep, _sweep_table), (half, _half_table)):
+        if fig is None:
+            continue
+        h.append(f"<h3>Fig {e(fig['id'])}: {e(fig['title'])}</h3><p><strong>{e(fig['origin'])}.</strong></p>")
+        if fig["id"] in images:
+            h.append(f"<img src='{e(images[fig['id']])}' alt='Fig {e(fig['id'])}'>")
+        head, rows, caption = table(fig)
+        h.append(f"<p><small>{e(caption)}</small></p><table><tr>" + "".join(f"<th>{e(x)}</th>" for x in head)
+                 + "</tr>")
+        h += ["<tr>" + "".join(f"<td>{e(x)}</td>" for x in r) + "</tr>" for r in rows]
+        h.append("</table>")
+        if fig is half:
+            h.append(f"<p><strong>{e(_half_conclusion(half))}</strong></p><ul>"
+                     + "".join(f"<li>{e(s)}</li>" for s in _not_run(half)) + "</ul>")
+        else:
+            h.append("<ul>" + "".join(f"<li>{e(_beyond_name(c['label']))}: {e(c['setup'])}</li>"
+                                      for c in fig["curves"]) + "</ul>")
+    return h
+
+
 #: The three verdicts, in the order the report lists them.
 VERDICTS = ("agrees", "differs", "inconclusive")
 
@@ -425,11 +615,17 @@ def write_report(data: Json, out: Path, command: str = "vehid reproduce", starte
                     cname = f"fig-{fig['id']}-constants.png"
                     _plot_constants(plt, fig, out / cname)
                     images[f"{fig['id']}-constants"] = cname
+        sweep = data.get("sweep")
+        if sweep is not None:
+            name = f"fig-{sweep['id']}.png"
+            _plot_sweep(plt, sweep, out / name)
+            images[sweep["id"]] = name
     rows = _claim_rows(data)
     ok, bad, open_ = rows["agrees"], rows["differs"], rows["inconclusive"]
     skipped = [f for f in data["figures"] if f["skipped"]]
     mode = "quick" if data["quick"] else "full"
-    seeds = max((f["seeds"] for f in data["figures"]), default=0)
+    beyond = [data[k] for k in ("sweep", "half_one_road") if k in data]
+    seeds = max((f["seeds"] for f in data["figures"] + beyond), default=0)
     head = (
         f"Generated by `{command}` ({mode} mode: {seeds} seeds per curve, base seed {data['base_seed']}, "
         f"{data['threads']} threads, runner wall time {data['seconds']:.1f} s)."
@@ -447,6 +643,8 @@ def write_report(data: Json, out: Path, command: str = "vehid reproduce", starte
         "Fig 4-7 drawn from its formula. Beside each identifier's figure (Ch. IV–VI), the car's physical "
         "constants it identified along the first seed of each curve, with their 95 % interval (band, where the "
         "identifier has a covariance) and the true value (dashed)."
+        + (" Fig B-1 (beyond the thesis): ξ after the run (log axis) against the state noise σ_w, median over "
+           "seeds (line) and 25–75 % band (shaded) per method." if "sweep" in data else "")
         if plt is not None
         else "matplotlib is not installed (`pip install vehid[plot]`): the report has no images; "
         "every number below is still computed."
@@ -525,6 +723,7 @@ def write_report(data: Json, out: Path, command: str = "vehid reproduce", starte
                 )
             md.append("")
         md += [f"Assumptions: {fig['assumptions']}", ""]
+    md += _beyond_md(data, images)
     md += ["## Tables", ""]
     for t in data["tables"]:
         md += [
@@ -617,6 +816,7 @@ def _html(
                 )
             h.append("</table>")
         h.append(f"<p><small>Assumptions: {e(fig['assumptions'])}</small></p>")
+    h += _beyond_html(data, images)
     h.append("<h2>Tables</h2>")
     for t in data["tables"]:
         h.append(f"<h3>{e(t['title'])}</h3><p><small>{e(t['method'])}</small></p>")
