@@ -447,3 +447,71 @@ def test_reproduce_report_shows_the_constants_beside_xi(tmp_path: Path, monkeypa
     assert half[:2] == ["$M$ (kg)", r"$J$ (kg$\cdot$m$^2$)"]
     for f in kept:
         close(f)
+
+
+# ---- Beyond the thesis: Fig B-1 drawn, Fig B-2 as a table ----
+
+SWEEP_KEYS = {"id", "title", "origin", "samples", "full_samples", "seeds", "levels", "setup", "curves", "verdicts",
+              "cpu_seconds"}
+SWEEP_CURVE_KEYS = {"label", "setup", "median", "q25", "q75", "min", "max", "xi", "refused", "errors"}
+HALF_KEYS = {"id", "title", "origin", "samples", "seeds", "levels", "setup", "rows", "not_run", "verdicts",
+             "cpu_seconds"}
+HALF_ROW_KEYS = {"label", "setup", "cells"}
+HALF_CELL_KEYS = {"level", "wheel", "body", "worst_entry", "refused", "errors"}
+
+
+def test_reproduce_beyond_draws_b1_and_tabulates_b2(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    plt = pytest.importorskip("matplotlib.pyplot")
+    plt.close("all")  # figures other tests kept open (pyplot warns beyond 20)
+    close = plt.close
+    kept: List[Any] = []
+    monkeypatch.setattr(plt, "close", kept.append)
+    out = tmp_path / "beyond"
+    assert main(["reproduce", "--quick", "--only", "B-1,B-2", "--out", str(out), "--no-tables", "--quiet"]) == 0
+    assert Path(capsys.readouterr().out.strip()) == out / "index.md"
+    data = json.loads((out / "report.json").read_text(encoding="utf-8"))
+    # The binding's keys: those of the runner's JSON (vehid_thesis::report::{SweepResult, HalfResult}).
+    sweep, half = data["sweep"], data["half_one_road"]
+    assert set(sweep) == SWEEP_KEYS and all(set(c) == SWEEP_CURVE_KEYS for c in sweep["curves"])
+    assert set(half) == HALF_KEYS and all(set(r) == HALF_ROW_KEYS for r in half["rows"])
+    assert all(set(c) == HALF_CELL_KEYS for r in half["rows"] for c in r["cells"])
+    assert (sweep["id"], sweep["samples"], half["id"]) == ("B-1", 10_000, "B-2")
+    assert [len(c["xi"][0]) for c in sweep["curves"]] == [sweep["seeds"]] * len(sweep["curves"])
+    # The figure exists and plots the runner's medians and bands, one line per method.
+    assert (out / "fig-B-1.png").stat().st_size > 10_000
+    figs = [f for f in kept if f.axes and f.axes[0].get_title().startswith("Fig B-1:")]
+    assert len(figs) == 1
+    ax = figs[0].axes[0]
+    lines = [ln for ln in ax.get_lines() if ln.get_linestyle() == "-"]
+    assert len(lines) == len(sweep["curves"]) == 7 and len(ax.collections) == 7
+    for ln, c in zip(lines, sweep["curves"]):
+        assert list(ln.get_xdata()) == sweep["levels"]
+        want = [v if math.isfinite(v) and v > 0 else math.nan for v in c["median"]]
+        assert ln.get_ydata() == pytest.approx(want, rel=0, abs=0, nan_ok=True)
+        assert ln.get_label() == vehid.reproduce.BEYOND_NAMES[c["label"]]
+    for band, c in zip(ax.collections, sweep["curves"]):
+        ys = [y for path in band.get_paths() for _, y in path.vertices]
+        q25 = [v for v in c["q25"] if math.isfinite(v) and v > 0]
+        q75 = [v for v in c["q75"] if math.isfinite(v) and v > 0]
+        assert min(ys) == pytest.approx(min(q25)) and max(ys) == pytest.approx(max(q75))
+    assert ax.get_yscale() == "log" and ax.get_xscale() == "symlog"
+    assert r"$\sigma_w$, % of $\sigma_u$" in ax.get_xlabel() and r"$\xi$ after 10000 samples" in ax.get_ylabel()
+    assert "beyond the thesis" in ax.get_title() and "25–75 % band" in ax.get_title()
+    assert "_" not in _outside_math(ax.get_title()) and "σ" not in _outside_math(ax.get_title())
+    # The report's text: the figure, B-2's numbers and its reading; the claims stay in Tables.
+    md = (out / "index.md").read_text(encoding="utf-8")
+    html = (out / "index.html").read_text(encoding="utf-8")
+    assert "### Fig B-1:" in md and "![Fig B-1](fig-B-1.png)" in md and "<img src='fig-B-1.png'" in html
+    assert "### Fig B-2:" in md and "| method | σ_w | ξ wheel rows 1, 3 |" in md
+    plain = next(r for r in half["rows"] if r["label"].startswith("thesis' Kalman rows"))
+    cell = plain["cells"][half["levels"].index(8.0)]
+    pair = [max(a, b) for a, b in zip(cell["wheel"], cell["body"])]
+    assert f"| {plain['label']} | 8 % | {vehid.reproduce._fmt(vehid.reproduce._median(cell['wheel']))} (" in md
+    assert f"| {vehid.reproduce._fmt(vehid.reproduce._median(pair))} (" in md
+    assert "At σ_w = 8 % no method identifies the half car on one road" in md
+    assert "At σ_w = 8 % no method identifies the half car on one road" in html
+    assert "### Fig B-1, beyond the thesis" in md and "### Fig B-2, beyond the thesis" in md
+    assert md.count("*agrees*") + md.count("*differs*") == len(sweep["verdicts"]) + len(half["verdicts"])
+    for f in kept:
+        close(f)

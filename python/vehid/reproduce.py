@@ -11,7 +11,10 @@ with their 95 % intervals and the true values; and
 ``index.md`` / ``index.html`` with, per figure, the thesis' claim and vehid's measured
 counterpart marked *agrees*, *differs* or *inconclusive* (the run was shorter than the claim
 and bounds the measured number from below only), and the tables for Eq 4.28, Eq 4.32, Eq 4.34 and
-Table I. Every number in the report is computed by the run.
+Table I. When they ran, the figures beyond the thesis (not Kessler's) follow: Fig B-1, ξ after
+the run on a log scale against the state noise σ_w, one line per method for noisy states
+(median and 25–75 % band over seeds, ``fig-B-1.png``), and Fig B-2, the half car on one road,
+as a table; their claims are rows of the tables. Every number in the report is computed by the run.
 
 >>> data = run(quick=True, only=["3-5"], seeds=2, max_iterations=100, tables=False)
 >>> data["figures"][0]["id"], len(data["figures"][0]["curves"])
