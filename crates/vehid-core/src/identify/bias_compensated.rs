@@ -36,7 +36,7 @@
 //! [`super::InstrumentalVariables`] for standard errors.
 
 use super::instrumental::{equation_weights, local_regression};
-use super::interface::check_lengths;
+use super::interface::check_slices;
 use super::{Dims, Flat, Identifier, OVERFLOW};
 use crate::linalg::{cholesky_in_place, cholesky_solve};
 use crate::structure::{Basis, Partition, Structure, Var, MAX_EQUATIONS, MAX_STATES};
@@ -457,10 +457,7 @@ impl<T: Real, const P: usize, F: Flat<BcGroup<T, P>>> Identifier<T> for BiasComp
     /// Adds one sample to the sums. The innovations are NaN: the estimate is solved only
     /// when read ([`Identifier::params_into`]), as for batch least squares.
     fn update_into(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
-        check_lengths(self.dims(), x, z, u, e)?;
-        for (arg, v) in [("r_k", x), ("z_k", z), ("u_k", u)] {
-            crate::error::check_finite(arg, v)?;
-        }
+        check_slices(self.dims(), x, z, u, e)?;
         let ne = self.structure.equations();
         let mut touched = 0u32;
         for i in 0..ne {
@@ -511,15 +508,7 @@ impl<T: Real, const P: usize, F: Flat<BcGroup<T, P>>> Identifier<T> for BiasComp
     }
 
     fn noise_into(&self, out: &mut [T]) -> Result<()> {
-        let ne = self.structure.equations();
-        if out.len() != ne * ne {
-            return Err(Error::Shape { arg: "out", expected: ne * ne, got: out.len() });
-        }
-        out.fill(T::zero());
-        for i in 0..ne {
-            out[i * ne + i] = self.r[i];
-        }
-        Ok(())
+        super::interface::diagonal_noise_into(&self.r[..self.structure.equations()], out)
     }
 
     fn covariance_into(&self, out: &mut [T]) -> Result<()> {

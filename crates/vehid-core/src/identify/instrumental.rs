@@ -735,15 +735,7 @@ impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> Identifie
     }
 
     fn noise_into(&self, out: &mut [T]) -> Result<()> {
-        let ne = self.structure.equations();
-        if out.len() != ne * ne {
-            return Err(Error::Shape { arg: "out", expected: ne * ne, got: out.len() });
-        }
-        out.fill(T::zero());
-        for i in 0..ne {
-            out[i * ne + i] = self.r[i];
-        }
-        Ok(())
+        super::interface::diagonal_noise_into(&self.r[..self.structure.equations()], out)
     }
 
     /// Each equation's sum of squared a-posteriori residuals `y − hᵀθ̂(k)` (own units) over the

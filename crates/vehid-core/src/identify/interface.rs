@@ -465,6 +465,37 @@ pub(crate) fn copy_residuals<T: Real>(
     Ok(())
 }
 
+/// [`check_lengths`], then every value finite (the errors name `r_k`, `z_k`, `u_k`): the
+/// checks every identifier's `update_into` starts with.
+///
+/// # Errors
+/// [`Error::Shape`]; [`Error::NonFinite`].
+#[inline(always)]
+pub(crate) fn check_slices<T: Real>(dims: Dims, x: &[T], z: &[T], u: &[T], e: &[T]) -> Result<()> {
+    check_lengths(dims, x, z, u, e)?;
+    for (arg, v) in [("r_k", x), ("z_k", z), ("u_k", u)] {
+        crate::error::check_finite(arg, v)?;
+    }
+    Ok(())
+}
+
+/// The diagonal equation-noise matrix `diag(r)` into `out` (`r.len()²`, row-major): the
+/// [`Identifier::noise_into`] of identifiers with one variance per equation.
+///
+/// # Errors
+/// [`Error::Shape`] for a wrong length.
+pub(crate) fn diagonal_noise_into<T: Real>(r: &[T], out: &mut [T]) -> Result<()> {
+    let ne = r.len();
+    if out.len() != ne * ne {
+        return Err(Error::Shape { arg: "out", expected: ne * ne, got: out.len() });
+    }
+    out.fill(T::zero());
+    for (i, &v) in r.iter().enumerate() {
+        out[i * ne + i] = v;
+    }
+    Ok(())
+}
+
 /// Checks the lengths of one sample against `dims` (`x`, `z`: `n`; `u`: `m`; `e`: equations).
 #[inline(always)]
 pub(crate) fn check_lengths<T>(dims: Dims, x: &[T], z: &[T], u: &[T], e: &[T]) -> Result<()> {

@@ -86,7 +86,7 @@
 //! a nearly measured state (the gain on `x` is set by `Σ_w`, not by `p`) the effect is small
 //! here: see `tests/joint_ekf.rs` for the measured figures.
 
-use super::interface::check_lengths;
+use super::interface::check_slices;
 use super::{Dims, Identifier, OVERFLOW};
 use crate::error::{check_finite, check_nonneg, check_positive};
 use crate::structure::{Basis, Structure, Var, MAX_EQUATIONS};
@@ -604,10 +604,7 @@ impl<T: Real, const N: usize, const D: usize> Identifier<T> for JointEkf<T, N, D
     /// [`Error::Singular`] when the covariance lost definiteness; an overflow error. The
     /// filter is unchanged after any error.
     fn update_into(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
-        check_lengths(self.dims(), x, z, u, e)?;
-        for (arg, v) in [("r_k", x), ("z_k", z), ("u_k", u)] {
-            check_finite(arg, v)?;
-        }
+        check_slices(self.dims(), x, z, u, e)?;
         let (s, p, innov) = self.step(x, z, u)?;
         self.s = s;
         self.p = p;

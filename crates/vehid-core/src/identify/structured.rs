@@ -17,7 +17,7 @@
 //! allocation at all) or a `Vec` ([`StructuredKalmanVec`]). An update allocates nothing; it
 //! is transactional (the groups it touched are restored on any error).
 
-use super::interface::check_lengths;
+use super::interface::check_slices;
 use super::kalman::{PlainStep, RowIdentifier};
 use super::{CovarianceForm, Dims, Flat, Identifier, KalmanOptions, OVERFLOW};
 use crate::error::check_finite;
@@ -351,15 +351,7 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Structured<T, P, F> 
         z: &[T],
         u: &[T],
     ) -> (T, SVector<T, P>) {
-        let mut h = SVector::<T, P>::zeros();
-        let mut y = z[rows[i]];
-        for t in s.terms(i) {
-            let phi = t.coef * s.basis(t.basis, x, z, u);
-            match t.param {
-                Some(p) => h[part.local[p as usize] as usize] += phi,
-                None => y -= phi,
-            }
-        }
+        let (y, h) = group_regression::<T, P>(s, part, rows[i], i, x, z, u);
         let w = scale[i];
         (y * w, h * w)
     }
@@ -405,11 +397,7 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Structured<T, P, F> 
     }
 
     fn restore(&mut self, touched: u32) {
-        for g in 0..self.part.groups as usize {
-            if touched & (1 << g) != 0 {
-                self.filters.flat_mut()[g] = self.backup.flat()[g];
-            }
-        }
+        restore_groups(self.filters.flat_mut(), self.backup.flat(), touched);
     }
 }
 
@@ -423,10 +411,7 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Identifier<T> for St
     }
 
     fn update_into(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
-        check_lengths(self.dims(), x, z, u, e)?;
-        check_finite("r_k", x)?;
-        check_finite("z_k", z)?;
-        check_finite("u_k", u)?;
+        check_slices(self.dims(), x, z, u, e)?;
         if self.update_plain(x, z, u, e) {
             return Ok(());
         }
@@ -503,43 +488,11 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Identifier<T> for St
     }
 
     fn covariance_into(&self, out: &mut [T]) -> Result<()> {
-        let np = self.structure.params();
-        if out.len() != np * np {
-            return Err(Error::Shape { arg: "out", expected: np * np, got: out.len() });
-        }
-        let inf = T::of(f64::INFINITY);
-        for a in 0..np {
-            for b in 0..np {
-                let (ga, gb) = (self.part.group_of_param[a], self.part.group_of_param[b]);
-                out[a * np + b] = if ga != gb {
-                    T::zero()
-                } else {
-                    let f = &self.filters.flat()[ga as usize];
-                    if f.starting() {
-                        if a == b {
-                            inf
-                        } else {
-                            T::zero()
-                        }
-                    } else {
-                        f.p()[(self.part.local[a] as usize, self.part.local[b] as usize)]
-                    }
-                };
-            }
-        }
-        Ok(())
+        group_covariance_into(&self.part, self.structure.params(), self.filters.flat(), out)
     }
 
     fn noise_into(&self, out: &mut [T]) -> Result<()> {
-        let ne = self.structure.equations();
-        if out.len() != ne * ne {
-            return Err(Error::Shape { arg: "out", expected: ne * ne, got: out.len() });
-        }
-        out.fill(T::zero());
-        for i in 0..ne {
-            out[i * ne + i] = self.r[i];
-        }
-        Ok(())
+        super::interface::diagonal_noise_into(&self.r[..self.structure.equations()], out)
     }
 
     fn trace(&self) -> Option<T> {
@@ -564,6 +517,80 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Identifier<T> for St
         out.copy_from_slice(&self.eq_gated[..ne]);
         Ok(())
     }
+}
+
+/// Equation `i`'s regression `(y, h)` (its state's derivative `z[state]` less its known terms,
+/// and the regressor in its group's local parameter order, unweighted; Eq 2.2–2.4 on a
+/// structure): what [`Structured`] and [`super::TwoAxleStructured`] feed their group filters.
+#[inline(always)]
+pub(crate) fn group_regression<T: Real, const P: usize>(
+    s: &Structure<T>,
+    part: &Partition,
+    state: usize,
+    i: usize,
+    x: &[T],
+    z: &[T],
+    u: &[T],
+) -> (T, SVector<T, P>) {
+    let mut h = SVector::<T, P>::zeros();
+    let mut y = z[state];
+    for t in s.terms(i) {
+        let phi = t.coef * s.basis(t.basis, x, z, u);
+        match t.param {
+            Some(p) => h[part.local[p as usize] as usize] += phi,
+            None => y -= phi,
+        }
+    }
+    (y, h)
+}
+
+/// The groups' filters before an update put back (`touched`: bit `g` for group `g`): the
+/// rollback of an update that failed after some groups had stepped.
+pub(crate) fn restore_groups<T: Real, const P: usize>(
+    filters: &mut [RowIdentifier<T, P>],
+    backup: &[RowIdentifier<T, P>],
+    touched: u32,
+) {
+    for (g, (f, b)) in filters.iter_mut().zip(backup).enumerate() {
+        if touched & (1 << g) != 0 {
+            *f = *b;
+        }
+    }
+}
+
+/// The block-diagonal covariance of a structure's parameters (`np × np`, row-major) from its
+/// groups' filters: `P` of the group on its block, 0 between groups, and during a group's
+/// exact start `∞` on its diagonal (nothing identified yet).
+///
+/// # Errors
+/// [`Error::Shape`] for a wrong length.
+pub(crate) fn group_covariance_into<T: Real, const P: usize>(
+    part: &Partition,
+    np: usize,
+    filters: &[RowIdentifier<T, P>],
+    out: &mut [T],
+) -> Result<()> {
+    if out.len() != np * np {
+        return Err(Error::Shape { arg: "out", expected: np * np, got: out.len() });
+    }
+    for a in 0..np {
+        for b in 0..np {
+            let (ga, gb) = (part.group_of_param[a], part.group_of_param[b]);
+            let f = &filters[ga as usize];
+            out[a * np + b] = if ga != gb {
+                T::zero()
+            } else if f.starting() {
+                if a == b {
+                    T::of(f64::INFINITY)
+                } else {
+                    T::zero()
+                }
+            } else {
+                f.p()[(part.local[a] as usize, part.local[b] as usize)]
+            };
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]

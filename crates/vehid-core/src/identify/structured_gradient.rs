@@ -9,9 +9,8 @@
 //! [`super::StochasticGradient`] without the state-noise correction. No allocation; the
 //! parameter count is at most the const generic `P`.
 
-use super::interface::check_lengths;
+use super::interface::check_slices;
 use super::{Dims, Gain, Identifier, OVERFLOW};
-use crate::error::check_finite;
 use crate::structure::{Structure, MAX_EQUATIONS};
 use crate::{Error, Real, Result};
 
@@ -129,10 +128,7 @@ impl<T: Real, const P: usize> Identifier<T> for StructuredGradient<T, P> {
     }
 
     fn update_into(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
-        check_lengths(self.dims(), x, z, u, e)?;
-        check_finite("r_k", x)?;
-        check_finite("z_k", z)?;
-        check_finite("u_k", u)?;
+        check_slices(self.dims(), x, z, u, e)?;
         let (ne, np) = (self.structure.equations(), self.structure.params());
         let mut grad = [T::zero(); P];
         // Σ_j w_j Σ_i h_ij², the normalized gain's denominator (Eq 5.9), only for that gain.

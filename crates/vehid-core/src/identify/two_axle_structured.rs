@@ -63,10 +63,10 @@
 //! needs. An update allocates nothing and is transactional.
 
 use super::deriv_noise::{add_deriv_noise, compensated, nonlinear_deriv, reads_noisy_deriv};
-use super::interface::{check_lengths, partition_groups_into, structure_dims};
+use super::interface::{check_slices, partition_groups_into, structure_dims};
 use super::two_axle::wheel_rows;
 use super::{Flat, Identifier, RowIdentifier, OVERFLOW};
-use crate::error::{check_finite, check_nonneg, check_positive};
+use crate::error::{check_nonneg, check_positive};
 use crate::model::LinearModel;
 use crate::sampler::{RingStore, Trigger};
 use crate::structure::{Partition, Structure, MAX_EQUATIONS, MAX_PARAMS};
@@ -390,7 +390,7 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>, B: RingStore<FrontRe
         if self.d == 0 || self.ring.slots().len() < self.d {
             return Err(corrupt);
         }
-        check_finite("scale", &self.scale[..ne])?;
+        crate::error::check_finite("scale", &self.scale[..ne])?;
         Ok(())
     }
 
@@ -496,23 +496,11 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>, B: RingStore<FrontRe
 
     /// Equation `i`'s regression `(y, h)`, `h` in its group's local order (unweighted).
     fn local_regression(&self, i: usize, x: &[T], z: &[T], u: &[T]) -> (T, SVector<T, P>) {
-        let mut full = [T::zero(); MAX_PARAMS];
-        let np = self.structure.params();
-        let y = self.structure.regression(i, x, z, u, &mut full[..np]);
-        let mut h = SVector::<T, P>::zeros();
-        for (j, v) in full[..np].iter().enumerate() {
-            if *v != T::zero() {
-                h[self.part.local[j] as usize] += *v;
-            }
-        }
-        (y, h)
+        super::structured::group_regression(&self.structure, &self.part, self.rows[i], i, x, z, u)
     }
 
     fn step(&mut self, x: &[T], z: &[T], u: &[T], grid: Option<u64>, allow_pair: bool, e: &mut [T]) -> Result<bool> {
-        check_lengths(self.dims(), x, z, u, e)?;
-        check_finite("r_k", x)?;
-        check_finite("z_k", z)?;
-        check_finite("u_k", u)?;
+        check_slices(self.dims(), x, z, u, e)?;
         let grid = match (grid, self.last_grid) {
             (None, None) => 0,
             (None, Some(g)) => {
@@ -566,11 +554,7 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>, B: RingStore<FrontRe
                     stepped |= u32::from(if i == re { past.is_some() } else { i != fe || self.cfg.direct_front }) << i;
                 }
                 Err(err) => {
-                    for g in 0..self.part.groups as usize {
-                        if touched & (1 << g) != 0 {
-                            self.filters.flat_mut()[g] = self.backup.flat()[g];
-                        }
-                    }
+                    super::structured::restore_groups(self.filters.flat_mut(), self.backup.flat(), touched);
                     return Err(match err {
                         Error::NonFinite { .. } => OVERFLOW,
                         other => other,
@@ -680,40 +664,11 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>, B: RingStore<FrontRe
                 what: "a covariance of the bias-compensated estimate (set compensate = false for least squares' P)",
             });
         }
-        let np = self.structure.params();
-        if out.len() != np * np {
-            return Err(Error::Shape { arg: "out", expected: np * np, got: out.len() });
-        }
-        for a in 0..np {
-            for b in 0..np {
-                let (ga, gb) = (self.part.group_of_param[a], self.part.group_of_param[b]);
-                let f = &self.filters.flat()[ga as usize];
-                out[a * np + b] = if ga != gb {
-                    T::zero()
-                } else if f.starting() {
-                    if a == b {
-                        T::of(f64::INFINITY)
-                    } else {
-                        T::zero()
-                    }
-                } else {
-                    f.p()[(self.part.local[a] as usize, self.part.local[b] as usize)]
-                };
-            }
-        }
-        Ok(())
+        super::structured::group_covariance_into(&self.part, self.structure.params(), self.filters.flat(), out)
     }
 
     fn noise_into(&self, out: &mut [T]) -> Result<()> {
-        let ne = self.structure.equations();
-        if out.len() != ne * ne {
-            return Err(Error::Shape { arg: "out", expected: ne * ne, got: out.len() });
-        }
-        out.fill(T::zero());
-        for i in 0..ne {
-            out[i * ne + i] = self.r[i];
-        }
-        Ok(())
+        super::interface::diagonal_noise_into(&self.r[..self.structure.equations()], out)
     }
 
     fn groups_into(&self, group_of_param: &mut [usize], group_of_eq: &mut [usize]) -> Result<()> {
