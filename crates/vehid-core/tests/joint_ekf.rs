@@ -9,9 +9,7 @@
 
 use nalgebra::SVector;
 use vehid_core::identify::{EkfNoise, Identifier, JointEkf, KalmanIdentifier};
-use vehid_core::metrics::xi;
 use vehid_core::model::{auto_substeps, rk4_map, zoh, QuarterCar};
-use vehid_core::sim::{SimConfig, Simulator};
 use vehid_core::structure::{Basis, Structure, Term, Var};
 use vehid_core::Error;
 
@@ -37,24 +35,8 @@ unsafe impl std::alloc::GlobalAlloc for Counting {
 #[global_allocator]
 static GLOBAL: Counting = Counting;
 
-const ROAD: f64 = 0.1;
-const DERIV: f64 = 0.1;
-const DT: f64 = 0.05;
-
-/// `n` samples of the quarter car with state noise `pct` % of σ_u: `(r, z)` row-major, and
-/// the simulator's RK4 sub-steps.
-fn quarter(n: usize, pct: f64, seed: u64) -> (Vec<f64>, Vec<f64>, u32) {
-    let car = QuarterCar::<f64>::thesis();
-    let cfg = SimConfig::new(DT).road_sigma(ROAD).deriv_noise(DERIV).state_noise(pct / 100.0 * ROAD);
-    let mut sim = Simulator::new(car.model(), cfg, seed).unwrap();
-    let (mut x, mut z) = (Vec::with_capacity(4 * n), Vec::with_capacity(4 * n));
-    for _ in 0..n {
-        let s = sim.next_sample();
-        x.extend_from_slice(s.r.as_slice());
-        z.extend_from_slice(s.z.as_slice());
-    }
-    (x, z, sim.substeps() as u32)
-}
+mod common;
+use common::{quarter_sampled as quarter, run, time_updates, xi_rows, DERIV, DT, ROAD};
 
 /// The quarter car's physical structure with `m` known: `k2/M, b/M, M, k1`.
 fn physical() -> Structure<f64> {
@@ -88,23 +70,6 @@ fn implied_rows(s: &Structure<f64>, p: &[f64]) -> [f64; 8] {
         rows[4 + j] = col[3];
     }
     rows
-}
-
-fn xi_rows(theta: &[f64]) -> f64 {
-    let truth = QuarterCar::<f64>::thesis();
-    xi(truth.theta().transpose().as_slice(), theta).unwrap_or(f64::INFINITY)
-}
-
-/// Runs every sample; the final estimate.
-fn run<I: Identifier<f64>>(id: &mut I, x: &[f64], z: &[f64]) -> Vec<f64> {
-    let d = id.dims();
-    let mut e = vec![0.0; d.equations];
-    for (xk, zk) in x.chunks(4).zip(z.chunks(4)) {
-        id.update_into(xk, zk, &[], &mut e).unwrap();
-    }
-    let mut th = vec![0.0; d.params];
-    id.params_into(&mut th).unwrap();
-    th
 }
 
 /// The prior: each parameter at half or 1.5 times its true value (alternately), with a
@@ -385,19 +350,9 @@ fn must_show_xi_over_seeds() {
 #[test]
 #[ignore]
 fn timing() {
-    use std::time::Instant;
     let (x, z, sub) = quarter(4096, 8.0, 1);
     let reps = 20;
-    let time = |name: &str, id: &mut dyn Identifier<f64>| {
-        let mut e = [0.0; 2];
-        let t = Instant::now();
-        for _ in 0..reps {
-            for (xk, zk) in x.chunks(4).zip(z.chunks(4)) {
-                let _ = std::hint::black_box(id.update_into(xk, zk, &[], &mut e));
-            }
-        }
-        eprintln!("{name}: {:.0} ns/update", t.elapsed().as_nanos() as f64 / (reps * 4096) as f64);
-    };
+    let time = |name: &str, id: &mut dyn Identifier<f64>| time_updates(name, id, &x, &z, reps);
     time("joint EKF, physical (D = 9, 5 RK4 sub-steps)", &mut ekf_physical(8.0, sub));
     time("joint EKF, full rows (D = 13, 5 RK4 sub-steps)", &mut ekf_rows(8.0, sub));
     time("joint EKF, physical, 1 sub-step", &mut ekf_physical(8.0, 1));

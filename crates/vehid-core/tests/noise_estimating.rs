@@ -10,70 +10,11 @@ use vehid_core::identify::{
     BiasCompensatedLs, Identifier, IvIdentifier, KalmanIdentifier, NoiseEstimatingBcls, NoiseEstimatingBclsLs,
     StructuredPrior,
 };
-use vehid_core::metrics::xi;
-use vehid_core::model::{PhysicalStructure, QuarterCar};
-use vehid_core::sim::{SimConfig, Simulator};
+use vehid_core::model::QuarterCar;
 use vehid_core::Error;
 
-const ROAD: f64 = 0.1;
-const DERIV: f64 = 0.1;
-const DT: f64 = 0.05;
-/// The refined instruments' predictor capacity (6 lags of the quarter car's 8 values and the
-/// constant) and the lags, as in `noisy_states.rs`.
-const Q: usize = 49;
-const LAGS: usize = 6;
-
-/// `n` samples of the quarter car with state noise `pct` % of σ_u: `(r, z)` row-major.
-fn quarter(n: usize, pct: f64, seed: u64) -> (Vec<f64>, Vec<f64>) {
-    let car = QuarterCar::<f64>::thesis();
-    let cfg = SimConfig::new(DT).road_sigma(ROAD).deriv_noise(DERIV).state_noise(pct / 100.0 * ROAD);
-    let mut sim = Simulator::new(car.model(), cfg, seed).unwrap();
-    let (mut x, mut z) = (Vec::with_capacity(4 * n), Vec::with_capacity(4 * n));
-    for _ in 0..n {
-        let s = sim.next_sample();
-        x.extend_from_slice(s.r.as_slice());
-        z.extend_from_slice(s.z.as_slice());
-    }
-    (x, z)
-}
-
-fn physical() -> PhysicalStructure<f64> {
-    QuarterCar::structure([None, Some(1.0), None, None, None]).unwrap()
-}
-
-/// Physical parameters → constants → the thesis' unknown rows → ξ (Eq 3.17).
-fn xi_physical(theta: &[f64]) -> f64 {
-    let ps = physical();
-    let truth = QuarterCar::<f64>::thesis();
-    let zero = vec![0.0; theta.len() * theta.len()];
-    let c: Vec<f64> = (0..5).map(|i| ps.constant(i, theta, &zero).map_or(f64::NAN, |v| v.0)).collect();
-    match QuarterCar::new(c[0], c[1], c[2], c[3], c[4]) {
-        Ok(est) => xi(truth.theta().transpose().as_slice(), est.theta().transpose().as_slice()).unwrap(),
-        Err(_) => f64::INFINITY,
-    }
-}
-
-fn xi_rows(theta: &[f64]) -> f64 {
-    let truth = QuarterCar::<f64>::thesis();
-    xi(truth.theta().transpose().as_slice(), theta).unwrap_or(f64::INFINITY)
-}
-
-/// Feeds every sample.
-fn feed<I: Identifier<f64>>(id: &mut I, x: &[f64], z: &[f64]) {
-    let mut e = vec![0.0; id.dims().equations];
-    for (xk, zk) in x.chunks(4).zip(z.chunks(4)) {
-        id.update_into(xk, zk, &[], &mut e).unwrap();
-    }
-}
-
-/// The estimate (NaN when there is none).
-fn params<I: Identifier<f64>>(id: &I) -> Vec<f64> {
-    let mut th = vec![0.0; id.dims().params];
-    match id.params_into(&mut th) {
-        Ok(()) => th,
-        Err(_) => vec![f64::NAN; th.len()],
-    }
-}
+mod common;
+use common::{feed, params, physical, quarter, time_updates, xi_physical, xi_rows, DERIV, LAGS, Q, ROAD};
 
 /// Estimated σ_w per state (NaN where not estimated).
 fn sigmas<F, FI, const P: usize, const QQ: usize>(id: &NoiseEstimatingBcls<f64, P, F, FI, QQ>) -> [f64; 4]
@@ -431,16 +372,7 @@ fn timing() {
     use std::time::Instant;
     let (x, z) = quarter(4096, 8.0, 1);
     let reps = 50;
-    let time = |name: &str, id: &mut dyn Identifier<f64>| {
-        let mut e = [0.0; 2];
-        let t = Instant::now();
-        for _ in 0..reps {
-            for (xk, zk) in x.chunks(4).zip(z.chunks(4)) {
-                let _ = std::hint::black_box(id.update_into(xk, zk, &[], &mut e));
-            }
-        }
-        eprintln!("{name}: {:.0} ns/update", t.elapsed().as_nanos() as f64 / (reps * 4096) as f64);
-    };
+    let time = |name: &str, id: &mut dyn Identifier<f64>| time_updates(name, id, &x, &z, reps);
     let read = |name: &str, id: &dyn Identifier<f64>| {
         let mut th = vec![0.0; id.dims().params];
         let t = Instant::now();

@@ -10,70 +10,13 @@
 use vehid_core::identify::{
     estimate_stats, BatchLeastSquares, BiasCompensatedLs, Identifier, IvIdentifier, KalmanIdentifier, StructuredPrior,
 };
-use vehid_core::metrics::xi;
-use vehid_core::model::{PhysicalStructure, QuarterCar};
+use vehid_core::model::QuarterCar;
 use vehid_core::sim::{SimConfig, Simulator};
 use vehid_core::structure::{Basis, Structure, Term, Var};
 use vehid_core::Error;
 
-const ROAD: f64 = 0.1;
-const DERIV: f64 = 0.1;
-const DT: f64 = 0.05;
-
-/// The refined instruments' predictor capacity used here (6 lags of the quarter car's 8
-/// values, and the constant).
-const Q: usize = 49;
-/// Lags of the refined instruments (the Python default for the quarter car).
-const LAGS: usize = 6;
-
-/// `n` samples of the quarter car with state noise `pct` % of σ_u: `(r, z)` row-major.
-fn quarter(n: usize, pct: f64, seed: u64) -> (Vec<f64>, Vec<f64>) {
-    let car = QuarterCar::<f64>::thesis();
-    let cfg = SimConfig::new(DT).road_sigma(ROAD).deriv_noise(DERIV).state_noise(pct / 100.0 * ROAD);
-    let mut sim = Simulator::new(car.model(), cfg, seed).unwrap();
-    let (mut x, mut z) = (Vec::with_capacity(4 * n), Vec::with_capacity(4 * n));
-    for _ in 0..n {
-        let s = sim.next_sample();
-        x.extend_from_slice(s.r.as_slice());
-        z.extend_from_slice(s.z.as_slice());
-    }
-    (x, z)
-}
-
-fn physical() -> PhysicalStructure<f64> {
-    QuarterCar::structure([None, Some(1.0), None, None, None]).unwrap()
-}
-
-/// Physical parameters → constants → the thesis' unknown rows → ξ (Eq 3.17).
-fn xi_physical(theta: &[f64]) -> f64 {
-    let ps = physical();
-    let truth = QuarterCar::<f64>::thesis();
-    let zero = vec![0.0; theta.len() * theta.len()];
-    let c: Vec<f64> = (0..5).map(|i| ps.constant(i, theta, &zero).map_or(f64::NAN, |v| v.0)).collect();
-    match QuarterCar::new(c[0], c[1], c[2], c[3], c[4]) {
-        Ok(est) => xi(truth.theta().transpose().as_slice(), est.theta().transpose().as_slice()).unwrap(),
-        Err(_) => f64::INFINITY,
-    }
-}
-
-fn xi_rows(theta: &[f64]) -> f64 {
-    let truth = QuarterCar::<f64>::thesis();
-    xi(truth.theta().transpose().as_slice(), theta).unwrap_or(f64::INFINITY)
-}
-
-/// Runs every sample; the final estimate (NaN when there is none).
-fn run<I: Identifier<f64>>(id: &mut I, x: &[f64], z: &[f64]) -> Vec<f64> {
-    let d = id.dims();
-    let mut e = vec![0.0; d.equations];
-    for (xk, zk) in x.chunks(4).zip(z.chunks(4)) {
-        id.update_into(xk, zk, &[], &mut e).unwrap();
-    }
-    let mut th = vec![0.0; d.params];
-    match id.params_into(&mut th) {
-        Ok(()) => th,
-        Err(_) => vec![f64::NAN; d.params],
-    }
-}
+mod common;
+use common::{physical, quarter, run, xi_physical, xi_rows, DERIV, DT, LAGS, Q, ROAD};
 
 /// ξ of the physical structure (m known) by IV with refined instruments of `lags` lags
 /// (0: the delayed regressors).
