@@ -43,16 +43,9 @@ pub struct EstimateStats {
     pub alpha: f64,
 }
 
-/// The statistics of `id`'s current estimate at level `alpha` (module docs).
-///
-/// # Errors
-/// [`Error::InvalidArgument`] for `alpha` outside (0, 1); [`Error::Unsupported`] for an
-/// identifier without a covariance or residual statistics (the stochastic gradient, the
-/// shared and full Kalman modes); [`Error::RankDeficient`] while the estimate does not exist
-/// yet; [`Error::InvalidArgument`] naming `samples` when a group has no residual degrees of
-/// freedom (no more observations than parameters), naming `r` for an equation declared
-/// noise-free (`r_i = 0`: no scale to estimate).
-pub fn estimate_stats<T: Real, I: Identifier<T> + ?Sized>(id: &I, alpha: f64) -> Result<EstimateStats> {
+/// `alpha` checked, then `id`'s estimate, its covariance and its equations' noise covariance
+/// (`params`, `params²`, `equations²` values): what both kinds of statistics read.
+fn read_estimate<T: Real, I: Identifier<T> + ?Sized>(id: &I, alpha: f64) -> Result<(Vec<T>, Vec<T>, Vec<T>)> {
     if !(alpha > 0.0 && alpha < 1.0) {
         return Err(Error::InvalidArgument { arg: "alpha", expected: "a level in (0, 1), e.g. 0.05" });
     }
@@ -64,6 +57,22 @@ pub fn estimate_stats<T: Real, I: Identifier<T> + ?Sized>(id: &I, alpha: f64) ->
     id.covariance_into(&mut p)?;
     let mut r = vec![T::zero(); ne * ne];
     id.noise_into(&mut r)?;
+    Ok((theta, p, r))
+}
+
+/// The statistics of `id`'s current estimate at level `alpha` (module docs).
+///
+/// # Errors
+/// [`Error::InvalidArgument`] for `alpha` outside (0, 1); [`Error::Unsupported`] for an
+/// identifier without a covariance or residual statistics (the stochastic gradient, the
+/// shared and full Kalman modes); [`Error::RankDeficient`] while the estimate does not exist
+/// yet; [`Error::InvalidArgument`] naming `samples` when a group has no residual degrees of
+/// freedom (no more observations than parameters), naming `r` for an equation declared
+/// noise-free (`r_i = 0`: no scale to estimate).
+pub fn estimate_stats<T: Real, I: Identifier<T> + ?Sized>(id: &I, alpha: f64) -> Result<EstimateStats> {
+    let (theta, p, r) = read_estimate(id, alpha)?;
+    let d = id.dims();
+    let (np, ne) = (d.params, d.equations);
     let (mut ssr, mut nobs) = (vec![T::zero(); ne], vec![T::zero(); ne]);
     id.residuals_into(&mut ssr, &mut nobs)?;
     let (mut gp, mut ge) = (vec![0usize; np], vec![0usize; ne]);
@@ -132,17 +141,9 @@ pub fn estimate_stats<T: Real, I: Identifier<T> + ?Sized>(id: &I, alpha: f64) ->
 /// identifier without a covariance or a noise covariance; the identifier's error while its
 /// estimate does not exist.
 pub fn posterior_stats<T: Real, I: Identifier<T> + ?Sized>(id: &I, alpha: f64) -> Result<EstimateStats> {
-    if !(alpha > 0.0 && alpha < 1.0) {
-        return Err(Error::InvalidArgument { arg: "alpha", expected: "a level in (0, 1), e.g. 0.05" });
-    }
+    let (theta, p, r) = read_estimate(id, alpha)?;
     let d = id.dims();
     let (np, ne) = (d.params, d.equations);
-    let mut theta = vec![T::zero(); np];
-    id.params_into(&mut theta)?;
-    let mut p = vec![T::zero(); np * np];
-    id.covariance_into(&mut p)?;
-    let mut r = vec![T::zero(); ne * ne];
-    id.noise_into(&mut r)?;
     let params: Vec<f64> = theta.iter().map(|v| v.to_f64()).collect();
     let cov: Vec<f64> = p.iter().map(|v| v.to_f64()).collect();
     let bse: Vec<f64> = (0..np).map(|j| cov[j * np + j].max(0.0).sqrt()).collect();
