@@ -6,6 +6,7 @@ standard errors, scipy's Student quantiles for intervals, a numpy RK4 simulation
 
 import copy
 import json
+import math
 import pickle
 import re
 import subprocess
@@ -80,32 +81,40 @@ def test_structure_pickles_and_compares() -> None:
 
 
 def rig_data(seed: int, n: int = 20000, dt: float = 1e-3, noise: float = 1e-7) -> dict:
-    """A friction rig simulated by numpy RK4 (10 substeps): force tau (a sum of sines with
-    random phases), position q measured with white noise."""
+    """A friction rig simulated by RK4 (10 substeps, in plain Python floats: the derivative is
+    evaluated 800,000 times for 20,000 samples, and numpy's per-call overhead on scalars made
+    that 15 s): force tau (a sum of sines with random phases), position q measured with white
+    noise."""
     rng = np.random.default_rng(seed)
     a, b, c, d = 2.0, 0.8, 0.3, 0.1
     t = np.arange(n) * dt
     freqs = np.array([0.3, 0.7, 1.3, 2.9])
     phases = rng.uniform(0, 2 * np.pi, 4)
+    wp = [(2 * math.pi * float(f), float(p)) for f, p in zip(freqs, phases)]
 
-    def tau_of(tt: np.ndarray | float) -> np.ndarray | float:
+    def tau_of(tt: np.ndarray) -> np.ndarray:
         return np.sum([np.sin(2 * np.pi * f * np.asarray(tt) + p) for f, p in zip(freqs, phases)], axis=0)
 
-    def f(tt: float, x: np.ndarray) -> np.ndarray:
-        return np.array([x[1], a * tau_of(tt) - b * x[1] - c * np.tanh(x[1] / 1e-3) - d])
+    def f(tt: float, x0: float, x1: float) -> tuple[float, float]:
+        tau = 0.0
+        for w, p in wp:
+            tau += math.sin(w * tt + p)
+        return x1, a * tau - b * x1 - c * math.tanh(x1 / 1e-3) - d
 
-    x = np.zeros(2)
+    x0, x1 = 0.0, 0.0
     q = np.empty(n)
     h = dt / 10
     for k in range(n):
-        q[k] = x[0]
+        q[k] = x0
+        tk = float(t[k])
         for j in range(10):
-            tt = t[k] + j * h
-            k1 = f(tt, x)
-            k2 = f(tt + h / 2, x + h / 2 * k1)
-            k3 = f(tt + h / 2, x + h / 2 * k2)
-            k4 = f(tt + h, x + h * k3)
-            x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+            tt = tk + j * h
+            a0, a1 = f(tt, x0, x1)
+            b0, b1 = f(tt + h / 2, x0 + h / 2 * a0, x1 + h / 2 * a1)
+            c0, c1 = f(tt + h / 2, x0 + h / 2 * b0, x1 + h / 2 * b1)
+            d0, d1 = f(tt + h, x0 + h * c0, x1 + h * c1)
+            x0 += h / 6 * (a0 + 2 * b0 + 2 * c0 + d0)
+            x1 += h / 6 * (a1 + 2 * b1 + 2 * c1 + d1)
     qm = q + noise * rng.standard_normal(n)
     return {"t": t, "q": qm, "tau": tau_of(t), "truth": np.array([a, b, c, d]), "dt": dt}
 
