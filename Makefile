@@ -1,14 +1,15 @@
 # Developer entry points. Assumes only python3, cargo and access to PyPI / crates.io.
-#   make venv     .venv with maturin, numpy, pytest, mypy, ruff, scipy (tests: derivatives, t quantiles) (from PyPI)
+#   make venv     .venv with maturin, numpy, pytest, pytest-xdist, mypy, ruff, scipy (tests: derivatives, t quantiles) (from PyPI)
 #   make develop  build the extension (release) into .venv, editable
 #   make demo     build with the plot extra (matplotlib), reproduce the thesis (--quick) into report/, print its path
 #   make docs     the documentation site into site/ (open site/index.html): mkdocs-material with the
 #                 tools pinned in docs/requirements.txt, every page's examples run at build time,
 #                 the Python API from the docstrings, rustdoc (cargo doc) under site/rustdoc/, the
 #                 thesis-equation index generated from the sources; --strict: any warning fails it
-#   make test     lint, every Rust test (unit, integration, bins, benches in test mode, doctests), the
-#                 no_std build, the release-mode SIMD bit check, pytest on the fresh extension, stub check
-#   make lint     cargo fmt --check, clippy -D warnings, ruff (part of `make test`)
+#   make test     lint, every Rust test (unit, integration, bins, benches in test mode, examples,
+#                 doctests), the no_std build, the release-mode SIMD bit check, pytest on the fresh
+#                 extension, stub check (clippy -D warnings runs inside those builds: see `test:`)
+#   make lint     cargo fmt --check, clippy -D warnings, ruff (`make test` lints the same, in its builds)
 #   make install-check  `pip install .` into a fresh venv in a temp dir (the pyproject backend
 #                 builds through maturin), then `vehid --help` and `vehid simulate | vehid
 #                 identify`, which must report xi (slow: a full release build; not in `test`)
@@ -48,13 +49,16 @@ VENV   := .venv
 VBIN   := $(VENV)/bin
 CARGO  ?= cargo
 
-.PHONY: venv develop demo docs test lint test-rust test-python install-check wheel-check bench-python bench-fit bench-peers bench-budgets bench-check bench-check-update soak fuzz mutants clean
+.PHONY: venv develop demo docs test lint lint-fast test-rust test-python install-check wheel-check bench-python bench-fit bench-peers bench-budgets bench-check bench-check-update soak fuzz mutants clean
 
 venv: $(VENV)/.installed
 
-$(VENV)/.installed:
+# pytest-xdist runs the suite on every core (`-n auto`): most tests wait on the extension with
+# the GIL released or on subprocesses, so two workers halve pytest's time here. The stamp
+# depends on this Makefile, so that a venv made before a tool was added gets it.
+$(VENV)/.installed: Makefile
 	$(PYTHON) -m venv $(VENV)
-	$(VBIN)/python -m pip install --quiet maturin numpy pytest mypy ruff scipy
+	$(VBIN)/python -m pip install --quiet maturin numpy pytest pytest-xdist mypy ruff scipy
 	touch $@
 
 # A stale extension module in python/vehid/ would shadow the fresh build: remove it first.
@@ -79,20 +83,33 @@ docs: develop
 	NO_MKDOCS_2_WARNING=1 $(VBIN)/mkdocs build --strict --site-dir site
 	@echo "docs: $(abspath site/index.html)"
 
-test: lint test-rust test-python
+# Clippy runs inside the builds `make test` makes anyway, as `cargo clippy` itself runs it:
+# clippy-driver as the workspace crates' compiler (RUSTC_WORKSPACE_WRAPPER; the dependencies
+# are compiled by rustc as always) with `-D warnings` (CLIPPY_ARGS, clippy's own way of passing
+# its arguments). So every workspace target is linted while it is compiled for its test: the
+# library, tests, bins, benches and examples in test-rust, the no_std build, and vehid-py in the
+# extension's release build. A separate `cargo clippy` would check the whole dependency tree a
+# third time (about 2 minutes of a clean `make test` here). `make lint` still runs it on its own.
+# The wrapper is part of cargo's fingerprint of the workspace crates: a `make demo` after
+# `make test` recompiles vehid-core and vehid-py once (not the dependencies).
+test: export RUSTC_WORKSPACE_WRAPPER := clippy-driver
+test: export CLIPPY_ARGS := -D__CLIPPY_HACKERY__warnings__CLIPPY_HACKERY__
+test: lint-fast test-rust test-python
 
 # Every check compiles with one feature set per profile, so each dependency is built once per
 # profile: the test profile here, the release profile for the extension (shared with the
 # release-mode check below).
-lint: venv
-	$(CARGO) fmt --all --check
+lint: lint-fast
 	$(CARGO) clippy --workspace --all-targets -- -D warnings
+
+lint-fast: venv
+	$(CARGO) fmt --all --check
 	$(VBIN)/ruff check python tests benches
 
 # vehid-py is left out: it has no Rust tests (pytest tests it), clippy checks it and `develop`
 # builds it; its 16 x 4 dispatch would only be compiled once more, for an empty harness.
 test-rust:
-	$(CARGO) test --workspace --exclude vehid-py --tests --benches
+	$(CARGO) test --workspace --exclude vehid-py --tests --benches --examples
 	$(CARGO) test --workspace --exclude vehid-py --doc
 	$(CARGO) check -p vehid-core --no-default-features
 
@@ -101,7 +118,7 @@ test-rust:
 # the extension's release build and are not compiled a second time.
 test-python: develop
 	$(CARGO) test --release -p vehid-core -p vehid-py --test simd_paths
-	$(VBIN)/python -m pytest -q tests
+	$(VBIN)/python -m pytest -q -n auto tests
 	$(VBIN)/python -m mypy.stubtest vehid._vehid
 	$(VBIN)/python -m mypy python/vehid
 

@@ -84,7 +84,7 @@ fn synthetic_run<T: Real, const N: usize>(n: usize, seed: u64) -> Vec<Sample<T>>
             let mut z: Vec<T> =
                 (0..N).map(|i| T::of((0..N).map(|j| a[i * N + j] * x[j]).sum::<f64>() + 0.1 * normal())).collect();
             if k % 500 == 499 {
-                z[0] = z[0] * T::of(50.0);
+                z[0] *= T::of(50.0);
             }
             (x.iter().map(|&v| T::of(v)).collect(), z)
         })
