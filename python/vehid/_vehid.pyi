@@ -343,15 +343,23 @@ class IVIdentifier(Identifier):
 
 @final
 class BiasCompensated(Identifier):
-    """Bias-compensated least squares (XᵀX − N Σ_w)⁻¹ Xᵀz with a known sensor-noise covariance."""
+    """Bias-compensated least squares (XᵀX − N Σ_w)⁻¹ Xᵀz, Σ_w given or estimated from the data."""
 
     def __new__(
         cls,
         model: Union[LinearModel, Structure],
-        state_noise_var: _Floats,
+        state_noise_var: Union[_Floats, Literal["estimate"]],
         deriv_noise_var: Optional[_Floats] = None,
         r: Optional[_Floats] = None,
+        *,
+        delay: Optional[int] = None,
+        lags: Optional[int] = None,
     ) -> BiasCompensated: ...
+    @property
+    def estimates_noise(self) -> bool: ...
+    @property
+    def instruments(self) -> Optional[Tuple[int, int]]: ...
+    def state_noise_var_estimate(self) -> NDArray[np.float64]: ...
 
 @final
 class JointEKF(Identifier):

@@ -5,12 +5,16 @@
 //! `a_hat` read as for the Kalman identifier. This file only converts and dispatches.
 
 use crate::convert::{array, finite, shape_str};
+use crate::guard::borrow;
 use crate::identify::PyIdentifier;
 use crate::model::PyLinearModel;
 use crate::structure::PyStructure;
 use crate::{core_err, VehidError};
+use numpy::{IntoPyArray, PyArray1};
 use pyo3::prelude::*;
-use vehid_core::identify::{BiasCompensatedVec, DynIdentifier, IvIdentifierVec, StructuredPrior, RING_VALUES};
+use vehid_core::identify::{
+    BiasCompensatedVec, DynIdentifier, IvIdentifierVec, NoiseEstimatingBclsVec, StructuredPrior, RING_VALUES,
+};
 use vehid_core::structure::Structure;
 
 /// Capacity of the refined instruments' predictor in the Python classes:
@@ -118,6 +122,40 @@ fn r_arg(r: Option<&Bound<'_, PyAny>>, ne: usize) -> PyResult<Vec<f64>> {
     Ok(a.data)
 }
 
+/// `delay` (≥ 1) and `lags` (default [`default_lags`]) of the instruments on `s`, checked
+/// against the predictor's and the ring's capacities.
+fn instrument_args(s: &Structure<f64>, delay: i128, lags: Option<i128>) -> PyResult<(usize, usize)> {
+    let delay = usize::try_from(delay)
+        .ok()
+        .filter(|&d| d >= 1)
+        .ok_or_else(|| VehidError::new_err(format!("`delay` must be an integer >= 1 (samples), got {delay}")))?;
+    let width = 2 * s.states() + s.inputs();
+    let lags = match lags {
+        None => default_lags(width),
+        Some(l) => {
+            usize::try_from(l).map_err(|_| VehidError::new_err(format!("`lags` must be an integer >= 0, got {l}")))?
+        }
+    };
+    if lags > 0 && lags.saturating_mul(width).saturating_add(1) > PREDICTOR {
+        return Err(VehidError::new_err(format!(
+            "`lags` = {lags} is too many for this model: lags × (2·{} states + {} inputs) + 1 must be at most \
+             {PREDICTOR}, so at most {} (or 0 for the plain delayed regressors)",
+            s.states(),
+            s.inputs(),
+            (PREDICTOR - 1) / width
+        )));
+    }
+    let slots = delay.saturating_add(lags.saturating_sub(1));
+    if slots.saturating_mul(width) > RING_VALUES {
+        return Err(VehidError::new_err(format!(
+            "`delay` = {delay} with `lags` = {lags} needs {slots} past samples of {width} values, more than the \
+             {RING_VALUES} values the identifier keeps: at most delay + lags - 1 = {} here",
+            RING_VALUES / width
+        )));
+    }
+    Ok((delay, lags))
+}
+
 /// The IV identifier with filters of `P` parameters and a predictor of capacity `Q`.
 fn iv_pq<const P: usize, const Q: usize>(
     s: Structure<f64>,
@@ -183,33 +221,7 @@ impl PyIVIdentifier {
         let target = Target::of(model)?;
         let s = target.structure()?;
         let (np, ne) = (s.params(), s.equations());
-        let delay = usize::try_from(delay)
-            .ok()
-            .filter(|&d| d >= 1)
-            .ok_or_else(|| VehidError::new_err(format!("`delay` must be an integer >= 1 (samples), got {delay}")))?;
-        let width = 2 * s.states() + s.inputs();
-        let lags = match lags {
-            None => default_lags(width),
-            Some(l) => usize::try_from(l)
-                .map_err(|_| VehidError::new_err(format!("`lags` must be an integer >= 0, got {l}")))?,
-        };
-        if lags > 0 && lags.saturating_mul(width).saturating_add(1) > PREDICTOR {
-            return Err(VehidError::new_err(format!(
-                "`lags` = {lags} is too many for this model: lags × (2·{} states + {} inputs) + 1 must be at most \
-                 {PREDICTOR}, so at most {} (or 0 for the plain delayed regressors)",
-                s.states(),
-                s.inputs(),
-                (PREDICTOR - 1) / width
-            )));
-        }
-        let slots = delay.saturating_add(lags.saturating_sub(1));
-        if slots.saturating_mul(width) > RING_VALUES {
-            return Err(VehidError::new_err(format!(
-                "`delay` = {delay} with `lags` = {lags} needs {slots} past samples of {width} values, more than the \
-                 {RING_VALUES} values the identifier keeps: at most delay + lags - 1 = {} here",
-                RING_VALUES / width
-            )));
-        }
+        let (delay, lags) = instrument_args(&s, delay, lags)?;
         let is_model = matches!(target, Target::Model(_));
         let (kind, p0_data) = prior_arg(p0, np, ne, is_model)?;
         let theta0 = match theta0 {
@@ -321,42 +333,138 @@ fn noise_arg(v: Option<&Bound<'_, PyAny>>, arg: &str, n: usize) -> PyResult<Vec<
 /// variable is refused).
 ///
 /// `state_noise_var`: Σ_w, the covariance of the state sensors' noise (state units²): a
-/// scalar, one per state, or (n, n). It must be known: too small leaves part of the bias, too
-/// large makes the corrected matrix indefinite (VehidError when the estimate is read).
-/// `deriv_noise_var`: Σ_v of the derivative sensors, needed only for structures whose
-/// regressors read `der(·)` (default 0). `r`: one variance per equation (weighs equations
-/// that share parameters). The estimate is solved when read (`theta`, `params`), from sums
-/// kept per sample (nothing stored); `update` returns NaN innovations, as BatchLeastSquares.
-/// `stats()` is not available (use IVIdentifier for standard errors). Pickles (every
-/// protocol), copies and deep-copies: a restored one continues bit for bit.
+/// scalar, one per state, or (n, n). Given, it must be right: too small leaves part of the
+/// bias, too large makes the corrected matrix indefinite (VehidError when the estimate is
+/// read). Or `"estimate"`: Σ_w diagonal (independent sensors), estimated from the same samples
+/// (Zheng's bias-eliminating idea: the least-squares normal equations' residual at a
+/// recursive instrumental-variable estimate run alongside, with instruments `delay` and
+/// `lags` as IVIdentifier's, is linear in the variances; a weighted non-negative least-squares
+/// fit gives them, `state_noise_var_estimate` reads them). Valid for white sensor noise; the
+/// states no parameterized term reads are not estimated (NaN), and states that always enter
+/// together are estimated only as that combination. `deriv_noise_var`: Σ_v of the derivative
+/// sensors, needed only for structures whose regressors read `der(·)` (default 0). `r`: one
+/// variance per equation (weighs equations that share parameters). The estimate is solved
+/// when read (`theta`, `params`), from sums kept per sample (nothing stored); `update` returns
+/// NaN innovations, as BatchLeastSquares. `stats()` is not available (use IVIdentifier for
+/// standard errors). Pickles (every protocol), copies and deep-copies: a restored one
+/// continues bit for bit.
 #[pyclass(name = "BiasCompensated", module = "vehid._vehid", extends = PyIdentifier)]
 pub struct PyBiasCompensated;
+
+/// The instruments `(delay, lags)` of a noise-estimating core, after writing its variances
+/// into `var` when given (`None`: the core is the plain bias-compensated one).
+fn estimating(inner: &dyn DynIdentifier<f64>, var: Option<&mut [f64]>) -> Option<vehid_core::Result<(usize, usize)>> {
+    fn read<const P: usize, const Q: usize>(
+        id: &NoiseEstimatingBclsVec<f64, P, Q>,
+        var: Option<&mut [f64]>,
+    ) -> vehid_core::Result<(usize, usize)> {
+        if let Some(v) = var {
+            id.state_noise_var_into(v)?;
+        }
+        Ok((id.instrumental().delay(), id.instrumental().lags()))
+    }
+    let any = inner.as_any();
+    macro_rules! try_p {
+        ($($p:literal),*) => {$(
+            if let Some(id) = any.downcast_ref::<NoiseEstimatingBclsVec<f64, $p, 0>>() {
+                return Some(read(id, var));
+            }
+            if let Some(id) = any.downcast_ref::<NoiseEstimatingBclsVec<f64, $p, PREDICTOR>>() {
+                return Some(read(id, var));
+            }
+        )*};
+    }
+    try_p!(2, 4, 8, 16, 32);
+    None
+}
 
 #[pymethods]
 impl PyBiasCompensated {
     #[new]
-    #[pyo3(signature = (model, state_noise_var, deriv_noise_var = None, r = None))]
+    #[pyo3(signature = (model, state_noise_var, deriv_noise_var = None, r = None, *, delay = None, lags = None))]
     fn py_new(
         model: &Bound<'_, PyAny>,
         state_noise_var: &Bound<'_, PyAny>,
         deriv_noise_var: Option<&Bound<'_, PyAny>>,
         r: Option<&Bound<'_, PyAny>>,
+        delay: Option<i128>,
+        lags: Option<i128>,
     ) -> PyResult<PyClassInitializer<Self>> {
         let target = Target::of(model)?;
         let s = target.structure()?;
         let n = s.states();
-        let sw = noise_arg(Some(state_noise_var), "state_noise_var", n)?;
         let sv = noise_arg(deriv_noise_var, "deriv_noise_var", n)?;
         let r = r_arg(r, s.equations())?;
-        let inner = match bucket(&s) {
-            2 => bc_p::<2>(s, &sw, &sv, &r),
-            4 => bc_p::<4>(s, &sw, &sv, &r),
-            8 => bc_p::<8>(s, &sw, &sv, &r),
-            16 => bc_p::<16>(s, &sw, &sv, &r),
-            _ => bc_p::<32>(s, &sw, &sv, &r),
+        let estimate = match state_noise_var.extract::<String>() {
+            Ok(text) if text == "estimate" => true,
+            Ok(other) => {
+                return Err(VehidError::new_err(format!(
+                    "unknown `state_noise_var` {other:?}: expected \"estimate\" or the variances (a scalar, one per \
+                     state, or ({n}, {n}))"
+                )))
+            }
+            Err(_) => false,
+        };
+        let inner = if estimate {
+            let (delay, lags) = instrument_args(&s, delay.unwrap_or(1), lags)?;
+            match bucket(&s) {
+                2 => ne_p::<2>(s, delay, lags, &sv, &r),
+                4 => ne_p::<4>(s, delay, lags, &sv, &r),
+                8 => ne_p::<8>(s, delay, lags, &sv, &r),
+                16 => ne_p::<16>(s, delay, lags, &sv, &r),
+                _ => ne_p::<32>(s, delay, lags, &sv, &r),
+            }
+        } else {
+            if delay.is_some() || lags.is_some() {
+                return Err(VehidError::new_err(
+                    "`delay` and `lags` set the instruments of state_noise_var=\"estimate\"; with the variances \
+                     given there are none",
+                ));
+            }
+            let sw = noise_arg(Some(state_noise_var), "state_noise_var", n)?;
+            match bucket(&s) {
+                2 => bc_p::<2>(s, &sw, &sv, &r),
+                4 => bc_p::<4>(s, &sw, &sv, &r),
+                8 => bc_p::<8>(s, &sw, &sv, &r),
+                16 => bc_p::<16>(s, &sw, &sv, &r),
+                _ => bc_p::<32>(s, &sw, &sv, &r),
+            }
         }
         .map_err(core_err)?;
         Ok(PyClassInitializer::from(target.wrap(inner)).add_subclass(Self))
+    }
+
+    /// True when Σ_w is estimated from the data (`state_noise_var="estimate"`).
+    #[getter]
+    fn estimates_noise(slf: &Bound<'_, Self>) -> PyResult<bool> {
+        let this = borrow(slf)?;
+        Ok(estimating(this.as_super().inner.as_ref(), None).is_some())
+    }
+
+    /// The instruments' `(delay, lags)` of `state_noise_var="estimate"` (None with Σ_w given).
+    #[getter]
+    fn instruments(slf: &Bound<'_, Self>) -> PyResult<Option<(usize, usize)>> {
+        let this = borrow(slf)?;
+        estimating(this.as_super().inner.as_ref(), None).transpose().map_err(core_err)
+    }
+
+    /// The estimated state-noise variances σ̂_j² (state units², (n,), ≥ 0; NaN for the states no
+    /// parameterized term reads), fitted now from the samples so far. VehidError with Σ_w given,
+    /// and while the instrumental estimate is starting.
+    fn state_noise_var_estimate<'py>(slf: &Bound<'py, Self>, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let this = borrow(slf)?;
+        let n = this.as_super().model.n;
+        let mut out = vec![0.0; n];
+        match estimating(this.as_super().inner.as_ref(), Some(&mut out)) {
+            None => Err(VehidError::new_err(
+                "this BiasCompensated was given state_noise_var; build it with state_noise_var=\"estimate\" to \
+                 estimate the variances from the data",
+            )),
+            Some(r) => {
+                r.map_err(core_err)?;
+                Ok(out.into_pyarray(py))
+            }
+        }
     }
 
     /// A copy with its own core.
@@ -372,10 +480,40 @@ impl PyBiasCompensated {
 
     fn __repr__(slf: PyRef<'_, Self>) -> String {
         let base = slf.as_super();
+        let noise = match estimating(base.inner.as_ref(), None) {
+            Some(Ok((d, l))) => format!("state_noise_var='estimate', delay={d}, lags={l}, "),
+            _ => String::new(),
+        };
         format!(
-            "BiasCompensated(unknown_rows={}, samples={})",
+            "BiasCompensated({noise}unknown_rows={}, samples={})",
             crate::convert::py_tuple(base.inner.rows()),
             base.inner.samples()
         )
+    }
+}
+
+/// Bias-compensated least squares with Σ_w estimated beside an IV identifier of `delay`,
+/// `lags` (exact start, weights `r`), filters of `P` parameters.
+fn ne_p<const P: usize>(
+    s: Structure<f64>,
+    delay: usize,
+    lags: usize,
+    sv: &[f64],
+    r: &[f64],
+) -> vehid_core::Result<Box<dyn DynIdentifier<f64>>> {
+    fn pq<const P: usize, const Q: usize>(
+        s: Structure<f64>,
+        delay: usize,
+        lags: usize,
+        sv: &[f64],
+        r: &[f64],
+    ) -> vehid_core::Result<Box<dyn DynIdentifier<f64>>> {
+        let iv = IvIdentifierVec::<f64, P, Q>::new(s, delay, StructuredPrior::Exact, None, r)?.with_lags(lags)?;
+        Ok(Box::new(NoiseEstimatingBclsVec::<f64, P, Q>::new(iv, sv)?))
+    }
+    if lags == 0 {
+        pq::<P, 0>(s, delay, lags, sv, r)
+    } else {
+        pq::<P, PREDICTOR>(s, delay, lags, sv, r)
     }
 }

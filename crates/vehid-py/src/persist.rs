@@ -5,7 +5,7 @@
 //! `KalmanIdentifier` its mode and form, for `StochasticGradient` its gain, for
 //! `TwoAxleIdentifier` its spacing, method and wheelbase (on a Structure also its `car` and
 //! `compensate`), for `IVIdentifier` its delay and lags; `BiasCompensated` is built with a
-//! zero noise covariance and `JointEKF` as a placeholder filter of the same sizes, which the
+//! zero noise covariance (or, estimating it, with its instruments) and `JointEKF` as a placeholder filter of the same sizes, which the
 //! saved core replaces), and `__setstate__` then replaces its core by the saved one. That works with
 //! every pickle protocol (0–5).
 //!
@@ -29,17 +29,17 @@ use pyo3::types::{PyBytes, PyDict, PyTuple};
 use serde::{Deserialize, Serialize};
 use vehid_core::identify::{
     BatchLeastSquares, BiasCompensatedVec, DynIdentifier, Dynamic, IvIdentifierVec, JointEkf, KalmanFull, KalmanRows,
-    KalmanShared, StochasticGradientVec, StructuredGradient, StructuredKalmanVec, TwoAxleIdentifierVec,
-    TwoAxleStructuredVec,
+    KalmanShared, NoiseEstimatingBclsVec, StochasticGradientVec, StructuredGradient, StructuredKalmanVec,
+    TwoAxleIdentifierVec, TwoAxleStructuredVec,
 };
 use vehid_core::Error;
 
 /// Version of the pickled state's layout. Raise it when the payload or any serialized core
 /// type changes in a way older readers (or this reader, for older payloads) cannot follow.
 /// 2: modes `shared` and `full` keep the outlier gate's statistics (issue 13).
-/// (`Core::Iv`, `Core::BiasCompensated`, `Core::JointEkf` and `Core::TwoAxleStructured` were
-/// added within format 2: new variants at the end of [`Core`] leave every older payload's
-/// encoding unchanged, so it still loads.)
+/// (`Core::Iv`, `Core::BiasCompensated`, `Core::JointEkf`, `Core::TwoAxleStructured` and
+/// `Core::NoiseEstimating` were added within format 2: new variants at the end of [`Core`]
+/// leave every older payload's encoding unchanged, so it still loads.)
 pub const FORMAT: u32 = 2;
 
 /// The concrete core type behind a Python identifier. Serialized by variant index: a new
@@ -70,6 +70,9 @@ enum Core {
     JointEkf(u8, u8),
     /// `TwoAxleStructuredVec<f64, P>` (a `TwoAxleIdentifier` on a Structure).
     TwoAxleStructured(u8),
+    /// `NoiseEstimatingBclsVec<f64, P, Q>` (a `BiasCompensated` with
+    /// `state_noise_var="estimate"`), `P` and `Q` as for `Iv`.
+    NoiseEstimating(u8, u8),
 }
 
 impl Core {
@@ -160,6 +163,12 @@ fn save_noisy(id: &dyn DynIdentifier<f64>) -> vehid_core::Result<Option<(Core, V
             if let Some(x) = any.downcast_ref::<BiasCompensatedVec<f64, $p>>() {
                 return encode(Core::BiasCompensated($p), x);
             }
+            if let Some(x) = any.downcast_ref::<NoiseEstimatingBclsVec<f64, $p, 0>>() {
+                return encode(Core::NoiseEstimating($p, 0), x);
+            }
+            if let Some(x) = any.downcast_ref::<NoiseEstimatingBclsVec<f64, $p, PREDICTOR>>() {
+                return encode(Core::NoiseEstimating($p, PREDICTOR as u8), x);
+            }
         )*};
     }
     try_p!(2, 4, 8, 16, 32);
@@ -225,6 +234,16 @@ fn load_noisy(core: Core, bytes: &[u8]) -> Option<Loaded> {
         Core::BiasCompensated(8) => decode::<BiasCompensatedVec<f64, 8>>(bytes),
         Core::BiasCompensated(16) => decode::<BiasCompensatedVec<f64, 16>>(bytes),
         Core::BiasCompensated(32) => decode::<BiasCompensatedVec<f64, 32>>(bytes),
+        Core::NoiseEstimating(2, 0) => decode::<NoiseEstimatingBclsVec<f64, 2, 0>>(bytes),
+        Core::NoiseEstimating(4, 0) => decode::<NoiseEstimatingBclsVec<f64, 4, 0>>(bytes),
+        Core::NoiseEstimating(8, 0) => decode::<NoiseEstimatingBclsVec<f64, 8, 0>>(bytes),
+        Core::NoiseEstimating(16, 0) => decode::<NoiseEstimatingBclsVec<f64, 16, 0>>(bytes),
+        Core::NoiseEstimating(32, 0) => decode::<NoiseEstimatingBclsVec<f64, 32, 0>>(bytes),
+        Core::NoiseEstimating(2, Q) => decode::<NoiseEstimatingBclsVec<f64, 2, PREDICTOR>>(bytes),
+        Core::NoiseEstimating(4, Q) => decode::<NoiseEstimatingBclsVec<f64, 4, PREDICTOR>>(bytes),
+        Core::NoiseEstimating(8, Q) => decode::<NoiseEstimatingBclsVec<f64, 8, PREDICTOR>>(bytes),
+        Core::NoiseEstimating(16, Q) => decode::<NoiseEstimatingBclsVec<f64, 16, PREDICTOR>>(bytes),
+        Core::NoiseEstimating(32, Q) => decode::<NoiseEstimatingBclsVec<f64, 32, PREDICTOR>>(bytes),
         _ => return None,
     })
 }
@@ -283,6 +302,7 @@ fn load_n<const N: usize>(core: Core, bytes: &[u8]) -> vehid_core::Result<Loaded
         | Core::StructuredGradient(_)
         | Core::Iv(..)
         | Core::BiasCompensated(_)
+        | Core::NoiseEstimating(..)
         | Core::JointEkf(..)
         | Core::TwoAxleStructured(_) => return Err(crate::dispatch::bad_dims()),
     })
@@ -342,7 +362,14 @@ fn blank_args<'py>(obj: &Bound<'py, PyIdentifier>) -> PyResult<(Bound<'py, PyTup
             kwargs.set_item("delay", obj.getattr("delay")?)?;
             kwargs.set_item("lags", obj.getattr("lags")?)?;
         } else if obj.is_instance_of::<PyBiasCompensated>() {
-            kwargs.set_item("state_noise_var", 0.0)?;
+            match obj.getattr("instruments")?.extract::<Option<(usize, usize)>>()? {
+                Some((delay, lags)) => {
+                    kwargs.set_item("state_noise_var", "estimate")?;
+                    kwargs.set_item("delay", delay)?;
+                    kwargs.set_item("lags", lags)?;
+                }
+                None => kwargs.set_item("state_noise_var", 0.0)?,
+            }
         } else if obj.is_instance_of::<PyJointEKF>() {
             // Any valid filter of the same sizes: the saved core replaces it.
             let (n, np) = {
@@ -426,7 +453,8 @@ pub fn set_state(obj: &Bound<'_, PyIdentifier>, state: &Bound<'_, PyAny>) -> PyR
     let class_fits = if obj.is_instance_of::<PyIVIdentifier>() {
         matches!(saved.core, Core::Iv(..))
     } else if obj.is_instance_of::<PyBiasCompensated>() {
-        matches!(saved.core, Core::BiasCompensated(_))
+        let estimates: bool = obj.getattr("estimates_noise")?.extract()?;
+        matches!((saved.core, estimates), (Core::BiasCompensated(_), false) | (Core::NoiseEstimating(..), true))
     } else if obj.is_instance_of::<PyJointEKF>() {
         matches!(saved.core, Core::JointEkf(..))
     } else if obj.is_instance_of::<PyTwoAxleIdentifier>() {
