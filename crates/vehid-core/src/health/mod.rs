@@ -93,7 +93,7 @@ mod rls;
 pub use event::{Constant, Estimate, Event, Reason, Status};
 pub use kinematic::DeflectionFilter;
 pub use monitor::{HealthConfig, HealthMonitor, CHANNELS, JUMP_GATE, MAX_DELAY, MIN_DEFLECTION_NOISE, STATE_CHANNELS};
-pub use rls::Rls3;
+pub use rls::{Rls, Rls3};
 
 #[cfg(test)]
 mod tests;
