@@ -86,14 +86,19 @@
 //! ([`HealthMonitor`], [`HealthConfig`]), `event.rs` ([`Event`], [`Status`], [`Estimate`]).
 
 mod event;
+mod half;
 mod kinematic;
 mod monitor;
+mod pattern;
 mod rls;
 
 pub use event::{Constant, Estimate, Event, Reason, Status};
+pub use half::{HalfEstimate, HalfHealthMonitor, HALF_CHANNELS, HALF_NAMED, HALF_STATE_CHANNELS};
 pub use kinematic::DeflectionFilter;
 pub use monitor::{HealthConfig, HealthMonitor, CHANNELS, JUMP_GATE, MAX_DELAY, MIN_DEFLECTION_NOISE, STATE_CHANNELS};
 pub use rls::{Rls, Rls3};
 
+#[cfg(test)]
+mod half_tests;
 #[cfg(test)]
 mod tests;

@@ -13,12 +13,14 @@ use nalgebra::SMatrix;
 /// wheel (m). `B` has `k11/m1` in row 1 and `k21/m2` in row 3 (0-based). Unknown rows
 /// 1, 3, 5, 7: 32 parameters, 4 of them structurally zero (row 1 at x2, ẋ2; row 3 at x1, ẋ1).
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct HalfCar<T> {
     p: HalfCarParams<T>,
 }
 
 /// The physical constants of a [`HalfCar`], in the order of the thesis (Eq 6.1–6.6).
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct HalfCarParams<T> {
     /// Front tyre stiffness, N/m.
     pub k11: T,
