@@ -26,7 +26,8 @@
 //!
 //! - `--car half`: the half car instead (`HalfCar::passenger`, `HalfDrive`, `HalfHealthMonitor`;
 //!   realistic sensors over both axles): front damper −10 %, rear damper −10 %, front spring
-//!   −10 %, rear spring −10 %, body mass +20 % (with the pitch inertia +20 %).
+//!   −10 %, rear spring −10 %, body mass +20 % (with the pitch inertia +20 %), and body mass
+//!   +20 % with `J` unchanged (outside the monitor's assumption that `J` scales with `M`).
 //!
 //! Usage: `health_experiment [--car quarter|half] [--seed0 N] [--seeds N] [--hours H] [--threshold h] [--window s] [--calibrate] [--vary] [--state-noise F]`.
 
@@ -372,6 +373,8 @@ fn main() {
             ("front spring -10 %", vec![("k2_f", 21_600.0)], "k2_f", 21_600.0, 24_000.0),
             ("rear spring -10 %", vec![("k2_r", 19_800.0)], "k2_r", 19_800.0, 22_000.0),
             ("body mass +20 % (J +20 %)", vec![("M", 768.0), ("J", 1248.0)], "M", 768.0, 640.0),
+            // Outside the monitor's assumption (J scales with M): a load at the centre of mass.
+            ("body mass +20 %, J unchanged", vec![("M", 768.0)], "M", 768.0, 640.0),
         ]
     } else {
         vec![
