@@ -53,6 +53,7 @@ pub struct HalfEstimate<T> {
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 enum Phase {
     Warmup,
     Monitoring,
@@ -85,7 +86,15 @@ fn patterns<T: Real>() -> [SVector<T, 8>; 5] {
 /// assert_eq!(mon.status(), Status::Warmup);
 /// assert!(mon.update(&[0.1, 0.2, f64::INFINITY, 0.1, 0.0, 0.0]).is_err()); // nothing changed
 /// ```
+///
+/// With the feature `serde` it is saved and restored (checked on load, as the quarter car's
+/// monitor: a corrupt input is an error, never a later panic).
 #[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+)]
 pub struct HalfHealthMonitor<T: Real> {
     cfg: HealthConfig<T, HalfCar<T>>,
     n_warm: u64,
@@ -94,7 +103,9 @@ pub struct HalfHealthMonitor<T: Real> {
     n_reacq: u64,
     z: T,
     kf: [DeflectionFilter<T>; 2],
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::array2"))]
     ring: [[T; 6]; MAX_DELAY],
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::array"))]
     ring_k: [u64; MAX_DELAY],
     head: usize,
     len: usize,
@@ -179,6 +190,31 @@ impl<T: Real> HalfHealthMonitor<T> {
             events: 0,
             cfg,
         })
+    }
+
+    /// Checks a deserialized monitor (feature `serde`): its settings as
+    /// [`HalfHealthMonitor::new`] checks them, the delay line's indices, finite statistics
+    /// and positive constants.
+    #[cfg(feature = "serde")]
+    pub(crate) fn restored(&mut self) -> Result<()> {
+        let fresh = Self::new(self.cfg)?;
+        let corrupt =
+            crate::Error::InvalidArgument { arg: "state", expected: "a half-car health monitor's saved state" };
+        if self.head >= MAX_DELAY || self.len >= self.cfg.stuck_samples || self.run.iter().any(|&r| r > MAX_DELAY) {
+            return Err(corrupt);
+        }
+        if fresh.n_warm != self.n_warm || fresh.n_burn != self.n_burn || fresh.n_settle != self.n_settle {
+            return Err(corrupt);
+        }
+        let finite = |v: &T| v.to_f64().is_finite();
+        let stats = [self.e2_sum[0][0], self.e2_sum[1][1], self.e1_sum[0], self.e1_sum[1], self.inflate, self.z];
+        if !stats.iter().all(finite)
+            || !self.sigma.iter().flatten().all(finite)
+            || !self.belief.iter().all(|v| finite(v) && *v > T::zero())
+        {
+            return Err(corrupt);
+        }
+        Ok(())
     }
 
     /// The settings.

@@ -211,3 +211,28 @@ fn state_sensors_detect_a_rear_damper_change() {
     assert_eq!(events.len(), 1, "{events:?}");
     assert_eq!(events[0].parameter, HalfConstant::RearDamper);
 }
+
+#[test]
+fn a_saved_half_monitor_continues_bit_for_bit_and_a_corrupt_one_is_refused() {
+    let car = HalfCar::<f64>::passenger();
+    let cfg = HalfDriveConfig::new(DriveConfig::new(0.005))
+        .with_change(HalfChange::step(40.0, "b_f", 1440.0).unwrap())
+        .unwrap();
+    let mut drive = HalfDrive::new(car, cfg, 21).unwrap();
+    let mut mon = HalfHealthMonitor::new(HealthConfig::new(0.005, car)).unwrap();
+    for _ in 0..(30.0 / 0.005) as usize {
+        mon.update(drive.next_sample().y()).unwrap();
+    }
+    let bytes = postcard::to_allocvec(&mon).unwrap();
+    let mut back: HalfHealthMonitor<f64> = postcard::from_bytes(&bytes).unwrap();
+    assert_eq!(back, mon);
+    for _ in 0..(40.0 / 0.005) as usize {
+        let y = drive.next_sample();
+        assert_eq!(mon.update(y.y()).unwrap(), back.update(y.y()).unwrap());
+    }
+    assert_eq!(back, mon);
+    assert_eq!(mon.events(), 1);
+    let mut json = serde_json::to_value(&mon).unwrap();
+    json["head"] = serde_json::json!(99);
+    assert!(serde_json::from_value::<HalfHealthMonitor<f64>>(json).is_err());
+}
