@@ -80,10 +80,11 @@ BENCHES = [
     "quarter_nebcls_rows",          # update_f64/quarter/nebcls_rows (issue 15: Sigma_w estimated)
     "half_two_axle_physical",       # update_f64/half/two_axle_physical (issue 14: road cancellation, physical)
     "quarter_health",               # health/monitor_update_f64 (issue 17; binary count_health)
+    "half_health",                  # health/half_monitor_update_f64 (issue 17, half car; binary count_health)
 ]
 # Benches counted by a binary other than count_updates (kept apart so that their code does not
 # change how count_updates is compiled).
-OTHER_BINARIES = {"quarter_health": "count_health"}
+OTHER_BINARIES = {"quarter_health": "count_health", "half_health": "count_health"}
 
 
 @dataclass

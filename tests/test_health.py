@@ -127,9 +127,10 @@ def test_a_bad_drive_is_a_clear_error(kwargs: Dict[str, Any], match: str) -> Non
         vehid.Simulator(CAR, dt=DT, **kwargs)
 
 
-def test_only_the_quarter_car_drives() -> None:
-    with pytest.raises(vehid.VehidError, match="simulates a vehid.QuarterCar"):
-        vehid.Simulator(vehid.HalfCar(), road="iso8608-C")
+def test_only_the_quarter_and_half_car_drive() -> None:
+    model = vehid.LinearModel(np.array([[0.0, 1.0], [-1.0, -1.0]]), np.array([0.0, 1.0]), [1])
+    with pytest.raises(vehid.VehidError, match="simulates a vehid.QuarterCar or a vehid.HalfCar"):
+        vehid.Simulator(model, road="iso8608-C")
 
 
 # --- the monitor --------------------------------------------------------------------------
@@ -217,7 +218,8 @@ def test_missing_samples_cannot_be_judged_and_raise_nothing(damper_run: vehid.Ru
 
 
 @pytest.mark.parametrize("kwargs, match", [
-    (dict(car=vehid.HalfCar()), "must be a vehid.QuarterCar"),
+    (dict(car=vehid.LinearModel(np.array([[0.0, 1.0], [-1.0, -1.0]]), np.array([0.0, 1.0]), [1])),
+     "must be a vehid.QuarterCar or a vehid.HalfCar"),
     (dict(dt=0.0), "dt"),
     (dict(sensors="gps"), "sensors"),
     (dict(window=0.01), "window"),
@@ -315,7 +317,7 @@ def test_vehid_monitor_nominal_car_from_the_command_line(tmp_path: Path, damper_
     ("backwards", [], "does not increase"),
     ("jitter", [], "under half the sample interval"),
     ("no_time", [], "no time column t: give the sample interval with --dt"),
-    ("fine", ["--model", "half"], "covers the quarter car"),
+    ("fine", ["--model", "half"], "has no column a_body_f"),
     ("fine", ["--car", "q=1"], "--car q=1"),
     ("fine", ["--sensors", "state"], "has no column zw"),
 ])
@@ -441,3 +443,76 @@ def test_vehid_simulate_writes_a_drive_with_its_truth(tmp_path: Path, capsys: py
     assert (data["true_b"] == 30.0).all() and (data["true_M"] == 10.0).all()
     k2 = data["true_k2"]
     assert k2[0] == 50.0 and k2[-1] == 40.0 and 40.0 < k2[300] < 50.0  # the ramp from 1 s to 2 s
+
+
+# --- the half car ---------------------------------------------------------------------------
+
+HALF = vehid.HalfCar.passenger()
+
+
+def half_drive(seconds: float, changes: Optional[List[Tuple[float, Dict[str, float]]]] = None, seed: int = 1,
+               sensors: Literal["realistic", "state"] = "realistic") -> vehid.Run:
+    sim = vehid.Simulator(HALF, dt=DT, road="iso8608-C", speed=15.0, changes=changes, sensors=sensors, seed=seed)
+    return sim.run(int(round(seconds / DT)))
+
+
+def test_a_half_car_drive_has_both_axles_and_the_rear_follows_the_front() -> None:
+    run = half_drive(20.0, seed=3)
+    n = len(run)
+    assert run.channels == ("a_body_f", "a_body_r", "a_wheel_f", "a_wheel_r", "deflection_f", "deflection_r")
+    assert run.y.shape == (n, 6) and run.x.shape == (n, 8) and run.u.shape == (n, 2)
+    assert run.constants is not None and run.constants.shape == (n, 12)
+    # The rear wheel meets the front wheel's road a wheelbase (2.7 m = 36 samples at 15 m/s) later.
+    np.testing.assert_allclose(run.u[36:, 1], run.u[:-36, 0], rtol=0, atol=1e-12)
+    # The deflection sensors read the corners' extensions (+ 0.3 mm noise).
+    x = run.x
+    e = run.y[:, 4] - (x[:, 4] + 1.2 * x[:, 6] - x[:, 0])
+    assert 0.27e-3 < np.std(e) < 0.33e-3
+    state = half_drive(1.0, sensors="state")
+    assert len(state.channels) == 16 and state.r.shape == (200, 8)
+
+
+def test_half_car_monitor_names_the_front_damper_and_pickles() -> None:
+    run = half_drive(100.0, changes=[(40.0, {"b_f": 1440.0})], seed=21)
+    mon = vehid.HealthMonitor(HALF, dt=DT)
+    assert mon.channels == run.channels
+    events = mon.fit(run.y[:6000])
+    assert events == [] and mon.status == "monitoring"
+    ref = mon.reference
+    assert ref is not None and len(ref["front"]) == 5 and len(mon.estimate["rear"]) == 5
+    twin = pickle.loads(pickle.dumps(mon))
+    events = mon.fit(run.y[6000:])
+    assert [e.parameter for e in events] == ["b_f"]
+    assert abs(events[0].change + 0.10) < 0.03 and 40.0 < events[0].t < 60.0
+    assert mon.constants["b_f"] == events[0].after and mon.constants["M"] == 640.0
+    assert twin.fit(run.y[6000:]) == events  # a restored monitor continues bit for bit
+    assert pickle.loads(pickle.dumps(events[0])) == events[0]
+
+
+def test_half_car_body_mass_and_bad_input() -> None:
+    run = half_drive(100.0, changes=[(40.0, {"M": 768.0, "J": 1248.0})], seed=23)
+    mon = vehid.HealthMonitor(HALF, dt=DT)
+    events = mon.fit(run.y)
+    assert [e.parameter for e in events] == ["M"] and abs(events[0].change - 0.20) < 0.03
+    with pytest.raises(vehid.VehidError, match=r"shape \(6,\)"):
+        mon.update(np.zeros(3))
+    before = pickle.dumps(mon)
+    with pytest.raises(vehid.VehidError, match="infinite"):
+        mon.fit(np.full((3, 6), np.inf))
+    assert pickle.dumps(mon) == before
+    with pytest.raises(vehid.VehidError, match="b_f"):
+        vehid.Simulator(HALF, road="iso8608-C", changes=[(1.0, {"b": 1.0})])
+
+
+def test_vehid_monitor_model_half(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    run = half_drive(100.0, changes=[(40.0, {"k2_r": 19_800.0})], seed=22)
+    log = tmp_path / "half.csv"
+    header = "t," + ",".join(run.channels)
+    np.savetxt(log, np.column_stack([run.t, run.y]), delimiter=",", header=header, comments="")
+    assert cli.main(["monitor", str(log), "--model", "half", "--json"]) == 0
+    out = capsys.readouterr().out.strip().splitlines()
+    assert len(out) == 1
+    ev = json.loads(out[0])
+    assert ev["parameter"] == "k2_r" and ev["name"] == "rear spring" and ev["before"] == 22_000.0
+    assert cli.main(["monitor", str(log), "--model", "half", "--plot", str(tmp_path / "x.png")]) == 2
+    assert "no plot" in capsys.readouterr().err

@@ -128,6 +128,8 @@ class HalfCar(LinearModel):
         l1: float = 2.0,
         l2: float = 1.0,
     ) -> HalfCar: ...
+    @classmethod
+    def passenger(cls) -> Self: ...
     @property
     def params(self) -> dict[str, float]: ...
     @property
@@ -583,11 +585,11 @@ class Event:
 
 @final
 class HealthMonitor:
-    """The suspension health monitor of a quarter car: which constant changed, when, to what."""
+    """The suspension health monitor of a quarter or half car: which constant changed, when, to what."""
 
     def __new__(
         cls,
-        car: QuarterCar,
+        car: Union[QuarterCar, HalfCar],
         dt: float = 0.005,
         sensors: _Sensors = "realistic",
         sensor_noise: Optional[Dict[str, float]] = None,
@@ -614,9 +616,9 @@ class HealthMonitor:
     @property
     def constants(self) -> dict[str, float]: ...
     @property
-    def estimate(self) -> dict[str, Tuple[float, float, float]]: ...
+    def estimate(self) -> dict[str, Any]: ...
     @property
-    def reference(self) -> Optional[dict[str, float]]: ...
+    def reference(self) -> Optional[dict[str, Any]]: ...
     @property
     def dt(self) -> float: ...
     @property

@@ -22,12 +22,12 @@ import json
 import math
 import sys
 from dataclasses import dataclass, field
-from typing import IO, Any, Callable, Dict, List, Literal, Optional, Sequence, Tuple
+from typing import IO, Any, Callable, Dict, List, Literal, Optional, Sequence, Tuple, Union
 
 import numpy as np
 from numpy.typing import NDArray
 
-from . import Event, HealthMonitor, QuarterCar
+from . import Event, HalfCar, HealthMonitor, QuarterCar
 from .io import Column, Table, TableError, match_columns, open_table, parse_column_map
 
 #: Samples read per chunk.
@@ -55,10 +55,33 @@ SENSOR_COLUMNS: Dict[str, Tuple[Column, ...]] = {
     ),
 }
 
-#: What each named constant is, and its unit, for the printed lines.
-PARAMETERS = {"b": ("damper", "N s/m"), "k2": ("spring", "N/m"), "M": ("body mass", "kg")}
+#: The half car's channels (``--model half``).
+HALF_SENSOR_COLUMNS: Dict[str, Tuple[Column, ...]] = {
+    "realistic": (
+        Column("a_body_f", None, "m/s^2"),
+        Column("a_body_r", None, "m/s^2"),
+        Column("a_wheel_f", None, "m/s^2"),
+        Column("a_wheel_r", None, "m/s^2"),
+        Column("deflection_f", None, "m"),
+        Column("deflection_r", None, "m"),
+    ),
+    "state": tuple(
+        Column(name, None, unit)
+        for name, unit in zip(
+            ("z1", "v1", "z2", "v2", "zb", "vb", "ph", "om", "dz1", "dv1", "dz2", "dv2", "dzb", "dvb", "dph", "dom"),
+            ("m", "m/s", "m", "m/s", "m", "m/s", "rad", "rad/s", "m/s", "m/s^2", "m/s", "m/s^2", "m/s", "m/s^2",
+             "rad/s", "rad/s^2"),
+        )
+    ),
+}
 
-CARS = {"quarter": QuarterCar, "passenger": QuarterCar.passenger}
+#: What each named constant is, and its unit, for the printed lines.
+PARAMETERS = {"b": ("damper", "N s/m"), "k2": ("spring", "N/m"), "M": ("body mass", "kg"),
+              "b_f": ("front damper", "N s/m"), "b_r": ("rear damper", "N s/m"),
+              "k2_f": ("front spring", "N/m"), "k2_r": ("rear spring", "N/m")}
+
+CARS: Dict[str, Callable[[], Union[QuarterCar, HalfCar]]] = {
+    "quarter": QuarterCar, "passenger": QuarterCar.passenger, "half": HalfCar.passenger}
 
 
 def parse_change(text: str) -> Tuple[float, Dict[str, float], float]:
@@ -96,7 +119,9 @@ def drive_car(text: Optional[str]) -> QuarterCar:
     base = "passenger"
     if tokens and tokens[0] in ("passenger", "thesis"):
         base = tokens.pop(0)
-    return nominal_car("quarter" if base == "thesis" else "passenger", ",".join(tokens) or None)
+    car = nominal_car("quarter" if base == "thesis" else "passenger", ",".join(tokens) or None)
+    assert isinstance(car, QuarterCar)
+    return car
 
 
 def cmd_simulate_drive(args: argparse.Namespace) -> int:
@@ -151,17 +176,19 @@ def _cli_error(message: str) -> Exception:
     return CliError(message)
 
 
-def nominal_car(model: str, constants: Optional[str]) -> QuarterCar:
-    """The nominal car of ``--model`` with ``--car`` overrides (``"M=320,b=1500"``).
+def nominal_car(model: str, constants: Optional[str]) -> Union[QuarterCar, HalfCar]:
+    """The nominal car of ``--model`` with ``--car`` overrides (``"M=320,b=1500"``; the half
+    car's constants by their thesis names, ``"b1=1500,k22=21000"``).
 
-    >>> nominal_car("passenger", "b=1400").params["b"]
-    1400.0
+    >>> nominal_car("passenger", "b=1400").params["b"], nominal_car("half", "b1=1500").params["b1"]
+    (1400.0, 1500.0)
     """
     if model not in CARS:
-        if model == "half" or model.endswith(".toml"):
+        if model.endswith(".toml"):
             raise _cli_error(f"--model {model}: the health monitor covers the quarter car (--model quarter or "
-                             "passenger, with --car for your car's constants); the half car's is not there yet")
-        raise _cli_error(f"--model {model}: choose quarter (the thesis' car) or passenger (a typical passenger car)")
+                             "passenger) and the half car (--model half), with --car for your car's constants")
+        raise _cli_error(f"--model {model}: choose quarter (the thesis' car), passenger (a typical passenger car) "
+                         "or half (a typical passenger half car)")
     params = dict(CARS[model]().params)
     for item in (constants or "").split(","):
         if not item.strip():
@@ -175,7 +202,7 @@ def nominal_car(model: str, constants: Optional[str]) -> QuarterCar:
             params[name] = float(value)
         except ValueError:
             raise _cli_error(f"--car {constants}: {name}={value.strip()!r} is not a number") from None
-    return QuarterCar(**params)
+    return HalfCar(**params) if model == "half" else QuarterCar(**params)
 
 
 @dataclass
@@ -218,8 +245,9 @@ class Feeder:
             self.print_event(ev)
         est = self.mon.estimate
         self.record.t.append(self.t0 + self.mon.samples * self.mon.dt)
-        self.record.k2m.append(est["k2/M"])
-        self.record.bm.append(est["b/M"])
+        none = (math.nan, math.nan, math.nan)
+        self.record.k2m.append(est.get("k2/M", none))  # the quarter car's ratios (the plot)
+        self.record.bm.append(est.get("b/M", none))
         self.record.status.append(self.mon.status)
 
     def print_event(self, ev: Event) -> None:
@@ -269,7 +297,10 @@ def cmd_monitor(args: argparse.Namespace) -> int:
         raise _cli_error(str(e)) from None
     settings = {k: getattr(args, k) for k in ("window", "warmup", "min_change", "threshold", "confidence")
                 if getattr(args, k) is not None}
-    channels = SENSOR_COLUMNS[sensors]
+    half = isinstance(car, HalfCar)
+    if half and args.plot:
+        raise _cli_error("--plot draws the quarter car's tracked ratios; the half car's monitor has no plot yet")
+    channels = (HALF_SENSOR_COLUMNS if half else SENSOR_COLUMNS)[sensors]
     columns = (Column("t", "time", "s"),) + channels
     with open_table(args.file, delimiter=args.delimiter) as table:
         match = match_columns(table.names, columns, mapping, where=table.source)
@@ -352,7 +383,7 @@ def summary(feeder: Feeder, source: str, samples: int, out: IO[str]) -> None:
           + f"; now {mon.status}", file=out, flush=True)
 
 
-def plot(feeder: Feeder, car: QuarterCar, path: str) -> None:
+def plot(feeder: Feeder, car: Union[QuarterCar, HalfCar], path: str) -> None:
     """The tracked ratios with their 95 % bands, the times the monitor could not judge
     (grey) and the events (vertical lines), into ``path`` (PNG, with the plot extra)."""
     try:
@@ -399,7 +430,9 @@ def plot(feeder: Feeder, car: QuarterCar, path: str) -> None:
 DESCRIPTION = (
     "Runs the suspension health monitor over a log and prints one line per change it finds: which constant "
     "(b damper, k2 spring, M body mass), when, from what to what, with a 95 % interval. Only k2/M and b/M are "
-    "observable without a road measurement: equal relative changes of both are the body mass. Missing values "
+    "observable without a road measurement: equal relative changes of both are the body mass. With --model half "
+    "(columns a_body_f, a_body_r, a_wheel_f, a_wheel_r, deflection_f, deflection_r) it names b_f, b_r, k2_f, k2_r "
+    "or M (with J scaled alike). Missing values "
     "(nan) and gaps in the time column make the monitor 'cannot judge' for a while, never report. A summary "
     "goes to stderr."
 )
@@ -409,8 +442,11 @@ def add_arguments(p: argparse.ArgumentParser, delimiter: Callable[[str], str]) -
     """The options of ``vehid monitor`` (``delimiter``: the parser of ``--delimiter``)."""
     p.add_argument("file", metavar="FILE", help="CSV or Parquet log, '-' for stdin (CSV)")
     p.add_argument("--model", default="quarter", metavar="MODEL",
-                   help="the nominal car: quarter (the thesis' values, default) or passenger (M=320 kg, m=40 kg, "
-                        "k1=200 kN/m, k2=22 kN/m, b=1500 N s/m); --car overrides its constants")
+                   help="the nominal car: quarter (the thesis' values, default), passenger (M=320 kg, m=40 kg, "
+                        "k1=200 kN/m, k2=22 kN/m, b=1500 N s/m) or half (a passenger half car: M=640 kg, "
+                        "J=1040 kg m^2, l1=1.2 m, l2=1.5 m, k12/k22=24/22 kN/m, b1/b2=1600/1400 N s/m; columns "
+                        "a_body_f, a_body_r, a_wheel_f, a_wheel_r, deflection_f, deflection_r); --car overrides "
+                        "its constants")
     p.add_argument("--car", default=None, metavar="CONSTANTS",
                    help="your car's nominal constants, e.g. M=320,k2=22000,b=1500 (kg, N/m, N s/m): the 'before' "
                         "of the first events")
@@ -434,6 +470,7 @@ def add_arguments(p: argparse.ArgumentParser, delimiter: Callable[[str], str]) -
 
 
 __all__: Sequence[str] = [
-    "DESCRIPTION", "SENSOR_COLUMNS", "add_arguments", "cmd_monitor", "cmd_simulate_drive", "drive_car", "nominal_car",
+    "DESCRIPTION", "HALF_SENSOR_COLUMNS", "SENSOR_COLUMNS", "add_arguments", "cmd_monitor", "cmd_simulate_drive",
+    "drive_car", "nominal_car",
     "parse_change",
 ]

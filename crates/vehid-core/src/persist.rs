@@ -347,6 +347,9 @@ mod impls {
     checked!("HealthMonitor", [T: Real] crate::health::HealthMonitor<T>,
         ser: [T: Serialize], de: [T: Deserialize<'de>]);
 
+    checked!("HalfHealthMonitor", [T: Real] crate::health::HalfHealthMonitor<T>,
+        ser: [T: Serialize], de: [T: Deserialize<'de>]);
+
     checked!("TwoAxle",
         [T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<T, N>>] TwoAxle<T, N, P, S, B>,
         ser: [T: Serialize, S::Group: Serialize],

@@ -1,13 +1,14 @@
 //! The drive and the health monitor allocate nothing per sample: a whole scenario (warm-up,
 //! a damper ramp rebuilt every sample, an alarm, settling, the event, a gap of NaN rows, a
-//! stuck channel, reacquiring) runs under a counting allocator with zero allocations.
+//! stuck channel, reacquiring) runs under a counting allocator with zero allocations; the
+//! same for the half car's drive (its road history ring) and monitor.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
-use vehid_core::health::{HealthConfig, HealthMonitor};
-use vehid_core::model::QuarterCar;
-use vehid_core::sim::{Change, DriveConfig, QuarterDrive};
+use vehid_core::health::{HalfHealthMonitor, HealthConfig, HealthMonitor};
+use vehid_core::model::{HalfCar, QuarterCar};
+use vehid_core::sim::{Change, DriveConfig, HalfChange, HalfDrive, HalfDriveConfig, QuarterDrive};
 
 struct Counting;
 
@@ -54,4 +55,31 @@ fn a_whole_monitoring_scenario_allocates_nothing() {
     }
     assert_eq!(allocs() - before, 0);
     assert!(events >= 1, "the damper ramp (-20 %) was not reported");
+}
+
+#[test]
+fn a_whole_half_car_scenario_allocates_nothing() {
+    let car = HalfCar::<f64>::passenger();
+    let cfg = HalfDriveConfig::new(DriveConfig::new(0.005))
+        .with_change(HalfChange::ramp(30.0, "b_r", 1120.0, 5.0).unwrap())
+        .unwrap();
+    let mut drive = HalfDrive::new(car, cfg, 4242).unwrap();
+    let mut mon = HalfHealthMonitor::new(HealthConfig::new(0.005, car)).unwrap();
+    let before = allocs();
+    let mut events = 0;
+    for k in 0..(80.0 / 0.005) as usize {
+        let s = drive.next_sample();
+        let mut y = [0.0; 6];
+        y.copy_from_slice(s.y());
+        if (12_000..12_400).contains(&k) {
+            y = [f64::NAN; 6];
+        } else if (13_000..13_100).contains(&k) {
+            y[4] = 0.01;
+        }
+        if mon.update(&y).unwrap().is_some() {
+            events += 1;
+        }
+    }
+    assert_eq!(allocs() - before, 0);
+    assert!(events >= 1, "the rear damper ramp (-20 %) was not reported");
 }

@@ -1,14 +1,16 @@
-//! `Simulator(car, road="iso8608-C", speed=, changes=, sensors=)`: a quarter-car drive on an
-//! ISO 8608 road with parameter changes and a sensor set (issue 17), the core's
-//! [`QuarterDrive`]. Conversion and validation only; the core simulates.
+//! `Simulator(car, road="iso8608-C", speed=, changes=, sensors=)`: a quarter-car or half-car
+//! drive on an ISO 8608 road with parameter changes and a sensor set (issue 17), the core's
+//! [`QuarterDrive`] and [`HalfDrive`]. Conversion and validation only; the core simulates.
 
 use crate::convert::{py_str, speed_arg};
 use crate::model::{Kind, PyLinearModel};
 use crate::{core_err, option, VehidError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
-use vehid_core::model::QuarterCar;
-use vehid_core::sim::{Change, DriveConfig, QuarterDrive, RoadClass, SensorNoise, SensorSet, MAX_CHANGES};
+use vehid_core::sim::{
+    Change, DriveConfig, HalfChange, HalfDrive, HalfDriveConfig, QuarterDrive, RoadClass, SensorNoise, SensorSet,
+    MAX_CHANGES,
+};
 use vehid_core::{Error, Result};
 
 /// Samples simulated between two looks at pending signals.
@@ -22,16 +24,26 @@ pub struct DriveRun {
     pub xdot: Vec<f64>,
     pub u: Vec<f64>,
     pub y: Vec<f64>,
-    /// The constants in effect per sample `[M, m, k1, k2, b]`.
+    /// The constants in effect per sample (quarter car `[M, m, k1, k2, b]`, half car
+    /// `HalfCar::CONSTANTS`).
     pub constants: Vec<f64>,
     pub len: usize,
     pub channels: usize,
+    /// States, inputs and constants per sample (4, 1, 5 or 8, 2, 12).
+    pub dims: [usize; 3],
+}
+
+/// The drive of either car.
+#[derive(Clone)]
+pub enum AnyDrive {
+    Quarter(Box<QuarterDrive<f64>>),
+    Half(Box<HalfDrive<f64>>),
 }
 
 /// A drive with its speed profile.
 #[derive(Clone)]
 pub struct DriveSim {
-    pub drive: QuarterDrive<f64>,
+    pub drive: AnyDrive,
     /// Per-sample speeds, m/s (empty: the configured constant speed).
     speeds: Vec<f64>,
     next: usize,
@@ -65,14 +77,12 @@ impl DriveSim {
         seed: u64,
         unused: Unused<'_>,
     ) -> PyResult<Self> {
-        let car: QuarterCar<f64> =
-            match model.kind {
-                Kind::Quarter(c) => c,
-                _ => return Err(VehidError::new_err(
-                    "a drive (road='iso8608-A'..'iso8608-E', changes=, sensors=) simulates a vehid.QuarterCar; the \
-                     half car runs on the thesis' road (speed=, spacing=, road='white' or 'independent')",
-                )),
-            };
+        if !matches!(model.kind, Kind::Quarter(_) | Kind::Half(_)) {
+            return Err(VehidError::new_err(
+                "a drive (road='iso8608-A'..'iso8608-E', changes=, sensors=) simulates a vehid.QuarterCar or a \
+                 vehid.HalfCar",
+            ));
+        }
         for (given, name) in [
             (unused.road_sigma, "road_sigma"),
             (unused.ic_sigma != 0.0, "ic_sigma"),
@@ -114,17 +124,59 @@ impl DriveSim {
                 speeds[i]
             )));
         }
-        let mut cfg = DriveConfig::new(dt).road(road).speed(speed).sensors(sensors).noise(noise);
-        for c in parse_changes(changes)? {
-            cfg = cfg.with_change(c).map_err(core_err)?;
-        }
-        let drive = QuarterDrive::new(car, cfg, seed).map_err(core_err)?;
+        let base = DriveConfig::new(dt).road(road).speed(speed).sensors(sensors).noise(noise);
+        let changes = parse_changes(changes)?;
+        let bad = |e: vehid_core::Error| VehidError::new_err(format!("`changes`: {e}"));
+        let drive = match model.kind {
+            Kind::Half(car) => {
+                let mut cfg = HalfDriveConfig::new(base);
+                for (t, name, v, ramp) in changes {
+                    cfg = cfg.with_change(HalfChange::ramp(t, &name, v, ramp).map_err(bad)?).map_err(core_err)?;
+                }
+                AnyDrive::Half(Box::new(HalfDrive::new(car, cfg, seed).map_err(core_err)?))
+            }
+            Kind::Quarter(car) => {
+                let mut cfg = base;
+                for (t, name, v, ramp) in changes {
+                    cfg = cfg.with_change(Change::ramp(t, &name, v, ramp).map_err(bad)?).map_err(core_err)?;
+                }
+                AnyDrive::Quarter(Box::new(QuarterDrive::new(car, cfg, seed).map_err(core_err)?))
+            }
+            Kind::Generic => unreachable!("checked above"),
+        };
         Ok(Self { drive, speeds, next: 0 })
+    }
+
+    /// Samples produced so far.
+    pub fn k(&self) -> u64 {
+        match &self.drive {
+            AnyDrive::Quarter(d) => d.k(),
+            AnyDrive::Half(d) => d.k(),
+        }
+    }
+
+    /// The drive's settings (road, speed, sensors, noise).
+    pub fn config(&self) -> &DriveConfig<f64> {
+        match &self.drive {
+            AnyDrive::Quarter(d) => d.config(),
+            AnyDrive::Half(d) => &d.config().base,
+        }
+    }
+
+    /// States, inputs and constants per sample.
+    pub fn dims(&self) -> [usize; 3] {
+        match &self.drive {
+            AnyDrive::Quarter(_) => [4, 1, 5],
+            AnyDrive::Half(_) => [8, 2, 12],
+        }
     }
 
     /// The sensor channel names.
     pub fn channels(&self) -> &'static [&'static str] {
-        self.drive.channels()
+        match &self.drive {
+            AnyDrive::Quarter(d) => d.channels(),
+            AnyDrive::Half(d) => d.channels(),
+        }
     }
 
     /// Simulates `n` more samples, all or nothing (an error or an interrupt puts the drive
@@ -141,7 +193,8 @@ impl DriveSim {
             });
         }
         let c = self.channels().len();
-        let bytes = n.checked_mul(1 + 1 + 4 + 4 + 1 + c + 5).and_then(|v| v.checked_mul(8));
+        let dims @ [ns, ni, nc] = self.dims();
+        let bytes = n.checked_mul(1 + 1 + 2 * ns + ni + c + nc).and_then(|v| v.checked_mul(8));
         let oom = Error::OutOfMemory { what: "the simulated drive", bytes: bytes.unwrap_or(usize::MAX) };
         if bytes.is_none_or(|b| b > isize::MAX as usize) {
             return Err(oom);
@@ -156,15 +209,16 @@ impl DriveSim {
             constants: vec![],
             len: n,
             channels: c,
+            dims,
         };
         for (v, w) in [
             (&mut out.t, 1),
             (&mut out.s, 1),
-            (&mut out.x, 4),
-            (&mut out.xdot, 4),
-            (&mut out.u, 1),
+            (&mut out.x, ns),
+            (&mut out.xdot, ns),
+            (&mut out.u, ni),
             (&mut out.y, c),
-            (&mut out.constants, 5),
+            (&mut out.constants, nc),
         ] {
             v.try_reserve_exact(n * w).map_err(|_| oom.clone())?;
         }
@@ -174,26 +228,48 @@ impl DriveSim {
                 *self = start;
                 return Err(Error::Interrupted);
             }
-            let sample = if self.speeds.is_empty() {
-                self.drive.next_sample()
+            let speed = if self.speeds.is_empty() {
+                None
             } else {
-                let v = self.speeds[self.next];
                 self.next += 1;
-                match self.drive.next_sample_at(v) {
-                    Ok(s) => s,
-                    Err(e) => {
-                        *self = start;
-                        return Err(e);
-                    }
+                Some(self.speeds[self.next - 1])
+            };
+            let pushed = match &mut self.drive {
+                AnyDrive::Quarter(d) => {
+                    let sample = match speed {
+                        None => Ok(d.next_sample()),
+                        Some(v) => d.next_sample_at(v),
+                    };
+                    sample.map(|s| {
+                        out.t.push(s.t);
+                        out.s.push(s.s);
+                        out.x.extend_from_slice(s.x.as_slice());
+                        out.xdot.extend_from_slice(s.xdot.as_slice());
+                        out.u.push(s.u);
+                        out.y.extend_from_slice(s.y());
+                        out.constants.extend_from_slice(&s.constants);
+                    })
+                }
+                AnyDrive::Half(d) => {
+                    let sample = match speed {
+                        None => Ok(d.next_sample()),
+                        Some(v) => d.next_sample_at(v),
+                    };
+                    sample.map(|s| {
+                        out.t.push(s.t);
+                        out.s.push(s.s);
+                        out.x.extend_from_slice(s.x.as_slice());
+                        out.xdot.extend_from_slice(s.xdot.as_slice());
+                        out.u.extend_from_slice(&s.u);
+                        out.y.extend_from_slice(s.y());
+                        out.constants.extend_from_slice(&s.constants);
+                    })
                 }
             };
-            out.t.push(sample.t);
-            out.s.push(sample.s);
-            out.x.extend_from_slice(sample.x.as_slice());
-            out.xdot.extend_from_slice(sample.xdot.as_slice());
-            out.u.push(sample.u);
-            out.y.extend_from_slice(sample.y());
-            out.constants.extend_from_slice(&sample.constants);
+            if let Err(e) = pushed {
+                *self = start;
+                return Err(e);
+            }
         }
         Ok(out)
     }
@@ -234,11 +310,13 @@ pub fn sensor_noise_arg(sensor_noise: Option<&Bound<'_, PyDict>>) -> PyResult<Se
     Ok(noise)
 }
 
-/// `changes=[(t, {"b": 1350.0}), (t, {"k2": 19800.0}, ramp_seconds), ...]`.
-fn parse_changes(changes: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<Change<f64>>> {
+/// `changes=[(t, {"b": 1350.0}), (t, {"k2": 19800.0}, ramp_seconds), ...]`: `(t, name,
+/// value, ramp)` per constant (the names are checked by the core's change of the car).
+fn parse_changes(changes: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<(f64, String, f64, f64)>> {
     let Some(obj) = changes else { return Ok(vec![]) };
     let usage = "`changes` must be a list of (t, {name: value}) or (t, {name: value}, ramp) tuples, e.g. \
-                 [(60.0, {'b': 1350.0})]: t and ramp in seconds, names 'M', 'm', 'k1', 'k2', 'b'";
+                 [(60.0, {'b': 1350.0})]: t and ramp in seconds, names 'M', 'm', 'k1', 'k2', 'b' (QuarterCar) or \
+                 'M', 'J', 'k1_f', 'k1_r', 'k2_f', 'k2_r', 'b_f', 'b_r', 'm_f', 'm_r' (HalfCar)";
     let mut out = Vec::new();
     for item in obj.try_iter().map_err(|_| VehidError::new_err(usage))? {
         let item = item?;
@@ -256,7 +334,7 @@ fn parse_changes(changes: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<Change<f64>
         for (k, v) in values.iter() {
             let name: String = k.extract().map_err(|_| VehidError::new_err(usage))?;
             let v: f64 = v.extract().map_err(|_| VehidError::new_err(usage))?;
-            out.push(Change::ramp(t, &name, v, ramp).map_err(|e| VehidError::new_err(format!("`changes`: {e}")))?);
+            out.push((t, name, v, ramp));
         }
     }
     if out.len() > MAX_CHANGES {

@@ -1,5 +1,6 @@
-//! `HealthMonitor` and `Event` (issue 17): the core's [`HealthMonitor`] for the quarter car.
-//! Conversion and validation only; the core does every computation.
+//! `HealthMonitor` and `Event` (issue 17): the core's [`health::HealthMonitor`] for the
+//! quarter car and [`health::HalfHealthMonitor`] for the half car. Conversion and validation
+//! only; the core does every computation.
 
 use crate::convert::{array, py_str, shape_str, Table};
 use crate::guard::{borrow, borrow_mut, Interrupts};
@@ -8,6 +9,7 @@ use crate::{core_err, option, VehidError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyTuple};
 use vehid_core::health::{self, HealthConfig, Reason, Status};
+use vehid_core::model::HalfConstant;
 use vehid_core::sim::SensorSet;
 
 /// Samples between two looks at pending signals in `fit` (some 100 ns each).
@@ -32,7 +34,8 @@ pub struct PyEvent {
     /// Estimated onset, s.
     #[pyo3(get)]
     t_change: f64,
-    /// The constant: 'b', 'k2' or 'M'.
+    /// The constant: 'b', 'k2' or 'M' (quarter car); 'b_f', 'b_r', 'k2_f', 'k2_r' or 'M'
+    /// (half car).
     #[pyo3(get)]
     parameter: &'static str,
     /// Its value before, in its unit (N s/m, N/m, kg).
@@ -50,6 +53,21 @@ pub struct PyEvent {
     /// The relative change after / before - 1.
     #[pyo3(get)]
     change: f64,
+}
+
+impl From<health::Event<f64, HalfConstant>> for PyEvent {
+    fn from(e: health::Event<f64, HalfConstant>) -> Self {
+        Self {
+            t: e.t,
+            t_change: e.t_change,
+            parameter: e.parameter.as_str(),
+            before: e.before,
+            after: e.after,
+            low: e.low,
+            high: e.high,
+            change: e.change,
+        }
+    }
 }
 
 impl From<health::Event<f64>> for PyEvent {
@@ -87,9 +105,16 @@ impl PyEvent {
             "M" => "M",
             "k2" => "k2",
             "b" => "b",
-            other => {
-                return Err(VehidError::new_err(format!("`parameter` must be 'M', 'k2' or 'b', got {}", py_str(other))))
-            }
+            other => match other.parse::<HalfConstant>() {
+                Ok(c) if health::HALF_NAMED.contains(&c) => c.as_str(),
+                _ => {
+                    return Err(VehidError::new_err(format!(
+                        "`parameter` must be 'M', 'k2' or 'b' (quarter car) or 'k2_f', 'b_f', 'k2_r', 'b_r' (half \
+                         car), got {}",
+                        py_str(other)
+                    )))
+                }
+            },
         };
         Ok(Self { t, t_change, parameter, before, after, low, high, change })
     }
@@ -147,10 +172,83 @@ impl PyEvent {
 /// Only `k2/M` and `b/M` are observable without a road measurement: a change of both by the
 /// same factor is reported as the body mass. A NaN channel is a missing sample (a gap); the
 /// monitor then cannot judge for a while and never reports meanwhile (`status`).
+///
+/// With a `HalfCar` (Rust `HalfHealthMonitor`): `y` rows `[a_body_f, a_body_r, a_wheel_f,
+/// a_wheel_r, deflection_f, deflection_r]` (body accelerometers above each axle, wheel
+/// accelerometers, suspension extensions) or the 16 state channels; events name 'k2_f',
+/// 'b_f', 'k2_r', 'b_r' or 'M' (a body-mass event assumes J scales with M and moves both).
 #[pyclass(name = "HealthMonitor", module = "vehid._vehid")]
 pub struct PyHealthMonitor {
-    inner: health::HealthMonitor<f64>,
+    inner: Mon,
 }
+
+/// The monitor of either car.
+#[derive(Clone)]
+enum Mon {
+    Quarter(Box<health::HealthMonitor<f64>>),
+    Half(Box<health::HalfHealthMonitor<f64>>),
+}
+
+impl Mon {
+    fn channels(&self) -> usize {
+        match self {
+            Mon::Quarter(m) => m.config().channels(),
+            Mon::Half(m) => m.config().channels(),
+        }
+    }
+
+    fn sensors(&self) -> SensorSet {
+        match self {
+            Mon::Quarter(m) => m.config().sensors,
+            Mon::Half(m) => m.config().sensors,
+        }
+    }
+
+    fn dt(&self) -> f64 {
+        match self {
+            Mon::Quarter(m) => m.config().dt,
+            Mon::Half(m) => m.config().dt,
+        }
+    }
+
+    fn status(&self) -> Status {
+        match self {
+            Mon::Quarter(m) => m.status(),
+            Mon::Half(m) => m.status(),
+        }
+    }
+
+    fn samples(&self) -> u64 {
+        match self {
+            Mon::Quarter(m) => m.samples(),
+            Mon::Half(m) => m.samples(),
+        }
+    }
+
+    fn events(&self) -> u64 {
+        match self {
+            Mon::Quarter(m) => m.events(),
+            Mon::Half(m) => m.events(),
+        }
+    }
+
+    fn update(&mut self, y: &[f64]) -> vehid_core::Result<Option<PyEvent>> {
+        Ok(match self {
+            Mon::Quarter(m) => m.update(y)?.map(PyEvent::from),
+            Mon::Half(m) => m.update(y)?.map(PyEvent::from),
+        })
+    }
+
+    fn channel_names(&self) -> &'static [&'static str] {
+        match self {
+            Mon::Quarter(_) => self.sensors().channels(),
+            Mon::Half(_) => self.sensors().half_channels(),
+        }
+    }
+}
+
+/// The half car's constants as the monitor names them (`HalfConstant`, then the lever arms).
+const HALF_KEYS: [&str; 12] = ["M", "J", "k1_f", "k1_r", "k2_f", "k2_r", "b_f", "b_r", "m_f", "m_r", "l1", "l2"];
 
 /// The status as a string: "warmup", "monitoring", "settling", or "cannot judge: <reason>".
 fn status_str(s: Status) -> &'static str {
@@ -191,35 +289,46 @@ impl PyHealthMonitor {
         systematic: Option<f64>,
         stuck_samples: Option<i128>,
     ) -> PyResult<Self> {
-        let Kind::Quarter(c) = car.get().kind else {
-            return Err(VehidError::new_err(
-                "`car` must be a vehid.QuarterCar (the health monitor of the half car is not there yet)",
-            ));
-        };
         let set: SensorSet = option(sensors)?;
         let noise = crate::drive::sensor_noise_arg(sensor_noise)?;
-        let mut cfg = HealthConfig::new(dt, c).with_sensors(set, &noise);
-        for (v, slot) in [
-            (window, &mut cfg.window),
-            (warmup, &mut cfg.warmup),
-            (settle, &mut cfg.settle),
-            (reacquire, &mut cfg.reacquire),
-            (min_change, &mut cfg.min_change),
-            (judge_error, &mut cfg.judge_error),
-            (threshold, &mut cfg.threshold),
-            (confidence, &mut cfg.confidence),
-            (systematic, &mut cfg.systematic),
-        ] {
-            if let Some(v) = v {
-                *slot = v;
+        macro_rules! settings {
+            ($cfg:ident) => {
+                for (v, slot) in [
+                    (window, &mut $cfg.window),
+                    (warmup, &mut $cfg.warmup),
+                    (settle, &mut $cfg.settle),
+                    (reacquire, &mut $cfg.reacquire),
+                    (min_change, &mut $cfg.min_change),
+                    (judge_error, &mut $cfg.judge_error),
+                    (threshold, &mut $cfg.threshold),
+                    (confidence, &mut $cfg.confidence),
+                    (systematic, &mut $cfg.systematic),
+                ] {
+                    if let Some(v) = v {
+                        *slot = v;
+                    }
+                }
+                if let Some(n) = stuck_samples {
+                    $cfg.stuck_samples = usize::try_from(n).map_err(|_| {
+                        VehidError::new_err(format!("`stuck_samples` must be an integer between 2 and 64, got {n}"))
+                    })?;
+                }
+            };
+        }
+        let inner = match car.get().kind {
+            Kind::Quarter(c) => {
+                let mut cfg = HealthConfig::new(dt, c).with_sensors(set, &noise);
+                settings!(cfg);
+                Mon::Quarter(Box::new(health::HealthMonitor::new(cfg).map_err(core_err)?))
             }
-        }
-        if let Some(n) = stuck_samples {
-            cfg.stuck_samples = usize::try_from(n).map_err(|_| {
-                VehidError::new_err(format!("`stuck_samples` must be an integer between 2 and 64, got {n}"))
-            })?;
-        }
-        Ok(Self { inner: health::HealthMonitor::new(cfg).map_err(core_err)? })
+            Kind::Half(c) => {
+                let mut cfg = HealthConfig::new(dt, c).with_sensors(set, &noise);
+                settings!(cfg);
+                Mon::Half(Box::new(health::HalfHealthMonitor::new(cfg).map_err(core_err)?))
+            }
+            Kind::Generic => return Err(VehidError::new_err("`car` must be a vehid.QuarterCar or a vehid.HalfCar")),
+        };
+        Ok(Self { inner })
     }
 
     /// One sample `y_k` (its channels, as `sensors` says); returns the event it completes, as
@@ -227,17 +336,17 @@ impl PyHealthMonitor {
     /// missing channel.
     fn update(slf: &Bound<'_, Self>, y_k: &Bound<'_, PyAny>) -> PyResult<Vec<PyEvent>> {
         let mut this = borrow_mut(slf)?;
-        let n = this.inner.config().channels();
+        let n = this.inner.channels();
         let a = array(y_k, "y_k")?;
         if a.shape != [n] {
             return Err(VehidError::new_err(format!(
-                "`y_k` must have shape ({n},) ({}), got {}",
-                channel_names(this.inner.config().sensors),
+                "`y_k` must have shape ({n},) ({} per row), got {}",
+                this.inner.channel_names().join(", "),
                 shape_str(&a.shape)
             )));
         }
         let ev = this.inner.update(&a.data).map_err(|e| VehidError::new_err(format!("`y_k`: {e}")))?;
-        Ok(ev.into_iter().map(PyEvent::from).collect())
+        Ok(ev.into_iter().collect())
     }
 
     /// Many samples `y` (N, channels), in order (the GIL is released); returns the events
@@ -246,9 +355,9 @@ impl PyHealthMonitor {
     fn fit(slf: &Bound<'_, Self>, y: &Bound<'_, PyAny>) -> PyResult<Vec<PyEvent>> {
         let py = slf.py();
         let mut this = borrow_mut(slf)?;
-        let n = this.inner.config().channels();
-        let sensors = this.inner.config().sensors;
-        let table = Table::new(y, "y", None, n, channel_names(sensors))?;
+        let n = this.inner.channels();
+        let names = this.inner.channel_names().join(", ") + " per row";
+        let table = Table::new(y, "y", None, n, &names)?;
         let data = table.data();
         if let Some(i) = data.iter().position(|v| v.is_infinite()) {
             return Err(VehidError::new_err(format!(
@@ -267,7 +376,7 @@ impl PyHealthMonitor {
                     return Err(None);
                 }
                 match mon.update(row) {
-                    Ok(Some(e)) => events.push(PyEvent::from(e)),
+                    Ok(Some(e)) => events.push(e),
                     Ok(None) => {}
                     Err(e) => return Err(Some((k, e))),
                 }
@@ -309,56 +418,89 @@ impl PyHealthMonitor {
     }
 
     /// The current belief {"M": kg, "k2": N/m, "b": N s/m}: the nominal car's, moved by every
-    /// event.
+    /// event. Half car: {"M", "J", "k1_f", "k1_r", "k2_f", "k2_r", "b_f", "b_r", "m_f", "m_r",
+    /// "l1", "l2"} (kg, kg m², N/m, N s/m, m).
     #[getter]
     fn constants<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyDict>> {
-        let [m, k2, b] = borrow(slf)?.inner.constants();
         let d = PyDict::new(slf.py());
-        d.set_item("M", m)?;
-        d.set_item("k2", k2)?;
-        d.set_item("b", b)?;
+        match &borrow(slf)?.inner {
+            Mon::Quarter(m) => {
+                let [mb, k2, b] = m.constants();
+                d.set_item("M", mb)?;
+                d.set_item("k2", k2)?;
+                d.set_item("b", b)?;
+            }
+            Mon::Half(m) => {
+                for (k, v) in HALF_KEYS.iter().zip(m.constants()) {
+                    d.set_item(*k, v)?;
+                }
+            }
+        }
         Ok(d)
     }
 
     /// The tracked ratios {"k2/M": (value, low, high) 1/s², "b/M": (...) 1/s, "c": (...) m/s²}
-    /// with the `confidence` intervals.
+    /// with the `confidence` intervals. Half car: {"front": [...], "rear": [...]}, each the
+    /// five coefficients of that body-corner equation `[α k2_f, α b_f, α k2_r, α b_r, c]` as
+    /// (value, low, high) (the α of that corner: module docs of `vehid_core::health`).
     #[getter]
     fn estimate<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyDict>> {
-        let e = borrow(slf)?.inner.estimate();
         let d = PyDict::new(slf.py());
-        for (j, name) in ["k2/M", "b/M", "c"].into_iter().enumerate() {
-            d.set_item(name, (e.value[j], e.low[j], e.high[j]))?;
+        match &borrow(slf)?.inner {
+            Mon::Quarter(m) => {
+                let e = m.estimate();
+                for (j, name) in ["k2/M", "b/M", "c"].into_iter().enumerate() {
+                    d.set_item(name, (e.value[j], e.low[j], e.high[j]))?;
+                }
+            }
+            Mon::Half(m) => {
+                let e = m.estimate();
+                for (o, name) in ["front", "rear"].into_iter().enumerate() {
+                    let row: Vec<(f64, f64, f64)> =
+                        (0..5).map(|j| (e.value[o][j], e.low[o][j], e.high[o][j])).collect();
+                    d.set_item(name, row)?;
+                }
+            }
         }
         Ok(d)
     }
 
     /// The reference ratios {"k2/M": 1/s², "b/M": 1/s} the tracked ones are compared with
-    /// (None during the warm-up).
+    /// (None during the warm-up). Half car: {"front": [5 coefficients], "rear": [...]}.
     #[getter]
     fn reference<'py>(slf: &Bound<'py, Self>) -> PyResult<Option<Bound<'py, PyDict>>> {
-        let Some([k, b]) = borrow(slf)?.inner.reference() else { return Ok(None) };
         let d = PyDict::new(slf.py());
-        d.set_item("k2/M", k)?;
-        d.set_item("b/M", b)?;
+        match &borrow(slf)?.inner {
+            Mon::Quarter(m) => {
+                let Some([k, b]) = m.reference() else { return Ok(None) };
+                d.set_item("k2/M", k)?;
+                d.set_item("b/M", b)?;
+            }
+            Mon::Half(m) => {
+                let Some([f, r]) = m.reference() else { return Ok(None) };
+                d.set_item("front", f.to_vec())?;
+                d.set_item("rear", r.to_vec())?;
+            }
+        }
         Ok(Some(d))
     }
 
     /// Sample interval, s.
     #[getter]
     fn dt(slf: &Bound<'_, Self>) -> PyResult<f64> {
-        Ok(borrow(slf)?.inner.config().dt)
+        Ok(borrow(slf)?.inner.dt())
     }
 
     /// "realistic" or "state".
     #[getter]
     fn sensors(slf: &Bound<'_, Self>) -> PyResult<&'static str> {
-        Ok(borrow(slf)?.inner.config().sensors.as_str())
+        Ok(borrow(slf)?.inner.sensors().as_str())
     }
 
     /// The channel names a sample holds, in order.
     #[getter]
     fn channels<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyTuple>> {
-        PyTuple::new(slf.py(), borrow(slf)?.inner.config().sensors.channels())
+        PyTuple::new(slf.py(), borrow(slf)?.inner.channel_names())
     }
 
     /// Pickling: `(copyreg.__newobj__, (HealthMonitor, car, dt), state)`, the state
@@ -367,19 +509,25 @@ impl PyHealthMonitor {
     fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyTuple>> {
         let py = slf.py();
         let this = borrow(slf)?;
-        let c = this.inner.config().car;
-        let car = py.import("vehid._vehid")?.getattr("QuarterCar")?.call1((
-            c.m_body(),
-            c.m_wheel(),
-            c.k1(),
-            c.k2(),
-            c.b(),
-        ))?;
-        let bytes = postcard::to_allocvec(&this.inner)
-            .map_err(|e| VehidError::new_err(format!("the monitor cannot be saved: {e}")))?;
+        let module = py.import("vehid._vehid")?;
+        let (car, bytes) = match &this.inner {
+            Mon::Quarter(m) => {
+                let c = m.config().car;
+                let car = module.getattr("QuarterCar")?.call1((c.m_body(), c.m_wheel(), c.k1(), c.k2(), c.b()))?;
+                (car, postcard::to_allocvec(m))
+            }
+            Mon::Half(m) => {
+                let kwargs = PyDict::new(py);
+                for (k, v) in m.config().car.params().named() {
+                    kwargs.set_item(k, v)?;
+                }
+                (module.getattr("HalfCar")?.call((), Some(&kwargs))?, postcard::to_allocvec(m))
+            }
+        };
+        let bytes = bytes.map_err(|e| VehidError::new_err(format!("the monitor cannot be saved: {e}")))?;
         let state = (STATE_FORMAT, format!("vehid {}", env!("CARGO_PKG_VERSION")), PyBytes::new(py, &bytes));
         let newobj = py.import("copyreg")?.getattr("__newobj__")?;
-        (newobj, (slf.get_type(), car, this.inner.config().dt), state).into_pyobject(py)
+        (newobj, (slf.get_type(), car, this.inner.dt()), state).into_pyobject(py)
     }
 
     /// Restores a pickled monitor's state (checked: a corrupt state is a VehidError).
@@ -399,9 +547,12 @@ impl PyHealthMonitor {
                 env!("CARGO_PKG_VERSION")
             )));
         }
-        let inner: health::HealthMonitor<f64> =
-            postcard::from_bytes(&payload).map_err(|e| corrupt(&format!("its payload does not decode ({e})")))?;
-        borrow_mut(slf)?.inner = inner;
+        let mut this = borrow_mut(slf)?;
+        let decode = |e: postcard::Error| corrupt(&format!("its payload does not decode ({e})"));
+        this.inner = match this.inner {
+            Mon::Quarter(_) => Mon::Quarter(Box::new(postcard::from_bytes(&payload).map_err(decode)?)),
+            Mon::Half(_) => Mon::Half(Box::new(postcard::from_bytes(&payload).map_err(decode)?)),
+        };
         Ok(())
     }
 
@@ -415,21 +566,13 @@ impl PyHealthMonitor {
 
     fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
         let this = borrow(slf)?;
-        let c = this.inner.config();
         Ok(format!(
             "HealthMonitor(dt={:?}, sensors={}, samples={}, events={}, status={})",
-            c.dt,
-            py_str(c.sensors.as_str()),
+            this.inner.dt(),
+            py_str(this.inner.sensors().as_str()),
             this.inner.samples(),
             this.inner.events(),
             py_str(status_str(this.inner.status()))
         ))
-    }
-}
-
-fn channel_names(s: SensorSet) -> &'static str {
-    match s {
-        SensorSet::Realistic => "a_body, a_wheel, deflection per row",
-        SensorSet::State => "zw, vw, zb, vb, dzw, dvw, dzb, dvb per row",
     }
 }

@@ -571,6 +571,19 @@ impl PyHalfCar {
         Ok(PyClassInitializer::from(base).add_subclass(Self))
     }
 
+    /// A typical passenger car, one side of a mid-size sedan (Rust `HalfCar::passenger()`):
+    /// M = 640 kg, J = 1040 kg m², l1 = 1.2 m, l2 = 1.5 m, k12 = 24 kN/m, k22 = 22 kN/m,
+    /// b1 = 1600 N s/m, b2 = 1400 N s/m, m1 = 40 kg, m2 = 35 kg, k11 = k21 = 200 kN/m (typical
+    /// values: corner bounce 1.31 / 1.40 Hz, damping ratios 0.27 / 0.28, dynamic index 0.90).
+    #[classmethod]
+    fn passenger<'py>(cls: &Bound<'py, pyo3::types::PyType>) -> PyResult<Bound<'py, PyAny>> {
+        let kwargs = PyDict::new(cls.py());
+        for (k, v) in HalfCar::<f64>::passenger().params().named() {
+            kwargs.set_item(k, v)?;
+        }
+        cls.call((), Some(&kwargs))
+    }
+
     /// The 12 physical constants.
     #[getter]
     fn params<'py>(slf: PyRef<'py, Self>, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {

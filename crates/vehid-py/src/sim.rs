@@ -172,8 +172,9 @@ impl PyRun {
         PyTuple::new(py, c)
     }
 
-    /// A drive's true constants per sample (N, 5): columns M (kg), m (kg), k1 (N/m), k2 (N/m),
-    /// b (N s/m), moved by `changes`; None for a run of the thesis' simulator.
+    /// A drive's true constants per sample: a QuarterCar's (N, 5), columns M (kg), m (kg),
+    /// k1 (N/m), k2 (N/m), b (N s/m); a HalfCar's (N, 12), columns M, J, k11, k21, k12, k22,
+    /// b1, b2, m1, m2, l1, l2; moved by `changes`. None for a run of the thesis' simulator.
     #[getter]
     fn constants(&self, py: Python<'_>) -> Option<Py<PyArray2<f64>>> {
         self.constants.as_ref().map(|a| a.clone_ref(py))
@@ -217,30 +218,31 @@ fn no_channels() -> PyErr {
 /// The `Run` of a drive: the state channels also fill `r` and `z`.
 fn drive_run(py: Python<'_>, run: DriveRun, names: &'static [&'static str]) -> PyResult<PyRun> {
     let (len, c) = (run.len, run.channels);
-    let (r, z) = if c == 8 {
-        let (mut r, mut z) = (Vec::with_capacity(len * 4), Vec::with_capacity(len * 4));
-        for row in run.y.chunks_exact(8) {
-            r.extend_from_slice(&row[..4]);
-            z.extend_from_slice(&row[4..]);
+    let [ns, ni, nc] = run.dims;
+    let (r, z) = if c == 2 * ns {
+        let (mut r, mut z) = (Vec::with_capacity(len * ns), Vec::with_capacity(len * ns));
+        for row in run.y.chunks_exact(c) {
+            r.extend_from_slice(&row[..ns]);
+            z.extend_from_slice(&row[ns..]);
         }
-        (Some(to_array2(py, len, 4, r)?.unbind()), Some(to_array2(py, len, 4, z)?.unbind()))
+        (Some(to_array2(py, len, ns, r)?.unbind()), Some(to_array2(py, len, ns, z)?.unbind()))
     } else {
         (None, None)
     };
     Ok(PyRun {
         t: run.t.into_pyarray(py).unbind(),
         s: Some(run.s.into_pyarray(py).unbind()),
-        x: to_array2(py, len, 4, run.x)?.unbind(),
-        xdot: to_array2(py, len, 4, run.xdot)?.unbind(),
-        u: to_array2(py, len, 1, run.u)?.unbind(),
+        x: to_array2(py, len, ns, run.x)?.unbind(),
+        xdot: to_array2(py, len, ns, run.xdot)?.unbind(),
+        u: to_array2(py, len, ni, run.u)?.unbind(),
         r,
         z,
         y: Some(to_array2(py, len, c, run.y)?.unbind()),
         channels: Some(names.to_vec()),
-        constants: Some(to_array2(py, len, 5, run.constants)?.unbind()),
+        constants: Some(to_array2(py, len, nc, run.constants)?.unbind()),
         len,
-        n_states: 4,
-        n_inputs: 1,
+        n_states: ns,
+        n_inputs: ni,
     })
 }
 
@@ -261,7 +263,7 @@ impl Engine {
     fn samples(&self) -> u64 {
         match self {
             Engine::Linear(s) => s.samples(),
-            Engine::Drive(d) => d.drive.k(),
+            Engine::Drive(d) => d.k(),
         }
     }
 }
@@ -282,7 +284,7 @@ impl Engine {
 /// metres (irregular in time when the speed varies), the road is a white height per `spacing`
 /// metres held over distance, and `run.s` is the distance travelled.
 ///
-/// A drive (issue 17; a `QuarterCar` only): `road="iso8608-A"` .. `"iso8608-E"` (or `"flat"`)
+/// A drive (issue 17; a `QuarterCar` or a `HalfCar`): `road="iso8608-A"` .. `"iso8608-E"` (or `"flat"`)
 /// is an ISO 8608 road profile by distance, `speed` m/s (a scalar, default 15, or one value
 /// per sample), `changes=[(t, {"b": 1350.0}), (t, {"k2": 19800.0}, ramp), ...]` steps (or
 /// ramps over `ramp` seconds) of the constants 'M', 'm', 'k1', 'k2', 'b' from `t` seconds,
@@ -293,6 +295,10 @@ impl Engine {
 /// the defaults). `run.y` holds the channels named by `run.channels`, `run.x`/`run.xdot` the
 /// true state, `run.u` the road height (m), `run.s` the distance (m), `run.constants` the
 /// constants in effect. The integration is exact (zero-order hold of the road per sample).
+/// A `HalfCar` drive: the rear wheel meets the front wheel's road a wheelbase later;
+/// changes of 'M', 'J', 'k1_f', 'k1_r', 'k2_f', 'k2_r', 'b_f', 'b_r', 'm_f', 'm_r'; realistic
+/// channels ('a_body_f', 'a_body_r', 'a_wheel_f', 'a_wheel_r', 'deflection_f', 'deflection_r')
+/// or the 16 state channels; `run.u` (N, 2) the road under each wheel.
 #[pyclass(name = "Simulator", module = "vehid._vehid")]
 pub struct PySimulator {
     inner: Engine,
@@ -375,14 +381,15 @@ impl PySimulator {
                 seed,
                 unused,
             )?;
+            let [n_states, n_inputs, _] = drive.dims();
             return Ok(Self {
                 inner: Engine::Drive(Box::new(drive)),
                 road: None,
                 dt,
                 seed,
                 method: Method::Exact,
-                n_states: 4,
-                n_inputs: 1,
+                n_states,
+                n_inputs,
                 model: model.unbind(),
             });
         }
@@ -493,7 +500,7 @@ impl PySimulator {
     fn road(slf: &Bound<'_, Self>) -> PyResult<Option<&'static str>> {
         let this = borrow(slf)?;
         if let Engine::Drive(d) = &this.inner {
-            return Ok(Some(d.drive.config().road.as_str()));
+            return Ok(Some(d.config().road.as_str()));
         }
         Ok(this.road.map(|r| r.1.as_str()))
     }
@@ -511,7 +518,7 @@ impl PySimulator {
     #[getter]
     fn sensors(slf: &Bound<'_, Self>) -> PyResult<Option<&'static str>> {
         match &borrow(slf)?.inner {
-            Engine::Drive(d) => Ok(Some(d.drive.config().sensors.as_str())),
+            Engine::Drive(d) => Ok(Some(d.config().sensors.as_str())),
             Engine::Linear(_) => Ok(None),
         }
     }

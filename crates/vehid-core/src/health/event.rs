@@ -61,16 +61,17 @@ pub enum Status {
     CannotJudge(Reason),
 }
 
-/// A detected change of one constant.
+/// A detected change of one constant: of the quarter car ([`Constant`]) or of the half car
+/// (`C = HalfConstant`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-pub struct Event<T> {
+pub struct Event<T, C = Constant> {
     /// When the event was reported, s (sample index × dt).
     pub t: T,
     /// Estimated onset, s: the last time the alarming CUSUM was zero.
     pub t_change: T,
     /// The constant that changed.
-    pub parameter: Constant,
+    pub parameter: C,
     /// Its value before, in its unit (kg, N/m, N·s/m): the nominal car's, or the previous
     /// event's `after`.
     pub before: T,

@@ -1,5 +1,6 @@
 //! Suspension health monitoring (issue 17): from a car's own sensors to the physical
-//! constants that changed, online, without allocation, in `no_std`.
+//! constants that changed, online, without allocation, in `no_std`; the quarter car
+//! ([`HealthMonitor`]) and the half car ([`HalfHealthMonitor`], section "The half car").
 //!
 //! # What the sensors can tell
 //!
@@ -82,18 +83,96 @@
 //! any of them.
 //! During the warm-up there is no reference yet ([`Status::Warmup`]).
 //!
-//! Files: `kinematic.rs` ([`DeflectionFilter`]), `rls.rs` ([`Rls3`]), `monitor.rs`
-//! ([`HealthMonitor`], [`HealthConfig`]), `event.rs` ([`Event`], [`Status`], [`Estimate`]).
+//! # The half car
+//!
+//! [`HalfHealthMonitor`] watches the half car of Eq 6.1–6.6 (`model::HalfCar`: body mass
+//! `M`, pitch inertia `J`, the axles `a = l1` ahead of and `b = l2` behind the centre of
+//! mass) through the realistic set over both axles (`model::HALF_REALISTIC_CHANNELS`): body
+//! accelerometers above the front and the rear axle, wheel accelerometers, and the two
+//! suspension extensions `d_f = zb + a φ − z1`, `d_r = zb − b φ − z2`.
+//!
+//! **What is identifiable.** With the suspension forces (tension positive, as Eq 6.3–6.4
+//! write them) `F_f = k2_f d_f + b_f ḋ_f`, `F_r = k2_r d_r + b_r ḋ_r`, the body obeys
+//! `M z̈b = −F_f − F_r` and `J φ̈ = −a F_f + b F_r`, so the corners' accelerations
+//! `a_bf = z̈b + a φ̈` and `a_br = z̈b − b φ̈` are
+//!
+//! ```text
+//! a_bf = −α_ff F_f − α_fr F_r + c_f        α_ff = 1/M + a²/J
+//! a_br = −α_rf F_f − α_rr F_r + c_r        α_fr = α_rf = 1/M − ab/J,   α_rr = 1/M + b²/J
+//! ```
+//!
+//! (`c` as for the quarter car: bias and static offsets). The wheel equations again hold the
+//! unmeasured tyre deflections and are not used. Each corner equation is linear in four
+//! coefficients and its offset, with the same regressors `φ = [−d_f, −ḋ_f, −d_r, −ḋ_r, 1]`:
+//!
+//! ```text
+//! θ_f = [α_ff k2_f, α_ff b_f, α_fr k2_r, α_fr b_r, c_f]
+//! θ_r = [α_rf k2_f, α_rf b_f, α_rr k2_r, α_rr b_r, c_r]
+//! ```
+//!
+//! The eight coefficients are products of seven unknowns (`α_ff, α_fr, α_rr` and the four
+//! suspension constants) with one symmetry: scaling `M`, `J`, every `k2` and `b` by the same
+//! factor leaves them all unchanged. So, as on the quarter car, no constant is identifiable
+//! alone, only six ratios (e.g. the four suspension constants over `M` and `a/b`, `J/M`
+//! through `α_ff − α_fr = aL/J`, `α_rr − α_fr = bL/J`, `L = a + b`); the eight coefficients
+//! obey two constraints (`k2_f/b_f` and `k2_r/b_r` are the same in both equations).
+//! A change of one constant moves the coefficients' relative values `x_i = θ_i/θ_ref,i − 1`
+//! (`i = 4 o + j`: equation `o`, regressor `j`) in a fixed pattern:
+//!
+//! | constant | pattern `u` (the `x_i` that move by the same relative amount) |
+//! |---|---|
+//! | front spring `k2_f` | `d_f` in both equations (`i` = 0, 4) |
+//! | front damper `b_f` | `ḋ_f` in both (1, 5) |
+//! | rear spring `k2_r` | `d_r` in both (2, 6) |
+//! | rear damper `b_r` | `ḋ_r` in both (3, 7) |
+//! | body mass `M` (with `J`) | all eight, by `1/(1 + ε) − 1` for `M (1 + ε)` |
+//!
+//! **Assumption for the body mass:** a load is taken to scale `J` with `M` (spread like the
+//! body's own mass, the centre of mass kept): then every `α` scales by `1/(1 + ε)`. A load
+//! that also moves the centre of mass or changes `J` differently changes the `α` unequally;
+//! the monitor still reports it as the pattern that fits best (usually the body mass), with
+//! the value of that fit.
+//!
+//! **Pipeline.** Steps 1–3 as the quarter car's, for six channels and with a
+//! [`DeflectionFilter`] per axle (`d_f`, `a_bf − a_wf`; `d_r`, `a_br − a_wr`). Step 4: one
+//! [`Rls`] with two outputs (`Rls<T, 5, 2>`: the two equations share their regressors, so
+//! they share `P`; one covariance update per sample), the same forgetting and warm-up
+//! reference; the warm-up also gives the residual covariance `Σ` (2 × 2) of the two
+//! equations, so that the tracked coefficients have the covariance `Σ ⊗ P/(1 + λ)` and the
+//! reference `Σ ⊗ P_ref`. Step 6 runs the CUSUMs on the **constants** rather than on single
+//! coefficients: each sample the relative deviations `x` (8) with their covariance
+//! `C = D (Σ ⊗ P/(1 + λ)) D + C_ref` (`D = diag(1/θ_ref)`) are fitted to each pattern by
+//! generalized least squares, `x̂_u = uᵀC⁻¹x / uᵀC⁻¹u`, `s_u² = 1/uᵀC⁻¹u` (an 8 × 8
+//! Cholesky factor and six triangular solves, `pattern.rs`), and each `x̂_u` feeds the
+//! quarter car's CUSUM pair with its `s_u`. This weighs each coefficient by what it knows:
+//! on a car with a dynamic index near 1 (`J ≈ M a b`) the cross coefficients `α_fr` are
+//! small and nearly uninformative, and the fit leans on the direct ones. Step 7 names the
+//! pattern with the smallest weighted residual `xᵀC⁻¹x − (uᵀC⁻¹x)²/uᵀC⁻¹u` of the settled
+//! estimate and reports it like the quarter car (a body-mass event moves `M` and `J`).
+//! Cannot judge: the quarter car's reasons, and low excitation when a fit's `s_u` exceeds
+//! `judge_error` or when a spring's or damper's change, from its two coefficients alone, is
+//! known to worse than `judge_error/√2` (the fits borrow strength from the other
+//! coefficients, and on a fading excitation the tracked estimate drifts, biased by the
+//! kinematic filters' noise in the regressors, before their `s_u` grows).
+//!
+//! Files: `kinematic.rs` ([`DeflectionFilter`]), `rls.rs` ([`Rls`], [`Rls3`]), `monitor.rs`
+//! ([`HealthMonitor`], [`HealthConfig`]), `half.rs` ([`HalfHealthMonitor`]), `pattern.rs`
+//! (the fits to the patterns), `event.rs` ([`Event`], [`Status`], [`Estimate`]).
 
 mod event;
+mod half;
 mod kinematic;
 mod monitor;
+mod pattern;
 mod rls;
 
 pub use event::{Constant, Estimate, Event, Reason, Status};
+pub use half::{HalfEstimate, HalfHealthMonitor, HALF_CHANNELS, HALF_NAMED, HALF_STATE_CHANNELS};
 pub use kinematic::DeflectionFilter;
 pub use monitor::{HealthConfig, HealthMonitor, CHANNELS, JUMP_GATE, MAX_DELAY, MIN_DEFLECTION_NOISE, STATE_CHANNELS};
-pub use rls::Rls3;
+pub use rls::{Rls, Rls3};
 
+#[cfg(test)]
+mod half_tests;
 #[cfg(test)]
 mod tests;

@@ -28,14 +28,16 @@ pub const STATE_CHANNELS: usize = 8;
 /// state set may be noise-free; the filter needs a positive measurement noise).
 pub const MIN_DEFLECTION_NOISE: f64 = 1e-6;
 
-/// Settings of a [`HealthMonitor`].
+/// Settings of a [`HealthMonitor`] (the quarter car, `C = QuarterCar`) or of a
+/// [`super::HalfHealthMonitor`] (`C = HalfCar`): the same settings, per axle for the half car.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-pub struct HealthConfig<T> {
+pub struct HealthConfig<T, C = QuarterCar<T>> {
     /// Sample interval, s (> 0).
     pub dt: T,
-    /// The nominal car: its `M`, `k2`, `b` are the "before" of the first events.
-    pub car: QuarterCar<T>,
+    /// The nominal car: its constants are the "before" of the first events (quarter car:
+    /// `M`, `k2`, `b`; half car: `M`, `J`, the springs and dampers of both axles).
+    pub car: C,
     /// The sensors read by [`HealthMonitor::update`]: [`SensorSet::Realistic`] (default;
     /// `[a_body, a_wheel, deflection]`) or [`SensorSet::State`] (the thesis' measured state
     /// and derivative `[zw, vw, zb, vb, dzw, dvw, dzb, dvb]`, of which the monitor uses the
@@ -82,9 +84,9 @@ pub struct HealthConfig<T> {
     pub stuck_samples: usize,
 }
 
-impl<T: Real> HealthConfig<T> {
+impl<T: Real, C> HealthConfig<T, C> {
     /// The defaults for samples every `dt` seconds of `car`.
-    pub fn new(dt: T, car: QuarterCar<T>) -> Self {
+    pub fn new(dt: T, car: C) -> Self {
         Self {
             dt,
             car,
@@ -126,6 +128,46 @@ impl<T: Real> HealthConfig<T> {
         self
     }
 
+    /// Checks the settings ([`HealthMonitor::new`] lists the rules); returns the kinematic
+    /// filter they design and the normal quantile `z` of `confidence`.
+    pub(crate) fn check(&self) -> Result<(DeflectionFilter<T>, T)> {
+        let cfg = self;
+        check_positive("dt", cfg.dt)?;
+        check_positive("window", cfg.window)?;
+        check_positive("warmup", cfg.warmup)?;
+        check_positive("settle", cfg.settle)?;
+        check_nonneg("reacquire", cfg.reacquire)?;
+        check_positive("min_change", cfg.min_change)?;
+        check_positive("judge_error", cfg.judge_error)?;
+        check_positive("threshold", cfg.threshold)?;
+        check_nonneg("systematic", cfg.systematic)?;
+        if !(cfg.min_change < T::one()) {
+            return Err(Error::InvalidArgument { arg: "min_change", expected: "a relative change in (0, 1)" });
+        }
+        let conf = cfg.confidence.to_f64();
+        if !(conf > 0.0 && conf < 1.0) {
+            return Err(Error::InvalidArgument { arg: "confidence", expected: "a level in (0, 1)" });
+        }
+        if !(2..=MAX_DELAY).contains(&cfg.stuck_samples) {
+            return Err(Error::InvalidArgument { arg: "stuck_samples", expected: "between 2 and 64" });
+        }
+        if cfg.window.to_f64() < 10.0 * cfg.dt.to_f64() {
+            return Err(Error::InvalidArgument { arg: "window", expected: "at least 10 sample intervals" });
+        }
+        let kf = DeflectionFilter::new(cfg.dt, cfg.accel_noise, cfg.deflection_noise, cfg.bias_walk)?;
+        let z = T::of(crate::stats::normal_ppf(0.5 + conf / 2.0)?);
+        Ok((kf, z))
+    }
+
+    /// Samples in the warm-up, in the one-second burn-in of the noise estimate, in the
+    /// settling, in the re-acquisition.
+    pub(crate) fn sample_counts(&self) -> [u64; 4] {
+        let n_reacq = if self.reacquire > T::zero() { samples_of(self.reacquire, self.dt) } else { 0 };
+        [samples_of(self.warmup, self.dt), samples_of(T::of(1.0), self.dt), samples_of(self.settle, self.dt), n_reacq]
+    }
+}
+
+impl<T: Real> HealthConfig<T> {
     /// Channels per sample of this sensor set ([`CHANNELS`] or [`STATE_CHANNELS`]).
     pub fn channels(&self) -> usize {
         match self.sensors {
@@ -222,38 +264,16 @@ impl<T: Real> HealthMonitor<T> {
     /// `accel_noise`, `bias_walk` not finite and ≥ 0; `confidence` outside (0, 1);
     /// `stuck_samples` outside `2..=MAX_DELAY`; a `window` shorter than 10 samples.
     pub fn new(cfg: HealthConfig<T>) -> Result<Self> {
-        check_positive("dt", cfg.dt)?;
-        check_positive("window", cfg.window)?;
-        check_positive("warmup", cfg.warmup)?;
-        check_positive("settle", cfg.settle)?;
-        check_nonneg("reacquire", cfg.reacquire)?;
-        check_positive("min_change", cfg.min_change)?;
-        check_positive("judge_error", cfg.judge_error)?;
-        check_positive("threshold", cfg.threshold)?;
-        check_nonneg("systematic", cfg.systematic)?;
-        if !(cfg.min_change < T::one()) {
-            return Err(Error::InvalidArgument { arg: "min_change", expected: "a relative change in (0, 1)" });
-        }
-        let conf = cfg.confidence.to_f64();
-        if !(conf > 0.0 && conf < 1.0) {
-            return Err(Error::InvalidArgument { arg: "confidence", expected: "a level in (0, 1)" });
-        }
-        if !(2..=MAX_DELAY).contains(&cfg.stuck_samples) {
-            return Err(Error::InvalidArgument { arg: "stuck_samples", expected: "between 2 and 64" });
-        }
-        if cfg.window.to_f64() < 10.0 * cfg.dt.to_f64() {
-            return Err(Error::InvalidArgument { arg: "window", expected: "at least 10 sample intervals" });
-        }
-        let kf = DeflectionFilter::new(cfg.dt, cfg.accel_noise, cfg.deflection_noise, cfg.bias_walk)?;
-        let z = T::of(crate::stats::normal_ppf(0.5 + conf / 2.0)?);
+        let (kf, z) = cfg.check()?;
+        let [n_warm, n_burn, n_settle, n_reacq] = cfg.sample_counts();
         let lambda = T::one() - cfg.dt / cfg.window;
         let p0 = SMatrix::<T, 3, 3>::identity() * T::of(1e6);
         let start = Rls3::new(SVector::zeros(), p0, T::one());
         Ok(Self {
-            n_warm: samples_of(cfg.warmup, cfg.dt),
-            n_burn: samples_of(T::of(1.0), cfg.dt),
-            n_settle: samples_of(cfg.settle, cfg.dt),
-            n_reacq: if cfg.reacquire > T::zero() { samples_of(cfg.reacquire, cfg.dt) } else { 0 },
+            n_warm,
+            n_burn,
+            n_settle,
+            n_reacq,
             z,
             kf,
             ring: [[T::zero(); 3]; MAX_DELAY],
@@ -393,19 +413,7 @@ impl<T: Real> HealthMonitor<T> {
     /// [`Error::Shape`] for a length other than [`HealthConfig::channels`],
     /// [`Error::NonFinite`] for ±∞; the monitor is then unchanged.
     pub fn update(&mut self, y: &[T]) -> Result<Option<Event<T>>> {
-        let n = self.cfg.channels();
-        if y.len() != n {
-            return Err(Error::Shape { arg: "y", expected: n, got: y.len() });
-        }
-        let mut missing = false;
-        for (index, v) in y.iter().enumerate() {
-            let f = v.to_f64();
-            if f.is_nan() {
-                missing = true;
-            } else if !f.is_finite() {
-                return Err(Error::NonFinite { arg: "y", index });
-            }
-        }
+        let missing = screen(y, self.cfg.channels())?;
         let y: [T; CHANNELS] = match self.cfg.sensors {
             SensorSet::Realistic => [y[0], y[1], y[2]],
             SensorSet::State => [y[7], y[5], y[2] - y[0]],
@@ -418,16 +426,7 @@ impl<T: Real> HealthMonitor<T> {
             self.interrupt(Reason::Missing);
             return Ok(None);
         }
-        let mut stuck = false;
-        for i in 0..CHANNELS {
-            if self.have_prev && y[i] == self.prev[i] {
-                self.run[i] += 1;
-            } else {
-                self.run[i] = 0;
-            }
-            self.prev[i] = y[i];
-            stuck |= self.run[i] + 1 >= self.cfg.stuck_samples;
-        }
+        let stuck = stuck_step(&mut self.prev, &mut self.run, self.have_prev, &y, self.cfg.stuck_samples);
         self.have_prev = true;
         if stuck {
             self.interrupt(Reason::Stuck);
@@ -563,17 +562,9 @@ impl<T: Real> HealthMonitor<T> {
         let w = (T::one() - self.fast.lambda()) * delta;
         let mut best = (T::zero(), 0usize, 0usize);
         for j in 0..2 {
-            let wj = w / s2[j];
-            for (side, sign) in [T::one(), -T::one()].into_iter().enumerate() {
-                let inc = wj * (sign * r[j] - half);
-                let g = (self.g[j][side] + inc).max(T::zero());
-                self.g[j][side] = g;
-                if g == T::zero() {
-                    self.zero_k[j][side] = kr;
-                }
-                if g > best.0 {
-                    best = (g, j, side);
-                }
+            let (g, side) = cusum_step(&mut self.g[j], &mut self.zero_k[j], r[j], w / s2[j], half, kr);
+            if g > best.0 {
+                best = (g, j, side);
             }
         }
         if best.0 > self.cfg.threshold {
@@ -672,4 +663,65 @@ impl<T: Real> HealthMonitor<T> {
         self.events += 1;
         Some(ev)
     }
+}
+
+/// One step of a pair of one-sided CUSUMs `[up, down]` on the relative deviation `r` (module
+/// documentation of [`crate::health`], step 6): `g ← max(0, g + w (±r − δ/2))` with weight
+/// `w = (1 − λ) δ / s²` and `half = δ/2`; records in `zero_k` the sample `kr` at which a side
+/// was last zero. Returns the larger statistic and its side (0 up, 1 down; the first on a tie).
+#[inline]
+pub(crate) fn cusum_step<T: Real>(g: &mut [T; 2], zero_k: &mut [u64; 2], r: T, w: T, half: T, kr: u64) -> (T, usize) {
+    let mut best = (T::zero(), 0usize);
+    for (side, sign) in [T::one(), -T::one()].into_iter().enumerate() {
+        let inc = w * (sign * r - half);
+        let v = (g[side] + inc).max(T::zero());
+        g[side] = v;
+        if v == T::zero() {
+            zero_k[side] = kr;
+        }
+        if v > best.0 {
+            best = (v, side);
+        }
+    }
+    best
+}
+
+/// Checks one sample's channels: the length `n`, ±∞ (an error, naming the index); returns
+/// whether a channel is NaN (a missing sample).
+pub(crate) fn screen<T: Real>(y: &[T], n: usize) -> Result<bool> {
+    if y.len() != n {
+        return Err(Error::Shape { arg: "y", expected: n, got: y.len() });
+    }
+    let mut missing = false;
+    for (index, v) in y.iter().enumerate() {
+        let f = v.to_f64();
+        if f.is_nan() {
+            missing = true;
+        } else if !f.is_finite() {
+            return Err(Error::NonFinite { arg: "y", index });
+        }
+    }
+    Ok(missing)
+}
+
+/// Counts each channel's run of identical values (`run[i]`: repeats of `prev[i]`); `true`
+/// when a channel has repeated its value `limit` times in a row (stuck).
+pub(crate) fn stuck_step<T: Real, const C: usize>(
+    prev: &mut [T; C],
+    run: &mut [usize; C],
+    have_prev: bool,
+    y: &[T; C],
+    limit: usize,
+) -> bool {
+    let mut stuck = false;
+    for i in 0..C {
+        if have_prev && y[i] == prev[i] {
+            run[i] += 1;
+        } else {
+            run[i] = 0;
+        }
+        prev[i] = y[i];
+        stuck |= run[i] + 1 >= limit;
+    }
+    stuck
 }

@@ -1,59 +1,67 @@
-//! A three-parameter recursive least squares with exponential forgetting and a bound on
-//! the covariance (no allocation).
+//! Recursive least squares with exponential forgetting and a bound on the covariance, for
+//! `N` regressors and `O` outputs that share them (no allocation).
 
 use crate::Real;
 use nalgebra::{SMatrix, SVector};
 
-/// Recursive least squares for `y = φᵀθ + e` with three parameters and forgetting factor
-/// `λ` (Ljung & Söderström, *Theory and Practice of Recursive Identification*, 1983,
+/// Recursive least squares for `yᵀ = φᵀΘ + eᵀ` with `N` parameters per output, `O` outputs
+/// measured with the same regressors `φ` (so they share the covariance `P`), and forgetting
+/// factor `λ` (Ljung & Söderström, *Theory and Practice of Recursive Identification*, 1983,
 /// §2.6):
 ///
 /// ```text
-/// ε = y − φᵀθ,  K = Pφ / (λ' + φᵀPφ),  θ ← θ + K ε,  P ← (P − K φᵀP) / λ'
+/// ε = y − Θᵀφ,  K = Pφ / (λ' + φᵀPφ),  Θ ← Θ + K εᵀ,  P ← (P − K φᵀP) / λ'
 /// ```
 ///
 /// with `λ' = λ`, except `λ' = 1` (no forgetting) while a diagonal entry of `P` exceeds its
 /// cap: without excitation plain forgetting divides `P` by `λ` every sample and it grows
 /// without bound ("covariance wind-up"); the cap keeps the estimate's uncertainty at most
-/// what the monitor can still judge.
+/// what the monitor can still judge. With outputs whose noises have covariance `Σ` (`O × O`),
+/// the estimates' covariance is `Σ ⊗ P` (column `o` of `Θ` has `Σ_oo P`).
 ///
 /// Why not the crate's `KalmanIdentifier`: that filter identifies rows of a state-space `A`
-/// from a measured state and derivative; here the regressors `[−d̂, −ḋ̂, 1]` are the
-/// kinematic filter's outputs plus a constant, and the monitor needs the 3 × 3 `P` of one
-/// equation per sample at a few tens of nanoseconds, so a dedicated 3-parameter form is
-/// both simpler and cheaper.
+/// from a measured state and derivative; here the regressors are the kinematic filters'
+/// outputs plus a constant, and the monitor needs the `N × N` `P` of its equations per sample
+/// at a few tens of nanoseconds, so a dedicated form is both simpler and cheaper. The quarter
+/// car uses [`Rls3`] (`N = 3`, one output), the half car `Rls<T, 5, 2>` (one `P` for both
+/// body-corner equations: a single covariance update per sample).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
     serde(bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
 )]
-pub struct Rls3<T: Real> {
-    theta: SVector<T, 3>,
-    p: SMatrix<T, 3, 3>,
+pub struct Rls<T: Real, const N: usize, const O: usize = 1> {
+    theta: SMatrix<T, N, O>,
+    p: SMatrix<T, N, N>,
     lambda: T,
     inv_lambda: T,
-    cap: [T; 3],
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::array"))]
+    cap: [T; N],
 }
 
-impl<T: Real> Rls3<T> {
-    /// Starts at `theta` with covariance `p`, forgetting factor `lambda` in `(0, 1]`, no cap.
-    pub fn new(theta: SVector<T, 3>, p: SMatrix<T, 3, 3>, lambda: T) -> Self {
-        Self { theta, p, lambda, inv_lambda: T::one() / lambda, cap: [T::biggest(); 3] }
+/// The quarter car's tracker: three parameters `[k2/M, b/M, c]`, one output.
+pub type Rls3<T> = Rls<T, 3, 1>;
+
+impl<T: Real, const N: usize, const O: usize> Rls<T, N, O> {
+    /// Starts at `theta` (column `o`: output `o`'s parameters) with covariance `p`,
+    /// forgetting factor `lambda` in `(0, 1]`, no cap.
+    pub fn new(theta: SMatrix<T, N, O>, p: SMatrix<T, N, N>, lambda: T) -> Self {
+        Self { theta, p, lambda, inv_lambda: T::one() / lambda, cap: [T::biggest(); N] }
     }
 
     /// Sets the cap on the diagonal of `P` above which forgetting pauses.
-    pub fn set_cap(&mut self, cap: [T; 3]) {
+    pub fn set_cap(&mut self, cap: [T; N]) {
         self.cap = cap;
     }
 
-    /// The estimate `θ`.
-    pub fn theta(&self) -> &SVector<T, 3> {
+    /// The estimate `Θ` (`N × O`).
+    pub fn theta(&self) -> &SMatrix<T, N, O> {
         &self.theta
     }
 
     /// The (unscaled) covariance `P`.
-    pub fn p(&self) -> &SMatrix<T, 3, 3> {
+    pub fn p(&self) -> &SMatrix<T, N, N> {
         &self.p
     }
 
@@ -62,17 +70,24 @@ impl<T: Real> Rls3<T> {
         self.lambda
     }
 
-    /// One sample; returns the a-priori residual `ε = y − φᵀθ`, or `None` (nothing
-    /// changed) when the step would not be finite.
+    /// One sample of all outputs `y`; returns the a-priori residuals `ε = y − Θᵀφ`, or `None`
+    /// (nothing changed) when the step would not be finite.
     #[inline]
-    pub fn update(&mut self, phi: &SVector<T, 3>, y: T) -> Option<T> {
-        let e = y - phi.dot(&self.theta);
+    pub fn update_all(&mut self, phi: &SVector<T, N>, y: &SVector<T, O>) -> Option<SVector<T, O>> {
+        let mut e = SVector::<T, O>::zeros();
+        for o in 0..O {
+            e[o] = y[o] - phi.dot(&self.theta.column(o));
+        }
         let pphi = self.p * phi;
-        let wound = (0..3).any(|i| self.p[(i, i)] > self.cap[i]);
+        let wound = (0..N).any(|i| self.p[(i, i)] > self.cap[i]);
         let lam = if wound { T::one() } else { self.lambda };
         let den = lam + phi.dot(&pphi);
         let k = pphi * (T::one() / den);
-        let theta = self.theta + k * e;
+        let mut theta = self.theta;
+        for o in 0..O {
+            let mut col = theta.column_mut(o);
+            col += k * e[o];
+        }
         let inv_lam = if wound { T::one() } else { self.inv_lambda };
         let mut p = (self.p - k * pphi.transpose()) * inv_lam;
         p = (p + p.transpose()) * T::of(0.5);
@@ -82,5 +97,14 @@ impl<T: Real> Rls3<T> {
         self.theta = theta;
         self.p = p;
         Some(e)
+    }
+}
+
+impl<T: Real, const N: usize> Rls<T, N, 1> {
+    /// One sample of the single output `y`; returns the a-priori residual `ε = y − φᵀθ`, or
+    /// `None` (nothing changed) when the step would not be finite.
+    #[inline]
+    pub fn update(&mut self, phi: &SVector<T, N>, y: T) -> Option<T> {
+        self.update_all(phi, &SVector::<T, 1>::new(y)).map(|e| e[0])
     }
 }

@@ -13,12 +13,14 @@ use nalgebra::SMatrix;
 /// wheel (m). `B` has `k11/m1` in row 1 and `k21/m2` in row 3 (0-based). Unknown rows
 /// 1, 3, 5, 7: 32 parameters, 4 of them structurally zero (row 1 at x2, ẋ2; row 3 at x1, ẋ1).
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct HalfCar<T> {
     p: HalfCarParams<T>,
 }
 
 /// The physical constants of a [`HalfCar`], in the order of the thesis (Eq 6.1–6.6).
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct HalfCarParams<T> {
     /// Front tyre stiffness, N/m.
     pub k11: T,
@@ -99,6 +101,49 @@ impl<T: Real> HalfCar<T> {
                 l2: c(1.0),
             },
         }
+    }
+
+    /// A typical passenger car, one side of a mid-size sedan in the pitch plane (the half
+    /// of the car over one wheel track; each corner close to [`super::QuarterCar::passenger`]):
+    /// M = 640 kg, J = 1040 kg·m², l1 = 1.2 m (CG to front axle), l2 = 1.5 m (to rear),
+    /// front/rear spring k12 = 24 kN/m, k22 = 22 kN/m, dampers b1 = 1.6 kN·s/m,
+    /// b2 = 1.4 kN·s/m, wheel masses m1 = 40 kg, m2 = 35 kg, tyres k11 = k21 = 200 kN/m.
+    ///
+    /// Typical values, not one car's data: Gillespie, *Fundamentals of Vehicle Dynamics*
+    /// (SAE 1992), Ch. 5 "Ride" (body bounce 1–1.5 Hz with the rear slightly above the front,
+    /// damping ratio 0.2–0.4, dynamic index `J/(M l1 l2)` near 1 on most cars), Wong, *Theory
+    /// of Ground Vehicles* (4th ed., 2008), Ch. 7. These give a static load of 356 kg over the
+    /// front axle and 284 kg over the rear (56 % front), corner bounce frequencies
+    /// `√(k2 / M_corner)/2π` of 1.31 Hz front and 1.40 Hz rear, damping ratios 0.27 and 0.28,
+    /// wheel hop near 11.9 Hz, and a dynamic index of 0.90.
+    pub fn passenger() -> Self {
+        let c = T::of;
+        Self {
+            p: HalfCarParams {
+                k11: c(200_000.0),
+                k21: c(200_000.0),
+                k12: c(24_000.0),
+                k22: c(22_000.0),
+                b1: c(1_600.0),
+                b2: c(1_400.0),
+                m1: c(40.0),
+                m2: c(35.0),
+                m_body: c(640.0),
+                j: c(1_040.0),
+                l1: c(1.2),
+                l2: c(1.5),
+            },
+        }
+    }
+
+    /// Builds the half car from its constants in the order of [`HalfCar::CONSTANTS`]
+    /// (`M, J, k11, k21, k12, k22, b1, b2, m1, m2, l1, l2`).
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] naming the first constant that is not finite and > 0.
+    pub fn from_constants(c: [T; 12]) -> Result<Self> {
+        let [m_body, j, k11, k21, k12, k22, b1, b2, m1, m2, l1, l2] = c;
+        Self::new(HalfCarParams { k11, k21, k12, k22, b1, b2, m1, m2, m_body, j, l1, l2 })
     }
 
     /// The constants.
@@ -321,5 +366,57 @@ impl<T: Real> HalfCar<T> {
         let (k0, k2, k4, k6) = (k(1), k(3), k(5), k(7));
         Builder { states: 8, constants: &Self::CONSTANTS, edges: &edges, known: &known }
             .build(&[(5, &heave), (7, &pitch), (1, &front), (3, &rear)], &[(0, &k0), (2, &k2), (4, &k4), (6, &k6)])
+    }
+}
+
+/// A half-car constant that can change during a drive (`sim::HalfDrive`) or that the half
+/// car's health monitor names (`health::HalfHealthMonitor`). Names per axle (`_f` front,
+/// `_r` rear); the thesis' names in brackets. The lever arms `l1`, `l2` do not change.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum HalfConstant {
+    /// Body mass `M`, kg. (The health monitor's body-mass events assume the pitch inertia
+    /// `J` scales with it: a load spread like the body's own mass.)
+    BodyMass,
+    /// Body pitch inertia `J`, kg·m².
+    PitchInertia,
+    /// Front tyre stiffness (`k11`), N/m.
+    FrontTyre,
+    /// Rear tyre stiffness (`k21`), N/m.
+    RearTyre,
+    /// Front suspension spring (`k12`), N/m.
+    FrontSpring,
+    /// Rear suspension spring (`k22`), N/m.
+    RearSpring,
+    /// Front damper (`b1`), N·s/m.
+    FrontDamper,
+    /// Rear damper (`b2`), N·s/m.
+    RearDamper,
+    /// Front wheel mass (`m1`), kg.
+    FrontWheelMass,
+    /// Rear wheel mass (`m2`), kg.
+    RearWheelMass,
+}
+
+option_names!(HalfConstant, "constant", {
+    BodyMass => "M", PitchInertia => "J", FrontTyre => "k1_f", RearTyre => "k1_r", FrontSpring => "k2_f",
+    RearSpring => "k2_r", FrontDamper => "b_f", RearDamper => "b_r", FrontWheelMass => "m_f", RearWheelMass => "m_r"
+});
+
+impl HalfConstant {
+    /// Position in [`HalfCar::constants`] (`M, J, k11, k21, k12, k22, b1, b2, m1, m2, l1, l2`).
+    pub fn index(&self) -> usize {
+        match self {
+            HalfConstant::BodyMass => 0,
+            HalfConstant::PitchInertia => 1,
+            HalfConstant::FrontTyre => 2,
+            HalfConstant::RearTyre => 3,
+            HalfConstant::FrontSpring => 4,
+            HalfConstant::RearSpring => 5,
+            HalfConstant::FrontDamper => 6,
+            HalfConstant::RearDamper => 7,
+            HalfConstant::FrontWheelMass => 8,
+            HalfConstant::RearWheelMass => 9,
+        }
     }
 }

@@ -23,10 +23,12 @@ mod quarter;
 mod sensors;
 
 pub use discretize::{auto_substeps, rk4_map, zoh, MAX_SUBSTEPS};
-pub use half::{HalfCar, HalfCarParams};
+pub use half::{HalfCar, HalfCarParams, HalfConstant};
 pub use physical::{PhysicalStructure, MAX_CONSTANTS};
 pub use quarter::{QuarterCar, QuarterKnown};
-pub use sensors::{SensorNoise, SensorSet, REALISTIC_CHANNELS, STATE_CHANNELS};
+pub use sensors::{
+    SensorNoise, SensorSet, HALF_REALISTIC_CHANNELS, HALF_STATE_CHANNELS, REALISTIC_CHANNELS, STATE_CHANNELS,
+};
 
 use crate::error::{check_finite, check_nonneg};
 use crate::{Error, Real, Result};

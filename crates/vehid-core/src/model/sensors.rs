@@ -12,6 +12,18 @@ pub const REALISTIC_CHANNELS: [&str; 3] = ["a_body", "a_wheel", "deflection"];
 /// velocity m/s, body position m, body velocity m/s) then the measured derivative `z`.
 pub const STATE_CHANNELS: [&str; 8] = ["zw", "vw", "zb", "vb", "dzw", "dvw", "dzb", "dvb"];
 
+/// Channel names of [`SensorSet::Realistic`] on the half car: body accelerometers above
+/// the front and the rear axle (m/s²), front and rear wheel accelerometers (m/s²), front and
+/// rear suspension deflection (extension, m: `zb + l1 φ − z1`, `zb − l2 φ − z2`).
+pub const HALF_REALISTIC_CHANNELS: [&str; 6] =
+    ["a_body_f", "a_body_r", "a_wheel_f", "a_wheel_r", "deflection_f", "deflection_r"];
+
+/// Channel names of [`SensorSet::State`] on the half car: the measured state `r` (front
+/// wheel, rear wheel, body heave: position m, velocity m/s; pitch rad, rad/s), then the
+/// measured derivative `z`.
+pub const HALF_STATE_CHANNELS: [&str; 16] =
+    ["z1", "v1", "z2", "v2", "zb", "vb", "ph", "om", "dz1", "dv1", "dz2", "dv2", "dzb", "dvb", "dph", "dom"];
+
 /// Which sensors a vehicle has: what a drive (`sim::QuarterDrive`) reports and what the
 /// health monitor (`health::HealthMonitor`) reads.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -27,6 +39,14 @@ pub enum SensorSet {
 option_names!(SensorSet, "sensors", { State => "state", Realistic => "realistic" });
 
 impl SensorSet {
+    /// The channel names of this set on the half car.
+    pub fn half_channels(&self) -> &'static [&'static str] {
+        match self {
+            SensorSet::State => &HALF_STATE_CHANNELS,
+            SensorSet::Realistic => &HALF_REALISTIC_CHANNELS,
+        }
+    }
+
     /// The channel names of this set.
     pub fn channels(&self) -> &'static [&'static str] {
         match self {

@@ -21,10 +21,12 @@
 //! by distance at a speed profile), `run.rs` ([`Run`], a whole simulation in memory),
 //! `drive.rs` ([`QuarterDrive`]: realistic drives of issue 17 — an ISO 8608 road by distance,
 //! parameter changes at given times, accelerometers and a deflection sensor; `iso8608.rs`:
-//! the road by distance).
+//! the road by distance); `half_drive.rs` ([`HalfDrive`]: the same for the half car, the rear
+//! wheel a wheelbase behind the front on one road).
 
 mod config;
 mod drive;
+mod half_drive;
 mod iso8608;
 mod road;
 #[cfg(feature = "alloc")]
@@ -36,6 +38,7 @@ pub use drive::{
     Change, DriveConfig, DriveSample, QuarterConstant, QuarterDrive, SensorNoise, SensorSet, GRAVITY, MAX_CHANGES,
     MAX_CHANNELS, REALISTIC_CHANNELS, STATE_CHANNELS,
 };
+pub use half_drive::{HalfChange, HalfDrive, HalfDriveConfig, HalfDriveSample, HALF_MAX_CHANNELS, ROAD_HISTORY};
 pub use iso8608::{IsoRoad, RoadClass, DEFAULT_CUTOFF, N0};
 pub use road::{RoadConfig, RoadMode, RoadSample, RoadSimulator, SpeedProfile};
 #[cfg(feature = "alloc")]

@@ -1,0 +1,591 @@
+//! [`HalfHealthMonitor`]: the quarter car's monitor for the half car (module documentation
+//! of [`crate::health`], section "The half car", for the derivation).
+
+use super::event::{Event, Reason, Status};
+use super::kinematic::DeflectionFilter;
+use super::monitor::{cusum_step, screen, stuck_step, HealthConfig, JUMP_GATE, MAX_DELAY};
+use super::pattern::{fit_patterns, Fit};
+use super::rls::Rls;
+use crate::model::{HalfCar, HalfConstant, SensorSet};
+use crate::{Real, Result};
+use nalgebra::{SMatrix, SVector};
+
+/// Channels [`HalfHealthMonitor::update`] reads with the realistic sensors:
+/// `[a_body_f, a_body_r, a_wheel_f, a_wheel_r, deflection_f, deflection_r]`
+/// (`model::HALF_REALISTIC_CHANNELS`).
+pub const HALF_CHANNELS: usize = 6;
+
+/// Channels [`HalfHealthMonitor::update`] reads with the state sensors (the measured state
+/// and derivative, `model::HALF_STATE_CHANNELS`).
+pub const HALF_STATE_CHANNELS: usize = 16;
+
+/// The constants the half car's monitor names, in the order of its patterns and of
+/// [`HalfHealthMonitor::cusum`].
+pub const HALF_NAMED: [HalfConstant; 5] = [
+    HalfConstant::FrontSpring,
+    HalfConstant::FrontDamper,
+    HalfConstant::RearSpring,
+    HalfConstant::RearDamper,
+    HalfConstant::BodyMass,
+];
+
+impl<T: Real> HealthConfig<T, HalfCar<T>> {
+    /// Channels per sample of this sensor set ([`HALF_CHANNELS`] or [`HALF_STATE_CHANNELS`]).
+    pub fn channels(&self) -> usize {
+        match self.sensors {
+            SensorSet::Realistic => HALF_CHANNELS,
+            SensorSet::State => HALF_STATE_CHANNELS,
+        }
+    }
+}
+
+/// The tracked coefficients of the two body-corner equations with their intervals: row `o`
+/// (0 front, 1 rear) is `[α_o,f k2_f, α_o,f b_f, α_o,r k2_r, α_o,r b_r, c_o]` (1/s², 1/s,
+/// 1/s², 1/s, m/s²).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HalfEstimate<T> {
+    /// The estimates.
+    pub value: [[T; 5]; 2],
+    /// Lower ends of the `confidence` intervals.
+    pub low: [[T; 5]; 2],
+    /// Upper ends.
+    pub high: [[T; 5]; 2],
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+enum Phase {
+    Warmup,
+    Monitoring,
+    Settling,
+}
+
+/// The patterns `u` of [`HALF_NAMED`] over the relative deviations of the 8 coefficients
+/// (index `4 o + j`: equation `o`, regressor `j` of `[d_f, ḋ_f, d_r, ḋ_r]`).
+fn patterns<T: Real>() -> [SVector<T, 8>; 5] {
+    let mut p = [SVector::<T, 8>::zeros(); 5];
+    for (j, u) in p.iter_mut().take(4).enumerate() {
+        u[j] = T::one();
+        u[4 + j] = T::one();
+    }
+    p[4] = SVector::repeat(T::one());
+    p
+}
+
+/// The suspension health monitor of the half car with realistic sensors (module
+/// documentation of [`crate::health`], "The half car"). The settings are the quarter car's
+/// [`HealthConfig`], with the half car as the nominal car; each axle's kinematic filter uses
+/// the same noise settings.
+///
+/// # Examples
+/// ```
+/// use vehid_core::health::{HalfHealthMonitor, HealthConfig, Status};
+/// use vehid_core::model::HalfCar;
+/// let mut mon = HalfHealthMonitor::new(HealthConfig::new(0.005, HalfCar::<f64>::passenger())).unwrap();
+/// assert_eq!(mon.update(&[0.1, 0.2, -0.3, 0.1, 0.002, -0.001]).unwrap(), None);
+/// assert_eq!(mon.status(), Status::Warmup);
+/// assert!(mon.update(&[0.1, 0.2, f64::INFINITY, 0.1, 0.0, 0.0]).is_err()); // nothing changed
+/// ```
+///
+/// With the feature `serde` it is saved and restored (checked on load, as the quarter car's
+/// monitor: a corrupt input is an error, never a later panic).
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+)]
+pub struct HalfHealthMonitor<T: Real> {
+    cfg: HealthConfig<T, HalfCar<T>>,
+    n_warm: u64,
+    n_burn: u64,
+    n_settle: u64,
+    n_reacq: u64,
+    z: T,
+    kf: [DeflectionFilter<T>; 2],
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::array2"))]
+    ring: [[T; 6]; MAX_DELAY],
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::array"))]
+    ring_k: [u64; MAX_DELAY],
+    head: usize,
+    len: usize,
+    prev: [T; 6],
+    run: [usize; 6],
+    have_prev: bool,
+    reacq_left: u64,
+    k: u64,
+    phase: Phase,
+    reason: Option<Reason>,
+    reference: Rls<T, 5, 2>,
+    fast: Rls<T, 5, 2>,
+    post: Rls<T, 5, 2>,
+    warm_n: u64,
+    post_n: u64,
+    e2_sum: [[T; 2]; 2],
+    e2_n: u64,
+    e1_sum: [T; 2],
+    e_prev: Option<SVector<T, 2>>,
+    inflate: T,
+    sigma: [[T; 2]; 2],
+    inv_ref: SVector<T, 8>,
+    c_ref: SMatrix<T, 8, 8>,
+    theta_ref: SMatrix<T, 5, 2>,
+    cap: [T; 5],
+    g: [[T; 2]; 5],
+    zero_k: [[u64; 2]; 5],
+    onset: u64,
+    belief: [T; 12],
+    events: u64,
+}
+
+impl<T: Real> HalfHealthMonitor<T> {
+    /// A monitor with settings `cfg`.
+    ///
+    /// # Errors
+    /// As [`super::HealthMonitor::new`]: [`Error::InvalidArgument`](crate::Error::InvalidArgument)
+    /// naming the setting.
+    pub fn new(cfg: HealthConfig<T, HalfCar<T>>) -> Result<Self> {
+        let (kf, z) = cfg.check()?;
+        let [n_warm, n_burn, n_settle, n_reacq] = cfg.sample_counts();
+        let lambda = T::one() - cfg.dt / cfg.window;
+        let p0 = SMatrix::<T, 5, 5>::identity() * T::of(1e6);
+        let start = Rls::new(SMatrix::zeros(), p0, T::one());
+        Ok(Self {
+            n_warm,
+            n_burn,
+            n_settle,
+            n_reacq,
+            z,
+            kf: [kf, kf],
+            ring: [[T::zero(); 6]; MAX_DELAY],
+            ring_k: [0; MAX_DELAY],
+            head: 0,
+            len: 0,
+            prev: [T::zero(); 6],
+            run: [0; 6],
+            have_prev: false,
+            reacq_left: 0,
+            k: 0,
+            phase: Phase::Warmup,
+            reason: None,
+            reference: start,
+            fast: Rls::new(SMatrix::zeros(), p0, lambda),
+            post: start,
+            warm_n: 0,
+            post_n: 0,
+            e2_sum: [[T::zero(); 2]; 2],
+            e2_n: 0,
+            e1_sum: [T::zero(); 2],
+            e_prev: None,
+            inflate: T::one(),
+            sigma: [[T::zero(); 2]; 2],
+            inv_ref: SVector::zeros(),
+            c_ref: SMatrix::zeros(),
+            theta_ref: SMatrix::zeros(),
+            cap: [T::biggest(); 5],
+            g: [[T::zero(); 2]; 5],
+            zero_k: [[0; 2]; 5],
+            onset: 0,
+            belief: cfg.car.constants(),
+            events: 0,
+            cfg,
+        })
+    }
+
+    /// Checks a deserialized monitor (feature `serde`): its settings as
+    /// [`HalfHealthMonitor::new`] checks them, the delay line's indices, finite statistics
+    /// and positive constants.
+    #[cfg(feature = "serde")]
+    pub(crate) fn restored(&mut self) -> Result<()> {
+        let fresh = Self::new(self.cfg)?;
+        let corrupt =
+            crate::Error::InvalidArgument { arg: "state", expected: "a half-car health monitor's saved state" };
+        if self.head >= MAX_DELAY || self.len >= self.cfg.stuck_samples || self.run.iter().any(|&r| r > MAX_DELAY) {
+            return Err(corrupt);
+        }
+        if fresh.n_warm != self.n_warm || fresh.n_burn != self.n_burn || fresh.n_settle != self.n_settle {
+            return Err(corrupt);
+        }
+        let finite = |v: &T| v.to_f64().is_finite();
+        let stats = [self.e2_sum[0][0], self.e2_sum[1][1], self.e1_sum[0], self.e1_sum[1], self.inflate, self.z];
+        if !stats.iter().all(finite)
+            || !self.sigma.iter().flatten().all(finite)
+            || !self.belief.iter().all(|v| finite(v) && *v > T::zero())
+        {
+            return Err(corrupt);
+        }
+        Ok(())
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &HealthConfig<T, HalfCar<T>> {
+        &self.cfg
+    }
+
+    /// What the monitor is doing now.
+    pub fn status(&self) -> Status {
+        if let Some(r) = self.reason {
+            return Status::CannotJudge(r);
+        }
+        match self.phase {
+            Phase::Warmup => Status::Warmup,
+            Phase::Monitoring => Status::Monitoring,
+            Phase::Settling => Status::Settling,
+        }
+    }
+
+    /// Samples seen (accepted calls of [`HalfHealthMonitor::update`]).
+    pub fn samples(&self) -> u64 {
+        self.k
+    }
+
+    /// Events reported so far.
+    pub fn events(&self) -> u64 {
+        self.events
+    }
+
+    /// The current belief of the car's constants in the order of [`HalfCar::CONSTANTS`]:
+    /// the nominal car's, moved by every event (a body-mass event moves `M` and `J`).
+    pub fn constants(&self) -> [T; 12] {
+        self.belief
+    }
+
+    /// The reference coefficients (rows as in [`HalfEstimate`]; `None` during the warm-up).
+    pub fn reference(&self) -> Option<[[T; 5]; 2]> {
+        (self.phase != Phase::Warmup).then(|| rows(&self.theta_ref))
+    }
+
+    /// The CUSUM statistics `[up, down]` of each constant of [`HALF_NAMED`] (threshold
+    /// [`HealthConfig::threshold`]).
+    pub fn cusum(&self) -> [[T; 2]; 5] {
+        self.g
+    }
+
+    /// The residual covariance `Σ` of the two body-corner equations, (m/s²)²: the
+    /// warm-up's once the reference is formed, its running value before.
+    pub fn noise_cov(&self) -> [[T; 2]; 2] {
+        if self.phase != Phase::Warmup {
+            self.sigma
+        } else if self.e2_n > 0 {
+            let n = T::of(self.e2_n as f64);
+            self.e2_sum.map(|r| r.map(|v| v / n))
+        } else {
+            [[T::biggest().sqrt(), T::zero()], [T::zero(), T::biggest().sqrt()]]
+        }
+    }
+
+    /// The tracked coefficients with `confidence` intervals from `f Σ_oo P / (1 + λ)`
+    /// (as [`super::HealthMonitor::estimate`], per equation).
+    pub fn estimate(&self) -> HalfEstimate<T> {
+        let s = self.noise_cov();
+        let value = rows(self.fast.theta());
+        let mut out = HalfEstimate { value, low: value, high: value };
+        for o in 0..2 {
+            let s2 = self.inflate * s[o][o] / (T::one() + self.fast.lambda());
+            for j in 0..5 {
+                let half = self.z * (s2 * self.fast.p()[(j, j)]).max(T::zero()).sqrt();
+                out.low[o][j] = value[o][j] - half;
+                out.high[o][j] = value[o][j] + half;
+            }
+        }
+        out
+    }
+
+    /// One sample: `y = [a_body_f, a_body_r, a_wheel_f, a_wheel_r, deflection_f,
+    /// deflection_r]` (m/s², m) with the realistic sensors, the 16 channels of
+    /// `model::HALF_STATE_CHANNELS` with the state sensors (the monitor forms the same six
+    /// quantities from them: `dvb ± l dom`, `dv1`, `dv2`, `zb + l1 ph − z1`, `zb − l2 ph − z2`);
+    /// returns the event it completes, if any. A NaN channel marks a missing sample. No
+    /// allocation.
+    ///
+    /// # Errors
+    /// [`Error::Shape`](crate::Error::Shape) for a length other than the sensor set's channels,
+    /// [`Error::NonFinite`](crate::Error::NonFinite) for ±∞; the monitor is then unchanged.
+    pub fn update(&mut self, y: &[T]) -> Result<Option<Event<T, HalfConstant>>> {
+        let missing = screen(y, self.cfg.channels())?;
+        let p = self.cfg.car.params();
+        let (l1, l2) = (p.l1, p.l2);
+        let y: [T; 6] = match self.cfg.sensors {
+            SensorSet::Realistic => [y[0], y[1], y[2], y[3], y[4], y[5]],
+            SensorSet::State => {
+                [y[13] + l1 * y[15], y[13] - l2 * y[15], y[9], y[11], y[4] + l1 * y[6] - y[0], y[4] - l2 * y[6] - y[2]]
+            }
+        };
+        let k = self.k;
+        self.k += 1;
+        if missing {
+            self.have_prev = false;
+            self.run = [0; 6];
+            self.interrupt(Reason::Missing);
+            return Ok(None);
+        }
+        let stuck = stuck_step(&mut self.prev, &mut self.run, self.have_prev, &y, self.cfg.stuck_samples);
+        self.have_prev = true;
+        if stuck {
+            self.interrupt(Reason::Stuck);
+            return Ok(None);
+        }
+        let gate = if self.reacq_left > 0 { T::biggest() } else { T::of(JUMP_GATE) };
+        let front = self.kf[0].update_gated(y[4], y[0] - y[2], gate);
+        let rear = self.kf[1].update_gated(y[5], y[1] - y[3], gate);
+        let (Some((df, vf)), Some((dr, vr))) = (front, rear) else {
+            self.interrupt(Reason::Jump);
+            return Ok(None);
+        };
+        if self.reacq_left > 0 {
+            self.reacq_left -= 1;
+            self.reason = Some(Reason::Reacquiring);
+            return Ok(None);
+        }
+        if matches!(self.reason, Some(Reason::Missing | Reason::Stuck | Reason::Jump | Reason::Reacquiring)) {
+            self.reason = None;
+        }
+        let at = (self.head + self.len) % MAX_DELAY;
+        self.ring[at] = [df, vf, dr, vr, y[0], y[1]];
+        self.ring_k[at] = k;
+        self.len += 1;
+        if self.len < self.cfg.stuck_samples {
+            return Ok(None);
+        }
+        let row = self.ring[self.head];
+        let kr = self.ring_k[self.head];
+        self.head = (self.head + 1) % MAX_DELAY;
+        self.len -= 1;
+        Ok(self.feed(kr, row))
+    }
+
+    /// Drops the held-back samples and restarts both kinematic filters.
+    fn interrupt(&mut self, reason: Reason) {
+        self.len = 0;
+        self.kf[0].reset();
+        self.kf[1].reset();
+        self.reacq_left = self.n_reacq;
+        self.reason = Some(reason);
+    }
+
+    /// Uses one regression row `[a_bf, a_br] = −Θᵀ [d_f, ḋ_f, d_r, ḋ_r] + c` of sample `kr`.
+    fn feed(&mut self, kr: u64, row: [T; 6]) -> Option<Event<T, HalfConstant>> {
+        let [df, vf, dr, vr, af, ar] = row;
+        let phi = SVector::<T, 5>::new(-df, -vf, -dr, -vr, T::one());
+        let y = SVector::<T, 2>::new(af, ar);
+        match self.phase {
+            Phase::Warmup => {
+                let e = self.reference.update_all(&phi, &y);
+                self.fast.update_all(&phi, &y);
+                self.warm_n += 1;
+                if let (Some(e), true) = (e, self.warm_n > self.n_burn) {
+                    for a in 0..2 {
+                        for b in 0..2 {
+                            self.e2_sum[a][b] += e[a] * e[b];
+                        }
+                    }
+                    self.e2_n += 1;
+                    if let Some(prev) = self.e_prev {
+                        for o in 0..2 {
+                            self.e1_sum[o] += e[o] * prev[o];
+                        }
+                    }
+                    self.e_prev = Some(e);
+                }
+                if self.warm_n >= self.n_warm && self.e2_n > 0 {
+                    let n = T::of(self.e2_n as f64);
+                    let sigma = self.e2_sum.map(|r| r.map(|v| v / n));
+                    let mut rho = T::zero();
+                    for o in 0..2 {
+                        rho = rho.max(self.e1_sum[o] / self.e2_sum[o][o]);
+                    }
+                    let rho = rho.max(T::zero()).min(T::of(0.95));
+                    self.inflate = (T::one() + rho) / (T::one() - rho);
+                    let (th, p) = (*self.reference.theta(), *self.reference.p());
+                    self.try_reference(sigma, th, &p);
+                }
+                None
+            }
+            Phase::Monitoring => {
+                self.fast.update_all(&phi, &y);
+                self.detect(kr);
+                None
+            }
+            Phase::Settling => {
+                self.fast.update_all(&phi, &y);
+                self.post.update_all(&phi, &y);
+                self.post_n += 1;
+                if self.post_n >= self.n_settle {
+                    self.finish()
+                } else {
+                    None
+                }
+            }
+        }
+    }
+
+    /// The relative deviations of the 8 coefficients of `theta` from the reference.
+    fn deviations(&self, theta: &SMatrix<T, 5, 2>) -> SVector<T, 8> {
+        SVector::from_fn(|i, _| theta[(i % 4, i / 4)] * self.inv_ref[i] - T::one())
+    }
+
+    /// The covariance `scale (Σ ⊗ P) ⊙ (v vᵀ)` of the relative deviations (`v` the
+    /// reciprocals of the reference coefficients) of an estimate with covariance factor `p`.
+    fn relative_cov(sigma: &[[T; 2]; 2], p: &SMatrix<T, 5, 5>, inv: &SVector<T, 8>, scale: T) -> SMatrix<T, 8, 8> {
+        SMatrix::from_fn(|i, k| scale * sigma[i / 4][k / 4] * p[(i % 4, k % 4)] * inv[i] * inv[k])
+    }
+
+    /// Adopts `theta` (covariance factor `p`, residual covariance `sigma`) as the reference
+    /// when `Σ` is positive definite, no coefficient is zero and every named constant's
+    /// relative change is known to `min_change / 6`; sets the tracker's wind-up cap so that
+    /// forgetting pauses when a spring's or damper's relative change, from its two
+    /// coefficients alone, has a standard error above `judge_error` (so that at the cap the
+    /// monitor cannot judge, as the quarter car's).
+    fn try_reference(&mut self, sigma: [[T; 2]; 2], theta: SMatrix<T, 5, 2>, p: &SMatrix<T, 5, 5>) -> bool {
+        let det = sigma[0][0] * sigma[1][1] - sigma[0][1] * sigma[1][0];
+        if !(sigma[0][0] > T::zero() && det > T::zero()) {
+            return false;
+        }
+        let mut inv = SVector::<T, 8>::zeros();
+        for i in 0..8 {
+            let v = theta[(i % 4, i / 4)];
+            if v == T::zero() || !v.finite() {
+                return false;
+            }
+            inv[i] = T::one() / v;
+        }
+        let c = Self::relative_cov(&sigma, p, &inv, T::one());
+        let lim = self.cfg.min_change / T::of(6.0);
+        let Some(fits) = fit_patterns(&SVector::zeros(), &c, &patterns()) else { return false };
+        if !fits.iter().all(|f| f.var.sqrt() < lim) {
+            return false;
+        }
+        self.sigma = sigma;
+        self.theta_ref = theta;
+        self.inv_ref = inv;
+        self.c_ref = c;
+        let judge = self.cfg.judge_error;
+        let onep = T::one() + self.fast.lambda();
+        // Regressor j alone: the pattern (1, 1) over the two equations' coefficients
+        // v = (θ_0j, θ_1j), tracked covariance P_jj/(1+λ) D Σ D (D = diag(1/v)), has the
+        // variance P_jj / ((1+λ) vᵀΣ⁻¹v); the cap is where that reaches judge_error².
+        let inv_det = T::one() / det;
+        let mut cap = [T::biggest(); 5];
+        for (j, cj) in cap.iter_mut().take(4).enumerate() {
+            let (a, b) = (theta[(j, 0)], theta[(j, 1)]);
+            let q = (a * a * sigma[1][1] - T::of(2.0) * a * b * sigma[0][1] + b * b * sigma[0][0]) * inv_det;
+            *cj = judge * judge * q * onep;
+        }
+        self.fast.set_cap(cap);
+        self.cap = cap;
+        self.g = [[T::zero(); 2]; 5];
+        self.phase = Phase::Monitoring;
+        true
+    }
+
+    /// The fits of the named constants to the tracked (`post = false`) or the settling
+    /// (`post = true`) estimate's relative deviations.
+    fn fits(&self, post: bool) -> Option<[Fit<T>; 5]> {
+        let (rls, scale) =
+            if post { (&self.post, T::one()) } else { (&self.fast, T::one() / (T::one() + self.fast.lambda())) };
+        let x = self.deviations(rls.theta());
+        let c = Self::relative_cov(&self.sigma, rls.p(), &self.inv_ref, scale) + self.c_ref;
+        fit_patterns(&x, &c, &patterns())
+    }
+
+    /// The CUSUM step on each named constant's relative deviation.
+    fn detect(&mut self, kr: u64) {
+        let lim = self.cfg.judge_error;
+        // Judged only while every spring's and damper's change, from its two coefficients
+        // alone, is known to judge_error/√2 (P_jj at most half its cap): the generalized
+        // least-squares fits below borrow strength from the other coefficients and stay
+        // under judge_error even when the excitation fades and the estimate drifts (the
+        // regressors then become mostly the kinematic filters' noise, which biases them).
+        let p = self.fast.p();
+        let faded = (0..4).any(|j| !(p[(j, j)] <= self.cap[j] * T::of(0.5)));
+        let fits = match self.fits(false) {
+            Some(f) if !faded && f.iter().all(|f| f.var <= lim * lim) => f,
+            _ => {
+                self.reason = Some(Reason::LowExcitation);
+                return;
+            }
+        };
+        self.reason = None;
+        let delta = self.cfg.min_change;
+        let half = delta * T::of(0.5);
+        let w = (T::one() - self.fast.lambda()) * delta;
+        let mut best = (T::zero(), 0usize, 0usize);
+        for (u, f) in fits.iter().enumerate() {
+            let (g, side) = cusum_step(&mut self.g[u], &mut self.zero_k[u], f.value, w / f.var, half, kr);
+            if g > best.0 {
+                best = (g, u, side);
+            }
+        }
+        if best.0 > self.cfg.threshold {
+            self.onset = self.zero_k[best.1][best.2];
+            let mut p0 = *self.fast.p() * T::of(1e3);
+            p0[(4, 4)] = p0[(4, 4)].max(T::one());
+            self.post = Rls::new(*self.fast.theta(), p0, T::one());
+            self.post_n = 0;
+            self.phase = Phase::Settling;
+        }
+    }
+
+    /// Ends the settling: names the constant whose pattern fits best, reports it, moves the
+    /// reference (`None` for a settled change below `min_change / 2`: the alarm is dropped).
+    fn finish(&mut self) -> Option<Event<T, HalfConstant>> {
+        let one = T::one();
+        let best = self.fits(true).and_then(|fits| {
+            (0..5)
+                .min_by(|&a, &b| fits[a].ssr.partial_cmp(&fits[b].ssr).unwrap_or(core::cmp::Ordering::Equal))
+                .map(|u| (u, fits[u]))
+        });
+        let Some((u, fit)) = best.filter(|(_, f)| f.value.abs() >= self.cfg.min_change * T::of(0.5)) else {
+            self.g = [[T::zero(); 2]; 5];
+            self.phase = Phase::Monitoring;
+            return None;
+        };
+        let parameter = HALF_NAMED[u];
+        let dx = fit.value;
+        let idx = parameter.index();
+        let before = self.belief[idx];
+        let sd = (self.inflate * fit.var + self.cfg.systematic * self.cfg.systematic).sqrt();
+        let (after, low, high) = if parameter == HalfConstant::BodyMass {
+            let hi_den = (one + dx - self.z * sd).max(T::of(1e-9));
+            (before / (one + dx), before / (one + dx + self.z * sd), before / hi_den)
+        } else {
+            (before * (one + dx), before * (one + dx - self.z * sd), before * (one + dx + self.z * sd))
+        };
+        self.belief[idx] = after;
+        if parameter == HalfConstant::BodyMass {
+            // J scales with M (the load is assumed spread like the body's own mass).
+            let j = HalfConstant::PitchInertia.index();
+            self.belief[j] /= one + dx;
+        }
+        let dt = self.cfg.dt.to_f64();
+        let ev = Event {
+            t: T::of((self.k - 1) as f64 * dt),
+            t_change: T::of(self.onset as f64 * dt),
+            parameter,
+            before,
+            after,
+            low,
+            high,
+            change: after / before - one,
+        };
+        let (th, p) = (*self.post.theta(), *self.post.p());
+        self.fast = Rls::new(th, p, self.fast.lambda());
+        self.phase = Phase::Monitoring;
+        if !self.try_reference(self.sigma, th, &p) {
+            self.phase = Phase::Warmup;
+            self.warm_n = 0;
+            self.e2_sum = [[T::zero(); 2]; 2];
+            self.e2_n = 0;
+            self.e1_sum = [T::zero(); 2];
+            self.e_prev = None;
+            self.reference = Rls::new(th, p * T::of(1e3), T::one());
+        }
+        self.events += 1;
+        Some(ev)
+    }
+}
+
+/// `Θ` (`5 × 2`, a column per equation) as rows per equation.
+fn rows<T: Real>(theta: &SMatrix<T, 5, 2>) -> [[T; 5]; 2] {
+    [0, 1].map(|o| [0, 1, 2, 3, 4].map(|j| theta[(j, o)]))
+}

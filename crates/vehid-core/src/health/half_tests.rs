@@ -1,0 +1,238 @@
+//! Tests of the half car's monitor: the identifiability derivation (the corner equations'
+//! coefficients by least squares on simulated data against the closed form), detection and
+//! naming of a change per axle, no event on a clean drive, bad input.
+
+use super::*;
+use crate::model::{HalfCar, HalfConstant, SensorNoise, SensorSet};
+use crate::sim::{DriveConfig, HalfChange, HalfDrive, HalfDriveConfig, RoadClass};
+use crate::Error;
+use nalgebra::{SMatrix, SVector};
+
+/// The closed form: row `o` of the corner equations, `[α_of k12, α_of b1, α_or k22, α_or b2]`.
+fn closed_form(car: &HalfCar<f64>) -> [[f64; 4]; 2] {
+    let p = car.params();
+    let (m, j, a, b) = (p.m_body, p.j, p.l1, p.l2);
+    let aff = 1.0 / m + a * a / j;
+    let afr = 1.0 / m - a * b / j;
+    let arr = 1.0 / m + b * b / j;
+    [[aff * p.k12, aff * p.b1, afr * p.k22, afr * p.b2], [afr * p.k12, afr * p.b1, arr * p.k22, arr * p.b2]]
+}
+
+#[test]
+fn corner_equations_have_the_alpha_coefficients() {
+    // Noise-free state sensors: regress each body-corner acceleration on the true
+    // extensions and rates (and 1) by batch least squares; the coefficients are the closed
+    // form `α k`, `α b` (signs as derived in the module documentation) to rounding.
+    for car in [HalfCar::<f64>::passenger(), HalfCar::<f64>::thesis()] {
+        let base = DriveConfig::new(0.005).sensors(SensorSet::State).noise(SensorNoise::default());
+        let mut drive = HalfDrive::new(car, HalfDriveConfig::new(base), 11).unwrap();
+        let (l1, l2) = (car.params().l1, car.params().l2);
+        let mut xtx = SMatrix::<f64, 5, 5>::zeros();
+        let mut xty = SMatrix::<f64, 5, 2>::zeros();
+        for _ in 0..4000 {
+            let s = drive.next_sample();
+            let (x, xd) = (s.x, s.xdot);
+            let phi = SVector::<f64, 5>::new(
+                -(x[4] + l1 * x[6] - x[0]),
+                -(x[5] + l1 * x[7] - x[1]),
+                -(x[4] - l2 * x[6] - x[2]),
+                -(x[5] - l2 * x[7] - x[3]),
+                1.0,
+            );
+            let y = SVector::<f64, 2>::new(xd[5] + l1 * xd[7], xd[5] - l2 * xd[7]);
+            xtx += phi * phi.transpose();
+            xty += phi * y.transpose();
+        }
+        let theta = xtx.try_inverse().unwrap() * xty;
+        let want = closed_form(&car);
+        for o in 0..2 {
+            for j in 0..4 {
+                let (got, w) = (theta[(j, o)], want[o][j]);
+                assert!((got - w).abs() < 1e-6 * w.abs().max(1e-3), "eq {o} coef {j}: {got} vs {w}");
+            }
+            assert!(theta[(4, o)].abs() < 1e-6, "offset {}", theta[(4, o)]);
+        }
+    }
+}
+
+/// The passenger half car on class C at 15 m/s, realistic sensors at 200 Hz, with the
+/// changes `changes` at 40 s; the events of a monitor over `seconds`.
+fn drive_events(
+    seed: u64,
+    changes: &[(&str, f64)],
+    seconds: f64,
+) -> (Vec<Event<f64, HalfConstant>>, HalfHealthMonitor<f64>) {
+    let car = HalfCar::<f64>::passenger();
+    let mut cfg = HalfDriveConfig::new(DriveConfig::new(0.005));
+    for (name, v) in changes {
+        cfg = cfg.with_change(HalfChange::step(40.0, name, *v).unwrap()).unwrap();
+    }
+    let mut drive = HalfDrive::new(car, cfg, seed).unwrap();
+    let mut mon = HalfHealthMonitor::new(HealthConfig::new(0.005, car)).unwrap();
+    let mut events = Vec::new();
+    for _ in 0..(seconds / 0.005) as usize {
+        let s = drive.next_sample();
+        if let Some(e) = mon.update(s.y()).unwrap() {
+            events.push(e);
+        }
+    }
+    (events, mon)
+}
+
+#[test]
+fn tracked_coefficients_match_the_closed_form_on_a_realistic_drive() {
+    let car = HalfCar::<f64>::passenger();
+    let (events, mon) = drive_events(5, &[], 60.0);
+    assert!(events.is_empty());
+    assert_eq!(mon.status(), Status::Monitoring);
+    let r = mon.reference().unwrap();
+    let want = closed_form(&car);
+    // The direct coefficients (α_ff, α_rr: 0.0029, 0.0037 /kg) within 5 %; the cross ones
+    // (α_fr = −0.00017 /kg, a dynamic index near 1) within 5 % of the direct ones.
+    for o in 0..2 {
+        for j in 0..4 {
+            // The direct coefficient of this regressor (equation j / 2) sets the scale.
+            let scale = want[j / 2][j].abs();
+            assert!((r[o][j] - want[o][j]).abs() < 0.05 * scale, "eq {o} coef {j}: {} vs {}", r[o][j], want[o][j]);
+        }
+    }
+}
+
+#[test]
+fn front_damper_step_is_detected_and_named() {
+    let (events, mon) = drive_events(21, &[("b_f", 1440.0)], 100.0);
+    assert_eq!(events.len(), 1, "{events:?}");
+    let e = events[0];
+    assert_eq!(e.parameter, HalfConstant::FrontDamper);
+    assert!(e.t > 40.0 && e.t < 60.0, "at {}", e.t);
+    assert!((e.change + 0.10).abs() < 0.03, "change {}", e.change);
+    assert!(e.low < 1440.0 && 1440.0 < e.high, "{} .. {}", e.low, e.high);
+    assert_eq!(mon.constants()[HalfConstant::FrontDamper.index()], e.after);
+}
+
+#[test]
+fn rear_spring_and_body_mass_are_named() {
+    let (events, _) = drive_events(22, &[("k2_r", 19_800.0)], 100.0);
+    assert_eq!(events.len(), 1, "{events:?}");
+    assert_eq!(events[0].parameter, HalfConstant::RearSpring);
+    assert!((events[0].change + 0.10).abs() < 0.03, "change {}", events[0].change);
+    let (events, mon) = drive_events(23, &[("M", 768.0), ("J", 1248.0)], 100.0);
+    assert_eq!(events.len(), 1, "{events:?}");
+    assert_eq!(events[0].parameter, HalfConstant::BodyMass);
+    assert!((events[0].change - 0.20).abs() < 0.03, "change {}", events[0].change);
+    // J moved with M.
+    let c = mon.constants();
+    assert!((c[1] / c[0] - 1040.0 / 640.0).abs() < 1e-9);
+}
+
+#[test]
+fn no_event_on_a_clean_drive() {
+    for seed in [31, 32] {
+        let (events, mon) = drive_events(seed, &[], 240.0);
+        assert!(events.is_empty(), "seed {seed}: {events:?}");
+        assert_eq!(mon.status(), Status::Monitoring);
+        assert!(mon.cusum().iter().flatten().all(|g| *g < mon.config().threshold));
+    }
+}
+
+#[test]
+fn cannot_judge_on_a_smooth_road_and_after_gaps() {
+    let car = HalfCar::<f64>::passenger();
+    let mut drive = HalfDrive::new(car, HalfDriveConfig::new(DriveConfig::new(0.005)), 41).unwrap();
+    let mut mon = HalfHealthMonitor::new(HealthConfig::new(0.005, car)).unwrap();
+    for _ in 0..(30.0 / 0.005) as usize {
+        mon.update(drive.next_sample().y()).unwrap();
+    }
+    assert_eq!(mon.status(), Status::Monitoring);
+    let mut y = [0.0; 6];
+    y.copy_from_slice(drive.next_sample().y());
+    y[3] = f64::NAN;
+    assert_eq!(mon.update(&y).unwrap(), None);
+    assert_eq!(mon.status(), Status::CannotJudge(Reason::Missing));
+    for _ in 0..100 {
+        mon.update(drive.next_sample().y()).unwrap();
+    }
+    assert_eq!(mon.status(), Status::CannotJudge(Reason::Reacquiring));
+    // A stuck rear deflection.
+    let mut stuck = false;
+    for _ in 0..(10.0 / 0.005) as usize {
+        let mut y = [0.0; 6];
+        y.copy_from_slice(drive.next_sample().y());
+        y[5] = 0.01;
+        mon.update(&y).unwrap();
+        stuck |= mon.status() == Status::CannotJudge(Reason::Stuck);
+    }
+    assert!(stuck);
+    // A flat road: too little excitation, never an event.
+    drive.set_road(RoadClass::Flat);
+    for _ in 0..(120.0 / 0.005) as usize {
+        assert_eq!(mon.update(drive.next_sample().y()).unwrap(), None);
+    }
+    assert_eq!(mon.status(), Status::CannotJudge(Reason::LowExcitation));
+}
+
+#[test]
+fn bad_input_is_an_error_and_changes_nothing() {
+    let car = HalfCar::<f64>::passenger();
+    let mut mon = HalfHealthMonitor::new(HealthConfig::new(0.005, car)).unwrap();
+    let mut drive = HalfDrive::new(car, HalfDriveConfig::new(DriveConfig::new(0.005)), 2).unwrap();
+    for _ in 0..5000 {
+        mon.update(drive.next_sample().y()).unwrap();
+    }
+    let before = mon.clone();
+    assert!(matches!(mon.update(&[0.0; 3]), Err(Error::Shape { expected: 6, got: 3, .. })));
+    assert!(matches!(
+        mon.update(&[0.0, 0.0, 0.0, f64::NEG_INFINITY, 0.0, 0.0]),
+        Err(Error::NonFinite { index: 3, .. })
+    ));
+    assert_eq!(mon, before);
+    let mut cfg = HealthConfig::new(0.005, car);
+    cfg.window = f64::NAN;
+    assert!(matches!(HalfHealthMonitor::new(cfg), Err(Error::InvalidArgument { arg: "window", .. })));
+    let cfg = HealthConfig::new(0.005, car).with_sensors(SensorSet::State, &SensorNoise::default());
+    let mut mon = HalfHealthMonitor::new(cfg).unwrap();
+    assert!(matches!(mon.update(&[0.0; 6]), Err(Error::Shape { expected: 16, .. })));
+}
+
+#[test]
+fn state_sensors_detect_a_rear_damper_change() {
+    let car = HalfCar::<f64>::passenger();
+    let noise = SensorNoise { state: 1e-4, deriv: 0.02, ..SensorNoise::default() };
+    let base = DriveConfig::new(0.005).sensors(SensorSet::State).noise(noise);
+    let cfg = HalfDriveConfig::new(base).with_change(HalfChange::step(40.0, "b_r", 1260.0).unwrap()).unwrap();
+    let mut drive = HalfDrive::new(car, cfg, 51).unwrap();
+    let mut mon = HalfHealthMonitor::new(HealthConfig::new(0.005, car).with_sensors(SensorSet::State, &noise)).unwrap();
+    let mut events = Vec::new();
+    for _ in 0..(100.0 / 0.005) as usize {
+        if let Some(e) = mon.update(drive.next_sample().y()).unwrap() {
+            events.push(e);
+        }
+    }
+    assert_eq!(events.len(), 1, "{events:?}");
+    assert_eq!(events[0].parameter, HalfConstant::RearDamper);
+}
+
+#[test]
+fn a_saved_half_monitor_continues_bit_for_bit_and_a_corrupt_one_is_refused() {
+    let car = HalfCar::<f64>::passenger();
+    let cfg = HalfDriveConfig::new(DriveConfig::new(0.005))
+        .with_change(HalfChange::step(40.0, "b_f", 1440.0).unwrap())
+        .unwrap();
+    let mut drive = HalfDrive::new(car, cfg, 21).unwrap();
+    let mut mon = HalfHealthMonitor::new(HealthConfig::new(0.005, car)).unwrap();
+    for _ in 0..(30.0 / 0.005) as usize {
+        mon.update(drive.next_sample().y()).unwrap();
+    }
+    let bytes = postcard::to_allocvec(&mon).unwrap();
+    let mut back: HalfHealthMonitor<f64> = postcard::from_bytes(&bytes).unwrap();
+    assert_eq!(back, mon);
+    for _ in 0..(40.0 / 0.005) as usize {
+        let y = drive.next_sample();
+        assert_eq!(mon.update(y.y()).unwrap(), back.update(y.y()).unwrap());
+    }
+    assert_eq!(back, mon);
+    assert_eq!(mon.events(), 1);
+    let mut json = serde_json::to_value(&mon).unwrap();
+    json["head"] = serde_json::json!(99);
+    assert!(serde_json::from_value::<HalfHealthMonitor<f64>>(json).is_err());
+}
