@@ -61,6 +61,8 @@
 //! estimated denominator, iterated). The road input is never measured, so that model
 //! cannot be simulated here; the predictor above is its data-driven stand-in.
 
+mod shared;
+
 use super::interface::check_lengths;
 use super::iv_filter::IvFilter;
 use super::iv_predictor::{Predictor, SAMPLE_VALUES};
@@ -68,6 +70,7 @@ use super::{Dims, Flat, Identifier, StructuredPrior, OVERFLOW};
 use crate::structure::{Partition, Structure, MAX_EQUATIONS, MAX_PARAMS};
 use crate::{Error, Real, Result};
 use nalgebra::{SMatrix, SVector};
+use shared::{shared_regressor, SharedRegressor};
 
 /// Values the ring of past samples holds: `delay × (2 n + m) ≤ RING_VALUES`.
 pub const RING_VALUES: usize = 512;
@@ -173,6 +176,10 @@ pub struct InstrumentalVariables<T: Real, const P: usize, F: Flat<IvFilter<T, P>
     eq_ssr: [T; MAX_EQUATIONS],
     eq_nobs: [T; MAX_EQUATIONS],
     samples: u64,
+    /// Every group shares one gain (`shared.rs`): derived from the structure and the filters
+    /// at construction and on load, not stored.
+    #[cfg_attr(feature = "serde", serde(skip))]
+    shared: Option<SharedRegressor>,
 }
 
 /// [`InstrumentalVariables`] with its `G` groups' filters in an array and a predictor of
@@ -316,6 +323,7 @@ impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> Instrumen
         if !sums.into_iter().all(|&v| v.finite() && v >= T::zero()) {
             return corrupt("an IV identifier's residual sums and counts finite and ≥ 0");
         }
+        self.shared = shared_regressor(&self.structure, &self.part, self.filters.flat());
         Ok(())
     }
 
@@ -379,6 +387,7 @@ impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> Instrumen
             rows[i] = s;
         }
         Ok(Self {
+            shared: shared_regressor(&structure, &part, filters.flat()),
             structure,
             part,
             backup: filters.clone(),
@@ -479,6 +488,57 @@ impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> Instrumen
             if !e[i].finite() {
                 return Err(OVERFLOW);
             }
+        }
+        Ok(())
+    }
+
+    /// One sample through each group's own filter (equations in turn, weighted); the
+    /// instruments' sample is `(ax, az, au)`. Transactional: on an error the groups touched
+    /// are restored from their backup and the residual sums from their copy.
+    fn update_groups(
+        &mut self,
+        x: &[T],
+        z: &[T],
+        u: &[T],
+        (ax, az, au): (&[T], &[T], &[T]),
+        e: &mut [T],
+    ) -> Result<()> {
+        let (ssr0, nobs0) = (self.eq_ssr, self.eq_nobs);
+        let mut touched = 0u32;
+        let mut failed = None;
+        let (s, part) = (&self.structure, &self.part);
+        for i in 0..s.equations() {
+            let g = part.group_of_eq[i] as usize;
+            if touched & (1 << g) == 0 {
+                touched |= 1 << g;
+                self.backup.flat_mut()[g] = self.filters.flat()[g];
+            }
+            let w = self.scale[i];
+            let (y, h) = local_regression::<T, P>(s, part, i, w, x, z, u);
+            let (_, zeta) = local_regression::<T, P>(s, part, i, w, ax, az, au);
+            if !(y.finite() && h.iter().chain(zeta.iter()).all(|v| v.finite())) {
+                failed = Some(OVERFLOW);
+                break;
+            }
+            match self.filters.flat_mut()[g].update(&h, &zeta, y) {
+                Ok((inn, post)) => {
+                    e[i] = inn / w;
+                    if let Some(res) = post {
+                        let res = res / w;
+                        self.eq_ssr[i] += res * res;
+                        self.eq_nobs[i] += T::one();
+                    }
+                }
+                Err(err) => {
+                    failed = Some(err);
+                    break;
+                }
+            }
+        }
+        if let Some(err) = failed {
+            self.restore(touched);
+            (self.eq_ssr, self.eq_nobs) = (ssr0, nobs0);
+            return Err(err);
         }
         Ok(())
     }
@@ -592,8 +652,9 @@ impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> Identifie
         // every later sample overflow while it stays in the ring).
         let limit = T::biggest().sqrt() / T::of(256.0);
         for (arg, v) in [("r_k", x), ("z_k", z), ("u_k", u)] {
-            crate::error::check_finite(arg, v)?;
+            // One pass (a NaN fails `<` too); the error names a non-finite value first.
             if v.iter().any(|a| !(a.abs() < limit)) {
+                crate::error::check_finite(arg, v)?;
                 return Err(Error::InvalidArgument {
                     arg,
                     expected: "values below √(largest float)/256 (about 5e151 in f64, 7e16 in f32), whose squares \
@@ -637,48 +698,24 @@ impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> Identifie
         } else {
             None
         };
-        let (ssr0, nobs0) = (self.eq_ssr, self.eq_nobs);
-        let mut touched = 0u32;
-        let mut failed = None;
-        if have {
-            let (ax, rest) = at[..width].split_at(n);
-            let (az, au) = rest.split_at(n);
-            let (s, part) = (&self.structure, &self.part);
-            for i in 0..s.equations() {
-                let g = part.group_of_eq[i] as usize;
-                if touched & (1 << g) == 0 {
-                    touched |= 1 << g;
-                    self.backup.flat_mut()[g] = self.filters.flat()[g];
-                }
-                let w = self.scale[i];
-                let (y, h) = local_regression::<T, P>(s, part, i, w, x, z, u);
-                let (_, zeta) = local_regression::<T, P>(s, part, i, w, ax, az, au);
-                if !(y.finite() && h.iter().chain(zeta.iter()).all(|v| v.finite())) {
-                    failed = Some(OVERFLOW);
-                    break;
-                }
-                match self.filters.flat_mut()[g].update(&h, &zeta, y) {
-                    Ok((inn, post)) => {
-                        e[i] = inn / w;
-                        if let Some(res) = post {
-                            let res = res / w;
-                            self.eq_ssr[i] += res * res;
-                            self.eq_nobs[i] += T::one();
-                        }
-                    }
-                    Err(err) => {
-                        failed = Some(err);
-                        break;
-                    }
-                }
+        let shared_step = match self.shared {
+            Some(kind) if have && !self.filters.flat()[0].starting() => Some(kind),
+            _ => None,
+        };
+        let (ax, rest) = at[..width].split_at(n);
+        let (az, au) = rest.split_at(n);
+        if let Some(kind) = shared_step {
+            self.update_shared(kind, x, z, u, (ax, az, au), e)?;
+        } else if have {
+            self.update_groups(x, z, u, (ax, az, au), e)?;
+            // The per-group step ran (the exact start): keep the shared step only while the
+            // groups still share their gain.
+            let f = self.filters.flat();
+            if self.shared.is_some() && !f.iter().all(|g| g.shares_gain_with(&f[0])) {
+                self.shared = None;
             }
-        } else if let Err(err) = self.innovations(x, z, u, e) {
-            failed = Some(err);
-        }
-        if let Some(err) = failed {
-            self.restore(touched);
-            (self.eq_ssr, self.eq_nobs) = (ssr0, nobs0);
-            return Err(err);
+        } else {
+            self.innovations(x, z, u, e)?;
         }
         if let Some(step) = step {
             self.pred.apply(&step, &q, &now[..width]);

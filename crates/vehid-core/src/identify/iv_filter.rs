@@ -182,6 +182,72 @@ impl<T: Real, const P: usize> IvFilter<T, P> {
         Ok((e, Some(e * self.r / s)))
     }
 
+    /// `true` when `other` has the same `P`, `M`, weight `r`, size, start state and sample
+    /// count (everything but `θ̂`): two such filters fed the same `h` and `ζ` stay so, and
+    /// [`IvFilter::update_shared`] may update them together.
+    pub(crate) fn shares_gain_with(&self, other: &Self) -> bool {
+        self.p == other.p
+            && self.m == other.m
+            && self.r == other.r
+            && self.start == other.start
+            && self.dim == other.dim
+            && self.count == other.count
+    }
+
+    /// One sample for filters that share their gain ([`IvFilter::shares_gain_with`], none
+    /// starting) and see the same regressor `h` and instrument `ζ`, one output each: `ye[g]`
+    /// is filter `g`'s `y` on entry and its innovation `y − hᵀθ̂_g` on return. `P ζ`, `s`,
+    /// the gain and the `P` and `M` updates are computed once; each filter adds its own
+    /// `θ̂_g ← θ̂_g + P ζ e_g / s`. The arithmetic is [`IvFilter::update`]'s, operation for
+    /// operation, so every filter ends bit for bit as there. Returns `s` (each a-posteriori
+    /// residual is `e_g r / s`). Transactional: on an error no filter changed (`ye` is then
+    /// meaningless).
+    ///
+    /// # Errors
+    /// As [`IvFilter::update`].
+    #[inline]
+    pub(crate) fn update_shared(
+        filters: &mut [Self],
+        h: &SVector<T, P>,
+        zeta: &SVector<T, P>,
+        ye: &mut [T],
+    ) -> Result<T> {
+        let Some(f0) = filters.first() else { return Ok(T::one()) };
+        debug_assert!(!f0.start && filters.iter().all(|f| f.shares_gain_with(f0)));
+        let pz = f0.p * zeta;
+        let hp = f0.p.tr_mul(h);
+        let mut s = f0.r;
+        let mut scale = f0.r;
+        for a in 0..P {
+            s += h[a] * pz[a];
+            scale += (h[a] * pz[a]).abs();
+        }
+        if !(s.abs() > T::default_epsilon().sqrt() * scale) {
+            return Err(if s.finite() && scale.finite() { SINGULAR } else { OVERFLOW });
+        }
+        let k = pz / s;
+        let mut p = f0.p;
+        p.ger(-T::one(), &k, &hp, T::one());
+        let mut m = f0.m;
+        m.ger(T::one(), zeta, zeta, T::one());
+        let mut finite = p.iter().all(|v| v.finite()) && m.iter().all(|v| v.finite());
+        for (f, v) in filters.iter().zip(ye.iter_mut()) {
+            let e = *v - h.dot(&f.theta);
+            let theta = f.theta + k * e;
+            finite &= theta.iter().all(|v| v.finite());
+            *v = e;
+        }
+        if !finite {
+            return Err(OVERFLOW);
+        }
+        for (f, &e) in filters.iter_mut().zip(ye.iter()) {
+            f.theta += k * e;
+            (f.p, f.m) = (p, m);
+            f.count += 1;
+        }
+        Ok(s)
+    }
+
     /// The exact start: accumulate, and end the start when `Σ ζ hᵀ` is well conditioned.
     fn absorb(&mut self, h: &SVector<T, P>, zeta: &SVector<T, P>, y: T) -> Result<T> {
         let mut c = self.p;
