@@ -121,8 +121,22 @@ impl<T: Real> Ring<T> {
     pub(crate) fn ago(&self, age: usize) -> &[T] {
         let w = self.width as usize;
         let slots = self.slots as usize;
-        let at = (self.head as usize + slots - age) % slots * w;
+        // head < slots and 1 ≤ age ≤ slots: one conditional subtraction wraps it.
+        let i = self.head as usize + slots - age;
+        let at = if i >= slots { i - slots } else { i } * w;
         &self.buf[at..at + w]
+    }
+
+    /// [`Ring::push`] of a sample of `N` states and no input, on compile-time lengths.
+    #[inline(always)]
+    pub(crate) fn push_states<const N: usize>(&mut self, x: &[T], z: &[T]) {
+        let at = self.head as usize * 2 * N;
+        let slot = &mut self.buf[at..at + 2 * N];
+        let (sx, sz) = slot.split_at_mut(N);
+        sx.copy_from_slice(&x[..N]);
+        sz.copy_from_slice(&z[..N]);
+        self.head = if self.head + 1 == self.slots { 0 } else { self.head + 1 };
+        self.filled = (self.filled + 1).min(self.slots);
     }
 
     /// Stores a sample (over the oldest).
@@ -135,7 +149,7 @@ impl<T: Real> Ring<T> {
         slot[..n].copy_from_slice(x);
         slot[n..2 * n].copy_from_slice(z);
         slot[2 * n..2 * n + m].copy_from_slice(u);
-        self.head = (self.head + 1) % self.slots;
+        self.head = if self.head + 1 == self.slots { 0 } else { self.head + 1 };
         self.filled = (self.filled + 1).min(self.slots);
     }
 }
@@ -492,6 +506,40 @@ impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> Instrumen
         Ok(())
     }
 
+    /// One sample with refined instruments (after the ring has filled): the instruments'
+    /// sample is the current one as predicted from the `lags` samples before `k − d + 1`
+    /// (none while the predictor starts: innovations only). The predictor's step is planned
+    /// first and applied last, so that a rejected sample changes nothing.
+    fn update_refined(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
+        let (n, m) = (self.structure.states(), self.structure.inputs());
+        let (d, lags, width) = (self.delay as usize, self.lags as usize, 2 * n + m);
+        let mut q = [T::zero(); Q];
+        let mut at = [T::zero(); SAMPLE_VALUES];
+        for j in 0..lags {
+            q[j * width..(j + 1) * width].copy_from_slice(self.ring.ago(d + j));
+        }
+        q[lags * width] = T::one();
+        let have = !self.pred.starting();
+        if have {
+            self.pred.predict(&q, &mut at[..width]);
+        }
+        let mut now = [T::zero(); SAMPLE_VALUES];
+        now[..n].copy_from_slice(x);
+        now[n..2 * n].copy_from_slice(z);
+        now[2 * n..width].copy_from_slice(u);
+        let step = self.pred.plan(&q, &now[..width])?;
+        match self.shared_ready() {
+            Some(kind) if have => {
+                let (h, zeta) = self.shared_regressors(kind, x, z, u, split(&at[..width], n), e)?;
+                self.update_shared(&h, &zeta, e)?;
+            }
+            _ if have => self.update_groups(x, z, u, split(&at[..width], n), e)?,
+            _ => self.innovations(x, z, u, e)?,
+        }
+        self.pred.apply(&step, &q, &now[..width]);
+        Ok(())
+    }
+
     /// One sample through each group's own filter (equations in turn, weighted); the
     /// instruments' sample is `(ax, az, au)`. Transactional: on an error the groups touched
     /// are restored from their backup and the residual sums from their copy.
@@ -540,6 +588,12 @@ impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> Instrumen
             (self.eq_ssr, self.eq_nobs) = (ssr0, nobs0);
             return Err(err);
         }
+        // After the per-group step (the exact start of a shared identifier) the shared step
+        // stays only while the groups still share their gain.
+        let f = self.filters.flat();
+        if self.shared.is_some() && !f.iter().all(|g| g.shares_gain_with(&f[0])) {
+            self.shared = None;
+        }
         Ok(())
     }
 
@@ -550,6 +604,14 @@ impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> Instrumen
             }
         }
     }
+}
+
+/// A sample `(x, z, u)` of `n` states from its `2n + m` values.
+#[inline(always)]
+fn split<T>(sample: &[T], n: usize) -> (&[T], &[T], &[T]) {
+    let (x, rest) = sample.split_at(n);
+    let (z, u) = rest.split_at(n);
+    (x, z, u)
 }
 
 /// Per-group prior covariances (`None` for the exact start).
@@ -646,6 +708,11 @@ impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> Identifie
     /// One sample (see [`Identifier::update_into`]). For the first `delay` samples there is
     /// no instrument yet: they are stored and their innovations reported, nothing else.
     fn update_into(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
+        if self.lags == 0 && self.ring.full() && self.shared_ready() == Some(SharedRegressor::States) {
+            if let Some(done) = self.update_states(x, z, u, e) {
+                return done;
+            }
+        }
         check_lengths(self.dims(), x, z, u, e)?;
         // Every value is kept for later samples' instruments, whose products must stay finite:
         // a value that would overflow when squared is refused now (accepted, it would make
@@ -669,56 +736,19 @@ impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> Identifie
             return Ok(());
         }
         let (n, m) = (self.structure.states(), self.structure.inputs());
-        let (d, lags) = (self.delay as usize, self.lags as usize);
-        // The instruments' sample: the delayed one, or the predicted current one.
-        let mut q = [T::zero(); Q];
-        let mut at = [T::zero(); SAMPLE_VALUES];
-        let width = 2 * n + m;
-        let have = if lags == 0 {
-            at[..width].copy_from_slice(self.ring.ago(d));
-            true
-        } else {
-            for j in 0..lags {
-                q[j * width..(j + 1) * width].copy_from_slice(self.ring.ago(d + j));
-            }
-            q[lags * width] = T::one();
-            if !self.pred.starting() {
-                self.pred.predict(&q, &mut at[..width]);
-            }
-            !self.pred.starting()
-        };
-        // The predictor's step is checked first, so that once the groups are updated it
-        // cannot fail.
-        let mut now = [T::zero(); SAMPLE_VALUES];
-        let step = if lags > 0 {
-            now[..n].copy_from_slice(x);
-            now[n..2 * n].copy_from_slice(z);
-            now[2 * n..width].copy_from_slice(u);
-            Some(self.pred.plan(&q, &now[..width])?)
-        } else {
-            None
-        };
-        let shared_step = match self.shared {
-            Some(kind) if have && !self.filters.flat()[0].starting() => Some(kind),
-            _ => None,
-        };
-        let (ax, rest) = at[..width].split_at(n);
-        let (az, au) = rest.split_at(n);
-        if let Some(kind) = shared_step {
-            self.update_shared(kind, x, z, u, (ax, az, au), e)?;
-        } else if have {
-            self.update_groups(x, z, u, (ax, az, au), e)?;
-            // The per-group step ran (the exact start): keep the shared step only while the
-            // groups still share their gain.
-            let f = self.filters.flat();
-            if self.shared.is_some() && !f.iter().all(|g| g.shares_gain_with(&f[0])) {
-                self.shared = None;
+        let d = self.delay as usize;
+        if self.lags == 0 {
+            // The instruments' sample: the one `d` steps back.
+            if let Some(kind) = self.shared_ready() {
+                let (h, zeta) = self.shared_regressors(kind, x, z, u, split(self.ring.ago(d), n), e)?;
+                self.update_shared(&h, &zeta, e)?;
+            } else {
+                let mut at = [T::zero(); SAMPLE_VALUES];
+                at[..2 * n + m].copy_from_slice(self.ring.ago(d));
+                self.update_groups(x, z, u, split(&at[..2 * n + m], n), e)?;
             }
         } else {
-            self.innovations(x, z, u, e)?;
-        }
-        if let Some(step) = step {
-            self.pred.apply(&step, &q, &now[..width]);
+            self.update_refined(x, z, u, e)?;
         }
         self.ring.push(x, z, u);
         self.samples += 1;

@@ -86,33 +86,94 @@ fn output<T: Real>(s: &Structure<T>, i: usize, x: &[T], z: &[T], u: &[T]) -> T {
 }
 
 impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> InstrumentalVariables<T, P, F, Q> {
-    /// One sample through the shared step (`self.shared` is `Some`, no filter starting): the
-    /// regressor from `(x, z, u)`, the instrument from the instruments' sample `(ax, az, au)`.
-    /// On success the innovations are in `e` and the residual sums updated; on an error
-    /// nothing changed.
-    #[inline]
-    #[allow(clippy::too_many_arguments)]
-    pub(super) fn update_shared(
-        &mut self,
+    /// The shared step's regressor kind, once every group has started.
+    #[inline(always)]
+    pub(super) fn shared_ready(&self) -> Option<SharedRegressor> {
+        self.shared.filter(|_| !self.filters.flat()[0].starting())
+    }
+
+    /// The whole sample on the full rows' path (`h = x`, `ζ = x(k − d)`, `y_i = z_{row_i}`:
+    /// [`SharedRegressor::States`], delayed instruments, every group started, the ring full),
+    /// with the general path's checks written for it: `None` when the sample has the wrong
+    /// lengths or a value those checks refuse (the general path then reports it), else the
+    /// step's result. Transactional as the general path.
+    #[inline(always)]
+    pub(super) fn update_states(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Option<Result<()>> {
+        let s = &self.structure;
+        let (n, m, ne) = (s.states(), s.inputs(), s.equations());
+        if x.len() != n || z.len() != n || u.len() != m || e.len() != ne {
+            return None;
+        }
+        // As update_into's check (a NaN fails `<` too), without early exits.
+        let limit = T::biggest().sqrt() / T::of(256.0);
+        let bad = |v: &[T]| v.iter().fold(false, |b, a| b | !(a.abs() < limit));
+        let dim = self.filters.flat()[0].dim();
+        let past = self.ring.ago(self.delay as usize);
+        // As local_regression: 0 + 1·x_j (so that −0 becomes +0 there as here).
+        let (mut h, mut zeta) = (SVector::<T, P>::zeros(), SVector::<T, P>::zeros());
+        // Every state a regressor and no input (the full rows in a store of their size): the
+        // same work on compile-time lengths.
+        let exact = n == P && m == 0;
+        if exact {
+            let (x, z, past) = (&x[..P], &z[..P], &past[..P]);
+            if bad(x) | bad(z) {
+                return None;
+            }
+            for j in 0..P {
+                h[j] += x[j];
+                zeta[j] += past[j];
+            }
+        } else {
+            if bad(x) | bad(z) | bad(u) {
+                return None;
+            }
+            for j in 0..dim {
+                h[j] += x[j];
+                zeta[j] += past[j];
+            }
+        }
+        for (y, &row) in e.iter_mut().zip(&self.rows) {
+            *y = z.get(row).copied().unwrap_or_else(T::zero);
+        }
+        if let Err(err) = self.update_shared(&h, &zeta, e) {
+            return Some(Err(err));
+        }
+        if exact {
+            self.ring.push_states::<P>(x, z);
+        } else {
+            self.ring.push(x, z, u);
+        }
+        self.samples += 1;
+        Some(Ok(()))
+    }
+
+    /// The common regressor `h` at `(x, z, u)` and instrument `ζ` at the instruments' sample
+    /// `(ax, az, au)`, and each equation's output `y_i` into `e` (as the per-group loop
+    /// computes them: its row weights are all 1 here). Checked as that loop checks equation
+    /// 0's: the overflow error when `y_0`, `h` or `ζ` is not finite (the other outputs are
+    /// checked by the step, through the estimates they move).
+    #[inline(always)]
+    pub(super) fn shared_regressors(
+        &self,
         kind: SharedRegressor,
         x: &[T],
         z: &[T],
         u: &[T],
         (ax, az, au): (&[T], &[T], &[T]),
         e: &mut [T],
-    ) -> Result<()> {
+    ) -> Result<(SVector<T, P>, SVector<T, P>)> {
         let s = &self.structure;
-        let ne = s.equations();
         let (h, zeta) = match kind {
             SharedRegressor::States => {
                 // As local_regression: 0 + 1·x_j (so that −0 becomes +0 there as here).
                 let (mut h, mut zeta) = (SVector::<T, P>::zeros(), SVector::<T, P>::zeros());
-                for j in 0..self.filters.flat()[0].dim() {
-                    h[j] += x[j];
-                    zeta[j] += ax[j];
+                let dim = self.filters.flat()[0].dim();
+                for ((hj, zj), (&xj, &aj)) in h.iter_mut().zip(zeta.iter_mut()).zip(x.iter().zip(ax)).take(dim) {
+                    *hj += xj;
+                    *zj += aj;
                 }
-                for (i, y) in e.iter_mut().enumerate() {
-                    *y = z[self.rows[i]];
+                for (y, &row) in e.iter_mut().zip(&self.rows) {
+                    *y = z.get(row).copied().unwrap_or_else(T::zero);
                 }
                 (h, zeta)
             }
@@ -127,18 +188,23 @@ impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> Instrumen
                 (h, zeta)
             }
         };
-        // The per-group loop's checks, in its order: equation 0's (y, h, ζ) first, then the
-        // step (singular before overflow), then the other equations' outputs.
         if !(e[0].finite() && h.iter().chain(zeta.iter()).all(|v| v.finite())) {
             return Err(crate::identify::OVERFLOW);
         }
-        let filters = &mut self.filters.flat_mut()[..ne];
+        Ok((h, zeta))
+    }
+
+    /// The shared step on `h`, `ζ` and the outputs in `e` (replaced by the innovations), and
+    /// the residual sums. On an error nothing changed.
+    #[inline(always)]
+    pub(super) fn update_shared(&mut self, h: &SVector<T, P>, zeta: &SVector<T, P>, e: &mut [T]) -> Result<()> {
+        let filters = self.filters.flat_mut();
         let r = filters[0].r();
-        let sv = IvFilter::update_shared(filters, &h, &zeta, e)?;
-        for (i, &inn) in e.iter().enumerate() {
+        let sv = IvFilter::update_shared(filters, h, zeta, e)?;
+        for ((&inn, ssr), nobs) in e.iter().zip(&mut self.eq_ssr).zip(&mut self.eq_nobs) {
             let res = inn * r / sv;
-            self.eq_ssr[i] += res * res;
-            self.eq_nobs[i] += T::one();
+            *ssr += res * res;
+            *nobs += T::one();
         }
         Ok(())
     }
