@@ -180,27 +180,18 @@ impl<T: Real, const P: usize> IvFilter<T, P> {
     #[inline(always)]
     fn gain(&self, h: &SVector<T, P>, zeta: &SVector<T, P>) -> Result<Gain<T, P>> {
         let (pc, hv, zv) = (&self.p.data.0, &h.data.0[0], &zeta.data.0[0]);
-        // Pζ by columns; Pᵀh by rows of P (each (Pᵀh)_b summed over a in order), so that
-        // both loops are vector operations over their inner index.
+        // Every sum pairwise (even and odd terms apart, `sum2`): half the dependent additions
+        // on the step's critical path (P → Pζ → s → K → P).
         let mut pz = [T::zero(); P];
-        for b in 0..P {
-            for a in 0..P {
-                pz[a] += pc[b][a] * zv[b];
-            }
-        }
         let mut hp = [T::zero(); P];
         for a in 0..P {
-            for b in 0..P {
-                hp[b] += hv[a] * pc[b][a];
-            }
+            pz[a] = sum2::<T, P>(|b| pc[b][a] * zv[b]);
         }
-        let mut s = self.r;
-        let mut scale = self.r;
-        for a in 0..P {
-            let t = hv[a] * pz[a];
-            s += t;
-            scale += t.abs();
+        for (b, hb) in hp.iter_mut().enumerate() {
+            *hb = sum2::<T, P>(|a| hv[a] * pc[b][a]);
         }
+        let s = self.r + sum2::<T, P>(|a| hv[a] * pz[a]);
+        let scale = self.r + sum2::<T, P>(|a| (hv[a] * pz[a]).abs());
         if !(s.abs() > T::default_epsilon().sqrt() * scale) {
             return Err(if s.finite() && scale.finite() { SINGULAR } else { OVERFLOW });
         }
@@ -448,14 +439,27 @@ fn zero_sum<T: Real, const R: usize, const C: usize>(a: &SMatrix<T, R, C>, acc: 
     }
 }
 
-/// `hᵀθ`, summed in order.
+/// `Σ_{a < P} f(a)` as (even terms) + (odd terms), each in order: the fixed summation order
+/// of every sum in the step.
+#[inline(always)]
+fn sum2<T: Real, const P: usize>(f: impl Fn(usize) -> T) -> T {
+    let mut even = f(0);
+    let mut odd = if P > 1 { f(1) } else { T::zero() };
+    for a in 2..P {
+        if a % 2 == 0 {
+            even += f(a);
+        } else {
+            odd += f(a);
+        }
+    }
+    even + odd
+}
+
+/// `hᵀθ` ([`sum2`]).
 #[inline(always)]
 fn dot<T: Real, const P: usize>(h: &SVector<T, P>, theta: &SVector<T, P>) -> T {
-    let mut acc = T::zero();
-    for (&a, &b) in h.data.0[0].iter().zip(&theta.data.0[0]) {
-        acc += a * b;
-    }
-    acc
+    let (h, theta) = (&h.data.0[0], &theta.data.0[0]);
+    sum2::<T, P>(|a| h[a] * theta[a])
 }
 
 /// `θ + K e`.
