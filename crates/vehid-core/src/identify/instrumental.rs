@@ -43,6 +43,14 @@
 //! [`super::Structured`]. The start is exact (batch IV on the first samples, then the
 //! recursion: every estimate is batch IV on all samples so far) or from a prior `P(0) = p0`.
 //!
+//! When every group has the same regressor and so the same instrument (the thesis' full rows:
+//! `h = x(k)`, `ζ = x(k − d)` in every row; or any structure whose equations repeat the same
+//! parameter terms, one group each) and all groups start alike (the same prior block and
+//! weight `r`, or the exact start), their `P = r (Σ ζ hᵀ + r P₀⁻¹)⁻¹` and `M = Σ ζ ζᵀ` are
+//! the same matrices forever: the identifier then runs one `P` update per sample and a `θ̂`
+//! update per group (`instrumental/shared.rs`), with the same arithmetic, so the same bits,
+//! as the per-group loop. It is detected at construction and on load; nothing to choose.
+//!
 //! # Refined instruments ([`InstrumentalVariables::with_lags`])
 //! The delayed regressors are weak instruments for the fast wheel mode (time constant
 //! 0.025 s, half a sample interval: the wheel velocity one sample back says little about the

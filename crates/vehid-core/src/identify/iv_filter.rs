@@ -257,9 +257,10 @@ impl<T: Real, const P: usize> IvFilter<T, P> {
         Self::shared(filters, h, zeta, ye)
     }
 
-    /// The body of [`IvFilter::update_shared`].
+    /// The body of [`IvFilter::update_shared`] (no dispatch: for callers already compiled
+    /// for the wider registers).
     #[inline(always)]
-    fn shared(filters: &mut [Self], h: &SVector<T, P>, zeta: &SVector<T, P>, ye: &mut [T]) -> Result<T> {
+    pub(crate) fn shared(filters: &mut [Self], h: &SVector<T, P>, zeta: &SVector<T, P>, ye: &mut [T]) -> Result<T> {
         let Some(f0) = filters.first() else { return Ok(T::one()) };
         debug_assert!(!f0.start && filters.iter().all(|f| f.shares_gain_with(f0)));
         let g = f0.gain(h, zeta)?;

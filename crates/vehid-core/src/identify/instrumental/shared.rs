@@ -99,6 +99,27 @@ impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> Instrumen
     /// step's result. Transactional as the general path.
     #[inline(always)]
     pub(super) fn update_states(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Option<Result<()>> {
+        // Four or more f64 parameters fill 256-bit registers: the whole sample in the AVX2
+        // copy when the CPU has it (no FMA, the same operations: the same bits, `simd.rs`), so
+        // that no value crosses from narrow stores to wide loads on the way.
+        #[cfg(all(feature = "std", target_arch = "x86_64"))]
+        if const { P >= 4 && core::mem::size_of::<T>() == 8 } && crate::simd::avx2() {
+            // SAFETY: the CPU supports AVX2 (checked at run time by `simd::avx2`).
+            return unsafe { self.states_avx2(x, z, u, e) };
+        }
+        self.states(x, z, u, e)
+    }
+
+    /// [`Self::states`] compiled for AVX2 (same arithmetic, wider registers).
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
+    #[target_feature(enable = "avx2")]
+    fn states_avx2(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Option<Result<()>> {
+        self.states(x, z, u, e)
+    }
+
+    /// The body of [`Self::update_states`].
+    #[inline(always)]
+    fn states(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Option<Result<()>> {
         let s = &self.structure;
         let (n, m, ne) = (s.states(), s.inputs(), s.equations());
         if x.len() != n || z.len() != n || u.len() != m || e.len() != ne {
@@ -135,8 +156,16 @@ impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> Instrumen
         for (y, &row) in e.iter_mut().zip(&self.rows) {
             *y = z.get(row).copied().unwrap_or_else(T::zero);
         }
-        if let Err(err) = self.update_shared(&h, &zeta, e) {
-            return Some(Err(err));
+        let filters = self.filters.flat_mut();
+        let r = filters[0].r();
+        let sv = match IvFilter::shared(filters, &h, &zeta, e) {
+            Ok(sv) => sv,
+            Err(err) => return Some(Err(err)),
+        };
+        for ((&inn, ssr), nobs) in e.iter().zip(&mut self.eq_ssr).zip(&mut self.eq_nobs) {
+            let res = inn * r / sv;
+            *ssr += res * res;
+            *nobs += T::one();
         }
         if exact {
             self.ring.push_states::<P>(x, z);
