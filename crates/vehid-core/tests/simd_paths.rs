@@ -14,7 +14,9 @@
 //! inside it runs in AVX2 there: the standard form without options, with exponential
 //! forgetting, and the general path (Joseph's form, directional forgetting, drift, the outlier
 //! gate and Huber weights, reinitialization, retiring rows), the square-root form, the exact
-//! start, one group of lanes or several, and the refusal of a bad sample. Each is a case below
+//! start, one group of lanes or several, and the refusal of a bad sample; and recursive IV on
+//! full rows (`IvFilter::update_shared` and the full rows' whole sample, `f64` with four or
+//! more parameters per group). Each is a case below
 //! (the narrower forms, e.g. `f32` with four rows, never take the AVX2 copy: nothing to
 //! compare). A case compares every innovation of every sample, which samples are refused, and
 //! at the end θ̂, the whole covariance, `R`, the residual statistics, `tr P`, the counters of
@@ -24,7 +26,8 @@ use rand::rngs::Xoshiro256PlusPlus;
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 use vehid_core::identify::{
-    CovarianceForm, Dynamic, Fixed, Identifier, KalmanOptions, KalmanRows, KalmanShared, Store,
+    CovarianceForm, Dynamic, Fixed, Identifier, IvIdentifier, IvIdentifierVec, KalmanOptions, KalmanRows, KalmanShared,
+    Store, StructuredPrior,
 };
 use vehid_core::model::{HalfCar, QuarterCar};
 use vehid_core::sim::{SimConfig, Simulator};
@@ -270,7 +273,7 @@ fn cases() -> Vec<Case> {
         &[1, 3],
         1000.0,
         &[81.0, 2.5e-5],
-        quarter,
+        quarter.clone(),
     ));
     // f32, every row of the half car: eight lanes fill the register.
     all.extend(rows_cases::<f32, 8, Fixed<8>>("f32 rows Fixed<8>", ALL_8, 1000.0, ALL_R_F32, half32.clone()));
@@ -283,6 +286,34 @@ fn cases() -> Vec<Case> {
         TWELVE_R_F32,
         wide32.clone(),
     ));
+    // Recursive IV on full rows (one shared gain; the whole sample in the AVX2 copy for f64
+    // and four or more parameters per group): the quarter car with a prior (fixed and heap
+    // storage), the half car with the exact start (its outliers and refused NaN samples).
+    let (q1, q2, h1) = (quarter.clone(), quarter.clone(), half64.clone());
+    let iv: [Case; 3] = [
+        (
+            "f64 IV full rows, quarter car, prior".into(),
+            Box::new(move || {
+                let p0 = StructuredPrior::Scalar(1000.0);
+                bits(IvIdentifier::<f64, 4, 2>::full_rows(4, &[1, 3], 1, p0, &[1.0]).unwrap(), &q1)
+            }),
+        ),
+        (
+            "f64 IV full rows, quarter car, heap, delay 2".into(),
+            Box::new(move || {
+                let p0 = StructuredPrior::Scalar(10.0);
+                bits(IvIdentifierVec::<f64, 4>::full_rows(4, &[1, 3], 2, p0, &[0.5]).unwrap(), &q2)
+            }),
+        ),
+        (
+            "f64 IV full rows, half car, exact start".into(),
+            Box::new(move || {
+                let p0 = StructuredPrior::Exact;
+                bits(IvIdentifier::<f64, 8, 4>::full_rows(8, HALF_ROWS, 1, p0, &[1.0]).unwrap(), &h1)
+            }),
+        ),
+    ];
+    all.extend(iv);
     // The shared form: the half car in f64, 12 states in f32.
     all.extend(shared_cases::<f64, 8>("f64 shared, half car", HALF_ROWS, half64));
     all.extend(shared_cases::<f32, 12>("f32 shared, 12 states", TWELVE, wide32));

@@ -43,6 +43,14 @@
 //! [`super::Structured`]. The start is exact (batch IV on the first samples, then the
 //! recursion: every estimate is batch IV on all samples so far) or from a prior `P(0) = p0`.
 //!
+//! When every group has the same regressor and so the same instrument (the thesis' full rows:
+//! `h = x(k)`, `ζ = x(k − d)` in every row; or any structure whose equations repeat the same
+//! parameter terms, one group each) and all groups start alike (the same prior block and
+//! weight `r`, or the exact start), their `P = r (Σ ζ hᵀ + r P₀⁻¹)⁻¹` and `M = Σ ζ ζᵀ` are
+//! the same matrices forever: the identifier then runs one `P` update per sample and a `θ̂`
+//! update per group (`instrumental/shared.rs`), with the same arithmetic, so the same bits,
+//! as the per-group loop. It is detected at construction and on load; nothing to choose.
+//!
 //! # Refined instruments ([`InstrumentalVariables::with_lags`])
 //! The delayed regressors are weak instruments for the fast wheel mode (time constant
 //! 0.025 s, half a sample interval: the wheel velocity one sample back says little about the
@@ -61,6 +69,8 @@
 //! estimated denominator, iterated). The road input is never measured, so that model
 //! cannot be simulated here; the predictor above is its data-driven stand-in.
 
+mod shared;
+
 use super::interface::check_lengths;
 use super::iv_filter::IvFilter;
 use super::iv_predictor::{Predictor, SAMPLE_VALUES};
@@ -68,6 +78,7 @@ use super::{Dims, Flat, Identifier, StructuredPrior, OVERFLOW};
 use crate::structure::{Partition, Structure, MAX_EQUATIONS, MAX_PARAMS};
 use crate::{Error, Real, Result};
 use nalgebra::{SMatrix, SVector};
+use shared::{shared_regressor, SharedRegressor};
 
 /// Values the ring of past samples holds: `delay × (2 n + m) ≤ RING_VALUES`.
 pub const RING_VALUES: usize = 512;
@@ -118,8 +129,22 @@ impl<T: Real> Ring<T> {
     pub(crate) fn ago(&self, age: usize) -> &[T] {
         let w = self.width as usize;
         let slots = self.slots as usize;
-        let at = (self.head as usize + slots - age) % slots * w;
+        // head < slots and 1 ≤ age ≤ slots: one conditional subtraction wraps it.
+        let i = self.head as usize + slots - age;
+        let at = if i >= slots { i - slots } else { i } * w;
         &self.buf[at..at + w]
+    }
+
+    /// [`Ring::push`] of a sample of `N` states and no input, on compile-time lengths.
+    #[inline(always)]
+    pub(crate) fn push_states<const N: usize>(&mut self, x: &[T], z: &[T]) {
+        let at = self.head as usize * 2 * N;
+        let slot = &mut self.buf[at..at + 2 * N];
+        let (sx, sz) = slot.split_at_mut(N);
+        sx.copy_from_slice(&x[..N]);
+        sz.copy_from_slice(&z[..N]);
+        self.head = if self.head + 1 == self.slots { 0 } else { self.head + 1 };
+        self.filled = (self.filled + 1).min(self.slots);
     }
 
     /// Stores a sample (over the oldest).
@@ -132,7 +157,7 @@ impl<T: Real> Ring<T> {
         slot[..n].copy_from_slice(x);
         slot[n..2 * n].copy_from_slice(z);
         slot[2 * n..2 * n + m].copy_from_slice(u);
-        self.head = (self.head + 1) % self.slots;
+        self.head = if self.head + 1 == self.slots { 0 } else { self.head + 1 };
         self.filled = (self.filled + 1).min(self.slots);
     }
 }
@@ -173,6 +198,10 @@ pub struct InstrumentalVariables<T: Real, const P: usize, F: Flat<IvFilter<T, P>
     eq_ssr: [T; MAX_EQUATIONS],
     eq_nobs: [T; MAX_EQUATIONS],
     samples: u64,
+    /// Every group shares one gain (`shared.rs`): derived from the structure and the filters
+    /// at construction and on load, not stored.
+    #[cfg_attr(feature = "serde", serde(skip))]
+    shared: Option<SharedRegressor>,
 }
 
 /// [`InstrumentalVariables`] with its `G` groups' filters in an array and a predictor of
@@ -316,6 +345,7 @@ impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> Instrumen
         if !sums.into_iter().all(|&v| v.finite() && v >= T::zero()) {
             return corrupt("an IV identifier's residual sums and counts finite and ≥ 0");
         }
+        self.shared = shared_regressor(&self.structure, &self.part, self.filters.flat());
         Ok(())
     }
 
@@ -379,6 +409,7 @@ impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> Instrumen
             rows[i] = s;
         }
         Ok(Self {
+            shared: shared_regressor(&structure, &part, filters.flat()),
             structure,
             part,
             backup: filters.clone(),
@@ -483,6 +514,97 @@ impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> Instrumen
         Ok(())
     }
 
+    /// One sample with refined instruments (after the ring has filled): the instruments'
+    /// sample is the current one as predicted from the `lags` samples before `k − d + 1`
+    /// (none while the predictor starts: innovations only). The predictor's step is planned
+    /// first and applied last, so that a rejected sample changes nothing.
+    fn update_refined(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
+        let (n, m) = (self.structure.states(), self.structure.inputs());
+        let (d, lags, width) = (self.delay as usize, self.lags as usize, 2 * n + m);
+        let mut q = [T::zero(); Q];
+        let mut at = [T::zero(); SAMPLE_VALUES];
+        for j in 0..lags {
+            q[j * width..(j + 1) * width].copy_from_slice(self.ring.ago(d + j));
+        }
+        q[lags * width] = T::one();
+        let have = !self.pred.starting();
+        if have {
+            self.pred.predict(&q, &mut at[..width]);
+        }
+        let mut now = [T::zero(); SAMPLE_VALUES];
+        now[..n].copy_from_slice(x);
+        now[n..2 * n].copy_from_slice(z);
+        now[2 * n..width].copy_from_slice(u);
+        let step = self.pred.plan(&q, &now[..width])?;
+        match self.shared_ready() {
+            Some(kind) if have => {
+                let (h, zeta) = self.shared_regressors(kind, x, z, u, split(&at[..width], n), e)?;
+                self.update_shared(&h, &zeta, e)?;
+            }
+            _ if have => self.update_groups(x, z, u, split(&at[..width], n), e)?,
+            _ => self.innovations(x, z, u, e)?,
+        }
+        self.pred.apply(&step, &q, &now[..width]);
+        Ok(())
+    }
+
+    /// One sample through each group's own filter (equations in turn, weighted); the
+    /// instruments' sample is `(ax, az, au)`. Transactional: on an error the groups touched
+    /// are restored from their backup and the residual sums from their copy.
+    fn update_groups(
+        &mut self,
+        x: &[T],
+        z: &[T],
+        u: &[T],
+        (ax, az, au): (&[T], &[T], &[T]),
+        e: &mut [T],
+    ) -> Result<()> {
+        let (ssr0, nobs0) = (self.eq_ssr, self.eq_nobs);
+        let mut touched = 0u32;
+        let mut failed = None;
+        let (s, part) = (&self.structure, &self.part);
+        for i in 0..s.equations() {
+            let g = part.group_of_eq[i] as usize;
+            if touched & (1 << g) == 0 {
+                touched |= 1 << g;
+                self.backup.flat_mut()[g] = self.filters.flat()[g];
+            }
+            let w = self.scale[i];
+            let (y, h) = local_regression::<T, P>(s, part, i, w, x, z, u);
+            let (_, zeta) = local_regression::<T, P>(s, part, i, w, ax, az, au);
+            if !(y.finite() && h.iter().chain(zeta.iter()).all(|v| v.finite())) {
+                failed = Some(OVERFLOW);
+                break;
+            }
+            match self.filters.flat_mut()[g].update(&h, &zeta, y) {
+                Ok((inn, post)) => {
+                    e[i] = inn / w;
+                    if let Some(res) = post {
+                        let res = res / w;
+                        self.eq_ssr[i] += res * res;
+                        self.eq_nobs[i] += T::one();
+                    }
+                }
+                Err(err) => {
+                    failed = Some(err);
+                    break;
+                }
+            }
+        }
+        if let Some(err) = failed {
+            self.restore(touched);
+            (self.eq_ssr, self.eq_nobs) = (ssr0, nobs0);
+            return Err(err);
+        }
+        // After the per-group step (the exact start of a shared identifier) the shared step
+        // stays only while the groups still share their gain.
+        let f = self.filters.flat();
+        if self.shared.is_some() && !f.iter().all(|g| g.shares_gain_with(&f[0])) {
+            self.shared = None;
+        }
+        Ok(())
+    }
+
     fn restore(&mut self, touched: u32) {
         for g in 0..self.part.groups as usize {
             if touched & (1 << g) != 0 {
@@ -490,6 +612,14 @@ impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> Instrumen
             }
         }
     }
+}
+
+/// A sample `(x, z, u)` of `n` states from its `2n + m` values.
+#[inline(always)]
+fn split<T>(sample: &[T], n: usize) -> (&[T], &[T], &[T]) {
+    let (x, rest) = sample.split_at(n);
+    let (z, u) = rest.split_at(n);
+    (x, z, u)
 }
 
 /// Per-group prior covariances (`None` for the exact start).
@@ -586,14 +716,20 @@ impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> Identifie
     /// One sample (see [`Identifier::update_into`]). For the first `delay` samples there is
     /// no instrument yet: they are stored and their innovations reported, nothing else.
     fn update_into(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
+        if self.lags == 0 && self.ring.full() && self.shared_ready() == Some(SharedRegressor::States) {
+            if let Some(done) = self.update_states(x, z, u, e) {
+                return done;
+            }
+        }
         check_lengths(self.dims(), x, z, u, e)?;
         // Every value is kept for later samples' instruments, whose products must stay finite:
         // a value that would overflow when squared is refused now (accepted, it would make
         // every later sample overflow while it stays in the ring).
         let limit = T::biggest().sqrt() / T::of(256.0);
         for (arg, v) in [("r_k", x), ("z_k", z), ("u_k", u)] {
-            crate::error::check_finite(arg, v)?;
+            // One pass (a NaN fails `<` too); the error names a non-finite value first.
             if v.iter().any(|a| !(a.abs() < limit)) {
+                crate::error::check_finite(arg, v)?;
                 return Err(Error::InvalidArgument {
                     arg,
                     expected: "values below √(largest float)/256 (about 5e151 in f64, 7e16 in f32), whose squares \
@@ -608,80 +744,19 @@ impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> Identifie
             return Ok(());
         }
         let (n, m) = (self.structure.states(), self.structure.inputs());
-        let (d, lags) = (self.delay as usize, self.lags as usize);
-        // The instruments' sample: the delayed one, or the predicted current one.
-        let mut q = [T::zero(); Q];
-        let mut at = [T::zero(); SAMPLE_VALUES];
-        let width = 2 * n + m;
-        let have = if lags == 0 {
-            at[..width].copy_from_slice(self.ring.ago(d));
-            true
+        let d = self.delay as usize;
+        if self.lags == 0 {
+            // The instruments' sample: the one `d` steps back.
+            if let Some(kind) = self.shared_ready() {
+                let (h, zeta) = self.shared_regressors(kind, x, z, u, split(self.ring.ago(d), n), e)?;
+                self.update_shared(&h, &zeta, e)?;
+            } else {
+                let mut at = [T::zero(); SAMPLE_VALUES];
+                at[..2 * n + m].copy_from_slice(self.ring.ago(d));
+                self.update_groups(x, z, u, split(&at[..2 * n + m], n), e)?;
+            }
         } else {
-            for j in 0..lags {
-                q[j * width..(j + 1) * width].copy_from_slice(self.ring.ago(d + j));
-            }
-            q[lags * width] = T::one();
-            if !self.pred.starting() {
-                self.pred.predict(&q, &mut at[..width]);
-            }
-            !self.pred.starting()
-        };
-        // The predictor's step is checked first, so that once the groups are updated it
-        // cannot fail.
-        let mut now = [T::zero(); SAMPLE_VALUES];
-        let step = if lags > 0 {
-            now[..n].copy_from_slice(x);
-            now[n..2 * n].copy_from_slice(z);
-            now[2 * n..width].copy_from_slice(u);
-            Some(self.pred.plan(&q, &now[..width])?)
-        } else {
-            None
-        };
-        let (ssr0, nobs0) = (self.eq_ssr, self.eq_nobs);
-        let mut touched = 0u32;
-        let mut failed = None;
-        if have {
-            let (ax, rest) = at[..width].split_at(n);
-            let (az, au) = rest.split_at(n);
-            let (s, part) = (&self.structure, &self.part);
-            for i in 0..s.equations() {
-                let g = part.group_of_eq[i] as usize;
-                if touched & (1 << g) == 0 {
-                    touched |= 1 << g;
-                    self.backup.flat_mut()[g] = self.filters.flat()[g];
-                }
-                let w = self.scale[i];
-                let (y, h) = local_regression::<T, P>(s, part, i, w, x, z, u);
-                let (_, zeta) = local_regression::<T, P>(s, part, i, w, ax, az, au);
-                if !(y.finite() && h.iter().chain(zeta.iter()).all(|v| v.finite())) {
-                    failed = Some(OVERFLOW);
-                    break;
-                }
-                match self.filters.flat_mut()[g].update(&h, &zeta, y) {
-                    Ok((inn, post)) => {
-                        e[i] = inn / w;
-                        if let Some(res) = post {
-                            let res = res / w;
-                            self.eq_ssr[i] += res * res;
-                            self.eq_nobs[i] += T::one();
-                        }
-                    }
-                    Err(err) => {
-                        failed = Some(err);
-                        break;
-                    }
-                }
-            }
-        } else if let Err(err) = self.innovations(x, z, u, e) {
-            failed = Some(err);
-        }
-        if let Some(err) = failed {
-            self.restore(touched);
-            (self.eq_ssr, self.eq_nobs) = (ssr0, nobs0);
-            return Err(err);
-        }
-        if let Some(step) = step {
-            self.pred.apply(&step, &q, &now[..width]);
+            self.update_refined(x, z, u, e)?;
         }
         self.ring.push(x, z, u);
         self.samples += 1;

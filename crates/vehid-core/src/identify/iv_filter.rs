@@ -156,30 +156,133 @@ impl<T: Real, const P: usize> IvFilter<T, P> {
         if self.start {
             return self.absorb(h, zeta, y).map(|e| (e, None));
         }
-        let pz = self.p * zeta;
-        let hp = self.p.tr_mul(h); // Pᵀh: (hᵀP)ᵀ
-        let mut s = self.r;
-        let mut scale = self.r;
-        for a in 0..P {
-            s += h[a] * pz[a];
-            scale += (h[a] * pz[a]).abs();
+        let g = self.gain(h, zeta)?;
+        let e = y - dot(h, &self.theta);
+        let theta = step(&self.theta, &g.k, e);
+        let mut check = [T::zero(); P];
+        for v in [&g.p, &g.m] {
+            zero_sum(v, &mut check);
         }
+        zero_sum(&theta, &mut check);
+        if !check.iter().all(|&v| v == T::zero()) {
+            return Err(OVERFLOW);
+        }
+        (self.theta, self.p, self.m) = (theta, g.p, g.m);
+        self.count += 1;
+        Ok((e, Some(e * self.r / g.s)))
+    }
+
+    /// The gain side of a step (the same for every filter with this `P`, `M` and `r`):
+    /// `s = r + hᵀPζ` (refused when it nearly vanishes), `K = Pζ/s`, `P − K (Pᵀh)ᵀ` and
+    /// `M + ζζᵀ`, written out over the column arrays (`P` is a compile-time size: unrolled
+    /// and vectorized, and the same operations in [`IvFilter::update`] and
+    /// [`IvFilter::update_shared`], so both give the same bits).
+    #[inline(always)]
+    fn gain(&self, h: &SVector<T, P>, zeta: &SVector<T, P>) -> Result<Gain<T, P>> {
+        let (pc, hv, zv) = (&self.p.data.0, &h.data.0[0], &zeta.data.0[0]);
+        // Every sum pairwise (even and odd terms apart, `sum2`): half the dependent additions
+        // on the step's critical path (P → Pζ → s → K → P).
+        let mut pz = [T::zero(); P];
+        let mut hp = [T::zero(); P];
+        for a in 0..P {
+            pz[a] = sum2::<T, P>(|b| pc[b][a] * zv[b]);
+        }
+        for (b, hb) in hp.iter_mut().enumerate() {
+            *hb = sum2::<T, P>(|a| hv[a] * pc[b][a]);
+        }
+        let s = self.r + sum2::<T, P>(|a| hv[a] * pz[a]);
+        let scale = self.r + sum2::<T, P>(|a| (hv[a] * pz[a]).abs());
         if !(s.abs() > T::default_epsilon().sqrt() * scale) {
             return Err(if s.finite() && scale.finite() { SINGULAR } else { OVERFLOW });
         }
-        let e = y - h.dot(&self.theta);
-        let k = pz / s;
-        let theta = self.theta + k * e;
-        let mut p = self.p;
-        p.ger(-T::one(), &k, &hp, T::one());
-        let mut m = self.m;
-        m.ger(T::one(), zeta, zeta, T::one());
-        if !(theta.iter().all(|v| v.finite()) && p.iter().all(|v| v.finite()) && m.iter().all(|v| v.finite())) {
+        let mut k = SVector::<T, P>::zeros();
+        for a in 0..P {
+            k[a] = pz[a] / s;
+        }
+        let (mut p, mut m) = (self.p, self.m);
+        let (pn, mn, kv) = (&mut p.data.0, &mut m.data.0, &k.data.0[0]);
+        for b in 0..P {
+            for a in 0..P {
+                pn[b][a] -= kv[a] * hp[b];
+                mn[b][a] += zv[a] * zv[b];
+            }
+        }
+        Ok(Gain { k, s, p, m })
+    }
+
+    /// `true` when `other` has the same `P`, `M`, weight `r`, size, start state and sample
+    /// count (everything but `θ̂`): two such filters fed the same `h` and `ζ` stay so, and
+    /// [`IvFilter::update_shared`] may update them together.
+    pub(crate) fn shares_gain_with(&self, other: &Self) -> bool {
+        self.p == other.p
+            && self.m == other.m
+            && self.r == other.r
+            && self.start == other.start
+            && self.dim == other.dim
+            && self.count == other.count
+    }
+
+    /// One sample for filters that share their gain ([`IvFilter::shares_gain_with`], none
+    /// starting) and see the same regressor `h` and instrument `ζ`, one output each: `ye[g]`
+    /// is filter `g`'s `y` on entry and its innovation `y − hᵀθ̂_g` on return. `P ζ`, `s`,
+    /// the gain and the `P` and `M` updates are computed once; each filter adds its own
+    /// `θ̂_g ← θ̂_g + P ζ e_g / s`. The arithmetic is [`IvFilter::update`]'s, operation for
+    /// operation, so every filter ends bit for bit as there. Returns `s` (each a-posteriori
+    /// residual is `e_g r / s`). Transactional: on an error no filter changed (`ye` is then
+    /// meaningless).
+    ///
+    /// # Errors
+    /// As [`IvFilter::update`].
+    #[inline]
+    pub(crate) fn update_shared(
+        filters: &mut [Self],
+        h: &SVector<T, P>,
+        zeta: &SVector<T, P>,
+        ye: &mut [T],
+    ) -> Result<T> {
+        // Four or more f64 parameters fill 256-bit registers: the AVX2 copy when the CPU has
+        // it (no FMA, the same operations: the same bits, see `simd.rs`).
+        #[cfg(all(feature = "std", target_arch = "x86_64"))]
+        if const { P >= 4 && core::mem::size_of::<T>() == 8 } && crate::simd::avx2() {
+            // SAFETY: the CPU supports AVX2 (checked at run time by `simd::avx2`).
+            return unsafe { Self::shared_avx2(filters, h, zeta, ye) };
+        }
+        Self::shared(filters, h, zeta, ye)
+    }
+
+    /// [`IvFilter::shared`] compiled for AVX2 (same arithmetic, wider registers).
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
+    #[target_feature(enable = "avx2")]
+    fn shared_avx2(filters: &mut [Self], h: &SVector<T, P>, zeta: &SVector<T, P>, ye: &mut [T]) -> Result<T> {
+        Self::shared(filters, h, zeta, ye)
+    }
+
+    /// The body of [`IvFilter::update_shared`] (no dispatch: for callers already compiled
+    /// for the wider registers).
+    #[inline(always)]
+    pub(crate) fn shared(filters: &mut [Self], h: &SVector<T, P>, zeta: &SVector<T, P>, ye: &mut [T]) -> Result<T> {
+        let Some(f0) = filters.first() else { return Ok(T::one()) };
+        debug_assert!(!f0.start && filters.iter().all(|f| f.shares_gain_with(f0)));
+        let g = f0.gain(h, zeta)?;
+        let mut check = [T::zero(); P];
+        for v in [&g.p, &g.m] {
+            zero_sum(v, &mut check);
+        }
+        for (f, v) in filters.iter().zip(ye.iter_mut()) {
+            let e = *v - dot(h, &f.theta);
+            zero_sum(&step(&f.theta, &g.k, e), &mut check);
+            *v = e;
+        }
+        if !check.iter().all(|&v| v == T::zero()) {
             return Err(OVERFLOW);
         }
-        (self.theta, self.p, self.m) = (theta, p, m);
-        self.count += 1;
-        Ok((e, Some(e * self.r / s)))
+        for (f, &e) in filters.iter_mut().zip(ye.iter()) {
+            f.theta = step(&f.theta, &g.k, e);
+            (f.p, f.m) = (g.p, g.m);
+            f.count += 1;
+        }
+        let s = g.s;
+        Ok(s)
     }
 
     /// The exact start: accumulate, and end the start when `Σ ζ hᵀ` is well conditioned.
@@ -313,6 +416,61 @@ pub(crate) fn invert<T: Real, const P: usize>(c: &SMatrix<T, P, P>, d: usize) ->
         }
     }
     Some(inv)
+}
+
+/// The gain side of one step ([`IvFilter::gain`]).
+#[derive(Clone, Copy)]
+struct Gain<T: Real, const P: usize> {
+    k: SVector<T, P>,
+    s: T,
+    p: SMatrix<T, P, P>,
+    m: SMatrix<T, P, P>,
+}
+
+/// Adds `0 · v` of every entry `v` of `a`, row by row, to `acc`: each sum stays 0 while the
+/// entries are finite and becomes NaN once one is not (`0 · ∞` and `0 · NaN` are NaN), so one
+/// test of `acc` at the end checks several matrices (vector operations, no early exit; a sum
+/// of zeros cannot overflow).
+#[inline(always)]
+fn zero_sum<T: Real, const R: usize, const C: usize>(a: &SMatrix<T, R, C>, acc: &mut [T; R]) {
+    for c in &a.data.0 {
+        for (s, &v) in acc.iter_mut().zip(c) {
+            *s += v * T::zero();
+        }
+    }
+}
+
+/// `Σ_{a < P} f(a)` as (even terms) + (odd terms), each in order: the fixed summation order
+/// of every sum in the step.
+#[inline(always)]
+fn sum2<T: Real, const P: usize>(f: impl Fn(usize) -> T) -> T {
+    let mut even = f(0);
+    let mut odd = if P > 1 { f(1) } else { T::zero() };
+    for a in 2..P {
+        if a % 2 == 0 {
+            even += f(a);
+        } else {
+            odd += f(a);
+        }
+    }
+    even + odd
+}
+
+/// `hᵀθ` ([`sum2`]).
+#[inline(always)]
+fn dot<T: Real, const P: usize>(h: &SVector<T, P>, theta: &SVector<T, P>) -> T {
+    let (h, theta) = (&h.data.0[0], &theta.data.0[0]);
+    sum2::<T, P>(|a| h[a] * theta[a])
+}
+
+/// `θ + K e`.
+#[inline(always)]
+fn step<T: Real, const P: usize>(theta: &SVector<T, P>, k: &SVector<T, P>, e: T) -> SVector<T, P> {
+    let mut out = *theta;
+    for (o, &kv) in out.data.0[0].iter_mut().zip(&k.data.0[0]) {
+        *o += kv * e;
+    }
+    out
 }
 
 fn check_dim<const P: usize>(dim: usize) -> Result<()> {
