@@ -17,7 +17,7 @@
 //! allocation at all) or a `Vec` ([`StructuredKalmanVec`]). An update allocates nothing; it
 //! is transactional (the groups it touched are restored on any error).
 
-use super::interface::check_slices;
+use super::interface::{check_lengths, check_slices};
 use super::kalman::RowIdentifier;
 use super::structured_fast::Fast;
 use super::{CovarianceForm, Dims, Flat, Identifier, KalmanOptions, OVERFLOW};
@@ -395,9 +395,14 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Identifier<T> for St
     }
 
     fn update_into(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
-        check_slices(self.dims(), x, z, u, e)?;
+        check_lengths(self.dims(), x, z, u, e)?;
+        if !(all_finite(x) & all_finite(z) & all_finite(u)) {
+            check_slices(self.dims(), x, z, u, e)?;
+        }
         let ne = self.structure.equations();
-        self.fast.try_enter(self.filters.flat(), (&self.eq_ssr[..ne], &self.eq_nobs[..ne]));
+        if !self.fast.live() {
+            self.fast.try_enter(self.filters.flat(), (&self.eq_ssr[..ne], &self.eq_nobs[..ne]));
+        }
         if self.fast.live() {
             if self.fast.step(&self.structure, x, z, u, e) {
                 self.samples += 1;
@@ -536,6 +541,13 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Structured<T, P, F> 
         self.samples += 1;
         Ok(())
     }
+}
+
+/// `true` when every value is finite (`0 · v` is NaN exactly for NaN and ±inf): one pass of
+/// arithmetic, no branch per value; the index of a bad value is found by `check_slices`.
+#[inline(always)]
+fn all_finite<T: Real>(v: &[T]) -> bool {
+    v.iter().fold(T::zero(), |a, &b| a + b * T::zero()) == T::zero()
 }
 
 /// Equation `i`'s regression `(y, h)` (its state's derivative `z[state]` less its known terms,

@@ -11,8 +11,8 @@
 //! refuses, a covariance reset, serialization). Entering and leaving copy every filter once;
 //! a plain update copies nothing.
 
-use super::kalman::{RowIdentifier, XLanes};
-use crate::structure::{Basis, Partition, Structure, MAX_EQUATIONS, MAX_TERMS};
+use super::kalman::{RowIdentifier, XLanes, XPlan};
+use crate::structure::{Basis, Partition, Structure, Var, MAX_EQUATIONS, MAX_TERMS};
 use crate::Real;
 
 /// Filters per group of lanes (two `f64` in one SSE2 register).
@@ -21,18 +21,35 @@ const LANES: usize = 2;
 const LANE_GROUPS: usize = 2;
 /// The most parameter groups (one equation each) the fast path takes.
 pub(crate) const FAST_GROUPS: usize = LANES * LANE_GROUPS;
-/// The slot of a known term (it enters `y`, not the regressor).
-const KNOWN: u8 = u8::MAX;
+/// No state (an index every state slice is shorter than): reads 0.
+const NO_STATE: u8 = u8::MAX;
 
-/// One term of the compiled regression: `coef · φ` into lane `lane`'s regressor entry `slot`
-/// (the parameter's index in its group), or subtracted from its `y` (`slot` = `KNOWN`).
+/// Where a term of the compiled regression reads its basis function: a variable directly, 1,
+/// or (`sign`, `pos`, `neg`) through [`Structure::basis`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Src {
+    State(u8),
+    Deriv(u8),
+    Input(u8),
+    One,
+    Other(Basis),
+}
+
+/// One term of the compiled regression: `coef · φ` added to entry `dst` of the regression
+/// buffer ([`Buffer`], flat: block, slot, lane). A parameter's term goes to its lane's
+/// regressor (block: the group of lanes, slot: the parameter's index in its group); a known
+/// term to its lane's `y` (block `LANE_GROUPS +` the group of lanes, slot 0) with its
+/// coefficient negated (`y + (−c)φ` is `y − cφ` exactly).
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Gather<T> {
     coef: T,
-    basis: Basis,
-    lane: u8,
-    slot: u8,
+    src: Src,
+    dst: u16,
 }
+
+/// The regression of one sample: the lanes' regressors (blocks `0..LANE_GROUPS`) and their
+/// `y` (slot 0 of blocks `LANE_GROUPS..`).
+type Buffer<T, const P: usize> = [[[T; LANES]; P]; 2 * LANE_GROUPS];
 
 /// The lanes and the compiled regression (see the module docs).
 #[derive(Debug, Clone, PartialEq)]
@@ -52,6 +69,12 @@ pub(crate) struct Fast<T: Real, const P: usize> {
     /// The terms, equation by equation in their order (the general path's arithmetic).
     gather: [Gather<T>; MAX_TERMS],
     n_gather: u8,
+    /// When every term is `1 · x_j` with a parameter, one per regressor entry, and there are
+    /// no known terms (the full-row structure and its sparse forms): each entry's state
+    /// ([`NO_STATE`] for none), read directly instead of through `gather`.
+    direct: Option<[[[u8; LANES]; P]; LANE_GROUPS]>,
+    /// Equation `i` is in lane `i` (the innovations are the lanes in order).
+    in_order: bool,
 }
 
 impl<T: Real, const P: usize> Fast<T, P> {
@@ -64,17 +87,40 @@ impl<T: Real, const P: usize> Fast<T, P> {
             return fast;
         }
         let mut n = 0;
+        let mut direct = [[[NO_STATE; LANES]; P]; LANE_GROUPS];
+        let mut is_direct = true;
         for i in 0..ne {
             let g = part.group_of_eq[i];
             fast.lane_of_eq[i] = g;
             fast.state_of_lane[g as usize] = s.equation_state(i) as u8;
+            let (lg, k) = (g as usize / LANES, g as usize % LANES);
             for t in s.terms(i) {
-                let slot = t.param.map_or(KNOWN, |p| part.local[p as usize]);
-                fast.gather[n] = Gather { coef: t.coef, basis: t.basis, lane: g, slot };
+                let src = match t.basis {
+                    Basis::Var(Var::State(j)) => Src::State(j),
+                    Basis::Var(Var::Deriv(j)) => Src::Deriv(j),
+                    Basis::Var(Var::Input(j)) => Src::Input(j),
+                    Basis::One => Src::One,
+                    b => Src::Other(b),
+                };
+                let (dst, coef) = match t.param {
+                    Some(p) => ((lg * P + part.local[p as usize] as usize) * LANES + k, t.coef),
+                    None => ((LANE_GROUPS + lg) * P * LANES + k, -t.coef),
+                };
+                fast.gather[n] = Gather { coef, src, dst: dst as u16 };
                 n += 1;
+                match (t.param, src) {
+                    (Some(p), Src::State(j)) if t.coef == T::one() => {
+                        let e = &mut direct[lg][part.local[p as usize] as usize][k];
+                        is_direct &= *e == NO_STATE;
+                        *e = j;
+                    }
+                    _ => is_direct = false,
+                }
             }
         }
         fast.n_gather = n as u8;
+        fast.direct = is_direct.then_some(direct);
+        fast.in_order = (0..ne).all(|i| fast.lane_of_eq[i] as usize == i);
         fast.groups = ne as u8;
         fast.used = ne.div_ceil(LANES) as u8;
         fast.able = true;
@@ -83,7 +129,7 @@ impl<T: Real, const P: usize> Fast<T, P> {
 
     /// No fast path (and a deserialized identifier's until it is checked).
     pub(crate) fn none() -> Self {
-        let none = Gather { coef: T::zero(), basis: Basis::One, lane: 0, slot: KNOWN };
+        let none = Gather { coef: T::zero(), src: Src::One, dst: 0 };
         Self {
             lanes: [XLanes::padding(); LANE_GROUPS],
             able: false,
@@ -94,6 +140,8 @@ impl<T: Real, const P: usize> Fast<T, P> {
             state_of_lane: [0; FAST_GROUPS],
             gather: [none; MAX_TERMS],
             n_gather: 0,
+            direct: None,
+            in_order: false,
         }
     }
 
@@ -165,37 +213,42 @@ impl<T: Real, const P: usize> Fast<T, P> {
         }
     }
 
-    /// The regressors and left-hand sides of every lane at sample `(x, z, u)`, from the
-    /// compiled table: per term `φ = coef · basis(x, z, u)`, added to its slot (from 0) or
-    /// subtracted from `y = z[state]`, in the order of the terms (the general path's
-    /// arithmetic, [`super::structured::group_regression`]; the row weight is 1 with one
-    /// equation per group).
+    /// The regressors and left-hand sides of every lane at sample `(x, z, u)` into `buf`
+    /// (zero), from the compiled table: `y = z[state]`, then per term `φ = coef · basis(x, z, u)`
+    /// added to its regressor entry (from 0) or subtracted from `y`, in the order of the
+    /// terms (the general path's arithmetic, [`super::structured::group_regression`]; the row
+    /// weight is 1 with one equation per group).
     #[inline(always)]
-    #[allow(clippy::type_complexity)]
-    fn regression(
-        &self,
-        s: &Structure<T>,
-        x: &[T],
-        z: &[T],
-        u: &[T],
-    ) -> ([[[T; LANES]; P]; LANE_GROUPS], [[T; LANES]; LANE_GROUPS]) {
-        let mut h = [[[T::zero(); LANES]; P]; LANE_GROUPS];
-        let mut y = [[T::zero(); LANES]; LANE_GROUPS];
+    fn regression(&self, s: &Structure<T>, x: &[T], z: &[T], u: &[T], buf: &mut Buffer<T, P>) {
         for g in 0..self.groups as usize {
-            y[g / LANES][g % LANES] = z.get(self.state_of_lane[g] as usize).copied().unwrap_or_else(T::zero);
+            let v = z.get(self.state_of_lane[g] as usize).copied().unwrap_or_else(T::zero);
+            buf[LANE_GROUPS + g / LANES][0][g % LANES] = v;
         }
-        for t in &self.gather[..self.n_gather as usize] {
-            let phi = t.coef * s.basis(t.basis, x, z, u);
-            let g = t.lane as usize;
-            if t.slot == KNOWN {
-                if let Some(v) = y.get_mut(g / LANES) {
-                    v[g % LANES] -= phi;
+        if let Some(direct) = &self.direct {
+            // `0 + x_j`, as the general path adds the term to a zero entry.
+            for (lg, d) in direct.iter().enumerate().take(self.used as usize) {
+                for a in 0..P {
+                    for k in 0..LANES {
+                        buf[lg][a][k] = T::zero() + x.get(d[a][k] as usize).copied().unwrap_or_else(T::zero);
+                    }
                 }
-            } else if let Some(v) = h.get_mut(g / LANES).and_then(|hg| hg.get_mut(t.slot as usize)) {
-                v[g % LANES] += phi;
+            }
+            return;
+        }
+        let at = |v: &[T], j: u8| v.get(j as usize).copied().unwrap_or_else(T::zero);
+        let flat = buf.as_flattened_mut().as_flattened_mut();
+        for t in &self.gather[..self.n_gather as usize] {
+            let v = match t.src {
+                Src::State(j) => at(x, j),
+                Src::Deriv(j) => at(z, j),
+                Src::Input(j) => at(u, j),
+                Src::One => T::one(),
+                Src::Other(b) => s.basis(b, x, z, u),
+            };
+            if let Some(d) = flat.get_mut(t.dst as usize) {
+                *d += t.coef * v;
             }
         }
-        (h, y)
     }
 
     /// One sample through the lanes (live): every group of lanes planned, then all applied,
@@ -203,18 +256,20 @@ impl<T: Real, const P: usize> Fast<T, P> {
     /// take the general update (see [`XLanes::plan`]).
     #[inline(always)]
     pub(crate) fn step(&mut self, s: &Structure<T>, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> bool {
-        let (h, y) = self.regression(s, x, z, u);
+        let mut buf = [[[T::zero(); LANES]; P]; 2 * LANE_GROUPS];
+        self.regression(s, x, z, u, &mut buf);
         let mut ek = [[T::zero(); LANES]; LANE_GROUPS];
         if self.used == 1 {
-            let (ok, pl) = self.lanes[0].plan(&h[0], y[0]);
-            if !ok {
+            let mut pl = XPlan::empty();
+            if !self.lanes[0].plan(&buf[0], buf[LANE_GROUPS][0], &mut pl) {
                 return false;
             }
             self.lanes[0].apply(&pl);
             ek[0] = pl.e;
         } else {
-            let (ok0, p0) = self.lanes[0].plan(&h[0], y[0]);
-            let (ok1, p1) = self.lanes[1].plan(&h[1], y[1]);
+            let (mut p0, mut p1) = (XPlan::empty(), XPlan::empty());
+            let ok0 = self.lanes[0].plan(&buf[0], buf[LANE_GROUPS][0], &mut p0);
+            let ok1 = self.lanes[1].plan(&buf[1], buf[LANE_GROUPS + 1][0], &mut p1);
             if !(ok0 & ok1) {
                 return false;
             }
@@ -222,9 +277,19 @@ impl<T: Real, const P: usize> Fast<T, P> {
             self.lanes[1].apply(&p1);
             (ek[0], ek[1]) = (p0.e, p1.e);
         }
-        for (o, &g) in e.iter_mut().zip(&self.lane_of_eq[..self.groups as usize]) {
-            let g = g as usize;
-            *o = ek[g / LANES][g % LANES];
+        if self.in_order {
+            // Lane by lane (a copy of a run-time length would call `memcpy`).
+            let flat = ek.as_flattened();
+            for i in 0..FAST_GROUPS {
+                if let Some(o) = e.get_mut(i) {
+                    *o = flat[i];
+                }
+            }
+        } else {
+            for (o, &g) in e.iter_mut().zip(&self.lane_of_eq[..self.groups as usize]) {
+                let g = g as usize;
+                *o = ek[g / LANES][g % LANES];
+            }
         }
         true
     }

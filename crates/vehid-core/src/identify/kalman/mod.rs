@@ -89,7 +89,7 @@ pub use rows::{KalmanIdentifierVec, KalmanIdentifierVec2};
 #[cfg(feature = "alloc")]
 pub use shared::SharedKalmanIdentifierVec;
 pub use shared::{KalmanShared, SharedKalmanIdentifier};
-pub(crate) use xlanes::XLanes;
+pub(crate) use xlanes::{XLanes, XPlan};
 
 #[cfg(test)]
 mod numerics_tests;

@@ -58,6 +58,15 @@ pub(crate) struct XPlan<T: Real, const N: usize, const L: usize> {
     eq_nobs: [T; L],
 }
 
+impl<T: Real, const N: usize, const L: usize> XPlan<T, N, L> {
+    /// An empty plan (to be written by [`XLanes::plan`]).
+    #[inline(always)]
+    pub(crate) fn empty() -> Self {
+        let z = [T::zero(); L];
+        Self { px: [z; N], c: z, w: z, e: z, ssr: z, nobs: z, s: z, eq_ssr: z, eq_nobs: z }
+    }
+}
+
 /// `Σ_b v[b] x[b]` lane by lane (each lane its own `x`), summed pairwise in the fixed order of
 /// [`lane_sum`] (that of [`super::lanes::lane_dot`]).
 #[inline(always)]
@@ -121,11 +130,13 @@ impl<T: Real, const N: usize, const L: usize> XLanes<T, N, L> {
     }
 
     /// Plans one sample (regressors `x[a][k]`, left-hand sides `y[k]`; lanes that hold no
-    /// filter must have both 0). `false` when some lane must take the general update: `s` not
-    /// in `(0, max]`, a step that is not finite (non-finite input included), or `r/s` below
-    /// `√ε` (a risky downdate to check). Changes nothing.
+    /// filter must have both 0) into `pl`. `false` when some lane must take the general
+    /// update: `s` not in `(0, max]`, a step that is not finite (non-finite input included),
+    /// or `r/s` below `√ε` (a risky downdate to check). Changes nothing else. (Everything is
+    /// computed into locals and `pl` written once at the end, so that it can stay in
+    /// registers.)
     #[inline(always)]
-    pub(crate) fn plan(&self, x: &[[T; L]; N], y: [T; L]) -> (bool, XPlan<T, N, L>) {
+    pub(crate) fn plan(&self, x: &[[T; L]; N], y: [T; L], pl: &mut XPlan<T, N, L>) -> bool {
         let xth = lane_dot_x(&self.theta, x);
         let mut e = [T::zero(); L];
         for k in 0..L {
@@ -173,7 +184,8 @@ impl<T: Real, const N: usize, const L: usize> XLanes<T, N, L> {
             eq_ssr[k] = self.eq_ssr[k] + (ssr[k] - self.ssr[k]);
             eq_nobs[k] = self.eq_nobs[k] + T::one();
         }
-        (ok, XPlan { px, c, w, e, ssr, nobs, s, eq_ssr, eq_nobs })
+        *pl = XPlan { px, c, w, e, ssr, nobs, s, eq_ssr, eq_nobs };
+        ok
     }
 
     /// Applies a step planned by [`XLanes::plan`] (which returned `true`): `θ += c P x`,
