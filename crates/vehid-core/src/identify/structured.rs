@@ -305,6 +305,8 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Structured<T, P, F> 
 
     /// Every filter up to date and the lanes no longer live (before anything else touches the
     /// filters).
+    #[cold]
+    #[inline(never)]
     fn leave_lanes(&mut self) {
         let ne = self.structure.equations();
         let stats = (&mut self.eq_ssr[..ne], &mut self.eq_nobs[..ne]);
@@ -497,7 +499,8 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Identifier<T> for St
 impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Structured<T, P, F> {
     /// The general update: each equation through its group's [`RowIdentifier::update`] (every
     /// form, the exact start, tracking, the outlier screen), the groups it touched restored
-    /// on any error.
+    /// on any error. (Not inlined: the fast path's caller keeps a small frame.)
+    #[inline(never)]
     fn update_general(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
         let ne = self.structure.equations();
         let (ssr0, nobs0, gated0) = (self.eq_ssr, self.eq_nobs, self.eq_gated);

@@ -24,26 +24,27 @@ pub(crate) const FAST_GROUPS: usize = LANES * LANE_GROUPS;
 /// No state (an index every state slice is shorter than): reads 0.
 const NO_STATE: u8 = u8::MAX;
 
-/// Where a term of the compiled regression reads its basis function: a variable directly, 1,
-/// or (`sign`, `pos`, `neg`) through [`Structure::basis`].
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Src {
-    State(u8),
-    Deriv(u8),
-    Input(u8),
-    One,
-    Other(Basis),
-}
+/// The most `sign`, `pos`, `neg` terms the fast path takes (their values are computed first,
+/// into a small array, through [`Structure::basis`]).
+const MAX_OTHER: usize = 7;
+/// Where a term reads its basis function: `x`, `z` (a `der(·)`), `u`, or the extra values
+/// (1 at index 0, then the `sign`/`pos`/`neg` values).
+const FROM_X: u8 = 0;
+const FROM_Z: u8 = 1;
+const FROM_U: u8 = 2;
+const FROM_EXTRA: u8 = 3;
 
-/// One term of the compiled regression: `coef · φ` added to entry `dst` of the regression
-/// buffer ([`Buffer`], flat: block, slot, lane). A parameter's term goes to its lane's
-/// regressor (block: the group of lanes, slot: the parameter's index in its group); a known
-/// term to its lane's `y` (block `LANE_GROUPS +` the group of lanes, slot 0) with its
-/// coefficient negated (`y + (−c)φ` is `y − cφ` exactly).
+/// One term of the compiled regression: `coef · φ`, `φ` entry `idx` of source `src` (one of
+/// the `FROM_*`), added to entry `dst` of the regression buffer ([`Buffer`], flat: block,
+/// slot, lane). A parameter's term goes to its lane's regressor (block: the group of lanes,
+/// slot: the parameter's index in its group); a known term to its lane's `y` (block
+/// `LANE_GROUPS +` the group of lanes, slot 0) with its coefficient negated (`y + (−c)φ` is
+/// `y − cφ` exactly).
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Gather<T> {
     coef: T,
-    src: Src,
+    src: u8,
+    idx: u8,
     dst: u16,
 }
 
@@ -73,6 +74,12 @@ pub(crate) struct Fast<T: Real, const P: usize> {
     /// no known terms (the full-row structure and its sparse forms): each entry's state
     /// ([`NO_STATE`] for none), read directly instead of through `gather`.
     direct: Option<[[[u8; LANES]; P]; LANE_GROUPS]>,
+    /// Of a direct regression: entry `a` of every lane's regressor is `x_a` (the full-row
+    /// structure), so each is read once for all lanes.
+    identity: bool,
+    /// The `sign`, `pos`, `neg` terms' basis functions (in the order their values are kept).
+    others: [Basis; MAX_OTHER],
+    n_others: u8,
     /// Equation `i` is in lane `i` (the innovations are the lanes in order).
     in_order: bool,
 }
@@ -95,21 +102,29 @@ impl<T: Real, const P: usize> Fast<T, P> {
             fast.state_of_lane[g as usize] = s.equation_state(i) as u8;
             let (lg, k) = (g as usize / LANES, g as usize % LANES);
             for t in s.terms(i) {
-                let src = match t.basis {
-                    Basis::Var(Var::State(j)) => Src::State(j),
-                    Basis::Var(Var::Deriv(j)) => Src::Deriv(j),
-                    Basis::Var(Var::Input(j)) => Src::Input(j),
-                    Basis::One => Src::One,
-                    b => Src::Other(b),
+                let (src, idx) = match t.basis {
+                    Basis::Var(Var::State(j)) => (FROM_X, j),
+                    Basis::Var(Var::Deriv(j)) => (FROM_Z, j),
+                    Basis::Var(Var::Input(j)) => (FROM_U, j),
+                    Basis::One => (FROM_EXTRA, 0),
+                    b => {
+                        let Some(slot) = fast.others.get_mut(fast.n_others as usize) else {
+                            return Self::none();
+                        };
+                        *slot = b;
+                        fast.n_others += 1;
+                        (FROM_EXTRA, fast.n_others)
+                    }
                 };
                 let (dst, coef) = match t.param {
                     Some(p) => ((lg * P + part.local[p as usize] as usize) * LANES + k, t.coef),
                     None => ((LANE_GROUPS + lg) * P * LANES + k, -t.coef),
                 };
-                fast.gather[n] = Gather { coef, src, dst: dst as u16 };
+                fast.gather[n] = Gather { coef, src, idx, dst: dst as u16 };
                 n += 1;
                 match (t.param, src) {
-                    (Some(p), Src::State(j)) if t.coef == T::one() => {
+                    (Some(p), FROM_X) if t.coef == T::one() => {
+                        let j = idx;
                         let e = &mut direct[lg][part.local[p as usize] as usize][k];
                         is_direct &= *e == NO_STATE;
                         *e = j;
@@ -120,6 +135,9 @@ impl<T: Real, const P: usize> Fast<T, P> {
         }
         fast.n_gather = n as u8;
         fast.direct = is_direct.then_some(direct);
+        fast.identity = is_direct
+            && (0..ne).all(|g| (0..P).all(|a| direct[g / LANES][a][g % LANES] as usize == a))
+            && P <= s.states();
         fast.in_order = (0..ne).all(|i| fast.lane_of_eq[i] as usize == i);
         fast.groups = ne as u8;
         fast.used = ne.div_ceil(LANES) as u8;
@@ -129,7 +147,7 @@ impl<T: Real, const P: usize> Fast<T, P> {
 
     /// No fast path (and a deserialized identifier's until it is checked).
     pub(crate) fn none() -> Self {
-        let none = Gather { coef: T::zero(), src: Src::One, dst: 0 };
+        let none = Gather { coef: T::zero(), src: FROM_EXTRA, idx: 0, dst: 0 };
         Self {
             lanes: [XLanes::padding(); LANE_GROUPS],
             able: false,
@@ -141,6 +159,9 @@ impl<T: Real, const P: usize> Fast<T, P> {
             gather: [none; MAX_TERMS],
             n_gather: 0,
             direct: None,
+            identity: false,
+            others: [Basis::One; MAX_OTHER],
+            n_others: 0,
             in_order: false,
         }
     }
@@ -224,6 +245,19 @@ impl<T: Real, const P: usize> Fast<T, P> {
             let v = z.get(self.state_of_lane[g] as usize).copied().unwrap_or_else(T::zero);
             buf[LANE_GROUPS + g / LANES][0][g % LANES] = v;
         }
+        if self.identity {
+            if let Some(xs) = x.get(..P) {
+                // Every lane's regressor is x (`0 + x_a`, as the general path adds the term
+                // to a zero entry); lanes that hold no filter read it too, with P = 0 they
+                // never move.
+                for block in buf.iter_mut().take(self.used as usize) {
+                    for a in 0..P {
+                        block[a] = [T::zero() + xs[a]; LANES];
+                    }
+                }
+                return;
+            }
+        }
         if let Some(direct) = &self.direct {
             // `0 + x_j`, as the general path adds the term to a zero entry.
             for (lg, d) in direct.iter().enumerate().take(self.used as usize) {
@@ -235,15 +269,20 @@ impl<T: Real, const P: usize> Fast<T, P> {
             }
             return;
         }
+        let mut extra = [T::one(); 1 + MAX_OTHER];
+        if self.n_others > 0 {
+            for (v, b) in extra[1..].iter_mut().zip(&self.others[..self.n_others as usize]) {
+                *v = s.basis(*b, x, z, u);
+            }
+        }
         let at = |v: &[T], j: u8| v.get(j as usize).copied().unwrap_or_else(T::zero);
         let flat = buf.as_flattened_mut().as_flattened_mut();
         for t in &self.gather[..self.n_gather as usize] {
             let v = match t.src {
-                Src::State(j) => at(x, j),
-                Src::Deriv(j) => at(z, j),
-                Src::Input(j) => at(u, j),
-                Src::One => T::one(),
-                Src::Other(b) => s.basis(b, x, z, u),
+                FROM_X => at(x, t.idx),
+                FROM_Z => at(z, t.idx),
+                FROM_U => at(u, t.idx),
+                _ => at(&extra, t.idx),
             };
             if let Some(d) = flat.get_mut(t.dst as usize) {
                 *d += t.coef * v;
