@@ -16,6 +16,15 @@
 //! storage: `[RowIdentifier<T, P>; G]` for exactly `G` groups ([`StructuredKalman`], no
 //! allocation at all) or a `Vec` ([`StructuredKalmanVec`]). An update allocates nothing; it
 //! is transactional (the groups it touched are restored on any error).
+//!
+//! The fast path (`structured_fast.rs`): with one equation per group (up to four groups) and
+//! every filter in the plain step (the standard form after its start, no tracking, no outlier
+//! screen, `r > 0`), the filters are kept side by side in lanes with a regressor each, as
+//! [`super::KalmanRows`] keeps its rows, and the regression is read from a table compiled at
+//! construction. A sample is planned for every lane before any is applied, so a refused one
+//! changes nothing; one the lanes cannot take at once (non-finite, or a risky downdate to
+//! check) goes through the general path. The full-row structure steps bit for bit as
+//! `KalmanRows`; other structures as the general path, to rounding.
 
 use super::interface::{check_lengths, check_slices};
 use super::kalman::RowIdentifier;
@@ -765,8 +774,8 @@ mod tests {
         };
         let r = [0.01, 0.04, 0.0025];
         for p0 in [StructuredPrior::Scalar(100.0), StructuredPrior::Exact] {
-            let fast = StructuredKalman::<f64, 3, 3>::new(mixed_structure(), p0, None, &r, KalmanOptions::default())
-                .unwrap();
+            let fast =
+                StructuredKalman::<f64, 3, 3>::new(mixed_structure(), p0, None, &r, KalmanOptions::default()).unwrap();
             let general = fast.clone().without_lanes();
             let (mut a, mut b) = (fast, general);
             let (mut ea, mut eb) = ([0.0; 3], [0.0; 3]);
@@ -792,6 +801,17 @@ mod tests {
             assert_eq!(na, nb);
             (0..3).for_each(|i| close(sa[i], sb[i], "ssr"));
             close(a.trace().unwrap(), b.trace().unwrap(), "trace");
+            // A covariance reset (the lanes written back first), then the lanes again.
+            a.reset_covariance(10.0).unwrap();
+            b.reset_covariance(10.0).unwrap();
+            for (x, z, u) in &samples[..300] {
+                a.update_into(x, z, u, &mut ea).unwrap();
+                b.update_into(x, z, u, &mut eb).unwrap();
+            }
+            assert!(a.fast.live());
+            a.params_into(&mut ta).unwrap();
+            b.params_into(&mut tb).unwrap();
+            (0..6).for_each(|j| close(ta[j], tb[j], "theta after a reset"));
             // Leaving the lanes gives the filters the lanes held.
             let f = a.filter(1);
             let a = a.without_lanes();

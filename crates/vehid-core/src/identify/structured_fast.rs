@@ -35,14 +35,17 @@ const FROM_U: u8 = 2;
 const FROM_EXTRA: u8 = 3;
 
 /// One term of the compiled regression: `coef · φ`, `φ` entry `idx` of source `src` (one of
-/// the `FROM_*`), added to entry `dst` of the regression buffer ([`Buffer`], flat: block,
+/// the `FROM_*`), added to lane vector `dst` of the regression buffer ([`Buffer`], flat: block,
 /// slot, lane). A parameter's term goes to its lane's regressor (block: the group of lanes,
 /// slot: the parameter's index in its group); a known term to its lane's `y` (block
 /// `LANE_GROUPS +` the group of lanes, slot 0) with its coefficient negated (`y + (−c)φ` is
-/// `y − cφ` exactly).
+/// `y − cφ` exactly). The coefficient is a lane vector, 0 in the other lanes (which add
+/// `0 · φ`, a zero: their values do not change), so that the buffer is written and read as
+/// whole lane vectors (a vector load of values stored lane by lane would wait for the
+/// stores).
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Gather<T> {
-    coef: T,
+    coef: [T; LANES],
     src: u8,
     idx: u8,
     dst: u16,
@@ -116,10 +119,12 @@ impl<T: Real, const P: usize> Fast<T, P> {
                         (FROM_EXTRA, fast.n_others)
                     }
                 };
-                let (dst, coef) = match t.param {
-                    Some(p) => ((lg * P + part.local[p as usize] as usize) * LANES + k, t.coef),
-                    None => ((LANE_GROUPS + lg) * P * LANES + k, -t.coef),
+                let (dst, c) = match t.param {
+                    Some(p) => (lg * P + part.local[p as usize] as usize, t.coef),
+                    None => ((LANE_GROUPS + lg) * P, -t.coef),
                 };
+                let mut coef = [T::zero(); LANES];
+                coef[k] = c;
                 fast.gather[n] = Gather { coef, src, idx, dst: dst as u16 };
                 n += 1;
                 match (t.param, src) {
@@ -147,7 +152,7 @@ impl<T: Real, const P: usize> Fast<T, P> {
 
     /// No fast path (and a deserialized identifier's until it is checked).
     pub(crate) fn none() -> Self {
-        let none = Gather { coef: T::zero(), src: FROM_EXTRA, idx: 0, dst: 0 };
+        let none = Gather { coef: [T::zero(); LANES], src: FROM_EXTRA, idx: 0, dst: 0 };
         Self {
             lanes: [XLanes::padding(); LANE_GROUPS],
             able: false,
@@ -155,7 +160,7 @@ impl<T: Real, const P: usize> Fast<T, P> {
             groups: 0,
             used: 0,
             lane_of_eq: [0; FAST_GROUPS],
-            state_of_lane: [0; FAST_GROUPS],
+            state_of_lane: [NO_STATE; FAST_GROUPS],
             gather: [none; MAX_TERMS],
             n_gather: 0,
             direct: None,
@@ -241,9 +246,14 @@ impl<T: Real, const P: usize> Fast<T, P> {
     /// weight is 1 with one equation per group).
     #[inline(always)]
     fn regression(&self, s: &Structure<T>, x: &[T], z: &[T], u: &[T], buf: &mut Buffer<T, P>) {
-        for g in 0..self.groups as usize {
-            let v = z.get(self.state_of_lane[g] as usize).copied().unwrap_or_else(T::zero);
-            buf[LANE_GROUPS + g / LANES][0][g % LANES] = v;
+        // Whole lane vectors (lanes that hold no filter read no state: 0).
+        for lg in 0..self.used as usize {
+            let mut y = [T::zero(); LANES];
+            for (k, v) in y.iter_mut().enumerate() {
+                let st = self.state_of_lane.get(lg * LANES + k).copied().unwrap_or(NO_STATE);
+                *v = z.get(st as usize).copied().unwrap_or_else(T::zero);
+            }
+            buf[LANE_GROUPS + lg][0] = y;
         }
         if self.identity {
             if let Some(xs) = x.get(..P) {
@@ -262,9 +272,11 @@ impl<T: Real, const P: usize> Fast<T, P> {
             // `0 + x_j`, as the general path adds the term to a zero entry.
             for (lg, d) in direct.iter().enumerate().take(self.used as usize) {
                 for a in 0..P {
+                    let mut v = [T::zero(); LANES];
                     for k in 0..LANES {
-                        buf[lg][a][k] = T::zero() + x.get(d[a][k] as usize).copied().unwrap_or_else(T::zero);
+                        v[k] = T::zero() + x.get(d[a][k] as usize).copied().unwrap_or_else(T::zero);
                     }
+                    buf[lg][a] = v;
                 }
             }
             return;
@@ -276,7 +288,7 @@ impl<T: Real, const P: usize> Fast<T, P> {
             }
         }
         let at = |v: &[T], j: u8| v.get(j as usize).copied().unwrap_or_else(T::zero);
-        let flat = buf.as_flattened_mut().as_flattened_mut();
+        let flat = buf.as_flattened_mut();
         for t in &self.gather[..self.n_gather as usize] {
             let v = match t.src {
                 FROM_X => at(x, t.idx),
@@ -285,7 +297,9 @@ impl<T: Real, const P: usize> Fast<T, P> {
                 _ => at(&extra, t.idx),
             };
             if let Some(d) = flat.get_mut(t.dst as usize) {
-                *d += t.coef * v;
+                for k in 0..LANES {
+                    d[k] += t.coef[k] * v;
+                }
             }
         }
     }

@@ -84,16 +84,7 @@ impl<T: Real, const N: usize, const L: usize> XLanes<T, N, L> {
     /// Every lane padding.
     pub(crate) fn padding() -> Self {
         let z = [T::zero(); L];
-        Self {
-            theta: [z; N],
-            p: [[z; N]; N],
-            r: [T::one(); L],
-            ssr: z,
-            nobs: z,
-            s: z,
-            eq_ssr: z,
-            eq_nobs: z,
-        }
+        Self { theta: [z; N], p: [[z; N]; N], r: [T::one(); L], ssr: z, nobs: z, s: z, eq_ssr: z, eq_nobs: z }
     }
 
     /// Puts `f` (which must be [`RowIdentifier::plain`]) into lane `k`, with its equation's
@@ -177,7 +168,8 @@ impl<T: Real, const N: usize, const L: usize> XLanes<T, N, L> {
         }
         // The statistics as the row filter keeps them (λ = 1), and the equation's as
         // `Structured` accumulates them (the change of the filter's Σ w², weight 1).
-        let (mut ssr, mut nobs, mut eq_ssr, mut eq_nobs) = ([T::zero(); L], [T::zero(); L], [T::zero(); L], [T::zero(); L]);
+        let (mut ssr, mut nobs, mut eq_ssr, mut eq_nobs) =
+            ([T::zero(); L], [T::zero(); L], [T::zero(); L], [T::zero(); L]);
         for k in 0..L {
             ssr[k] = self.ssr[k] + e[k] * c[k] * self.r[k];
             nobs[k] = self.nobs[k] + T::one();
