@@ -55,6 +55,10 @@ struct Gather<T> {
 /// `y` (slot 0 of blocks `LANE_GROUPS..`).
 type Buffer<T, const P: usize> = [[[T; LANES]; P]; 2 * LANE_GROUPS];
 
+/// [`Buffer`] aligned to 16 bytes (its lane vectors never straddle a cache line).
+#[repr(align(16))]
+struct Aligned<T, const P: usize>(Buffer<T, P>);
+
 /// The lanes and the compiled regression (see the module docs).
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct Fast<T: Real, const P: usize> {
@@ -309,8 +313,9 @@ impl<T: Real, const P: usize> Fast<T, P> {
     /// take the general update (see [`XLanes::plan`]).
     #[inline(always)]
     pub(crate) fn step(&mut self, s: &Structure<T>, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> bool {
-        let mut buf = [[[T::zero(); LANES]; P]; 2 * LANE_GROUPS];
-        self.regression(s, x, z, u, &mut buf);
+        let mut aligned = Aligned([[[T::zero(); LANES]; P]; 2 * LANE_GROUPS]);
+        let buf = &mut aligned.0;
+        self.regression(s, x, z, u, buf);
         let mut ek = [[T::zero(); LANES]; LANE_GROUPS];
         if self.used == 1 {
             let mut pl = XPlan::empty();
