@@ -755,8 +755,7 @@ mod tests {
     /// The fast path (the groups in lanes, the compiled regression) gives what the general
     /// path (each group's `RowIdentifier::update` on the interpreted regression) gives, to
     /// rounding, over many samples: innovations, estimate, covariance, statistics; with a
-    /// prior and after an exact start, on the mixed structure and the quarter car's physical
-    /// one.
+    /// prior and after an exact start, on the mixed structure (the physical one below).
     #[test]
     fn the_lanes_are_the_general_path() {
         let mut rng = Xoshiro256PlusPlus::seed_from_u64(11);
@@ -816,6 +815,36 @@ mod tests {
             let f = a.filter(1);
             let a = a.without_lanes();
             assert_eq!(a.filter(1), f);
+        }
+    }
+
+    /// The same on the quarter car's physical structure (m known: differences of states and
+    /// a `der(·)` term in two groups of two), simulated data.
+    #[test]
+    fn the_lanes_are_the_general_path_on_the_physical_structure() {
+        let (xs, zs) = quarter_samples(3000, 5);
+        let ph = *QuarterCar::<f64>::structure([None, Some(1.0), None, None, None]).unwrap().structure();
+        for p0 in [StructuredPrior::Scalar(1000.0), StructuredPrior::Exact] {
+            let mut a = StructuredKalman::<f64, 2, 2>::new(ph, p0, None, &[1.0], KalmanOptions::default()).unwrap();
+            let mut b = a.clone().without_lanes();
+            let (mut ea, mut eb) = ([0.0; 2], [0.0; 2]);
+            for (x, z) in xs.iter().zip(&zs) {
+                a.update_into(x, z, &[], &mut ea).unwrap();
+                b.update_into(x, z, &[], &mut eb).unwrap();
+            }
+            assert!(a.fast.live() && !b.fast.live());
+            let (mut ta, mut tb) = ([0.0; 4], [0.0; 4]);
+            a.params_into(&mut ta).unwrap();
+            b.params_into(&mut tb).unwrap();
+            for j in 0..4 {
+                assert!((ta[j] - tb[j]).abs() <= 1e-9 * ta[j].abs().max(1e-3), "{ta:?} vs {tb:?}");
+            }
+            let (mut ca, mut cb) = ([0.0; 16], [0.0; 16]);
+            a.covariance_into(&mut ca).unwrap();
+            b.covariance_into(&mut cb).unwrap();
+            for j in 0..16 {
+                assert!((ca[j] - cb[j]).abs() <= 1e-9 * ca[j].abs().max(cb[j].abs()) + 1e-300, "{ca:?} vs {cb:?}");
+            }
         }
     }
 
