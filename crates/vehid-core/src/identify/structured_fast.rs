@@ -49,6 +49,9 @@ struct Gather<T> {
     src: u8,
     idx: u8,
     dst: u16,
+    /// The last term of its entry (the terms are kept grouped by entry, in their order within
+    /// it): the entry, summed in a register, is stored after this one.
+    last: bool,
 }
 
 /// The regression of one sample: the lanes' regressors (blocks `0..LANE_GROUPS`) and their
@@ -129,7 +132,7 @@ impl<T: Real, const P: usize> Fast<T, P> {
                 };
                 let mut coef = [T::zero(); LANES];
                 coef[k] = c;
-                fast.gather[n] = Gather { coef, src, idx, dst: dst as u16 };
+                fast.gather[n] = Gather { coef, src, idx, dst: dst as u16, last: true };
                 n += 1;
                 match (t.param, src) {
                     (Some(p), FROM_X) if t.coef == T::one() => {
@@ -141,6 +144,19 @@ impl<T: Real, const P: usize> Fast<T, P> {
                     _ => is_direct = false,
                 }
             }
+        }
+        // Grouped by entry (a stable insertion sort: each entry's terms keep their order, so
+        // its sum is the same), each group's last term marked.
+        let terms = &mut fast.gather[..n];
+        for i in 1..terms.len() {
+            let mut j = i;
+            while j > 0 && terms[j - 1].dst > terms[j].dst {
+                terms.swap(j - 1, j);
+                j -= 1;
+            }
+        }
+        for i in 0..n {
+            terms[i].last = i + 1 == n || terms[i + 1].dst != terms[i].dst;
         }
         fast.n_gather = n as u8;
         fast.direct = is_direct.then_some(direct);
@@ -156,7 +172,7 @@ impl<T: Real, const P: usize> Fast<T, P> {
 
     /// No fast path (and a deserialized identifier's until it is checked).
     pub(crate) fn none() -> Self {
-        let none = Gather { coef: [T::zero(); LANES], src: FROM_EXTRA, idx: 0, dst: 0 };
+        let none = Gather { coef: [T::zero(); LANES], src: FROM_EXTRA, idx: 0, dst: 0, last: true };
         Self {
             lanes: [XLanes::padding(); LANE_GROUPS],
             able: false,
@@ -293,18 +309,29 @@ impl<T: Real, const P: usize> Fast<T, P> {
         }
         let at = |v: &[T], j: u8| v.get(j as usize).copied().unwrap_or_else(T::zero);
         let flat = buf.as_flattened_mut();
+        // Each entry summed in a register from its value before (0, or y = z[state]), then
+        // stored once.
+        let mut acc = [T::zero(); LANES];
+        let mut first = true;
         for t in &self.gather[..self.n_gather as usize] {
+            if first {
+                acc = flat.get(t.dst as usize).copied().unwrap_or([T::zero(); LANES]);
+            }
             let v = match t.src {
                 FROM_X => at(x, t.idx),
                 FROM_Z => at(z, t.idx),
                 FROM_U => at(u, t.idx),
                 _ => at(&extra, t.idx),
             };
-            if let Some(d) = flat.get_mut(t.dst as usize) {
-                for k in 0..LANES {
-                    d[k] += t.coef[k] * v;
+            for k in 0..LANES {
+                acc[k] += t.coef[k] * v;
+            }
+            if t.last {
+                if let Some(d) = flat.get_mut(t.dst as usize) {
+                    *d = acc;
                 }
             }
+            first = t.last;
         }
     }
 
