@@ -315,9 +315,32 @@ mod impls {
     checked!("Structure", [T: Real] crate::structure::Structure<T>,
         ser: [T: Serialize], de: [T: Deserialize<'de>]);
 
-    checked!("Structured", [T: Real, const P: usize, F: crate::identify::Flat<crate::identify::RowIdentifier<T, P>>]
-        crate::identify::Structured<T, P, F>,
-        ser: [T: Serialize], de: [T: Deserialize<'de>]);
+    // `Structured` keeps its filters in lanes while its fast path is live: what is written is
+    // the identifier with its filters up to date (`settled`), so the format is the same.
+    impl<T: Real, const P: usize, F: crate::identify::Flat<crate::identify::RowIdentifier<T, P>>> Serialize
+        for crate::identify::Structured<T, P, F>
+    where
+        T: Serialize,
+    {
+        fn serialize<Z: Serializer>(&self, s: Z) -> Result<Z::Ok, Z::Error> {
+            match self.settled() {
+                Some(now) => Self::serialize(&now, s),
+                None => Self::serialize(self, s),
+            }
+        }
+    }
+
+    impl<'de, T: Real, const P: usize, F: crate::identify::Flat<crate::identify::RowIdentifier<T, P>>> Deserialize<'de>
+        for crate::identify::Structured<T, P, F>
+    where
+        T: Deserialize<'de>,
+    {
+        fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+            let mut v = Self::deserialize(d)?;
+            v.restored().map_err(|error| de::Error::custom(Invalid { what: "Structured", error }))?;
+            Ok(v)
+        }
+    }
 
     checked!("StructuredGradient", [T: Real, const P: usize] crate::identify::StructuredGradient<T, P>,
         ser: [T: Serialize], de: [T: Deserialize<'de>]);

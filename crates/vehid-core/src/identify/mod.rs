@@ -51,6 +51,7 @@ mod least_squares;
 mod noise_estimating;
 mod store;
 mod structured;
+mod structured_fast;
 mod structured_gradient;
 mod two_axle;
 mod two_axle_structured;

@@ -16,24 +16,24 @@
 //! storage: `[RowIdentifier<T, P>; G]` for exactly `G` groups ([`StructuredKalman`], no
 //! allocation at all) or a `Vec` ([`StructuredKalmanVec`]). An update allocates nothing; it
 //! is transactional (the groups it touched are restored on any error).
+//!
+//! The fast path (`structured_fast.rs`): with one equation per group (up to four groups) and
+//! every filter in the plain step (the standard form after its start, no tracking, no outlier
+//! screen, `r > 0`), the filters are kept side by side in lanes with a regressor each, as
+//! [`super::KalmanRows`] keeps its rows, and the regression is read from a table compiled at
+//! construction. A sample is planned for every lane before any is applied, so a refused one
+//! changes nothing; one the lanes cannot take at once (non-finite, or a risky downdate to
+//! check) goes through the general path. The full-row structure steps bit for bit as
+//! `KalmanRows`; other structures as the general path, to rounding.
 
-use super::interface::check_slices;
-use super::kalman::{PlainStep, RowIdentifier};
+use super::interface::{check_lengths, check_slices};
+use super::kalman::RowIdentifier;
+use super::structured_fast::Fast;
 use super::{CovarianceForm, Dims, Flat, Identifier, KalmanOptions, OVERFLOW};
 use crate::error::check_finite;
 use crate::structure::{Partition, Structure, MAX_EQUATIONS, MAX_PARAMS};
 use crate::{Error, Real, Result};
 use nalgebra::SVector;
-
-/// Equations (one per group) up to which an update plans every group on the stack and takes
-/// the plain step without copying a filter (`Structured::update_plain`).
-const FAST_EQUATIONS: usize = 4;
-
-/// Empty plans (a deserialized identifier's scratch).
-#[cfg(feature = "serde")]
-fn no_plans<T: Real, const P: usize>() -> [PlainStep<T, P>; FAST_EQUATIONS] {
-    [PlainStep::empty(); FAST_EQUATIONS]
-}
 
 /// The prior of a [`Structured`] identifier.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -67,10 +67,12 @@ pub struct Structured<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> {
     /// (serialized empty where the store allows, refilled on load).
     #[cfg_attr(feature = "serde", serde(with = "crate::persist::scratch"))]
     backup: F,
-    /// The plain update's plans, one per equation (`Structured::update_plain`): scratch,
-    /// not state (kept here so that an update does not clear them on the stack).
-    #[cfg_attr(feature = "serde", serde(skip, default = "no_plans"))]
-    plans: [PlainStep<T, P>; FAST_EQUATIONS],
+    /// The fast path (`structured_fast`): with one equation per group, the filters side by
+    /// side in lanes and the regression compiled. While it is live, its lanes are the filters'
+    /// state (the filters above are brought up to date when it leaves). Not serialized (the
+    /// serialized filters are brought up to date first); rebuilt on load.
+    #[cfg_attr(feature = "serde", serde(skip, default = "Fast::none"))]
+    fast: Fast<T, P>,
     rows: [usize; MAX_EQUATIONS],
     /// Each equation's variance `r_i` and row scale `√(r_g / r_i)`.
     r: [T; MAX_EQUATIONS],
@@ -113,6 +115,7 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Structured<T, P, F> 
         {
             return Err(corrupt);
         }
+        self.fast = Fast::new(&self.structure, &self.part);
         Ok(())
     }
 
@@ -267,11 +270,11 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Structured<T, P, F> 
             rows[i] = s;
         }
         Ok(Self {
+            fast: Fast::new(&structure, &part),
             structure,
             part,
             backup: filters.clone(),
             filters,
-            plans: [PlainStep::empty(); FAST_EQUATIONS],
             rows,
             r: r_all,
             scale,
@@ -300,9 +303,41 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Structured<T, P, F> 
         &self.part
     }
 
-    /// The filter of group `g`.
-    pub fn filter(&self, g: usize) -> &RowIdentifier<T, P> {
-        &self.filters.flat()[g]
+    /// The filter of group `g` (a copy: with one equation per group the filters may be kept
+    /// side by side in lanes).
+    ///
+    /// # Panics
+    /// When `g` is not below the number of groups.
+    pub fn filter(&self, g: usize) -> RowIdentifier<T, P> {
+        self.fast.filter(g, &self.filters.flat()[g])
+    }
+
+    /// Every filter up to date and the lanes no longer live (before anything else touches the
+    /// filters).
+    #[cold]
+    #[inline(never)]
+    fn leave_lanes(&mut self) {
+        let ne = self.structure.equations();
+        let stats = (&mut self.eq_ssr[..ne], &mut self.eq_nobs[..ne]);
+        self.fast.leave(self.filters.flat_mut(), stats);
+    }
+
+    /// The identifier with its filters up to date (for serialization).
+    #[cfg(feature = "serde")]
+    pub(crate) fn settled(&self) -> Option<Self> {
+        self.fast.live().then(|| {
+            let mut c = self.clone();
+            c.leave_lanes();
+            c
+        })
+    }
+
+    /// Forces the general path from now on (tests: the fast path against it).
+    #[cfg(test)]
+    pub(crate) fn without_lanes(mut self) -> Self {
+        self.leave_lanes();
+        self.fast = Fast::none();
+        self
     }
 
     /// The covariance form.
@@ -326,7 +361,7 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Structured<T, P, F> 
     /// squares of least squares on all samples after an exact start, in the equation's own
     /// units; decayed by λ with forgetting).
     pub fn equation_ssr(&self, i: usize) -> (T, T) {
-        (self.eq_ssr[i], self.eq_nobs[i])
+        self.fast.equation(i, (self.eq_ssr[i], self.eq_nobs[i]))
     }
 
     /// Equation `i`'s variance `r_i`.
@@ -356,46 +391,6 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Structured<T, P, F> 
         (y * w, h * w)
     }
 
-    /// The update when every group has one equation (at most [`FAST_EQUATIONS`]) and every
-    /// filter takes the plain step ([`RowIdentifier::plan_plain`]): every group is planned
-    /// on the stack, then all are applied, with no copy of a filter. `false` (nothing
-    /// changed) when the update must take the general path: another configuration, or a
-    /// sample that path refuses or checks.
-    #[inline(always)]
-    fn update_plain(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> bool {
-        let ne = self.structure.equations();
-        if ne != self.part.groups as usize || ne > FAST_EQUATIONS || e.len() != ne {
-            return false;
-        }
-        let filters = self.filters.flat();
-        if !filters.iter().fold(true, |a, f| a & f.plain()) {
-            return false;
-        }
-        let mut ok = true;
-        let (parts, plans) = ((&self.structure, &self.part, &self.rows, &self.scale), &mut self.plans);
-        for (i, plan) in plans.iter_mut().enumerate().take(ne) {
-            let (y, h) = Self::regression_of(parts, i, x, z, u);
-            // 0 for finite values, NaN otherwise.
-            let probe = h.iter().fold(y * T::zero(), |a, &v| a + v * T::zero());
-            ok &= probe == T::zero();
-            ok &= filters[parts.1.group_of_eq[i] as usize].plan_plain(&h, y, plan);
-        }
-        if !ok {
-            return false;
-        }
-        for (i, plan) in self.plans.iter().enumerate().take(ne) {
-            let f = &mut self.filters.flat_mut()[self.part.group_of_eq[i] as usize];
-            let (ssr, decay) = (f.ssr(), f.forgetting());
-            f.apply_plain(plan);
-            let w = self.scale[i];
-            self.eq_ssr[i] = self.eq_ssr[i] * decay + (f.ssr() - ssr * decay) / (w * w);
-            self.eq_nobs[i] = self.eq_nobs[i] * decay + T::one();
-            e[i] = plan.e / w;
-        }
-        self.samples += 1;
-        true
-    }
-
     fn restore(&mut self, touched: u32) {
         restore_groups(self.filters.flat_mut(), self.backup.flat(), touched);
     }
@@ -411,10 +406,111 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Identifier<T> for St
     }
 
     fn update_into(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
-        check_slices(self.dims(), x, z, u, e)?;
-        if self.update_plain(x, z, u, e) {
-            return Ok(());
+        check_lengths(self.dims(), x, z, u, e)?;
+        if !(all_finite(x) & all_finite(z) & all_finite(u)) {
+            check_slices(self.dims(), x, z, u, e)?;
         }
+        let ne = self.structure.equations();
+        if !self.fast.live() {
+            self.fast.try_enter(self.filters.flat(), (&self.eq_ssr[..ne], &self.eq_nobs[..ne]));
+        }
+        if self.fast.live() {
+            if self.fast.step(&self.structure, x, z, u, e) {
+                self.samples += 1;
+                return Ok(());
+            }
+            self.leave_lanes();
+        }
+        self.update_general(x, z, u, e)
+    }
+
+    fn params_into(&self, out: &mut [T]) -> Result<()> {
+        let np = self.structure.params();
+        if out.len() != np {
+            return Err(Error::Shape { arg: "out", expected: np, got: out.len() });
+        }
+        if self.starting() {
+            let rank = self.filters.flat().iter().map(|f| f.start_rank()).sum();
+            return Err(Error::RankDeficient { rank, needed: np });
+        }
+        let mut theta = [SVector::<T, P>::zeros(); super::structured_fast::FAST_GROUPS];
+        for (g, t) in theta.iter_mut().enumerate().take(self.part.groups as usize) {
+            *t = self.filter(g).theta();
+        }
+        for (j, o) in out.iter_mut().enumerate() {
+            let g = self.part.group_of_param[j] as usize;
+            let l = self.part.local[j] as usize;
+            *o = match theta.get(g) {
+                Some(t) => t[l],
+                None => self.filters.flat()[g].theta()[l],
+            };
+        }
+        Ok(())
+    }
+
+    fn samples(&self) -> u64 {
+        self.samples
+    }
+
+    fn residuals_into(&self, ssr: &mut [T], nobs: &mut [T]) -> Result<()> {
+        let (mut s, mut n) = (self.eq_ssr, self.eq_nobs);
+        self.fast.equations_into(&mut s, &mut n);
+        super::interface::copy_residuals(self.structure.equations(), &s, &n, ssr, nobs)
+    }
+
+    fn groups_into(&self, group_of_param: &mut [usize], group_of_eq: &mut [usize]) -> Result<()> {
+        let (np, ne) = (self.structure.params(), self.structure.equations());
+        super::interface::partition_groups_into(&self.part, np, ne, group_of_param, group_of_eq)
+    }
+
+    fn covariance_into(&self, out: &mut [T]) -> Result<()> {
+        if !self.fast.live() {
+            return group_covariance_into(&self.part, self.structure.params(), self.filters.flat(), out);
+        }
+        // Live lanes: at most FAST_GROUPS groups.
+        let filters = self.filters.flat();
+        let mut now = [filters[0]; super::structured_fast::FAST_GROUPS];
+        for (g, f) in now.iter_mut().enumerate().take(filters.len()) {
+            *f = self.filter(g);
+        }
+        group_covariance_into(&self.part, self.structure.params(), &now[..filters.len()], out)
+    }
+
+    fn noise_into(&self, out: &mut [T]) -> Result<()> {
+        super::interface::diagonal_noise_into(&self.r[..self.structure.equations()], out)
+    }
+
+    fn trace(&self) -> Option<T> {
+        Some((0..self.filters.flat().len()).fold(T::zero(), |a, g| a + self.filter(g).trace()))
+    }
+
+    /// Every group's filter restarts at `P = p0 I` ([`RowIdentifier::reset_covariance`]).
+    fn reset_covariance(&mut self, p0: T) -> Result<()> {
+        let starting = self.filters.flat().iter().any(|f| f.starting());
+        crate::identify::kalman::check_reset(p0, starting)?;
+        self.leave_lanes();
+        for f in self.filters.flat_mut() {
+            f.reset_covariance(p0)?;
+        }
+        Ok(())
+    }
+
+    fn gated_into(&self, out: &mut [u64]) -> Result<()> {
+        let ne = self.structure.equations();
+        if out.len() != ne {
+            return Err(Error::Shape { arg: "out", expected: ne, got: out.len() });
+        }
+        out.copy_from_slice(&self.eq_gated[..ne]);
+        Ok(())
+    }
+}
+
+impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Structured<T, P, F> {
+    /// The general update: each equation through its group's [`RowIdentifier::update`] (every
+    /// form, the exact start, tracking, the outlier screen), the groups it touched restored
+    /// on any error. (Not inlined: the fast path's caller keeps a small frame.)
+    #[inline(never)]
+    fn update_general(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
         let ne = self.structure.equations();
         let (ssr0, nobs0, gated0) = (self.eq_ssr, self.eq_nobs, self.eq_gated);
         let mut touched = 0u32;
@@ -457,66 +553,13 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Identifier<T> for St
         self.samples += 1;
         Ok(())
     }
+}
 
-    fn params_into(&self, out: &mut [T]) -> Result<()> {
-        let np = self.structure.params();
-        if out.len() != np {
-            return Err(Error::Shape { arg: "out", expected: np, got: out.len() });
-        }
-        if self.starting() {
-            let rank = self.filters.flat().iter().map(|f| f.start_rank()).sum();
-            return Err(Error::RankDeficient { rank, needed: np });
-        }
-        for (j, o) in out.iter_mut().enumerate() {
-            let g = self.part.group_of_param[j] as usize;
-            *o = self.filters.flat()[g].theta()[self.part.local[j] as usize];
-        }
-        Ok(())
-    }
-
-    fn samples(&self) -> u64 {
-        self.samples
-    }
-
-    fn residuals_into(&self, ssr: &mut [T], nobs: &mut [T]) -> Result<()> {
-        super::interface::copy_residuals(self.structure.equations(), &self.eq_ssr, &self.eq_nobs, ssr, nobs)
-    }
-
-    fn groups_into(&self, group_of_param: &mut [usize], group_of_eq: &mut [usize]) -> Result<()> {
-        let (np, ne) = (self.structure.params(), self.structure.equations());
-        super::interface::partition_groups_into(&self.part, np, ne, group_of_param, group_of_eq)
-    }
-
-    fn covariance_into(&self, out: &mut [T]) -> Result<()> {
-        group_covariance_into(&self.part, self.structure.params(), self.filters.flat(), out)
-    }
-
-    fn noise_into(&self, out: &mut [T]) -> Result<()> {
-        super::interface::diagonal_noise_into(&self.r[..self.structure.equations()], out)
-    }
-
-    fn trace(&self) -> Option<T> {
-        Some(self.filters.flat().iter().fold(T::zero(), |a, f| a + f.trace()))
-    }
-
-    /// Every group's filter restarts at `P = p0 I` ([`RowIdentifier::reset_covariance`]).
-    fn reset_covariance(&mut self, p0: T) -> Result<()> {
-        let starting = self.filters.flat().iter().any(|f| f.starting());
-        crate::identify::kalman::check_reset(p0, starting)?;
-        for f in self.filters.flat_mut() {
-            f.reset_covariance(p0)?;
-        }
-        Ok(())
-    }
-
-    fn gated_into(&self, out: &mut [u64]) -> Result<()> {
-        let ne = self.structure.equations();
-        if out.len() != ne {
-            return Err(Error::Shape { arg: "out", expected: ne, got: out.len() });
-        }
-        out.copy_from_slice(&self.eq_gated[..ne]);
-        Ok(())
-    }
+/// `true` when every value is finite (`0 · v` is NaN exactly for NaN and ±inf): one pass of
+/// arithmetic, no branch per value; the index of a bad value is found by `check_slices`.
+#[inline(always)]
+fn all_finite<T: Real>(v: &[T]) -> bool {
+    v.iter().fold(T::zero(), |a, &b| a + b * T::zero()) == T::zero()
 }
 
 /// Equation `i`'s regression `(y, h)` (its state's derivative `z[state]` less its known terms,
@@ -680,6 +723,129 @@ mod tests {
         assert_eq!((before.filter(0), before.filter(1)), (id.filter(0), id.filter(1)));
         assert_eq!((before.equation_ssr(0), before.equation_ssr(1)), (id.equation_ssr(0), id.equation_ssr(1)));
         assert_eq!(before.samples(), id.samples());
+    }
+
+    /// A structure with every kind of term, three groups of 3, 2 and 1 parameters (so two
+    /// groups of lanes, one lane padding): ẋ0 = a x0 + b u0 + c − 0.5 x1,
+    /// ẋ1 = d (x2 − x1) + f sign(x3), ẋ2 = g der(0).
+    fn mixed_structure() -> Structure<f64> {
+        let mut s = Structure::<f64>::new(4, 1, 6).unwrap();
+        let (st, len) = s.push_combination(&[(Var::State(3), 1.0)]).unwrap();
+        let t = |coef, param, basis| Term { coef, param, basis };
+        let v = |i| Basis::Var(Var::State(i));
+        s.push_equation(
+            0,
+            &[
+                t(1.0, Some(0), v(0)),
+                t(1.0, Some(1), Basis::Var(Var::Input(0))),
+                t(1.0, Some(2), Basis::One),
+                t(0.5, None, v(1)),
+            ],
+        )
+        .unwrap();
+        s.push_equation(
+            1,
+            &[t(1.0, Some(3), v(2)), t(-1.0, Some(3), v(1)), t(2.0, Some(4), Basis::Sign { start: st, len })],
+        )
+        .unwrap();
+        s.push_equation(2, &[t(1.0, Some(5), Basis::Var(Var::Deriv(0)))]).unwrap();
+        s
+    }
+
+    /// The fast path (the groups in lanes, the compiled regression) gives what the general
+    /// path (each group's `RowIdentifier::update` on the interpreted regression) gives, to
+    /// rounding, over many samples: innovations, estimate, covariance, statistics; with a
+    /// prior and after an exact start, on the mixed structure (the physical one below).
+    #[test]
+    fn the_lanes_are_the_general_path() {
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(11);
+        let mut g = || -> f64 { StandardNormal.sample(&mut rng) };
+        let samples: Vec<([f64; 4], [f64; 4], [f64; 1])> = (0..3000)
+            .map(|_| {
+                let (x, u) = ([g(), g(), g(), g()], [g()]);
+                let z0 = -2.0 * x[0] + 0.7 * u[0] + 0.3 - 0.5 * x[1] + 0.1 * g();
+                let z = [z0, 1.5 * (x[2] - x[1]) - 0.4 * x[3].signum() + 0.2 * g(), 0.8 * z0 + 0.05 * g(), g()];
+                (x, z, u)
+            })
+            .collect();
+        let close = |a: f64, b: f64, what: &str| {
+            assert!((a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1e-3), "{what}: {a} vs {b}");
+        };
+        let r = [0.01, 0.04, 0.0025];
+        for p0 in [StructuredPrior::Scalar(100.0), StructuredPrior::Exact] {
+            let fast =
+                StructuredKalman::<f64, 3, 3>::new(mixed_structure(), p0, None, &r, KalmanOptions::default()).unwrap();
+            let general = fast.clone().without_lanes();
+            let (mut a, mut b) = (fast, general);
+            let (mut ea, mut eb) = ([0.0; 3], [0.0; 3]);
+            for (k, (x, z, u)) in samples.iter().enumerate() {
+                a.update_into(x, z, u, &mut ea).unwrap();
+                b.update_into(x, z, u, &mut eb).unwrap();
+                if k > 20 {
+                    (0..3).for_each(|i| close(ea[i], eb[i], "innovation"));
+                }
+            }
+            assert!(a.fast.live() && !b.fast.live(), "each path is the one tested");
+            let (mut ta, mut tb) = ([0.0; 6], [0.0; 6]);
+            a.params_into(&mut ta).unwrap();
+            b.params_into(&mut tb).unwrap();
+            (0..6).for_each(|j| close(ta[j], tb[j], "theta"));
+            let (mut ca, mut cb) = ([0.0; 36], [0.0; 36]);
+            a.covariance_into(&mut ca).unwrap();
+            b.covariance_into(&mut cb).unwrap();
+            (0..36).for_each(|j| close(ca[j], cb[j], "covariance"));
+            let (mut sa, mut na, mut sb, mut nb) = ([0.0; 3], [0.0; 3], [0.0; 3], [0.0; 3]);
+            a.residuals_into(&mut sa, &mut na).unwrap();
+            b.residuals_into(&mut sb, &mut nb).unwrap();
+            assert_eq!(na, nb);
+            (0..3).for_each(|i| close(sa[i], sb[i], "ssr"));
+            close(a.trace().unwrap(), b.trace().unwrap(), "trace");
+            // A covariance reset (the lanes written back first), then the lanes again.
+            a.reset_covariance(10.0).unwrap();
+            b.reset_covariance(10.0).unwrap();
+            for (x, z, u) in &samples[..300] {
+                a.update_into(x, z, u, &mut ea).unwrap();
+                b.update_into(x, z, u, &mut eb).unwrap();
+            }
+            assert!(a.fast.live());
+            a.params_into(&mut ta).unwrap();
+            b.params_into(&mut tb).unwrap();
+            (0..6).for_each(|j| close(ta[j], tb[j], "theta after a reset"));
+            // Leaving the lanes gives the filters the lanes held.
+            let f = a.filter(1);
+            let a = a.without_lanes();
+            assert_eq!(a.filter(1), f);
+        }
+    }
+
+    /// The same on the quarter car's physical structure (m known: differences of states and
+    /// a `der(·)` term in two groups of two), simulated data.
+    #[test]
+    fn the_lanes_are_the_general_path_on_the_physical_structure() {
+        let (xs, zs) = quarter_samples(3000, 5);
+        let ph = *QuarterCar::<f64>::structure([None, Some(1.0), None, None, None]).unwrap().structure();
+        for p0 in [StructuredPrior::Scalar(1000.0), StructuredPrior::Exact] {
+            let mut a = StructuredKalman::<f64, 2, 2>::new(ph, p0, None, &[1.0], KalmanOptions::default()).unwrap();
+            let mut b = a.clone().without_lanes();
+            let (mut ea, mut eb) = ([0.0; 2], [0.0; 2]);
+            for (x, z) in xs.iter().zip(&zs) {
+                a.update_into(x, z, &[], &mut ea).unwrap();
+                b.update_into(x, z, &[], &mut eb).unwrap();
+            }
+            assert!(a.fast.live() && !b.fast.live());
+            let (mut ta, mut tb) = ([0.0; 4], [0.0; 4]);
+            a.params_into(&mut ta).unwrap();
+            b.params_into(&mut tb).unwrap();
+            for j in 0..4 {
+                assert!((ta[j] - tb[j]).abs() <= 1e-9 * ta[j].abs().max(1e-3), "{ta:?} vs {tb:?}");
+            }
+            let (mut ca, mut cb) = ([0.0; 16], [0.0; 16]);
+            a.covariance_into(&mut ca).unwrap();
+            b.covariance_into(&mut cb).unwrap();
+            for j in 0..16 {
+                assert!((ca[j] - cb[j]).abs() <= 1e-9 * ca[j].abs().max(cb[j].abs()) + 1e-300, "{ca:?} vs {cb:?}");
+            }
+        }
     }
 
     /// Two equations sharing a parameter, weighted by `r`: every estimate after the start is

@@ -73,6 +73,7 @@ mod options;
 mod row;
 mod rows;
 mod shared;
+mod xlanes;
 
 #[cfg(feature = "alloc")]
 pub use build::{boxed_kalman, KalmanSpec, Prior};
@@ -81,7 +82,6 @@ pub use full::FullKalmanIdentifierVec;
 pub use full::{FullKalmanIdentifier, KalmanFull};
 pub use options::{CovarianceForm, KalmanOptions, Mode};
 pub(crate) use row::check_reset;
-pub(crate) use row::PlainStep;
 pub use row::RowIdentifier;
 pub use rows::{KalmanIdentifier, KalmanRows};
 #[cfg(feature = "alloc")]
@@ -89,6 +89,7 @@ pub use rows::{KalmanIdentifierVec, KalmanIdentifierVec2};
 #[cfg(feature = "alloc")]
 pub use shared::SharedKalmanIdentifierVec;
 pub use shared::{KalmanShared, SharedKalmanIdentifier};
+pub(crate) use xlanes::{XLanes, XPlan};
 
 #[cfg(test)]
 mod numerics_tests;

@@ -70,29 +70,6 @@ pub struct RowIdentifier<T: Real, const N: usize> {
     pub(super) dim: u8,
 }
 
-/// One planned plain step of a [`RowIdentifier`] ([`RowIdentifier::plan_plain`]): `P x`,
-/// `c = e/s`, `w = 1/s`, the innovation `e`, its variance `s` and the statistics after it.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct PlainStep<T: Real, const N: usize> {
-    px: [[T; 1]; N],
-    c: T,
-    w: T,
-    /// The innovation `e = z − xᵀθ`.
-    pub(crate) e: T,
-    s: T,
-    ssr: T,
-    nobs: T,
-}
-
-impl<T: Real, const N: usize> PlainStep<T, N> {
-    /// An empty plan (to be written by [`RowIdentifier::plan_plain`]).
-    #[inline(always)]
-    pub(crate) fn empty() -> Self {
-        let z = T::zero();
-        Self { px: [[z; 1]; N], c: z, w: z, e: z, s: z, ssr: z, nobs: z }
-    }
-}
-
 /// Relative size below which a diagonal entry of the exact start's `R` counts as zero
 /// (`√ε · d` for `d` parameters): the start ends when every direction is identified that well.
 fn start_tol<T: Real>(d: usize) -> T {
@@ -422,8 +399,8 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
     }
 
     /// `true` when the next [`RowIdentifier::update`] is the plain step: the standard form
-    /// after the start, not retired, no tracking, no outlier screen, `r > 0` (the step
-    /// [`RowIdentifier::plan_plain`] plans).
+    /// after the start, not retired, no tracking, no outlier screen, `r > 0` (the step a
+    /// structure's groups take side by side in lanes, `kalman::xlanes`).
     #[inline(always)]
     pub(crate) fn plain(&self) -> bool {
         (self.form == CovarianceForm::Standard)
@@ -434,67 +411,6 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
             & (self.gate == T::zero())
             & (self.huber == T::zero())
             & (self.r > T::zero())
-    }
-
-    /// Plans the plain step of a filter that is [`RowIdentifier::plain`] (Eq 6.16–6.18:
-    /// `e = z − xᵀθ`, `s = xᵀPx + r`, `θ ← θ + P x e/s`, `P ← P − P x xᵀP / s`) into `st`,
-    /// changing nothing, with the arithmetic of [`super::KalmanRows`]' lanes (one lane: `P x`
-    /// from the upper triangle, every sum pairwise in a fixed order), so that a structure
-    /// with one equation per group steps bit for bit as the rows identifier on the same
-    /// regressors. `false` when the sample must take [`RowIdentifier::update`] instead, which
-    /// names the error or checks a risky downdate: `s` not in `(0, max]`, a step that is not
-    /// finite, or `r/s` below `√ε`. `x` and `z` must be finite (the caller's check).
-    #[inline(always)]
-    pub(crate) fn plan_plain(&self, x: &SVector<T, N>, z: T, st: &mut PlainStep<T, N>) -> bool {
-        use super::lanes::{is_fin, lane_dot, lane_sum};
-        let mut theta = [[T::zero(); 1]; N];
-        for a in 0..N {
-            theta[a] = [self.theta[a]];
-        }
-        let e = z - lane_dot(&theta, x)[0];
-        let mut px = [[T::zero(); 1]; N];
-        for a in 0..N {
-            let mut col = [[T::zero(); 1]; N];
-            for b in 0..N {
-                col[b] = [if a <= b { self.m[(a, b)] } else { self.m[(b, a)] }];
-            }
-            px[a] = lane_dot(&col, x);
-        }
-        let s = lane_dot(&px, x)[0] + self.r;
-        let inv = T::one() / s;
-        let fine = (s > T::zero()) & (s <= T::biggest());
-        let risky = self.r < risky::<T>() * s;
-        let flag = if risky | !fine { T::of(f64::NAN) } else { T::zero() };
-        let c = e * inv;
-        let mut steps = [[T::zero(); 1]; N];
-        for a in 0..N {
-            steps[a] = [px[a][0] * c];
-        }
-        let step = lane_sum(steps)[0];
-        let kk = T::one() * self.lambda + (T::one() - T::one());
-        *st = PlainStep { px, c, w: inv, e, s, ssr: self.ssr * kk + e * c * self.r, nobs: self.nobs * kk + T::one() };
-        is_fin(step + flag)
-    }
-
-    /// Applies a step planned by [`RowIdentifier::plan_plain`] (which returned `true`):
-    /// `θ += c P x`, `P_ab −= (P x)_a (P x)_b / s` on the upper triangle, mirrored.
-    #[inline(always)]
-    pub(crate) fn apply_plain(&mut self, st: &PlainStep<T, N>) {
-        for a in 0..N {
-            self.theta[a] += st.px[a][0] * st.c;
-        }
-        let mut g = [T::zero(); N];
-        for b in 0..N {
-            g[b] = st.px[b][0] * st.w;
-        }
-        for a in 0..N {
-            for b in a..N {
-                let v = self.m[(a, b)] - st.px[a][0] * g[b];
-                self.m[(a, b)] = v;
-                self.m[(b, a)] = v;
-            }
-        }
-        (self.ssr, self.nobs, self.s) = (st.ssr, st.nobs, st.s);
     }
 
     /// The directional forgetting term of an update with innovation variance `s`: the
