@@ -3,7 +3,7 @@
 
 use super::event::{Event, Reason, Status};
 use super::kinematic::DeflectionFilter;
-use super::monitor::{cusum_step, screen, stuck_step, HealthConfig, JUMP_GATE, MAX_DELAY};
+use super::monitor::{cusum_step, screen, stuck_step, HealthConfig, Phase, JUMP_GATE, MAX_DELAY};
 use super::pattern::{fit_patterns, Fit};
 use super::rls::Rls;
 use crate::model::{HalfCar, HalfConstant, SensorSet};
@@ -50,14 +50,6 @@ pub struct HalfEstimate<T> {
     pub low: [[T; 5]; 2],
     /// Upper ends.
     pub high: [[T; 5]; 2],
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-enum Phase {
-    Warmup,
-    Monitoring,
-    Settling,
 }
 
 /// The patterns `u` of [`HALF_NAMED`] over the relative deviations of the 8 coefficients
@@ -224,14 +216,7 @@ impl<T: Real> HalfHealthMonitor<T> {
 
     /// What the monitor is doing now.
     pub fn status(&self) -> Status {
-        if let Some(r) = self.reason {
-            return Status::CannotJudge(r);
-        }
-        match self.phase {
-            Phase::Warmup => Status::Warmup,
-            Phase::Monitoring => Status::Monitoring,
-            Phase::Settling => Status::Settling,
-        }
+        self.phase.status(self.reason)
     }
 
     /// Samples seen (accepted calls of [`HalfHealthMonitor::update`]).

@@ -187,12 +187,27 @@ fn samples_of<T: Real>(seconds: T, dt: T) -> u64 {
     }
 }
 
+/// Where a monitor (quarter or half car) is in its cycle.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-enum Phase {
+pub(super) enum Phase {
     Warmup,
     Monitoring,
     Settling,
+}
+
+impl Phase {
+    /// The status a monitor in this phase reports: `CannotJudge(reason)` while it cannot.
+    pub(super) fn status(self, reason: Option<Reason>) -> Status {
+        if let Some(r) = reason {
+            return Status::CannotJudge(r);
+        }
+        match self {
+            Phase::Warmup => Status::Warmup,
+            Phase::Monitoring => Status::Monitoring,
+            Phase::Settling => Status::Settling,
+        }
+    }
 }
 
 /// The suspension health monitor of the quarter car with realistic sensors (module
@@ -338,14 +353,7 @@ impl<T: Real> HealthMonitor<T> {
 
     /// What the monitor is doing now.
     pub fn status(&self) -> Status {
-        if let Some(r) = self.reason {
-            return Status::CannotJudge(r);
-        }
-        match self.phase {
-            Phase::Warmup => Status::Warmup,
-            Phase::Monitoring => Status::Monitoring,
-            Phase::Settling => Status::Settling,
-        }
+        self.phase.status(self.reason)
     }
 
     /// Samples seen (accepted calls of [`HealthMonitor::update`]).
