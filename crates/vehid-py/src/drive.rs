@@ -234,37 +234,27 @@ impl DriveSim {
                 self.next += 1;
                 Some(self.speeds[self.next - 1])
             };
+            // One sample of either drive into `out` (their samples differ only in `u`'s width).
+            macro_rules! record {
+                ($d:expr, |$s:ident| $push_u:expr) => {{
+                    let sample = match speed {
+                        None => Ok($d.next_sample()),
+                        Some(v) => $d.next_sample_at(v),
+                    };
+                    sample.map(|$s| {
+                        out.t.push($s.t);
+                        out.s.push($s.s);
+                        out.x.extend_from_slice($s.x.as_slice());
+                        out.xdot.extend_from_slice($s.xdot.as_slice());
+                        $push_u;
+                        out.y.extend_from_slice($s.y());
+                        out.constants.extend_from_slice(&$s.constants);
+                    })
+                }};
+            }
             let pushed = match &mut self.drive {
-                AnyDrive::Quarter(d) => {
-                    let sample = match speed {
-                        None => Ok(d.next_sample()),
-                        Some(v) => d.next_sample_at(v),
-                    };
-                    sample.map(|s| {
-                        out.t.push(s.t);
-                        out.s.push(s.s);
-                        out.x.extend_from_slice(s.x.as_slice());
-                        out.xdot.extend_from_slice(s.xdot.as_slice());
-                        out.u.push(s.u);
-                        out.y.extend_from_slice(s.y());
-                        out.constants.extend_from_slice(&s.constants);
-                    })
-                }
-                AnyDrive::Half(d) => {
-                    let sample = match speed {
-                        None => Ok(d.next_sample()),
-                        Some(v) => d.next_sample_at(v),
-                    };
-                    sample.map(|s| {
-                        out.t.push(s.t);
-                        out.s.push(s.s);
-                        out.x.extend_from_slice(s.x.as_slice());
-                        out.xdot.extend_from_slice(s.xdot.as_slice());
-                        out.u.extend_from_slice(&s.u);
-                        out.y.extend_from_slice(s.y());
-                        out.constants.extend_from_slice(&s.constants);
-                    })
-                }
+                AnyDrive::Quarter(d) => record!(d, |s| out.u.push(s.u)),
+                AnyDrive::Half(d) => record!(d, |s| out.u.extend_from_slice(&s.u)),
             };
             if let Err(e) = pushed {
                 *self = start;
