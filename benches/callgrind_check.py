@@ -176,7 +176,11 @@ def build() -> Dict[str, Path]:
     (``CARGO_TARGET_DIR``) may have overwritten."""
     cargo = os.environ.get("CARGO", "cargo")
     names = ["count_updates", *sorted(set(OTHER_BINARIES.values()))]
-    cmd = [cargo, "build", "--quiet", "--release", "-p", "vehid-benches"]
+    # vehid-py in the selection only resolves the dependencies' features as the extension's
+    # release build does (numpy turns on num-traits' and num-complex's defaults), so that
+    # vehid-core and its dependencies are that build's artifacts and not compiled a second
+    # time; with `--bin` filtering the targets, vehid-py itself is not built.
+    cmd = [cargo, "build", "--quiet", "--release", "-p", "vehid-benches", "-p", "vehid-py"]
     for name in names:
         cmd += ["--bin", name]
     out = subprocess.run(cmd + ["--message-format=json-render-diagnostics"],
