@@ -66,7 +66,7 @@ $(VENV)/.installed: Makefile
 develop: venv
 	rm -f python/vehid/*.so python/vehid/*.pyd
 	@echo "develop: building the extension (release; the first build compiles the dependencies)"
-	+env -u CONDA_PREFIX VIRTUAL_ENV="$(abspath $(VENV))" PIP_QUIET=1 $(VBIN)/maturin develop --release
+	env -u CONDA_PREFIX VIRTUAL_ENV="$(abspath $(VENV))" PIP_QUIET=1 $(VBIN)/maturin develop --release
 
 # The plot extra (vehid[plot] = matplotlib) into the same venv, then the quick reproduction.
 demo: develop
@@ -95,10 +95,13 @@ docs: develop
 #
 # The two builds run side by side: the Rust tests' (test profile, target/debug) and the
 # extension's (release, target/release), each followed by what uses it. Cargo locks each
-# profile's directory on its own, so they do not wait for each other, and the cargo lines
-# (marked `+`) share make's two job slots through its jobserver: two compilers at a time in
-# all, whichever build they belong to, so that neither build's serial stretches leave a core
-# idle. Their output lines interleave; each failure is reported by its own command.
+# profile's directory on its own, so they do not wait for each other. Each cargo runs as many
+# compilers as there are cores, so the serial stretches of one build (one large crate, a
+# link, single-threaded tests) leave no core idle while the other has work. (Sharing make's
+# jobserver instead, with `+` lines, was tried: the first cargo holds both job slots whenever
+# it has two crates to compile, and the extension's build did not start until the Rust tests'
+# build was nearly done.) The output lines of the two interleave; each failure is reported by
+# its own command.
 test: export RUSTC_WORKSPACE_WRAPPER := clippy-driver
 test: export CLIPPY_ARGS := -D__CLIPPY_HACKERY__warnings__CLIPPY_HACKERY__
 test:
@@ -117,15 +120,15 @@ lint-fast: venv
 # vehid-py is left out: it has no Rust tests (pytest tests it), clippy checks it and `develop`
 # builds it; its 16 x 4 dispatch would only be compiled once more, for an empty harness.
 test-rust:
-	+$(CARGO) test --workspace --exclude vehid-py --tests --benches --examples
-	+$(CARGO) test --workspace --exclude vehid-py --doc
-	+$(CARGO) check -p vehid-core --no-default-features
+	$(CARGO) test --workspace --exclude vehid-py --tests --benches --examples
+	$(CARGO) test --workspace --exclude vehid-py --doc
+	$(CARGO) check -p vehid-core --no-default-features
 
 # The AVX2 and portable updates must agree to the bit where it matters: optimized code. Built
 # with vehid-py in the same selection, so that the dependencies resolve to the features of
 # the extension's release build and are not compiled a second time.
 test-python: develop
-	+$(CARGO) test --release -p vehid-core -p vehid-py --test simd_paths
+	$(CARGO) test --release -p vehid-core -p vehid-py --test simd_paths
 	$(VBIN)/python -m pytest -q -n auto tests
 	$(VBIN)/python -m mypy.stubtest vehid._vehid
 	$(VBIN)/python -m mypy python/vehid
