@@ -52,7 +52,7 @@ def run1() -> vehid.Run:
 
 
 def test_every_entry_within_5_percent_where_the_rows_identifier_is_not(run1: vehid.Run) -> None:
-    # `cargo test -p vehid-core --test half_one_road every_entry -- --nocapture` prints, for
+    # `cargo test -p vehid-core --test integration half_one_road::every_entry -- --nocapture` prints, for
     # seed 1 (20,000 samples), the worst of the 28 entries: 1.56 % (physical structure) and
     # 5.41 % (rows identifier, Cancel). The binding gives those figures (to the digits
     # printed).

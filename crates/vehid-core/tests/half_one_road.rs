@@ -6,9 +6,9 @@
 //!
 //! The setting is the README's "Two axles on one road": the thesis' half car, a sample every
 //! 0.3 m at 6 m/s (`d = 3 m / 0.3 m = 10`), white road σ_u 0.1 m, derivative noise σ_v 0.005.
-//! `cargo test -p vehid-core --test half_one_road -- --nocapture` prints the per-seed worst
-//! entries; `SEED0=70000 cargo test --release -p vehid-core --test half_one_road
-//! fresh_seeds -- --ignored --nocapture` measures on ten other seeds.
+//! `cargo test -p vehid-core --test integration half_one_road:: -- --nocapture` prints the per-seed worst
+//! entries; `SEED0=70000 cargo test --release -p vehid-core --test integration
+//! half_one_road::fresh_seeds -- --ignored --nocapture` measures on ten other seeds.
 
 use vehid_core::identify::{
     Identifier, TwoAxleConfig, TwoAxleIdentifier, TwoAxleStructuredConfig, TwoAxleStructuredKalman, WheelMethod,
@@ -204,7 +204,7 @@ fn every_entry_within_5_percent_on_9_of_10_seeds() {
 }
 
 /// The must-show on ten seeds never used in development: `SEED0=70000 cargo test --release
-/// -p vehid-core --test half_one_road fresh_seeds -- --ignored --nocapture`.
+/// -p vehid-core --test integration half_one_road::fresh_seeds -- --ignored --nocapture`.
 #[test]
 #[ignore]
 fn fresh_seeds() {

@@ -13,7 +13,7 @@ use vehid_core::identify::{
 use vehid_core::model::QuarterCar;
 use vehid_core::Error;
 
-mod common;
+use crate::common;
 use common::{feed, params, physical, quarter, time_updates, xi_physical, xi_rows, DERIV, LAGS, Q, ROAD};
 
 /// Estimated σ_w per state (NaN where not estimated).
@@ -140,7 +140,7 @@ fn compare(seeds: impl Iterator<Item = u64> + Clone, pcts: &[f64], physical_too:
 
 /// Development comparison (seeds 500–509; `VEHID_PCTS`, e.g. `2,8,32`, default 8).
 ///
-/// Run: `cargo test -p vehid-core --release --test noise_estimating -- --ignored --nocapture dev_compare`
+/// Run: `cargo test -p vehid-core --release --test integration -- --ignored --nocapture noise_estimating::dev_compare`
 #[test]
 #[ignore]
 fn dev_compare() {
@@ -347,7 +347,7 @@ fn a_saved_identifier_continues_bit_for_bit() {
 /// 8 %; on the physical structure it does well (ξ 0.0004 / 0.0014 at 8 %, 0.0026 / 0.94 at
 /// 32 %, against IV delayed 0.0025 / 0.017 and 0.0050 / 0.025).
 ///
-/// Run: `cargo test -p vehid-core --release --test noise_estimating -- --ignored --nocapture must_show`
+/// Run: `cargo test -p vehid-core --release --test integration -- --ignored --nocapture noise_estimating::must_show`
 #[test]
 #[ignore]
 fn must_show_sigma_w_and_xi() {
@@ -365,7 +365,7 @@ fn must_show_sigma_w_and_xi() {
 
 /// Wall-clock ns per update (release, indicative).
 ///
-/// Run: `cargo test -p vehid-core --release --test noise_estimating -- --ignored --nocapture timing`
+/// Run: `cargo test -p vehid-core --release --test integration -- --ignored --nocapture noise_estimating::timing`
 #[test]
 #[ignore]
 fn timing() {

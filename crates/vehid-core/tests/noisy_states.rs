@@ -4,7 +4,7 @@
 //!
 //! The must-show figures are `#[ignore]`d release tests (their measured values in their doc
 //! comments; run them with
-//! `cargo test -p vehid-core --release --test noisy_states -- --ignored --nocapture`); the
+//! `cargo test -p vehid-core --release --test integration noisy_states:: -- --ignored --nocapture`); the
 //! normal suite holds fast versions and the exact checks.
 
 use vehid_core::identify::{
@@ -15,7 +15,7 @@ use vehid_core::sim::{SimConfig, Simulator};
 use vehid_core::structure::{Basis, Structure, Term, Var};
 use vehid_core::Error;
 
-mod common;
+use crate::common;
 use common::{physical, quarter, run, xi_physical, xi_rows, DERIV, DT, LAGS, Q, ROAD};
 
 /// ξ of the physical structure (m known) by IV with refined instruments of `lags` lags
@@ -442,7 +442,7 @@ impl ToF32 for [f64] {
 /// 0.0185, worst 0.261, 18/20 within 0.15 — the full rows' scatter at 40,000 samples is the
 /// road input's (variance 81 in the wheel row), not the method's.
 ///
-/// Run: `cargo test -p vehid-core --release --test noisy_states -- --ignored --nocapture must_show`
+/// Run: `cargo test -p vehid-core --release --test integration -- --ignored --nocapture noisy_states::must_show`
 #[test]
 #[ignore]
 fn must_show_xi_over_seeds() {
@@ -486,7 +486,7 @@ fn must_show_xi_over_seeds() {
 /// physical structure refined −0.525 (0.033 … 0.0031). On seeds 200–209 (used while
 /// developing): −0.52, −0.49, −0.46. The assertion is on the refined full rows.
 ///
-/// Run: `cargo test -p vehid-core --release --test noisy_states -- --ignored --nocapture slope`
+/// Run: `cargo test -p vehid-core --release --test integration -- --ignored --nocapture noisy_states::slope`
 #[test]
 #[ignore]
 fn must_show_consistency_slope() {
