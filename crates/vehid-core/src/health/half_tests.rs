@@ -280,7 +280,12 @@ fn structured_pattern_fits_equal_the_dense_generalized_least_squares() {
         for (u, (d, k)) in dense.iter().zip(&kron).enumerate() {
             let close = |a: f64, b: f64, scale: f64| (a - b).abs() <= 1e-8 * scale;
             assert!(close(d.var, k.var, d.var), "case {case} pattern {u}: var {} vs {}", d.var, k.var);
-            assert!(close(d.value, k.value, d.value.abs() + d.var.sqrt()), "case {case} {u}: {} vs {}", d.value, k.value);
+            assert!(
+                close(d.value, k.value, d.value.abs() + d.var.sqrt()),
+                "case {case} {u}: {} vs {}",
+                d.value,
+                k.value
+            );
             assert!(close(d.ssr, k.ssr, xx), "case {case} {u}: ssr {} vs {}", d.ssr, k.ssr);
         }
     }

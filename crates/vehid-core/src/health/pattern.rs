@@ -137,7 +137,8 @@ pub(crate) fn fit_kron<T: Real>(
     for (j, o) in out.iter_mut().take(4).enumerate() {
         let (a, b) = (r[(j, 0)], r[(j, 1)]);
         let ux = a * zx[(j, 0)] + b * zx[(j, 1)];
-        let rsr = a * a * sigma_inv[(0, 0)] + a * b * (sigma_inv[(0, 1)] + sigma_inv[(1, 0)]) + b * b * sigma_inv[(1, 1)];
+        let rsr =
+            a * a * sigma_inv[(0, 0)] + a * b * (sigma_inv[(0, 1)] + sigma_inv[(1, 0)]) + b * b * sigma_inv[(1, 1)];
         *o = fit(ux, rsr * qi[(j, j)]);
     }
     out[4] = fit(r.dot(&zx), r.dot(&zr));
