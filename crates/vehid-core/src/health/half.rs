@@ -275,7 +275,8 @@ impl<T: Real> HalfHealthMonitor<T> {
     }
 
     /// The CUSUM statistics `[up, down]` of each constant of [`HALF_NAMED`] (threshold
-    /// [`HealthConfig::threshold`]).
+    /// [`HealthConfig::threshold`]), as of the last decision (every [`DECISION_INTERVAL`]; so
+    /// is the status's low excitation).
     pub fn cusum(&self) -> [[T; 2]; 5] {
         self.g
     }
