@@ -346,3 +346,21 @@ fn decisions_every_interval_follow_the_per_sample_cusum() {
     assert!((a.t - b.t).abs() <= 0.05 + 1e-9, "{} vs {}", a.t, b.t);
     assert!((a.change - b.change).abs() < 0.005, "{} vs {}", a.change, b.change);
 }
+
+#[test]
+fn f32_half_monitor_detects_the_front_damper() {
+    // The structured fits in f32: the coefficients' factor Q and Σ⁻¹ in their own units.
+    let car = HalfCar::<f32>::passenger();
+    let cfg = HalfDriveConfig::new(DriveConfig::new(0.005f32))
+        .with_change(HalfChange::step(40.0, "b_f", 1440.0).unwrap())
+        .unwrap();
+    let mut drive = HalfDrive::new(car, cfg, 9601).unwrap();
+    let mut mon = HalfHealthMonitor::new(HealthConfig::new(0.005f32, car)).unwrap();
+    let mut events = Vec::new();
+    for _ in 0..(70.0 / 0.005) as usize {
+        events.extend(mon.update(drive.next_sample().y()).unwrap());
+    }
+    assert_eq!(events.len(), 1, "{events:?}");
+    assert_eq!(events[0].parameter, HalfConstant::FrontDamper);
+    assert!((events[0].change + 0.1).abs() < 0.03, "{}", events[0].change);
+}
