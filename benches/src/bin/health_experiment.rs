@@ -22,7 +22,10 @@
 //!   signal-to-noise definition, Eq 4.31): `σ_w = F · std(zb)` on every position and velocity,
 //!   `σ_v = F · std(dvb)` on every derivative, the standard deviations measured
 //!   on a noise-free pilot drive of 600 s (seed `seed0 + 2_000_000`). The monitor reads the
-//!   body and wheel accelerations `dvb`, `dvw` and the deflection `zb − zw` from them.
+//!   body and wheel accelerations `dvb`, `dvw` and the deflection `zb − zw` from them. With
+//!   `--car half`: the half car's state (`z1, v1, z2, v2, zb, vb, φ, ω` and their derivatives),
+//!   `σ_w = F · std(zb)`, `σ_v = F · std(dvb)` of the body's centre on every state and
+//!   derivative (pitch included, in its own units); the monitor forms the corners' quantities.
 //!
 //! - `--car half`: the half car instead (`HalfCar::passenger`, `HalfDrive`, `HalfHealthMonitor`;
 //!   realistic sensors over both axles): front damper −10 %, rear damper −10 %, front spring
@@ -118,30 +121,54 @@ fn drive_config() -> DriveConfig<f64> {
 }
 
 /// The state sensors' noise: `f` times the standard deviations of `zb` and `dvb` on a
-/// noise-free pilot drive of 600 s.
-fn state_noise(car: QuarterCar<f64>, f: f64, seed: u64) -> SensorNoise<f64> {
-    let mut drive = QuarterDrive::new(car, DriveConfig::new(DT).sensors(SensorSet::State), seed).unwrap();
+/// noise-free pilot drive of 600 s (the half car: of its body's centre `zb` and `dvb`, channels
+/// 4 and 13 of `model::HALF_STATE_CHANNELS`; the deflection reported is the front axle's).
+fn state_noise(car: Car, f: f64, seed: u64) -> SensorNoise<f64> {
+    let base = DriveConfig::new(DT).sensors(SensorSet::State);
+    let mut next: Box<dyn FnMut() -> [f64; 3]> = match car {
+        Car::Quarter(c) => {
+            let mut drive = QuarterDrive::new(c, base, seed).unwrap();
+            Box::new(move || {
+                let y = drive.next_sample();
+                let y = y.y();
+                [y[2], y[7], y[2] - y[0]]
+            })
+        }
+        Car::Half(c) => {
+            let l1 = c.params().l1;
+            let mut drive = HalfDrive::new(c, HalfDriveConfig::new(base), seed).unwrap();
+            Box::new(move || {
+                let y = drive.next_sample();
+                let y = y.y();
+                [y[4], y[13], y[4] + l1 * y[6] - y[0]]
+            })
+        }
+    };
     let n = (600.0 / DT) as usize;
     let (mut s, mut s2) = ([0.0f64; 3], [0.0f64; 3]);
     for _ in 0..n {
-        let y = drive.next_sample();
-        let y = y.y();
-        for (j, v) in [y[2], y[7], y[2] - y[0]].into_iter().enumerate() {
+        for (j, v) in next().into_iter().enumerate() {
             s[j] += v;
             s2[j] += v * v;
         }
     }
     let sd = |j: usize| (s2[j] / n as f64 - (s[j] / n as f64).powi(2)).sqrt();
     let noise = SensorNoise { state: f * sd(0), deriv: f * sd(1), ..SensorNoise::default() };
+    // The deflection formed from noisy states: zb − zw (two positions), or the half car's
+    // front zb + l1 φ − z1 (φ with the same noise, times l1).
+    let (name, gain) = match car {
+        Car::Quarter(_) => ("zb - zw", 2f64.sqrt()),
+        Car::Half(c) => ("zb + l1 ph - z1", (2.0 + c.params().l1.powi(2)).sqrt()),
+    };
     println!(
-        "state sensors: std(zb) {:.4} m, std(dvb) {:.3} m/s^2, std(zb - zw) {:.4} m; noise sigma_w {:.3e} m, \
-         sigma_v {:.3e} m/s^2 (the deflection formed from zb - zw carries {:.1} % noise)",
+        "state sensors: std(zb) {:.4} m, std(dvb) {:.3} m/s^2, std({name}) {:.4} m; noise sigma_w {:.3e} m, \
+         sigma_v {:.3e} m/s^2 (the deflection formed from {name} carries {:.1} % noise)",
         sd(0),
         sd(1),
         sd(2),
         noise.state,
         noise.deriv,
-        100.0 * 2f64.sqrt() * noise.state / sd(2)
+        100.0 * gain * noise.state / sd(2)
     );
     noise
 }
@@ -340,14 +367,13 @@ fn calibrate(car: Car, a: &Args) {
 fn main() {
     let a = parse();
     let quarter = QuarterCar::<f64>::passenger();
+    let car = if a.half { Car::Half(HalfCar::passenger()) } else { Car::Quarter(quarter) };
     if let Some(f) = a.state_noise {
-        assert!(!a.half, "--state-noise is for the quarter car");
-        let noise = state_noise(quarter, f, a.seed0 + 2_000_000);
+        let noise = state_noise(car, f, a.seed0 + 2_000_000);
         SENSORS.set((SensorSet::State, noise)).expect("set once");
     }
     let cfg = config(quarter, (a.threshold, a.window));
     let (h, window) = (cfg.threshold, cfg.window);
-    let car = if a.half { Car::Half(HalfCar::passenger()) } else { Car::Quarter(quarter) };
     let what = if a.half {
         "passenger half car (M 640 kg, J 1040 kg m^2, l1 1.2 m, l2 1.5 m, k2 24/22 kN/m, b 1.6/1.4 kN s/m, \
          m 40/35 kg, k1 200 kN/m)"

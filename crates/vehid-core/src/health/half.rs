@@ -4,7 +4,7 @@
 use super::event::{Event, Reason, Status};
 use super::kinematic::DeflectionFilter;
 use super::monitor::{cusum_step, screen, stuck_step, HealthConfig, Phase, JUMP_GATE, MAX_DELAY};
-use super::pattern::{fit_patterns, Fit};
+use super::pattern::{fit_kron, Fit};
 use super::rls::Rls;
 use crate::model::{HalfCar, HalfConstant, SensorSet};
 use crate::{Real, Result};
@@ -39,6 +39,12 @@ impl<T: Real> HealthConfig<T, HalfCar<T>> {
     }
 }
 
+/// The half car's decision interval, seconds: the pattern fits and the CUSUM steps run on
+/// every sample whose index is a multiple of `round(DECISION_INTERVAL / dt)` (at least 1;
+/// 10 at 200 Hz), each step weighted by that many samples (module documentation of
+/// [`crate::health`], "The half car").
+pub const DECISION_INTERVAL: f64 = 0.05;
+
 /// The tracked coefficients of the two body-corner equations with their intervals: row `o`
 /// (0 front, 1 rear) is `[α_o,f k2_f, α_o,f b_f, α_o,r k2_r, α_o,r b_r, c_o]` (1/s², 1/s,
 /// 1/s², 1/s, m/s²).
@@ -50,18 +56,6 @@ pub struct HalfEstimate<T> {
     pub low: [[T; 5]; 2],
     /// Upper ends.
     pub high: [[T; 5]; 2],
-}
-
-/// The patterns `u` of [`HALF_NAMED`] over the relative deviations of the 8 coefficients
-/// (index `4 o + j`: equation `o`, regressor `j` of `[d_f, ḋ_f, d_r, ḋ_r]`).
-fn patterns<T: Real>() -> [SVector<T, 8>; 5] {
-    let mut p = [SVector::<T, 8>::zeros(); 5];
-    for (j, u) in p.iter_mut().take(4).enumerate() {
-        u[j] = T::one();
-        u[4 + j] = T::one();
-    }
-    p[4] = SVector::repeat(T::one());
-    p
 }
 
 /// The suspension health monitor of the half car with realistic sensors (module
@@ -93,6 +87,9 @@ pub struct HalfHealthMonitor<T: Real> {
     n_burn: u64,
     n_settle: u64,
     n_reacq: u64,
+    // Samples per decision (`DECISION_INTERVAL / dt`, derived from the settings; not saved).
+    #[cfg_attr(feature = "serde", serde(skip))]
+    n_decide: u64,
     z: T,
     kf: [DeflectionFilter<T>; 2],
     #[cfg_attr(feature = "serde", serde(with = "crate::persist::array2"))]
@@ -122,6 +119,12 @@ pub struct HalfHealthMonitor<T: Real> {
     inv_ref: SVector<T, 8>,
     c_ref: SMatrix<T, 8, 8>,
     theta_ref: SMatrix<T, 5, 2>,
+    // Derived from `c_ref`, `theta_ref` and `sigma` (by `derive`, also on load; not saved):
+    // the reference's covariance factor `P_ref` (rows and columns 0–3) and `Σ⁻¹`.
+    #[cfg_attr(feature = "serde", serde(skip, default = "SMatrix::zeros"))]
+    q_ref: SMatrix<T, 4, 4>,
+    #[cfg_attr(feature = "serde", serde(skip, default = "SMatrix::zeros"))]
+    sigma_inv: SMatrix<T, 2, 2>,
     cap: [T; 5],
     g: [[T; 2]; 5],
     zero_k: [[u64; 2]; 5],
@@ -147,6 +150,7 @@ impl<T: Real> HalfHealthMonitor<T> {
             n_burn,
             n_settle,
             n_reacq,
+            n_decide: (libm::round(DECISION_INTERVAL / cfg.dt.to_f64()) as u64).max(1),
             z,
             kf: [kf, kf],
             ring: [[T::zero(); 6]; MAX_DELAY],
@@ -174,6 +178,8 @@ impl<T: Real> HalfHealthMonitor<T> {
             inv_ref: SVector::zeros(),
             c_ref: SMatrix::zeros(),
             theta_ref: SMatrix::zeros(),
+            q_ref: SMatrix::zeros(),
+            sigma_inv: SMatrix::zeros(),
             cap: [T::biggest(); 5],
             g: [[T::zero(); 2]; 5],
             zero_k: [[0; 2]; 5],
@@ -206,7 +212,35 @@ impl<T: Real> HalfHealthMonitor<T> {
         {
             return Err(corrupt);
         }
+        self.n_decide = fresh.n_decide;
+        self.derive();
         Ok(())
+    }
+
+    /// Sets the fits' factors derived from the reference: `Σ⁻¹` and `P_ref`'s block of the
+    /// eight coefficients, recovered from `c_ref = D (Σ ⊗ P_ref) D` (its first equation's
+    /// block, `Σ_00 P_ref,jk / (θ_ref,j θ_ref,k)`) so that a restored monitor, which saves
+    /// `c_ref` only, derives the same bits. (Zeros while there is no reference.)
+    fn derive(&mut self) {
+        let s = self.sigma;
+        let det = s[0][0] * s[1][1] - s[0][1] * s[1][0];
+        if !(s[0][0] > T::zero() && det > T::zero()) {
+            self.sigma_inv = SMatrix::zeros();
+            self.q_ref = SMatrix::zeros();
+            return;
+        }
+        self.sigma_inv = SMatrix::<T, 2, 2>::new(s[1][1], -s[0][1], -s[1][0], s[0][0]) / det;
+        let (th, c, s00) = (&self.theta_ref, &self.c_ref, s[0][0]);
+        self.q_ref = SMatrix::from_fn(|j, k| c[(j, k)] * th[(j, 0)] * th[(k, 0)] / s00);
+    }
+
+    /// Samples per decision, and a setter for the tests (1: decide on every sample).
+    #[cfg(test)]
+    pub(crate) fn decision_samples(&mut self, n: Option<u64>) -> u64 {
+        if let Some(n) = n {
+            self.n_decide = n;
+        }
+        self.n_decide
     }
 
     /// The settings.
@@ -241,7 +275,8 @@ impl<T: Real> HalfHealthMonitor<T> {
     }
 
     /// The CUSUM statistics `[up, down]` of each constant of [`HALF_NAMED`] (threshold
-    /// [`HealthConfig::threshold`]).
+    /// [`HealthConfig::threshold`]), as of the last decision (every [`DECISION_INTERVAL`]; so
+    /// is the status's low excitation).
     pub fn cusum(&self) -> [[T; 2]; 5] {
         self.g
     }
@@ -388,7 +423,9 @@ impl<T: Real> HalfHealthMonitor<T> {
             }
             Phase::Monitoring => {
                 self.fast.update_all(&phi, &y);
-                self.detect(kr);
+                if kr % self.n_decide == 0 {
+                    self.detect(kr);
+                }
                 None
             }
             Phase::Settling => {
@@ -402,11 +439,6 @@ impl<T: Real> HalfHealthMonitor<T> {
                 }
             }
         }
-    }
-
-    /// The relative deviations of the 8 coefficients of `theta` from the reference.
-    fn deviations(&self, theta: &SMatrix<T, 5, 2>) -> SVector<T, 8> {
-        SVector::from_fn(|i, _| theta[(i % 4, i / 4)] * self.inv_ref[i] - T::one())
     }
 
     /// The covariance `scale (Σ ⊗ P) ⊙ (v vᵀ)` of the relative deviations (`v` the
@@ -434,16 +466,19 @@ impl<T: Real> HalfHealthMonitor<T> {
             }
             inv[i] = T::one() / v;
         }
-        let c = Self::relative_cov(&sigma, p, &inv, T::one());
+        let sigma_inv = SMatrix::<T, 2, 2>::new(sigma[1][1], -sigma[0][1], -sigma[1][0], sigma[0][0]) / det;
+        let q = p.fixed_view::<4, 4>(0, 0).into_owned();
+        let r = theta.fixed_view::<4, 2>(0, 0).into_owned();
         let lim = self.cfg.min_change / T::of(6.0);
-        let Some(fits) = fit_patterns(&SVector::zeros(), &c, &patterns()) else { return false };
+        let Some(fits) = fit_kron(&SMatrix::zeros(), &r, &sigma_inv, &q) else { return false };
         if !fits.iter().all(|f| f.var.sqrt() < lim) {
             return false;
         }
         self.sigma = sigma;
         self.theta_ref = theta;
         self.inv_ref = inv;
-        self.c_ref = c;
+        self.c_ref = Self::relative_cov(&sigma, p, &inv, T::one());
+        self.derive();
         let judge = self.cfg.judge_error;
         let onep = T::one() + self.fast.lambda();
         // Regressor j alone: the pattern (1, 1) over the two equations' coefficients
@@ -468,12 +503,15 @@ impl<T: Real> HalfHealthMonitor<T> {
     fn fits(&self, post: bool) -> Option<[Fit<T>; 5]> {
         let (rls, scale) =
             if post { (&self.post, T::one()) } else { (&self.fast, T::one() / (T::one() + self.fast.lambda())) };
-        let x = self.deviations(rls.theta());
-        let c = Self::relative_cov(&self.sigma, rls.p(), &self.inv_ref, scale) + self.c_ref;
-        fit_patterns(&x, &c, &patterns())
+        let (th, p, r) = (rls.theta(), rls.p(), &self.theta_ref);
+        let dtheta = SMatrix::<T, 4, 2>::from_fn(|j, o| th[(j, o)] - r[(j, o)]);
+        let q = SMatrix::<T, 4, 4>::from_fn(|j, k| p[(j, k)] * scale + self.q_ref[(j, k)]);
+        fit_kron(&dtheta, &r.fixed_view::<4, 2>(0, 0).into_owned(), &self.sigma_inv, &q)
     }
 
-    /// The CUSUM step on each named constant's relative deviation.
+    /// The CUSUM step on each named constant's relative deviation, for the `n_decide`
+    /// samples since the last (the tracked estimate moves on the window's time scale, so
+    /// its fits change little within a decision interval).
     fn detect(&mut self, kr: u64) {
         let lim = self.cfg.judge_error;
         // Judged only while every spring's and damper's change, from its two coefficients
@@ -493,7 +531,7 @@ impl<T: Real> HalfHealthMonitor<T> {
         self.reason = None;
         let delta = self.cfg.min_change;
         let half = delta * T::of(0.5);
-        let w = (T::one() - self.fast.lambda()) * delta;
+        let w = T::of(self.n_decide as f64) * (T::one() - self.fast.lambda()) * delta;
         let mut best = (T::zero(), 0usize, 0usize);
         for (u, f) in fits.iter().enumerate() {
             let (g, side) = cusum_step(&mut self.g[u], &mut self.zero_k[u], f.value, w / f.var, half, kr);

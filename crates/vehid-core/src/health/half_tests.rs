@@ -236,3 +236,131 @@ fn a_saved_half_monitor_continues_bit_for_bit_and_a_corrupt_one_is_refused() {
     json["head"] = serde_json::json!(99);
     assert!(serde_json::from_value::<HalfHealthMonitor<f64>>(json).is_err());
 }
+
+/// The patterns `u` of [`HALF_NAMED`] over the relative deviations of the 8 coefficients
+/// (index `4 o + j`: equation `o`, regressor `j` of `[d_f, ḋ_f, d_r, ḋ_r]`).
+fn patterns() -> [SVector<f64, 8>; 5] {
+    let mut p = [SVector::<f64, 8>::zeros(); 5];
+    for (j, u) in p.iter_mut().take(4).enumerate() {
+        u[j] = 1.0;
+        u[4 + j] = 1.0;
+    }
+    p[4] = SVector::repeat(1.0);
+    p
+}
+
+#[test]
+fn structured_pattern_fits_equal_the_dense_generalized_least_squares() {
+    // The monitor's fits (`fit_kron`: Σ ⊗ Q, a 4 × 4 factor) against generalized least squares
+    // on the dense 8 × 8 covariance C = D (Σ ⊗ Q) D of the relative deviations x = D X̃
+    // (`fit_patterns`), on random references, covariances and deviations.
+    use super::pattern::{fit_kron, fit_patterns};
+    use rand::rngs::Xoshiro256PlusPlus;
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, StandardNormal};
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(1717);
+    let n = |rng: &mut Xoshiro256PlusPlus| -> f64 { StandardNormal.sample(rng) };
+    for case in 0..300 {
+        let r = SMatrix::<f64, 4, 2>::from_fn(|_, _| {
+            let v: f64 = n(&mut rng);
+            v.signum() * (0.05 + v.abs()) * 10f64.powf(n(&mut rng))
+        });
+        let a = SMatrix::<f64, 4, 4>::from_fn(|_, _| n(&mut rng));
+        let q = a * a.transpose() * 10f64.powf(n(&mut rng)) + SMatrix::<f64, 4, 4>::identity() * 1e-3;
+        let b = SMatrix::<f64, 2, 2>::from_fn(|_, _| n(&mut rng));
+        let sigma = b * b.transpose() + SMatrix::<f64, 2, 2>::identity() * 0.1;
+        let dtheta = SMatrix::<f64, 4, 2>::from_fn(|j, o| 0.1 * n(&mut rng) * r[(j, o)]);
+        let x = SVector::<f64, 8>::from_fn(|i, _| dtheta[(i % 4, i / 4)] / r[(i % 4, i / 4)]);
+        let c = SMatrix::<f64, 8, 8>::from_fn(|i, k| {
+            sigma[(i / 4, k / 4)] * q[(i % 4, k % 4)] / (r[(i % 4, i / 4)] * r[(k % 4, k / 4)])
+        });
+        let dense = fit_patterns(&x, &c, &patterns()).unwrap();
+        let kron = fit_kron(&dtheta, &r, &sigma.try_inverse().unwrap(), &q).unwrap();
+        let xx = dense.iter().map(|f| f.ssr + f.value * f.value / f.var).fold(0.0, f64::max);
+        for (u, (d, k)) in dense.iter().zip(&kron).enumerate() {
+            let close = |a: f64, b: f64, scale: f64| (a - b).abs() <= 1e-8 * scale;
+            assert!(close(d.var, k.var, d.var), "case {case} pattern {u}: var {} vs {}", d.var, k.var);
+            assert!(
+                close(d.value, k.value, d.value.abs() + d.var.sqrt()),
+                "case {case} {u}: {} vs {}",
+                d.value,
+                k.value
+            );
+            assert!(close(d.ssr, k.ssr, xx), "case {case} {u}: ssr {} vs {}", d.ssr, k.ssr);
+        }
+    }
+    // A Q that is not positive definite: no fit.
+    let mut q = SMatrix::<f64, 4, 4>::identity();
+    q[(2, 2)] = -1.0;
+    assert!(fit_kron(&SMatrix::zeros(), &SMatrix::repeat(1.0), &SMatrix::identity(), &q).is_none());
+}
+
+#[test]
+fn decisions_every_interval_follow_the_per_sample_cusum() {
+    // DECISION_INTERVAL at 200 Hz: a decision every 10 samples. The CUSUM statistics move only
+    // then and, each step weighted by the 10 samples it stands for, stay within one step of
+    // the same monitor deciding on every sample (the step takes the interval's last fit for
+    // all its samples: where the statistic climbs, after a change, it runs up to one step
+    // ahead); the alarm, and so the event, comes within an interval of the per-sample one,
+    // with the same constant and value.
+    let car = HalfCar::<f64>::passenger();
+    let cfg = HalfDriveConfig::new(DriveConfig::new(0.005))
+        .with_change(HalfChange::step(40.0, "b_f", 1440.0).unwrap())
+        .unwrap();
+    let mut drive = HalfDrive::new(car, cfg, 24).unwrap();
+    let mut dec = HalfHealthMonitor::new(HealthConfig::new(0.005, car)).unwrap();
+    assert_eq!(dec.decision_samples(None), 10);
+    let mut every = dec.clone();
+    every.decision_samples(Some(1));
+    let (mut ev_dec, mut ev_every) = (Vec::new(), Vec::new());
+    let (mut moves, mut judged, mut excess, mut peak) = (Vec::new(), 0, 0.0f64, 0.0f64);
+    for _ in 0..(60.0 / 0.005) as usize {
+        let y = drive.next_sample();
+        let before = dec.cusum();
+        ev_dec.extend(dec.update(y.y()).unwrap());
+        ev_every.extend(every.update(y.y()).unwrap());
+        let (a, b) = (dec.cusum(), every.cusum());
+        let live = a.iter().chain(&b).flatten().all(|g| *g <= dec.config().threshold);
+        if dec.status() == Status::Monitoring && every.status() == Status::Monitoring && live {
+            judged += 1;
+            if a != before {
+                moves.push(dec.samples() % 10);
+                // On a decision sample: within the step just taken of the per-sample path.
+                for u in 0..5 {
+                    for side in 0..2 {
+                        let step = (a[u][side] - before[u][side]).abs();
+                        excess = excess.max((a[u][side] - b[u][side]).abs() - step);
+                    }
+                }
+            }
+            peak = peak.max(b[1][1]);
+        }
+    }
+    // Every move on the same sample of each ten (the delay line holds the fed sample back).
+    assert!(judged > 4000 && moves.len() >= 5 && moves.iter().all(|&m| m == moves[0]), "{moves:?}");
+    // The front damper's statistic climbs to the threshold (8) after the change.
+    assert!(peak > 5.0 && excess < 0.05, "peak {peak}, beyond one step {excess}");
+    assert_eq!((ev_dec.len(), ev_every.len()), (1, 1), "{ev_dec:?} {ev_every:?}");
+    let (a, b) = (ev_dec[0], ev_every[0]);
+    assert_eq!(a.parameter, b.parameter);
+    assert!((a.t - b.t).abs() <= 0.05 + 1e-9, "{} vs {}", a.t, b.t);
+    assert!((a.change - b.change).abs() < 0.005, "{} vs {}", a.change, b.change);
+}
+
+#[test]
+fn f32_half_monitor_detects_the_front_damper() {
+    // The structured fits in f32: the coefficients' factor Q and Σ⁻¹ in their own units.
+    let car = HalfCar::<f32>::passenger();
+    let cfg = HalfDriveConfig::new(DriveConfig::new(0.005f32))
+        .with_change(HalfChange::step(40.0, "b_f", 1440.0).unwrap())
+        .unwrap();
+    let mut drive = HalfDrive::new(car, cfg, 9601).unwrap();
+    let mut mon = HalfHealthMonitor::new(HealthConfig::new(0.005f32, car)).unwrap();
+    let mut events = Vec::new();
+    for _ in 0..(70.0 / 0.005) as usize {
+        events.extend(mon.update(drive.next_sample().y()).unwrap());
+    }
+    assert_eq!(events.len(), 1, "{events:?}");
+    assert_eq!(events[0].parameter, HalfConstant::FrontDamper);
+    assert!((events[0].change + 0.1).abs() < 0.03, "{}", events[0].change);
+}

@@ -140,11 +140,29 @@
 //! reference; the warm-up also gives the residual covariance `Σ` (2 × 2) of the two
 //! equations, so that the tracked coefficients have the covariance `Σ ⊗ P/(1 + λ)` and the
 //! reference `Σ ⊗ P_ref`. Step 6 runs the CUSUMs on the **constants** rather than on single
-//! coefficients: each sample the relative deviations `x` (8) with their covariance
+//! coefficients: the relative deviations `x` (8) with their covariance
 //! `C = D (Σ ⊗ P/(1 + λ)) D + C_ref` (`D = diag(1/θ_ref)`) are fitted to each pattern by
-//! generalized least squares, `x̂_u = uᵀC⁻¹x / uᵀC⁻¹u`, `s_u² = 1/uᵀC⁻¹u` (an 8 × 8
-//! Cholesky factor and six triangular solves, `pattern.rs`), and each `x̂_u` feeds the
-//! quarter car's CUSUM pair with its `s_u`. This weighs each coefficient by what it knows:
+//! generalized least squares, `x̂_u = uᵀC⁻¹x / uᵀC⁻¹u`, `s_u² = 1/uᵀC⁻¹u`, and each `x̂_u`
+//! feeds the quarter car's CUSUM pair with its `s_u`. The tracked and the reference parts
+//! share `Σ` and `D`, so `C = D (Σ ⊗ Q) D` with `Q = P/(1 + λ) + P_ref` (the coefficients'
+//! `4 × 4` blocks) and `C⁻¹ = D⁻¹ (Σ⁻¹ ⊗ Q⁻¹) D⁻¹`: one `4 × 4` Cholesky factor gives every
+//! fit (`pattern.rs`, `fit_kron`; the same numbers as the dense `8 × 8` form, tested).
+//!
+//! The fits and the CUSUM steps run on every `n`-th sample, `n = DECISION_INTERVAL / dt`
+//! ([`DECISION_INTERVAL`] = 50 ms: 10 samples at 200 Hz), each step weighted by its `n`
+//! samples, `g ← max(0, g + n (1 − λ) (δ / s_u²) (±x̂_u − δ/2))`; the status's low
+//! excitation is judged then too. Why this is harmless: the tracked estimate averages over the
+//! window (6 s, 1200 samples at 200 Hz), so its fits change little within 10 samples, and the
+//! delays to report are seconds (the settling alone is 4 s). A step takes the interval's last
+//! fit for all its samples: where the statistic climbs fast (after a change) it runs up to one
+//! step ahead of the per-sample statistic, and the alarm comes within one interval of the
+//! per-sample one (`half_tests.rs`); without a change (the false alarms' case) the statistics
+//! move on the window's time scale. The threshold's calibration was rerun: no excursion at
+//! constant speed, before or after (`health_experiment --car half --calibrate`). Why: the fits
+//! were some 60 % of an update's instructions (4073 per update with an `8 × 8` factor every
+//! sample, 920 now; issue 17's fleet figure is 100 ns per sample per vehicle).
+//!
+//! The generalized least squares weighs each coefficient by what it knows:
 //! on a car with a dynamic index near 1 (`J ≈ M a b`) the cross coefficients `α_fr` are
 //! small and nearly uninformative, and the fit leans on the direct ones. Step 7 names the
 //! pattern with the smallest weighted residual `xᵀC⁻¹x − (uᵀC⁻¹x)²/uᵀC⁻¹u` of the settled
@@ -167,7 +185,7 @@ mod pattern;
 mod rls;
 
 pub use event::{Constant, Estimate, Event, Reason, Status};
-pub use half::{HalfEstimate, HalfHealthMonitor, HALF_CHANNELS, HALF_NAMED, HALF_STATE_CHANNELS};
+pub use half::{HalfEstimate, HalfHealthMonitor, DECISION_INTERVAL, HALF_CHANNELS, HALF_NAMED, HALF_STATE_CHANNELS};
 pub use kinematic::DeflectionFilter;
 pub use monitor::{HealthConfig, HealthMonitor, CHANNELS, JUMP_GATE, MAX_DELAY, MIN_DEFLECTION_NOISE, STATE_CHANNELS};
 pub use rls::{Rls, Rls3};

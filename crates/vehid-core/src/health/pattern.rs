@@ -1,8 +1,11 @@
 //! Which constant changed: generalized least squares of relative deviations against the
-//! patterns the constants leave (no allocation, any size `K`).
+//! patterns the constants leave (no allocation): on the half car's Kronecker-structured
+//! covariance ([`fit_kron`]), and the dense form for any size `K` (tests only).
 
 use crate::Real;
-use nalgebra::{SMatrix, SVector};
+use nalgebra::SMatrix;
+#[cfg(test)]
+use nalgebra::SVector;
 
 /// In-place Cholesky factor `C = L Lᵀ` (lower triangle of the result); `false` when `C` is
 /// not positive definite (nothing useful is left in `c` then).
@@ -30,6 +33,7 @@ pub(crate) fn cholesky<T: Real, const K: usize>(c: &mut SMatrix<T, K, K>) -> boo
 }
 
 /// `L⁻¹ b` for the lower-triangular factor of [`cholesky`].
+#[cfg(test)]
 pub(crate) fn forward<T: Real, const K: usize>(l: &SMatrix<T, K, K>, b: &SVector<T, K>) -> SVector<T, K> {
     let mut w = *b;
     for i in 0..K {
@@ -53,7 +57,9 @@ pub(crate) struct Fit<T> {
 }
 
 /// Fits every pattern of `patterns` to `x` (covariance `c`); `None` when `c` is not positive
-/// definite.
+/// definite. The dense form, for any covariance: the half car's monitor uses [`fit_kron`] on
+/// its covariance's structure, and its tests check the two against each other.
+#[cfg(test)]
 pub(crate) fn fit_patterns<T: Real, const K: usize, const P: usize>(
     x: &SVector<T, K>,
     c: &SMatrix<T, K, K>,
@@ -72,5 +78,69 @@ pub(crate) fn fit_patterns<T: Real, const K: usize, const P: usize>(
         let ux = wu.dot(&wx);
         *o = Fit { value: ux / uu, var: T::one() / uu, ssr: xx - ux * ux / uu };
     }
+    Some(out)
+}
+
+/// The half car's five fits ([`super::half`]: the spring and the damper of each axle, then
+/// the body mass) on the structure of its covariance, without forming it. The relative
+/// deviations `x_i = θ_i/θ_ref,i − 1` (`i = 4 o + j`: equation `o`, regressor `j`) have the
+/// covariance `C = D (Σ ⊗ Q) D`, `D = diag(1/θ_ref)`, where `Σ` is the two equations' residual
+/// covariance and `Q` the `4 × 4` covariance factor of the coefficients (tracked plus
+/// reference: both share `Σ` and `D`). So `C⁻¹ = D⁻¹ (Σ⁻¹ ⊗ Q⁻¹) D⁻¹`, and with
+/// `X̃ = Θ − Θ_ref` (`= D⁻¹ x`, `4 × 2`, a column per equation) and `Ũ = D⁻¹ u`:
+/// `uᵀC⁻¹x = Σ_{o,o'} Σ⁻¹_oo' Ũ_oᵀ Q⁻¹ X̃_o'`, i.e. the sum of `Ũ ⊙ (Q⁻¹ X̃ Σ⁻¹)`. The patterns:
+/// regressor `j` in both equations (`Ũ = e_j r_jᵀ`, `r_j` row `j` of `Θ_ref`), and all eight
+/// (`Ũ = Θ_ref`). A `4 × 4` Cholesky factor instead of the dense form's `8 × 8`
+/// ([`fit_patterns`], the same fits: `half_tests.rs` checks one against the other).
+///
+/// `dtheta` is `X̃`, `r` the reference `Θ_ref` (rows 0–3), `sigma_inv` `Σ⁻¹`, `q` the factor
+/// `Q`; `None` when `Q` is not positive definite (`Σ` is, by the reference's check).
+pub(crate) fn fit_kron<T: Real>(
+    dtheta: &SMatrix<T, 4, 2>,
+    r: &SMatrix<T, 4, 2>,
+    sigma_inv: &SMatrix<T, 2, 2>,
+    q: &SMatrix<T, 4, 4>,
+) -> Option<[Fit<T>; 5]> {
+    let mut l = *q;
+    if !cholesky(&mut l) {
+        return None;
+    }
+    // L⁻¹ (lower), then Q⁻¹ = L⁻ᵀ L⁻¹.
+    let mut li = SMatrix::<T, 4, 4>::zeros();
+    for j in 0..4 {
+        li[(j, j)] = T::one() / l[(j, j)];
+        for i in j + 1..4 {
+            let mut v = T::zero();
+            for k in j..i {
+                v -= l[(i, k)] * li[(k, j)];
+            }
+            li[(i, j)] = v / l[(i, i)];
+        }
+    }
+    let mut qi = SMatrix::<T, 4, 4>::zeros();
+    for a in 0..4 {
+        for b in a..4 {
+            let mut v = T::zero();
+            for k in b..4 {
+                v += li[(k, a)] * li[(k, b)];
+            }
+            qi[(a, b)] = v;
+            qi[(b, a)] = v;
+        }
+    }
+    // Z = Q⁻¹ A Σ⁻¹ for A = X̃ and A = Θ_ref.
+    let zx = (qi * dtheta) * sigma_inv;
+    let zr = (qi * r) * sigma_inv;
+    let xx = dtheta.dot(&zx);
+    let fit = |ux: T, uu: T| Fit { value: ux / uu, var: T::one() / uu, ssr: xx - ux * ux / uu };
+    let mut out = [Fit { value: T::zero(), var: T::zero(), ssr: T::zero() }; 5];
+    for (j, o) in out.iter_mut().take(4).enumerate() {
+        let (a, b) = (r[(j, 0)], r[(j, 1)]);
+        let ux = a * zx[(j, 0)] + b * zx[(j, 1)];
+        let rsr =
+            a * a * sigma_inv[(0, 0)] + a * b * (sigma_inv[(0, 1)] + sigma_inv[(1, 0)]) + b * b * sigma_inv[(1, 1)];
+        *o = fit(ux, rsr * qi[(j, j)]);
+    }
+    out[4] = fit(r.dot(&zx), r.dot(&zr));
     Some(out)
 }

@@ -10,7 +10,7 @@ use nalgebra::{SMatrix, SVector};
 /// §2.6):
 ///
 /// ```text
-/// ε = y − Θᵀφ,  K = Pφ / (λ' + φᵀPφ),  Θ ← Θ + K εᵀ,  P ← (P − K φᵀP) / λ'
+/// ε = y − Θᵀφ,  K = Pφ / (λ' + φᵀPφ),  Θ ← Θ + K εᵀ,  P ← (P − K (Pφ)ᵀ) / λ'
 /// ```
 ///
 /// with `λ' = λ`, except `λ' = 1` (no forgetting) while a diagonal entry of `P` exceeds its
@@ -44,9 +44,11 @@ pub struct Rls<T: Real, const N: usize, const O: usize = 1> {
 pub type Rls3<T> = Rls<T, 3, 1>;
 
 impl<T: Real, const N: usize, const O: usize> Rls<T, N, O> {
-    /// Starts at `theta` (column `o`: output `o`'s parameters) with covariance `p`,
-    /// forgetting factor `lambda` in `(0, 1]`, no cap.
+    /// Starts at `theta` (column `o`: output `o`'s parameters) with covariance `p` (made
+    /// symmetric: `(p + pᵀ)/2`), forgetting factor `lambda` in `(0, 1]`, no cap.
     pub fn new(theta: SMatrix<T, N, O>, p: SMatrix<T, N, N>, lambda: T) -> Self {
+        let half = T::of(0.5);
+        let p = p * half + p.transpose() * half;
         Self { theta, p, lambda, inv_lambda: T::one() / lambda, cap: [T::biggest(); N] }
     }
 
@@ -80,18 +82,30 @@ impl<T: Real, const N: usize, const O: usize> Rls<T, N, O> {
         }
         let pphi = self.p * phi;
         let wound = (0..N).any(|i| self.p[(i, i)] > self.cap[i]);
-        let lam = if wound { T::one() } else { self.lambda };
+        let (lam, inv_lam) = if wound { (T::one(), T::one()) } else { (self.lambda, self.inv_lambda) };
         let den = lam + phi.dot(&pphi);
         let k = pphi * (T::one() / den);
+        let mut ok = den > T::zero();
         let mut theta = self.theta;
         for o in 0..O {
-            let mut col = theta.column_mut(o);
-            col += k * e[o];
+            for i in 0..N {
+                let v = theta[(i, o)] + k[i] * e[o];
+                theta[(i, o)] = v;
+                ok &= v.finite();
+            }
         }
-        let inv_lam = if wound { T::one() } else { self.inv_lambda };
-        let mut p = (self.p - k * pphi.transpose()) * inv_lam;
-        p = (p + p.transpose()) * T::of(0.5);
-        if !(den > T::zero()) || theta.iter().chain(p.iter()).any(|v| !v.finite()) {
+        // The symmetric rank-1 update on the upper triangle, mirrored (P stays exactly
+        // symmetric: `new` makes it so).
+        let mut p = self.p;
+        for i in 0..N {
+            for j in i..N {
+                let v = (self.p[(i, j)] - k[i] * pphi[j]) * inv_lam;
+                p[(i, j)] = v;
+                p[(j, i)] = v;
+                ok &= v.finite();
+            }
+        }
+        if !ok {
             return None;
         }
         self.theta = theta;
