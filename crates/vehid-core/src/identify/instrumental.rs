@@ -64,10 +64,16 @@
 //! so the prediction recovers the fast mode too. For regressors linear in the sample the
 //! result is two-stage least squares on those `L` lags.
 //!
-//! Not implemented: SRIVC/RIVC proper (Young & Garnier: the auxiliary model is the estimated
-//! continuous-time system simulated from the measured input, with prefilters from the
-//! estimated denominator, iterated). The road input is never measured, so that model
-//! cannot be simulated here; the predictor above is its data-driven stand-in.
+//! # Instruments from the auxiliary model ([`InstrumentalVariables::with_model_instruments`])
+//! SRIVC/RIVC proper (Young & Garnier: the auxiliary model is the estimated continuous-time
+//! system simulated from the measured input, iterated) for structures with a measured input:
+//! the structure with the estimate `p̂_a`, integrated by RK4 over each sample interval with
+//! the measured input held, gives the noise-free state `x̂(k)` and the instruments
+//! `ζ_i(k) = h_i(x̂(k), f(x̂(k), u(k)), u(k))`; every `refresh` samples the current estimate
+//! becomes `p̂_a` when its linear part is stable, else the previous model stays
+//! (`iv_model.rs`, [`super::ModelInstruments`]). No prefilter: the derivatives are measured
+//! and the equation error white. On the thesis' cars the road input is never measured, so
+//! that model cannot be simulated there; the predictor above is its data-driven stand-in.
 
 mod shared;
 
