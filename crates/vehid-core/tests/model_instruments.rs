@@ -91,6 +91,9 @@ fn zoh(p: [f64; 3], dt: f64) -> ([[f64; 2]; 2], [f64; 2]) {
     ([[e[0][0], e[0][1]], [e[1][0], e[1][1]]], [e[0][2], e[1][2]])
 }
 
+/// A noise-free sample: state, derivative, force.
+type Clean = ([f64; 2], [f64; 2], f64);
+
 /// One run: measured states, measured derivatives, inputs (row per sample).
 struct Data {
     r: Vec<[f64; 2]>,
@@ -111,7 +114,7 @@ fn rig(p: [f64; 3], n: usize, pct: f64, seed: u64) -> Data {
         clean.push((x, xd, f));
         x = [phi[0][0] * x[0] + phi[0][1] * x[1] + gam[0] * f, phi[1][0] * x[0] + phi[1][1] * x[1] + gam[1] * f];
     }
-    let std = |g: &dyn Fn(&([f64; 2], [f64; 2], f64)) -> f64| {
+    let std = |g: &dyn Fn(&Clean) -> f64| {
         let m = clean.iter().map(g).sum::<f64>() / n as f64;
         (clean.iter().map(|c| (g(c) - m).powi(2)).sum::<f64>() / n as f64).sqrt()
     };

@@ -262,9 +262,8 @@ impl PyIVIdentifier {
                 let refresh = usize::try_from(refresh).map_err(|_| {
                     VehidError::new_err(format!("`refresh` must be an integer >= 1 (samples), got {refresh}"))
                 })?;
-                let substeps = u32::try_from(substeps).map_err(|_| {
-                    VehidError::new_err(format!("`substeps` must be an integer >= 1, got {substeps}"))
-                })?;
+                let substeps = u32::try_from(substeps)
+                    .map_err(|_| VehidError::new_err(format!("`substeps` must be an integer >= 1, got {substeps}")))?;
                 Some(ModelArgs { dt, substeps, refresh })
             }
             other => {

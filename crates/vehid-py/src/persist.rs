@@ -28,9 +28,9 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyTuple};
 use serde::{Deserialize, Serialize};
 use vehid_core::identify::{
-    BatchLeastSquares, BiasCompensatedVec, DynIdentifier, Dynamic, IvIdentifierVec, JointEkf, KalmanFull, KalmanRows, ModelIvIdentifierVec,
-    KalmanShared, NoiseEstimatingBclsVec, StochasticGradientVec, StructuredGradient, StructuredKalmanVec,
-    TwoAxleIdentifierVec, TwoAxleStructuredVec,
+    BatchLeastSquares, BiasCompensatedVec, DynIdentifier, Dynamic, IvIdentifierVec, JointEkf, KalmanFull, KalmanRows,
+    KalmanShared, ModelIvIdentifierVec, NoiseEstimatingBclsVec, StochasticGradientVec, StructuredGradient,
+    StructuredKalmanVec, TwoAxleIdentifierVec, TwoAxleStructuredVec,
 };
 use vehid_core::Error;
 
@@ -554,8 +554,11 @@ pub fn set_state(obj: &Bound<'_, PyIdentifier>, state: &Bound<'_, PyAny>) -> PyR
             return Err(corrupt("its instruments' delay or lags differ from this object's"));
         }
         if obj.getattr("instruments")?.extract::<String>()? == "model" {
-            let mine: (Option<f64>, usize, u32) =
-                (obj.getattr("dt")?.extract()?, obj.getattr("refresh")?.extract()?, obj.getattr("substeps")?.extract()?);
+            let mine: (Option<f64>, usize, u32) = (
+                obj.getattr("dt")?.extract()?,
+                obj.getattr("refresh")?.extract()?,
+                obj.getattr("substeps")?.extract()?,
+            );
             if model_settings(core.as_ref()).map(|(dt, sub, refresh)| (Some(dt), refresh, sub)) != Some(mine) {
                 return Err(corrupt("its auxiliary model's dt, refresh or substeps differ from this object's"));
             }

@@ -379,10 +379,7 @@ impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>> ModelInstruments<T, P, F>
         if !fits(&a.theta, np) || !fits(&a.x, n) {
             return corrupt("an auxiliary model's parameters and state finite and 0 beyond the structure's sizes");
         }
-        if (a.running && !a.model)
-            || (!a.model && a.refresh == 0)
-            || (!a.running && a.x.iter().any(|&v| v != T::zero()))
-        {
+        if (!a.model && (a.running || a.refresh == 0)) || (!a.running && a.x.iter().any(|&v| v != T::zero())) {
             return corrupt("an auxiliary model running only with parameters, and with a way to get them");
         }
         Ok(())
