@@ -79,6 +79,7 @@ BENCHES = [
     "quarter_ekf_physical",         # update_f64/quarter/ekf_physical (issue 15: the joint EKF's cost)
     "quarter_nebcls_rows",          # update_f64/quarter/nebcls_rows (issue 15: Sigma_w estimated)
     "half_two_axle_physical",       # update_f64/half/two_axle_physical (issue 14: road cancellation, physical)
+    "msd_iv_model",                 # update_f64/msd/iv_model (issue 15: instruments from the auxiliary model, SRIVC)
     "quarter_health",               # health/monitor_update_f64 (issue 17; binary count_health)
     "half_health",                  # health/half_monitor_update_f64 (issue 17, half car; binary count_health)
 ]

@@ -318,6 +318,26 @@ fn noisy_states(c: &mut Criterion) {
         let _ = black_box(bc.update_into(x.as_slice(), z.as_slice(), &[], &mut e));
     };
     bench_updates(c, "update_f64", &data, &mut update, "quarter/bcls_rows");
+    // Instruments from the auxiliary model (SRIVC/RIVC) on a structure with a measured input:
+    // the mass-spring-damper rig (3 parameters, one RK4 step per sample, refresh every 100
+    // samples), past its start (as count_updates' msd_iv_model).
+    let (s, rig) = vehid_benches::msd_rig(LEN);
+    let mut iv = IvIdentifier::<f64, 3, 1>::exact(s, 1).unwrap().with_model_instruments(0.01, 1, 100, None).unwrap();
+    let mut e1 = [0.0];
+    for (x, z, u) in &rig[..400] {
+        iv.update_into(x, z, u, &mut e1).unwrap();
+    }
+    let mut g = c.benchmark_group("update_f64");
+    g.throughput(Throughput::Elements(1));
+    let mut i = 400usize;
+    g.bench_function("msd/iv_model", |b| {
+        b.iter(|| {
+            let (x, z, u) = &rig[i];
+            i = if i + 1 == LEN { 400 } else { i + 1 };
+            let _ = black_box(iv.update_into(black_box(x), black_box(z), black_box(u), &mut e1));
+        })
+    });
+    g.finish();
     // The joint EKF (state, parameters and road together) on the physical structure, m known:
     // a prior 10 % off the truth (standard deviation half the guess), Σ_w for 8 % state
     // noise, the simulator's 5 RK4 sub-steps (as count_updates' quarter_ekf_physical).

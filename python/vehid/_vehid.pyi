@@ -337,11 +337,23 @@ class IVIdentifier(Identifier):
         r: Optional[_Floats] = None,
         *,
         theta0: Optional[ArrayLike] = None,
+        instruments: Literal["delayed", "model"] = "delayed",
+        dt: Optional[float] = None,
+        refresh: int = 100,
+        substeps: int = 1,
     ) -> IVIdentifier: ...
     @property
     def delay(self) -> int: ...
     @property
     def lags(self) -> int: ...
+    @property
+    def instruments(self) -> str: ...
+    @property
+    def dt(self) -> Optional[float]: ...
+    @property
+    def refresh(self) -> int: ...
+    @property
+    def substeps(self) -> int: ...
 
 @final
 class BiasCompensated(Identifier):

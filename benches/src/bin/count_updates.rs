@@ -24,7 +24,7 @@ use vehid_core::structure::Structure;
 const LEN: usize = 4096;
 
 /// The benches: name and what one update is.
-const BENCHES: [(&str, &str); 23] = [
+const BENCHES: [(&str, &str); 24] = [
     ("quarter_rows", "KalmanIdentifier<f64, 4, 2> (rows) update"),
     ("half_rows", "KalmanIdentifier<f64, 8, 4> (rows) update"),
     ("quarter_rows_sqrt", "KalmanIdentifier<f64, 4, 2> square-root form update"),
@@ -53,6 +53,11 @@ const BENCHES: [(&str, &str); 23] = [
     (
         "half_two_axle_physical",
         "TwoAxleStructuredKalman<f64, 4, 3, 16> (half car, one road, 12 parameters) update_into",
+    ),
+    (
+        "msd_iv_model",
+        "ModelIvIdentifier<f64, 3, 1> (instruments from the auxiliary model, 1 RK4 step, refresh 100) on the \
+         mass-spring-damper update_into",
     ),
 ];
 
@@ -179,6 +184,7 @@ fn run(bench: &str, n: usize) -> vehid_core::Result<String> {
         | "quarter_ekf_physical"
         | "quarter_nebcls_rows" => structured(bench, n)?,
         "half_two_axle_physical" => two_axle_physical(n)?,
+        "msd_iv_model" => msd_iv_model(n)?,
         _ => unreachable!("main checks the name against BENCHES"),
     })
 }
@@ -252,6 +258,29 @@ fn structured(bench: &str, n: usize) -> vehid_core::Result<String> {
         Ok(()) => format!("{:?}", &theta[..np]),
         Err(e) => format!("({e})"),
     })
+}
+
+/// Instruments from the auxiliary model (SRIVC/RIVC) on the mass-spring-damper rig with a
+/// measured force, as the criterion bench update_f64/msd/iv_model: exact start, delay 1, one
+/// RK4 step per sample, refresh every 100 samples (stability test included).
+#[inline(never)]
+fn msd_iv_model(n: usize) -> vehid_core::Result<String> {
+    let (s, data) = vehid_benches::msd_rig(LEN);
+    let mut id = IvIdentifier::<f64, 3, 1>::exact(s, 1)?.with_model_instruments(0.01, 1, 100, None)?;
+    let mut e = [0.0];
+    // Past the exact start and the first refresh, so that the model's instruments run.
+    for (x, z, u) in &data[..400] {
+        id.update_into(x, z, u, &mut e)?;
+    }
+    let mut k = 400;
+    for _ in 0..n {
+        let (x, z, u) = &data[k];
+        black_box(id.update_into(x, z, u, &mut e).is_ok());
+        k = if k + 1 == LEN { 400 } else { k + 1 };
+    }
+    let mut theta = [0.0; 3];
+    id.params_into(&mut theta)?;
+    Ok(format!("{theta:?} adopted {}", id.adopted()))
 }
 
 /// The joint EKF on the quarter car's physical structure (m known) as the criterion bench

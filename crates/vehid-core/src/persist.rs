@@ -356,6 +356,11 @@ mod impls {
         crate::identify::InstrumentalVariables<T, P, F, Q>,
         ser: [T: Serialize], de: [T: Deserialize<'de>]);
 
+    checked!("ModelInstruments",
+        [T: Real, const P: usize, F: crate::identify::Flat<crate::identify::IvFilter<T, P>>]
+        crate::identify::ModelInstruments<T, P, F>,
+        ser: [T: Serialize], de: [T: Deserialize<'de>]);
+
     checked!("BiasCompensated",
         [T: Real, const P: usize, F: crate::identify::Flat<crate::identify::BcGroup<T, P>>]
         crate::identify::BiasCompensated<T, P, F>,

@@ -9,6 +9,8 @@ mod common;
 mod claims;
 #[path = "half_one_road.rs"]
 mod half_one_road;
+#[path = "model_instruments.rs"]
+mod model_instruments;
 #[path = "noise_estimating.rs"]
 mod noise_estimating;
 #[path = "noisy_states.rs"]

@@ -152,6 +152,7 @@ fn no_identifier_allocates_per_sample() {
     count("bias compensated", &mut { bc }, &data);
     let ne = NoiseEstimatingBclsVec::<f64, 8, 17>::full_rows(4, &rows, 1, 2).unwrap();
     count("bias compensated, noise estimated", &mut { ne }, &data);
+    model_instruments();
 
     // The half car: six unknown rows (two lane groups of the heap store), and its two axles
     // on one road, each wheel method.
@@ -180,4 +181,49 @@ fn no_identifier_allocates_per_sample() {
     count("two axles, physical structure", &mut fixed, &hdata);
     let mut heap = TwoAxleStructuredVec::<f64, 4>::new(ps, &half.model(), 10, cfg).unwrap();
     count("two axles, physical structure Vec", &mut heap, &hdata);
+}
+
+/// Instruments from the auxiliary model (a structure with a measured input: a mass-spring-damper
+/// driven by a measured force), past its first refresh and through several more (the
+/// stability test), in both stores.
+fn model_instruments() {
+    use vehid_core::identify::{IvIdentifier, ModelIvIdentifierVec};
+    use vehid_core::structure::StructureBuilder;
+    let (s, _) = StructureBuilder::new(&["q", "v"], &["F"])
+        .equation("v", "a*F - k*q - b*v")
+        .known("q", "v")
+        .build::<f64>()
+        .unwrap();
+    let p = [1.0, 40.0, 2.5];
+    let (mut x, mut f, mut k) = ([0.0f64; 2], 0.0f64, 0u64);
+    let mut data = vec![];
+    for _ in 0..600 {
+        k = k.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        f = 0.5 * f + ((k >> 11) as f64 / (1u64 << 53) as f64 - 0.5);
+        let mut der = [0.0; 2];
+        s.derivative(&p, &x, &[f], &mut der);
+        data.push((x, der, [f]));
+        let mut both = [0.0; 4];
+        s.simulate(&p, &x, &[f, f], 0.01, 2, &mut both).unwrap();
+        x = [both[2], both[3]];
+    }
+    let mut fixed = IvIdentifier::<f64, 3, 1>::exact(s, 1).unwrap().with_model_instruments(0.01, 2, 20, None).unwrap();
+    let mut heap: ModelIvIdentifierVec<f64, 3> = vehid_core::identify::IvIdentifierVec::<f64, 3>::exact(s, 1)
+        .unwrap()
+        .with_model_instruments(0.01, 2, 20, None)
+        .unwrap();
+    let mut e = [0.0];
+    for (x, z, u) in &data[..300] {
+        fixed.update_into(x, z, u, &mut e).unwrap();
+        heap.update_into(x, z, u, &mut e).unwrap();
+    }
+    assert!(fixed.adopted() > 0 && heap.adopted() > 0);
+    let before = allocations();
+    for (x, z, u) in &data[300..] {
+        fixed.update_into(x, z, u, &mut e).unwrap();
+        heap.update_into(x, z, u, &mut e).unwrap();
+    }
+    let n = allocations() - before;
+    assert_eq!(n, 0, "model instruments: {n} allocations in 300 updates");
+    assert!(fixed.adopted() > 10);
 }

@@ -168,6 +168,14 @@ fn iv_pq<const P: usize, const Q: usize>(
     Ok(Box::new(IvIdentifierVec::<f64, P, Q>::new(s, delay, p0, theta0, r)?.with_lags(lags)?))
 }
 
+/// The auxiliary model's settings of `instruments="model"`: `(dt, substeps, refresh)`.
+#[derive(Debug, Clone, Copy)]
+struct ModelArgs {
+    dt: f64,
+    substeps: u32,
+    refresh: usize,
+}
+
 fn iv_p<const P: usize>(
     s: Structure<f64>,
     delay: usize,
@@ -175,7 +183,12 @@ fn iv_p<const P: usize>(
     p0: StructuredPrior<'_, f64>,
     theta0: Option<&[f64]>,
     r: &[f64],
+    model: Option<ModelArgs>,
 ) -> vehid_core::Result<Box<dyn DynIdentifier<f64>>> {
+    if let Some(a) = model {
+        let iv = IvIdentifierVec::<f64, P, 0>::new(s, delay, p0, theta0, r)?;
+        return Ok(Box::new(iv.with_model_instruments(a.dt, a.substeps, a.refresh, None)?));
+    }
     if lags == 0 {
         iv_pq::<P, 0>(s, delay, lags, p0, theta0, r)
     } else {
@@ -196,7 +209,13 @@ fn iv_p<const P: usize>(
 /// than its correlation time. `p0`: "exact" (default: batch IV on the first samples, then
 /// recursive), a scalar, one per equation/row, or the (n_params, n_params) matrix, with prior
 /// mean `theta0`; `r`: one variance per equation (weighs equations that share parameters).
-/// A sample whose instruments make the step singular raises VehidError, the identifier
+/// `instruments="model"` (a Structure with a measured input): the instruments are the
+/// noise-free states of an auxiliary model — the structure with the current estimate,
+/// integrated by `substeps` RK4 steps per sample interval `dt` (seconds, required) from the
+/// measured inputs (held over each interval) — as in Young and Garnier's SRIVC; every `refresh`
+/// samples the estimate becomes the auxiliary model if its linear part is stable (else the
+/// previous model stays), and until the first one the delayed regressors serve (`lags` must
+/// be 0 or None). A sample whose instruments make the step singular raises VehidError, the identifier
 /// unchanged. `stats()` gives the IV sandwich covariance. Pickles (every protocol), copies
 /// and deep-copies: a restored one continues bit for bit (the ring of past samples and the
 /// predictor included).
@@ -204,12 +223,15 @@ fn iv_p<const P: usize>(
 pub struct PyIVIdentifier {
     delay: usize,
     lags: usize,
+    model: Option<ModelArgs>,
 }
 
 #[pymethods]
 impl PyIVIdentifier {
     #[new]
-    #[pyo3(signature = (model, delay = 1, lags = None, p0 = None, r = None, *, theta0 = None))]
+    #[pyo3(signature = (model, delay = 1, lags = None, p0 = None, r = None, *, theta0 = None,
+                        instruments = "delayed", dt = None, refresh = 100, substeps = 1))]
+    #[allow(clippy::too_many_arguments)]
     fn py_new(
         model: &Bound<'_, PyAny>,
         delay: i128,
@@ -217,10 +239,41 @@ impl PyIVIdentifier {
         p0: Option<&Bound<'_, PyAny>>,
         r: Option<&Bound<'_, PyAny>>,
         theta0: Option<&Bound<'_, PyAny>>,
+        instruments: &str,
+        dt: Option<f64>,
+        refresh: i128,
+        substeps: i128,
     ) -> PyResult<PyClassInitializer<Self>> {
         let target = Target::of(model)?;
         let s = target.structure()?;
         let (np, ne) = (s.params(), s.equations());
+        let model_args = match instruments {
+            "delayed" => None,
+            "model" => {
+                if lags.is_some_and(|l| l != 0) {
+                    return Err(VehidError::new_err(
+                        "`lags` must be 0 or None with instruments=\"model\" (the auxiliary model replaces the \
+                         predictor)",
+                    ));
+                }
+                let dt = dt.ok_or_else(|| {
+                    VehidError::new_err("`dt` (the sample interval, seconds) is required with instruments=\"model\"")
+                })?;
+                let refresh = usize::try_from(refresh).map_err(|_| {
+                    VehidError::new_err(format!("`refresh` must be an integer >= 1 (samples), got {refresh}"))
+                })?;
+                let substeps = u32::try_from(substeps)
+                    .map_err(|_| VehidError::new_err(format!("`substeps` must be an integer >= 1, got {substeps}")))?;
+                Some(ModelArgs { dt, substeps, refresh })
+            }
+            other => {
+                return Err(VehidError::new_err(format!(
+                    "unknown `instruments` {other:?}: expected \"delayed\" (the regressors `delay` samples back, or \
+                     with lags the predictor's) or \"model\" (an auxiliary model simulated from the measured input)"
+                )))
+            }
+        };
+        let lags = if model_args.is_some() { Some(0) } else { lags };
         let (delay, lags) = instrument_args(&s, delay, lags)?;
         let is_model = matches!(target, Target::Model(_));
         let (kind, p0_data) = prior_arg(p0, np, ne, is_model)?;
@@ -241,15 +294,45 @@ impl PyIVIdentifier {
         let r = r_arg(r, ne)?;
         let p0 = prior(kind, &p0_data);
         let th = theta0.as_deref();
+        let ma = model_args;
         let inner = match bucket(&s) {
-            2 => iv_p::<2>(s, delay, lags, p0, th, &r),
-            4 => iv_p::<4>(s, delay, lags, p0, th, &r),
-            8 => iv_p::<8>(s, delay, lags, p0, th, &r),
-            16 => iv_p::<16>(s, delay, lags, p0, th, &r),
-            _ => iv_p::<32>(s, delay, lags, p0, th, &r),
+            2 => iv_p::<2>(s, delay, lags, p0, th, &r, ma),
+            4 => iv_p::<4>(s, delay, lags, p0, th, &r, ma),
+            8 => iv_p::<8>(s, delay, lags, p0, th, &r, ma),
+            16 => iv_p::<16>(s, delay, lags, p0, th, &r, ma),
+            _ => iv_p::<32>(s, delay, lags, p0, th, &r, ma),
         }
         .map_err(core_err)?;
-        Ok(PyClassInitializer::from(target.wrap(inner)).add_subclass(Self { delay, lags }))
+        Ok(PyClassInitializer::from(target.wrap(inner)).add_subclass(Self { delay, lags, model: model_args }))
+    }
+
+    /// "delayed" (the regressors `delay` samples back, or the predictor's with `lags`) or
+    /// "model" (the auxiliary model's noise-free states).
+    #[getter]
+    fn instruments(&self) -> &'static str {
+        if self.model.is_some() {
+            "model"
+        } else {
+            "delayed"
+        }
+    }
+
+    /// The auxiliary model's sample interval, seconds (None: `instruments="delayed"`).
+    #[getter]
+    fn dt(&self) -> Option<f64> {
+        self.model.map(|m| m.dt)
+    }
+
+    /// Samples between refreshes of the auxiliary model (100 when unused).
+    #[getter]
+    fn refresh(&self) -> usize {
+        self.model.map_or(100, |m| m.refresh)
+    }
+
+    /// RK4 steps of the auxiliary model per sample (1 when unused).
+    #[getter]
+    fn substeps(&self) -> u32 {
+        self.model.map_or(1, |m| m.substeps)
     }
 
     /// The instruments' delay, samples.
@@ -267,12 +350,12 @@ impl PyIVIdentifier {
     /// A copy with its own core.
     fn __copy__(slf: &Bound<'_, Self>) -> PyResult<Py<Self>> {
         let py = slf.py();
-        let (delay, lags) = {
+        let (delay, lags, model) = {
             let b = slf.try_borrow()?;
-            (b.delay, b.lags)
+            (b.delay, b.lags, b.model)
         };
         let base = copy_base(slf.as_super())?;
-        Py::new(py, PyClassInitializer::from(base).add_subclass(Self { delay, lags }))
+        Py::new(py, PyClassInitializer::from(base).add_subclass(Self { delay, lags, model }))
     }
 
     /// The same as `__copy__`: the core shares nothing.
@@ -283,11 +366,12 @@ impl PyIVIdentifier {
     fn __repr__(slf: PyRef<'_, Self>) -> String {
         let base = slf.as_super();
         format!(
-            "IVIdentifier(delay={}, lags={}, unknown_rows={}, samples={})",
+            "IVIdentifier(delay={}, lags={}, unknown_rows={}, samples={}, instruments={:?})",
             slf.delay,
             slf.lags,
             crate::convert::py_tuple(base.inner.rows()),
-            base.inner.samples()
+            base.inner.samples(),
+            slf.instruments()
         )
     }
 }

@@ -29,16 +29,16 @@ use pyo3::types::{PyBytes, PyDict, PyTuple};
 use serde::{Deserialize, Serialize};
 use vehid_core::identify::{
     BatchLeastSquares, BiasCompensatedVec, DynIdentifier, Dynamic, IvIdentifierVec, JointEkf, KalmanFull, KalmanRows,
-    KalmanShared, NoiseEstimatingBclsVec, StochasticGradientVec, StructuredGradient, StructuredKalmanVec,
-    TwoAxleIdentifierVec, TwoAxleStructuredVec,
+    KalmanShared, ModelIvIdentifierVec, NoiseEstimatingBclsVec, StochasticGradientVec, StructuredGradient,
+    StructuredKalmanVec, TwoAxleIdentifierVec, TwoAxleStructuredVec,
 };
 use vehid_core::Error;
 
 /// Version of the pickled state's layout. Raise it when the payload or any serialized core
 /// type changes in a way older readers (or this reader, for older payloads) cannot follow.
 /// 2: modes `shared` and `full` keep the outlier gate's statistics (issue 13).
-/// (`Core::Iv`, `Core::BiasCompensated`, `Core::JointEkf`, `Core::TwoAxleStructured` and
-/// `Core::NoiseEstimating` were added within format 2: new variants at the end of [`Core`]
+/// (`Core::Iv`, `Core::BiasCompensated`, `Core::JointEkf`, `Core::TwoAxleStructured`,
+/// `Core::NoiseEstimating` and `Core::IvModel` were added within format 2: new variants at the end of [`Core`]
 /// leave every older payload's encoding unchanged, so it still loads.)
 pub const FORMAT: u32 = 2;
 
@@ -73,6 +73,9 @@ enum Core {
     /// `NoiseEstimatingBclsVec<f64, P, Q>` (a `BiasCompensated` with
     /// `state_noise_var="estimate"`), `P` and `Q` as for `Iv`.
     NoiseEstimating(u8, u8),
+    /// `ModelIvIdentifierVec<f64, P>` (an `IVIdentifier` with `instruments="model"`), `P` as
+    /// for `Iv`.
+    IvModel(u8),
 }
 
 impl Core {
@@ -169,6 +172,9 @@ fn save_noisy(id: &dyn DynIdentifier<f64>) -> vehid_core::Result<Option<(Core, V
             if let Some(x) = any.downcast_ref::<NoiseEstimatingBclsVec<f64, $p, PREDICTOR>>() {
                 return encode(Core::NoiseEstimating($p, PREDICTOR as u8), x);
             }
+            if let Some(x) = any.downcast_ref::<ModelIvIdentifierVec<f64, $p>>() {
+                return encode(Core::IvModel($p), x);
+            }
         )*};
     }
     try_p!(2, 4, 8, 16, 32);
@@ -244,8 +250,28 @@ fn load_noisy(core: Core, bytes: &[u8]) -> Option<Loaded> {
         Core::NoiseEstimating(8, Q) => decode::<NoiseEstimatingBclsVec<f64, 8, PREDICTOR>>(bytes),
         Core::NoiseEstimating(16, Q) => decode::<NoiseEstimatingBclsVec<f64, 16, PREDICTOR>>(bytes),
         Core::NoiseEstimating(32, Q) => decode::<NoiseEstimatingBclsVec<f64, 32, PREDICTOR>>(bytes),
+        Core::IvModel(2) => decode::<ModelIvIdentifierVec<f64, 2>>(bytes),
+        Core::IvModel(4) => decode::<ModelIvIdentifierVec<f64, 4>>(bytes),
+        Core::IvModel(8) => decode::<ModelIvIdentifierVec<f64, 8>>(bytes),
+        Core::IvModel(16) => decode::<ModelIvIdentifierVec<f64, 16>>(bytes),
+        Core::IvModel(32) => decode::<ModelIvIdentifierVec<f64, 32>>(bytes),
         _ => return None,
     })
+}
+
+/// The auxiliary model's `(dt, substeps, refresh)` of an `IVIdentifier`'s core with
+/// `instruments="model"` (`None`: not one).
+fn model_settings(id: &dyn DynIdentifier<f64>) -> Option<(f64, u32, usize)> {
+    let any = id.as_any();
+    macro_rules! try_p {
+        ($($p:literal),*) => {$(
+            if let Some(x) = any.downcast_ref::<ModelIvIdentifierVec<f64, $p>>() {
+                return Some(x.settings());
+            }
+        )*};
+    }
+    try_p!(2, 4, 8, 16, 32);
+    None
 }
 
 /// The instruments' `(delay, lags)` of an `IVIdentifier`'s core (`None`: not one).
@@ -258,6 +284,9 @@ fn iv_settings(id: &dyn DynIdentifier<f64>) -> Option<(usize, usize)> {
             }
             if let Some(x) = any.downcast_ref::<IvIdentifierVec<f64, $p, PREDICTOR>>() {
                 return Some((x.delay(), x.lags()));
+            }
+            if let Some(x) = any.downcast_ref::<ModelIvIdentifierVec<f64, $p>>() {
+                return Some((x.inner().delay(), x.inner().lags()));
             }
         )*};
     }
@@ -301,6 +330,7 @@ fn load_n<const N: usize>(core: Core, bytes: &[u8]) -> vehid_core::Result<Loaded
         | Core::Structured(_)
         | Core::StructuredGradient(_)
         | Core::Iv(..)
+        | Core::IvModel(_)
         | Core::BiasCompensated(_)
         | Core::NoiseEstimating(..)
         | Core::JointEkf(..)
@@ -361,6 +391,14 @@ fn blank_args<'py>(obj: &Bound<'py, PyIdentifier>) -> PyResult<(Bound<'py, PyTup
         } else if obj.is_instance_of::<PyIVIdentifier>() {
             kwargs.set_item("delay", obj.getattr("delay")?)?;
             kwargs.set_item("lags", obj.getattr("lags")?)?;
+            let instruments: String = obj.getattr("instruments")?.extract()?;
+            if instruments == "model" {
+                // Any valid auxiliary model's settings: the saved core (and its settings) replace it.
+                kwargs.set_item("instruments", instruments)?;
+                kwargs.set_item("dt", obj.getattr("dt")?)?;
+                kwargs.set_item("refresh", obj.getattr("refresh")?)?;
+                kwargs.set_item("substeps", obj.getattr("substeps")?)?;
+            }
         } else if obj.is_instance_of::<PyBiasCompensated>() {
             match obj.getattr("instruments")?.extract::<Option<(usize, usize)>>()? {
                 Some((delay, lags)) => {
@@ -451,7 +489,8 @@ pub fn set_state(obj: &Bound<'_, PyIdentifier>, state: &Bound<'_, PyAny>) -> PyR
     }
     let on_structure = borrow(obj)?.structure.is_some();
     let class_fits = if obj.is_instance_of::<PyIVIdentifier>() {
-        matches!(saved.core, Core::Iv(..))
+        let model: bool = obj.getattr("instruments")?.extract::<String>()? == "model";
+        matches!((saved.core, model), (Core::Iv(..), false) | (Core::IvModel(_), true))
     } else if obj.is_instance_of::<PyBiasCompensated>() {
         let estimates: bool = obj.getattr("estimates_noise")?.extract()?;
         matches!((saved.core, estimates), (Core::BiasCompensated(_), false) | (Core::NoiseEstimating(..), true))
@@ -513,6 +552,16 @@ pub fn set_state(obj: &Bound<'_, PyIdentifier>, state: &Bound<'_, PyAny>) -> PyR
         let settings: (usize, usize) = (obj.getattr("delay")?.extract()?, obj.getattr("lags")?.extract()?);
         if iv_settings(core.as_ref()) != Some(settings) {
             return Err(corrupt("its instruments' delay or lags differ from this object's"));
+        }
+        if obj.getattr("instruments")?.extract::<String>()? == "model" {
+            let mine: (Option<f64>, usize, u32) = (
+                obj.getattr("dt")?.extract()?,
+                obj.getattr("refresh")?.extract()?,
+                obj.getattr("substeps")?.extract()?,
+            );
+            if model_settings(core.as_ref()).map(|(dt, sub, refresh)| (Some(dt), refresh, sub)) != Some(mine) {
+                return Err(corrupt("its auxiliary model's dt, refresh or substeps differ from this object's"));
+            }
         }
     }
     borrow_mut(obj)?.inner = core;

@@ -64,10 +64,16 @@
 //! so the prediction recovers the fast mode too. For regressors linear in the sample the
 //! result is two-stage least squares on those `L` lags.
 //!
-//! Not implemented: SRIVC/RIVC proper (Young & Garnier: the auxiliary model is the estimated
-//! continuous-time system simulated from the measured input, with prefilters from the
-//! estimated denominator, iterated). The road input is never measured, so that model
-//! cannot be simulated here; the predictor above is its data-driven stand-in.
+//! # Instruments from the auxiliary model ([`InstrumentalVariables::with_model_instruments`])
+//! SRIVC/RIVC proper (Young & Garnier: the auxiliary model is the estimated continuous-time
+//! system simulated from the measured input, iterated) for structures with a measured input:
+//! the structure with the estimate `p̂_a`, integrated by RK4 over each sample interval with
+//! the measured input held, gives the noise-free state `x̂(k)` and the instruments
+//! `ζ_i(k) = h_i(x̂(k), f(x̂(k), u(k)), u(k))`; every `refresh` samples the current estimate
+//! becomes `p̂_a` when its linear part is stable, else the previous model stays
+//! (`iv_model.rs`, [`super::ModelInstruments`]). No prefilter: the derivatives are measured
+//! and the equation error white. On the thesis' cars the road input is never measured, so
+//! that model cannot be simulated there; the predictor above is its data-driven stand-in.
 
 mod shared;
 
@@ -605,6 +611,43 @@ impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> Instrumen
         Ok(())
     }
 
+    /// The sample's lengths and values, as every update checks them before changing anything.
+    fn check_sample(&self, x: &[T], z: &[T], u: &[T], e: &[T]) -> Result<()> {
+        check_lengths(self.dims(), x, z, u, e)?;
+        // Every value is kept for later samples' instruments, whose products must stay finite:
+        // a value that would overflow when squared is refused now (accepted, it would make
+        // every later sample overflow while it stays in the ring).
+        let limit = T::biggest().sqrt() / T::of(256.0);
+        for (arg, v) in [("r_k", x), ("z_k", z), ("u_k", u)] {
+            // One pass (a NaN fails `<` too); the error names a non-finite value first.
+            if v.iter().any(|a| !(a.abs() < limit)) {
+                crate::error::check_finite(arg, v)?;
+                return Err(Error::InvalidArgument {
+                    arg,
+                    expected: "values below √(largest float)/256 (about 5e151 in f64, 7e16 in f32), whose squares \
+                               stay finite (rescale the units)",
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// One sample whose instruments' sample `(ax, az, au)` the caller gives (the auxiliary
+    /// model's, `iv_model.rs`) instead of the ring's: the same checks, the same shared or
+    /// per-group step, and the sample stored in the ring as usual. Transactional.
+    pub(crate) fn update_with(&mut self, x: &[T], z: &[T], u: &[T], at: (&[T], &[T], &[T]), e: &mut [T]) -> Result<()> {
+        self.check_sample(x, z, u, e)?;
+        if let Some(kind) = self.shared_ready() {
+            let (h, zeta) = self.shared_regressors(kind, x, z, u, at, e)?;
+            self.update_shared(&h, &zeta, e)?;
+        } else {
+            self.update_groups(x, z, u, at, e)?;
+        }
+        self.ring.push(x, z, u);
+        self.samples += 1;
+        Ok(())
+    }
+
     fn restore(&mut self, touched: u32) {
         for g in 0..self.part.groups as usize {
             if touched & (1 << g) != 0 {
@@ -721,22 +764,7 @@ impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> Identifie
                 return done;
             }
         }
-        check_lengths(self.dims(), x, z, u, e)?;
-        // Every value is kept for later samples' instruments, whose products must stay finite:
-        // a value that would overflow when squared is refused now (accepted, it would make
-        // every later sample overflow while it stays in the ring).
-        let limit = T::biggest().sqrt() / T::of(256.0);
-        for (arg, v) in [("r_k", x), ("z_k", z), ("u_k", u)] {
-            // One pass (a NaN fails `<` too); the error names a non-finite value first.
-            if v.iter().any(|a| !(a.abs() < limit)) {
-                crate::error::check_finite(arg, v)?;
-                return Err(Error::InvalidArgument {
-                    arg,
-                    expected: "values below √(largest float)/256 (about 5e151 in f64, 7e16 in f32), whose squares \
-                               stay finite (rescale the units)",
-                });
-            }
-        }
+        self.check_sample(x, z, u, e)?;
         if !self.ring.full() {
             self.innovations(x, z, u, e)?;
             self.ring.push(x, z, u);

@@ -44,6 +44,7 @@ mod gradient;
 mod instrumental;
 mod interface;
 mod iv_filter;
+mod iv_model;
 pub(crate) mod iv_predictor;
 mod joint_ekf;
 mod kalman;
@@ -71,6 +72,9 @@ pub use interface::{Dims, FitError, Identifier, SampleIter, Samples, FIT_STACK_E
 #[cfg(feature = "alloc")]
 pub use interface::{DynIdentifier, FitOptions};
 pub use iv_filter::IvFilter;
+#[cfg(feature = "alloc")]
+pub use iv_model::ModelIvIdentifierVec;
+pub use iv_model::{ModelInstruments, ModelIvIdentifier};
 pub use joint_ekf::{EkfNoise, JointEkf, MAX_EKF_SUBSTEPS};
 #[cfg(feature = "alloc")]
 pub use kalman::{
