@@ -10,6 +10,8 @@ from the true state, the sensor noise levels)."""
 from __future__ import annotations
 
 import copy
+import importlib.util
+import io
 import json
 import pickle
 from pathlib import Path
@@ -20,7 +22,7 @@ import pytest
 from readme_blocks import README, console_steps  # tests/ is on sys.path under pytest
 
 import vehid
-from vehid import cli
+from vehid import cli, monitor
 
 DT = 0.005
 CAR = vehid.QuarterCar.passenger()
@@ -514,5 +516,17 @@ def test_vehid_monitor_model_half(tmp_path: Path, capsys: pytest.CaptureFixture[
     assert len(out) == 1
     ev = json.loads(out[0])
     assert ev["parameter"] == "k2_r" and ev["name"] == "rear spring" and ev["before"] == 22_000.0
-    assert cli.main(["monitor", str(log), "--model", "half", "--plot", str(tmp_path / "x.png")]) == 2
-    assert "no plot" in capsys.readouterr().err
+    if importlib.util.find_spec("matplotlib") is not None:
+        png = tmp_path / "half.png"
+        assert cli.main(["monitor", str(log), "--model", "half", "--plot", str(png)]) == 0
+        assert png.stat().st_size > 10_000 and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # What the plot draws: each constant's change since the warm-up; at the end of the drive
+    # the rear spring's is the -10 % change and the others 0, each within its band.
+    mon = vehid.HealthMonitor(HALF, dt=DT, sensors="realistic")
+    feeder = monitor.Feeder(mon, 0.0, io.StringIO(), False)
+    feeder.feed(run.y)
+    last = feeder.record.half[-1]
+    assert last.shape == (4, 3) and np.isnan(feeder.record.half[0]).all()
+    truth = np.array([0.0, 0.0, 19_800.0 / 22_000.0 - 1.0, 0.0])
+    assert np.abs(last[:, 0] - truth).max() < 0.03, last
+    assert ((last[:, 1] < last[:, 0]) & (last[:, 0] < last[:, 2])).all(), last

@@ -213,6 +213,9 @@ class Record:
     k2m: List[Tuple[float, float, float]] = field(default_factory=list)
     bm: List[Tuple[float, float, float]] = field(default_factory=list)
     status: List[str] = field(default_factory=list)
+    #: Half car: each record's change of the four suspension constants from the monitor's
+    #: first reference (:func:`half_changes`).
+    half: List[NDArray[np.float64]] = field(default_factory=list)
 
 
 class Feeder:
@@ -225,6 +228,8 @@ class Feeder:
         self.record = Record()
         self.events: List[Event] = []
         self.missing = 0
+        #: The monitor's first reference (the car as the warm-up found it; half car).
+        self.ref0: Optional[Dict[str, Any]] = None
 
     def feed(self, y: NDArray[np.float64]) -> None:
         for i in range(0, len(y), self.block):
@@ -249,6 +254,11 @@ class Feeder:
         self.record.k2m.append(est.get("k2/M", none))  # the quarter car's ratios (the plot)
         self.record.bm.append(est.get("b/M", none))
         self.record.status.append(self.mon.status)
+        if "front" in est:
+            if self.ref0 is None:
+                self.ref0 = self.mon.reference
+            self.record.half.append(half_changes(est, self.ref0))
+
 
     def print_event(self, ev: Event) -> None:
         if self.as_json:
@@ -263,6 +273,30 @@ class Feeder:
         print(f"{self.t0 + ev.t:.3f} s  {ev.parameter} ({name}): {ev.before:.6g} -> {ev.after:.6g} {unit} "
               f"({100 * ev.change:+.1f} %; 95 % interval {ev.low:.6g} .. {ev.high:.6g}; "
               f"onset {self.t0 + ev.t_change:.2f} s)", file=self.out, flush=True)
+
+
+#: The half car's suspension constants in the order of its coefficients
+#: ``[α k2_f, α b_f, α k2_r, α b_r]`` (the monitor's estimate), as the plot names them.
+HALF_PLOTTED = (("k2_f", "front spring"), ("b_f", "front damper"), ("k2_r", "rear spring"), ("b_r", "rear damper"))
+
+
+def half_changes(est: Dict[str, Any], ref: Optional[Dict[str, Any]]) -> NDArray[np.float64]:
+    """The half car's tracked change of each suspension constant from the monitor's reference:
+    an array ``[constant, (value, low, high)]`` of relative changes (0.1 is +10 %). A front
+    constant is read from the front body-corner equation, a rear one from the rear: there its
+    coefficient is ``(1/M + a²/J)`` times the constant (``b²`` for the rear), which the ratio
+    to the reference cancels, ``α θ̂ / (α θ_ref) − 1``. (In the other corner's equation the
+    factor is ``1/M − a b/J``, near zero for a car whose pitch inertia is near ``M a b``, so
+    that coefficient's relative change is mostly noise; the monitor weighs both by their
+    covariance.) NaN during the warm-up (no reference yet)."""
+    out = np.full((4, 3), math.nan)
+    if ref is None:
+        return out
+    for j, corner in enumerate(("front", "front", "rear", "rear")):
+        r = ref[corner][j]
+        if r != 0:
+            out[j] = np.asarray(est[corner][j], dtype=np.float64) / r - 1.0
+    return out
 
 
 def _time_steps(t: NDArray[np.float64], prev: Optional[float], dt: float, table: Table,
@@ -298,8 +332,6 @@ def cmd_monitor(args: argparse.Namespace) -> int:
     settings = {k: getattr(args, k) for k in ("window", "warmup", "min_change", "threshold", "confidence")
                 if getattr(args, k) is not None}
     half = isinstance(car, HalfCar)
-    if half and args.plot:
-        raise _cli_error("--plot draws the quarter car's tracked ratios; the half car's monitor has no plot yet")
     channels = (HALF_SENSOR_COLUMNS if half else SENSOR_COLUMNS)[sensors]
     columns = (Column("t", "time", "s"),) + channels
     with open_table(args.file, delimiter=args.delimiter) as table:
@@ -392,6 +424,9 @@ def plot(feeder: Feeder, car: Union[QuarterCar, HalfCar], path: str) -> None:
         plt: Any = importlib.import_module("matplotlib.pyplot")
     except ImportError:
         raise _cli_error("--plot needs matplotlib: pip install 'vehid[plot]'") from None
+    if isinstance(car, HalfCar):
+        _plot_half(plt, feeder, path)
+        return
     rec = feeder.record
     t = np.asarray(rec.t)
     fig, axes = plt.subplots(2, 1, sharex=True, figsize=(9, 6))
@@ -407,16 +442,50 @@ def plot(feeder: Feeder, car: Union[QuarterCar, HalfCar], path: str) -> None:
                         label="95 % band")
         ax.plot(t, shown, lw=1, label="tracked")
         ax.axhline(nominal, color="k", ls=":", lw=1, label="nominal car")
-        for i in np.flatnonzero(~judged):
-            ax.axvspan(t[i] - RECORD, t[i], color="0.85", lw=0)
-        for ev in feeder.events:
-            ax.axvline(feeder.t0 + ev.t, color="r", lw=1)
-            ax.annotate(f"{ev.parameter} {100 * ev.change:+.1f} %", (feeder.t0 + ev.t, 1.0),
-                        xycoords=("data", "axes fraction"), va="top", ha="left", color="r", fontsize=8)
+        _mark(ax, feeder, t, judged)
         ax.set_ylabel(f"{name} ({unit})")
     axes[0].legend(loc="lower left", fontsize=8)
     axes[1].set_xlabel("time (s)")
     axes[0].set_title("Tracked ratios (grey: cannot judge; red: events)")
+    fig.tight_layout()
+    try:
+        fig.savefig(path, dpi=100)
+    except OSError as e:
+        raise _cli_error(f"--plot {path}: cannot write ({e.strerror or e})") from None
+    finally:
+        plt.close(fig)
+
+
+def _mark(ax: Any, feeder: Feeder, t: NDArray[np.float64], judged: NDArray[np.bool_]) -> None:
+    """Grey where the monitor could not judge; a red line and label at each event."""
+    for i in np.flatnonzero(~judged):
+        ax.axvspan(t[i] - RECORD, t[i], color="0.85", lw=0)
+    for ev in feeder.events:
+        ax.axvline(feeder.t0 + ev.t, color="r", lw=1)
+        ax.annotate(f"{ev.parameter} {100 * ev.change:+.1f} %", (feeder.t0 + ev.t, 1.0),
+                    xycoords=("data", "axes fraction"), va="top", ha="left", color="r", fontsize=8)
+
+
+def _plot_half(plt: Any, feeder: Feeder, path: str) -> None:
+    """The half car: one panel per suspension constant, its change in % from the monitor's
+    first reference (the car as the warm-up found it) as its own body-corner equation tracks
+    it (:func:`half_changes`), with the 95 % band, the times it could not judge and the
+    events."""
+    rec = feeder.record
+    t = np.asarray(rec.t)
+    judged = np.array([s in ("monitoring", "settling") for s in rec.status])
+    h = 100.0 * np.asarray(rec.half).reshape(len(t), 4, 3)
+    fig, axes = plt.subplots(4, 1, sharex=True, figsize=(9, 10))
+    for j, (ax, (name, words)) in enumerate(zip(axes, HALF_PLOTTED)):
+        v = np.where(judged[:, None], h[:, j, :], np.nan)
+        ax.fill_between(t, v[:, 1], v[:, 2], alpha=0.3, label="95 % band")
+        ax.plot(t, v[:, 0], lw=1, label="tracked")
+        ax.axhline(0.0, color="k", ls=":", lw=1, label="as after the warm-up")
+        _mark(ax, feeder, t, judged)
+        ax.set_ylabel(f"{words}\n({name}) change (%)")
+    axes[0].legend(loc="lower left", fontsize=8)
+    axes[-1].set_xlabel("time (s)")
+    axes[0].set_title("Tracked change since the warm-up, 95 % bands (grey: cannot judge; red: events)")
     fig.tight_layout()
     try:
         fig.savefig(path, dpi=100)
@@ -466,7 +535,8 @@ def add_arguments(p: argparse.ArgumentParser, delimiter: Callable[[str], str]) -
     p.add_argument("--confidence", type=float, default=None, help="level of the intervals (default 0.95)")
     p.add_argument("--json", action="store_true", help="one JSON object per event instead of text")
     p.add_argument("--plot", default=None, metavar="PNG",
-                   help="write the tracked ratios with their bands and the events (needs vehid[plot])")
+                   help="write the tracked ratios with their bands and the events (the half car: each "
+                        "spring's and damper's change since the warm-up) (needs vehid[plot])")
 
 
 __all__: Sequence[str] = [
