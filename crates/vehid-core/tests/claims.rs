@@ -1064,3 +1064,214 @@ fn structured_residual_sums_forget_as_the_rows_do() {
         assert!((na[i] - n).abs() <= 1e-9 * n, "row {i}: n {} against {n}", na[i]);
     }
 }
+
+/// Noise-free rows (`r = 0`) learn the parameters exactly from `N` independent samples,
+/// whatever the scale of the prior `p0 I`: the step `θ += P x e / xᵀPx` does not depend on
+/// P's scale. The reference is the θ the samples were made from (N independent noise-free
+/// equations determine it). A row skips a sample only when `xᵀPx` is at rounding level
+/// against `|x|₁ |Px|₁` (a covariance collapsed along `x`), so a small `p0` is not taken for a
+/// collapsed one.
+#[test]
+fn noise_free_rows_learn_exactly_whatever_the_prior_scale() {
+    use vehid_core::identify::RowIdentifier;
+    let th = [V4::new(-3.0, 0.5, 2.0, 7.0), V4::new(0.25, -40.0, 1.5, -0.75)];
+    let xs = [
+        V4::new(1.0, 0.2, -0.3, 0.5),
+        V4::new(-0.4, 1.1, 0.7, 0.1),
+        V4::new(0.3, -0.6, 0.9, -1.2),
+        V4::new(0.8, 0.5, 0.2, 0.6),
+        V4::new(-1.3, 0.4, -0.8, 0.9),
+        V4::new(0.05, 0.3, 1.7, -0.2),
+    ];
+    let close = |a: &V4, b: &V4| (a - b).norm() <= 1e-9 * b.norm();
+    for p0 in [1e-9, 1.0, 1e9] {
+        for (i, t) in th.iter().enumerate() {
+            let mut f = RowIdentifier::<f64, 4>::new(p0, 0.0).unwrap();
+            for x in &xs {
+                f.update(x, x.dot(t)).unwrap();
+            }
+            assert!(close(&f.theta(), t), "p0 = {p0}, row filter {i}: {} against {t}", f.theta());
+        }
+        for form in [CovarianceForm::Standard, CovarianceForm::Joseph, CovarianceForm::Sqrt] {
+            let mut id = KalmanIdentifier::<f64, 4, 2>::from_slices(&[1, 3], &[p0], &[0.0, 0.0], opts(form)).unwrap();
+            let mut e = [0.0; 2];
+            for x in &xs {
+                let mut z = V4::zeros();
+                z[1] = x.dot(&th[0]);
+                z[3] = x.dot(&th[1]);
+                id.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+            }
+            let mut got = [0.0; 8];
+            id.params_into(&mut got).unwrap();
+            for i in 0..2 {
+                let g = V4::from_column_slice(&got[4 * i..4 * i + 4]);
+                assert!(close(&g, &th[i]), "p0 = {p0}, {form:?}, row {i}: {g} against {}", th[i]);
+            }
+        }
+    }
+}
+
+/// A deterministic stream of regressors with entries in [−1, 1).
+fn regressors(seed: u64, n: usize) -> Vec<V4> {
+    let mut s = seed;
+    let mut next = move || {
+        s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    };
+    (0..n).map(|_| V4::new(next(), next(), next(), next())).collect()
+}
+
+/// The `8 × 8` covariance an identifier of two rows reports, and whether it has a Cholesky
+/// factor (nalgebra's, not the identifier's).
+fn covariance8(id: &dyn Identifier<f64>) -> (Vec<f64>, bool) {
+    let mut p = vec![0.0; 64];
+    id.covariance_into(&mut p).unwrap();
+    let spd = nalgebra::SMatrix::<f64, 8, 8>::from_row_slice(&p).cholesky().is_some();
+    (p, spd)
+}
+
+/// A sample informative far beyond its noise (`r / s` below `√ε`: "risky") whose downdate
+/// stays well inside positive definiteness (`r / s` = 1e-11, far above ε) is taken (modes
+/// full and rows, the latter with exponential forgetting too), and the step from the prior
+/// `θ = 0`, `P = p0 I` is the closed form `θ_i = p0 x z_i / (p0 |x|² + r)`,
+/// `P = (p0 I − p0² x xᵀ / (p0 |x|² + r)) / λ` in each row's block (λ = 1 without
+/// forgetting), zero across rows.
+#[test]
+fn risky_samples_that_stay_definite_are_taken_as_the_closed_form_says() {
+    let rows = [1usize, 3];
+    let (p0, r) = (1e5, 1e-6);
+    let th = [V4::new(-3.0, 0.5, 2.0, 7.0), V4::new(0.25, -40.0, 1.5, -0.75)];
+    for (n, x) in regressors(31, 40).into_iter().enumerate() {
+        let mut z = V4::zeros();
+        z[1] = x.dot(&th[0]) + 0.01;
+        z[3] = x.dot(&th[1]) - 0.02;
+        let s = p0 * x.norm_squared() + r;
+        assert!(r < f64::EPSILON.sqrt() * s, "the sample must be risky");
+        let full = |forgetting| {
+            let o = KalmanOptions { forgetting, ..KalmanOptions::default() };
+            Box::new(FullKalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[p0], &[r, r], o).unwrap())
+                as Box<dyn Identifier<f64>>
+        };
+        let row_form = |form, forgetting| {
+            // A trace bound above p0's: forgetting acts from the first sample.
+            let o = KalmanOptions { form, forgetting, max_trace: 1e12, ..KalmanOptions::default() };
+            Box::new(KalmanIdentifier::<f64, 4, 2>::from_slices(&rows, &[p0], &[r, r], o).unwrap())
+                as Box<dyn Identifier<f64>>
+        };
+        let cases: Vec<(&str, f64, Box<dyn Identifier<f64>>)> = vec![
+            ("full", 1.0, full(1.0)),
+            ("rows standard", 1.0, row_form(CovarianceForm::Standard, 1.0)),
+            ("rows Joseph", 1.0, row_form(CovarianceForm::Joseph, 1.0)),
+            ("rows standard, forgetting", 0.98, row_form(CovarianceForm::Standard, 0.98)),
+            ("rows Joseph, forgetting", 0.98, row_form(CovarianceForm::Joseph, 0.98)),
+        ];
+        for (name, forgetting, mut id) in cases {
+            let mut e = [0.0; 2];
+            id.update_into(x.as_slice(), z.as_slice(), &[], &mut e)
+                .unwrap_or_else(|err| panic!("sample {n}, {name}: refused: {err:?}"));
+            let mut t = [0.0; 8];
+            id.params_into(&mut t).unwrap();
+            for i in 0..2 {
+                let want = x * (p0 * z[rows[i]] / s);
+                let got = V4::from_column_slice(&t[4 * i..4 * i + 4]);
+                assert!(
+                    (got - want).norm() <= 1e-9 * want.norm(),
+                    "sample {n}, {name}, row {i}: θ {got} against {want}"
+                );
+            }
+            let (p, spd) = covariance8(id.as_ref());
+            assert!(spd, "sample {n}, {name}: the covariance is not positive definite");
+            for a in 0..8 {
+                for b in 0..8 {
+                    let want = if a / 4 != b / 4 {
+                        0.0
+                    } else {
+                        (f64::from(u8::from(a == b)) * p0 - p0 * p0 * x[a % 4] * x[b % 4] / s) / forgetting
+                    };
+                    assert!(
+                        (p[a * 8 + b] - want).abs() <= 1e-9 * p0,
+                        "sample {n}, {name}: P[{a}, {b}] {} against {want}",
+                        p[a * 8 + b]
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// A risky sample whose downdate is positive definite in exact arithmetic but not in
+/// floating point (`r / s` ≈ 1e-17 on row 1, below ε: the new smallest eigenvalue `p0 r / s` is under
+/// the rounding of `P`'s entries) is checked before it is taken (modes full and rows): it is
+/// either taken, and the covariance then has a Cholesky factor, or refused as singular with
+/// the state unchanged. Some of the 200 samples are refused: the case arises.
+#[test]
+fn risky_samples_whose_downdate_would_be_indefinite_are_refused() {
+    let rows = [1usize, 3];
+    // Row 0 is not risky (r / s ≈ 1e-5); row 1 is, and alone decides the check.
+    let (p0, r) = (1e5, [1.0, 1e-12]);
+    let mut prior = vec![0.0; 64];
+    for a in 0..8 {
+        prior[a * 8 + a] = p0;
+    }
+    for mode in ["full", "rows standard", "rows Joseph"] {
+        let mut refused = 0;
+        for (n, x) in regressors(32, 200).into_iter().enumerate() {
+            let mut id: Box<dyn Identifier<f64>> = match mode {
+                "full" => Box::new(
+                    FullKalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[p0], &r, KalmanOptions::default()).unwrap(),
+                ),
+                "rows standard" => Box::new(
+                    KalmanIdentifier::<f64, 4, 2>::from_slices(&rows, &[p0], &r, opts(CovarianceForm::Standard))
+                        .unwrap(),
+                ),
+                _ => Box::new(
+                    KalmanIdentifier::<f64, 4, 2>::from_slices(&rows, &[p0], &r, opts(CovarianceForm::Joseph)).unwrap(),
+                ),
+            };
+            let z = V4::new(0.0, x.sum(), 0.0, 2.0 * x[0]);
+            let mut e = [0.0; 2];
+            match id.update_into(x.as_slice(), z.as_slice(), &[], &mut e) {
+                Ok(()) => {
+                    let (_, spd) = covariance8(id.as_ref());
+                    assert!(spd, "{mode}, sample {n}: taken, and the covariance has no Cholesky factor");
+                }
+                Err(err) => {
+                    assert!(matches!(err, vehid_core::Error::Singular { .. }), "{mode}, sample {n}: {err:?}");
+                    let (p, _) = covariance8(id.as_ref());
+                    let mut t = [1.0; 8];
+                    id.params_into(&mut t).unwrap();
+                    assert!(
+                        p == prior && t == [0.0; 8] && id.samples() == 0,
+                        "{mode}, sample {n}: refused but changed"
+                    );
+                    refused += 1;
+                }
+            }
+        }
+        assert!(refused > 0, "{mode}: no sample of 200 was refused");
+        eprintln!("{mode}: {refused} of 200 refused");
+    }
+}
+
+/// The shared form's arithmetic per update, counted here from its algorithm (each distinct
+/// product once: `Q`'s downdate gives entries (a, b) and (b, a) the same number). For N
+/// states and K rows: `Q x` N² mul, N(N−1) add; `s = 1 + xᵀQx` N mul, N add; `1/s` one
+/// division; `g = Qx/s` N mul; per row `e_i = z_i − θ_iᵀx` and `θ_i += g e_i` 2N mul, 2N add;
+/// the upper triangle of `Q −= (Qx) gᵀ` N(N+1)/2 mul and add. No square root.
+#[test]
+fn shared_form_cost_is_its_operation_count() {
+    fn count(n: usize, k: usize) -> (usize, usize, usize, usize) {
+        let tri = n * (n + 1) / 2;
+        let mul = n * n + n + n + k * 2 * n + tri;
+        let add = n * (n - 1) + n + k * 2 * n + tri;
+        (mul, add, 1, 0)
+    }
+    let c = SharedKalmanIdentifier::<f64, 4, 2>::new([1, 3], 1000.0, [1.0, 1.0]).unwrap().cost();
+    assert_eq!((c.multiplications, c.additions, c.divisions, c.square_roots), count(4, 2));
+    assert_eq!(count(4, 2), (50, 42, 1, 0));
+    let h =
+        SharedKalmanIdentifierVec::<f64, 8>::from_slices(&[1, 3, 5, 7], &[1000.0], &[1.0], KalmanOptions::default())
+            .unwrap()
+            .cost();
+    assert_eq!((h.multiplications, h.additions, h.divisions, h.square_roots), count(8, 4));
+}
