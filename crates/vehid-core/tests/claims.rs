@@ -125,7 +125,7 @@ impl RefSg {
 }
 
 /// Runs the identifier and the reference side by side; θ̂ (and the innovations) must agree
-/// at every step to `tol` relative to the largest |θ| so far.
+/// at every step to `tol` relative to the largest |θ| so far, and every sample is counted.
 fn compare_sg(name: &str, id: &mut dyn Identifier<f64>, reference: &mut RefSg, data: &[(V4, V4)], tol: f64) {
     let k = reference.rows.len();
     let mut e = vec![0.0; k];
@@ -135,6 +135,8 @@ fn compare_sg(name: &str, id: &mut dyn Identifier<f64>, reference: &mut RefSg, d
     for (step, (x, z)) in data.iter().enumerate() {
         id.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
         let e_ref = reference.step(x, z);
+        // Every sample is counted, the ones the spacing skips included.
+        assert_eq!(id.samples(), step as u64 + 1, "{name}: step {step}: samples()");
         id.params_into(&mut th).unwrap();
         let th_ref: Vec<f64> = reference.theta.iter().flatten().copied().collect();
         scale = th_ref.iter().fold(scale, |m, v| m.max(v.abs()));
