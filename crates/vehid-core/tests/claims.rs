@@ -1277,3 +1277,24 @@ fn shared_form_cost_is_its_operation_count() {
             .cost();
     assert_eq!((h.multiplications, h.additions, h.divisions, h.square_roots), count(8, 4));
 }
+
+/// `Samples::skip_to(start)` is the samples from `start` on: the same `(x, z, u)` slices as
+/// the iterator after `start` steps, for 0, 1 and 2 inputs per sample; past the end, none.
+#[test]
+fn samples_skip_to_is_the_iterator_after_start_steps() {
+    use vehid_core::identify::Samples;
+    let (n, len) = (3usize, 5usize);
+    let x: Vec<f64> = (0..n * len).map(|i| i as f64).collect();
+    let z: Vec<f64> = (0..n * len).map(|i| 100.0 + i as f64).collect();
+    for m in [0usize, 1, 2] {
+        let u: Vec<f64> = (0..m * len).map(|i| -(i as f64)).collect();
+        let all = Samples::new(n, m, &x, &z, &u).unwrap();
+        for start in 0..=len + 1 {
+            let rest = all.skip_to(start);
+            assert_eq!(rest.len(), len.saturating_sub(start), "m = {m}, start = {start}");
+            let got: Vec<_> = rest.iter().collect();
+            let want: Vec<_> = all.iter().skip(start).collect();
+            assert_eq!(got, want, "m = {m}, start = {start}");
+        }
+    }
+}
