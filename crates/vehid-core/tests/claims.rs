@@ -1298,3 +1298,43 @@ fn samples_skip_to_is_the_iterator_after_start_steps() {
         }
     }
 }
+
+/// `fit_dyn`'s history: `record_every = k` appends the parameters after every k-th sample
+/// (the estimate the identifier reports after that sample, stepped here one sample at a time),
+/// `0` never; `check_every = k` asks the interrupt after every k-th sample, `0` never.
+#[test]
+fn fit_dyn_records_and_checks_every_k_samples_and_never_for_0() {
+    use vehid_core::identify::{DynIdentifier, FitOptions, Samples};
+    let data = samples(33, 10, 0.0);
+    let x: Vec<f64> = data.iter().flat_map(|(x, _)| x.iter().copied()).collect();
+    let z: Vec<f64> = data.iter().flat_map(|(_, z)| z.iter().copied()).collect();
+    let s = Samples::new(4, 0, &x, &z, &[]).unwrap();
+    let fresh = || {
+        KalmanIdentifierVec::<f64, 4>::from_slices(&[1, 3], &[1000.0], &[81.0, 2.5e-5], opts(CovarianceForm::Standard))
+            .unwrap()
+    };
+    // The reference: the estimate after each sample, one update at a time.
+    let mut by_hand = fresh();
+    let mut after = Vec::new();
+    let mut e = [0.0; 2];
+    for (x, z) in &data {
+        by_hand.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+        let mut t = [0.0; 8];
+        by_hand.params_into(&mut t).unwrap();
+        after.push(t);
+    }
+    for (every, check) in [(0usize, 0usize), (3, 4), (1, 0), (0, 1)] {
+        let mut id = fresh();
+        let mut history = Vec::new();
+        let mut asked = 0;
+        id.fit_dyn(&s, FitOptions { record_every: every, check_every: check }, &mut history, &mut || {
+            asked += 1;
+            false
+        })
+        .unwrap();
+        let want: Vec<f64> =
+            if every == 0 { vec![] } else { after.iter().skip(every - 1).step_by(every).flatten().copied().collect() };
+        assert_eq!(history, want, "record_every {every}");
+        assert_eq!(asked, if check == 0 { 0 } else { data.len() / check }, "check_every {check}");
+    }
+}
