@@ -598,6 +598,8 @@ fn every_identifier_reports_its_rows_and_parameter_groups() {
         ("IV", Box::new(IvIdentifierVec::<f64, 8>::full_rows(4, &rows, 1, StructuredPrior::Exact, &[1.0]).unwrap())),
         ("bias compensated", Box::new(BiasCompensatedVec::<f64, 8>::new(full(), &[1e-6], &[], &[1.0]).unwrap())),
     ];
+    // The batch's own accessor (beside the interface's, checked below).
+    assert_eq!(BatchLeastSquares::<f64, 4>::new(&rows).unwrap().rows(), &rows, "batch LS: BatchLeastSquares::rows");
     let data = samples(12, 40, 0.0);
     for (name, id) in &mut ids {
         assert_eq!(id.rows(), &rows, "{name}: rows()");
