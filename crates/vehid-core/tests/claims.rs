@@ -1340,3 +1340,30 @@ fn fit_dyn_records_and_checks_every_k_samples_and_never_for_0() {
         assert_eq!(asked, if check == 0 { 0 } else { data.len() / check }, "check_every {check}");
     }
 }
+
+/// Mode full takes a positive semi-definite noise matrix `R` at any scale and refuses one with
+/// a negative eigenvalue at any scale: for s from 1e-6 to 1e6, `R = s v vᵀ` (rank one, its
+/// eigenvalues 0 and s|v|²: perfectly correlated rows, as noise-free data give) is taken, and
+/// `s [[1, 1.001], [1.001, 1]]` (eigenvalues 2.001 s and −0.001 s) refused as singular.
+#[test]
+fn mode_full_checks_the_noise_matrix_whatever_its_scale() {
+    let rows = [1usize, 3];
+    let o = KalmanOptions::default();
+    for s in [1e-6, 1e-3, 1.0, 81.0, 1e3, 1e6] {
+        for v in [[1.0, 1.0], [1.0, 2.0], [3.0, -1.0], [0.7, 0.3]] {
+            let r = [s * v[0] * v[0], s * v[0] * v[1], s * v[1] * v[0], s * v[1] * v[1]];
+            assert!(
+                FullKalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &r, o).is_ok(),
+                "s = {s}, v = {v:?}: a rank-one R refused"
+            );
+        }
+        let r = [s, 1.001 * s, 1.001 * s, s];
+        assert!(
+            matches!(
+                FullKalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &r, o),
+                Err(vehid_core::Error::Singular { .. })
+            ),
+            "s = {s}: an indefinite R taken"
+        );
+    }
+}
