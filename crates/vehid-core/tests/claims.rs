@@ -1367,3 +1367,21 @@ fn mode_full_checks_the_noise_matrix_whatever_its_scale() {
         );
     }
 }
+
+/// Mode full's `cost().bytes` counts, in the heap store, at least the heap of the three
+/// buffers an update works in: `P` (K² blocks of N × N), `C = P x` and the gains `W` (K² vectors
+/// of N each), on top of the identifier itself; in the fixed store, where they live inside
+/// it, its size.
+#[test]
+fn mode_full_cost_counts_its_heap_buffers() {
+    let (k, n) = (2usize, 4usize);
+    let v =
+        FullKalmanIdentifierVec::<f64, 4>::from_slices(&[1, 3], &[1000.0], &[81.0, 2.5e-5], KalmanOptions::default())
+            .unwrap();
+    let floor = core::mem::size_of_val(&v) + 8 * (k * k * n * n + 2 * k * k * n);
+    assert!(v.cost().bytes >= floor, "bytes {} below {floor}", v.cost().bytes);
+    let f =
+        FullKalmanIdentifier::<f64, 4, 2>::from_slices(&[1, 3], &[1000.0], &[81.0, 2.5e-5], KalmanOptions::default())
+            .unwrap();
+    assert_eq!(f.cost().bytes, core::mem::size_of_val(&f));
+}
