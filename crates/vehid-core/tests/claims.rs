@@ -1385,3 +1385,23 @@ fn mode_full_cost_counts_its_heap_buffers() {
             .unwrap();
     assert_eq!(f.cost().bytes, core::mem::size_of_val(&f));
 }
+
+/// Mode full refuses a sample whose step `W e` overflows because the gain is huge and the
+/// innovation large while `C = P x` is tiny (noise-free rows, `x` at 1e-150, `z` at 1e300: the
+/// gain is about 1/|x| ≈ 1e150 and the step 1e450), and changes nothing.
+#[test]
+fn mode_full_refuses_a_huge_gain_times_a_large_innovation() {
+    let rows = [1usize, 3];
+    let mut id =
+        FullKalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &[0.0, 0.0], KalmanOptions::default())
+            .unwrap();
+    let before = full(&id);
+    let x: [f64; 4] = [1e-150, 1e-150, 0.0, 0.0];
+    let z = [0.0, 1e300, 0.0, 1e300];
+    // The premise: the step's size, from the quantities the identifier starts from.
+    let (s, c) = (1000.0 * (x[0] * x[0] + x[1] * x[1]), 1000.0 * x[0]);
+    assert!(s > 0.0 && c > 0.0 && (c / s * z[1]).is_infinite());
+    let mut e = [0.0; 2];
+    assert!(id.update_into(&x, &z, &[], &mut e).is_err(), "an overflowing step was taken");
+    assert_eq!(full(&id), before, "the refused sample changed the state");
+}
