@@ -1337,7 +1337,7 @@ fn fit_dyn_records_and_checks_every_k_samples_and_never_for_0() {
         let want: Vec<f64> =
             if every == 0 { vec![] } else { after.iter().skip(every - 1).step_by(every).flatten().copied().collect() };
         assert_eq!(history, want, "record_every {every}");
-        assert_eq!(asked, if check == 0 { 0 } else { data.len() / check }, "check_every {check}");
+        assert_eq!(asked, data.len().checked_div(check).unwrap_or(0), "check_every {check}");
     }
 }
 

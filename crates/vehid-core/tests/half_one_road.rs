@@ -397,8 +397,7 @@ fn with_and_without_compensation<const G: usize>(st: Structure<f64>) -> [(Vec<f6
     let base = TwoAxleStructuredConfig::new(ROAD_SIGMA, DERIV_NOISE);
     assert!(base.compensate && base.deriv_noise > 0.0);
     let plain = TwoAxleStructuredConfig { compensate: false, ..base };
-    let mut ids =
-        [base, plain].map(|c| TwoAxleStructuredKalman::<f64, 4, G, 16>::new(st.clone(), &car.model(), D, c).unwrap());
+    let mut ids = [base, plain].map(|c| TwoAxleStructuredKalman::<f64, 4, G, 16>::new(st, &car.model(), D, c).unwrap());
     let mut sim = road_sim(5);
     let mut e = [0.0; 4];
     for _ in 0..1000 {
