@@ -1217,12 +1217,21 @@ fn risky_samples_whose_downdate_would_be_indefinite_are_refused() {
     for a in 0..8 {
         prior[a * 8 + a] = p0;
     }
-    for mode in ["full", "rows standard", "rows Joseph"] {
+    for mode in ["full", "rows standard", "rows Joseph", "rows standard, forgetting"] {
         let mut refused = 0;
         for (n, x) in regressors(32, 200).into_iter().enumerate() {
             let mut id: Box<dyn Identifier<f64>> = match mode {
                 "full" => Box::new(
                     FullKalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[p0], &r, KalmanOptions::default()).unwrap(),
+                ),
+                "rows standard, forgetting" => Box::new(
+                    KalmanIdentifier::<f64, 4, 2>::from_slices(
+                        &rows,
+                        &[p0],
+                        &r,
+                        KalmanOptions { forgetting: 0.98, max_trace: 1e12, ..KalmanOptions::default() },
+                    )
+                    .unwrap(),
                 ),
                 "rows standard" => Box::new(
                     KalmanIdentifier::<f64, 4, 2>::from_slices(&rows, &[p0], &r, opts(CovarianceForm::Standard))
