@@ -1460,3 +1460,28 @@ fn mode_rows_gates_an_outlier_in_every_form() {
         assert!(d <= 1e-6 * scale, "{form:?}: {gated:?} against the standard form's {standard:?}");
     }
 }
+
+/// Mode rows' reinitialization (Eq 4.35–4.36) in the square-root form is the standard form's:
+/// the same reinitializations, and estimates within 1e-6 of the largest parameter.
+#[test]
+fn mode_rows_reinitializes_alike_in_the_square_root_form() {
+    let rows = [1usize, 3];
+    let run = |form| {
+        let o = KalmanOptions { form, reinit: true, ..KalmanOptions::default() };
+        let mut id = KalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1.0], &[81.0, 2.5e-5], o).unwrap();
+        let mut e = [0.0; 2];
+        for (x, z) in samples(25, 2000, 0.0) {
+            id.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+        }
+        let mut t = [0.0; 8];
+        id.params_into(&mut t).unwrap();
+        (t, id.reinit_count())
+    };
+    let (a, na) = run(CovarianceForm::Standard);
+    let (b, nb) = run(CovarianceForm::Sqrt);
+    assert!(na > 0, "the data never called for a reinitialization");
+    assert_eq!(na, nb);
+    let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let d = a.iter().zip(&b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+    assert!(d <= 1e-6 * scale, "{b:?} against the standard form's {a:?}");
+}
