@@ -39,7 +39,7 @@
 #                 rejected call leaves its object bit for bit unchanged; progress lines, the seed
 #                 (FUZZ_SEED=1) and a summary (under a minute; `make test` runs 10,000 calls of it)
 #   make mutants  mutation testing of vehid-core (cargo-mutants): MUTANTS_FILE (default identify/**), one
-#                 round-robin sample MUTANTS_SHARD=K/N (default 0/40, about 100 mutants, about 1 min each
+#                 round-robin sample MUTANTS_SHARD=K/N (default 0/40, about 130 mutants, 1-2 min each
 #                 here); the caught fraction with its 95 % interval; fails on a survivor not accepted with a
 #                 reason in benches/mutants_accepted.txt (not in `test`)
 #   make clean    remove build products and the venv

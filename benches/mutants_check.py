@@ -2,13 +2,15 @@
 """Mutation testing of vehid-core with cargo-mutants (issue 18): `make mutants`.
 
 Runs ``cargo mutants`` on the files given (default: ``crates/vehid-core/src/identify/**``,
-4,082 mutants) and reports the fraction of viable mutants the Rust tests catch, with its 95 %
-interval, and every surviving mutant. On this 2-core machine a mutant costs about a minute
-(an incremental rebuild of vehid-core's test targets and their run), so the whole of
+5,187 mutants on 2026-11-26) and reports the fraction of viable mutants the Rust tests catch,
+with its 95 % interval, and every surviving mutant. On this 2-core machine a mutant costs one
+to two minutes (an incremental rebuild of vehid-core's test targets and their run; the first
+build of a run's copy of the tree, about 20 minutes, comes on top), so the whole of
 ``identify/`` is days of work: ``--shard K/N`` (round-robin) takes every N-th mutant of the
 list, a systematic sample spread over every file, and a run's figure is an estimate of the
 whole with a binomial interval. Shards add up: ``--shard 2/40`` tests other mutants than
-``1/40``.
+``1/40``; and they nest: ``K/N`` is ``K/2N`` and ``(K+N)/2N`` together (``1/40`` = ``1/80`` +
+``41/80``), so a shard too long for the time at hand can be run in halves.
 
 A survivor is either a gap in the tests (write the test) or a mutant no test can catch: an
 equivalent mutant, unreachable code, or a change of speed only. Those are listed, each with

@@ -125,7 +125,7 @@ impl RefSg {
 }
 
 /// Runs the identifier and the reference side by side; θ̂ (and the innovations) must agree
-/// at every step to `tol` relative to the largest |θ| so far.
+/// at every step to `tol` relative to the largest |θ| so far, and every sample is counted.
 fn compare_sg(name: &str, id: &mut dyn Identifier<f64>, reference: &mut RefSg, data: &[(V4, V4)], tol: f64) {
     let k = reference.rows.len();
     let mut e = vec![0.0; k];
@@ -135,6 +135,8 @@ fn compare_sg(name: &str, id: &mut dyn Identifier<f64>, reference: &mut RefSg, d
     for (step, (x, z)) in data.iter().enumerate() {
         id.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
         let e_ref = reference.step(x, z);
+        // Every sample is counted, the ones the spacing skips included.
+        assert_eq!(id.samples(), step as u64 + 1, "{name}: step {step}: samples()");
         id.params_into(&mut th).unwrap();
         let th_ref: Vec<f64> = reference.theta.iter().flatten().copied().collect();
         scale = th_ref.iter().fold(scale, |m, v| m.max(v.abs()));
@@ -596,6 +598,8 @@ fn every_identifier_reports_its_rows_and_parameter_groups() {
         ("IV", Box::new(IvIdentifierVec::<f64, 8>::full_rows(4, &rows, 1, StructuredPrior::Exact, &[1.0]).unwrap())),
         ("bias compensated", Box::new(BiasCompensatedVec::<f64, 8>::new(full(), &[1e-6], &[], &[1.0]).unwrap())),
     ];
+    // The batch's own accessor (beside the interface's, checked below).
+    assert_eq!(BatchLeastSquares::<f64, 4>::new(&rows).unwrap().rows(), &rows, "batch LS: BatchLeastSquares::rows");
     let data = samples(12, 40, 0.0);
     for (name, id) in &mut ids {
         assert_eq!(id.rows(), &rows, "{name}: rows()");
@@ -1063,4 +1067,421 @@ fn structured_residual_sums_forget_as_the_rows_do() {
         let n = (1.0 - 0.98f64.powi(1500)) / 0.02;
         assert!((na[i] - n).abs() <= 1e-9 * n, "row {i}: n {} against {n}", na[i]);
     }
+}
+
+/// Noise-free rows (`r = 0`) learn the parameters exactly from `N` independent samples,
+/// whatever the scale of the prior `p0 I`: the step `θ += P x e / xᵀPx` does not depend on
+/// P's scale. The reference is the θ the samples were made from (N independent noise-free
+/// equations determine it). A row skips a sample only when `xᵀPx` is at rounding level
+/// against `|x|₁ |Px|₁` (a covariance collapsed along `x`), so a small `p0` is not taken for a
+/// collapsed one.
+#[test]
+fn noise_free_rows_learn_exactly_whatever_the_prior_scale() {
+    use vehid_core::identify::RowIdentifier;
+    let th = [V4::new(-3.0, 0.5, 2.0, 7.0), V4::new(0.25, -40.0, 1.5, -0.75)];
+    let xs = [
+        V4::new(1.0, 0.2, -0.3, 0.5),
+        V4::new(-0.4, 1.1, 0.7, 0.1),
+        V4::new(0.3, -0.6, 0.9, -1.2),
+        V4::new(0.8, 0.5, 0.2, 0.6),
+        V4::new(-1.3, 0.4, -0.8, 0.9),
+        V4::new(0.05, 0.3, 1.7, -0.2),
+    ];
+    let close = |a: &V4, b: &V4| (a - b).norm() <= 1e-9 * b.norm();
+    for p0 in [1e-9, 1.0, 1e9] {
+        for (i, t) in th.iter().enumerate() {
+            let mut f = RowIdentifier::<f64, 4>::new(p0, 0.0).unwrap();
+            for x in &xs {
+                f.update(x, x.dot(t)).unwrap();
+            }
+            assert!(close(&f.theta(), t), "p0 = {p0}, row filter {i}: {} against {t}", f.theta());
+        }
+        for form in [CovarianceForm::Standard, CovarianceForm::Joseph, CovarianceForm::Sqrt] {
+            let mut id = KalmanIdentifier::<f64, 4, 2>::from_slices(&[1, 3], &[p0], &[0.0, 0.0], opts(form)).unwrap();
+            let mut e = [0.0; 2];
+            for x in &xs {
+                let mut z = V4::zeros();
+                z[1] = x.dot(&th[0]);
+                z[3] = x.dot(&th[1]);
+                id.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+            }
+            let mut got = [0.0; 8];
+            id.params_into(&mut got).unwrap();
+            for i in 0..2 {
+                let g = V4::from_column_slice(&got[4 * i..4 * i + 4]);
+                assert!(close(&g, &th[i]), "p0 = {p0}, {form:?}, row {i}: {g} against {}", th[i]);
+            }
+        }
+    }
+}
+
+/// A deterministic stream of regressors with entries in [−1, 1).
+fn regressors(seed: u64, n: usize) -> Vec<V4> {
+    let mut s = seed;
+    let mut next = move || {
+        s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    };
+    (0..n).map(|_| V4::new(next(), next(), next(), next())).collect()
+}
+
+/// The `8 × 8` covariance an identifier of two rows reports, and whether it has a Cholesky
+/// factor (nalgebra's, not the identifier's).
+fn covariance8(id: &dyn Identifier<f64>) -> (Vec<f64>, bool) {
+    let mut p = vec![0.0; 64];
+    id.covariance_into(&mut p).unwrap();
+    let spd = nalgebra::SMatrix::<f64, 8, 8>::from_row_slice(&p).cholesky().is_some();
+    (p, spd)
+}
+
+/// A sample informative far beyond its noise (`r / s` below `√ε`: "risky") whose downdate
+/// stays well inside positive definiteness (`r / s` = 1e-11, far above ε) is taken (modes
+/// full and rows, the latter with exponential forgetting too), and the step from the prior
+/// `θ = 0`, `P = p0 I` is the closed form `θ_i = p0 x z_i / (p0 |x|² + r)`,
+/// `P = (p0 I − p0² x xᵀ / (p0 |x|² + r)) / λ` in each row's block (λ = 1 without
+/// forgetting), zero across rows.
+#[test]
+fn risky_samples_that_stay_definite_are_taken_as_the_closed_form_says() {
+    let rows = [1usize, 3];
+    let (p0, r) = (1e5, 1e-6);
+    let th = [V4::new(-3.0, 0.5, 2.0, 7.0), V4::new(0.25, -40.0, 1.5, -0.75)];
+    for (n, x) in regressors(31, 40).into_iter().enumerate() {
+        let mut z = V4::zeros();
+        z[1] = x.dot(&th[0]) + 0.01;
+        z[3] = x.dot(&th[1]) - 0.02;
+        let s = p0 * x.norm_squared() + r;
+        assert!(r < f64::EPSILON.sqrt() * s, "the sample must be risky");
+        let full = |forgetting| {
+            let o = KalmanOptions { forgetting, ..KalmanOptions::default() };
+            Box::new(FullKalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[p0], &[r, r], o).unwrap())
+                as Box<dyn Identifier<f64>>
+        };
+        let row_form = |form, forgetting| {
+            // A trace bound above p0's: forgetting acts from the first sample.
+            let o = KalmanOptions { form, forgetting, max_trace: 1e12, ..KalmanOptions::default() };
+            Box::new(KalmanIdentifier::<f64, 4, 2>::from_slices(&rows, &[p0], &[r, r], o).unwrap())
+                as Box<dyn Identifier<f64>>
+        };
+        let cases: Vec<(&str, f64, Box<dyn Identifier<f64>>)> = vec![
+            ("full", 1.0, full(1.0)),
+            ("rows standard", 1.0, row_form(CovarianceForm::Standard, 1.0)),
+            ("rows Joseph", 1.0, row_form(CovarianceForm::Joseph, 1.0)),
+            ("rows standard, forgetting", 0.98, row_form(CovarianceForm::Standard, 0.98)),
+            ("rows Joseph, forgetting", 0.98, row_form(CovarianceForm::Joseph, 0.98)),
+        ];
+        for (name, forgetting, mut id) in cases {
+            let mut e = [0.0; 2];
+            id.update_into(x.as_slice(), z.as_slice(), &[], &mut e)
+                .unwrap_or_else(|err| panic!("sample {n}, {name}: refused: {err:?}"));
+            let mut t = [0.0; 8];
+            id.params_into(&mut t).unwrap();
+            for i in 0..2 {
+                let want = x * (p0 * z[rows[i]] / s);
+                let got = V4::from_column_slice(&t[4 * i..4 * i + 4]);
+                assert!(
+                    (got - want).norm() <= 1e-9 * want.norm(),
+                    "sample {n}, {name}, row {i}: θ {got} against {want}"
+                );
+            }
+            let (p, spd) = covariance8(id.as_ref());
+            assert!(spd, "sample {n}, {name}: the covariance is not positive definite");
+            for a in 0..8 {
+                for b in 0..8 {
+                    let want = if a / 4 != b / 4 {
+                        0.0
+                    } else {
+                        (f64::from(u8::from(a == b)) * p0 - p0 * p0 * x[a % 4] * x[b % 4] / s) / forgetting
+                    };
+                    assert!(
+                        (p[a * 8 + b] - want).abs() <= 1e-9 * p0,
+                        "sample {n}, {name}: P[{a}, {b}] {} against {want}",
+                        p[a * 8 + b]
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// A risky sample whose downdate is positive definite in exact arithmetic but not in
+/// floating point (`r / s` ≈ 1e-17 on row 1, below ε: the new smallest eigenvalue `p0 r / s` is under
+/// the rounding of `P`'s entries) is checked before it is taken (modes full and rows): it is
+/// either taken, and the covariance then has a Cholesky factor, or refused as singular with
+/// the state unchanged. Some of the 200 samples are refused: the case arises.
+#[test]
+fn risky_samples_whose_downdate_would_be_indefinite_are_refused() {
+    let rows = [1usize, 3];
+    // Row 0 is not risky (r / s ≈ 1e-5); row 1 is, and alone decides the check.
+    let (p0, r) = (1e5, [1.0, 1e-12]);
+    let mut prior = vec![0.0; 64];
+    for a in 0..8 {
+        prior[a * 8 + a] = p0;
+    }
+    for mode in ["full", "rows standard", "rows Joseph", "rows standard, forgetting"] {
+        let mut refused = 0;
+        for (n, x) in regressors(32, 200).into_iter().enumerate() {
+            let mut id: Box<dyn Identifier<f64>> = match mode {
+                "full" => Box::new(
+                    FullKalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[p0], &r, KalmanOptions::default()).unwrap(),
+                ),
+                "rows standard, forgetting" => Box::new(
+                    KalmanIdentifier::<f64, 4, 2>::from_slices(
+                        &rows,
+                        &[p0],
+                        &r,
+                        KalmanOptions { forgetting: 0.98, max_trace: 1e12, ..KalmanOptions::default() },
+                    )
+                    .unwrap(),
+                ),
+                "rows standard" => Box::new(
+                    KalmanIdentifier::<f64, 4, 2>::from_slices(&rows, &[p0], &r, opts(CovarianceForm::Standard))
+                        .unwrap(),
+                ),
+                _ => Box::new(
+                    KalmanIdentifier::<f64, 4, 2>::from_slices(&rows, &[p0], &r, opts(CovarianceForm::Joseph)).unwrap(),
+                ),
+            };
+            let z = V4::new(0.0, x.sum(), 0.0, 2.0 * x[0]);
+            let mut e = [0.0; 2];
+            match id.update_into(x.as_slice(), z.as_slice(), &[], &mut e) {
+                Ok(()) => {
+                    let (_, spd) = covariance8(id.as_ref());
+                    assert!(spd, "{mode}, sample {n}: taken, and the covariance has no Cholesky factor");
+                }
+                Err(err) => {
+                    assert!(matches!(err, vehid_core::Error::Singular { .. }), "{mode}, sample {n}: {err:?}");
+                    let (p, _) = covariance8(id.as_ref());
+                    let mut t = [1.0; 8];
+                    id.params_into(&mut t).unwrap();
+                    assert!(
+                        p == prior && t == [0.0; 8] && id.samples() == 0,
+                        "{mode}, sample {n}: refused but changed"
+                    );
+                    refused += 1;
+                }
+            }
+        }
+        assert!(refused > 0, "{mode}: no sample of 200 was refused");
+        eprintln!("{mode}: {refused} of 200 refused");
+    }
+}
+
+/// The shared form's arithmetic per update, counted here from its algorithm (each distinct
+/// product once: `Q`'s downdate gives entries (a, b) and (b, a) the same number). For N
+/// states and K rows: `Q x` N² mul, N(N−1) add; `s = 1 + xᵀQx` N mul, N add; `1/s` one
+/// division; `g = Qx/s` N mul; per row `e_i = z_i − θ_iᵀx` and `θ_i += g e_i` 2N mul, 2N add;
+/// the upper triangle of `Q −= (Qx) gᵀ` N(N+1)/2 mul and add. No square root.
+#[test]
+fn shared_form_cost_is_its_operation_count() {
+    fn count(n: usize, k: usize) -> (usize, usize, usize, usize) {
+        let tri = n * (n + 1) / 2;
+        let mul = n * n + n + n + k * 2 * n + tri;
+        let add = n * (n - 1) + n + k * 2 * n + tri;
+        (mul, add, 1, 0)
+    }
+    let c = SharedKalmanIdentifier::<f64, 4, 2>::new([1, 3], 1000.0, [1.0, 1.0]).unwrap().cost();
+    assert_eq!((c.multiplications, c.additions, c.divisions, c.square_roots), count(4, 2));
+    assert_eq!(count(4, 2), (50, 42, 1, 0));
+    let h =
+        SharedKalmanIdentifierVec::<f64, 8>::from_slices(&[1, 3, 5, 7], &[1000.0], &[1.0], KalmanOptions::default())
+            .unwrap()
+            .cost();
+    assert_eq!((h.multiplications, h.additions, h.divisions, h.square_roots), count(8, 4));
+}
+
+/// `Samples::skip_to(start)` is the samples from `start` on: the same `(x, z, u)` slices as
+/// the iterator after `start` steps, for 0, 1 and 2 inputs per sample; past the end, none.
+#[test]
+fn samples_skip_to_is_the_iterator_after_start_steps() {
+    use vehid_core::identify::Samples;
+    let (n, len) = (3usize, 5usize);
+    let x: Vec<f64> = (0..n * len).map(|i| i as f64).collect();
+    let z: Vec<f64> = (0..n * len).map(|i| 100.0 + i as f64).collect();
+    for m in [0usize, 1, 2] {
+        let u: Vec<f64> = (0..m * len).map(|i| -(i as f64)).collect();
+        let all = Samples::new(n, m, &x, &z, &u).unwrap();
+        for start in 0..=len + 1 {
+            let rest = all.skip_to(start);
+            assert_eq!(rest.len(), len.saturating_sub(start), "m = {m}, start = {start}");
+            let got: Vec<_> = rest.iter().collect();
+            let want: Vec<_> = all.iter().skip(start).collect();
+            assert_eq!(got, want, "m = {m}, start = {start}");
+        }
+    }
+}
+
+/// `fit_dyn`'s history: `record_every = k` appends the parameters after every k-th sample
+/// (the estimate the identifier reports after that sample, stepped here one sample at a time),
+/// `0` never; `check_every = k` asks the interrupt after every k-th sample, `0` never.
+#[test]
+fn fit_dyn_records_and_checks_every_k_samples_and_never_for_0() {
+    use vehid_core::identify::{DynIdentifier, FitOptions, Samples};
+    let data = samples(33, 10, 0.0);
+    let x: Vec<f64> = data.iter().flat_map(|(x, _)| x.iter().copied()).collect();
+    let z: Vec<f64> = data.iter().flat_map(|(_, z)| z.iter().copied()).collect();
+    let s = Samples::new(4, 0, &x, &z, &[]).unwrap();
+    let fresh = || {
+        KalmanIdentifierVec::<f64, 4>::from_slices(&[1, 3], &[1000.0], &[81.0, 2.5e-5], opts(CovarianceForm::Standard))
+            .unwrap()
+    };
+    // The reference: the estimate after each sample, one update at a time.
+    let mut by_hand = fresh();
+    let mut after = Vec::new();
+    let mut e = [0.0; 2];
+    for (x, z) in &data {
+        by_hand.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+        let mut t = [0.0; 8];
+        by_hand.params_into(&mut t).unwrap();
+        after.push(t);
+    }
+    for (every, check) in [(0usize, 0usize), (3, 4), (1, 0), (0, 1)] {
+        let mut id = fresh();
+        let mut history = Vec::new();
+        let mut asked = 0;
+        id.fit_dyn(&s, FitOptions { record_every: every, check_every: check }, &mut history, &mut || {
+            asked += 1;
+            false
+        })
+        .unwrap();
+        let want: Vec<f64> =
+            if every == 0 { vec![] } else { after.iter().skip(every - 1).step_by(every).flatten().copied().collect() };
+        assert_eq!(history, want, "record_every {every}");
+        assert_eq!(asked, data.len().checked_div(check).unwrap_or(0), "check_every {check}");
+    }
+}
+
+/// Mode full takes a positive semi-definite noise matrix `R` at any scale and refuses one with
+/// a negative eigenvalue at any scale: for s from 1e-6 to 1e6, `R = s v vᵀ` (rank one, its
+/// eigenvalues 0 and s|v|²: perfectly correlated rows, as noise-free data give) is taken, and
+/// `s [[1, 1.001], [1.001, 1]]` (eigenvalues 2.001 s and −0.001 s) refused as singular.
+#[test]
+fn mode_full_checks_the_noise_matrix_whatever_its_scale() {
+    let rows = [1usize, 3];
+    let o = KalmanOptions::default();
+    for s in [1e-6, 1e-3, 1.0, 81.0, 1e3, 1e6] {
+        for v in [[1.0, 1.0], [1.0, 2.0], [3.0, -1.0], [0.7, 0.3]] {
+            let r = [s * v[0] * v[0], s * v[0] * v[1], s * v[1] * v[0], s * v[1] * v[1]];
+            assert!(
+                FullKalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &r, o).is_ok(),
+                "s = {s}, v = {v:?}: a rank-one R refused"
+            );
+        }
+        let r = [s, 1.001 * s, 1.001 * s, s];
+        assert!(
+            matches!(
+                FullKalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &r, o),
+                Err(vehid_core::Error::Singular { .. })
+            ),
+            "s = {s}: an indefinite R taken"
+        );
+    }
+}
+
+/// Mode full's `cost().bytes` counts, in the heap store, at least the heap of the three
+/// buffers an update works in: `P` (K² blocks of N × N), `C = P x` and the gains `W` (K² vectors
+/// of N each), on top of the identifier itself; in the fixed store, where they live inside
+/// it, its size.
+#[test]
+fn mode_full_cost_counts_its_heap_buffers() {
+    let (k, n) = (2usize, 4usize);
+    let v =
+        FullKalmanIdentifierVec::<f64, 4>::from_slices(&[1, 3], &[1000.0], &[81.0, 2.5e-5], KalmanOptions::default())
+            .unwrap();
+    let floor = core::mem::size_of_val(&v) + 8 * (k * k * n * n + 2 * k * k * n);
+    assert!(v.cost().bytes >= floor, "bytes {} below {floor}", v.cost().bytes);
+    let f =
+        FullKalmanIdentifier::<f64, 4, 2>::from_slices(&[1, 3], &[1000.0], &[81.0, 2.5e-5], KalmanOptions::default())
+            .unwrap();
+    assert_eq!(f.cost().bytes, core::mem::size_of_val(&f));
+}
+
+/// Mode full refuses a sample whose step `W e` overflows because the gain is huge and the
+/// innovation large while `C = P x` is tiny (noise-free rows, `x` at 1e-150, `z` at 1e300: the
+/// gain is about 1/|x| ≈ 1e150 and the step 1e450), and changes nothing.
+#[test]
+fn mode_full_refuses_a_huge_gain_times_a_large_innovation() {
+    let rows = [1usize, 3];
+    let mut id =
+        FullKalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &[0.0, 0.0], KalmanOptions::default())
+            .unwrap();
+    let before = full(&id);
+    let x: [f64; 4] = [1e-150, 1e-150, 0.0, 0.0];
+    let z = [0.0, 1e300, 0.0, 1e300];
+    // The premise: the step's size, from the quantities the identifier starts from.
+    let (s, c) = (1000.0 * (x[0] * x[0] + x[1] * x[1]), 1000.0 * x[0]);
+    assert!(s > 0.0 && c > 0.0 && (c / s * z[1]).is_infinite());
+    let mut e = [0.0; 2];
+    assert!(id.update_into(&x, &z, &[], &mut e).is_err(), "an overflowing step was taken");
+    assert_eq!(full(&id), before, "the refused sample changed the state");
+}
+
+/// Mode rows' outlier gate in every covariance form: a derivative of 1e30 in one of 3000
+/// samples is left out (counted as gated on its row) and the estimate stays that of the clean
+/// run; the square-root form, the same filter in other arithmetic, agrees with the standard
+/// form to 1e-6 of the largest parameter with the gate on.
+#[test]
+fn mode_rows_gates_an_outlier_in_every_form() {
+    let rows = [1usize, 3];
+    let r = [81.0, 2.5e-5];
+    let data = samples(23, 3000, 0.0);
+    let run = |form, outlier: bool| {
+        let o = KalmanOptions { form, gate: 6.0, ..KalmanOptions::default() };
+        let mut id = KalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1000.0], &r, o).unwrap();
+        let mut e = [0.0; 2];
+        for (k, (x, z)) in data.iter().enumerate() {
+            let mut z = *z;
+            if outlier && k == 2000 {
+                z[1] = 1e30;
+            }
+            id.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+        }
+        let mut t = [0.0; 8];
+        id.params_into(&mut t).unwrap();
+        let mut g = [0u64; 2];
+        id.gated_into(&mut g).unwrap();
+        (t, g)
+    };
+    let truth = QuarterCar::<f64>::thesis();
+    let xi = |t: &[f64; 8]| vehid_core::metrics::xi(truth.theta().transpose().as_slice(), t).unwrap();
+    let (standard, _) = run(CovarianceForm::Standard, true);
+    for form in [CovarianceForm::Standard, CovarianceForm::Joseph, CovarianceForm::Sqrt] {
+        let (clean, _) = run(form, false);
+        let (gated, g) = run(form, true);
+        assert_eq!(g[0], 1, "{form:?}: samples gated on the wheel row");
+        assert!(xi(&clean).is_finite() && xi(&clean) < 2.0, "{form:?}: the clean run: ξ {}", xi(&clean));
+        assert!(
+            (xi(&gated) - xi(&clean)).abs() <= 0.1 * xi(&clean),
+            "{form:?}: ξ {} against clean {}",
+            xi(&gated),
+            xi(&clean)
+        );
+        let scale = standard.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let d = gated.iter().zip(&standard).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        assert!(d <= 1e-6 * scale, "{form:?}: {gated:?} against the standard form's {standard:?}");
+    }
+}
+
+/// Mode rows' reinitialization (Eq 4.35–4.36) in the square-root form is the standard form's:
+/// the same reinitializations, and estimates within 1e-6 of the largest parameter.
+#[test]
+fn mode_rows_reinitializes_alike_in_the_square_root_form() {
+    let rows = [1usize, 3];
+    let run = |form| {
+        let o = KalmanOptions { form, reinit: true, ..KalmanOptions::default() };
+        let mut id = KalmanIdentifierVec::<f64, 4>::from_slices(&rows, &[1.0], &[81.0, 2.5e-5], o).unwrap();
+        let mut e = [0.0; 2];
+        for (x, z) in samples(25, 2000, 0.0) {
+            id.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+        }
+        let mut t = [0.0; 8];
+        id.params_into(&mut t).unwrap();
+        (t, id.reinit_count())
+    };
+    let (a, na) = run(CovarianceForm::Standard);
+    let (b, nb) = run(CovarianceForm::Sqrt);
+    assert!(na > 0, "the data never called for a reinitialization");
+    assert_eq!(na, nb);
+    let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let d = a.iter().zip(&b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+    assert!(d <= 1e-6 * scale, "{b:?} against the standard form's {a:?}");
 }

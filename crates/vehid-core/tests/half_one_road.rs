@@ -388,3 +388,57 @@ fn bad_inputs_are_typed_errors() {
     assert!(matches!(id.covariance_into(&mut [0.0; 144]), Err(Error::Unsupported { .. })));
     assert!(matches!(ps.linear_rows_into(&[f64::NAN; 12], &mut rows), Err(Error::NonFinite { arg: "params", .. })));
 }
+
+/// The default configuration (compensate, σ_v > 0) and `compensate: false` on `st` (in `G`
+/// groups) after the same 1000 samples: their estimates, and their covariances (the
+/// compensated one's `None` when refused as unsupported).
+fn with_and_without_compensation<const G: usize>(st: Structure<f64>) -> [(Vec<f64>, Option<Vec<f64>>); 2] {
+    let car = HalfCar::<f64>::thesis();
+    let base = TwoAxleStructuredConfig::new(ROAD_SIGMA, DERIV_NOISE);
+    assert!(base.compensate && base.deriv_noise > 0.0);
+    let plain = TwoAxleStructuredConfig { compensate: false, ..base };
+    let mut ids = [base, plain].map(|c| TwoAxleStructuredKalman::<f64, 4, G, 16>::new(st, &car.model(), D, c).unwrap());
+    let mut sim = road_sim(5);
+    let mut e = [0.0; 4];
+    for _ in 0..1000 {
+        let s = sim.next_sample(SPEED).unwrap();
+        for id in ids.iter_mut() {
+            id.update_into(s.r.as_slice(), s.z.as_slice(), &[], &mut e).unwrap();
+        }
+    }
+    let np = st.params();
+    ids.map(|id| {
+        let mut t = vec![0.0; np];
+        id.params_into(&mut t).unwrap();
+        let mut p = vec![0.0; np * np];
+        let p = match id.covariance_into(&mut p) {
+            Ok(()) => Some(p),
+            Err(Error::Unsupported { .. }) => None,
+            Err(e) => panic!("{e:?}"),
+        };
+        (t, p)
+    })
+}
+
+/// Bias compensation acts only where a parameter multiplies a measured derivative. With M and J
+/// known besides m1, m2, l1, l2, every `der(·)` term of the physical structure (the wheel
+/// equations' `(M/m1) der(vb)`, `(J/m1) der(om)`, …) is known, so the default configuration
+/// (compensate, σ_v > 0) is least squares: the same estimate, bit for bit, as
+/// `compensate: false`, and its covariance is reported (the same matrix). With M and J
+/// unknown, the same configuration compensates: another estimate, and no covariance.
+#[test]
+fn compensation_acts_only_where_a_parameter_multiplies_a_derivative() {
+    let c = HalfCar::<f64>::thesis().constants();
+    let mut known = [None; 12];
+    for i in [0, 1, 8, 9, 10, 11] {
+        known[i] = Some(c[i]);
+    }
+    let [(ta, pa), (tb, pb)] = with_and_without_compensation::<2>(*HalfCar::structure(known).unwrap().structure());
+    assert_eq!(ta.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), tb.iter().map(|v| v.to_bits()).collect::<Vec<_>>());
+    let pb = pb.expect("least squares reports its covariance");
+    assert!(pb.iter().any(|v| *v != 0.0));
+    assert_eq!(pa, Some(pb), "M, J known: the covariance");
+    let [(ta, pa), (tb, pb)] = with_and_without_compensation::<3>(*physical_structure().structure());
+    assert_ne!(ta, tb, "M, J unknown: compensation should change the estimate");
+    assert!(pa.is_none() && pb.is_some());
+}

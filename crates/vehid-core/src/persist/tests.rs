@@ -247,6 +247,28 @@ fn two_axle_with_its_ring() {
     }
 }
 
+/// The half car's physical structure on one road (issue 14), in the fixed store with a
+/// parameter capacity `P` equal to its largest group's (4) and above it (6), and in the heap
+/// store, split inside the first `d = 10` samples and after.
+#[test]
+fn two_axle_structured_with_its_ring() {
+    let car = HalfCar::<f64>::thesis();
+    let data = half_road(500);
+    let d = slices(&data);
+    let c = car.constants();
+    let mut known = [None; 12];
+    for i in 8..12 {
+        known[i] = Some(c[i]);
+    }
+    let st = *HalfCar::structure(known).unwrap().structure();
+    let cfg = TwoAxleStructuredConfig::new(0.1, 0.005);
+    for split in [5, 200] {
+        continues(TwoAxleStructuredKalman::<f64, 4, 3, 16>::new(st, &car.model(), 10, cfg).unwrap(), &d, split);
+        continues(TwoAxleStructuredKalman::<f64, 6, 3, 16>::new(st, &car.model(), 10, cfg).unwrap(), &d, split);
+        continues(TwoAxleStructuredVec::<f64, 4>::new(st, &car.model(), 10, cfg).unwrap(), &d, split);
+    }
+}
+
 #[test]
 fn options_models_and_sets_round_trip() {
     let model = HalfCar::<f64>::thesis().model();
