@@ -420,7 +420,7 @@ def test_a_corrupt_monitor_pickle_is_refused() -> None:
 
 
 @pytest.mark.parametrize("args, match", [
-    (["--model", "half", "--road", "iso8608-C"], "simulates the quarter car"),
+    (["--model", "half", "--road", "iso8608-C", "--car", "k2=1"], "--car k2=1"),
     (["--model", "quarter", "--change", "60:b=1350"], "give --road iso8608-A..E"),
     (["--model", "quarter", "--road", "iso8608-C", "--change", "b=1350"], "expected T:NAME=VALUE"),
     (["--model", "quarter", "--road", "iso8608-C", "--change", "60:q=1"], "changes"),
@@ -432,6 +432,30 @@ def test_vehid_simulate_refuses_a_bad_drive_in_one_line(tmp_path: Path, capsys: 
     assert cli.main(["simulate", *args, "--n", "10", "-o", str(tmp_path / "x.csv")]) == 2
     err = capsys.readouterr().err
     assert err.startswith("vehid: error: ") and match in err and err.count("\n") == 1, err
+
+
+def test_vehid_simulate_drives_the_half_car_for_vehid_monitor(tmp_path: Path,
+                                                             capsys: pytest.CaptureFixture[str]) -> None:
+    # The half car's drive from the command line is the Python Simulator's, bit for bit, with
+    # its true constants; vehid monitor --model half finds the rear spring's change in it.
+    log = tmp_path / "half.csv"
+    assert cli.main(["simulate", "--model", "half", "--road", "iso8608-C", "--speed", "15", "--car", "b1=1550",
+                     "--change", "40:k2_r=19800", "--seed", "22", "--n", "20000", "-o", str(log)]) == 0
+    data = np.genfromtxt(log, delimiter=",", names=True)
+    car = vehid.HalfCar(**{**HALF.params, "b1": 1550.0})
+    run = vehid.Simulator(car, dt=DT, road="iso8608-C", speed=15.0, changes=[(40.0, {"k2_r": 19_800.0})],
+                          sensors="realistic", seed=22).run(20_000)
+    names = data.dtype.names
+    assert names is not None and names[1:7] == run.channels and names[8:] == tuple(
+        f"true_{k}" for k in ("M", "J", "k11", "k21", "k12", "k22", "b1", "b2", "m1", "m2", "l1", "l2"))
+    got = np.column_stack([data[n] for n in names])
+    assert run.constants is not None and run.s is not None
+    np.testing.assert_array_equal(got, np.column_stack([run.t, run.y, run.s, run.constants]))
+    assert set(data["true_b1"]) == {1550.0} and data["true_k22"][0] == 22_000.0 and data["true_k22"][-1] == 19_800.0
+    capsys.readouterr()
+    assert cli.main(["monitor", str(log), "--model", "half", "--car", "b1=1550", "--json"]) == 0
+    events = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert [e["parameter"] for e in events] == ["k2_r"] and abs(events[0]["change"] + 0.1) < 0.03
 
 
 def test_vehid_simulate_writes_a_drive_with_its_truth(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -1151,14 +1151,16 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--road", choices=["white", "independent", "flat", "iso8608-A", "iso8608-B", "iso8608-C",
                                         "iso8608-D", "iso8608-E"], default="white",
                      help="with --speed: one road under both axles (white) or independent inputs (Fig 6-7); "
-                          "iso8608-A..E (or flat): a drive of the quarter car on an ISO 8608 road, writing its "
-                          "sensors (columns t, the channels, s, true_M, true_m, true_k1, true_k2, true_b) for "
-                          "vehid monitor")
+                          "iso8608-A..E (or flat): a drive of the quarter car (or, with --model half, the half "
+                          "car, its rear wheel a wheelbase behind) on an ISO 8608 road, writing its sensors "
+                          "(columns t, the channels, s, true_M, true_m, true_k1, true_k2, true_b; the half car's "
+                          "true_M, true_J, true_k11, ..., true_l2) for vehid monitor")
     sim.add_argument("--sensors", choices=["realistic", "state"], default=None,
                      help="a drive's sensors: realistic (a_body, a_wheel in m/s^2, deflection in m; default) or "
                           "state (the thesis' zw, vw, zb, vb and their derivatives)")
     sim.add_argument("--change", action="append", default=None, metavar="T:NAME=VALUE[:RAMP]",
-                     help="a drive's parameter change: at T seconds NAME (M, m, k1, k2, b) becomes VALUE, in a "
+                     help="a drive's parameter change: at T seconds NAME (M, m, k1, k2, b; the half car's k2_f, "
+                          "k2_r, b_f, b_r, M, J, ...) becomes VALUE, in a "
                           "step or a RAMP of that many seconds, e.g. 60:b=1350 (repeatable)")
     sim.add_argument("--car", default=None, metavar="CONSTANTS",
                      help="a drive's car: passenger (M=320 kg, m=40 kg, k1=200 kN/m, k2=22 kN/m, b=1500 N s/m; "

@@ -108,28 +108,41 @@ def parse_change(text: str) -> Tuple[float, Dict[str, float], float]:
     return t, values, ramp
 
 
-def drive_car(text: Optional[str]) -> QuarterCar:
+def drive_car(text: Optional[str], half: bool = False) -> Union[QuarterCar, HalfCar]:
     """``--car`` of a drive: ``passenger`` (default) or ``thesis``, then ``NAME=VALUE``
-    overrides.
+    overrides (the half car's by their thesis names: ``k12``, ``b1``, ...).
 
     >>> drive_car("thesis,b=30").params["b"], drive_car(None).params["M"]
     (30.0, 320.0)
+    >>> drive_car("b1=1500", half=True).params["b1"], drive_car("thesis", half=True).params["M"]
+    (1500.0, 20.0)
     """
     tokens = [t.strip() for t in (text or "").split(",") if t.strip()]
     base = "passenger"
     if tokens and tokens[0] in ("passenger", "thesis"):
         base = tokens.pop(0)
-    car = nominal_car("quarter" if base == "thesis" else "passenger", ",".join(tokens) or None)
-    assert isinstance(car, QuarterCar)
-    return car
+    overrides = ",".join(tokens) or None
+    if half:
+        return with_constants(HalfCar.passenger() if base == "passenger" else HalfCar(), overrides)
+    return nominal_car("quarter" if base == "thesis" else "passenger", overrides)
+
+
+#: The columns of a drive's true constants (``Run.constants``), per car.
+TRUE_COLUMNS = {
+    False: ("M", "m", "k1", "k2", "b"),
+    True: ("M", "J", "k11", "k21", "k12", "k22", "b1", "b2", "m1", "m2", "l1", "l2"),
+}
 
 
 def cmd_simulate_drive(args: argparse.Namespace) -> int:
-    """``vehid simulate --road iso8608-C [--sensors] [--change ...] [--car ...]``: a drive of
-    the quarter car, its sensor channels, distance and true constants as CSV."""
-    if args.model != "quarter":
+    """``vehid simulate --road iso8608-C [--model half] [--sensors] [--change ...] [--car ...]``:
+    a drive of the quarter or the half car, its sensor channels, distance and true constants as
+    CSV."""
+    if args.model not in ("quarter", "half"):
         raise _cli_error(f"--model {args.model}: a drive (--road iso8608-A..E, --sensors, --change) simulates the "
-                         "quarter car: --model quarter, with --car passenger (default), thesis or your constants")
+                         "quarter car (--model quarter) or the half car (--model half), with --car passenger "
+                         "(default), thesis or your constants")
+    half = args.model == "half"
     if args.road in ("white", "independent"):
         raise _cli_error("--sensors and --change apply to a drive on an ISO 8608 road: give --road iso8608-A..E")
     for given, name in ((args.input or args.params or args.x0, "--input/--params/--x0"),
@@ -138,7 +151,7 @@ def cmd_simulate_drive(args: argparse.Namespace) -> int:
             raise _cli_error(f"{name} does not apply to a drive (the road's roughness is its class)")
     from . import Simulator
 
-    car = drive_car(args.car)
+    car = drive_car(args.car, half=half)
     sensors: Literal["realistic", "state"] = args.sensors or "realistic"
     kw: Dict[str, Any] = {}
     if sensors == "state":
@@ -148,7 +161,7 @@ def cmd_simulate_drive(args: argparse.Namespace) -> int:
                     changes=[parse_change(c) for c in args.change or []], sensors=sensors, seed=args.seed, **kw)
     from .cli import _close_quietly, _open_output, run_chunks
 
-    header = ["t", *(sim.channels or ()), "s", "true_M", "true_m", "true_k1", "true_k2", "true_b"]
+    header = ["t", *(sim.channels or ()), "s", *(f"true_{c}" for c in TRUE_COLUMNS[half])]
     to_stdout = args.output == "-"
     out: IO[str] = sys.stdout if to_stdout else _open_output(args.output)
     try:
@@ -189,7 +202,12 @@ def nominal_car(model: str, constants: Optional[str]) -> Union[QuarterCar, HalfC
                              "passenger) and the half car (--model half), with --car for your car's constants")
         raise _cli_error(f"--model {model}: choose quarter (the thesis' car), passenger (a typical passenger car) "
                          "or half (a typical passenger half car)")
-    params = dict(CARS[model]().params)
+    return with_constants(CARS[model](), constants)
+
+
+def with_constants(car: Union[QuarterCar, HalfCar], constants: Optional[str]) -> Union[QuarterCar, HalfCar]:
+    """``car`` with ``--car`` overrides ``"NAME=VALUE,..."`` (its own constants' names)."""
+    params = dict(car.params)
     for item in (constants or "").split(","):
         if not item.strip():
             continue
@@ -202,7 +220,7 @@ def nominal_car(model: str, constants: Optional[str]) -> Union[QuarterCar, HalfC
             params[name] = float(value)
         except ValueError:
             raise _cli_error(f"--car {constants}: {name}={value.strip()!r} is not a number") from None
-    return HalfCar(**params) if model == "half" else QuarterCar(**params)
+    return HalfCar(**params) if isinstance(car, HalfCar) else QuarterCar(**params)
 
 
 @dataclass
