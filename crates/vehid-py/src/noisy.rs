@@ -252,12 +252,12 @@ impl PyIVIdentifier {
             "model" => {
                 if lags.is_some_and(|l| l != 0) {
                     return Err(VehidError::new_err(
-                        "`lags` must be 0 or None with instruments=\"model\" (the auxiliary model replaces the \
+                        "`lags` must be 0 or None with instruments='model' (the auxiliary model replaces the \
                          predictor)",
                     ));
                 }
                 let dt = dt.ok_or_else(|| {
-                    VehidError::new_err("`dt` (the sample interval, seconds) is required with instruments=\"model\"")
+                    VehidError::new_err("`dt` (the sample interval, seconds) is required with instruments='model'")
                 })?;
                 let refresh = usize::try_from(refresh).map_err(|_| {
                     VehidError::new_err(format!("`refresh` must be an integer >= 1 (samples), got {refresh}"))
@@ -366,12 +366,12 @@ impl PyIVIdentifier {
     fn __repr__(slf: PyRef<'_, Self>) -> String {
         let base = slf.as_super();
         format!(
-            "IVIdentifier(delay={}, lags={}, unknown_rows={}, samples={}, instruments={:?})",
+            "IVIdentifier(delay={}, lags={}, unknown_rows={}, samples={}, instruments={})",
             slf.delay,
             slf.lags,
             crate::convert::py_tuple(base.inner.rows()),
             base.inner.samples(),
-            slf.instruments()
+            crate::convert::py_str(slf.instruments())
         )
     }
 }
