@@ -10,6 +10,7 @@
 //! entries; `SEED0=70000 cargo test --release -p vehid-core --test integration
 //! half_one_road::fresh_seeds -- --ignored --nocapture` measures on ten other seeds.
 
+use crate::common::median;
 use vehid_core::identify::{
     Identifier, TwoAxleConfig, TwoAxleIdentifier, TwoAxleStructuredConfig, TwoAxleStructuredKalman, WheelMethod,
 };
@@ -115,17 +116,6 @@ fn over_seeds<R: Send>(seeds: &[u64], f: impl Fn(u64) -> R + Sync) -> Vec<R> {
         out.append(&mut tail);
         out
     })
-}
-
-fn median(v: &[f64]) -> f64 {
-    let mut v = v.to_vec();
-    v.sort_by(|a, b| a.partial_cmp(b).unwrap());
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
 }
 
 /// Per-seed worst entries of each variant, printed; returns them per variant.

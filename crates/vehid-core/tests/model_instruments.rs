@@ -10,6 +10,7 @@
 //! comments; `cargo test -p vehid-core --release --test integration model_instruments:: --
 //! --ignored --nocapture`); the normal suite holds fast versions and the exact checks.
 
+use crate::common::{log_slope, median};
 use vehid_core::identify::{
     Identifier, IvIdentifier, IvIdentifierVec, ModelIvIdentifier, ModelIvIdentifierVec, StructuredPrior,
 };
@@ -159,26 +160,6 @@ fn run_marks<I: Identifier<f64>>(id: &mut I, d: &Data, marks: &[usize]) -> Vec<[
     out
 }
 
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(|a, b| a.total_cmp(b));
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        (v[n / 2 - 1] + v[n / 2]) / 2.0
-    }
-}
-
-fn log_slope(n: &[usize], y: &[f64]) -> f64 {
-    let xs: Vec<f64> = n.iter().map(|&v| (v as f64).ln()).collect();
-    let ys: Vec<f64> = y.iter().map(|v| v.ln()).collect();
-    let k = xs.len() as f64;
-    let (mx, my) = (xs.iter().sum::<f64>() / k, ys.iter().sum::<f64>() / k);
-    let sxy: f64 = xs.iter().zip(&ys).map(|(x, y)| (x - mx) * (y - my)).sum();
-    let sxx: f64 = xs.iter().map(|x| (x - mx) * (x - mx)).sum();
-    sxy / sxx
-}
-
 /// (c) With a fixed auxiliary model (`theta_aux` given, `refresh = 0`) and the exact start,
 /// every estimate is the batch IV estimate `(Σ ζ hᵀ)⁻¹ Σ ζ y` whose instruments
 /// `ζ = [F, −q̂, −v̂]` come from the auxiliary model simulated here by the exact ZOH map
@@ -238,7 +219,7 @@ fn model_instruments_error_falls_like_one_over_root_n() {
             errs[j].push(rel_err(th));
         }
     }
-    let med: Vec<f64> = errs.iter_mut().map(|v| median(v)).collect();
+    let med: Vec<f64> = errs.iter().map(|v| median(v)).collect();
     let slope = log_slope(&marks, &med);
     eprintln!("median relative error {med:?}, slope {slope:.3}");
     assert!((-0.65..=-0.35).contains(&slope), "slope {slope}");
@@ -254,7 +235,7 @@ fn model_instruments_beat_the_delayed_regressors() {
         a.push(rel_err(&run_marks(&mut srivc(100), &d, &[30_000])[0]));
         b.push(rel_err(&run_marks(&mut delayed(), &d, &[30_000])[0]));
     }
-    let (ma, mb) = (median(&mut a), median(&mut b));
+    let (ma, mb) = (median(&a), median(&b));
     eprintln!("median relative error: model {ma:.4e}, delayed {mb:.4e}, ratio {:.3}", ma / mb);
     assert!(ma < 0.9 * mb, "model {ma} delayed {mb}");
 }
@@ -287,8 +268,8 @@ fn must_show_srivc_figures() {
         wins += usize::from(rel_err(&a[marks.len() - 1]) < rel_err(&b[marks.len() - 1]));
         last.push(a[marks.len() - 1]);
     }
-    let ms: Vec<f64> = errs.iter_mut().map(|v| median(v)).collect();
-    let md: Vec<f64> = errd.iter_mut().map(|v| median(v)).collect();
+    let ms: Vec<f64> = errs.iter().map(|v| median(v)).collect();
+    let md: Vec<f64> = errd.iter().map(|v| median(v)).collect();
     let (ss, sd) = (log_slope(&marks, &ms), log_slope(&marks, &md));
     let ratios: Vec<f64> = ms.iter().zip(&md).map(|(a, b)| a / b).collect();
     eprintln!("seeds {base}..{}: N {marks:?}", base + SEEDS);

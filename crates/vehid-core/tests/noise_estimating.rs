@@ -14,7 +14,7 @@ use vehid_core::model::QuarterCar;
 use vehid_core::Error;
 
 use crate::common;
-use common::{feed, params, physical, quarter, time_updates, xi_physical, xi_rows, DERIV, LAGS, Q, ROAD};
+use common::{feed, median, params, physical, quarter, time_updates, xi_physical, xi_rows, DERIV, LAGS, Q, ROAD};
 
 /// Estimated σ_w per state (NaN where not estimated).
 fn sigmas<F, FI, const P: usize, const QQ: usize>(id: &NoiseEstimatingBcls<f64, P, F, FI, QQ>) -> [f64; 4]
@@ -56,17 +56,6 @@ fn physical_bcls(x: &[f64], z: &[f64], pct: f64) -> f64 {
         BiasCompensatedLs::<f64, 2, 2>::new(*physical().structure(), &[var], &[DERIV * DERIV], &[1.0]).unwrap();
     feed(&mut id, x, z);
     xi_physical(&params(&id))
-}
-
-fn median(v: &[f64]) -> f64 {
-    let mut v = v.to_vec();
-    v.sort_by(|a, b| a.total_cmp(b));
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        (v[n / 2 - 1] + v[n / 2]) / 2.0
-    }
 }
 
 fn worst(v: &[f64]) -> f64 {

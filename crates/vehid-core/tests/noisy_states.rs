@@ -16,7 +16,7 @@ use vehid_core::structure::{Basis, Structure, Term, Var};
 use vehid_core::Error;
 
 use crate::common;
-use common::{physical, quarter, run, xi_physical, xi_rows, DERIV, DT, LAGS, Q, ROAD};
+use common::{log_slope, median, physical, quarter, run, xi_physical, xi_rows, DERIV, DT, LAGS, Q, ROAD};
 
 /// ξ of the physical structure (m known) by IV with refined instruments of `lags` lags
 /// (0: the delayed regressors).
@@ -52,27 +52,6 @@ fn physical_bcls(x: &[f64], z: &[f64], pct: f64) -> f64 {
     let mut id =
         BiasCompensatedLs::<f64, 2, 2>::new(*physical().structure(), &[var], &[DERIV * DERIV], &[1.0]).unwrap();
     xi_physical(&run(&mut id, x, z))
-}
-
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(|a, b| a.total_cmp(b));
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        (v[n / 2 - 1] + v[n / 2]) / 2.0
-    }
-}
-
-/// Least-squares slope of `ln y` on `ln n`.
-fn log_slope(n: &[usize], y: &[f64]) -> f64 {
-    let xs: Vec<f64> = n.iter().map(|&v| (v as f64).ln()).collect();
-    let ys: Vec<f64> = y.iter().map(|v| v.ln()).collect();
-    let k = xs.len() as f64;
-    let (mx, my) = (xs.iter().sum::<f64>() / k, ys.iter().sum::<f64>() / k);
-    let sxy: f64 = xs.iter().zip(&ys).map(|(x, y)| (x - mx) * (y - my)).sum();
-    let sxx: f64 = xs.iter().map(|x| (x - mx) * (x - mx)).sum();
-    sxy / sxx
 }
 
 /// A structure with two equations sharing a parameter, a known term and an offset:
@@ -390,7 +369,7 @@ fn iv_error_falls_like_one_over_root_n() {
             }
         }
     }
-    let med: Vec<f64> = errs.iter_mut().map(|v| median(v)).collect();
+    let med: Vec<f64> = errs.iter().map(|v| median(v)).collect();
     let slope = log_slope(&marks, &med);
     eprintln!("median √ξ {med:?}, slope {slope:.3}");
     assert!((-0.75..=-0.3).contains(&slope), "slope {slope}");
@@ -474,8 +453,8 @@ fn must_show_xi_over_seeds() {
     let (_, _, phys) = get("32 % physical IV delayed");
     assert!(phys.iter().filter(|&&x| x <= 0.08).count() * 10 >= 9 * phys.len());
     let (_, _, rows) = get("8 % rows IV refined");
-    let mut rows = rows.clone();
-    assert!(median(&mut rows) <= 0.15);
+    let rows = rows.clone();
+    assert!(median(&rows) <= 0.15);
 }
 
 /// Must-show consistency (issue 15): the full rows' error √ξ (median over seeds 1100–1109)
@@ -526,7 +505,7 @@ fn must_show_consistency_slope() {
     for (i, name) in
         ["full rows, refined IV", "full rows, delayed-regressor IV", "physical, refined IV"].iter().enumerate()
     {
-        let med: Vec<f64> = errs[i].iter_mut().map(|v| median(v)).collect();
+        let med: Vec<f64> = errs[i].iter().map(|v| median(v)).collect();
         slopes[i] = log_slope(&marks, &med);
         eprintln!("{name}: median √ξ at 1e4..1e6 {med:.4?}, slope {:.3}", slopes[i]);
     }

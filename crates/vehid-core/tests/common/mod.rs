@@ -98,3 +98,26 @@ pub fn time_updates(name: &str, id: &mut dyn Identifier<f64>, x: &[f64], z: &[f6
     let n = reps * x.len() / 4;
     eprintln!("{name}: {:.0} ns/update", t.elapsed().as_nanos() as f64 / n as f64);
 }
+
+/// The median of `v` (sorted copy; the mean of the middle two for an even length).
+pub fn median(v: &[f64]) -> f64 {
+    let mut v = v.to_vec();
+    v.sort_by(|a, b| a.total_cmp(b));
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        (v[n / 2 - 1] + v[n / 2]) / 2.0
+    }
+}
+
+/// Least-squares slope of `ln y` on `ln n` (the consistency figures' 1/√N test).
+pub fn log_slope(n: &[usize], y: &[f64]) -> f64 {
+    let xs: Vec<f64> = n.iter().map(|&v| (v as f64).ln()).collect();
+    let ys: Vec<f64> = y.iter().map(|v| v.ln()).collect();
+    let k = xs.len() as f64;
+    let (mx, my) = (xs.iter().sum::<f64>() / k, ys.iter().sum::<f64>() / k);
+    let sxy: f64 = xs.iter().zip(&ys).map(|(x, y)| (x - mx) * (y - my)).sum();
+    let sxx: f64 = xs.iter().map(|x| (x - mx) * (x - mx)).sum();
+    sxy / sxx
+}
