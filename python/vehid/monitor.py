@@ -447,6 +447,7 @@ def plot(feeder: Feeder, car: Union[QuarterCar, HalfCar], path: str) -> None:
         return
     rec = feeder.record
     t = np.asarray(rec.t)
+    judged = _judged(rec)
     fig, axes = plt.subplots(2, 1, sharex=True, figsize=(9, 6))
     p = car.params
     for ax, values, name, unit, nominal in (
@@ -454,7 +455,6 @@ def plot(feeder: Feeder, car: Union[QuarterCar, HalfCar], path: str) -> None:
         (axes[1], rec.bm, r"$b/M$", r"s$^{-1}$", p["b"] / p["M"]),
     ):
         v = np.asarray(values)
-        judged = np.array([s in ("monitoring", "settling") for s in rec.status])
         shown = np.where(judged, v[:, 0], np.nan)
         ax.fill_between(t, np.where(judged, v[:, 1], np.nan), np.where(judged, v[:, 2], np.nan), alpha=0.3,
                         label="95 % band")
@@ -465,6 +465,11 @@ def plot(feeder: Feeder, car: Union[QuarterCar, HalfCar], path: str) -> None:
     axes[0].legend(loc="lower left", fontsize=8)
     axes[1].set_xlabel("time (s)")
     axes[0].set_title("Tracked ratios (grey: cannot judge; red: events)")
+    _save(plt, fig, path)
+
+
+def _save(plt: Any, fig: Any, path: str) -> None:
+    """Lays ``fig`` out and writes it to ``path``; a one-line error if it cannot be written."""
     fig.tight_layout()
     try:
         fig.savefig(path, dpi=100)
@@ -472,6 +477,11 @@ def plot(feeder: Feeder, car: Union[QuarterCar, HalfCar], path: str) -> None:
         raise _cli_error(f"--plot {path}: cannot write ({e.strerror or e})") from None
     finally:
         plt.close(fig)
+
+
+def _judged(rec: Record) -> NDArray[np.bool_]:
+    """Per record: could the monitor judge (monitoring or settling)?"""
+    return np.array([s in ("monitoring", "settling") for s in rec.status])
 
 
 def _mark(ax: Any, feeder: Feeder, t: NDArray[np.float64], judged: NDArray[np.bool_]) -> None:
@@ -491,7 +501,7 @@ def _plot_half(plt: Any, feeder: Feeder, path: str) -> None:
     events."""
     rec = feeder.record
     t = np.asarray(rec.t)
-    judged = np.array([s in ("monitoring", "settling") for s in rec.status])
+    judged = _judged(rec)
     h = 100.0 * np.asarray(rec.half).reshape(len(t), 4, 3)
     fig, axes = plt.subplots(4, 1, sharex=True, figsize=(9, 10))
     for j, (ax, (name, words)) in enumerate(zip(axes, HALF_PLOTTED)):
@@ -504,13 +514,7 @@ def _plot_half(plt: Any, feeder: Feeder, path: str) -> None:
     axes[0].legend(loc="lower left", fontsize=8)
     axes[-1].set_xlabel("time (s)")
     axes[0].set_title("Tracked change since the warm-up, 95 % bands (grey: cannot judge; red: events)")
-    fig.tight_layout()
-    try:
-        fig.savefig(path, dpi=100)
-    except OSError as e:
-        raise _cli_error(f"--plot {path}: cannot write ({e.strerror or e})") from None
-    finally:
-        plt.close(fig)
+    _save(plt, fig, path)
 
 
 #: ``vehid monitor --help``.
