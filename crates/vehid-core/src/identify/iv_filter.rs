@@ -169,7 +169,7 @@ impl<T: Real, const P: usize> IvFilter<T, P> {
         }
         (self.theta, self.p, self.m) = (theta, g.p, g.m);
         self.count += 1;
-        Ok((e, Some(e * self.r / g.s)))
+        Ok((e, Some(e * (self.r / g.s))))
     }
 
     /// The gain side of a step (the same for every filter with this `P`, `M` and `r`):
@@ -204,7 +204,16 @@ impl<T: Real, const P: usize> IvFilter<T, P> {
         for b in 0..P {
             for a in 0..P {
                 pn[b][a] -= kv[a] * hp[b];
-                mn[b][a] += zv[a] * zv[b];
+            }
+        }
+        // `M_·b += ζ ζ_b`, column by column: the same products, but seen as `ζ_a ζ_b` and
+        // `ζ_b ζ_a` the compiler computes each pair once and rebuilds the columns from
+        // scalar and half-register pieces (some 40 more instructions per sample, and `M`
+        // stored in pieces). Reading `ζ_b` from an opaque copy keeps whole columns.
+        let zc = core::hint::black_box(*zv);
+        for b in 0..P {
+            for a in 0..P {
+                mn[b][a] += zv[a] * zc[b];
             }
         }
         Ok(Gain { k, s, p, m })

@@ -162,8 +162,9 @@ impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> Instrumen
             Ok(sv) => sv,
             Err(err) => return Some(Err(err)),
         };
+        let w = r / sv;
         for ((&inn, ssr), nobs) in e.iter().zip(&mut self.eq_ssr).zip(&mut self.eq_nobs) {
-            let res = inn * r / sv;
+            let res = inn * w;
             *ssr += res * res;
             *nobs += T::one();
         }
@@ -230,8 +231,9 @@ impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> Instrumen
         let filters = self.filters.flat_mut();
         let r = filters[0].r();
         let sv = IvFilter::update_shared(filters, h, zeta, e)?;
+        let w = r / sv;
         for ((&inn, ssr), nobs) in e.iter().zip(&mut self.eq_ssr).zip(&mut self.eq_nobs) {
-            let res = inn * r / sv;
+            let res = inn * w;
             *ssr += res * res;
             *nobs += T::one();
         }
