@@ -186,7 +186,7 @@ mod rls;
 
 pub use event::{Constant, Estimate, Event, Reason, Status};
 pub use half::{HalfEstimate, HalfHealthMonitor, DECISION_INTERVAL, HALF_CHANNELS, HALF_NAMED, HALF_STATE_CHANNELS};
-pub use kinematic::DeflectionFilter;
+pub use kinematic::{DeflectionFilter, RateGain};
 pub use monitor::{HealthConfig, HealthMonitor, CHANNELS, JUMP_GATE, MAX_DELAY, MIN_DEFLECTION_NOISE, STATE_CHANNELS};
 pub use rls::{Rls, Rls3};
 

@@ -2,7 +2,7 @@
 //! of [`crate::health`] for the design).
 
 use super::event::{Constant, Estimate, Event, Reason, Status};
-use super::kinematic::DeflectionFilter;
+use super::kinematic::{DeflectionFilter, RateGain};
 use super::rls::Rls3;
 use crate::error::{check_nonneg, check_positive};
 use crate::model::{QuarterCar, SensorNoise, SensorSet};
@@ -159,6 +159,19 @@ impl<T: Real, C> HealthConfig<T, C> {
         Ok((kf, z))
     }
 
+    /// The state sensors' kinematic filter gain with the measured deflection rate ([`RateGain`]:
+    /// the rate formed from two measured velocities, noise `rate_noise`, for the state set's
+    /// one noise level on every state the same as the deflection's); with the realistic
+    /// sensors a zero gain that is never used.
+    pub(crate) fn rate_gain(&self, rate_noise: T) -> Result<RateGain<T>> {
+        match self.sensors {
+            SensorSet::Realistic => Ok(RateGain::unused()),
+            SensorSet::State => {
+                RateGain::new(self.dt, self.accel_noise, self.deflection_noise, rate_noise, self.bias_walk)
+            }
+        }
+    }
+
     /// Samples in the warm-up, in the one-second burn-in of the noise estimate, in the
     /// settling, in the re-acquisition.
     pub(crate) fn sample_counts(&self) -> [u64; 4] {
@@ -236,6 +249,10 @@ pub struct HealthMonitor<T: Real> {
     n_reacq: u64,
     z: T,
     kf: DeflectionFilter<T>,
+    // The state sensors' filter gain with the measured rate (derived from the settings by
+    // `HealthConfig::rate_gain`, also on load; not saved). Unused with the realistic sensors.
+    #[cfg_attr(feature = "serde", serde(skip, default = "RateGain::unused"))]
+    rate: RateGain<T>,
     #[cfg_attr(feature = "serde", serde(with = "crate::persist::array2"))]
     ring: [[T; 3]; MAX_DELAY],
     #[cfg_attr(feature = "serde", serde(with = "crate::persist::array"))]
@@ -284,6 +301,7 @@ impl<T: Real> HealthMonitor<T> {
         let lambda = T::one() - cfg.dt / cfg.window;
         let p0 = SMatrix::<T, 3, 3>::identity() * T::of(1e6);
         let start = Rls3::new(SVector::zeros(), p0, T::one());
+        let rate = cfg.rate_gain(cfg.deflection_noise)?;
         Ok(Self {
             n_warm,
             n_burn,
@@ -291,6 +309,7 @@ impl<T: Real> HealthMonitor<T> {
             n_reacq,
             z,
             kf,
+            rate,
             ring: [[T::zero(); 3]; MAX_DELAY],
             ring_k: [0; MAX_DELAY],
             head: 0,
@@ -343,6 +362,7 @@ impl<T: Real> HealthMonitor<T> {
         if !stats.iter().all(|&v| finite(v)) || !self.belief.iter().all(|&v| finite(v) && v > T::zero()) {
             return Err(corrupt);
         }
+        self.rate = fresh.rate;
         Ok(())
     }
 
@@ -422,10 +442,18 @@ impl<T: Real> HealthMonitor<T> {
     /// [`Error::NonFinite`] for ±∞; the monitor is then unchanged.
     pub fn update(&mut self, y: &[T]) -> Result<Option<Event<T>>> {
         let missing = screen(y, self.cfg.channels())?;
-        let y: [T; CHANNELS] = match self.cfg.sensors {
-            SensorSet::Realistic => [y[0], y[1], y[2]],
-            SensorSet::State => [y[7], y[5], y[2] - y[0]],
-        };
+        // The state sensors also measure the deflection rate `vb − vw`. (Two calls of the
+        // inlined step, so that the realistic path is compiled without the rate's branch.)
+        match self.cfg.sensors {
+            SensorSet::Realistic => self.step(missing, [y[0], y[1], y[2]], None),
+            SensorSet::State => self.step(missing, [y[7], y[5], y[2] - y[0]], Some(y[3] - y[1])),
+        }
+    }
+
+    /// [`HealthMonitor::update`] after the screening: `y = [a_body, a_wheel, deflection]`,
+    /// `rate` the measured deflection rate (state sensors), `missing` a NaN channel.
+    #[inline(always)]
+    fn step(&mut self, missing: bool, y: [T; CHANNELS], rate: Option<T>) -> Result<Option<Event<T>>> {
         let k = self.k;
         self.k += 1;
         if missing {
@@ -442,7 +470,11 @@ impl<T: Real> HealthMonitor<T> {
         }
         // No gate while the filter re-converges after a restart (its rate starts at 0).
         let gate = if self.reacq_left > 0 { T::biggest() } else { T::of(JUMP_GATE) };
-        let Some((d, v)) = self.kf.update_gated(y[2], y[0] - y[1], gate) else {
+        let filtered = match rate {
+            None => self.kf.update_gated(y[2], y[0] - y[1], gate),
+            Some(r) => self.kf.update_rate_gated(y[2], r, y[0] - y[1], &self.rate, gate),
+        };
+        let Some((d, v)) = filtered else {
             self.interrupt(Reason::Jump);
             return Ok(None);
         };
