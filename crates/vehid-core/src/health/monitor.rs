@@ -159,15 +159,15 @@ impl<T: Real, C> HealthConfig<T, C> {
         Ok((kf, z))
     }
 
-    /// The state sensors' kinematic filter gain with the measured deflection rate ([`RateGain`]:
-    /// the rate formed from two measured velocities, noise `rate_noise`, for the state set's
-    /// one noise level on every state the same as the deflection's); with the realistic
-    /// sensors a zero gain that is never used.
-    pub(crate) fn rate_gain(&self, rate_noise: T) -> Result<RateGain<T>> {
+    /// The state sensors' kinematic filter gain with the measured deflection rate
+    /// ([`RateGain`]; the rate is formed from measured velocities as the deflection from
+    /// measured positions, and the state set has one noise level on every state, so its noise
+    /// is `deflection_noise` too); with the realistic sensors a zero gain that is never used.
+    pub(crate) fn rate_gain(&self) -> Result<RateGain<T>> {
         match self.sensors {
             SensorSet::Realistic => Ok(RateGain::unused()),
             SensorSet::State => {
-                RateGain::new(self.dt, self.accel_noise, self.deflection_noise, rate_noise, self.bias_walk)
+                RateGain::new(self.dt, self.accel_noise, self.deflection_noise, self.deflection_noise, self.bias_walk)
             }
         }
     }
@@ -301,7 +301,7 @@ impl<T: Real> HealthMonitor<T> {
         let lambda = T::one() - cfg.dt / cfg.window;
         let p0 = SMatrix::<T, 3, 3>::identity() * T::of(1e6);
         let start = Rls3::new(SVector::zeros(), p0, T::one());
-        let rate = cfg.rate_gain(cfg.deflection_noise)?;
+        let rate = cfg.rate_gain()?;
         Ok(Self {
             n_warm,
             n_burn,
