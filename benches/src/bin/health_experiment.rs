@@ -22,7 +22,8 @@
 //!   signal-to-noise definition, Eq 4.31): `σ_w = F · std(zb)` on every position and velocity,
 //!   `σ_v = F · std(dvb)` on every derivative, the standard deviations measured
 //!   on a noise-free pilot drive of 600 s (seed `seed0 + 2_000_000`). The monitor reads the
-//!   body and wheel accelerations `dvb`, `dvw` and the deflection `zb − zw` from them. With
+//!   body and wheel accelerations `dvb`, `dvw`, the deflection `zb − zw` and its rate `vb − vw`
+//!   from them. With
 //!   `--car half`: the half car's state (`z1, v1, z2, v2, zb, vb, φ, ω` and their derivatives),
 //!   `σ_w = F · std(zb)`, `σ_v = F · std(dvb)` of the body's centre on every state and
 //!   derivative (pitch included, in its own units); the monitor forms the corners' quantities.

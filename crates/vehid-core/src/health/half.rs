@@ -321,7 +321,8 @@ impl<T: Real> HalfHealthMonitor<T> {
     /// One sample: `y = [a_body_f, a_body_r, a_wheel_f, a_wheel_r, deflection_f,
     /// deflection_r]` (m/s², m) with the realistic sensors, the 16 channels of
     /// `model::HALF_STATE_CHANNELS` with the state sensors (the monitor forms the same six
-    /// quantities from them: `dvb ± l dom`, `dv1`, `dv2`, `zb + l1 ph − z1`, `zb − l2 ph − z2`);
+    /// quantities from them: `dvb ± l dom`, `dv1`, `dv2`, `zb + l1 ph − z1`, `zb − l2 ph − z2`,
+    /// and the deflection rates `vb + l1 om − v1`, `vb − l2 om − v2` for the kinematic filters);
     /// returns the event it completes, if any. A NaN channel marks a missing sample. No
     /// allocation.
     ///

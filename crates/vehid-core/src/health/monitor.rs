@@ -41,7 +41,8 @@ pub struct HealthConfig<T, C = QuarterCar<T>> {
     /// The sensors read by [`HealthMonitor::update`]: [`SensorSet::Realistic`] (default;
     /// `[a_body, a_wheel, deflection]`) or [`SensorSet::State`] (the thesis' measured state
     /// and derivative `[zw, vw, zb, vb, dzw, dvw, dzb, dvb]`, of which the monitor uses the
-    /// same three quantities: `a_body = dvb`, `a_wheel = dvw`, `deflection = zb − zw`).
+    /// same three quantities, `a_body = dvb`, `a_wheel = dvw`, `deflection = zb − zw`, and the
+    /// deflection rate `vb − vw` in its kinematic filter: module documentation, "State sensors").
     pub sensors: SensorSet,
     /// Noise of `a_body − a_wheel` per sample, m/s² (the kinematic filter's design;
     /// default √(0.02² + 0.1²), the defaults of `model::SensorNoise`).
