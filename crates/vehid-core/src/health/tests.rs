@@ -455,3 +455,27 @@ fn a_saved_state_sensor_monitor_continues_bit_for_bit() {
     assert_eq!(a, b);
     assert_eq!(back, mon);
 }
+
+#[test]
+fn f32_state_sensor_monitor_detects_the_damper_at_8_percent() {
+    // The measured-rate filter in f32 (its gain solved in f64, then rounded).
+    use crate::sim::{SensorNoise, SensorSet};
+    let car = QuarterCar::<f32>::passenger();
+    let noise = SensorNoise::<f32> { state: 1.859e-3, deriv: 9.971e-2, ..SensorNoise::default() };
+    let cfg = DriveConfig::new(0.005f32)
+        .sensors(SensorSet::State)
+        .noise(noise)
+        .with_change(Change::step(40.0, "b", 1350.0).unwrap())
+        .unwrap();
+    let mut drive = QuarterDrive::new(car, cfg, 9604).unwrap();
+    let mut mon = HealthMonitor::new(HealthConfig::new(0.005f32, car).with_sensors(SensorSet::State, &noise)).unwrap();
+    let mut events = Vec::new();
+    for _ in 0..(70.0 / 0.005) as usize {
+        if let Some(e) = mon.update(drive.next_sample().y()).unwrap() {
+            events.push(e);
+        }
+    }
+    assert_eq!(events.len(), 1, "{events:?}");
+    assert_eq!(events[0].parameter, Constant::Damper);
+    assert!((events[0].change + 0.1).abs() < 0.03 && events[0].t > 40.0, "{:?}", events[0]);
+}
