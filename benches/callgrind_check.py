@@ -82,10 +82,17 @@ BENCHES = [
     "msd_iv_model",                 # update_f64/msd/iv_model (issue 15: instruments from the auxiliary model, SRIVC)
     "quarter_health",               # health/monitor_update_f64 (issue 17; binary count_health)
     "half_health",                  # health/half_monitor_update_f64 (issue 17, half car; binary count_health)
+    "quarter_health_state",         # health/monitor_update_state_f64 (issue 17, state sensors, measured rate)
+    "half_health_state",            # health/half_monitor_update_state_f64 (issue 17, half car, state sensors)
 ]
 # Benches counted by a binary other than count_updates (kept apart so that their code does not
 # change how count_updates is compiled).
-OTHER_BINARIES = {"quarter_health": "count_health", "half_health": "count_health"}
+OTHER_BINARIES = {
+    "quarter_health": "count_health",
+    "half_health": "count_health",
+    "quarter_health_state": "count_health",
+    "half_health_state": "count_health",
+}
 
 
 @dataclass

@@ -8,7 +8,9 @@ use std::cell::Cell;
 
 use vehid_core::health::{HalfHealthMonitor, HealthConfig, HealthMonitor};
 use vehid_core::model::{HalfCar, QuarterCar};
-use vehid_core::sim::{Change, DriveConfig, HalfChange, HalfDrive, HalfDriveConfig, QuarterDrive};
+use vehid_core::sim::{
+    Change, DriveConfig, HalfChange, HalfDrive, HalfDriveConfig, QuarterDrive, SensorNoise, SensorSet,
+};
 
 struct Counting;
 
@@ -58,6 +60,37 @@ fn a_whole_monitoring_scenario_allocates_nothing() {
 }
 
 #[test]
+fn a_whole_state_sensor_scenario_allocates_nothing() {
+    // The state sensors at 8 % noise (the measured-rate filter), with a gap and a jump.
+    let car = QuarterCar::<f64>::passenger();
+    let noise = SensorNoise { state: 1.859e-3, deriv: 9.971e-2, ..SensorNoise::default() };
+    let cfg = DriveConfig::new(0.005)
+        .sensors(SensorSet::State)
+        .noise(noise)
+        .with_change(Change::ramp(30.0, "b", 1200.0, 5.0).unwrap())
+        .unwrap();
+    let mut drive = QuarterDrive::new(car, cfg, 4243).unwrap();
+    let mut mon = HealthMonitor::new(HealthConfig::new(0.005, car).with_sensors(SensorSet::State, &noise)).unwrap();
+    let before = allocs();
+    let mut events = 0;
+    for k in 0..(80.0 / 0.005) as usize {
+        let s = drive.next_sample();
+        let mut y = [0.0; 8];
+        y.copy_from_slice(s.y());
+        if (12_000..12_400).contains(&k) {
+            y = [f64::NAN; 8];
+        } else if (13_000..13_100).contains(&k) {
+            y[2] += 0.5;
+        }
+        if mon.update(&y).unwrap().is_some() {
+            events += 1;
+        }
+    }
+    assert_eq!(allocs() - before, 0);
+    assert!(events >= 1, "the damper ramp (-20 %) was not reported");
+}
+
+#[test]
 fn a_whole_half_car_scenario_allocates_nothing() {
     let car = HalfCar::<f64>::passenger();
     let cfg = HalfDriveConfig::new(DriveConfig::new(0.005))
@@ -75,6 +108,34 @@ fn a_whole_half_car_scenario_allocates_nothing() {
             y = [f64::NAN; 6];
         } else if (13_000..13_100).contains(&k) {
             y[4] = 0.01;
+        }
+        if mon.update(&y).unwrap().is_some() {
+            events += 1;
+        }
+    }
+    assert_eq!(allocs() - before, 0);
+    assert!(events >= 1, "the rear damper ramp (-20 %) was not reported");
+}
+
+#[test]
+fn a_whole_half_car_state_sensor_scenario_allocates_nothing() {
+    // The state sensors at 8 % noise (the measured-rate filters), with a gap and a jump.
+    let car = HalfCar::<f64>::passenger();
+    let noise = SensorNoise { state: 1.782e-3, deriv: 7.175e-2, ..SensorNoise::default() };
+    let base = DriveConfig::new(0.005).sensors(SensorSet::State).noise(noise);
+    let cfg = HalfDriveConfig::new(base).with_change(HalfChange::ramp(30.0, "b_r", 1120.0, 5.0).unwrap()).unwrap();
+    let mut drive = HalfDrive::new(car, cfg, 4244).unwrap();
+    let mut mon = HalfHealthMonitor::new(HealthConfig::new(0.005, car).with_sensors(SensorSet::State, &noise)).unwrap();
+    let before = allocs();
+    let mut events = 0;
+    for k in 0..(80.0 / 0.005) as usize {
+        let s = drive.next_sample();
+        let mut y = [0.0; 16];
+        y.copy_from_slice(s.y());
+        if (12_000..12_400).contains(&k) {
+            y = [f64::NAN; 16];
+        } else if (13_000..13_100).contains(&k) {
+            y[4] += 0.5;
         }
         if mon.update(&y).unwrap().is_some() {
             events += 1;

@@ -2,7 +2,7 @@
 //! of [`crate::health`], section "The half car", for the derivation).
 
 use super::event::{Event, Reason, Status};
-use super::kinematic::DeflectionFilter;
+use super::kinematic::{DeflectionFilter, RateGain};
 use super::monitor::{cusum_step, screen, stuck_step, HealthConfig, Phase, JUMP_GATE, MAX_DELAY};
 use super::pattern::{fit_kron, Fit};
 use super::rls::Rls;
@@ -92,6 +92,10 @@ pub struct HalfHealthMonitor<T: Real> {
     n_decide: u64,
     z: T,
     kf: [DeflectionFilter<T>; 2],
+    // The state sensors' filter gain with the measured rates (both axles; derived from the
+    // settings, also on load; not saved). Unused with the realistic sensors.
+    #[cfg_attr(feature = "serde", serde(skip, default = "RateGain::unused"))]
+    rate: RateGain<T>,
     #[cfg_attr(feature = "serde", serde(with = "crate::persist::array2"))]
     ring: [[T; 6]; MAX_DELAY],
     #[cfg_attr(feature = "serde", serde(with = "crate::persist::array"))]
@@ -145,6 +149,7 @@ impl<T: Real> HalfHealthMonitor<T> {
         let lambda = T::one() - cfg.dt / cfg.window;
         let p0 = SMatrix::<T, 5, 5>::identity() * T::of(1e6);
         let start = Rls::new(SMatrix::zeros(), p0, T::one());
+        let rate = cfg.rate_gain()?;
         Ok(Self {
             n_warm,
             n_burn,
@@ -153,6 +158,7 @@ impl<T: Real> HalfHealthMonitor<T> {
             n_decide: (libm::round(DECISION_INTERVAL / cfg.dt.to_f64()) as u64).max(1),
             z,
             kf: [kf, kf],
+            rate,
             ring: [[T::zero(); 6]; MAX_DELAY],
             ring_k: [0; MAX_DELAY],
             head: 0,
@@ -213,6 +219,7 @@ impl<T: Real> HalfHealthMonitor<T> {
             return Err(corrupt);
         }
         self.n_decide = fresh.n_decide;
+        self.rate = fresh.rate;
         self.derive();
         Ok(())
     }
@@ -314,7 +321,8 @@ impl<T: Real> HalfHealthMonitor<T> {
     /// One sample: `y = [a_body_f, a_body_r, a_wheel_f, a_wheel_r, deflection_f,
     /// deflection_r]` (m/s², m) with the realistic sensors, the 16 channels of
     /// `model::HALF_STATE_CHANNELS` with the state sensors (the monitor forms the same six
-    /// quantities from them: `dvb ± l dom`, `dv1`, `dv2`, `zb + l1 ph − z1`, `zb − l2 ph − z2`);
+    /// quantities from them: `dvb ± l dom`, `dv1`, `dv2`, `zb + l1 ph − z1`, `zb − l2 ph − z2`,
+    /// and the deflection rates `vb + l1 om − v1`, `vb − l2 om − v2` for the kinematic filters);
     /// returns the event it completes, if any. A NaN channel marks a missing sample. No
     /// allocation.
     ///
@@ -325,12 +333,23 @@ impl<T: Real> HalfHealthMonitor<T> {
         let missing = screen(y, self.cfg.channels())?;
         let p = self.cfg.car.params();
         let (l1, l2) = (p.l1, p.l2);
-        let y: [T; 6] = match self.cfg.sensors {
-            SensorSet::Realistic => [y[0], y[1], y[2], y[3], y[4], y[5]],
-            SensorSet::State => {
-                [y[13] + l1 * y[15], y[13] - l2 * y[15], y[9], y[11], y[4] + l1 * y[6] - y[0], y[4] - l2 * y[6] - y[2]]
-            }
-        };
+        // The state sensors also measure the deflection rates `vb + l1 om − v1`,
+        // `vb − l2 om − v2`. (Two calls of the inlined step, so that the realistic path is
+        // compiled without the rates' branch.)
+        match self.cfg.sensors {
+            SensorSet::Realistic => self.step(missing, [y[0], y[1], y[2], y[3], y[4], y[5]], None),
+            SensorSet::State => self.step(
+                missing,
+                [y[13] + l1 * y[15], y[13] - l2 * y[15], y[9], y[11], y[4] + l1 * y[6] - y[0], y[4] - l2 * y[6] - y[2]],
+                Some([y[5] + l1 * y[7] - y[1], y[5] - l2 * y[7] - y[3]]),
+            ),
+        }
+    }
+
+    /// [`HalfHealthMonitor::update`] after the screening: the six quantities `y`, `rates` the
+    /// measured deflection rates (state sensors), `missing` a NaN channel.
+    #[inline(always)]
+    fn step(&mut self, missing: bool, y: [T; 6], rates: Option<[T; 2]>) -> Result<Option<Event<T, HalfConstant>>> {
         let k = self.k;
         self.k += 1;
         if missing {
@@ -346,8 +365,15 @@ impl<T: Real> HalfHealthMonitor<T> {
             return Ok(None);
         }
         let gate = if self.reacq_left > 0 { T::biggest() } else { T::of(JUMP_GATE) };
-        let front = self.kf[0].update_gated(y[4], y[0] - y[2], gate);
-        let rear = self.kf[1].update_gated(y[5], y[1] - y[3], gate);
+        let (front, rear) = match rates {
+            None => {
+                (self.kf[0].update_gated(y[4], y[0] - y[2], gate), self.kf[1].update_gated(y[5], y[1] - y[3], gate))
+            }
+            Some([rf, rr]) => (
+                self.kf[0].update_rate_gated(y[4], rf, y[0] - y[2], &self.rate, gate),
+                self.kf[1].update_rate_gated(y[5], rr, y[1] - y[3], &self.rate, gate),
+            ),
+        };
         let (Some((df, vf)), Some((dr, vr))) = (front, rear) else {
             self.interrupt(Reason::Jump);
             return Ok(None);

@@ -2,7 +2,7 @@
 //! of [`crate::health`] for the design).
 
 use super::event::{Constant, Estimate, Event, Reason, Status};
-use super::kinematic::DeflectionFilter;
+use super::kinematic::{DeflectionFilter, RateGain};
 use super::rls::Rls3;
 use crate::error::{check_nonneg, check_positive};
 use crate::model::{QuarterCar, SensorNoise, SensorSet};
@@ -41,7 +41,8 @@ pub struct HealthConfig<T, C = QuarterCar<T>> {
     /// The sensors read by [`HealthMonitor::update`]: [`SensorSet::Realistic`] (default;
     /// `[a_body, a_wheel, deflection]`) or [`SensorSet::State`] (the thesis' measured state
     /// and derivative `[zw, vw, zb, vb, dzw, dvw, dzb, dvb]`, of which the monitor uses the
-    /// same three quantities: `a_body = dvb`, `a_wheel = dvw`, `deflection = zb − zw`).
+    /// same three quantities, `a_body = dvb`, `a_wheel = dvw`, `deflection = zb − zw`, and the
+    /// deflection rate `vb − vw` in its kinematic filter: module documentation, "State sensors").
     pub sensors: SensorSet,
     /// Noise of `a_body − a_wheel` per sample, m/s² (the kinematic filter's design;
     /// default √(0.02² + 0.1²), the defaults of `model::SensorNoise`).
@@ -159,6 +160,19 @@ impl<T: Real, C> HealthConfig<T, C> {
         Ok((kf, z))
     }
 
+    /// The state sensors' kinematic filter gain with the measured deflection rate
+    /// ([`RateGain`]; the rate is formed from measured velocities as the deflection from
+    /// measured positions, and the state set has one noise level on every state, so its noise
+    /// is `deflection_noise` too); with the realistic sensors a zero gain that is never used.
+    pub(crate) fn rate_gain(&self) -> Result<RateGain<T>> {
+        match self.sensors {
+            SensorSet::Realistic => Ok(RateGain::unused()),
+            SensorSet::State => {
+                RateGain::new(self.dt, self.accel_noise, self.deflection_noise, self.deflection_noise, self.bias_walk)
+            }
+        }
+    }
+
     /// Samples in the warm-up, in the one-second burn-in of the noise estimate, in the
     /// settling, in the re-acquisition.
     pub(crate) fn sample_counts(&self) -> [u64; 4] {
@@ -236,6 +250,10 @@ pub struct HealthMonitor<T: Real> {
     n_reacq: u64,
     z: T,
     kf: DeflectionFilter<T>,
+    // The state sensors' filter gain with the measured rate (derived from the settings by
+    // `HealthConfig::rate_gain`, also on load; not saved). Unused with the realistic sensors.
+    #[cfg_attr(feature = "serde", serde(skip, default = "RateGain::unused"))]
+    rate: RateGain<T>,
     #[cfg_attr(feature = "serde", serde(with = "crate::persist::array2"))]
     ring: [[T; 3]; MAX_DELAY],
     #[cfg_attr(feature = "serde", serde(with = "crate::persist::array"))]
@@ -284,6 +302,7 @@ impl<T: Real> HealthMonitor<T> {
         let lambda = T::one() - cfg.dt / cfg.window;
         let p0 = SMatrix::<T, 3, 3>::identity() * T::of(1e6);
         let start = Rls3::new(SVector::zeros(), p0, T::one());
+        let rate = cfg.rate_gain()?;
         Ok(Self {
             n_warm,
             n_burn,
@@ -291,6 +310,7 @@ impl<T: Real> HealthMonitor<T> {
             n_reacq,
             z,
             kf,
+            rate,
             ring: [[T::zero(); 3]; MAX_DELAY],
             ring_k: [0; MAX_DELAY],
             head: 0,
@@ -343,6 +363,7 @@ impl<T: Real> HealthMonitor<T> {
         if !stats.iter().all(|&v| finite(v)) || !self.belief.iter().all(|&v| finite(v) && v > T::zero()) {
             return Err(corrupt);
         }
+        self.rate = fresh.rate;
         Ok(())
     }
 
@@ -422,10 +443,18 @@ impl<T: Real> HealthMonitor<T> {
     /// [`Error::NonFinite`] for ±∞; the monitor is then unchanged.
     pub fn update(&mut self, y: &[T]) -> Result<Option<Event<T>>> {
         let missing = screen(y, self.cfg.channels())?;
-        let y: [T; CHANNELS] = match self.cfg.sensors {
-            SensorSet::Realistic => [y[0], y[1], y[2]],
-            SensorSet::State => [y[7], y[5], y[2] - y[0]],
-        };
+        // The state sensors also measure the deflection rate `vb − vw`. (Two calls of the
+        // inlined step, so that the realistic path is compiled without the rate's branch.)
+        match self.cfg.sensors {
+            SensorSet::Realistic => self.step(missing, [y[0], y[1], y[2]], None),
+            SensorSet::State => self.step(missing, [y[7], y[5], y[2] - y[0]], Some(y[3] - y[1])),
+        }
+    }
+
+    /// [`HealthMonitor::update`] after the screening: `y = [a_body, a_wheel, deflection]`,
+    /// `rate` the measured deflection rate (state sensors), `missing` a NaN channel.
+    #[inline(always)]
+    fn step(&mut self, missing: bool, y: [T; CHANNELS], rate: Option<T>) -> Result<Option<Event<T>>> {
         let k = self.k;
         self.k += 1;
         if missing {
@@ -442,7 +471,11 @@ impl<T: Real> HealthMonitor<T> {
         }
         // No gate while the filter re-converges after a restart (its rate starts at 0).
         let gate = if self.reacq_left > 0 { T::biggest() } else { T::of(JUMP_GATE) };
-        let Some((d, v)) = self.kf.update_gated(y[2], y[0] - y[1], gate) else {
+        let filtered = match rate {
+            None => self.kf.update_gated(y[2], y[0] - y[1], gate),
+            Some(r) => self.kf.update_rate_gated(y[2], r, y[0] - y[1], &self.rate, gate),
+        };
+        let Some((d, v)) = filtered else {
             self.interrupt(Reason::Jump);
             return Ok(None);
         };
