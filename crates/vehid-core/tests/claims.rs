@@ -1485,3 +1485,87 @@ fn mode_rows_reinitializes_alike_in_the_square_root_form() {
     let d = a.iter().zip(&b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
     assert!(d <= 1e-6 * scale, "{b:?} against the standard form's {a:?}");
 }
+
+/// Mode full's `cost()` is the operation count its docs define, counted here by walking the
+/// update's loops one by one (each formula as written: a sum of n terms n − 1 additions, a
+/// subtraction an addition), for K = 1, 2, 3 rows of N = 4 and K = 4 of N = 8. The Cholesky
+/// factorization of the K × K `S`: per column j, `S_jj − Σ_{p<j} L_jp²` and a square root,
+/// then each `L_ij = (S_ij − Σ_{p<j} L_ip L_jp) / L_jj` below it; each of the K·N solves with
+/// the factor: per row i of the forward and of the back substitution, i (or K − 1 − i)
+/// products, as many subtractions, one division.
+#[test]
+fn mode_full_cost_is_its_operation_count() {
+    fn count(k: usize, n: usize) -> (usize, usize, usize, usize) {
+        let (mut mul, mut add, mut div, mut sqrt) = (0, 0, 0, 0);
+        // e_i = z_i − θ_iᵀx
+        for _ in 0..k {
+            mul += n;
+            add += n;
+        }
+        // C_ij = P_ij x, every block
+        for _ in 0..k * k {
+            mul += n * n;
+            add += n * (n - 1);
+        }
+        // S_ij = xᵀ C_ij + R_ij on and below the diagonal
+        for i in 0..k {
+            for _ in 0..=i {
+                mul += n;
+                add += n;
+            }
+        }
+        // Cholesky of S
+        for j in 0..k {
+            mul += j;
+            add += j;
+            sqrt += 1;
+            for _ in j + 1..k {
+                mul += j;
+                add += j;
+                div += 1;
+            }
+        }
+        // W = C S⁻¹: one solve per row i of W's blocks and state a
+        for _ in 0..k * n {
+            for i in 0..k {
+                mul += i;
+                add += i;
+                div += 1;
+            }
+            for i in 0..k {
+                mul += k - 1 - i;
+                add += k - 1 - i;
+                div += 1;
+            }
+        }
+        // θ_i += Σ_l W_il e_l
+        for _ in 0..k * k {
+            mul += n;
+            add += n;
+        }
+        // P_ij −= Σ_l W_il C_jlᵀ on and above the diagonal; the diagonal blocks symmetrized
+        for i in 0..k {
+            for j in i..k {
+                mul += k * n * n;
+                add += k * n * n;
+                if i == j {
+                    mul += n * (n - 1) / 2;
+                    add += n * (n - 1) / 2;
+                }
+            }
+        }
+        (mul, add, div, sqrt)
+    }
+    let of = |c: vehid_core::identify::Cost| (c.multiplications, c.additions, c.divisions, c.square_roots);
+    let opts = KalmanOptions::default();
+    let one = FullKalmanIdentifierVec::<f64, 4>::from_slices(&[1], &[1000.0], &[1.0], opts).unwrap();
+    assert_eq!(of(one.cost()), count(1, 4));
+    let two = FullKalmanIdentifier::<f64, 4, 2>::from_slices(&[1, 3], &[1000.0], &[81.0, 2.5e-5], opts).unwrap();
+    assert_eq!(of(two.cost()), count(2, 4));
+    // K = 2, N = 4: the solves are 16 multiplications and 32 divisions of the 33.
+    assert_eq!(count(2, 4).2, 33);
+    let three = FullKalmanIdentifierVec::<f64, 4>::from_slices(&[0, 1, 3], &[1000.0], &[1.0], opts).unwrap();
+    assert_eq!(of(three.cost()), count(3, 4));
+    let four = FullKalmanIdentifierVec::<f64, 8>::from_slices(&[1, 3, 5, 7], &[1000.0], &[1.0], opts).unwrap();
+    assert_eq!(of(four.cost()), count(4, 8));
+}
