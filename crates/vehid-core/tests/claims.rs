@@ -1486,6 +1486,27 @@ fn mode_rows_reinitializes_alike_in_the_square_root_form() {
     assert!(d <= 1e-6 * scale, "{b:?} against the standard form's {a:?}");
 }
 
+/// `Cost::flops()` is every floating-point operation once: the four counts' sum, each of them
+/// visible in it (powers of ten, so a count left out, subtracted or counted twice shows as a
+/// wrong digit), and `bytes` not among them. Also on the identifiers' own costs, among them
+/// mode full's, the one form with square roots.
+#[test]
+fn cost_flops_is_the_sum_of_the_four_operation_counts() {
+    use vehid_core::identify::Cost;
+    let c = Cost { multiplications: 1, additions: 10, divisions: 100, square_roots: 1000, bytes: 10_000 };
+    assert_eq!(c.flops(), 1111);
+    let full =
+        FullKalmanIdentifierVec::<f64, 4>::from_slices(&[1, 3], &[1000.0], &[81.0, 2.5e-5], KalmanOptions::default())
+            .unwrap()
+            .cost();
+    let rows = KalmanIdentifier::<f64, 4, 2>::new([1, 3], 1000.0, [1.0, 1.0]).unwrap().cost();
+    let shared = SharedKalmanIdentifier::<f64, 4, 2>::new([1, 3], 1000.0, [1.0, 1.0]).unwrap().cost();
+    assert!(full.square_roots > 0, "mode full takes square roots (its Cholesky of S)");
+    for c in [full, rows, shared] {
+        assert_eq!(c.flops(), c.multiplications + c.additions + c.divisions + c.square_roots, "{c:?}");
+    }
+}
+
 /// Mode full's `cost()` is the operation count its docs define, counted here by walking the
 /// update's loops one by one (each formula as written: a sum of n terms n − 1 additions, a
 /// subtraction an addition), for K = 1, 2, 3 rows of N = 4 and K = 4 of N = 8. The Cholesky
@@ -1568,4 +1589,60 @@ fn mode_full_cost_is_its_operation_count() {
     assert_eq!(of(three.cost()), count(3, 4));
     let four = FullKalmanIdentifierVec::<f64, 8>::from_slices(&[1, 3, 5, 7], &[1000.0], &[1.0], opts).unwrap();
     assert_eq!(of(four.cost()), count(4, 8));
+}
+
+/// Mode full's accessors read back what it was given, entry for entry, before any sample:
+/// `r(i, j)` the whole `K × K` noise matrix (three rows, every off-diagonal entry distinct),
+/// `p_block(i, j)` block `(i, j)` of the whole prior matrix (`(K·N) × (K·N)`, row-major),
+/// `theta_row(i)` row `i` of the prior mean, `rows()` the rows, `trace()` the prior's trace.
+#[test]
+fn mode_full_accessors_read_back_the_matrices_given() {
+    const N: usize = 4;
+    let rows = [0usize, 1, 3];
+    let k = rows.len();
+    let r = [4.0, 0.5, -0.3, 0.5, 3.0, 0.2, -0.3, 0.2, 2.0];
+    let mut id = FullKalmanIdentifierVec::<f64, N>::from_slices(&rows, &[1.0], &r, KalmanOptions::default()).unwrap();
+    let kn = k * N;
+    let p0 = coupled_spd(kn);
+    id.set_p0(&p0).unwrap();
+    let theta0: Vec<f64> = (0..kn).map(|i| 0.5 + i as f64).collect();
+    id.set_theta(&theta0).unwrap();
+    assert_eq!(id.rows(), &rows);
+    for i in 0..k {
+        for j in 0..k {
+            assert_eq!(id.r(i, j), r[i * k + j], "r({i}, {j})");
+            let b = id.p_block(i, j);
+            for a in 0..N {
+                for c in 0..N {
+                    assert_eq!(b[(a, c)], p0[(i * N + a) * kn + j * N + c], "p_block({i}, {j})[({a}, {c})]");
+                }
+            }
+        }
+        assert_eq!(id.theta_row(i).as_slice(), &theta0[i * N..(i + 1) * N], "theta_row({i})");
+    }
+    let trace: f64 = (0..kn).map(|i| p0[i * kn + i]).sum();
+    assert!((id.trace() - trace).abs() <= 1e-12 * trace, "trace {} against {trace}", id.trace());
+}
+
+/// Modes full and shared cannot track (their docs: forgetting and drift need mode rows): each
+/// refuses forgetting alone, drift alone and both, naming `forgetting`, and takes neither;
+/// `KalmanOptions::tracking()` is true exactly when forgetting (λ < 1) or drift (q > 0) is on.
+#[test]
+fn modes_full_and_shared_refuse_forgetting_and_drift_alike() {
+    for (forgetting, drift) in [(1.0, 0.0), (0.98, 0.0), (1.0, 1e-6), (0.98, 1e-6)] {
+        let o = KalmanOptions { forgetting, drift, ..KalmanOptions::default() };
+        let on = forgetting < 1.0 || drift > 0.0;
+        assert_eq!(o.tracking(), on, "tracking() with λ = {forgetting}, q = {drift}");
+        let full = FullKalmanIdentifierVec::<f64, 4>::from_slices(&[1, 3], &[1000.0], &[1.0], o);
+        let shared = SharedKalmanIdentifierVec::<f64, 4>::from_slices(&[1, 3], &[1000.0], &[1.0], o);
+        for (mode, refused) in [("full", full.err()), ("shared", shared.err())] {
+            match refused {
+                Some(vehid_core::Error::InvalidArgument { arg: "forgetting", .. }) => {
+                    assert!(on, "mode {mode} refused λ = {forgetting}, q = {drift}")
+                }
+                None => assert!(!on, "mode {mode} took λ = {forgetting}, q = {drift}"),
+                Some(e) => panic!("mode {mode}, λ = {forgetting}, q = {drift}: {e:?}"),
+            }
+        }
+    }
 }
