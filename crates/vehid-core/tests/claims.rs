@@ -1379,8 +1379,9 @@ fn mode_full_checks_the_noise_matrix_whatever_its_scale() {
 
 /// Mode full's `cost().bytes` counts, in the heap store, at least the heap of the three
 /// buffers an update works in: `P` (K² blocks of N × N), `C = P x` and the gains `W` (K² vectors
-/// of N each), on top of the identifier itself; in the fixed store, where they live inside
-/// it, its size.
+/// of N each), on top of the identifier itself, and at most the heap of all its buffers (`P`
+/// and its candidate, `C`, `W`, `R`, `S`, `θ`, the residual sums and the rows: `vec![x; n]`
+/// allocates exactly n); in the fixed store, where they live inside it, its size.
 #[test]
 fn mode_full_cost_counts_its_heap_buffers() {
     let (k, n) = (2usize, 4usize);
@@ -1389,6 +1390,8 @@ fn mode_full_cost_counts_its_heap_buffers() {
             .unwrap();
     let floor = core::mem::size_of_val(&v) + 8 * (k * k * n * n + 2 * k * k * n);
     assert!(v.cost().bytes >= floor, "bytes {} below {floor}", v.cost().bytes);
+    let ceiling = core::mem::size_of_val(&v) + 8 * (2 * k * k * n * n + 2 * k * k * n + 2 * k * k + k * n + k) + 8 * k;
+    assert!(v.cost().bytes <= ceiling, "bytes {} above {ceiling}", v.cost().bytes);
     let f =
         FullKalmanIdentifier::<f64, 4, 2>::from_slices(&[1, 3], &[1000.0], &[81.0, 2.5e-5], KalmanOptions::default())
             .unwrap();
@@ -1645,4 +1648,93 @@ fn modes_full_and_shared_refuse_forgetting_and_drift_alike() {
             }
         }
     }
+}
+
+/// The normalized (Lyapunov) gain `1 / Σ h x²` (Eq 5.9) has no direction to move in when the
+/// regressor is zero: such a sample is taken and counted, the estimate and the gain's step
+/// count stay, and the identifier then continues exactly as a twin that never saw it. With
+/// and without the bias removal term `Σ_w`.
+#[test]
+fn lyapunov_gain_takes_a_zero_regressor_without_a_step() {
+    let rows = [1usize, 3];
+    let data = samples(8, 200, 0.01);
+    let params = |id: &StochasticGradientVec<f64, 4>| {
+        let mut t = [0.0; 8];
+        id.params_into(&mut t).unwrap();
+        t.map(f64::to_bits)
+    };
+    for noise in [[0.0; 4], [1e-2, 4e-2, 1e-2, 3e-2]] {
+        let make = || StochasticGradientVec::<f64, 4>::from_slices(&rows, Gain::Lyapunov, &[0.5], &noise, 1).unwrap();
+        let (mut a, mut b) = (make(), make());
+        let mut e = [0.0; 2];
+        for (j, (x, z)) in data.iter().enumerate() {
+            if j == 100 {
+                let (samples, steps, before) = (a.samples(), a.steps(), params(&a));
+                a.update_into(&[0.0; 4], z.as_slice(), &[], &mut e).unwrap();
+                assert_eq!((a.samples(), a.steps()), (samples + 1, steps), "Σ_w {noise:?}: counted, no step");
+                assert_eq!(params(&a), before, "Σ_w {noise:?}: the estimate moved");
+            }
+            a.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+            b.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+        }
+        assert_eq!(params(&a), params(&b), "Σ_w {noise:?}: not the twin's estimate");
+        assert!(a.steps() == b.steps() && a.steps() == 200);
+    }
+}
+
+/// Mode full's `*_into` read-outs refuse an `out` of the wrong length with a Shape error that
+/// names `out` and the length they need: `θ` K·N values, the covariance (K·N)², the noise
+/// matrix K² (three rows, where K² and 2K differ).
+#[test]
+fn mode_full_read_outs_name_the_length_they_need() {
+    let (k, n) = (3usize, 4usize);
+    let id = FullKalmanIdentifierVec::<f64, 4>::from_slices(&[0, 1, 3], &[1000.0], &[1.0], KalmanOptions::default())
+        .unwrap();
+    let shape = |r: Result<(), vehid_core::Error>| match r {
+        Err(vehid_core::Error::Shape { arg: "out", expected, got }) => (expected, got),
+        other => panic!("{other:?}"),
+    };
+    for (what, len) in [("params", k * n), ("covariance", k * n * k * n), ("noise", k * k)] {
+        for wrong in [len - 1, len + 1] {
+            let mut out = vec![0.0; wrong];
+            let r = match what {
+                "params" => id.params_into(&mut out),
+                "covariance" => id.covariance_into(&mut out),
+                _ => id.noise_into(&mut out),
+            };
+            assert_eq!(shape(r), (len, wrong), "{what}_into with {wrong} values");
+        }
+        let mut out = vec![0.0; len];
+        let r = match what {
+            "params" => id.params_into(&mut out),
+            "covariance" => id.covariance_into(&mut out),
+            _ => id.noise_into(&mut out),
+        };
+        assert!(r.is_ok(), "{what}_into with {len} values: {r:?}");
+    }
+}
+
+/// With drift alone (λ = 1, q = 1) a risky sample is checked on the covariance the update
+/// makes, `P − P x xᵀ P / s + q I`, in mode rows' standard form: the samples of
+/// `risky_samples_whose_downdate_would_be_indefinite_are_refused` that the plain downdate
+/// cannot take (some are refused without drift, shown here too) are all taken with the drift,
+/// each leaving a covariance with a Cholesky factor.
+#[test]
+fn risky_samples_are_checked_with_the_drift_they_get() {
+    let rows = [1usize, 3];
+    let (p0, r) = (1e5, [1.0, 1e-12]);
+    let mut refused_without = 0;
+    for (n, x) in regressors(32, 200).into_iter().enumerate() {
+        let z = V4::new(0.0, x.sum(), 0.0, 2.0 * x[0]);
+        let mut e = [0.0; 2];
+        let drift = KalmanOptions { drift: 1.0, max_trace: 1e12, ..opts(CovarianceForm::Standard) };
+        let mut id = KalmanIdentifier::<f64, 4, 2>::from_slices(&rows, &[p0], &r, drift).unwrap();
+        let taken = id.update_into(x.as_slice(), z.as_slice(), &[], &mut e);
+        assert!(taken.is_ok(), "sample {n}: refused with drift: {taken:?}");
+        assert!(covariance8(&id).1, "sample {n}: taken, and the covariance has no Cholesky factor");
+        let mut plain =
+            KalmanIdentifier::<f64, 4, 2>::from_slices(&rows, &[p0], &r, opts(CovarianceForm::Standard)).unwrap();
+        refused_without += usize::from(plain.update_into(x.as_slice(), z.as_slice(), &[], &mut e).is_err());
+    }
+    assert!(refused_without > 0, "without drift no sample of 200 was refused: the case never arose");
 }
