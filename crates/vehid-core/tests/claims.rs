@@ -1379,8 +1379,9 @@ fn mode_full_checks_the_noise_matrix_whatever_its_scale() {
 
 /// Mode full's `cost().bytes` counts, in the heap store, at least the heap of the three
 /// buffers an update works in: `P` (K² blocks of N × N), `C = P x` and the gains `W` (K² vectors
-/// of N each), on top of the identifier itself; in the fixed store, where they live inside
-/// it, its size.
+/// of N each), on top of the identifier itself, and at most the heap of all its buffers (`P`
+/// and its candidate, `C`, `W`, `R`, `S`, `θ`, the residual sums and the rows: `vec![x; n]`
+/// allocates exactly n); in the fixed store, where they live inside it, its size.
 #[test]
 fn mode_full_cost_counts_its_heap_buffers() {
     let (k, n) = (2usize, 4usize);
@@ -1389,6 +1390,8 @@ fn mode_full_cost_counts_its_heap_buffers() {
             .unwrap();
     let floor = core::mem::size_of_val(&v) + 8 * (k * k * n * n + 2 * k * k * n);
     assert!(v.cost().bytes >= floor, "bytes {} below {floor}", v.cost().bytes);
+    let ceiling = core::mem::size_of_val(&v) + 8 * (2 * k * k * n * n + 2 * k * k * n + 2 * k * k + k * n + k) + 8 * k;
+    assert!(v.cost().bytes <= ceiling, "bytes {} above {ceiling}", v.cost().bytes);
     let f =
         FullKalmanIdentifier::<f64, 4, 2>::from_slices(&[1, 3], &[1000.0], &[81.0, 2.5e-5], KalmanOptions::default())
             .unwrap();
@@ -1484,4 +1487,254 @@ fn mode_rows_reinitializes_alike_in_the_square_root_form() {
     let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let d = a.iter().zip(&b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
     assert!(d <= 1e-6 * scale, "{b:?} against the standard form's {a:?}");
+}
+
+/// `Cost::flops()` is every floating-point operation once: the four counts' sum, each of them
+/// visible in it (powers of ten, so a count left out, subtracted or counted twice shows as a
+/// wrong digit), and `bytes` not among them. Also on the identifiers' own costs, among them
+/// mode full's, the one form with square roots.
+#[test]
+fn cost_flops_is_the_sum_of_the_four_operation_counts() {
+    use vehid_core::identify::Cost;
+    let c = Cost { multiplications: 1, additions: 10, divisions: 100, square_roots: 1000, bytes: 10_000 };
+    assert_eq!(c.flops(), 1111);
+    let full =
+        FullKalmanIdentifierVec::<f64, 4>::from_slices(&[1, 3], &[1000.0], &[81.0, 2.5e-5], KalmanOptions::default())
+            .unwrap()
+            .cost();
+    let rows = KalmanIdentifier::<f64, 4, 2>::new([1, 3], 1000.0, [1.0, 1.0]).unwrap().cost();
+    let shared = SharedKalmanIdentifier::<f64, 4, 2>::new([1, 3], 1000.0, [1.0, 1.0]).unwrap().cost();
+    assert!(full.square_roots > 0, "mode full takes square roots (its Cholesky of S)");
+    for c in [full, rows, shared] {
+        assert_eq!(c.flops(), c.multiplications + c.additions + c.divisions + c.square_roots, "{c:?}");
+    }
+}
+
+/// Mode full's `cost()` is the operation count its docs define, counted here by walking the
+/// update's loops one by one (each formula as written: a sum of n terms n − 1 additions, a
+/// subtraction an addition), for K = 1, 2, 3 rows of N = 4 and K = 4 of N = 8. The Cholesky
+/// factorization of the K × K `S`: per column j, `S_jj − Σ_{p<j} L_jp²` and a square root,
+/// then each `L_ij = (S_ij − Σ_{p<j} L_ip L_jp) / L_jj` below it; each of the K·N solves with
+/// the factor: per row i of the forward and of the back substitution, i (or K − 1 − i)
+/// products, as many subtractions, one division.
+#[test]
+fn mode_full_cost_is_its_operation_count() {
+    fn count(k: usize, n: usize) -> (usize, usize, usize, usize) {
+        let (mut mul, mut add, mut div, mut sqrt) = (0, 0, 0, 0);
+        // e_i = z_i − θ_iᵀx
+        for _ in 0..k {
+            mul += n;
+            add += n;
+        }
+        // C_ij = P_ij x, every block
+        for _ in 0..k * k {
+            mul += n * n;
+            add += n * (n - 1);
+        }
+        // S_ij = xᵀ C_ij + R_ij on and below the diagonal
+        for i in 0..k {
+            for _ in 0..=i {
+                mul += n;
+                add += n;
+            }
+        }
+        // Cholesky of S
+        for j in 0..k {
+            mul += j;
+            add += j;
+            sqrt += 1;
+            for _ in j + 1..k {
+                mul += j;
+                add += j;
+                div += 1;
+            }
+        }
+        // W = C S⁻¹: one solve per row i of W's blocks and state a
+        for _ in 0..k * n {
+            for i in 0..k {
+                mul += i;
+                add += i;
+                div += 1;
+            }
+            for i in 0..k {
+                mul += k - 1 - i;
+                add += k - 1 - i;
+                div += 1;
+            }
+        }
+        // θ_i += Σ_l W_il e_l
+        for _ in 0..k * k {
+            mul += n;
+            add += n;
+        }
+        // P_ij −= Σ_l W_il C_jlᵀ on and above the diagonal; the diagonal blocks symmetrized
+        for i in 0..k {
+            for j in i..k {
+                mul += k * n * n;
+                add += k * n * n;
+                if i == j {
+                    mul += n * (n - 1) / 2;
+                    add += n * (n - 1) / 2;
+                }
+            }
+        }
+        (mul, add, div, sqrt)
+    }
+    let of = |c: vehid_core::identify::Cost| (c.multiplications, c.additions, c.divisions, c.square_roots);
+    let opts = KalmanOptions::default();
+    let one = FullKalmanIdentifierVec::<f64, 4>::from_slices(&[1], &[1000.0], &[1.0], opts).unwrap();
+    assert_eq!(of(one.cost()), count(1, 4));
+    let two = FullKalmanIdentifier::<f64, 4, 2>::from_slices(&[1, 3], &[1000.0], &[81.0, 2.5e-5], opts).unwrap();
+    assert_eq!(of(two.cost()), count(2, 4));
+    // K = 2, N = 4: the solves are 16 multiplications and 32 divisions of the 33.
+    assert_eq!(count(2, 4).2, 33);
+    let three = FullKalmanIdentifierVec::<f64, 4>::from_slices(&[0, 1, 3], &[1000.0], &[1.0], opts).unwrap();
+    assert_eq!(of(three.cost()), count(3, 4));
+    let four = FullKalmanIdentifierVec::<f64, 8>::from_slices(&[1, 3, 5, 7], &[1000.0], &[1.0], opts).unwrap();
+    assert_eq!(of(four.cost()), count(4, 8));
+}
+
+/// Mode full's accessors read back what it was given, entry for entry, before any sample:
+/// `r(i, j)` the whole `K × K` noise matrix (three rows, every off-diagonal entry distinct),
+/// `p_block(i, j)` block `(i, j)` of the whole prior matrix (`(K·N) × (K·N)`, row-major),
+/// `theta_row(i)` row `i` of the prior mean, `rows()` the rows, `trace()` the prior's trace.
+#[test]
+fn mode_full_accessors_read_back_the_matrices_given() {
+    const N: usize = 4;
+    let rows = [0usize, 1, 3];
+    let k = rows.len();
+    let r = [4.0, 0.5, -0.3, 0.5, 3.0, 0.2, -0.3, 0.2, 2.0];
+    let mut id = FullKalmanIdentifierVec::<f64, N>::from_slices(&rows, &[1.0], &r, KalmanOptions::default()).unwrap();
+    let kn = k * N;
+    let p0 = coupled_spd(kn);
+    id.set_p0(&p0).unwrap();
+    let theta0: Vec<f64> = (0..kn).map(|i| 0.5 + i as f64).collect();
+    id.set_theta(&theta0).unwrap();
+    assert_eq!(id.rows(), &rows);
+    for i in 0..k {
+        for j in 0..k {
+            assert_eq!(id.r(i, j), r[i * k + j], "r({i}, {j})");
+            let b = id.p_block(i, j);
+            for a in 0..N {
+                for c in 0..N {
+                    assert_eq!(b[(a, c)], p0[(i * N + a) * kn + j * N + c], "p_block({i}, {j})[({a}, {c})]");
+                }
+            }
+        }
+        assert_eq!(id.theta_row(i).as_slice(), &theta0[i * N..(i + 1) * N], "theta_row({i})");
+    }
+    let trace: f64 = (0..kn).map(|i| p0[i * kn + i]).sum();
+    assert!((id.trace() - trace).abs() <= 1e-12 * trace, "trace {} against {trace}", id.trace());
+}
+
+/// Modes full and shared cannot track (their docs: forgetting and drift need mode rows): each
+/// refuses forgetting alone, drift alone and both, naming `forgetting`, and takes neither;
+/// `KalmanOptions::tracking()` is true exactly when forgetting (λ < 1) or drift (q > 0) is on.
+#[test]
+fn modes_full_and_shared_refuse_forgetting_and_drift_alike() {
+    for (forgetting, drift) in [(1.0, 0.0), (0.98, 0.0), (1.0, 1e-6), (0.98, 1e-6)] {
+        let o = KalmanOptions { forgetting, drift, ..KalmanOptions::default() };
+        let on = forgetting < 1.0 || drift > 0.0;
+        assert_eq!(o.tracking(), on, "tracking() with λ = {forgetting}, q = {drift}");
+        let full = FullKalmanIdentifierVec::<f64, 4>::from_slices(&[1, 3], &[1000.0], &[1.0], o);
+        let shared = SharedKalmanIdentifierVec::<f64, 4>::from_slices(&[1, 3], &[1000.0], &[1.0], o);
+        for (mode, refused) in [("full", full.err()), ("shared", shared.err())] {
+            match refused {
+                Some(vehid_core::Error::InvalidArgument { arg: "forgetting", .. }) => {
+                    assert!(on, "mode {mode} refused λ = {forgetting}, q = {drift}")
+                }
+                None => assert!(!on, "mode {mode} took λ = {forgetting}, q = {drift}"),
+                Some(e) => panic!("mode {mode}, λ = {forgetting}, q = {drift}: {e:?}"),
+            }
+        }
+    }
+}
+
+/// The normalized (Lyapunov) gain `1 / Σ h x²` (Eq 5.9) has no direction to move in when the
+/// regressor is zero: such a sample is taken and counted, the estimate and the gain's step
+/// count stay, and the identifier then continues exactly as a twin that never saw it. With
+/// and without the bias removal term `Σ_w`.
+#[test]
+fn lyapunov_gain_takes_a_zero_regressor_without_a_step() {
+    let rows = [1usize, 3];
+    let data = samples(8, 200, 0.01);
+    let params = |id: &StochasticGradientVec<f64, 4>| {
+        let mut t = [0.0; 8];
+        id.params_into(&mut t).unwrap();
+        t.map(f64::to_bits)
+    };
+    for noise in [[0.0; 4], [1e-2, 4e-2, 1e-2, 3e-2]] {
+        let make = || StochasticGradientVec::<f64, 4>::from_slices(&rows, Gain::Lyapunov, &[0.5], &noise, 1).unwrap();
+        let (mut a, mut b) = (make(), make());
+        let mut e = [0.0; 2];
+        for (j, (x, z)) in data.iter().enumerate() {
+            if j == 100 {
+                let (samples, steps, before) = (a.samples(), a.steps(), params(&a));
+                a.update_into(&[0.0; 4], z.as_slice(), &[], &mut e).unwrap();
+                assert_eq!((a.samples(), a.steps()), (samples + 1, steps), "Σ_w {noise:?}: counted, no step");
+                assert_eq!(params(&a), before, "Σ_w {noise:?}: the estimate moved");
+            }
+            a.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+            b.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+        }
+        assert_eq!(params(&a), params(&b), "Σ_w {noise:?}: not the twin's estimate");
+        assert!(a.steps() == b.steps() && a.steps() == 200);
+    }
+}
+
+/// Mode full's `*_into` read-outs refuse an `out` of the wrong length with a Shape error that
+/// names `out` and the length they need: `θ` K·N values, the covariance (K·N)², the noise
+/// matrix K² (three rows, where K² and 2K differ).
+#[test]
+fn mode_full_read_outs_name_the_length_they_need() {
+    let (k, n) = (3usize, 4usize);
+    let id = FullKalmanIdentifierVec::<f64, 4>::from_slices(&[0, 1, 3], &[1000.0], &[1.0], KalmanOptions::default())
+        .unwrap();
+    let shape = |r: Result<(), vehid_core::Error>| match r {
+        Err(vehid_core::Error::Shape { arg: "out", expected, got }) => (expected, got),
+        other => panic!("{other:?}"),
+    };
+    for (what, len) in [("params", k * n), ("covariance", k * n * k * n), ("noise", k * k)] {
+        for wrong in [len - 1, len + 1] {
+            let mut out = vec![0.0; wrong];
+            let r = match what {
+                "params" => id.params_into(&mut out),
+                "covariance" => id.covariance_into(&mut out),
+                _ => id.noise_into(&mut out),
+            };
+            assert_eq!(shape(r), (len, wrong), "{what}_into with {wrong} values");
+        }
+        let mut out = vec![0.0; len];
+        let r = match what {
+            "params" => id.params_into(&mut out),
+            "covariance" => id.covariance_into(&mut out),
+            _ => id.noise_into(&mut out),
+        };
+        assert!(r.is_ok(), "{what}_into with {len} values: {r:?}");
+    }
+}
+
+/// With drift alone (λ = 1, q = 1) a risky sample is checked on the covariance the update
+/// makes, `P − P x xᵀ P / s + q I`, in mode rows' standard form: the samples of
+/// `risky_samples_whose_downdate_would_be_indefinite_are_refused` that the plain downdate
+/// cannot take (some are refused without drift, shown here too) are all taken with the drift,
+/// each leaving a covariance with a Cholesky factor.
+#[test]
+fn risky_samples_are_checked_with_the_drift_they_get() {
+    let rows = [1usize, 3];
+    let (p0, r) = (1e5, [1.0, 1e-12]);
+    let mut refused_without = 0;
+    for (n, x) in regressors(32, 200).into_iter().enumerate() {
+        let z = V4::new(0.0, x.sum(), 0.0, 2.0 * x[0]);
+        let mut e = [0.0; 2];
+        let drift = KalmanOptions { drift: 1.0, max_trace: 1e12, ..opts(CovarianceForm::Standard) };
+        let mut id = KalmanIdentifier::<f64, 4, 2>::from_slices(&rows, &[p0], &r, drift).unwrap();
+        let taken = id.update_into(x.as_slice(), z.as_slice(), &[], &mut e);
+        assert!(taken.is_ok(), "sample {n}: refused with drift: {taken:?}");
+        assert!(covariance8(&id).1, "sample {n}: taken, and the covariance has no Cholesky factor");
+        let mut plain =
+            KalmanIdentifier::<f64, 4, 2>::from_slices(&rows, &[p0], &r, opts(CovarianceForm::Standard)).unwrap();
+        refused_without += usize::from(plain.update_into(x.as_slice(), z.as_slice(), &[], &mut e).is_err());
+    }
+    assert!(refused_without > 0, "without drift no sample of 200 was refused: the case never arose");
 }

@@ -432,3 +432,44 @@ fn compensation_acts_only_where_a_parameter_multiplies_a_derivative() {
     assert_ne!(ta, tb, "M, J unknown: compensation should change the estimate");
     assert!(pa.is_none() && pb.is_some());
 }
+
+/// The direct front wheel equation is used exactly when `direct_front` is set: before the
+/// first pair of samples one wheelbase apart (the first `d` samples, no cancelled equation
+/// yet) nothing else informs the wheel group, so with `direct_front: false` its parameters
+/// stay at the prior (`p0` 1000: zero) bit for bit, and with `direct_front: true` they move;
+/// the other groups move either way.
+#[test]
+fn the_direct_front_equation_is_used_exactly_when_set() {
+    for direct_front in [false, true] {
+        let cfg = TwoAxleStructuredConfig {
+            p0: Some(1000.0),
+            direct_front,
+            ..TwoAxleStructuredConfig::new(ROAD_SIGMA, DERIV_NOISE)
+        };
+        let mut id = physical(cfg);
+        let mut sim = road_sim(5);
+        let mut e = [0.0; 4];
+        for _ in 0..D {
+            let s = sim.next_sample(SPEED).unwrap();
+            id.update_into(s.r.as_slice(), s.z.as_slice(), &[], &mut e).unwrap();
+        }
+        assert_eq!(id.paired(), 0);
+        let (front, _) = id.wheel_equations();
+        let np = id.dims().params;
+        let (mut of_param, mut of_eq) = (vec![0usize; np], vec![0usize; id.dims().equations]);
+        id.groups_into(&mut of_param, &mut of_eq).unwrap();
+        let mut theta = vec![0.0; np];
+        id.params_into(&mut theta).unwrap();
+        let wheel = of_eq[front];
+        let (ours, others): (Vec<_>, Vec<_>) = (0..np).partition(|&j| of_param[j] == wheel);
+        assert!(!ours.is_empty() && !others.is_empty());
+        let moved = |js: &[usize]| js.iter().any(|&j| theta[j] != 0.0);
+        assert_eq!(
+            moved(&ours),
+            direct_front,
+            "direct_front {direct_front}: the wheel group {:?}",
+            ours.iter().map(|&j| theta[j]).collect::<Vec<_>>()
+        );
+        assert!(moved(&others), "direct_front {direct_front}: the other groups never moved");
+    }
+}

@@ -425,3 +425,45 @@ fn model_instruments_in_f32() {
     assert!(rel_err(&th64) < 0.05, "{th:?}");
     assert!(id.adopted() > 0);
 }
+
+/// (d) The auxiliary model's stability test (run on `theta_aux` at construction and on every
+/// candidate later) judges the dynamics whatever the number of measured inputs: the rig's
+/// spring and damper driven by one, two and three forces, each with its own gain, take a
+/// damped `theta_aux` (b = 2.5) and refuse one with negative damping (b = −0.5), naming
+/// `theta_aux`.
+#[test]
+fn the_stability_test_holds_for_any_number_of_inputs() {
+    fn check<const P: usize>(inputs: &[&str]) {
+        let drive: Vec<String> = inputs.iter().enumerate().map(|(i, f)| format!("g{i}*{f}")).collect();
+        let (s, names) = StructureBuilder::new(&["q", "v"], inputs)
+            .equation("v", &format!("{} - k*q - b*v", drive.join(" + ")))
+            .known("q", "v")
+            .build::<f64>()
+            .unwrap();
+        assert_eq!(names.params.len(), P);
+        let theta = |b: f64| -> Vec<f64> {
+            names
+                .params
+                .iter()
+                .map(|p| {
+                    if p == "k" {
+                        40.0
+                    } else if p == "b" {
+                        b
+                    } else {
+                        1.0
+                    }
+                })
+                .collect()
+        };
+        let make =
+            |t: &[f64]| IvIdentifier::<f64, P, 1>::exact(s, 1).unwrap().with_model_instruments(DT, 1, 10, Some(t));
+        let n = inputs.len();
+        assert!(make(&theta(2.5)).is_ok(), "{n} inputs: a damped model refused");
+        let err = make(&theta(-0.5));
+        assert!(matches!(err, Err(Error::InvalidArgument { arg: "theta_aux", .. })), "{n} inputs: {:?}", err.err());
+    }
+    check::<3>(&["F"]);
+    check::<4>(&["F", "G"]);
+    check::<5>(&["F", "G", "H"]);
+}

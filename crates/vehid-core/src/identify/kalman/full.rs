@@ -259,21 +259,33 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
         (0..k).fold(T::zero(), |a, i| a + self.p.flat()[i * k + i].trace())
     }
 
-    /// Arithmetic per update and size: `c_ij = P_ij x` (K² N² mul), `S` (K(K+1)/2 · N),
-    /// Cholesky of `S` and `K·N` triangular solves (about K³/3 + K²N mul), `θ` (K² N) and
-    /// the upper blocks of `P` (K(K+1)/2 · K N² mul). Counted to leading order.
+    /// Arithmetic per update and size: an operation count of one update for K
+    /// rows and N states, on the path every sample takes (no outlier gate, no
+    /// reinitialization, no definiteness check of a risky sample; the overflow bound on the
+    /// step is a check, not counted), each formula counted as written: a sum of n terms is
+    /// n − 1 additions, a subtraction is an addition.
+    ///
+    /// | step | multiplications | additions | divisions | square roots |
+    /// |---|---|---|---|---|
+    /// | `e_i = z_i − θ_iᵀx` | K N | K N | | |
+    /// | `C_ij = P_ij x`, K² blocks | K² N² | K² N(N−1) | | |
+    /// | `S_ij = xᵀC_ij + R_ij`, j ≤ i | K(K+1)/2 · N | K(K+1)/2 · N | | |
+    /// | Cholesky of the K × K `S` | K(K²−1)/6 | K(K²−1)/6 | K(K−1)/2 | K |
+    /// | `W = C S⁻¹`: K N solves with the factor | K²(K−1) N | K²(K−1) N | 2 K² N | |
+    /// | `θ_i += Σ_l W_il e_l` | K² N | K² N | | |
+    /// | `P_ij −= Σ_l W_il C_jlᵀ`, j ≥ i | K(K+1)/2 · K N² | K(K+1)/2 · K N² | | |
+    /// | the diagonal blocks symmetrized, `(a + b)/2` | K N(N−1)/2 | K N(N−1)/2 | | |
     pub fn cost(&self) -> Cost {
         let k = self.rows.flat().len();
-        let mul = k * k * N * N
-            + k * (k + 1) / 2 * N
-            + k * k * k / 3
-            + 2 * k * k * N
-            + k * k * N
-            + k * (k + 1) / 2 * k * N * N;
+        let blocks = k * (k + 1) / 2;
+        let chol = (k * k * k - k) / 6;
+        let solves = (k * k * k - k * k) * N;
+        let sym = k * (N * N - N) / 2;
+        let common = k * N + blocks * N + chol + solves + k * k * N + blocks * k * N * N + sym;
         Cost {
-            multiplications: mul,
-            additions: mul,
-            divisions: k * N * 2 + k,
+            multiplications: common + k * k * N * N,
+            additions: common + k * k * (N * N - N),
+            divisions: (k * k - k) / 2 + 2 * k * k * N,
             square_roots: k,
             bytes: core::mem::size_of_val(self) + self.p.heap_bytes() + self.c.heap_bytes() + self.w.heap_bytes(),
         }
