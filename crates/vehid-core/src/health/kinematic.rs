@@ -50,20 +50,7 @@ impl<T: Real> DeflectionFilter<T> {
         check_nonneg("accel_noise", accel_noise)?;
         check_positive("deflection_noise", deflection_noise)?;
         check_nonneg("bias_walk", bias_walk)?;
-        let (h, sa, sd, qb) = (dt.to_f64(), accel_noise.to_f64(), deflection_noise.to_f64(), bias_walk.to_f64());
-        #[rustfmt::skip]
-        let f = SMatrix::<f64, 3, 3>::new(
-            1.0, h, -h * h / 2.0,
-            0.0, 1.0, -h,
-            0.0, 0.0, 1.0,
-        );
-        let g = SVector::<f64, 3>::new(h * h / 2.0, h, 0.0);
-        let mut q = g * g.transpose() * (sa * sa);
-        q[(2, 2)] += qb * qb * h;
-        // A tiny floor keeps the recursion positive definite when every noise is zero.
-        for i in 0..3 {
-            q[(i, i)] += 1e-30;
-        }
+        let (sd, (f, q)) = (deflection_noise.to_f64(), model(dt, accel_noise, bias_walk));
         let r = sd * sd;
         let mut p = SMatrix::<f64, 3, 3>::identity() * (1e3 * r);
         let mut k = SVector::<f64, 3>::zeros();
@@ -126,14 +113,8 @@ impl<T: Real> DeflectionFilter<T> {
     /// the deflection disagrees with the integrated accelerations (a seam or a glitch).
     #[inline]
     pub fn update_gated(&mut self, d: T, a: T, gate: T) -> Option<(T, T)> {
-        if self.started {
-            let h = self.dt;
-            let [d0, v0, b0] = self.s;
-            let dp =
-                d0 + h * v0 + h * h * (self.prev_a * T::of(1.0 / 3.0) + a * T::of(1.0 / 6.0)) - h * h * T::of(0.5) * b0;
-            if (d - dp).abs() > gate * self.innov_sd {
-                return None;
-            }
+        if self.started && (d - self.predict(a).0).abs() > gate * self.innov_sd {
+            return None;
         }
         Some(self.update(d, a))
     }
@@ -149,18 +130,47 @@ impl<T: Real> DeflectionFilter<T> {
             self.started = true;
             return (self.s[0], self.s[1]);
         }
-        let h = self.dt;
-        let [d0, v0, b0] = self.s;
-        let third = T::of(1.0 / 3.0);
-        let sixth = T::of(1.0 / 6.0);
-        let half = T::of(0.5);
-        let dp = d0 + h * v0 + h * h * (self.prev_a * third + a * sixth) - h * h * half * b0;
-        let vp = v0 + h * (self.prev_a + a) * half - h * b0;
+        let (dp, vp) = self.predict(a);
+        let b0 = self.s[2];
         let nu = d - dp;
         self.s = [dp + self.gain[0] * nu, vp + self.gain[1] * nu, b0 + self.gain[2] * nu];
         self.prev_a = a;
         (self.s[0], self.s[1])
     }
+
+    /// The prediction `(d⁻, ḋ⁻)` from the estimate and the relative accelerations `prev_a`
+    /// and `a` (linear between the samples): `d⁻ = d + h ḋ + h² (a_{k−1}/3 + a_k/6) − h² β/2`,
+    /// `ḋ⁻ = ḋ + h (a_{k−1} + a_k)/2 − h β`.
+    #[inline(always)]
+    fn predict(&self, a: T) -> (T, T) {
+        let h = self.dt;
+        let [d0, v0, b0] = self.s;
+        let half = T::of(0.5);
+        let dp = d0 + h * v0 + h * h * (self.prev_a * T::of(1.0 / 3.0) + a * T::of(1.0 / 6.0)) - h * h * half * b0;
+        let vp = v0 + h * (self.prev_a + a) * half - h * b0;
+        (dp, vp)
+    }
+}
+
+/// The filter's model for samples every `dt` seconds (f64, for the Riccati recursions): the
+/// transition `F` of `[d, ḋ, β]` and the process noise `Q` of the relative acceleration's
+/// noise `accel_noise` (through `g = [h²/2, h, 0]`) and the bias walk `bias_walk`, with a tiny
+/// floor that keeps the recursion positive definite when every noise is zero.
+fn model<T: Real>(dt: T, accel_noise: T, bias_walk: T) -> (SMatrix<f64, 3, 3>, SMatrix<f64, 3, 3>) {
+    let (h, sa, qb) = (dt.to_f64(), accel_noise.to_f64(), bias_walk.to_f64());
+    #[rustfmt::skip]
+    let f = SMatrix::<f64, 3, 3>::new(
+        1.0, h, -h * h / 2.0,
+        0.0, 1.0, -h,
+        0.0, 0.0, 1.0,
+    );
+    let g = SVector::<f64, 3>::new(h * h / 2.0, h, 0.0);
+    let mut q = g * g.transpose() * (sa * sa);
+    q[(2, 2)] += qb * qb * h;
+    for i in 0..3 {
+        q[(i, i)] += 1e-30;
+    }
+    (f, q)
 }
 
 /// The steady-state gain of [`DeflectionFilter`]'s state `[d, ḋ, β]` when the deflection
@@ -196,20 +206,7 @@ impl<T: Real> RateGain<T> {
         check_positive("deflection_noise", deflection_noise)?;
         check_positive("rate_noise", rate_noise)?;
         check_nonneg("bias_walk", bias_walk)?;
-        let (h, sa, sd, sv, qb) =
-            (dt.to_f64(), accel_noise.to_f64(), deflection_noise.to_f64(), rate_noise.to_f64(), bias_walk.to_f64());
-        #[rustfmt::skip]
-        let f = SMatrix::<f64, 3, 3>::new(
-            1.0, h, -h * h / 2.0,
-            0.0, 1.0, -h,
-            0.0, 0.0, 1.0,
-        );
-        let g = SVector::<f64, 3>::new(h * h / 2.0, h, 0.0);
-        let mut q = g * g.transpose() * (sa * sa);
-        q[(2, 2)] += qb * qb * h;
-        for i in 0..3 {
-            q[(i, i)] += 1e-30;
-        }
+        let (sd, sv, (f, q)) = (deflection_noise.to_f64(), rate_noise.to_f64(), model(dt, accel_noise, bias_walk));
         let mut p = SMatrix::<f64, 3, 3>::identity() * (1e3 * (sd * sd + sv * sv));
         let mut k = SMatrix::<f64, 3, 2>::zeros();
         let mut innov = sd * sd;
@@ -286,11 +283,8 @@ impl<T: Real> DeflectionFilter<T> {
             self.started = true;
             return Some((d, rate));
         }
-        let h = self.dt;
-        let [d0, v0, b0] = self.s;
-        let half = T::of(0.5);
-        let dp = d0 + h * v0 + h * h * (self.prev_a * T::of(1.0 / 3.0) + a * T::of(1.0 / 6.0)) - h * h * half * b0;
-        let vp = v0 + h * (self.prev_a + a) * half - h * b0;
+        let (dp, vp) = self.predict(a);
+        let b0 = self.s[2];
         let (nu, nv) = (d - dp, rate - vp);
         if nu.abs() > gate * gain.innov_sd {
             return None;
