@@ -1,10 +1,19 @@
 """Shared test helpers."""
 
+import signal
 import threading
 import time
 from typing import Callable
 
 import pytest
+
+# A shell starts a background job (`make test &`, `nohup ... &`) with SIGINT ignored, Python
+# then installs no KeyboardInterrupt handler, and the children it starts inherit the ignored
+# signal: every Ctrl-C test (test_reliability.py, test_cli_failures.py) would fail for the way
+# the suite was launched. Restored here, in the controller and in every xdist worker, so that
+# they test the code and not the launching shell.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def _assert_releases_gil(call: Callable[[], None], calls: int) -> None:
