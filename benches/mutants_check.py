@@ -35,6 +35,7 @@ from typing import Dict, List, Tuple
 
 ROOT = Path(__file__).resolve().parents[1]
 ACCEPTED = ROOT / "benches" / "mutants_accepted.txt"
+DEFAULT_FILE = "crates/vehid-core/src/identify/**"
 
 
 def accepted() -> Dict[str, str]:
@@ -86,7 +87,7 @@ def outcomes(out_dir: Path) -> List[Tuple[str, str]]:
 
 def main(argv: List[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--file", default="crates/vehid-core/src/identify/**", help="files to mutate (a glob)")
+    ap.add_argument("--file", default=DEFAULT_FILE, help="files to mutate (a glob)")
     ap.add_argument("--shard", default="1/40", help="K/N: every N-th mutant, from the K-th (0-based K < N)")
     ap.add_argument("--jobs", default="1", help="cargo-mutants jobs (each builds on both cores)")
     ap.add_argument("--report-only", action="store_true", help="only read the last run's outcomes")
@@ -96,6 +97,11 @@ def main(argv: List[str] | None = None) -> int:
     if not re.fullmatch(r"\d+/\d+", args.shard):
         raise SystemExit(f"mutants: --shard {args.shard!r}: expected K/N, e.g. 1/40")
     out_dir = ROOT / "target" / "mutants" / args.shard.replace("/", "-of-")
+    if args.file != DEFAULT_FILE:
+        # Another file set's shard K/N is another sample: its own directory, named after the
+        # glob (model/** 0/50: target/mutants/crates_vehid_core_src_model-0-of-50).
+        glob = re.sub(r"[^A-Za-z0-9]+", "_", args.file).strip("_")
+        out_dir = out_dir.with_name(f"{glob}-{out_dir.name}")
     if not args.report_only:
         out_dir.mkdir(parents=True, exist_ok=True)
         cmd = ["cargo", "mutants", "-p", "vehid-core", "--file", args.file, "--shard", args.shard,
