@@ -166,3 +166,37 @@ fn f32_models_build() {
     let half = HalfCar::<f32>::thesis();
     assert!((half.theta()[(3, 7)] + (60.0 * 4.0 + 60.0) / 60.0).abs() < 1e-5);
 }
+
+/// `a_hat` puts `θ` (row-major, one unknown row of `A` after another) into the unknown rows
+/// and keeps the known ones: the true rows give `A` back exactly, a changed entry moves only
+/// its own place, and a `θ` of the wrong length or with a NaN is refused (issue 18: the
+/// length check's `k · N` survived mutation, nothing in Rust called `a_hat`).
+#[test]
+fn a_hat_fills_the_unknown_rows_row_major() {
+    fn check<const N: usize, const M: usize>(model: &LinearModel<f64, N, M>) {
+        let rows = model.unknown_rows();
+        let k = rows.len();
+        let theta: Vec<f64> = rows.as_slice().iter().flat_map(|&r| (0..N).map(move |j| model.a()[(r, j)])).collect();
+        assert_eq!(theta.len(), k * N);
+        assert_eq!(model.a_hat(&theta).unwrap(), *model.a(), "the true rows give A back");
+        for (i, &r) in rows.as_slice().iter().enumerate() {
+            for j in 0..N {
+                let mut t = theta.clone();
+                t[i * N + j] += 1.5;
+                let got = model.a_hat(&t).unwrap();
+                let mut want = *model.a();
+                want[(r, j)] += 1.5;
+                assert_eq!(got, want, "θ[{}] is A[({r}, {j})]", i * N + j);
+            }
+        }
+        for bad in [k * N - 1, k * N + 1, N, 0] {
+            let err = model.a_hat(&vec![0.0; bad]).unwrap_err();
+            assert_eq!(err, Error::Shape { arg: "theta", expected: k * N, got: bad });
+        }
+        let mut t = theta.clone();
+        t[k * N - 1] = f64::NAN;
+        assert!(matches!(model.a_hat(&t), Err(Error::NonFinite { .. })));
+    }
+    check(&QuarterCar::<f64>::thesis().model());
+    check(&HalfCar::<f64>::thesis().model());
+}

@@ -253,3 +253,17 @@ fn road_bad_configs() {
     assert!(matches!(mk(0.3, f64::NAN), Some(Error::InvalidArgument { arg: "wheelbase", .. })));
     assert!(mk(0.3, 3.0).is_none());
 }
+
+/// `k()` is the index of the next sample: 0 before the first, one more after each (issue 18:
+/// `Simulator::k` returning a constant survived mutation; the tests compared it only with
+/// itself).
+#[test]
+fn the_sample_index_counts_the_samples_drawn() {
+    let mut sim = quarter_sim(3, SimConfig::new(0.05).road_sigma(0.1));
+    for i in 0..7u64 {
+        assert_eq!(sim.k(), i);
+        let _ = sim.next_sample();
+    }
+    let _ = sim.run(5);
+    assert_eq!(sim.k(), 12);
+}
