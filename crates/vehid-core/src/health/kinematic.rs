@@ -52,30 +52,12 @@ impl<T: Real> DeflectionFilter<T> {
         check_nonneg("bias_walk", bias_walk)?;
         let (sd, (f, q)) = (deflection_noise.to_f64(), model(dt, accel_noise, bias_walk));
         let r = sd * sd;
-        let mut p = SMatrix::<f64, 3, 3>::identity() * (1e3 * r);
-        let mut k = SVector::<f64, 3>::zeros();
-        let mut innov = r;
-        let mut settled = false;
-        for _ in 0..2_000_000 {
+        let (k, innov) = settle::<1>(SMatrix::<f64, 3, 3>::identity() * (1e3 * r), |p| {
             let pm = f * p * f.transpose() + q;
-            innov = pm[(0, 0)] + r;
+            let innov = pm[(0, 0)] + r;
             let kn = pm.column(0) / innov;
-            let mut pn = pm - kn * pm.row(0);
-            pn = (pn + pn.transpose()) * 0.5;
-            let change = (kn - k).abs().max();
-            k = kn;
-            p = pn;
-            if change <= 1e-13 * (1.0 + k.abs().max()) {
-                settled = true;
-                break;
-            }
-        }
-        if !settled || k.iter().any(|v| !v.is_finite()) {
-            return Err(Error::InvalidArgument {
-                arg: "bias_walk",
-                expected: "noise levels for which the deflection filter's gain settles (a positive bias_walk)",
-            });
-        }
+            Some((pm - kn * pm.row(0), kn, innov))
+        })?;
         Ok(Self {
             dt,
             gain: [T::of(k[0]), T::of(k[1]), T::of(k[2])],
@@ -152,6 +134,37 @@ impl<T: Real> DeflectionFilter<T> {
     }
 }
 
+/// The steady state of a Riccati recursion from `p0`: `step(P)` returns the next `P` (before
+/// symmetrization), the gain `K` (`3 × C`) and the deflection's innovation variance, or `None`
+/// when the innovation covariance is not positive definite. Iterates (at most 2·10⁶ times)
+/// until no gain entry changes by more than `10⁻¹³ (1 + max |K|)`; returns `K` and that
+/// variance.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] (`bias_walk`) when the recursion does not settle or its gain is
+/// not finite.
+fn settle<const C: usize>(
+    p0: SMatrix<f64, 3, 3>,
+    step: impl Fn(&SMatrix<f64, 3, 3>) -> Option<(SMatrix<f64, 3, 3>, SMatrix<f64, 3, C>, f64)>,
+) -> Result<(SMatrix<f64, 3, C>, f64)> {
+    let (mut p, mut k) = (p0, SMatrix::<f64, 3, C>::zeros());
+    for _ in 0..2_000_000 {
+        let Some((pn, kn, innov)) = step(&p) else { break };
+        let change = (kn - k).abs().max();
+        (p, k) = ((pn + pn.transpose()) * 0.5, kn);
+        if change <= 1e-13 * (1.0 + k.abs().max()) {
+            if k.iter().all(|v| v.is_finite()) {
+                return Ok((k, innov));
+            }
+            break;
+        }
+    }
+    Err(Error::InvalidArgument {
+        arg: "bias_walk",
+        expected: "noise levels for which the deflection filter's gain settles (a positive bias_walk)",
+    })
+}
+
 /// The filter's model for samples every `dt` seconds (f64, for the Riccati recursions): the
 /// transition `F` of `[d, ḋ, β]` and the process noise `Q` of the relative acceleration's
 /// noise `accel_noise` (through `g = [h²/2, h, 0]`) and the bias walk `bias_walk`, with a tiny
@@ -207,17 +220,13 @@ impl<T: Real> RateGain<T> {
         check_positive("rate_noise", rate_noise)?;
         check_nonneg("bias_walk", bias_walk)?;
         let (sd, sv, (f, q)) = (deflection_noise.to_f64(), rate_noise.to_f64(), model(dt, accel_noise, bias_walk));
-        let mut p = SMatrix::<f64, 3, 3>::identity() * (1e3 * (sd * sd + sv * sv));
-        let mut k = SMatrix::<f64, 3, 2>::zeros();
-        let mut innov = sd * sd;
-        let mut settled = false;
-        for _ in 0..2_000_000 {
+        let (k, innov) = settle::<2>(SMatrix::<f64, 3, 3>::identity() * (1e3 * (sd * sd + sv * sv)), |p| {
             let pm = f * p * f.transpose() + q;
             // S = h P⁻ hᵀ + R: the upper-left 2 × 2 block plus the noise; its inverse by hand.
             let (s00, s01, s11) = (pm[(0, 0)] + sd * sd, pm[(0, 1)], pm[(1, 1)] + sv * sv);
             let det = s00 * s11 - s01 * s01;
             if !(det > 0.0) {
-                break;
+                return None;
             }
             let (i00, i01, i11) = (s11 / det, -s01 / det, s00 / det);
             let mut kn = SMatrix::<f64, 3, 2>::zeros();
@@ -231,22 +240,8 @@ impl<T: Real> RateGain<T> {
                     pn[(r, c)] = pm[(r, c)] - kn[(r, 0)] * pm[(0, c)] - kn[(r, 1)] * pm[(1, c)];
                 }
             }
-            pn = (pn + pn.transpose()) * 0.5;
-            let change = (kn - k).abs().max();
-            k = kn;
-            p = pn;
-            innov = s00;
-            if change <= 1e-13 * (1.0 + k.abs().max()) {
-                settled = true;
-                break;
-            }
-        }
-        if !settled || k.iter().any(|v| !v.is_finite()) {
-            return Err(Error::InvalidArgument {
-                arg: "bias_walk",
-                expected: "noise levels for which the deflection filter's gain settles (a positive bias_walk)",
-            });
-        }
+            Some((pn, kn, s00))
+        })?;
         let gain = core::array::from_fn(|r| [T::of(k[(r, 0)]), T::of(k[(r, 1)])]);
         Ok(Self { gain, innov_sd: T::of(libm::sqrt(innov)) })
     }
