@@ -282,21 +282,7 @@ fn a_saved_monitor_continues_bit_for_bit_and_a_corrupt_one_is_refused() {
     let cfg = DriveConfig::new(0.005).with_change(Change::step(40.0, "b", 1350.0).unwrap()).unwrap();
     let mut drive = QuarterDrive::new(car, cfg, 9301).unwrap();
     let mut mon = HealthMonitor::new(HealthConfig::new(0.005, car)).unwrap();
-    for _ in 0..(30.0 / 0.005) as usize {
-        assert_eq!(mon.update(drive.next_sample().y()).unwrap(), None);
-    }
-    let bytes = postcard::to_allocvec(&mon).unwrap();
-    let mut back: HealthMonitor<f64> = postcard::from_bytes(&bytes).unwrap();
-    assert_eq!(back, mon);
-    let (mut a, mut b) = (Vec::new(), Vec::new());
-    for _ in 0..(40.0 / 0.005) as usize {
-        let s = drive.next_sample();
-        a.extend(mon.update(s.y()).unwrap());
-        b.extend(back.update(s.y()).unwrap());
-    }
-    assert_eq!(a.len(), 1, "{a:?}");
-    assert_eq!(a, b);
-    assert_eq!(back, mon);
+    saved_continues(&mut mon, &mut drive, 40.0);
     // A corrupt delay-line index or settings are a serde error, not a panic later (JSON, to
     // edit one field).
     let text = serde_json::to_string(&mon).unwrap();
@@ -439,21 +425,29 @@ fn a_saved_state_sensor_monitor_continues_bit_for_bit() {
     let mut drive = QuarterDrive::new(car, cfg, 9603).unwrap();
     let hc = HealthConfig::new(0.005, car).with_sensors(SensorSet::State, &state_noise_8());
     let mut mon = HealthMonitor::new(hc).unwrap();
+    saved_continues(&mut mon, &mut drive, 30.0);
+}
+
+/// Runs `mon` on 30 s of `drive` without an event, saves and restores it (postcard; equal to
+/// the original), feeds both the next `after` seconds: the same single event and the same
+/// state at the end, bit for bit.
+#[cfg(feature = "serde")]
+fn saved_continues(mon: &mut HealthMonitor<f64>, drive: &mut QuarterDrive<f64>, after: f64) {
     for _ in 0..(30.0 / 0.005) as usize {
         assert_eq!(mon.update(drive.next_sample().y()).unwrap(), None);
     }
-    let bytes = postcard::to_allocvec(&mon).unwrap();
+    let bytes = postcard::to_allocvec(&*mon).unwrap();
     let mut back: HealthMonitor<f64> = postcard::from_bytes(&bytes).unwrap();
-    assert_eq!(back, mon);
+    assert_eq!(back, *mon);
     let (mut a, mut b) = (Vec::new(), Vec::new());
-    for _ in 0..(30.0 / 0.005) as usize {
+    for _ in 0..(after / 0.005) as usize {
         let s = drive.next_sample();
         a.extend(mon.update(s.y()).unwrap());
         b.extend(back.update(s.y()).unwrap());
     }
     assert_eq!(a.len(), 1, "{a:?}");
     assert_eq!(a, b);
-    assert_eq!(back, mon);
+    assert_eq!(back, *mon);
 }
 
 #[test]
