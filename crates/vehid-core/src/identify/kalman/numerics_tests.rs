@@ -610,3 +610,116 @@ fn reset_covariance_continues_as_a_fresh_filter_from_the_estimate() {
     assert!(matches!(id.reset_covariance(1.0), Err(Error::Unsupported { .. })));
     assert_eq!((0..2).map(|i| id.filter(i)).collect::<Vec<_>>(), copy);
 }
+
+/// Three rows of a random regression (`z_0, z_1, z_3`), Gaussian noise of `σ = 0.2`, and
+/// every 37th sample's rows displaced by 40 σ (`z_1` up, `z_3` down): outliers for the gate
+/// and the Huber weights to act on.
+fn regression_with_outliers(seed: u64, n: usize) -> Vec<(V4, V4)> {
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
+    let mut g = || -> f64 { StandardNormal.sample(&mut rng) };
+    let th = [V4::from_fn(|_, _| g()), V4::from_fn(|_, _| g()), V4::from_fn(|_, _| g())];
+    (0..n)
+        .map(|k| {
+            let x = V4::from_fn(|j, _| g() * [1.0, 2.0, 0.5, 1.0][j]);
+            let mut z = V4::zeros();
+            for (t, row) in th.iter().zip([0, 1, 3]) {
+                z[row] = x.dot(t) + 0.2 * g();
+            }
+            if k % 37 == 36 {
+                z[1] += 8.0;
+                z[3] -= 8.0;
+            }
+            (x, z)
+        })
+        .collect()
+}
+
+#[test]
+fn lanes_equal_the_reference_row_filter_with_every_option() {
+    // The lanes (three rows: a group of two and one with a padding lane) against the
+    // single-row reference, over every form, the tracking options (exponential and directional
+    // forgetting, drift, both, the automatic and a given trace bound), the screens (gate,
+    // Huber, both, neither) and both starts (prior and exact), on data with outliers: the
+    // estimates, covariances, residual statistics and gated counts agree to rounding, so an
+    // option that one of the two applies differently, or in one form only, shows.
+    let data = regression_with_outliers(41, 1500);
+    let rows = [0usize, 1, 3];
+    let r = [0.04, 0.05, 0.03];
+    let forms = [CovarianceForm::Standard, CovarianceForm::Joseph, CovarianceForm::Sqrt];
+    let tracking = [
+        (1.0, 0.0, false, 0.0),
+        (0.995, 0.0, false, 0.0),
+        (0.99, 0.0, true, 0.0),
+        (1.0, 1e-5, false, 40.0),
+        (0.995, 1e-6, true, 40.0),
+    ];
+    let screens = [(0.0, 0.0), (4.0, 0.0), (0.0, 1.345), (4.0, 2.0)];
+    let mut gated_somewhere = false;
+    for form in forms {
+        for (lambda, q, directional, cap) in tracking {
+            for (gate, huber) in screens {
+                for exact in [false, true] {
+                    let opts = KalmanOptions {
+                        form,
+                        forgetting: lambda,
+                        directional,
+                        drift: q,
+                        max_trace: cap,
+                        gate,
+                        huber,
+                        ..Default::default()
+                    };
+                    let what = format!(
+                        "{form:?} λ {lambda} q {q} dir {directional} cap {cap} gate {gate} huber {huber} exact {exact}"
+                    );
+                    let mut lanes = if exact {
+                        KalmanRows::<f64, 4, Fixed<3>>::exact(&rows, &r, opts)
+                    } else {
+                        KalmanRows::<f64, 4, Fixed<3>>::from_slices(&rows, &[10.0], &r, opts)
+                    }
+                    .unwrap();
+                    let mut refs = r.map(|ri| {
+                        let f = if exact { RowIdentifier::<f64, 4>::exact(ri) } else { RowIdentifier::new(10.0, ri) };
+                        f.unwrap().configured(form, &opts).unwrap()
+                    });
+                    for (k, (x, z)) in data.iter().enumerate() {
+                        lanes.update(x, z).unwrap();
+                        for (f, &row) in refs.iter_mut().zip(&rows) {
+                            f.update(x, z[row]).unwrap();
+                        }
+                        if k == 2 {
+                            // The exact start is still absorbing: both say so alike.
+                            for (i, f) in refs.iter().enumerate() {
+                                assert_eq!(lanes.filter(i).starting(), f.starting(), "{what}");
+                                assert_eq!(lanes.filter(i).start_rank(), f.start_rank(), "{what}");
+                            }
+                        }
+                    }
+                    assert_eq!(lanes.samples(), data.len() as u64, "{what}");
+                    for (i, f) in refs.iter().enumerate() {
+                        let l = lanes.filter(i);
+                        let d = rel_diff(l.theta().as_slice(), f.theta().as_slice());
+                        assert!(d < 1e-9, "{what}, row {i}: θ differs by {d:e}");
+                        let d = rel_diff(l.p().as_slice(), f.p().as_slice());
+                        assert!(d < 1e-7, "{what}, row {i}: P differs by {d:e}");
+                        assert!((l.trace() - f.trace()).abs() <= 1e-7 * f.trace(), "{what}, row {i}: trace");
+                        assert!((l.ssr() - f.ssr()).abs() <= 1e-8 * f.ssr(), "{what}, row {i}: ssr");
+                        assert!((l.nobs() - f.nobs()).abs() <= 1e-9 * f.nobs(), "{what}, row {i}: nobs");
+                        let (a, b) = (l.innovation_var(), f.innovation_var());
+                        assert!((a - b).abs() <= 1e-7 * b.abs(), "{what}, row {i}: innovation variance {a} vs {b}");
+                        assert_eq!(l.gated(), f.gated(), "{what}, row {i}: gated");
+                        assert_eq!(l.forgetting(), f.forgetting(), "{what}, row {i}");
+                        assert_eq!(l.form(), form, "{what}, row {i}");
+                        gated_somewhere |= l.gated() > 0;
+                        if gate > 0.0 && i > 0 {
+                            assert!(l.gated() > 0, "{what}, row {i}: the outliers are gated");
+                        }
+                    }
+                    let sum: f64 = refs.iter().map(|f| f.trace()).sum();
+                    assert!((lanes.trace() - sum).abs() <= 1e-7 * sum, "{what}: tr P = Σ tr P_i");
+                }
+            }
+        }
+    }
+    assert!(gated_somewhere);
+}

@@ -384,6 +384,9 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
             CovarianceForm::Sqrt => next.step_ud(x, e, track)?,
             _ => next.step_p(x, e, track)?,
         }
+        // A gated sample leaves the row unchanged (`KalmanOptions::gate`): no forgetting, no
+        // drift, as in the lanes of `KalmanRows` (only its count and statistics move).
+        let track = track && next.gated == self.gated;
         if track && !self.directional && self.lambda < T::one() {
             next.forget_exponentially();
         }
