@@ -335,6 +335,10 @@ pub trait RowGroup<T: Real, const N: usize>: Copy + core::fmt::Debug + PartialEq
     fn apply_sqrt(&mut self, sc: &Self::SqrtScratch);
     /// `true` when the used lanes hold exactly `rows` (their indices into `z`), in order.
     fn lanes_are(&self, rows: &[usize]) -> bool;
+    /// `true` when a plan leaves its sample out of a lane as an outlier (the gate).
+    fn gates(sc: &Self::Scratch) -> bool;
+    /// [`RowGroup::gates`] for a plan of the square-root form.
+    fn gates_sqrt(sc: &Self::SqrtScratch) -> bool;
 }
 
 impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
@@ -1011,6 +1015,15 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
 
     fn lanes_are(&self, rows: &[usize]) -> bool {
         self.used == rows.len() && self.zrow.get(..self.used) == Some(rows)
+    }
+
+    fn gates(sc: &Self::Scratch) -> bool {
+        // Padding is never gated.
+        sc.gated.iter().any(|g| *g != T::zero())
+    }
+
+    fn gates_sqrt(sc: &Self::SqrtScratch) -> bool {
+        Self::gates(&sc.base)
     }
 
     #[cold]

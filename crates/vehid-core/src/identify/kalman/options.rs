@@ -52,7 +52,9 @@ option_names!(Mode, "mode", { Rows => "rows", Shared => "shared", Full => "full"
 pub struct KalmanOptions<T> {
     /// Covariance update form.
     pub form: CovarianceForm,
-    /// Apply the reinitialization rule of Eq 4.36.
+    /// Apply the reinitialization rule of Eq 4.36. A sample the outlier gate
+    /// ([`KalmanOptions::gate`]) leaves out, on any row, reinitializes nothing: an outlier is
+    /// not a change of the dynamics (every mode alike).
     pub reinit: bool,
     /// `rows` form only: a row stops updating once `tr P_i` falls below this value
     /// (0 = never). A reinitialization brings retired rows back.

@@ -332,7 +332,8 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
                 return self.settle(x, z, e);
             }
             grp.apply::<MODE>(x, &sc);
-            return self.accepted(e);
+            let gated = const { MODE == GENERAL } && self.opts.reinit && S::Group::gates(&sc);
+            return self.accepted(e, gated);
         }
         let scratch = self.scratch.flat_mut();
         for (g, (grp, sc)) in groups.iter().zip(scratch.iter_mut()).enumerate() {
@@ -346,7 +347,8 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         for (grp, sc) in groups.iter_mut().zip(scratch.iter()) {
             grp.apply::<MODE>(x, sc);
         }
-        self.accepted(e)
+        let gated = const { MODE == GENERAL } && self.opts.reinit && scratch.iter().any(S::Group::gates);
+        self.accepted(e, gated)
     }
 
     /// A sample the fast path of [`Self::step`] did not accept at once (the standard and
@@ -367,7 +369,8 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
                 return Err(OVERFLOW);
             }
             grp.apply::<GENERAL>(x, &sc);
-            return self.accepted(e);
+            let gated = self.opts.reinit && S::Group::gates(&sc);
+            return self.accepted(e, gated);
         }
         let scratch = self.scratch.flat_mut();
         for (g, (grp, sc)) in groups.iter().zip(scratch.iter_mut()).enumerate() {
@@ -384,7 +387,8 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         for (grp, sc) in groups.iter_mut().zip(scratch.iter()) {
             grp.apply::<GENERAL>(x, sc);
         }
-        self.accepted(e)
+        let gated = self.opts.reinit && scratch.iter().any(S::Group::gates);
+        self.accepted(e, gated)
     }
 
     /// [`Self::step`] for the square-root form (a separate path with its own scratch, inlined
@@ -406,7 +410,8 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
                 return self.refused_sqrt(x, z, e);
             }
             grp.apply_sqrt(&sc);
-            return self.accepted(e);
+            let gated = self.opts.reinit && S::Group::gates_sqrt(&sc);
+            return self.accepted(e, gated);
         }
         let scratch = self.sqrt_scratch.flat_mut();
         for (g, (grp, sc)) in groups.iter().zip(scratch.iter_mut()).enumerate() {
@@ -420,7 +425,8 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         for (grp, sc) in groups.iter_mut().zip(scratch.iter()) {
             grp.apply_sqrt(sc);
         }
-        self.accepted(e)
+        let gated = self.opts.reinit && scratch.iter().any(S::Group::gates_sqrt);
+        self.accepted(e, gated)
     }
 
     /// The error of a sample the square-root form refused: plans it again and names the cause.
@@ -464,18 +470,21 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
         self.groups.flat().first().is_some_and(|g| g.starting())
     }
 
-    /// Counts an applied sample and runs retirement and reinitialization if enabled.
+    /// Counts an applied sample and runs retirement and reinitialization if enabled
+    /// (`gated`: the outlier gate left the sample out of a row).
     #[inline(always)]
-    fn accepted(&mut self, e: &[T]) -> Result<()> {
+    fn accepted(&mut self, e: &[T], gated: bool) -> Result<()> {
         self.samples += 1;
         if self.opts.reinit || self.opts.retire_below > T::zero() {
-            self.after_step(e);
+            self.after_step(e, gated);
         }
         Ok(())
     }
 
-    /// Retirement and the reinitialization rule (Eq 4.36) after an accepted sample.
-    fn after_step(&mut self, e: &[T]) {
+    /// Retirement and the reinitialization rule (Eq 4.36) after an accepted sample. A sample
+    /// the gate left out of a row reinitializes nothing (an outlier is not a change of the
+    /// dynamics), as in modes shared and full.
+    fn after_step(&mut self, e: &[T], gated: bool) {
         let mut trace = T::zero();
         let mut abs_e = T::zero();
         for (i, ei) in e.iter().enumerate() {
@@ -486,7 +495,7 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
                 self.retire(i);
             }
         }
-        if self.opts.reinit && T::of(10.0) * abs_e > trace {
+        if self.opts.reinit && !gated && T::of(10.0) * abs_e > trace {
             for g in self.groups.flat_mut() {
                 g.reinitialize();
             }

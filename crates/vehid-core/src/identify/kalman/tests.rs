@@ -553,3 +553,138 @@ fn batch_least_squares_among_zero_samples_is_not_dominated() {
         assert!((got[j] - theta[j]).abs() <= 1e-12 * theta[j].abs(), "{got:?}");
     }
 }
+
+/// Every read-out of the `Identifier` interface of `a` and `b`, compared: the same sizes,
+/// rows, counts and gated samples exactly; the estimates, covariances, noise, residual
+/// statistics and trace to `tol` relative to each quantity's largest entry.
+fn assert_same_identifier(a: &dyn DynIdentifier<f64>, b: &dyn DynIdentifier<f64>, tol: f64, what: &str) {
+    let d = a.dims();
+    assert_eq!(d, b.dims(), "{what}: dims");
+    assert_eq!(a.rows(), b.rows(), "{what}: rows");
+    assert_eq!(a.samples(), b.samples(), "{what}: samples");
+    assert_eq!(a.reinit_count(), b.reinit_count(), "{what}: reinitializations");
+    let close = |x: &[f64], y: &[f64], name: &str| {
+        let scale = y.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1e-300);
+        let diff = x.iter().zip(y).fold(0.0f64, |m, (p, q)| m.max((p - q).abs()));
+        assert!(diff <= tol * scale, "{what}: {name} differs by {:e} of its scale", diff / scale);
+    };
+    let (p, k) = (d.params, d.equations);
+    let read = |id: &dyn DynIdentifier<f64>| {
+        let mut theta = vec![0.0; p];
+        id.params_into(&mut theta).unwrap();
+        let mut cov = vec![0.0; p * p];
+        id.covariance_into(&mut cov).unwrap();
+        let mut noise = vec![0.0; k * k];
+        id.noise_into(&mut noise).unwrap();
+        let (mut ssr, mut nobs) = (vec![0.0; k], vec![0.0; k]);
+        // Modes shared and full keep no residual statistics for the interface.
+        let stats = id.residuals_into(&mut ssr, &mut nobs).is_ok();
+        let mut gated = vec![0u64; k];
+        id.gated_into(&mut gated).unwrap();
+        let (mut gp, mut ge) = (vec![0usize; p], vec![0usize; k]);
+        id.groups_into(&mut gp, &mut ge).unwrap();
+        (theta, cov, noise, stats.then_some((ssr, nobs)), gated, gp, ge, id.trace().unwrap())
+    };
+    let (ra, rb) = (read(a), read(b));
+    close(&ra.0, &rb.0, "θ");
+    close(&ra.1, &rb.1, "P");
+    close(&ra.2, &rb.2, "R");
+    if let (Some(sa), Some(sb)) = (&ra.3, &rb.3) {
+        close(&sa.0, &sb.0, "ssr");
+        close(&sa.1, &sb.1, "nobs");
+    }
+    assert_eq!(ra.4, rb.4, "{what}: gated");
+    assert_eq!((ra.5, ra.6), (rb.5, rb.6), "{what}: groups");
+    close(&[ra.7], &[rb.7], "tr P");
+}
+
+#[test]
+fn modes_shared_and_full_equal_rows_with_every_option_they_take() {
+    // Equal r_i / p0_i on every row (shared = rows) and a diagonal R (full = rows), over
+    // one, two and three rows, both forms shared takes (full: the standard), the
+    // reinitialization on and off, a prior mean or none, and the gate on one row (with
+    // several rows, shared and full leave a sample out on every row when one row gates it,
+    // by design). Built from run-time specifications (`boxed_kalman`) and compared through
+    // every read-out of the interface, innovation by innovation.
+    let mut rng = {
+        use rand::SeedableRng;
+        rand::rngs::Xoshiro256PlusPlus::seed_from_u64(77)
+    };
+    let mut g = || -> f64 { rand_distr::Distribution::sample(&rand_distr::StandardNormal, &mut rng) };
+    let th = [V4::from_fn(|_, _| g()), V4::from_fn(|_, _| g()), V4::from_fn(|_, _| g())];
+    let theta_prior: Vec<f64> = (0..12).map(|_| 0.3 * g()).collect();
+    let data: Vec<(V4, V4)> = (0..1200)
+        .map(|k| {
+            let x = V4::from_fn(|j, _| g() * [1.0, 2.0, 0.5, 1.0][j]);
+            let mut z = V4::zeros();
+            for (t, row) in th.iter().zip([0, 1, 3]) {
+                z[row] = x.dot(t) + 0.2 * g();
+            }
+            if k % 53 == 52 {
+                z[1] += 9.0; // an outlier for the gate; a jump for the reinitialization
+            }
+            if k == 600 {
+                z[0] += 400.0;
+                z[3] -= 400.0;
+            }
+            (x, z)
+        })
+        .collect();
+    let mut reinits = 0;
+    for rows in [vec![1usize], vec![1, 3], vec![0, 1, 3]] {
+        let k = rows.len();
+        let r: Vec<f64> = [0.04, 0.09, 0.02][..k].to_vec();
+        let p0: Vec<f64> = r.iter().map(|ri| ri * 250.0).collect();
+        for form in [CovarianceForm::Standard, CovarianceForm::Joseph] {
+            for reinit in [false, true] {
+                for prior_mean in [false, true] {
+                    for gate in [0.0, 4.0] {
+                        if gate > 0.0 && k > 1 {
+                            continue;
+                        }
+                        let opts = KalmanOptions { form, reinit, gate, ..Default::default() };
+                        let spec = |mode| KalmanSpec {
+                            rows: rows.clone(),
+                            p0: Prior::PerRow(p0.clone()),
+                            theta0: prior_mean.then(|| theta_prior[..k * 4].to_vec()),
+                            r: r.clone(),
+                            mode,
+                            opts,
+                        };
+                        let mut reference = boxed_kalman::<f64, 4>(&spec(Mode::Rows)).unwrap();
+                        let mut others = vec![boxed_kalman::<f64, 4>(&spec(Mode::Shared)).unwrap()];
+                        if form == CovarianceForm::Standard {
+                            others.push(boxed_kalman::<f64, 4>(&spec(Mode::Full)).unwrap());
+                            // And mode rows in the square-root form (its own path of the
+                            // gate and the reinitialization).
+                            let mut sqrt = spec(Mode::Rows);
+                            sqrt.opts.form = CovarianceForm::Sqrt;
+                            others.push(boxed_kalman::<f64, 4>(&sqrt).unwrap());
+                        }
+                        let what =
+                            format!("rows {rows:?} {form:?} reinit {reinit} prior mean {prior_mean} gate {gate}");
+                        let (mut e0, mut e1) = (vec![0.0; k], vec![0.0; k]);
+                        for (n, (x, z)) in data.iter().enumerate() {
+                            reference.update_into(x.as_slice(), z.as_slice(), &[], &mut e0).unwrap();
+                            for (o, mode) in others.iter_mut().zip(["shared", "full", "rows sqrt"]) {
+                                o.update_into(x.as_slice(), z.as_slice(), &[], &mut e1).unwrap();
+                                for (a, b) in e0.iter().zip(&e1) {
+                                    let (r0, r1) = (reference.reinit_count(), o.reinit_count());
+                                    assert!(
+                                        (a - b).abs() <= 1e-7 * (1.0 + b.abs()),
+                                        "{what}, mode {mode}, sample {n}: innovations {e0:?} vs {e1:?} (reinitializations {r0}, {r1})"
+                                    );
+                                }
+                            }
+                        }
+                        for (o, mode) in others.iter().zip(["shared", "full", "rows sqrt"]) {
+                            assert_same_identifier(&**o, &*reference, 1e-7, &format!("{what}, mode {mode}"));
+                        }
+                        reinits += reference.reinit_count();
+                    }
+                }
+            }
+        }
+    }
+    assert!(reinits > 0, "the jump at sample 600 reinitializes (else the option is not exercised)");
+}
