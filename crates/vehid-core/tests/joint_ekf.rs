@@ -349,3 +349,22 @@ fn timing() {
     let r = QuarterCar::<f64>::thesis().model().row_noise_var::<2>(ROAD, DERIV).unwrap();
     time("Kalman rows", &mut KalmanIdentifier::<f64, 4, 2>::new([1, 3], 1000.0, r).unwrap());
 }
+
+#[test]
+fn accessors_read_back_the_construction() {
+    // Before any sample: the structure, noise model, interval and sub-steps given, the state
+    // at zero with covariance x0_var I, the parameters at the prior mean.
+    let (g, v) = guess(&PHYS_TRUTH);
+    let dt = 0.0125;
+    let ekf = JointEkf::<f64, 4, 9>::new(physical(), &g, &v, 2.5, noise(8.0), dt, 7).unwrap();
+    assert_eq!(ekf.structure(), &physical());
+    assert_eq!(ekf.noise(), &noise(8.0));
+    assert_eq!(ekf.dt(), dt);
+    assert_eq!(ekf.substeps(), 7);
+    assert_eq!(ekf.state(), SVector::<f64, 4>::zeros());
+    assert_eq!(ekf.state_covariance(), nalgebra::SMatrix::<f64, 4, 4>::identity() * 2.5);
+    let mut p = [0.0; 4];
+    ekf.params_into(&mut p).unwrap();
+    assert_eq!(p.as_slice(), g.as_slice());
+    assert_eq!(ekf.samples(), 0);
+}

@@ -467,3 +467,29 @@ fn the_stability_test_holds_for_any_number_of_inputs() {
     check::<4>(&["F", "G"]);
     check::<5>(&["F", "G", "H"]);
 }
+
+#[test]
+fn the_stability_test_holds_for_any_number_of_states() {
+    // The model-instrument stability test on two, three and four states (a spring-damper
+    // driven through one or two first-order lags): a damped theta_aux taken, negative
+    // damping refused naming it. Its simulation must size the state and output buffers
+    // from the structure, not for two states.
+    fn check(states: &[&str], known: &[(&str, &str)], drive: &str) {
+        let mut b =
+            StructureBuilder::new(states, &["F"]).equation("v", &format!("{drive} - k*q - b*v")).known("q", "v");
+        for (state, rhs) in known {
+            b = b.known(state, rhs);
+        }
+        let (s, names) = b.build::<f64>().unwrap();
+        assert_eq!(names.params, ["k", "b"]);
+        let make =
+            |t: &[f64]| IvIdentifier::<f64, 2, 1>::exact(s, 1).unwrap().with_model_instruments(DT, 1, 10, Some(t));
+        let n = states.len();
+        assert!(make(&[40.0, 2.5]).is_ok(), "{n} states: a damped model refused");
+        let err = make(&[40.0, -0.5]);
+        assert!(matches!(err, Err(Error::InvalidArgument { arg: "theta_aux", .. })), "{n} states: {:?}", err.err());
+    }
+    check(&["q", "v"], &[], "F");
+    check(&["q", "v", "w"], &[("w", "F - 3*w")], "w");
+    check(&["q", "v", "w", "y"], &[("w", "F - 3*w"), ("y", "w - 5*y")], "y");
+}

@@ -688,3 +688,17 @@ fn modes_shared_and_full_equal_rows_with_every_option_they_take() {
     }
     assert!(reinits > 0, "the jump at sample 600 reinitializes (else the option is not exercised)");
 }
+
+#[test]
+fn a_sample_dominates_only_beyond_a_million_times_the_median_norm() {
+    // "more than 1e6 times the median state norm": median norm exactly 1 (x = e_0, and e_1,
+    // e_2 for a full-rank regression), one sample at exactly 1e6 (not named) or just above.
+    for (big, named) in [(1e6, false), (1e6 * (1.0 + 1e-12), true)] {
+        let mut ls = BatchLeastSquares::<f64, 4>::new(&[1]).unwrap();
+        for k in 0..9 {
+            ls.push(&V4::from_fn(|j, _| if j == k % 4 { 1.0 } else { 0.0 }), &V4::zeros()).unwrap();
+        }
+        ls.push(&V4::new(0.0, big, 0.0, 0.0), &V4::zeros()).unwrap();
+        assert_eq!(ls.dominating_sample(), named.then_some(9), "a sample of norm {big:e}");
+    }
+}
