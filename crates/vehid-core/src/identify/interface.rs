@@ -271,7 +271,10 @@ pub trait Identifier<T: Real> {
     /// `ssr` the sum of its squared recursive residuals `Σ e_k² r/s_k` in the equation's own
     /// units (after an exact start: the least-squares residual sum of squares on every sample
     /// so far; decayed like the estimate under forgetting), into `nobs` the samples behind it
-    /// (an effective count `Σ λ^j` under forgetting). One value per equation each.
+    /// (an effective count `Σ λ^j` under forgetting). One value per equation each. A sample
+    /// the outlier gate left out counts with its residual Winsorized at the gate, `κ² σ̂²`
+    /// (the scale the gate judges by; `KalmanOptions::gate`), so that `ssr / (nobs − N)` errs
+    /// on the large side when outliers were gated.
     ///
     /// # Errors
     /// [`Error::Unsupported`] for an identifier that keeps none; [`Error::Shape`].

@@ -526,13 +526,15 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Structured<T, P, F> 
                 let (ssr, gated, start, lambda) = (f.ssr(), f.gated(), f.starting(), f.forgetting());
                 f.update(&h, y).map(|inn| {
                     let decay = if start { T::one() } else { lambda };
-                    if f.gated() == gated {
-                        let w = self.scale[i];
-                        self.eq_ssr[i] = self.eq_ssr[i] * decay + (f.ssr() - ssr * decay) / (w * w);
-                        self.eq_nobs[i] = self.eq_nobs[i] * decay + T::one();
-                    } else {
+                    // The filter's statistics moved by this equation's share, in its own
+                    // units; a gated sample's enters Winsorized at the gate, as in the filter
+                    // (and in mode rows).
+                    if f.gated() != gated {
                         self.eq_gated[i] += 1;
                     }
+                    let w = self.scale[i];
+                    self.eq_ssr[i] = self.eq_ssr[i] * decay + (f.ssr() - ssr * decay) / (w * w);
+                    self.eq_nobs[i] = self.eq_nobs[i] * decay + T::one();
                     inn / self.scale[i]
                 })
             } else {

@@ -598,22 +598,16 @@ fn assert_same_identifier(a: &dyn DynIdentifier<f64>, b: &dyn DynIdentifier<f64>
     close(&[ra.7], &[rb.7], "tr P");
 }
 
-#[test]
-fn modes_shared_and_full_equal_rows_with_every_option_they_take() {
-    // Equal r_i / p0_i on every row (shared = rows) and a diagonal R (full = rows), over
-    // one, two and three rows, both forms shared takes (full: the standard), the
-    // reinitialization on and off, a prior mean or none, and the gate on one row (with
-    // several rows, shared and full leave a sample out on every row when one row gates it,
-    // by design). Built from run-time specifications (`boxed_kalman`) and compared through
-    // every read-out of the interface, innovation by innovation.
-    let mut rng = {
-        use rand::SeedableRng;
-        rand::rngs::Xoshiro256PlusPlus::seed_from_u64(77)
-    };
+/// A random regression on three rows (`z_0, z_1, z_3` of a 4-state `x`), noise σ = 0.2, with
+/// an outlier of 45 σ on `z_1` every 53 samples and a jump of `z_0`, `z_3` at sample 600;
+/// and a prior mean (12 values) to start from.
+fn three_rows_with_outliers(seed: u64, n: usize) -> (Vec<(V4, V4)>, Vec<f64>) {
+    use rand::SeedableRng;
+    let mut rng = rand::rngs::Xoshiro256PlusPlus::seed_from_u64(seed);
     let mut g = || -> f64 { rand_distr::Distribution::sample(&rand_distr::StandardNormal, &mut rng) };
     let th = [V4::from_fn(|_, _| g()), V4::from_fn(|_, _| g()), V4::from_fn(|_, _| g())];
     let theta_prior: Vec<f64> = (0..12).map(|_| 0.3 * g()).collect();
-    let data: Vec<(V4, V4)> = (0..1200)
+    let data = (0..n)
         .map(|k| {
             let x = V4::from_fn(|j, _| g() * [1.0, 2.0, 0.5, 1.0][j]);
             let mut z = V4::zeros();
@@ -630,6 +624,18 @@ fn modes_shared_and_full_equal_rows_with_every_option_they_take() {
             (x, z)
         })
         .collect();
+    (data, theta_prior)
+}
+
+#[test]
+fn modes_shared_and_full_equal_rows_with_every_option_they_take() {
+    // Equal r_i / p0_i on every row (shared = rows) and a diagonal R (full = rows), over
+    // one, two and three rows, both forms shared takes (full: the standard), the
+    // reinitialization on and off, a prior mean or none, and the gate on one row (with
+    // several rows, shared and full leave a sample out on every row when one row gates it,
+    // by design). Built from run-time specifications (`boxed_kalman`) and compared through
+    // every read-out of the interface, innovation by innovation.
+    let (data, theta_prior) = three_rows_with_outliers(77, 1200);
     let mut reinits = 0;
     for rows in [vec![1usize], vec![1, 3], vec![0, 1, 3]] {
         let k = rows.len();
@@ -701,4 +707,74 @@ fn a_sample_dominates_only_beyond_a_million_times_the_median_norm() {
         ls.push(&V4::new(0.0, big, 0.0, 0.0), &V4::zeros()).unwrap();
         assert_eq!(ls.dominating_sample(), named.then_some(9), "a sample of norm {big:e}");
     }
+}
+
+#[test]
+fn a_structure_of_full_rows_is_mode_rows_with_every_option() {
+    // "With one equation per group this is exactly KalmanRows on the structure's regressors"
+    // (structured.rs): the full rows 0, 1, 3 as a Structure (fixed and heap storage) against
+    // mode rows, over every form, the tracking options, the screens and both starts (a prior
+    // mean with the prior), innovation by innovation and through every read-out.
+    use crate::identify::{StructuredKalman, StructuredKalmanVec, StructuredPrior};
+    use crate::structure::Structure;
+    let (data, theta_prior) = three_rows_with_outliers(78, 900);
+    let rows = [0usize, 1, 3];
+    let r = [0.04, 0.09, 0.02];
+    let structure = Structure::<f64>::full_rows(4, &rows).unwrap();
+    let tracking =
+        [(1.0, 0.0, false, 0.0), (0.99, 0.0, false, 0.0), (0.99, 0.0, true, 0.0), (0.995, 1e-5, false, 60.0)];
+    let mut gated = 0;
+    for form in [CovarianceForm::Standard, CovarianceForm::Joseph, CovarianceForm::Sqrt] {
+        for (lambda, q, directional, cap) in tracking {
+            for (gate, huber) in [(0.0, 0.0), (4.0, 0.0), (0.0, 1.345)] {
+                for exact in [false, true] {
+                    let opts = KalmanOptions {
+                        form,
+                        forgetting: lambda,
+                        directional,
+                        drift: q,
+                        max_trace: cap,
+                        gate,
+                        huber,
+                        ..Default::default()
+                    };
+                    let what =
+                        format!("{form:?} λ {lambda} q {q} dir {directional} gate {gate} huber {huber} exact {exact}");
+                    let spec = KalmanSpec {
+                        rows: rows.to_vec(),
+                        p0: if exact { Prior::Exact } else { Prior::PerRow(vec![30.0]) },
+                        theta0: (!exact).then(|| theta_prior.clone()),
+                        r: r.to_vec(),
+                        mode: Mode::Rows,
+                        opts,
+                    };
+                    let mut reference = boxed_kalman::<f64, 4>(&spec).unwrap();
+                    let p0 = if exact { StructuredPrior::Exact } else { StructuredPrior::Scalar(30.0) };
+                    let theta0 = (!exact).then_some(theta_prior.as_slice());
+                    let mut others: Vec<Box<dyn DynIdentifier<f64>>> = vec![
+                        Box::new(StructuredKalman::<f64, 4, 3>::new(structure, p0, theta0, &r, opts).unwrap()),
+                        Box::new(StructuredKalmanVec::<f64, 4>::new(structure, p0, theta0, &r, opts).unwrap()),
+                    ];
+                    let (mut e0, mut e1) = ([0.0; 3], [0.0; 3]);
+                    for (n, (x, z)) in data.iter().enumerate() {
+                        reference.update_into(x.as_slice(), z.as_slice(), &[], &mut e0).unwrap();
+                        for o in others.iter_mut() {
+                            o.update_into(x.as_slice(), z.as_slice(), &[], &mut e1).unwrap();
+                            for (a, b) in e0.iter().zip(&e1) {
+                                let same = (a.is_nan() && b.is_nan()) || (a - b).abs() <= 1e-7 * (1.0 + b.abs());
+                                assert!(same, "{what}, sample {n}: innovations {e0:?} vs {e1:?}");
+                            }
+                        }
+                    }
+                    for o in &others {
+                        assert_same_identifier(&**o, &*reference, 1e-7, &what);
+                    }
+                    let mut g = [0u64; 3];
+                    reference.gated_into(&mut g).unwrap();
+                    gated += g.iter().sum::<u64>();
+                }
+            }
+        }
+    }
+    assert!(gated > 0, "the gate acts");
 }
