@@ -473,3 +473,42 @@ fn the_direct_front_equation_is_used_exactly_when_set() {
         assert!(moved(&others), "direct_front {direct_front}: the other groups never moved");
     }
 }
+
+/// The front wheel equation's innovation is its prediction error `y − hᵀθ̂` (the structure's
+/// regression, θ̂ before the sample) whether or not the equation updates (`direct_front`),
+/// checked at every sample of three delays, also after the pairs have moved the wheel group.
+#[test]
+fn the_front_wheel_innovation_is_its_prediction_error() {
+    for direct_front in [false, true] {
+        let cfg = TwoAxleStructuredConfig {
+            p0: Some(1000.0),
+            direct_front,
+            // The filters' own estimate (the innovations' θ̂), not the bias-compensated one.
+            compensate: false,
+            ..TwoAxleStructuredConfig::new(ROAD_SIGMA, DERIV_NOISE)
+        };
+        let mut id = physical(cfg);
+        let st = *id.structure();
+        let (front, _) = id.wheel_equations();
+        let np = id.dims().params;
+        let (mut theta, mut h) = (vec![0.0; np], vec![0.0; np]);
+        let mut sim = road_sim(6);
+        let mut e = [0.0; 4];
+        let mut moved = 0;
+        for k in 0..3 * D {
+            let s = sim.next_sample(SPEED).unwrap();
+            id.params_into(&mut theta).unwrap();
+            let y = st.regression(front, s.r.as_slice(), s.z.as_slice(), &[], &mut h);
+            let prediction: f64 = h.iter().zip(&theta).map(|(a, b)| a * b).sum();
+            id.update_into(s.r.as_slice(), s.z.as_slice(), &[], &mut e).unwrap();
+            let expect = y - prediction;
+            assert!(
+                (e[front] - expect).abs() <= 1e-9 * (1.0 + y.abs()),
+                "direct_front {direct_front}, sample {k}: {} against y − hᵀθ̂ = {expect}",
+                e[front]
+            );
+            moved += usize::from(prediction.abs() > 1e-6 * y.abs());
+        }
+        assert!(moved > D, "direct_front {direct_front}: the prediction stayed at zero ({moved} samples)");
+    }
+}

@@ -818,3 +818,24 @@ fn thesis_wheel_method_is_eq_6_14_step_by_step() {
     assert!((id.ratio() - rho).abs() <= 1e-12 * rho.abs(), "ratio {} against ρ = {rho}", id.ratio());
     assert_eq!(Identifier::samples(&id), 3000);
 }
+
+#[test]
+fn cancellation_reports_the_front_rows_innovation() {
+    // With road cancellation the front row's innovation is still `z_2 − xᵀθ̂_2` (θ̂ before the
+    // sample), though the joint filter, not a front row, holds θ̂_2: every sample of 3000,
+    // after the pairs have moved the front row off its prior.
+    let mut id = identifier(WheelMethod::Cancel);
+    let mut sim = road_sim(RoadMode::White, 32);
+    let mut e = [0.0; 4];
+    let mut moved = 0;
+    for k in 0..3000 {
+        let s = sim.next_sample(6.0).unwrap();
+        let front = id.theta::<4>().unwrap().row(0).clone_owned();
+        let prediction: f64 = (0..8).map(|j| front[j] * s.r[j]).sum();
+        id.update_next(&s.r, &s.z, &mut e).unwrap();
+        let expect = s.z[1] - prediction;
+        assert!((e[0] - expect).abs() <= 1e-9 * (1.0 + s.z[1].abs()), "sample {k}: {} against {expect}", e[0]);
+        moved += usize::from(prediction.abs() > 1e-6 * s.z[1].abs());
+    }
+    assert!(moved > 1000, "the front row stayed at its prior ({moved} samples)");
+}

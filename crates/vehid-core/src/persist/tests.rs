@@ -370,6 +370,24 @@ fn inconsistent_input_is_an_error() {
     v["body"] = json!(null);
     rejects::<TwoAxleIdentifierVec<f64, 8, 16>>(&v, "`body`");
 
+    // The two-axle structured identifier's equation states: each identified equation's, and
+    // zero past them; either kind of corruption alone is refused.
+    let c = car.constants();
+    let mut known = [None; 12];
+    for i in 8..12 {
+        known[i] = Some(c[i]);
+    }
+    let st = *HalfCar::structure(known).unwrap().structure();
+    let ts = TwoAxleStructuredVec::<f64, 4>::new(st, &car.model(), 10, TwoAxleStructuredConfig::new(0.1, 0.005));
+    let good = serde_json::to_value(ts.unwrap()).unwrap();
+    let ne = st.equations();
+    assert!(serde_json::from_value::<TwoAxleStructuredVec<f64, 4>>(good.clone()).is_ok());
+    for (at, value) in [(0, 6), (ne, 1)] {
+        let mut v = good.clone();
+        v["rows"][at] = json!(value);
+        rejects::<TwoAxleStructuredVec<f64, 4>>(&v, "saved state");
+    }
+
     // A fixed store takes exactly its length.
     let fixed = serde_json::to_value(KalmanIdentifier::<f64, 4, 2>::new([1, 3], 1.0, [1.0, 1.0]).unwrap()).unwrap();
     let mut v = fixed.clone();
