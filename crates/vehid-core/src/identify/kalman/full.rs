@@ -303,6 +303,8 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
     ///
     /// `S = H P Hᵀ + R` with `(H P Hᵀ)_ij = xᵀ P_ij x`; the gain block of row `i` is
     /// `W_i = C_i S⁻¹`, `C_i = [P_i1 x, …, P_iK x]`; `θ_i += W_i e`, `P_ij −= W_i C_jᵀ`.
+    /// A noise-free row (`R_mm = 0`) that has learned all `x` tells it is left out of the
+    /// sample (as mode rows' row takes no step), instead of making `S` singular.
     ///
     /// # Errors
     /// As [`KalmanRows::update_into`]; [`Error::Singular`] when `S` is not positive definite,
@@ -343,6 +345,24 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
         }
         if !abs_e.finite() {
             return Err(culprit(theta, x, e));
+        }
+        // A noise-free row (R_mm = 0, so R_ml = 0) whose block has collapsed along x
+        // (xᵀ P_mm x at rounding level, the floor of mode rows) has nothing left to learn
+        // there, and its zero S_mm would make S singular: the sample updates without it, as
+        // mode rows' row takes no step. (P positive semi-definite and xᵀ P_mm x = 0 give
+        // P_lm x = 0 for every l: column m of every C_l is zero, S is block diagonal.)
+        for m in 0..k {
+            if r[m * k + m] == T::zero() {
+                let floor = T::default_epsilon() * T::of(4.0 * N as f64) * x.abs().sum() * c[m * k + m].abs().sum();
+                if s[m * k + m] <= floor {
+                    for l in 0..k {
+                        c[l * k + m] = SVector::zeros();
+                        s[l * k + m] = T::zero();
+                        s[m * k + l] = T::zero();
+                    }
+                    s[m * k + m] = T::one();
+                }
+            }
         }
         // Risky: a row informed far beyond its noise (R_ii / S_ii below √ε; noise-free rows,
         // R_ii = 0, are exempt as in mode rows): the downdate is checked before it is made.
@@ -402,7 +422,10 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
             // The recursive residuals w_i² = e_i² R_ii / S_ii (S_ii from C, as S was factored).
             for (i, ssr) in self.ssr.flat_mut().iter_mut().enumerate() {
                 let sii = x.dot(&c[i * k + i]) + r[i * k + i];
-                *ssr += e[i] * e[i] * r[i * k + i] / sii;
+                // A noise-free row carries no residual (and 0/0 when collapsed, above).
+                if r[i * k + i] > T::zero() {
+                    *ssr += e[i] * e[i] * r[i * k + i] / sii;
+                }
             }
             self.nobs += T::one();
         }

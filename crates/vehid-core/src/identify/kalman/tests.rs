@@ -778,3 +778,28 @@ fn a_structure_of_full_rows_is_mode_rows_with_every_option() {
     }
     assert!(gated > 0, "the gate acts");
 }
+
+#[test]
+fn mode_full_takes_noise_free_rows_beside_noisy_ones() {
+    // A noise-free row (R_ii = 0) collapses its block of P along what it learned, by design,
+    // so it is exempt from the definiteness check of risky samples (as in mode rows): beside
+    // a noisy row, mode full takes every sample, and both rows follow mode rows with the same
+    // diagonal R, the noise-free one learning its θ exactly.
+    let (data, _) = three_rows_with_outliers(79, 300);
+    let truth = {
+        // The noise-free row: z_0 = xᵀθ exactly.
+        let th = V4::new(0.7, -1.2, 0.4, 2.0);
+        data.iter().map(|(x, z)| (*x, V4::new(x.dot(&th), z[1], z[2], z[3]))).collect::<Vec<_>>()
+    };
+    let opts = KalmanOptions::default();
+    let mut full = FullKalmanIdentifier::<f64, 4, 2>::from_slices(&[0, 3], &[100.0], &[0.0, 0.04], opts).unwrap();
+    let mut rows = KalmanIdentifier::<f64, 4, 2>::new([0, 3], 100.0, [0.0, 0.04]).unwrap();
+    for (k, (x, z)) in truth.iter().enumerate() {
+        let a = full.update(x, z).unwrap_or_else(|err| panic!("sample {k} refused: {err:?}"));
+        let b = rows.update(x, z).unwrap();
+        assert!((a - b).abs().max() <= 1e-8 * (1.0 + b.abs().max()), "sample {k}: {a} vs {b}");
+    }
+    assert_eq!(full.samples(), 300);
+    let th = full.theta_row(0);
+    assert!((th - V4::new(0.7, -1.2, 0.4, 2.0)).abs().max() < 1e-9, "{th}");
+}
