@@ -177,6 +177,17 @@ fn stochastic_gradient_follows_the_equations_step_by_step() {
                 let mut reference = RefSg::new(&rows, rg, h.clone(), noise, spacing.into());
                 let mut id = StochasticGradient::<f64, 4, 2>::from_slices(&rows, g, &h_flat, &noise, spacing).unwrap();
                 compare_sg(&format!("{name} (fixed)"), &mut id, &mut reference, &data, 1e-12);
+                if noise == [0.0; 4] {
+                    // On the full rows as a Structure (its module docs: this identifier without
+                    // the state-noise correction), the weights one per parameter.
+                    let mut reference = RefSg::new(&rows, rg, h.clone(), noise, spacing.into());
+                    let st = Structure::full_rows(4, &rows).unwrap();
+                    let mut id = StructuredGradient::<f64, 8>::new(st, g, &h_flat, None, spacing).unwrap();
+                    compare_sg(&format!("{name} (structure)"), &mut id, &mut reference, &data, 1e-12);
+                    let steps = (data.len() as u64).div_ceil(u64::from(spacing));
+                    assert_eq!(id.steps(), steps, "{name}: a step every {spacing} samples");
+                    assert_eq!(id.gain(), g);
+                }
             }
         }
     }
