@@ -340,7 +340,7 @@ impl PyIdentifier {
 /// (counted in `gated`; in modes "shared" and "full" a sample beyond the gate on one row is
 /// left out by every row); `huber` c (e.g. 1.345, mode "rows") weights large residuals down
 /// (Huber).
-/// `reinit=True` applies Eq 4.36. `mode`: "rows" (decoupled filters, Eq 6.16–6.18), "shared" (one covariance
+/// `reinit=True` applies Eq 4.36 (a sample the gate left out reinitializes nothing). `mode`: "rows" (decoupled filters, Eq 6.16–6.18), "shared" (one covariance
 /// for all rows; needs the same r/p0 on every row), "full" (the stacked filter, general R).
 /// With a prior the estimate depends on r/p0 only (see the README on prior regimes).
 #[pyclass(name = "KalmanIdentifier", module = "vehid._vehid", extends = PyIdentifier)]

@@ -287,7 +287,16 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
             additions: common + k * k * (N * N - N),
             divisions: (k * k - k) / 2 + 2 * k * k * N,
             square_roots: k,
-            bytes: core::mem::size_of_val(self) + self.p.heap_bytes() + self.c.heap_bytes() + self.w.heap_bytes(),
+            bytes: core::mem::size_of_val(self)
+                + self.rows.heap_bytes()
+                + self.theta.heap_bytes()
+                + self.p.heap_bytes()
+                + self.r.heap_bytes()
+                + self.c.heap_bytes()
+                + self.w.heap_bytes()
+                + self.s.heap_bytes()
+                + self.pn.heap_bytes()
+                + self.ssr.heap_bytes(),
         }
     }
 
