@@ -470,42 +470,55 @@ fn dynamic_storage_equals_fixed_storage() {
 #[test]
 fn several_lane_groups_equal_one_and_reject_as_a_whole() {
     // Six unknown rows of the half car: Fixed<6> keeps them in one group of six lanes, the
-    // Dynamic store in groups of DYNAMIC_LANES (planned into its scratch, then applied).
+    // Dynamic store in groups of DYNAMIC_LANES (planned into its scratch, then applied). Also
+    // with the gate and the reinitialization (a gated outlier on row 7, in the last group,
+    // reinitializes nothing), in the standard and the square-root form.
     let car = HalfCar::<f64>::thesis();
     let cfg = SimConfig::<f64, 8, 2>::new(0.05).road_sigma(0.1).ic_sigma(0.1).deriv_noise(0.005);
-    let mut sim = Simulator::new(car.model(), cfg, 3).unwrap();
     let rows = [0, 1, 3, 5, 6, 7];
     let r = [0.01, 100.0, 100.0, 2.5e-3, 0.02, 2.5e-3];
-    let mut fixed = KalmanIdentifier::<f64, 8, 6>::new(rows, 1000.0, r).unwrap();
-    let mut dynamic =
-        KalmanIdentifierVec::<f64, 8>::from_slices(&rows, &[1000.0], &r, KalmanOptions::default()).unwrap();
-    let mut pairs =
-        KalmanIdentifierVec2::<f64, 8>::from_slices(&rows, &[1000.0], &r, KalmanOptions::default()).unwrap();
-    assert!(dynamic.groups.len() > 1 && dynamic.scratch.len() == dynamic.groups.len(), "several groups");
-    assert_eq!(pairs.groups.len(), 3, "three groups of two lanes");
-    let (mut e, mut e2) = ([0.0; 6], [0.0; 6]);
-    let mut last = None;
-    for _ in 0..3000 {
-        let s = sim.next_sample();
-        let ef = fixed.update(&s.r, &s.z).unwrap();
-        dynamic.update_vec(&s.r, &s.z, &mut e).unwrap();
-        pairs.update_vec(&s.r, &s.z, &mut e2).unwrap();
-        assert_eq!(ef.as_slice(), &e);
-        assert_eq!(e, e2);
-        last = Some(s);
+    let gated = KalmanOptions { gate: 4.0, reinit: true, ..Default::default() };
+    for opts in [KalmanOptions::default(), gated, KalmanOptions { form: CovarianceForm::Sqrt, ..gated }] {
+        let mut sim = Simulator::new(car.model(), cfg.clone(), 3).unwrap();
+        let mut fixed = KalmanRows::<f64, 8, Fixed<6>>::from_slices(&rows, &[1000.0], &r, opts).unwrap();
+        let mut dynamic = KalmanIdentifierVec::<f64, 8>::from_slices(&rows, &[1000.0], &r, opts).unwrap();
+        let mut pairs = KalmanIdentifierVec2::<f64, 8>::from_slices(&rows, &[1000.0], &r, opts).unwrap();
+        assert!(dynamic.groups.len() > 1 && dynamic.scratch.len() == dynamic.groups.len(), "several groups");
+        assert_eq!(pairs.groups.len(), 3, "three groups of two lanes");
+        let (mut ef, mut e, mut e2) = ([0.0; 6], [0.0; 6], [0.0; 6]);
+        let mut last = None;
+        for k in 0..3000 {
+            let mut s = sim.next_sample();
+            if k % 97 == 96 {
+                s.z[7] += 1e5; // an outlier the gate leaves out, large enough to reinitialize
+            }
+            fixed.update_vec(&s.r, &s.z, &mut ef).unwrap();
+            dynamic.update_vec(&s.r, &s.z, &mut e).unwrap();
+            pairs.update_vec(&s.r, &s.z, &mut e2).unwrap();
+            assert_eq!(ef, e, "{opts:?}, sample {k}");
+            assert_eq!(e, e2, "{opts:?}, sample {k}");
+            assert_eq!(fixed.reinit_count(), dynamic.reinit_count(), "{opts:?}, sample {k}");
+            assert_eq!(fixed.reinit_count(), pairs.reinit_count(), "{opts:?}, sample {k}");
+            last = Some(s);
+        }
+        assert!((0..6).all(|i| pairs.filter(i) == fixed.filter(i)), "two-lane groups: the same bits");
+        let mut a = [0.0; 48];
+        dynamic.theta_into(&mut a).unwrap();
+        let mut b = [0.0; 48];
+        fixed.theta_into(&mut b).unwrap();
+        assert_eq!(a, b);
+        if opts.gate > 0.0 {
+            assert!(fixed.filter(5).gated() >= 20, "{opts:?}: the outliers are gated ({})", fixed.filter(5).gated());
+        }
+        // A sample that only the last group rejects (its row's derivative is NaN) changes no group.
+        let s = last.unwrap();
+        let mut z = s.z;
+        z[7] = f64::NAN;
+        let before: Vec<_> = (0..6).map(|i| dynamic.filter(i)).collect();
+        assert!(matches!(dynamic.update_vec(&s.r, &z, &mut e), Err(Error::NonFinite { arg: "z_k", index: 7 })));
+        assert!((0..6).all(|i| dynamic.filter(i) == before[i]));
+        assert_eq!(dynamic.samples(), 3000);
     }
-    assert!((0..6).all(|i| pairs.filter(i) == fixed.filter(i)), "two-lane groups: the same bits");
-    let mut a = [0.0; 48];
-    dynamic.theta_into(&mut a).unwrap();
-    assert_eq!(fixed.theta().transpose().as_slice(), &a);
-    // A sample that only the last group rejects (its row's derivative is NaN) changes no group.
-    let s = last.unwrap();
-    let mut z = s.z;
-    z[7] = f64::NAN;
-    let before: Vec<_> = (0..6).map(|i| dynamic.filter(i)).collect();
-    assert!(matches!(dynamic.update_vec(&s.r, &z, &mut e), Err(Error::NonFinite { arg: "z_k", index: 7 })));
-    assert!((0..6).all(|i| dynamic.filter(i) == before[i]));
-    assert_eq!(dynamic.samples(), 3000);
 }
 
 #[test]
