@@ -1750,3 +1750,44 @@ fn risky_samples_are_checked_with_the_drift_they_get() {
     }
     assert!(refused_without > 0, "without drift no sample of 200 was refused: the case never arose");
 }
+
+/// Bias-compensated least squares (`identify/bias_compensated.rs`) on `der(q) = a q + m der(v)`:
+/// the regressor `[q, der(v)]` carries the state noise of `q` and the derivative noise of `v`,
+/// so the normal equations are corrected by `N diag(σ_w,q², σ_v,v²)` (the output's noise, on
+/// `der(q)`, is independent of both): `θ = (HᵀH − N diag(σ_w,q², σ_v,v²))⁻¹ Hᵀy`, computed
+/// here from the samples. Every variance distinct, so that a term read with another
+/// variable's noise shows.
+#[test]
+fn bias_compensation_reads_each_variables_own_noise() {
+    use vehid_core::structure::StructureBuilder;
+    let (st, names) = StructureBuilder::new(&["q", "v"], &[]).equation("q", "a*q + m*der(v)").build::<f64>().unwrap();
+    assert_eq!(names.params, ["a", "m"]);
+    let data = samples(21, 500, 0.0);
+    // Variances a fraction of each signal's mean square (distinct fractions).
+    let ms = |f: &dyn Fn(&(V4, V4)) -> f64| data.iter().map(|d| f(d) * f(d)).sum::<f64>() / data.len() as f64;
+    let sw = [0.1 * ms(&|d| d.0[0]), 0.3 * ms(&|d| d.0[1])];
+    let sv = [0.05 * ms(&|d| d.1[0]), 0.2 * ms(&|d| d.1[1])];
+    let mut id = BiasCompensatedVec::<f64, 8>::new(st, &sw, &sv, &[1.0]).unwrap();
+    let (mut hh, mut hy) = (nalgebra::Matrix2::<f64>::zeros(), nalgebra::Vector2::<f64>::zeros());
+    let mut e = [0.0];
+    for (x, z) in &data {
+        let (xs, zs) = ([x[0], x[1]], [z[0], z[1]]);
+        id.update_into(&xs, &zs, &[], &mut e).unwrap();
+        let h = nalgebra::Vector2::new(x[0], z[1]);
+        hh += h * h.transpose();
+        hy += h * z[0];
+    }
+    let n = data.len() as f64;
+    let corrected = hh - nalgebra::Matrix2::from_diagonal(&nalgebra::Vector2::new(n * sw[0], n * sv[1]));
+    let expect = corrected.lu().solve(&hy).unwrap();
+    let mut theta = [0.0; 2];
+    id.params_into(&mut theta).unwrap();
+    let scale = expect.abs().max();
+    assert!(
+        (theta[0] - expect[0]).abs().max((theta[1] - expect[1]).abs()) <= 1e-9 * scale,
+        "{theta:?} against (HᵀH − N Σ)⁻¹ Hᵀy = {expect:?}"
+    );
+    // The correction matters here (else the comparison would show nothing).
+    let plain = hh.lu().solve(&hy).unwrap();
+    assert!((plain - expect).abs().max() > 1e-3 * scale, "{plain:?} vs {expect:?}");
+}
