@@ -645,3 +645,23 @@ fn batch_least_squares_fit_stores_every_sample() {
     batch.params_into(&mut b).unwrap();
     assert_eq!(a.map(f64::to_bits), b.map(f64::to_bits));
 }
+
+/// An IV step whose terms `h_a (Pζ)_a` are each finite but whose magnitudes overflow in sum
+/// (`1e308` and `−1e308`: `s = r` exactly, `Σ|h_a (Pζ)_a|` infinite) is an overflow, named as
+/// one (`r_k`, rescale), not a vanishing correlation (`Singular`); the filter is unchanged.
+#[test]
+fn an_iv_step_whose_scale_overflows_is_named_an_overflow() {
+    use nalgebra::{SMatrix, SVector};
+    use vehid_core::identify::IvFilter;
+    let p0 = SMatrix::<f64, 2, 2>::from_diagonal(&SVector::from([1e308, 1e308]));
+    let mut f = IvFilter::<f64, 2>::with_prior(2, SVector::zeros(), p0, 1.0).unwrap();
+    let before = f.clone();
+    let err = f.update(&SVector::from([1.0, -1.0]), &SVector::from([1.0, 1.0]), 0.0);
+    assert!(matches!(err, Err(Error::InvalidArgument { arg: "r_k", .. })), "{err:?}");
+    assert_eq!(f.theta(), before.theta());
+    assert_eq!(f.p(), before.p());
+    // A correlation that vanishes with every term in range is the singular case.
+    let mut g = IvFilter::<f64, 2>::with_prior(2, SVector::zeros(), SMatrix::identity(), 0.0).unwrap();
+    let err = g.update(&SVector::from([1.0, 0.0]), &SVector::from([0.0, 1.0]), 0.0);
+    assert!(matches!(err, Err(Error::Singular { .. })), "{err:?}");
+}

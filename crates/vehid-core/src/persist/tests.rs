@@ -772,7 +772,8 @@ fn corrupt_noisy_state_identifier_bytes_never_panic() {
 #[test]
 fn instrumental_variables_with_a_measured_input_continue_bit_for_bit() {
     // A rig with a measured force: the ring of past samples holds 2n + m = 5 values per
-    // sample (a check of that width on load must count the input).
+    // sample (a check of that width on load must count the input). With 3 lags the
+    // predictor's 3·5 + 1 = 16 regressors fill its capacity Q = 16 exactly.
     use crate::structure::StructureBuilder;
     let (st, _) = StructureBuilder::new(&["q", "v"], &["tau"])
         .equation("v", "a*tau - b*v")
@@ -788,7 +789,7 @@ fn instrumental_variables_with_a_measured_input_continue_bit_for_bit() {
         q += 0.05 * v;
         v += 0.05 * dv;
     }
-    for lags in [0, 2] {
+    for lags in [0, 2, 3] {
         let mut id = IvIdentifierVec::<f64, 2, 16>::exact(st, 1).unwrap().with_lags(lags).unwrap();
         let mut e = [0.0; 1];
         for (x, z, u) in &rows[..150] {
