@@ -816,3 +816,17 @@ fn mode_full_takes_noise_free_rows_beside_noisy_ones() {
     let th = full.theta_row(0);
     assert!((th - V4::new(0.7, -1.2, 0.4, 2.0)).abs().max() < 1e-9, "{th}");
 }
+
+#[test]
+fn batch_least_squares_reports_the_storage_its_samples_take() {
+    // `storage_bytes`: the stored states (N per sample) and derivatives (one per unknown row),
+    // as allocated: at least what the samples hold, within the Vec's doubling above it.
+    let mut ls = BatchLeastSquares::<f64, 4>::new(&[1, 3]).unwrap();
+    assert_eq!(ls.storage_bytes(), 0);
+    for k in 0..1000 {
+        let x = V4::from_fn(|j, _| (k * 4 + j) as f64);
+        ls.push(&x, &x).unwrap();
+    }
+    let held = 1000 * (4 + 2) * core::mem::size_of::<f64>();
+    assert!(ls.storage_bytes() >= held && ls.storage_bytes() <= 2 * held, "{} for {held}", ls.storage_bytes());
+}
