@@ -161,7 +161,10 @@ fn rows<T: Real, const N: usize, const L: usize>(spec: &KalmanSpec<T>) -> Result
         Prior::PerRow(p0) => {
             let filters = (0..k)
                 .map(|i| {
-                    let p = SMatrix::<T, N, N>::identity() * per_row("p0", p0, k, i)?;
+                    // Checked as the rows' constructor checks it (the same error either way).
+                    let p0 = per_row("p0", p0, k, i)?;
+                    crate::error::check_positive("p0", p0)?;
+                    let p = SMatrix::<T, N, N>::identity() * p0;
                     RowIdentifier::with_prior(theta0(i), p, per_row("r", &spec.r, k, i)?)
                 })
                 .collect::<Result<Vec<_>>>()?;

@@ -830,3 +830,52 @@ fn batch_least_squares_reports_the_storage_its_samples_take() {
     let held = 1000 * (4 + 2) * core::mem::size_of::<f64>();
     assert!(ls.storage_bytes() >= held && ls.storage_bytes() <= 2 * held, "{} for {held}", ls.storage_bytes());
 }
+
+#[test]
+fn a_run_time_prior_per_row_is_checked_alike_with_and_without_a_prior_mean() {
+    // Mode rows built from a specification: `p0` one per row, with no prior mean (the
+    // constructor of the rows) or a zero one (a filter per row): the same bad values refused
+    // naming `p0`, and the same identifier from good ones.
+    for theta0 in [None, Some(vec![0.0; 8])] {
+        for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            let spec = KalmanSpec {
+                rows: vec![1, 3],
+                p0: Prior::PerRow(vec![10.0, bad]),
+                theta0: theta0.clone(),
+                r: vec![0.1],
+                mode: Mode::Rows,
+                opts: KalmanOptions::default(),
+            };
+            let err = boxed_kalman::<f64, 4>(&spec).err();
+            assert!(
+                matches!(
+                    err,
+                    Some(Error::InvalidArgument { arg: "p0", .. }) | Some(Error::NonFinite { arg: "p0", .. })
+                ),
+                "p0 {bad}, prior mean {theta0:?}: {err:?}"
+            );
+        }
+    }
+    let data = road(4, 300);
+    let spec = |theta0| KalmanSpec {
+        rows: vec![1, 3],
+        p0: Prior::PerRow(vec![10.0, 1000.0]),
+        theta0,
+        r: vec![0.1, 0.2],
+        mode: Mode::Rows,
+        opts: KalmanOptions::default(),
+    };
+    let mut a = boxed_kalman::<f64, 4>(&spec(None)).unwrap();
+    let mut b = boxed_kalman::<f64, 4>(&spec(Some(vec![0.0; 8]))).unwrap();
+    let mut direct =
+        KalmanIdentifier::<f64, 4, 2>::from_slices(&[1, 3], &[10.0, 1000.0], &[0.1, 0.2], KalmanOptions::default())
+            .unwrap();
+    let (mut ea, mut eb) = ([0.0; 2], [0.0; 2]);
+    for (x, z) in &data {
+        a.update_into(x.as_slice(), z.as_slice(), &[], &mut ea).unwrap();
+        b.update_into(x.as_slice(), z.as_slice(), &[], &mut eb).unwrap();
+        let e = direct.update(x, z).unwrap();
+        assert_eq!(ea, eb);
+        assert_eq!(ea.as_slice(), e.as_slice());
+    }
+}
