@@ -1123,6 +1123,21 @@ fn noise_free_rows_learn_exactly_whatever_the_prior_scale() {
                 assert!(close(&g, &th[i]), "p0 = {p0}, {form:?}, row {i}: {g} against {}", th[i]);
             }
         }
+        // Mode full with R = 0 (its collapsed-row floor is mode rows'), and beyond the four
+        // samples that identify the rows.
+        let mut id =
+            FullKalmanIdentifier::<f64, 4, 2>::from_slices(&[1, 3], &[p0], &[0.0], opts(CovarianceForm::Standard))
+                .unwrap();
+        for x in &xs {
+            let mut z = V4::zeros();
+            z[1] = x.dot(&th[0]);
+            z[3] = x.dot(&th[1]);
+            id.update(x, &z).unwrap();
+        }
+        for i in 0..2 {
+            let g = *id.theta_row(i);
+            assert!(close(&g, &th[i]), "p0 = {p0}, mode full, row {i}: {g} against {}", th[i]);
+        }
     }
 }
 
