@@ -1138,6 +1138,24 @@ fn noise_free_rows_learn_exactly_whatever_the_prior_scale() {
             let g = *id.theta_row(i);
             assert!(close(&g, &th[i]), "p0 = {p0}, mode full, row {i}: {g} against {}", th[i]);
         }
+        // The full rows as a Structure with r = 0 (not its lanes' plain step, which has no
+        // collapsed-row floor: the general path).
+        let st = Structure::full_rows(4, &[1, 3]).unwrap();
+        let opts = opts(CovarianceForm::Standard);
+        let mut sk = StructuredKalmanVec::<f64, 8>::new(st, StructuredPrior::Scalar(p0), None, &[0.0], opts).unwrap();
+        let mut e = [0.0; 2];
+        for x in xs.iter().chain(&regressors(5, 300)) {
+            let mut z = V4::zeros();
+            z[1] = x.dot(&th[0]);
+            z[3] = x.dot(&th[1]);
+            sk.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+        }
+        let mut got = [0.0; 8];
+        sk.params_into(&mut got).unwrap();
+        for i in 0..2 {
+            let g = V4::from_column_slice(&got[4 * i..4 * i + 4]);
+            assert!(close(&g, &th[i]), "p0 = {p0}, structure, row {i}: {g} against {}", th[i]);
+        }
     }
 }
 

@@ -649,7 +649,7 @@ fn modes_shared_and_full_equal_rows_with_every_option_they_take() {
     // by design). Built from run-time specifications (`boxed_kalman`) and compared through
     // every read-out of the interface, innovation by innovation.
     let (data, theta_prior) = three_rows_with_outliers(77, 1200);
-    let mut reinits = 0;
+    let (mut reinits, mut joint_gated) = (0, 0);
     for rows in [vec![1usize], vec![1, 3], vec![0, 1, 3]] {
         let k = rows.len();
         let r: Vec<f64> = [0.04, 0.09, 0.02][..k].to_vec();
@@ -658,7 +658,10 @@ fn modes_shared_and_full_equal_rows_with_every_option_they_take() {
             for reinit in [false, true] {
                 for prior_mean in [false, true] {
                     for gate in [0.0, 4.0] {
-                        if gate > 0.0 && k > 1 {
+                        // Several rows under the gate: shared and full leave a sample out on
+                        // every row, mode rows per row; so there full is compared with shared.
+                        let joint_gate = gate > 0.0 && k > 1;
+                        if joint_gate && form != CovarianceForm::Standard {
                             continue;
                         }
                         let opts = KalmanOptions { form, reinit, gate, ..Default::default() };
@@ -672,7 +675,10 @@ fn modes_shared_and_full_equal_rows_with_every_option_they_take() {
                         };
                         let mut reference = boxed_kalman::<f64, 4>(&spec(Mode::Rows)).unwrap();
                         let mut others = vec![boxed_kalman::<f64, 4>(&spec(Mode::Shared)).unwrap()];
-                        if form == CovarianceForm::Standard {
+                        if joint_gate {
+                            reference = others.pop().unwrap();
+                            others.push(boxed_kalman::<f64, 4>(&spec(Mode::Full)).unwrap());
+                        } else if form == CovarianceForm::Standard {
                             others.push(boxed_kalman::<f64, 4>(&spec(Mode::Full)).unwrap());
                             // And mode rows in the square-root form (its own path of the
                             // gate and the reinitialization).
@@ -685,7 +691,11 @@ fn modes_shared_and_full_equal_rows_with_every_option_they_take() {
                         let (mut e0, mut e1) = (vec![0.0; k], vec![0.0; k]);
                         for (n, (x, z)) in data.iter().enumerate() {
                             reference.update_into(x.as_slice(), z.as_slice(), &[], &mut e0).unwrap();
-                            for (o, mode) in others.iter_mut().zip(["shared", "full", "rows sqrt"]) {
+                            for (o, mode) in others.iter_mut().zip(if joint_gate {
+                                ["full against shared"; 3]
+                            } else {
+                                ["shared", "full", "rows sqrt"]
+                            }) {
                                 o.update_into(x.as_slice(), z.as_slice(), &[], &mut e1).unwrap();
                                 for (a, b) in e0.iter().zip(&e1) {
                                     let (r0, r1) = (reference.reinit_count(), o.reinit_count());
@@ -696,16 +706,26 @@ fn modes_shared_and_full_equal_rows_with_every_option_they_take() {
                                 }
                             }
                         }
-                        for (o, mode) in others.iter().zip(["shared", "full", "rows sqrt"]) {
+                        for (o, mode) in others.iter().zip(if joint_gate {
+                            ["full against shared"; 3]
+                        } else {
+                            ["shared", "full", "rows sqrt"]
+                        }) {
                             assert_same_identifier(&**o, &*reference, 1e-7, &format!("{what}, mode {mode}"));
                         }
                         reinits += reference.reinit_count();
+                        if joint_gate {
+                            let mut g = vec![0u64; k];
+                            reference.gated_into(&mut g).unwrap();
+                            joint_gated += g[0];
+                        }
                     }
                 }
             }
         }
     }
     assert!(reinits > 0, "the jump at sample 600 reinitializes (else the option is not exercised)");
+    assert!(joint_gated > 0, "several rows under the gate: samples gated");
 }
 
 #[test]
