@@ -655,7 +655,7 @@ fn an_iv_step_whose_scale_overflows_is_named_an_overflow() {
     use vehid_core::identify::IvFilter;
     let p0 = SMatrix::<f64, 2, 2>::from_diagonal(&SVector::from([1e308, 1e308]));
     let mut f = IvFilter::<f64, 2>::with_prior(2, SVector::zeros(), p0, 1.0).unwrap();
-    let before = f.clone();
+    let before = f;
     let err = f.update(&SVector::from([1.0, -1.0]), &SVector::from([1.0, 1.0]), 0.0);
     assert!(matches!(err, Err(Error::InvalidArgument { arg: "r_k", .. })), "{err:?}");
     assert_eq!(f.theta(), before.theta());
