@@ -1099,6 +1099,19 @@ fn noise_free_rows_learn_exactly_whatever_the_prior_scale() {
         V4::new(0.05, 0.3, 1.7, -0.2),
     ];
     let close = |a: &V4, b: &V4| (a - b).norm() <= 1e-9 * b.norm();
+    // z on rows 1 and 3, noise-free.
+    let z_of = |x: &V4| {
+        let mut z = V4::zeros();
+        z[1] = x.dot(&th[0]);
+        z[3] = x.dot(&th[1]);
+        z
+    };
+    let both_rows = |got: &[f64; 8], what: &str| {
+        for i in 0..2 {
+            let g = V4::from_column_slice(&got[4 * i..4 * i + 4]);
+            assert!(close(&g, &th[i]), "{what}, row {i}: {g} against {}", th[i]);
+        }
+    };
     for p0 in [1e-9, 1.0, 1e9] {
         for (i, t) in th.iter().enumerate() {
             let mut f = RowIdentifier::<f64, 4>::new(p0, 0.0).unwrap();
@@ -1111,17 +1124,11 @@ fn noise_free_rows_learn_exactly_whatever_the_prior_scale() {
             let mut id = KalmanIdentifier::<f64, 4, 2>::from_slices(&[1, 3], &[p0], &[0.0, 0.0], opts(form)).unwrap();
             let mut e = [0.0; 2];
             for x in &xs {
-                let mut z = V4::zeros();
-                z[1] = x.dot(&th[0]);
-                z[3] = x.dot(&th[1]);
-                id.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+                id.update_into(x.as_slice(), z_of(x).as_slice(), &[], &mut e).unwrap();
             }
             let mut got = [0.0; 8];
             id.params_into(&mut got).unwrap();
-            for i in 0..2 {
-                let g = V4::from_column_slice(&got[4 * i..4 * i + 4]);
-                assert!(close(&g, &th[i]), "p0 = {p0}, {form:?}, row {i}: {g} against {}", th[i]);
-            }
+            both_rows(&got, &format!("p0 = {p0}, {form:?}"));
         }
         // Mode full with R = 0 (its collapsed-row floor is mode rows'), and beyond the four
         // samples that identify the rows.
@@ -1129,15 +1136,11 @@ fn noise_free_rows_learn_exactly_whatever_the_prior_scale() {
             FullKalmanIdentifier::<f64, 4, 2>::from_slices(&[1, 3], &[p0], &[0.0], opts(CovarianceForm::Standard))
                 .unwrap();
         for x in &xs {
-            let mut z = V4::zeros();
-            z[1] = x.dot(&th[0]);
-            z[3] = x.dot(&th[1]);
-            id.update(x, &z).unwrap();
+            id.update(x, &z_of(x)).unwrap();
         }
-        for i in 0..2 {
-            let g = *id.theta_row(i);
-            assert!(close(&g, &th[i]), "p0 = {p0}, mode full, row {i}: {g} against {}", th[i]);
-        }
+        let mut got = [0.0; 8];
+        id.theta_into(&mut got).unwrap();
+        both_rows(&got, &format!("p0 = {p0}, mode full"));
         // The full rows as a Structure with r = 0 (not its lanes' plain step, which has no
         // collapsed-row floor: the general path).
         let st = Structure::full_rows(4, &[1, 3]).unwrap();
@@ -1145,17 +1148,11 @@ fn noise_free_rows_learn_exactly_whatever_the_prior_scale() {
         let mut sk = StructuredKalmanVec::<f64, 8>::new(st, StructuredPrior::Scalar(p0), None, &[0.0], opts).unwrap();
         let mut e = [0.0; 2];
         for x in xs.iter().chain(&regressors(5, 300)) {
-            let mut z = V4::zeros();
-            z[1] = x.dot(&th[0]);
-            z[3] = x.dot(&th[1]);
-            sk.update_into(x.as_slice(), z.as_slice(), &[], &mut e).unwrap();
+            sk.update_into(x.as_slice(), z_of(x).as_slice(), &[], &mut e).unwrap();
         }
         let mut got = [0.0; 8];
         sk.params_into(&mut got).unwrap();
-        for i in 0..2 {
-            let g = V4::from_column_slice(&got[4 * i..4 * i + 4]);
-            assert!(close(&g, &th[i]), "p0 = {p0}, structure, row {i}: {g} against {}", th[i]);
-        }
+        both_rows(&got, &format!("p0 = {p0}, structure"));
     }
 }
 

@@ -634,6 +634,16 @@ fn regression_with_outliers(seed: u64, n: usize) -> Vec<(V4, V4)> {
         .collect()
 }
 
+/// The options of the sweeps: a form, tracking `(λ, q, directional, max_trace)` and screens
+/// `(gate, huber)`.
+pub(super) fn sweep_options(
+    form: CovarianceForm,
+    (forgetting, drift, directional, max_trace): (f64, f64, bool, f64),
+    (gate, huber): (f64, f64),
+) -> KalmanOptions<f64> {
+    KalmanOptions { form, forgetting, directional, drift, max_trace, gate, huber, ..Default::default() }
+}
+
 #[test]
 fn lanes_equal_the_reference_row_filter_with_every_option() {
     // The lanes (three rows: a group of two and one with a padding lane) against the
@@ -659,16 +669,7 @@ fn lanes_equal_the_reference_row_filter_with_every_option() {
         for (lambda, q, directional, cap) in tracking {
             for (gate, huber) in screens {
                 for exact in [false, true] {
-                    let opts = KalmanOptions {
-                        form,
-                        forgetting: lambda,
-                        directional,
-                        drift: q,
-                        max_trace: cap,
-                        gate,
-                        huber,
-                        ..Default::default()
-                    };
+                    let opts = sweep_options(form, (lambda, q, directional, cap), (gate, huber));
                     let what = format!(
                         "{form:?} λ {lambda} q {q} dir {directional} cap {cap} gate {gate} huber {huber} exact {exact}"
                     );

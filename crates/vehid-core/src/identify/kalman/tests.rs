@@ -761,16 +761,7 @@ fn a_structure_of_full_rows_is_mode_rows_with_every_option() {
         for (lambda, q, directional, cap) in tracking {
             for (gate, huber) in [(0.0, 0.0), (4.0, 0.0), (0.0, 1.345)] {
                 for exact in [false, true] {
-                    let opts = KalmanOptions {
-                        form,
-                        forgetting: lambda,
-                        directional,
-                        drift: q,
-                        max_trace: cap,
-                        gate,
-                        huber,
-                        ..Default::default()
-                    };
+                    let opts = super::numerics_tests::sweep_options(form, (lambda, q, directional, cap), (gate, huber));
                     let what =
                         format!("{form:?} λ {lambda} q {q} dir {directional} gate {gate} huber {huber} exact {exact}");
                     let spec = KalmanSpec {
