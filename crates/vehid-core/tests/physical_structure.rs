@@ -121,3 +121,63 @@ fn fig_4_2_physical_structure_converges_within_4000_samples() {
     );
     assert!(ok_struct >= 45, "physical structure: {ok_struct}/50");
 }
+
+/// Every constant follows back from the true parameters (`constant`, the walk along the
+/// parameters' edges in both directions), and its standard error is the delta method's
+/// `√(gᵀ Σ g)` with `g` the constant's gradient, here by central differences of `constant`
+/// itself: the quarter car with `m` known and the half car with `m1, m2, l1, l2` known.
+#[test]
+fn constants_follow_from_the_parameters_with_the_delta_method_standard_error() {
+    fn check(ps: &PhysicalStructure<f64>, truth: &[f64]) {
+        let np = ps.structure().params();
+        let mut theta = vec![0.0; np];
+        ps.params_of(truth, &mut theta).unwrap();
+        // A covariance with correlations: Σ = L Lᵀ, L lower triangular, entries 1 % of θ.
+        let l = |a: usize, b: usize| {
+            if b <= a {
+                0.01 * theta[a].abs() * (1.0 + 0.3 * (a + b) as f64 % 1.0) / (1.0 + (a - b) as f64)
+            } else {
+                0.0
+            }
+        };
+        let cov: Vec<f64> = (0..np * np).map(|ab| (0..np).map(|k| l(ab / np, k) * l(ab % np, k)).sum()).collect();
+        let zero = vec![0.0; np * np];
+        for (c, &t) in truth.iter().enumerate() {
+            let (v, sd) = ps.constant(c, &theta, &cov).unwrap_or_else(|e| panic!("constant {c}: {e:?}"));
+            assert!((v - t).abs() <= 1e-12 * t.abs(), "constant {c}: {v} against {t}");
+            let g: Vec<f64> = (0..np)
+                .map(|j| {
+                    let h = 1e-6 * theta[j].abs();
+                    let at = |d: f64| {
+                        let mut p = theta.clone();
+                        p[j] += d;
+                        ps.constant(c, &p, &zero).unwrap().0
+                    };
+                    (at(h) - at(-h)) / (2.0 * h)
+                })
+                .collect();
+            let var: f64 = (0..np).map(|a| (0..np).map(|b| g[a] * cov[a * np + b] * g[b]).sum::<f64>()).sum();
+            let expect = var.max(0.0).sqrt();
+            assert!((sd - expect).abs() <= 1e-6 * expect.max(1e-300), "constant {c}: sd {sd} against {expect}");
+            if ps.known(c).is_none() {
+                assert!(expect > 0.0, "constant {c}: the test's covariance moves it");
+            }
+        }
+    }
+    // The quarter car anchored by each of its constants in turn (M, m, k1, k2, b): the walk
+    // then runs along the edges from either end.
+    let q = QuarterCar::<f64>::thesis();
+    let truth = q.constants();
+    for c in 0..5 {
+        let mut known = [None; 5];
+        known[c] = Some(truth[c]);
+        check(&QuarterCar::structure(known).unwrap(), &truth);
+    }
+    let h = HalfCar::<f64>::thesis();
+    let truth = h.constants();
+    let mut known = [None; 12];
+    for i in 8..12 {
+        known[i] = Some(truth[i]);
+    }
+    check(&HalfCar::structure(known).unwrap(), &truth);
+}
