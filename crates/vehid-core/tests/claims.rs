@@ -708,7 +708,9 @@ fn estimate_stats_is_ordinary_least_squares() {
     let rows = [1usize, 3];
     let theta = [[-90.0, -40.0, 50.0, 40.0], [5.0, 4.0, -5.0, -4.0]];
     let n = 12;
-    let mut id = KalmanIdentifierVec::<f64, 4>::exact(&rows, &[1.0, 1.0], KalmanOptions::default()).unwrap();
+    // Variances other than 1 (and unequal): ordinary least squares' statistics do not depend
+    // on the r the filter assumes, so every r must cancel.
+    let mut id = KalmanIdentifierVec::<f64, 4>::exact(&rows, &[3.0, 0.25], KalmanOptions::default()).unwrap();
     let mut xs = Vec::new();
     let mut ys = [Vec::new(), Vec::new()];
     let mut e = [0.0; 2];

@@ -599,6 +599,20 @@ fn iv_prior_matrix_is_cut_into_its_groups_blocks() {
         let mut id = IvIdentifier::<f64, 4, 2>::full_rows(4, &[1, 3], 1, p0, &r).unwrap();
         assert_eq!(bits(&run(&mut id, &x, &z)), bits(&want), "{p0:?}");
     }
+    // A matrix of the wrong size names the size it needs (params², 64).
+    let err = IvIdentifier::<f64, 4, 2>::full_rows(4, &[1, 3], 1, StructuredPrior::Matrix(&m[..63]), &r).err();
+    assert!(matches!(err, Some(Error::Shape { arg: "p0", expected: 64, got: 63 })), "{err:?}");
+    // A covariance between the two groups' parameters (entries (a, b) and (b, a), each pair
+    // alone) is refused naming p0.
+    for a in 0..4 {
+        for b in 4..8 {
+            let mut coupled = m.clone();
+            coupled[a * 8 + b] = 0.5;
+            coupled[b * 8 + a] = 0.5;
+            let err = IvIdentifier::<f64, 4, 2>::full_rows(4, &[1, 3], 1, StructuredPrior::Matrix(&coupled), &r).err();
+            assert!(matches!(err, Some(Error::InvalidArgument { arg: "p0", .. })), "({a}, {b}): {err:?}");
+        }
+    }
 }
 
 /// The refined instruments need their predictor: until it has as many samples as regressors
