@@ -362,7 +362,7 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
         // P_lm x = 0 for every l: column m of every C_l is zero, S is block diagonal.)
         for m in 0..k {
             if r[m * k + m] == T::zero() {
-                let floor = T::default_epsilon() * T::of(4.0 * N as f64) * x.abs().sum() * c[m * k + m].abs().sum();
+                let floor = super::row::collapse_floor::<T, N>(x.abs().sum(), c[m * k + m].abs().sum());
                 if s[m * k + m] <= floor {
                     for l in 0..k {
                         c[l * k + m] = SVector::zeros();

@@ -358,7 +358,7 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
             for a in 0..N {
                 ap[a] = px[a][k].abs();
             }
-            let floor = T::default_epsilon() * T::of(4.0 * N as f64) * ax * tree_sum(ap);
+            let floor = super::row::collapse_floor::<T, N>(ax, tree_sum(ap));
             if self.r[k] == T::zero() && s[k] <= floor {
                 go[k] = T::zero();
             }

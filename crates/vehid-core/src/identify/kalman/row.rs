@@ -472,7 +472,7 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
         if self.r == T::zero() {
             // Noise-free data and a covariance collapsed along x (xᵀPx at rounding level):
             // nothing is left to learn in that direction.
-            let floor = T::default_epsilon() * T::of(4.0 * N as f64) * x.abs().sum() * px.abs().sum();
+            let floor = collapse_floor::<T, N>(x.abs().sum(), px.abs().sum());
             if s <= floor {
                 return Ok(());
             }
@@ -768,6 +768,14 @@ pub(crate) fn check_reset<T: Real>(p0: T, starting: bool) -> Result<()> {
 pub(crate) fn gated_scale<T: Real>(gate: T, lambda: T, ssr: T, nobs: T, params: usize) -> (T, T) {
     let sigma2 = ssr / (nobs - T::of(params as f64));
     (ssr * lambda + gate * gate * sigma2, nobs * lambda + T::one())
+}
+
+/// The rounding level of `xᵀPx` for a noise-free row (`r = 0`): `ε · 4N · |x|₁ · |P x|₁`
+/// (`x_l1`, `px_l1`). At or below it the covariance has collapsed along `x` and the row takes
+/// no step (every mode alike).
+#[inline(always)]
+pub(crate) fn collapse_floor<T: Real, const N: usize>(x_l1: T, px_l1: T) -> T {
+    T::default_epsilon() * T::of(4.0 * N as f64) * x_l1 * px_l1
 }
 
 /// A sample is risky for the standard form when `r / s` is below this (`√ε`): it carries so
