@@ -7,6 +7,8 @@ mod common;
 
 #[path = "claims.rs"]
 mod claims;
+#[path = "contract.rs"]
+mod contract;
 #[path = "half_one_road.rs"]
 mod half_one_road;
 #[path = "model_instruments.rs"]

@@ -1,0 +1,571 @@
+//! Every identifier honours the whole [`Identifier`] contract, read through every method of
+//! the trait (and of [`DynIdentifier`], what the Python bindings hold), against references
+//! written here: the estimate and its covariance in closed form (least squares by the normal
+//! equations; a Kalman filter without forgetting is ridge regression, Eq 4.3–4.7 summed), the
+//! residual sums the trait's docs define, what the identifier was built with (rows, noise,
+//! groups), and typed errors for every buffer of the wrong length.
+//!
+//! A mutation-testing aid as much as a test (issue 18): coverage of the Rust tests showed
+//! these read-outs executed by pytest only (through the extension), so a broken accessor
+//! passed every Rust test.
+
+use core::ops::ControlFlow;
+
+use nalgebra::{DMatrix, DVector};
+use vehid_core::identify::{
+    BatchLeastSquares, BiasCompensatedVec, CovarianceForm, DynIdentifier, Dynamic, FullKalmanIdentifierVec, Gain,
+    GainKind, Identifier, IvIdentifierVec, KalmanIdentifierVec, KalmanOptions, LsAccumulator, NoiseEstimatingBclsVec,
+    Samples, SharedKalmanIdentifierVec, StochasticGradientVec, StructuredGradient, StructuredKalmanVec,
+    StructuredPrior,
+};
+use vehid_core::structure::Structure;
+use vehid_core::Error;
+
+use crate::common::quarter;
+
+const ROWS: [usize; 2] = [1, 3];
+const N: usize = 4;
+
+/// The regressors `X` (`L × N`) and the unknown rows' derivatives `Z` (`L × K`).
+fn design(x: &[f64], z: &[f64], rows: &[usize]) -> (DMatrix<f64>, DMatrix<f64>) {
+    let l = x.len() / N;
+    let xm = DMatrix::from_row_slice(l, N, x);
+    let zm = DMatrix::from_fn(l, rows.len(), |k, i| z[k * N + rows[i]]);
+    (xm, zm)
+}
+
+/// Ridge regression of each unknown row: `θ_i = (XᵀX + (r_i/p0) I)⁻¹ Xᵀ z_i` and its
+/// posterior covariance `P_i = r_i (XᵀX + (r_i/p0) I)⁻¹` (a Kalman filter from the prior
+/// `θ ~ N(0, p0 I)` with noise variance `r_i`, after every sample); `p0 = ∞` is least squares.
+/// Also each row's `ssr = Σ (z − xᵀθ_i)² + (r_i/p0)|θ_i|²` (`r_i` times the filter's
+/// minimized cost, the sum of its normalized innovations).
+fn ridge(x: &[f64], z: &[f64], p0: f64, r: &[f64]) -> (Vec<f64>, Vec<DMatrix<f64>>, Vec<f64>) {
+    let (xm, zm) = design(x, z, &ROWS);
+    let g = xm.transpose() * &xm;
+    let (mut theta, mut cov, mut ssr) = (vec![], vec![], vec![]);
+    for (i, &ri) in r.iter().enumerate() {
+        let a = &g + DMatrix::identity(N, N) * (ri / p0);
+        let inv = a.clone().try_inverse().unwrap();
+        let th: DVector<f64> = &inv * (xm.transpose() * zm.column(i));
+        let res = zm.column(i) - &xm * &th;
+        ssr.push(res.norm_squared() + ri / p0 * th.norm_squared());
+        theta.extend(th.iter());
+        cov.push(inv * ri);
+    }
+    (theta, cov, ssr)
+}
+
+/// What a read-out should give.
+enum Check {
+    /// The identifier keeps none: `Unsupported`.
+    Unsupported,
+    /// Given, finite; its value is checked elsewhere (the identifier's own tests).
+    Any,
+    /// These values, to this relative tolerance (of the largest entry).
+    Value(Vec<f64>, f64),
+}
+
+/// What an identifier was built with and what it should give.
+struct Expect {
+    /// The estimate.
+    params: Check,
+    /// The covariance `P` (row-major, `params²`).
+    cov: Check,
+    /// The noise matrix `R` (`equations²`).
+    noise: Check,
+    /// Each equation's residual sum of squares.
+    ssr: Check,
+    /// Whether `reset_covariance` is supported after the data.
+    reset: bool,
+}
+
+/// The block-diagonal matrix of per-row blocks, row-major.
+fn block_diag(blocks: &[DMatrix<f64>]) -> Vec<f64> {
+    let np = blocks.iter().map(|b| b.nrows()).sum::<usize>();
+    let mut out = vec![0.0; np * np];
+    let mut at = 0;
+    for b in blocks {
+        for i in 0..b.nrows() {
+            for j in 0..b.ncols() {
+                out[(at + i) * np + at + j] = b[(i, j)];
+            }
+        }
+        at += b.nrows();
+    }
+    out
+}
+
+fn close(name: &str, what: &str, got: &[f64], want: &[f64], rel: f64) {
+    assert_eq!(got.len(), want.len(), "{name}: {what} length");
+    let scale = want.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(f64::MIN_POSITIVE);
+    for (j, (g, w)) in got.iter().zip(want).enumerate() {
+        assert!((g - w).abs() <= rel * scale, "{name}: {what}[{j}] = {g}, expected {w} (relative {rel})");
+    }
+}
+
+/// A [`Error::Shape`] saying the length it expected and the one it got.
+fn is_shape<T: core::fmt::Debug>(name: &str, what: &str, r: Result<T, Error>, want: usize, given: usize) {
+    match r {
+        Err(Error::Shape { expected, got, .. }) => {
+            assert_eq!((expected, got), (want, given), "{name}: {what}'s error: expected length, got length")
+        }
+        r => panic!("{name}: {what} of a wrong length gave {r:?}"),
+    }
+}
+
+fn unsupported<T: core::fmt::Debug>(name: &str, what: &str, r: Result<T, Error>) {
+    assert!(matches!(r, Err(Error::Unsupported { .. })), "{name}: {what} gave {r:?}, expected Unsupported");
+}
+
+/// Runs `id` over the samples and checks every read-out of the trait against `ex`.
+fn contract<I: DynIdentifier<f64> + Clone + 'static>(name: &str, mut id: I, x: &[f64], z: &[f64], ex: Expect) {
+    let (ne, np) = (ROWS.len(), ROWS.len() * N);
+    let d = id.dims();
+    assert_eq!((d.states, d.inputs, d.equations, d.params), (N, 0, ne, np), "{name}: dims");
+    assert_eq!(id.rows(), &ROWS[..], "{name}: rows");
+    assert_eq!(id.samples(), 0, "{name}: samples before any");
+
+    // Buffers one too long or too short: typed errors naming the buffer, never a panic.
+    is_shape(name, "params_into", id.params_into(&mut vec![0.0; np + 1]), np, np + 1);
+    is_shape(name, "params_into", id.params_into(&mut vec![0.0; np - 1]), np, np - 1);
+    is_shape(name, "gated_into", id.gated_into(&mut [0u64; 3]), ne, 3);
+    is_shape(name, "groups_into (params)", id.groups_into(&mut vec![0; np + 1], &mut [0; 2]), np, np + 1);
+    is_shape(name, "groups_into (equations)", id.groups_into(&mut vec![0; np], &mut [0; 1]), ne, 1);
+    let e_short = id.update_into(&x[..N], &z[..N], &[], &mut [0.0; 1]);
+    is_shape(name, "update_into's innovations", e_short, ne, 1);
+    assert_eq!(id.samples(), 0, "{name}: a refused sample is not counted");
+
+    // The samples, with a sample count and a fit that sees them all.
+    let data = Samples::new(N, 0, x, z, &[]).unwrap();
+    assert_eq!((data.is_empty(), data.states(), data.inputs()), (false, N, 0));
+    assert!(Samples::new(N, 0, &x[..0], &z[..0], &[]).unwrap().is_empty());
+    let mut seen = 0;
+    id.fit(&data, |k, _, _| {
+        assert_eq!(k, seen);
+        seen += 1;
+        ControlFlow::Continue(())
+    })
+    .unwrap();
+    assert_eq!(id.samples(), data.len() as u64, "{name}: samples");
+
+    let mut theta = vec![0.0; np];
+    id.params_into(&mut theta).unwrap_or_else(|e| panic!("{name}: {e:?}"));
+    assert!(theta.iter().all(|v| v.is_finite()), "{name}: θ {theta:?}");
+    if let Check::Value(want, rel) = &ex.params {
+        close(name, "θ", &theta, want, *rel);
+    }
+
+    let mut cov = vec![0.0; np * np];
+    match &ex.cov {
+        Check::Unsupported => {
+            unsupported(name, "covariance_into", id.covariance_into(&mut cov));
+            assert_eq!(id.trace(), None, "{name}: no covariance, no trace");
+        }
+        check => {
+            is_shape(name, "covariance_into", id.covariance_into(&mut vec![0.0; np * np - 1]), np * np, np * np - 1);
+            id.covariance_into(&mut cov).unwrap();
+            assert!(cov.iter().all(|v| v.is_finite()), "{name}: P {cov:?}");
+            if let Check::Value(want, rel) = check {
+                close(name, "P", &cov, want, *rel);
+            }
+            if let Some(t) = id.trace() {
+                let diag: f64 = (0..np).map(|j| cov[j * np + j]).sum();
+                assert!((t - diag).abs() <= 1e-9 * diag, "{name}: trace {t} against Σ diag P {diag}");
+            }
+        }
+    }
+
+    let mut r = vec![0.0; ne * ne];
+    match &ex.noise {
+        Check::Unsupported => unsupported(name, "noise_into", id.noise_into(&mut r)),
+        check => {
+            is_shape(name, "noise_into", id.noise_into(&mut vec![0.0; ne * ne + 1]), ne * ne, ne * ne + 1);
+            id.noise_into(&mut r).unwrap();
+            assert!(r.iter().all(|v| v.is_finite()), "{name}: R {r:?}");
+            if let Check::Value(want, rel) = check {
+                close(name, "R", &r, want, *rel);
+            }
+        }
+    }
+
+    let (mut ssr, mut nobs) = (vec![0.0; ne], vec![0.0; ne]);
+    match &ex.ssr {
+        Check::Unsupported => unsupported(name, "residuals_into", id.residuals_into(&mut ssr, &mut nobs)),
+        check => {
+            is_shape(name, "residuals_into", id.residuals_into(&mut [0.0; 3], &mut [0.0; 3]), ne, 3);
+            is_shape(name, "residuals_into", id.residuals_into(&mut [0.0; 2], &mut [0.0; 1]), ne, 1);
+            id.residuals_into(&mut ssr, &mut nobs).unwrap();
+            assert!(ssr.iter().all(|v| v.is_finite() && *v > 0.0), "{name}: ssr {ssr:?}");
+            if let Check::Value(want, rel) = check {
+                for i in 0..ne {
+                    let (g, w) = (ssr[i], want[i]);
+                    assert!((g - w).abs() <= rel * w, "{name}: ssr[{i}] {g} against {w}");
+                }
+                assert_eq!(nobs, vec![data.len() as f64; ne], "{name}: nobs");
+            }
+            // The samples behind the sums: an instrumental identifier starts once it has
+            // instruments (after its delay and lags).
+            assert!(nobs.iter().all(|&v| v > 0.0 && v <= data.len() as f64), "{name}: nobs {nobs:?}");
+        }
+    }
+
+    // Rows of a linear model: parameter j in row j / N's group, equation i its own.
+    let (mut gp, mut ge) = (vec![9; np], vec![9; ne]);
+    id.groups_into(&mut gp, &mut ge).unwrap();
+    assert_eq!(gp, (0..np).map(|j| j / N).collect::<Vec<_>>(), "{name}: groups of the parameters");
+    assert_eq!(ge, vec![0, 1], "{name}: groups of the equations");
+    let mut gated = [7u64; 2];
+    id.gated_into(&mut gated).unwrap();
+    assert_eq!(gated, [0, 0], "{name}: nothing gated without a gate");
+
+    // The boxed copy: the same estimate, and the concrete type behind it.
+    let boxed = id.clone_box();
+    let mut again = vec![0.0; np];
+    boxed.params_into(&mut again).unwrap();
+    assert_eq!(again, theta, "{name}: clone_box");
+    assert_eq!(boxed.samples(), id.samples());
+    assert!(boxed.as_any().downcast_ref::<I>().is_some(), "{name}: as_any is the concrete identifier");
+
+    // Covariance reset: P = p0 I around the same estimate.
+    let mut reset = id.clone();
+    if ex.reset {
+        reset.reset_covariance(2.5).unwrap();
+        reset.covariance_into(&mut cov).unwrap();
+        let eye: Vec<f64> = (0..np * np).map(|k| if k % (np + 1) == 0 { 2.5 } else { 0.0 }).collect();
+        close(name, "P after reset", &cov, &eye, 1e-15);
+        reset.params_into(&mut again).unwrap();
+        assert_eq!(again, theta, "{name}: reset keeps θ");
+    } else {
+        unsupported(name, "reset_covariance", reset.reset_covariance(2.5));
+    }
+
+    // A rejected sample in a fit: its index, the reason, and nothing changed.
+    let mut bad = x[..8 * N].to_vec();
+    bad[3 * N + 1] = f64::NAN;
+    let before = id.samples();
+    let err = id.fit(&Samples::new(N, 0, &bad, &z[..8 * N], &[]).unwrap(), |_, _, _| ControlFlow::Continue(()));
+    let err = err.unwrap_err();
+    assert_eq!(err.sample, Some(3), "{name}");
+    assert!(matches!(err.error, Error::NonFinite { .. }), "{name}: {err:?}");
+    let text = err.to_string();
+    assert!(text.starts_with("sample 3 was rejected (") && text.ends_with("the identifier is unchanged"), "{text}");
+    assert_eq!(id.samples(), before);
+    id.params_into(&mut again).unwrap();
+    assert_eq!(again, theta, "{name}: a refused fit changes nothing");
+}
+
+/// Derivative noise variance of the quarter car's data (σ_v = 0.1), every row.
+const RV: f64 = 0.01;
+
+fn data() -> (Vec<f64>, Vec<f64>) {
+    quarter(600, 0.0, 7301)
+}
+
+/// Batch least squares: θ the normal equations' solution, `P = (XᵀX)⁻¹` per row with unit
+/// noise, the least-squares residual sums.
+#[test]
+fn batch_least_squares_honours_the_contract() {
+    let (x, z) = data();
+    let (theta, cov, ssr) = ridge(&x, &z, f64::INFINITY, &[1.0, 1.0]);
+    let ex = Expect {
+        params: Check::Value(theta, 1e-9),
+        cov: Check::Value(block_diag(&cov), 1e-9),
+        noise: Check::Value(vec![1.0, 0.0, 0.0, 1.0], 0.0),
+        ssr: Check::Value(ssr, 1e-9),
+        reset: false,
+    };
+    contract("batch", BatchLeastSquares::<f64, N>::new(&ROWS).unwrap(), &x, &z, ex);
+    // extend: the same samples at once; whole samples only.
+    let mut b = BatchLeastSquares::<f64, N>::new(&ROWS).unwrap();
+    b.extend(&x, &z).unwrap();
+    assert_eq!(b.samples(), x.len() / N);
+    close("batch", "θ after extend", &b.solve().unwrap(), &ridge(&x, &z, f64::INFINITY, &[1.0, 1.0]).0, 1e-9);
+    for (xs, zs) in [(&x[..5], &z[..5]), (&x[..8], &z[..4]), (&x[..8], &z[..12])] {
+        assert!(matches!(b.extend(xs, zs), Err(Error::Shape { .. })), "{} {}", xs.len(), zs.len());
+    }
+    assert_eq!(b.samples(), x.len() / N, "a refused extend stores nothing");
+    b.clear();
+    assert_eq!((b.samples(), b.rows()), (0, &ROWS[..]));
+}
+
+/// The normal equations accumulated: θ the least-squares solution; no covariance, noise or
+/// residuals kept (the Python layer's `LeastSquares` reads them from the batch form). Also
+/// its own accessors and its cost per sample (`x xᵀ`: N² mul and add; `x z_i`: K·N), counted
+/// here for N = 4 with one and two rows.
+#[test]
+fn least_squares_accumulator_honours_the_contract() {
+    let (x, z) = data();
+    let (theta, _, _) = ridge(&x, &z, f64::INFINITY, &[1.0, 1.0]);
+    let ex = Expect {
+        params: Check::Value(theta.clone(), 1e-8),
+        cov: Check::Unsupported,
+        noise: Check::Unsupported,
+        ssr: Check::Unsupported,
+        reset: false,
+    };
+    contract("accumulator", LsAccumulator::<f64, N, Dynamic>::from_rows(&ROWS).unwrap(), &x, &z, ex);
+    let mut acc = LsAccumulator::<f64, N, Dynamic>::from_rows(&ROWS).unwrap();
+    assert_eq!(acc.rows(), &ROWS[..]);
+    for (xk, zk) in x.chunks(N).zip(z.chunks(N)).take(10) {
+        acc.push(&nalgebra::SVector::from_row_slice(xk), &nalgebra::SVector::from_row_slice(zk)).unwrap();
+    }
+    assert_eq!(acc.samples(), 10);
+    is_shape("accumulator", "solve_into", acc.solve_into(&mut [0.0; 7]), 8, 7);
+    let two = acc.cost();
+    assert_eq!((two.multiplications, two.additions, two.divisions, two.square_roots), (16 + 8, 16 + 8, 0, 0));
+    let one = LsAccumulator::<f64, N, Dynamic>::from_rows(&[2]).unwrap().cost();
+    assert_eq!((one.multiplications, one.additions), (16 + 4, 16 + 4));
+    assert!(two.bytes > core::mem::size_of_val(&acc), "the heap rows are counted");
+}
+
+/// Each equation's noise as a diagonal `R`, row-major.
+fn diag(r: &[f64]) -> Vec<f64> {
+    let k = r.len();
+    (0..k * k).map(|j| if j % (k + 1) == 0 { r[j / k] } else { 0.0 }).collect()
+}
+
+/// Mode rows from the prior `p0 I`: ridge regression per row, its covariance, and the
+/// residual sums `r` times the minimized cost. Also `options()` and `theta_row`.
+#[test]
+fn kalman_rows_honour_the_contract() {
+    let (x, z) = data();
+    let (p0, r) = (50.0, [RV, 4.0 * RV]);
+    let (theta, cov, ssr) = ridge(&x, &z, p0, &r);
+    let opts = KalmanOptions { gate: 0.0, ..KalmanOptions::default() };
+    for form in [CovarianceForm::Standard, CovarianceForm::Joseph, CovarianceForm::Sqrt] {
+        let o = KalmanOptions { form, ..opts };
+        let id = KalmanIdentifierVec::<f64, N>::from_slices(&ROWS, &[p0], &r, o).unwrap();
+        assert_eq!(id.options(), &o);
+        let ex = Expect {
+            params: Check::Value(theta.clone(), 1e-7),
+            cov: Check::Value(block_diag(&cov), 1e-7),
+            noise: Check::Value(diag(&r), 0.0),
+            ssr: Check::Value(ssr.clone(), 1e-7),
+            reset: true,
+        };
+        contract("rows", id, &x, &z, ex);
+    }
+}
+
+/// Mode shared (one `P` for the rows, equal variances) and mode full (one `P` over every
+/// row) from the prior `p0 I`: ridge regression again.
+#[test]
+fn kalman_shared_and_full_honour_the_contract() {
+    let (x, z) = data();
+    let (p0, r) = (50.0, [RV, RV]);
+    let (theta, cov, _) = ridge(&x, &z, p0, &r);
+    let ex = || Expect {
+        params: Check::Value(theta.clone(), 1e-7),
+        cov: Check::Value(block_diag(&cov), 1e-7),
+        noise: Check::Value(diag(&r), 0.0),
+        ssr: Check::Unsupported,
+        reset: true,
+    };
+    let o = KalmanOptions::default();
+    contract("shared", SharedKalmanIdentifierVec::<f64, N>::from_slices(&ROWS, &[p0], &r, o).unwrap(), &x, &z, ex());
+    contract("full", FullKalmanIdentifierVec::<f64, N>::from_slices(&ROWS, &[p0], &r, o).unwrap(), &x, &z, ex());
+}
+
+/// A prior mean `θ₀` set before the first sample: ridge regression towards it,
+/// `(XᵀX + (r/p0) I)⁻¹ (Xᵀz + (r/p0) θ₀)`, in modes shared and full; shared's own accessors
+/// (`rows`, `r(i)`, `theta_row`); three rows' noise matrices (`3 × 3`) in modes rows and
+/// shared and batch least squares.
+#[test]
+fn kalman_prior_means_and_accessors() {
+    let (x, z) = data();
+    let (p0, r) = (0.5, RV);
+    let theta0: Vec<f64> = (0..8).map(|j| 10.0 * j as f64 - 35.0).collect();
+    let (xm, zm) = design(&x, &z, &ROWS);
+    let a = xm.transpose() * &xm + DMatrix::identity(N, N) * (r / p0);
+    let mut want = vec![];
+    for i in 0..2 {
+        let t0 = DVector::from_column_slice(&theta0[i * N..(i + 1) * N]);
+        let th = a.clone().lu().solve(&(xm.transpose() * zm.column(i) + t0 * (r / p0))).unwrap();
+        want.extend(th.iter());
+    }
+    let o = KalmanOptions::default();
+    let mut shared = SharedKalmanIdentifierVec::<f64, N>::from_slices(&ROWS, &[p0], &[r, r], o).unwrap();
+    is_shape("shared", "set_theta", shared.set_theta(&theta0[..7]), 8, 7);
+    shared.set_theta(&theta0).unwrap();
+    let mut full = FullKalmanIdentifierVec::<f64, N>::from_slices(&ROWS, &[p0], &[r, r], o).unwrap();
+    is_shape("full", "set_theta", full.set_theta(&theta0[..7]), 8, 7);
+    full.set_theta(&theta0).unwrap();
+    let (th_s, th_f) = (crate::common::run(&mut shared, &x, &z), crate::common::run(&mut full, &x, &z));
+    close("shared", "θ with a prior mean", &th_s, &want, 1e-7);
+    close("full", "θ with a prior mean", &th_f, &want, 1e-7);
+    assert_eq!(shared.rows(), &ROWS[..]);
+    for i in 0..2 {
+        assert_eq!(shared.r(i), r);
+        assert_eq!(shared.theta_row(i).as_slice(), &th_s[i * N..(i + 1) * N]);
+    }
+    let three = [0usize, 1, 3];
+    let r3 = [RV, 2.0 * RV, 3.0 * RV];
+    let mut rr = [0.0; 9];
+    let rows3 = KalmanIdentifierVec::<f64, N>::from_slices(&three, &[p0], &r3, o).unwrap();
+    rows3.noise_into(&mut rr).unwrap();
+    assert_eq!(rr.to_vec(), diag(&r3));
+    is_shape("rows", "noise_into", rows3.noise_into(&mut [0.0; 6]), 9, 6);
+    let batch3 = BatchLeastSquares::<f64, N>::new(&three).unwrap();
+    batch3.noise_into(&mut rr).unwrap();
+    assert_eq!(rr.to_vec(), diag(&[1.0; 3]));
+    is_shape("batch", "noise_into", batch3.noise_into(&mut [0.0; 6]), 9, 6);
+    let shared3 = SharedKalmanIdentifierVec::<f64, N>::from_slices(&three, &[p0], &[RV; 3], o).unwrap();
+    shared3.noise_into(&mut rr).unwrap();
+    assert_eq!(rr.to_vec(), diag(&[RV; 3]));
+    is_shape("shared", "noise_into", shared3.noise_into(&mut [0.0; 6]), 9, 6);
+}
+
+/// Mode shared counts what it gates and reinitializes, and says so through its own accessors
+/// and the trait's alike: one sample with a derivative 10⁴ σ off, gated (every row leaves
+/// it out: one more than on the clean samples); without the gate and with reinitialization
+/// on, as often as mode rows on the same samples.
+#[test]
+fn kalman_shared_counts_gated_and_reinitialized_samples() {
+    let (x, clean) = data();
+    let mut z = clean.clone();
+    z[400 * N + 1] += 1e4 * RV.sqrt();
+    let gate = KalmanOptions { gate: 4.0, ..KalmanOptions::default() };
+    let gated = |z: &[f64]| {
+        let mut s = SharedKalmanIdentifierVec::<f64, N>::from_slices(&ROWS, &[50.0], &[RV, RV], gate).unwrap();
+        crate::common::feed(&mut s, &x, z);
+        let mut g = [0u64; 2];
+        s.gated_into(&mut g).unwrap();
+        assert_eq!(g, [s.gated(); 2]);
+        s.gated()
+    };
+    // The clean samples' own tail beyond 4σ, and the outlier.
+    assert_eq!(gated(&z), gated(&clean) + 1);
+    let reinit = KalmanOptions { reinit: true, ..KalmanOptions::default() };
+    let mut s = SharedKalmanIdentifierVec::<f64, N>::from_slices(&ROWS, &[50.0], &[RV, RV], reinit).unwrap();
+    crate::common::feed(&mut s, &x, &z);
+    let mut rows = KalmanIdentifierVec::<f64, N>::from_slices(&ROWS, &[50.0], &[RV, RV], reinit).unwrap();
+    crate::common::feed(&mut rows, &x, &z);
+    // Shared runs the rows' rule (kalman::tests sweeps that one against the other).
+    assert!(s.reinit_count() >= 2);
+    assert_eq!(s.reinit_count(), rows.reinit_count());
+    assert_eq!(Identifier::reinit_count(&s), s.reinit_count());
+    assert_eq!(s.gated(), 0);
+}
+
+/// A structure of the full rows, from the prior `p0 I`: ridge regression, its covariance and
+/// residual sums; `form()` the form it was given.
+#[test]
+fn structured_kalman_honours_the_contract() {
+    let (x, z) = data();
+    let (p0, r) = (50.0, [RV, 4.0 * RV]);
+    let (theta, cov, ssr) = ridge(&x, &z, p0, &r);
+    for form in [CovarianceForm::Standard, CovarianceForm::Joseph, CovarianceForm::Sqrt] {
+        let o = KalmanOptions { form, gate: 0.0, ..KalmanOptions::default() };
+        let st = Structure::full_rows(N, &ROWS).unwrap();
+        let id = StructuredKalmanVec::<f64, 8>::new(st, StructuredPrior::Scalar(p0), None, &r, o).unwrap();
+        assert_eq!(id.form(), form);
+        let ex = Expect {
+            params: Check::Value(theta.clone(), 1e-7),
+            cov: Check::Value(block_diag(&cov), 1e-7),
+            noise: Check::Value(diag(&r), 0.0),
+            ssr: Check::Value(ssr.clone(), 1e-7),
+            reset: true,
+        };
+        contract("structured", id, &x, &z, ex);
+    }
+}
+
+/// The stochastic gradients keep no covariance; `theta_row(i)` is row `i` of the estimate,
+/// `rows()` the rows, the gain's kind the one asked for; the cost per step is the count in
+/// its docs (per row: N² + 4N multiplications, N² + 2N additions; one power).
+#[test]
+fn stochastic_gradients_honour_the_contract() {
+    let (x, z) = data();
+    let ex = || Expect {
+        params: Check::Any,
+        cov: Check::Unsupported,
+        noise: Check::Unsupported,
+        ssr: Check::Unsupported,
+        reset: false,
+    };
+    let gain = Gain::of_kind(GainKind::Venter, 0.51, 0.99, 0.95);
+    assert_eq!(gain.kind(), GainKind::Venter);
+    assert_eq!(Gain::of_kind(GainKind::Ljung, 0.51, 0.99, 0.95), Gain::Ljung { lambda0: 0.99, lambda_init: 0.95 });
+    assert_eq!(Gain::<f64>::of_kind(GainKind::Lyapunov, 0.51, 0.99, 0.95).kind(), GainKind::Lyapunov);
+    let mut sg = StochasticGradientVec::<f64, N>::from_slices(&ROWS, gain, &[0.4], &[0.0], 1).unwrap();
+    contract("gradient", sg.clone(), &x, &z, ex());
+    assert_eq!(sg.rows(), &ROWS[..]);
+    common_feed(&mut sg, &x[..40 * N], &z[..40 * N]);
+    let mut theta = [0.0; 8];
+    sg.params_into(&mut theta).unwrap();
+    for i in 0..2 {
+        assert_eq!(sg.theta_row(i).as_slice(), &theta[i * N..(i + 1) * N]);
+    }
+    // Venter's gain after 40 steps: 40^(−0.51).
+    assert!((sg.gamma() - 40f64.powf(-0.51)).abs() < 1e-12, "{}", sg.gamma());
+    let c = sg.cost();
+    assert_eq!((c.multiplications, c.additions, c.divisions, c.square_roots), (2 * (16 + 16), 2 * (16 + 8), 1, 0));
+    let c1 = StochasticGradientVec::<f64, 3>::from_slices(&[0], gain, &[0.4], &[0.0], 1).unwrap().cost();
+    assert_eq!((c1.multiplications, c1.additions), (9 + 12, 9 + 6));
+    assert!(c.bytes > core::mem::size_of_val(&sg), "the heap rows are counted");
+
+    let st = || Structure::full_rows(N, &ROWS).unwrap();
+    let sgs = StructuredGradient::<f64, 8>::new(st(), Gain::Lyapunov, &[1.0], None, 1).unwrap();
+    assert_eq!(sgs.structure(), &st());
+    contract("structured gradient", sgs, &x, &z, ex());
+}
+
+fn common_feed<I: Identifier<f64>>(id: &mut I, x: &[f64], z: &[f64]) {
+    crate::common::feed(id, x, z);
+}
+
+/// The instrumental-variable family on the full rows: the same contract (their estimates are
+/// checked against batch IV in their own tests; 600 samples of this car are far from
+/// converged, for least squares too); `delay()` and `lags()` as built, the noise
+/// estimator's structure and instrumental identifier the ones it was given.
+#[test]
+fn instrumental_variables_honour_the_contract() {
+    let (x, z) = data();
+    let ex = || Expect { params: Check::Any, cov: Check::Any, noise: Check::Any, ssr: Check::Any, reset: false };
+    let iv = IvIdentifierVec::<f64, 8, 25>::full_rows(N, &ROWS, 2, StructuredPrior::Exact, &[1.0]).unwrap();
+    assert_eq!((iv.delay(), iv.lags()), (2, 0));
+    let iv = iv.with_lags(3).unwrap();
+    assert_eq!((iv.delay(), iv.lags()), (2, 3));
+    contract("iv", iv, &x, &z, ex());
+
+    let ne = NoiseEstimatingBclsVec::<f64, 8>::full_rows(N, &ROWS, 2, 0).unwrap();
+    assert_eq!(ne.structure(), &Structure::full_rows(N, &ROWS).unwrap());
+    assert_eq!((ne.instrumental().delay(), ne.instrumental().lags()), (2, 0));
+    // It estimates the states' noise: on noise-free states and few samples its estimate can
+    // exceed what the data show (a typed Singular); noisy states, as it is meant for.
+    let (xn, zn) = quarter(4000, 8.0, 7302);
+    let ex_ne = Expect { cov: Check::Unsupported, ssr: Check::Unsupported, ..ex() };
+    contract("noise estimating", ne, &xn, &zn, ex_ne);
+
+    let bc = BiasCompensatedVec::<f64, 8>::new(Structure::full_rows(N, &ROWS).unwrap(), &[1e-6], &[], &[1.0]).unwrap();
+    contract("bias compensated", bc, &x, &z, Expect { cov: Check::Unsupported, ssr: Check::Unsupported, ..ex() });
+}
+
+/// Fits of more equations than live on the stack (`FIT_STACK_EQUATIONS`): the innovations on
+/// the heap, the estimate the least-squares one.
+#[test]
+fn fits_of_more_equations_than_the_stack_holds() {
+    const M: usize = vehid_core::identify::FIT_STACK_EQUATIONS + 1;
+    let rows: Vec<usize> = (0..M).collect();
+    let (l, mut s) = (3 * M, 0x9e37_79b9_7f4a_7c15u64);
+    let mut next = || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    let x: Vec<f64> = (0..l * M).map(|_| next()).collect();
+    let a: Vec<f64> = (0..M * M).map(|_| next()).collect();
+    let z: Vec<f64> = (0..l)
+        .flat_map(|k| (0..M).map(|i| (0..M).map(|j| a[i * M + j] * x[k * M + j]).sum::<f64>()).collect::<Vec<_>>())
+        .collect();
+    let mut acc = LsAccumulator::<f64, M, Dynamic>::from_rows(&rows).unwrap();
+    acc.fit(&Samples::new(M, 0, &x, &z, &[]).unwrap(), |_, _, e| {
+        assert_eq!(e.len(), M);
+        ControlFlow::Continue(())
+    })
+    .unwrap();
+    let mut theta = vec![0.0; M * M];
+    acc.params_into(&mut theta).unwrap();
+    close("accumulator", "A", &theta, &a, 1e-8);
+}
