@@ -493,3 +493,54 @@ fn the_stability_test_holds_for_any_number_of_states() {
     check(&["q", "v", "w"], &[("w", "F - 3*w")], "w");
     check(&["q", "v", "w", "y"], &[("w", "F - 3*w"), ("y", "w - 5*y")], "y");
 }
+
+/// A read-out of an identifier into a buffer.
+type ReadOut = dyn Fn(&dyn Identifier<f64>, &mut [f64]) -> vehid_core::Result<()>;
+
+/// The read-outs are those of the instrumental-variable identifier inside (`inner()`),
+/// entry for entry: dims (2 states, 1 input, 1 equation, 3 parameters), rows (the equation of
+/// `v`), θ̂, samples, `P`, `R`, the residual sums and the groups; `settings()` what it was
+/// built with; one refresh per `refresh` samples once the estimate exists (adopted or refused).
+#[test]
+fn the_read_outs_are_the_inner_identifiers() {
+    let d = rig(TRUTH, 1500, 10.0, 11);
+    let refresh = 100;
+    let mut id = IvIdentifier::<f64, 3, 1>::exact(msd(), 1)
+        .unwrap()
+        .with_model_instruments(DT, 3, refresh, Some(&[1.1, 8000.0, 22.0]))
+        .unwrap();
+    assert_eq!(id.settings(), (DT, 3, refresh));
+    let mut e = [0.0];
+    let mut started = None;
+    for k in 0..d.r.len() {
+        id.update_into(&d.r[k], &d.z[k], &d.u[k], &mut e).unwrap();
+        if started.is_none() && !id.inner().starting() {
+            started = Some(k);
+        }
+    }
+    let dims = id.dims();
+    assert_eq!((dims.states, dims.inputs, dims.equations, dims.params), (2, 1, 1, 3));
+    assert_eq!(id.rows(), &[1]);
+    assert_eq!(id.rows(), id.inner().rows());
+    assert_eq!(id.samples(), d.r.len() as u64);
+    let inner = id.inner();
+    let pair = |f: &ReadOut, len: usize| {
+        let (mut a, mut b) = (vec![0.0; len], vec![f64::NAN; len]);
+        f(&id, &mut a).unwrap();
+        f(inner, &mut b).unwrap();
+        assert!(a.iter().all(|v| v.is_finite()));
+        assert_eq!(a, b);
+    };
+    pair(&|i, o| i.params_into(o), 3);
+    pair(&|i, o| i.covariance_into(o), 9);
+    pair(&|i, o| i.noise_into(o), 1);
+    pair(&|i, o| i.residuals_into(&mut o[..1], &mut [0.0]), 1);
+    let (mut gp, mut ge) = ([9; 3], [9; 1]);
+    id.groups_into(&mut gp, &mut ge).unwrap();
+    let (mut gp2, mut ge2) = ([7; 3], [7; 1]);
+    inner.groups_into(&mut gp2, &mut ge2).unwrap();
+    assert_eq!((gp, ge), (gp2, ge2));
+    // The samples after the first estimate, counted from the one that made it.
+    let after = d.r.len() - started.unwrap();
+    assert_eq!(id.adopted() + id.refused(), (after / refresh) as u64);
+}
