@@ -13,12 +13,16 @@
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
+use nalgebra::SVector;
 use rand::rngs::Xoshiro256PlusPlus;
 use rand::{RngExt, SeedableRng};
-use vehid_core::identify::{Identifier, TwoAxleConfig, TwoAxleIdentifier, WheelMethod};
+use vehid_core::identify::{
+    Identifier, TwoAxleConfig, TwoAxleIdentifier, TwoAxleIdentifierVec, TwoAxleStructuredConfig,
+    TwoAxleStructuredKalman, WheelMethod,
+};
 use vehid_core::metrics::xi;
-use vehid_core::model::HalfCar;
-use vehid_core::sampler::AxleSampler;
+use vehid_core::model::{HalfCar, LinearModel};
+use vehid_core::sampler::{AxleSampler, Pair, Trigger};
 use vehid_core::sim::{RoadConfig, RoadMode, RoadSimulator, SimConfig};
 use vehid_core::Error;
 
@@ -838,4 +842,281 @@ fn cancellation_reports_the_front_rows_innovation() {
         moved += usize::from(prediction.abs() > 1e-6 * s.z[1].abs());
     }
     assert!(moved > 1000, "the front row stayed at its prior ({moved} samples)");
+}
+
+// ---- accessors, against what the test gave and the identifiers' other outputs -----------
+
+/// `n` made-up samples `(x, z)`, every component uniform in ±1 (fixed seed): they move every
+/// estimate, which is all the accessor checks below need (no car's dynamics).
+fn made_up(seed: u64, n: usize) -> Vec<(SVector<f64, 8>, SVector<f64, 8>)> {
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
+    (0..n)
+        .map(|_| {
+            let x = SVector::<f64, 8>::from_fn(|_, _| rng.random_range(-1.0..1.0));
+            let z = SVector::<f64, 8>::from_fn(|_, _| rng.random_range(-1.0..1.0));
+            (x, z)
+        })
+        .collect()
+}
+
+/// The plain accessors of the rows identifier against what the test gave it: `config()` the
+/// settings passed in (every field off `TwoAxleConfig::new`'s), `delay()` the `d` passed in,
+/// `wheel_rows()` the rows holding the non-zero entry of the model's front and rear column of
+/// `B` (found here), `ratio()` ρ = b42 / b21 = (k21/m2) / (k11/m1) from the car's constants
+/// (the passenger car: 8/7), `Identifier::rows` the car's unknown rows, and both `samples()`
+/// the number of samples fed (23, of which all but the first `d` paired).
+#[test]
+fn two_axle_accessors_read_back_what_the_test_gave() {
+    let car = HalfCar::<f64>::passenger();
+    let model = car.model();
+    let cfg = TwoAxleConfig {
+        method: WheelMethod::Thesis,
+        p0_wheel: 250.0,
+        p0_body: 7.0,
+        road_sigma: 0.02,
+        deriv_noise: 0.003,
+        direct_front: false,
+    };
+    let d = 7;
+    let mut id = Id::new(&model, d, cfg).unwrap();
+    assert_eq!(*id.config(), cfg);
+    assert_eq!(id.delay(), d);
+    let entered = |col: usize| -> Vec<usize> { (0..8).filter(|&i| model.b()[(i, col)] != 0.0).collect() };
+    let (front, rear) = (entered(0), entered(1));
+    assert_eq!((front.len(), rear.len()), (1, 1), "B: one row per road input");
+    assert_eq!(id.wheel_rows(), (front[0], rear[0]));
+    let c = car.params();
+    let rho = (c.k21 / c.m2) / (c.k11 / c.m1);
+    assert!((rho - 8.0 / 7.0).abs() < 1e-12, "ρ = {rho}: the passenger car's 40 kg / 35 kg");
+    assert!((id.ratio() - rho).abs() <= 1e-12 * rho, "ratio {} against ρ = {rho}", id.ratio());
+    assert_eq!(Identifier::rows(&id), &car.unknown_rows()[..]);
+    assert_eq!((id.samples(), Identifier::samples(&id)), (0, 0));
+    let n = 23;
+    for (x, z) in made_up(41, n) {
+        id.update(&x, &z).unwrap();
+    }
+    assert_eq!((id.samples(), Identifier::samples(&id), id.paired()), (n as u64, n as u64, (n - d) as u64));
+}
+
+/// `theta_row` against the rows identifier's other outputs, for each wheel method after 60
+/// made-up samples (every unknown row moved off its zero prior: checked): row `i` of
+/// `theta_into`'s, `params_into`'s and `theta::<4>()`'s `K × N` estimate (`K = 4` unknown
+/// rows, `N = 8`) is `theta_row(rows()[i])`; with `Cancel`, `joint()` holds
+/// `[a_rear; a_front]`, so its first `N` parameters are `theta_row(rear)` and its last `N`
+/// `theta_row(front)`. A known row reads that row of the model's `A` (the half car's
+/// kinematic rows 0, 2, 4, 6); a row index past `A`'s last panics, as indexing would (it
+/// used to read the last row). Wrong lengths are shape errors that name the length
+/// needed: `K·N = 32` for `theta_into`, `K = 4` for `theta`, 4 innovations for `e`.
+#[test]
+fn two_axle_theta_row_is_the_row_of_theta_into_and_params_into() {
+    let car = HalfCar::<f64>::thesis();
+    let model = car.model();
+    let rows = car.unknown_rows();
+    let (x1, z1) = made_up(43, 1)[0];
+    for method in [WheelMethod::None, WheelMethod::Thesis, WheelMethod::Cancel] {
+        let mut id = identifier(method);
+        for (x, z) in made_up(42, 60) {
+            id.update(&x, &z).unwrap();
+        }
+        let (mut theta, mut params) = ([f64::NAN; 32], [f64::NAN; 32]);
+        id.theta_into(&mut theta).unwrap();
+        id.params_into(&mut params).unwrap();
+        let matrix = id.theta::<4>().unwrap();
+        for (i, &row) in rows.iter().enumerate() {
+            let t = id.theta_row(row);
+            assert!(t.iter().any(|&v| v != 0.0), "{method:?}: row {row} still at its prior");
+            assert_eq!(&theta[8 * i..8 * (i + 1)], t.as_slice(), "{method:?}: theta_into, row {row}");
+            assert_eq!(&params[8 * i..8 * (i + 1)], t.as_slice(), "{method:?}: params_into, row {row}");
+            assert_eq!(matrix.row(i).transpose(), t, "{method:?}: theta::<4>(), row {row}");
+        }
+        if method == WheelMethod::Cancel {
+            let (front, rear) = id.wheel_rows();
+            let joint = id.joint().theta();
+            assert_eq!(joint.fixed_rows::<8>(0).into_owned(), id.theta_row(rear));
+            assert_eq!(joint.fixed_rows::<8>(8).into_owned(), id.theta_row(front));
+        }
+        for row in [0, 2, 4, 6] {
+            assert_eq!(id.theta_row(row), model.a().row(row).transpose(), "{method:?}: known row {row}");
+        }
+        let past = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| id.theta_row(8)));
+        assert!(past.is_err(), "row 8 of an 8-state model: {past:?}");
+        assert!(matches!(id.theta_into(&mut [0.0; 31]), Err(Error::Shape { arg: "out", expected: 32, got: 31 })));
+        assert!(matches!(id.theta::<3>(), Err(Error::Shape { arg: "K", expected: 4, got: 3 })));
+        let e = &mut [0.0; 3];
+        assert!(matches!(id.update_at(&x1, &z1, None, e), Err(Error::Shape { arg: "e", expected: 4, got: 3 })));
+    }
+}
+
+/// The rows identifier's refusals, each the error its docs list: a `B` whose front column
+/// enters two rows (argument `b`), `d = 0` (`d`); a saved identifier read back with `P ≠ 2N`
+/// (the joint filter cut to 15 parameters for `N = 8`: the message names the 16 needed) or
+/// with `d = 0`. And a model whose only unknown rows are the two wheel rows (no body rows)
+/// builds and runs: its rows are those two, and `theta_row` of every other row is the
+/// model's.
+#[test]
+fn two_axle_refuses_what_its_docs_list() {
+    use serde_json::json;
+    let car = HalfCar::<f64>::thesis();
+    let model = car.model();
+    let cfg = TwoAxleConfig::new(WheelMethod::Cancel, 1000.0, 0.1, 0.005);
+    let mut b = *model.b();
+    b[(5, 0)] = 1.0; // the front road input also enters the heave row
+    let two_rows = LinearModel::new(*model.a(), b, &car.unknown_rows()).unwrap();
+    assert!(matches!(Id::new(&two_rows, D, cfg), Err(Error::InvalidArgument { arg: "b", .. })));
+    assert!(matches!(Id::new(&model, 0, cfg), Err(Error::InvalidArgument { arg: "d", .. })));
+
+    let good = serde_json::to_value(TwoAxleIdentifierVec::<f64, 8, 16>::new(&model, D, cfg).unwrap()).unwrap();
+    assert!(serde_json::from_value::<TwoAxleIdentifierVec<f64, 8, 16>>(good.clone()).is_ok());
+    let mut v = good.clone();
+    v["joint"]["theta"] = json!(vec![0.0; 15]);
+    v["joint"]["m"] = json!((0..225).map(|k| if k % 16 == 0 { 1000.0 } else { 0.0 }).collect::<Vec<f64>>());
+    v["joint"]["dim"] = json!(15);
+    let err = serde_json::from_value::<TwoAxleIdentifierVec<f64, 8, 15>>(v).unwrap_err().to_string();
+    assert!(err.contains("has 15 elements but 16 are needed"), "{err}");
+    let mut v = good;
+    v["d"] = json!(0);
+    let err = serde_json::from_value::<TwoAxleIdentifierVec<f64, 8, 16>>(v).unwrap_err().to_string();
+    assert!(err.contains("at least 1 road point"), "{err}");
+
+    let wheels = LinearModel::new(*model.a(), *model.b(), &[1, 3]).unwrap();
+    let mut id = TwoAxleIdentifierVec::<f64, 8, 16>::new(&wheels, D, cfg).unwrap();
+    assert_eq!(Identifier::rows(&id), &[1, 3][..]);
+    let mut e = [0.0; 2];
+    for (x, z) in made_up(44, 30) {
+        id.update_next(&x, &z, &mut e).unwrap();
+    }
+    assert_eq!(id.paired(), 30 - D as u64);
+    for row in [0, 2, 4, 5, 6, 7] {
+        assert_eq!(id.theta_row(row), model.a().row(row).transpose(), "row {row}");
+    }
+}
+
+// ---- the structured two-axle identifier ------------------------------------------------------
+
+type Physical = TwoAxleStructuredKalman<f64, 4, 3, 16>;
+
+/// `car`'s physical structure with `m1`, `m2`, `l1`, `l2` known (12 parameters).
+fn physical(car: &HalfCar<f64>) -> vehid_core::structure::Structure<f64> {
+    let c = car.constants();
+    let mut known = [None; 12];
+    for (k, v) in known.iter_mut().zip(&c).skip(8) {
+        *k = Some(*v);
+    }
+    *HalfCar::structure(known).unwrap().structure()
+}
+
+/// The structured identifier's accessors against what the test gave it and the closed forms
+/// its docs state, on the passenger car (ρ = b42 / b21 = 8/7; on the thesis' car ρ = 1, and
+/// ρ, ρ² and 1 look alike) with σ_v² and b21² σ_u² of one size (0.01 and 0.04, so neither
+/// hides the other): `config()` the settings passed in, `delay()` the `d` passed in,
+/// `ratio()` ρ from the car's constants, `rows()` the structure's equation states (rows 5, 7,
+/// 1, 3 of `A`), `equation_r(i)` each equation's variance (heave, pitch: no road, σ_v²; front
+/// wheel: the direct equation's σ_v² + b21² σ_u²; rear wheel: the cancelled one's
+/// σ_v² (1 + ρ²)), `noise_into` the diagonal `R` of those, and `wheel_variances()` (front,
+/// rear, cancelled) = (σ_v² + b21² σ_u², σ_v² + b42² σ_u², σ_v² (1 + ρ²)), all written out
+/// here from k11/m1 and k21/m2.
+#[test]
+fn two_axle_structured_accessors_are_the_configuration_and_the_equations_variances() {
+    let car = HalfCar::<f64>::passenger();
+    let c = car.params();
+    let (b21, b42) = (c.k11 / c.m1, c.k21 / c.m2);
+    let rho = b42 / b21;
+    let (su, sv) = (4e-5, 0.1);
+    let cfg = TwoAxleStructuredConfig {
+        p0: Some(50.0),
+        road_sigma: su,
+        deriv_noise: sv,
+        direct_front: false,
+        compensate: false,
+    };
+    let d = 9;
+    let id = Physical::new(physical(&car), &car.model(), d, cfg).unwrap();
+    assert_eq!(*id.config(), cfg);
+    assert_eq!(id.delay(), d);
+    assert!((id.ratio() - rho).abs() <= 1e-12 * rho, "ratio {} against ρ = {rho}", id.ratio());
+    assert_eq!(Identifier::rows(&id), &[5, 7, 1, 3][..]);
+    let sv2 = sv * sv;
+    let variance = |row: usize| match row {
+        1 => sv2 + b21 * b21 * su * su,
+        3 => sv2 * (1.0 + rho * rho),
+        _ => sv2,
+    };
+    let close = |got: f64, want: f64| (got - want).abs() <= 1e-12 * want.abs();
+    let mut noise = [f64::NAN; 16];
+    id.noise_into(&mut noise).unwrap();
+    for (i, row) in [5, 7, 1, 3].into_iter().enumerate() {
+        assert!(close(id.equation_r(i), variance(row)), "equation {i} (row {row}): {}", id.equation_r(i));
+        for j in 0..4 {
+            let want = if i == j { variance(row) } else { 0.0 };
+            assert!(close(noise[4 * i + j], want), "R[{i}][{j}] = {} against {want}", noise[4 * i + j]);
+        }
+    }
+    let (front, rear, cancelled) = id.wheel_variances();
+    let want = (sv2 + b21 * b21 * su * su, sv2 + b42 * b42 * su * su, sv2 * (1.0 + rho * rho));
+    assert!(
+        close(front, want.0) && close(rear, want.1) && close(cancelled, want.2),
+        "wheel variances {:?} against {want:?}",
+        (front, rear, cancelled)
+    );
+}
+
+/// The structured identifier fed through hand-made sampler triggers (the thesis' car,
+/// `d = 10`, made-up samples on grid points 0–59 with 25–27 skipped, as after an odometry
+/// jump), each step checked against what the test knows: `update_trigger` says paired exactly
+/// when the trigger carries a pair (the test gives one when grid point g − d was fed and g is
+/// not 3 mod 7, as a sampler refuses a pair beyond its tolerance), the rear wheel's
+/// innovation is 0 on an unpaired sample (its docs), and `samples()` / `paired()` count what
+/// was fed and paired. Then, with plain least squares (`compensate = false`: the estimate is
+/// the filters'), the accessors agree with the `Identifier` outputs: `partition()` is the
+/// grouping `groups_into` reports, with the 3 groups the docs give (the two wheel equations in
+/// one, the heave and the pitch equation each in its own); parameter `j` of `params_into` is
+/// entry `local[j]` of `filter(group_of_param[j])`'s estimate; `trace()` the filters' traces
+/// summed.
+#[test]
+fn two_axle_structured_triggers_filters_and_partition_agree_with_its_outputs() {
+    let car = HalfCar::<f64>::thesis();
+    let cfg = TwoAxleStructuredConfig { compensate: false, ..TwoAxleStructuredConfig::new(0.1, 0.005) };
+    let mut id = Physical::new(physical(&car), &car.model(), D, cfg).unwrap();
+    let (front, rear) = id.wheel_equations();
+    let (mut fed, mut paired) = (Vec::new(), 0u64);
+    let mut e = [0.0; 4];
+    for (g, (x, z)) in made_up(45, 60).iter().enumerate() {
+        let grid = g as u64;
+        if (25..=27).contains(&grid) {
+            continue;
+        }
+        let earlier = grid.checked_sub(D as u64).and_then(|p| fed.iter().position(|&f| f == p).map(|i| (i, p)));
+        let pair = earlier.filter(|_| grid % 7 != 3).map(|(i, p)| Pair { sample: i as u64, grid: p, error: 0.0 });
+        let trigger = Trigger { sample: fed.len() as u64, grid, position: SPACING * grid as f64, pair };
+        let got = id.update_trigger(x.as_slice(), z.as_slice(), &[], &trigger, &mut e).unwrap();
+        assert_eq!(got, pair.is_some(), "grid point {grid}");
+        if pair.is_none() {
+            assert_eq!(e[rear], 0.0, "grid point {grid}: the rear wheel took no step");
+        }
+        fed.push(grid);
+        paired += u64::from(pair.is_some());
+    }
+    assert!(paired >= 20 && paired + 20 <= fed.len() as u64, "{paired} of {} paired: both kinds", fed.len());
+    assert_eq!((id.samples(), id.paired()), (fed.len() as u64, paired));
+
+    assert!(!id.starting());
+    let part = *id.partition();
+    let (mut group_of_param, mut group_of_eq) = ([0usize; 12], [0usize; 4]);
+    id.groups_into(&mut group_of_param, &mut group_of_eq).unwrap();
+    assert_eq!(part.groups, 3);
+    assert_eq!(part.group_of_param[..12].iter().map(|&g| g as usize).collect::<Vec<_>>(), group_of_param);
+    assert_eq!(part.group_of_eq[..4].iter().map(|&g| g as usize).collect::<Vec<_>>(), group_of_eq);
+    assert_eq!(group_of_eq[front], group_of_eq[rear]);
+    let (heave, pitch, wheels) = (group_of_eq[0], group_of_eq[1], group_of_eq[front]);
+    assert!(heave != pitch && heave != wheels && pitch != wheels, "groups of the equations: {group_of_eq:?}");
+    let mut p = [f64::NAN; 12];
+    id.params_into(&mut p).unwrap();
+    for (j, &v) in p.iter().enumerate() {
+        let f = id.filter(part.group_of_param[j] as usize);
+        assert!(v.is_finite() && v != 0.0, "parameter {j}: {v}");
+        assert_eq!(f.theta()[part.local[j] as usize], v, "parameter {j}");
+    }
+    let traces: f64 = (0..3).map(|g| id.filter(g).trace()).sum();
+    let trace = id.trace().unwrap();
+    assert!(traces > 0.0 && (trace - traces).abs() <= 1e-12 * traces, "trace {trace} against {traces}");
 }

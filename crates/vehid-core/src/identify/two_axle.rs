@@ -348,7 +348,11 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
 
     /// The current estimate of row `row` of `A` (a 0-based row index of `A`); the known
     /// row itself for a row that is not unknown.
+    ///
+    /// # Panics
+    /// For `row ≥ N`, as indexing past `A`'s last row would (it used to read row `N − 1`).
     pub fn theta_row(&self, row: usize) -> SVector<T, N> {
+        assert!(row < N, "theta_row: row {row} of a model with {N} states");
         if row == self.front_row || row == self.rear_row {
             let front = row == self.front_row;
             return match self.cfg.method {
@@ -370,7 +374,7 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
                 return body.theta_row(i);
             }
         }
-        self.model.a().row(row.min(N - 1)).transpose()
+        self.model.a().row(row).transpose()
     }
 
     /// Writes θ̂ (the unknown rows, `K × N` row-major, in the model's order) into `out`.
