@@ -1823,3 +1823,43 @@ fn bias_compensation_reads_each_variables_own_noise() {
     let plain = hh.lu().solve(&hy).unwrap();
     assert!((plain - expect).abs().max() > 1e-3 * scale, "{plain:?} vs {expect:?}");
 }
+
+/// Bias compensation of a known term (`identify/bias_compensated.rs`: the output's
+/// correction `g`): on `der(q) = a q + m der(p) + 2 der(p)` (three states, the known term on
+/// the last one's derivative), the known term moves to the output, `y = der(q) − 2 der(p)`,
+/// whose noise `−2 v_p` is correlated with the regressor `der(p)`'s own
+/// (`E[h (−2 v_p)] = (0, −2 σ_v,p²)`), so that `θ = (HᵀH − N Σ)⁻¹ (Hᵀy + 2 N σ_v,p² e₂)`,
+/// computed here from the samples (θ's `m` is the true coefficient less the known 2).
+#[test]
+fn bias_compensation_corrects_a_known_terms_noise() {
+    use vehid_core::structure::StructureBuilder;
+    let (st, names) =
+        StructureBuilder::new(&["q", "v", "p"], &[]).equation("q", "a*q + m*der(p) + 2*der(p)").build::<f64>().unwrap();
+    assert_eq!(names.params, ["a", "m"]);
+    let data = samples(22, 500, 0.0);
+    let ms = |f: &dyn Fn(&(V4, V4)) -> f64| data.iter().map(|d| f(d) * f(d)).sum::<f64>() / data.len() as f64;
+    let sw = [0.1 * ms(&|d| d.0[0]), 0.3 * ms(&|d| d.0[1]), 0.15 * ms(&|d| d.0[2])];
+    let sv = [0.05 * ms(&|d| d.1[0]), 0.2 * ms(&|d| d.1[1]), 0.25 * ms(&|d| d.1[2])];
+    let mut id = BiasCompensatedVec::<f64, 8>::new(st, &sw, &sv, &[1.0]).unwrap();
+    let (mut hh, mut hy) = (nalgebra::Matrix2::<f64>::zeros(), nalgebra::Vector2::<f64>::zeros());
+    let mut e = [0.0];
+    for (x, z) in &data {
+        id.update_into(&[x[0], x[1], x[2]], &[z[0], z[1], z[2]], &[], &mut e).unwrap();
+        let h = nalgebra::Vector2::new(x[0], z[2]);
+        hh += h * h.transpose();
+        hy += h * (z[0] - 2.0 * z[2]);
+    }
+    let n = data.len() as f64;
+    let corrected = hh - nalgebra::Matrix2::from_diagonal(&nalgebra::Vector2::new(n * sw[0], n * sv[2]));
+    let expect = corrected.lu().solve(&(hy + nalgebra::Vector2::new(0.0, 2.0 * n * sv[2]))).unwrap();
+    let mut theta = [0.0; 2];
+    id.params_into(&mut theta).unwrap();
+    let scale = expect.abs().max();
+    assert!(
+        (theta[0] - expect[0]).abs().max((theta[1] - expect[1]).abs()) <= 1e-9 * scale,
+        "{theta:?} against (HᵀH − N Σ)⁻¹ (Hᵀy + 2Nσ² e₂) = {expect:?}"
+    );
+    // The output's correction matters here.
+    let without = corrected.lu().solve(&hy).unwrap();
+    assert!((without - expect).abs().max() > 1e-3 * scale, "{without:?} vs {expect:?}");
+}
