@@ -724,3 +724,45 @@ fn lanes_equal_the_reference_row_filter_with_every_option() {
     }
     assert!(gated_somewhere);
 }
+
+/// A noise-free row (`r = 0`) whose regressors have zero leading entries: in the square-root
+/// form the UD update's `α` stays 0 over those columns (the columns are skipped, then the
+/// first informative one starts from `α = 0`).
+/// Every form gives the posterior of the prior `θ ~ N(0, p0 I)` conditioned exactly on
+/// `Xθ = z`: the minimum-norm solution `θ = Xᵀ(XXᵀ)⁻¹z` and `P = p0 (I − Xᵀ(XXᵀ)⁻¹X)`,
+/// computed here, after each of three samples. A retired row then predicts without moving,
+/// and a covariance reset makes it update again.
+#[test]
+fn noise_free_rows_with_leading_zeros_condition_the_prior_exactly() {
+    let p0 = 10.0;
+    // After the first sample D₀ = 0 and U₀₁ = −1 (P = p0 (I − x xᵀ/2) on the first two
+    // states): the second sample's f₀ = x₀ = 0 leaves α = 0 over column 0, and column 1
+    // starts from α = 0 with U₀₁ ≠ 0, which reaches column 2 through b₀.
+    let xs = [[1.0, 1.0, 0.0, 0.0], [0.0, 1.0, 1.0, 0.0], [0.0, 0.0, 1.0, 2.0]];
+    let truth = SVector::<f64, 4>::new(0.7, -1.3, 2.1, 0.4);
+    for form in [CovarianceForm::Standard, CovarianceForm::Joseph, CovarianceForm::Sqrt] {
+        let opts = KalmanOptions { form, ..Default::default() };
+        let mut row = RowIdentifier::<f64, 4>::new(p0, 0.0).unwrap().configured(form, &opts).unwrap();
+        for k in 0..xs.len() {
+            let x = SVector::<f64, 4>::from(xs[k]);
+            row.update(&x, x.dot(&truth)).unwrap();
+            let xm = SMatrix::<f64, 4, 4>::from_fn(|i, j| if i <= k { xs[i][j] } else { 0.0 });
+            let xk = xm.rows(0, k + 1);
+            let gram = (xk * xk.transpose()).try_inverse().unwrap();
+            let proj = xk.transpose() * gram * xk;
+            let theta = proj * truth;
+            let p = (SMatrix::<f64, 4, 4>::identity() - proj) * p0;
+            assert!((row.theta() - theta).amax() < 1e-12, "{form:?} sample {k}: {} vs {theta}", row.theta());
+            assert!((row.p() - p).amax() < 1e-12 * p0, "{form:?} sample {k}: {} vs {p}", row.p());
+        }
+        let (theta, p) = (row.theta(), row.p());
+        row.retire();
+        let x = SVector::<f64, 4>::new(0.2, 0.4, -0.6, 1.0);
+        let e = row.update(&x, 5.0).unwrap();
+        assert_eq!(e, 5.0 - theta.dot(&x), "{form:?}: a retired row's innovation");
+        assert_eq!((row.theta(), row.p()), (theta, p), "{form:?}: a retired row does not move");
+        row.reset_covariance(p0).unwrap();
+        row.update(&x, 5.0).unwrap();
+        assert!((row.theta().dot(&x) - 5.0).abs() < 1e-9, "{form:?}: updates again after the reset");
+    }
+}
