@@ -359,7 +359,8 @@ impl<T: Real, const N: usize, const D: usize> JointEkf<T, N, D> {
     /// `f(x, p, u_m) + g u` and its tangent `∂/∂s` (column `i`: the gradient of `ẋ_i`) for
     /// a state `x` whose tangent is `tx` (column `l`: `∂x_l/∂s`); `p` and `u` from `s`.
     /// Forward-mode differentiation of [`Structure::derivative`]: the equations in
-    /// dependency order, `der(l)` reading the value and tangent just computed.
+    /// dependency order, `der(l)` reading the value and tangent just computed. `sign` has no
+    /// tangent; `pos`/`neg` at their kink (the combination exactly 0) take the flat side.
     fn eval(&self, s: &SVector<T, D>, x: &SVector<T, N>, tx: &SMatrix<T, D, N>, um: &[T]) -> Eval<T, N, D> {
         let road = s[D - 1];
         let mut f = self.noise.road_gain * road;
