@@ -42,6 +42,8 @@
 #                 round-robin sample MUTANTS_SHARD=K/N (default 0/40, about 130 mutants, 1-2 min each
 #                 here); the caught fraction with its 95 % interval; fails on a survivor not accepted with a
 #                 reason in benches/mutants_accepted.txt (not in `test`)
+#   make mutants-uncovered  the mutants of MUTANTS_FILE on lines no Rust test runs (LLVM coverage of
+#                 the Rust tests, about 5 min): certain survivors, listed by function (not in `test`)
 #   make clean    remove build products and the venv
 
 PYTHON ?= python3
@@ -49,7 +51,7 @@ VENV   := .venv
 VBIN   := $(VENV)/bin
 CARGO  ?= cargo
 
-.PHONY: venv develop demo docs test lint lint-fast test-rust test-python install-check wheel-check bench-python bench-fit bench-peers bench-budgets bench-check bench-check-update soak fuzz mutants clean
+.PHONY: venv develop demo docs test lint lint-fast test-rust test-python install-check wheel-check bench-python bench-fit bench-peers bench-budgets bench-check bench-check-update soak fuzz mutants mutants-uncovered clean
 
 venv: $(VENV)/.installed
 
@@ -232,6 +234,12 @@ MUTANTS_ITERATE ?=
 mutants:
 	@command -v cargo-mutants > /dev/null || $(CARGO) install --locked cargo-mutants
 	$(PYTHON) benches/mutants_check.py --file '$(MUTANTS_FILE)' --shard $(MUTANTS_SHARD) $(if $(MUTANTS_ITERATE),--iterate)
+
+# The mutants on lines no Rust test executes (benches/uncovered_mutants.py): one coverage run of
+# the Rust tests instead of a mutant build each. Installs cargo-mutants and llvm-tools when missing.
+mutants-uncovered:
+	@command -v cargo-mutants > /dev/null || $(CARGO) install --locked cargo-mutants
+	$(PYTHON) benches/uncovered_mutants.py --file '$(MUTANTS_FILE)'
 
 clean:
 	rm -f python/vehid/*.so python/vehid/*.pyd
