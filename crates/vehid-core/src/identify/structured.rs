@@ -731,33 +731,44 @@ mod tests {
     /// groups of lanes, one lane padding): ẋ0 = a x0 + b u0 + c − 0.5 x1,
     /// ẋ1 = d (x2 − x1) + f sign(x3), ẋ2 = g der(0).
     fn mixed_structure() -> Structure<f64> {
+        mixed_structure_in_order([0, 1, 2])
+    }
+
+    /// [`mixed_structure`] with its equations pushed in the order `order` (the parameters'
+    /// numbering kept, so that the groups, numbered by parameter, come in another order than
+    /// the equations: the fast path's lanes out of the equations' order).
+    fn mixed_structure_in_order(order: [usize; 3]) -> Structure<f64> {
         let mut s = Structure::<f64>::new(4, 1, 6).unwrap();
         let (st, len) = s.push_combination(&[(Var::State(3), 1.0)]).unwrap();
         let t = |coef, param, basis| Term { coef, param, basis };
         let v = |i| Basis::Var(Var::State(i));
-        s.push_equation(
-            0,
-            &[
-                t(1.0, Some(0), v(0)),
-                t(1.0, Some(1), Basis::Var(Var::Input(0))),
-                t(1.0, Some(2), Basis::One),
-                t(0.5, None, v(1)),
-            ],
-        )
-        .unwrap();
-        s.push_equation(
-            1,
-            &[t(1.0, Some(3), v(2)), t(-1.0, Some(3), v(1)), t(2.0, Some(4), Basis::Sign { start: st, len })],
-        )
-        .unwrap();
-        s.push_equation(2, &[t(1.0, Some(5), Basis::Var(Var::Deriv(0)))]).unwrap();
+        for eq in order {
+            match eq {
+                0 => s.push_equation(
+                    0,
+                    &[
+                        t(1.0, Some(0), v(0)),
+                        t(1.0, Some(1), Basis::Var(Var::Input(0))),
+                        t(1.0, Some(2), Basis::One),
+                        t(0.5, None, v(1)),
+                    ],
+                ),
+                1 => s.push_equation(
+                    1,
+                    &[t(1.0, Some(3), v(2)), t(-1.0, Some(3), v(1)), t(2.0, Some(4), Basis::Sign { start: st, len })],
+                ),
+                _ => s.push_equation(2, &[t(1.0, Some(5), Basis::Var(Var::Deriv(0)))]),
+            }
+            .unwrap();
+        }
         s
     }
 
     /// The fast path (the groups in lanes, the compiled regression) gives what the general
     /// path (each group's `RowIdentifier::update` on the interpreted regression) gives, to
     /// rounding, over many samples: innovations, estimate, covariance, statistics; with a
-    /// prior and after an exact start, on the mixed structure (the physical one below).
+    /// prior and after an exact start, on the mixed structure (the physical one below), its
+    /// equations in the groups' order and out of it.
     #[test]
     fn the_lanes_are_the_general_path() {
         let mut rng = Xoshiro256PlusPlus::seed_from_u64(11);
@@ -774,9 +785,16 @@ mod tests {
             assert!((a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1e-3), "{what}: {a} vs {b}");
         };
         let r = [0.01, 0.04, 0.0025];
-        for p0 in [StructuredPrior::Scalar(100.0), StructuredPrior::Exact] {
-            let fast =
-                StructuredKalman::<f64, 3, 3>::new(mixed_structure(), p0, None, &r, KalmanOptions::default()).unwrap();
+        // The equations in the groups' order, and out of it (equation i in group (i + 2) % 3).
+        for (order, p0) in [
+            ([0, 1, 2], StructuredPrior::Scalar(100.0)),
+            ([0, 1, 2], StructuredPrior::Exact),
+            ([2, 0, 1], StructuredPrior::Scalar(100.0)),
+        ] {
+            let st = mixed_structure_in_order(order);
+            let r = order.map(|i| r[i]);
+            let fast = StructuredKalman::<f64, 3, 3>::new(st, p0, None, &r, KalmanOptions::default()).unwrap();
+            assert_eq!(fast.fast.in_order(), order == [0, 1, 2]);
             let general = fast.clone().without_lanes();
             let (mut a, mut b) = (fast, general);
             let (mut ea, mut eb) = ([0.0; 3], [0.0; 3]);

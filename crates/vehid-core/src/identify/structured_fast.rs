@@ -97,6 +97,12 @@ pub(crate) struct Fast<T: Real, const P: usize> {
 impl<T: Real, const P: usize> Fast<T, P> {
     /// The fast path of `s` with groups `part` (not able when a group has several equations
     /// or there are more than [`FAST_GROUPS`] groups).
+    /// Whether equation `i` is lane `i` (tests: both arrangements are exercised).
+    #[cfg(test)]
+    pub(crate) fn in_order(&self) -> bool {
+        self.in_order
+    }
+
     pub(crate) fn new(s: &Structure<T>, part: &Partition) -> Self {
         let mut fast = Self::none();
         let (ne, ng) = (s.equations(), part.groups as usize);
