@@ -345,10 +345,16 @@ fn inconsistent_input_is_an_error() {
     rejects::<FullKalmanIdentifierVec<f64, 4>>(&v, "`p`");
 
     let mut ls = BatchLeastSquares::<f64, 4>::new(&[1, 3]).unwrap();
-    ls.push(&V4::repeat(1.0), &V4::repeat(2.0)).unwrap();
+    for _ in 0..3 {
+        ls.push(&V4::repeat(1.0), &V4::repeat(2.0)).unwrap();
+    }
     let mut v = serde_json::to_value(&ls).unwrap();
     v["z"].as_array_mut().unwrap().pop();
-    rejects::<BatchLeastSquares<f64, 4>>(&v, "`z`");
+    // 3 samples of 2 rows: 6 derivatives needed.
+    rejects::<BatchLeastSquares<f64, 4>>(&v, "`z` has 5 elements but 6 are needed");
+    let mut v = serde_json::to_value(&ls).unwrap();
+    v["x"].as_array_mut().unwrap().pop();
+    rejects::<BatchLeastSquares<f64, 4>>(&v, "`x` has 11 elements but 12 are needed");
 
     let car = HalfCar::<f64>::thesis();
     let cfg = TwoAxleConfig::new(WheelMethod::Cancel, 1000.0, 0.1, 0.005);
