@@ -16,7 +16,10 @@ whole with a binomial interval. Shards add up: ``--shard 2/40`` tests other muta
 A survivor is either a gap in the tests (write the test) or a mutant no test can catch: an
 equivalent mutant, unreachable code, or a change of speed only. Those are listed, each with
 its reason, in ``benches/mutants_accepted.txt`` (``<mutant as cargo-mutants names it>  #
-<reason>``); the run fails (exit 1) when a survivor is not on that list. cargo-mutants
+<reason>``); the run fails (exit 1) when a survivor is not on that list. An entry whose line
+and column no longer match (an edit above it moved the mutant) still accepts the one survivor
+with the same file, change and function, and the run says to rename it; ``--iterate`` finds
+the first pass's survivors the same way. cargo-mutants
 itself shows progress; its full output stays in ``target/mutants/<shard>/mutants.out``.
 """
 
@@ -52,6 +55,31 @@ def accepted() -> Dict[str, str]:
             raise SystemExit(f"mutants: {ACCEPTED.name}: no reason given for {name!r} (write '<name>  # <reason>')")
         out[name.strip()] = reason.strip()
     return out
+
+
+def where_free(name: str) -> str:
+    """A mutant's name without its line and column (``file: replace X with Y in f``): what
+    stays the same when an edit elsewhere in the file moves it."""
+    return re.sub(r"^([^:]+):\d+:\d+: ", r"\1: ", name)
+
+
+def where_free_pattern(name: str) -> str:
+    """A regular expression for the mutant ``name`` at any line and column (for cargo-mutants'
+    ``--re``; a function with the same change twice matches both, a superset)."""
+    file, _, rest = where_free(name).partition(": ")
+    return re.escape(file) + r":\d+:\d+: " + re.escape(rest)
+
+
+def find_accepted(name: str, ok_list: Dict[str, str]) -> Tuple[str | None, str | None]:
+    """The accepted entry for the survivor ``name``, and its reason: the entry of the same name,
+    else the one entry that differs only in line and column (the code above it moved; the
+    caller says to rename it). ``(None, None)`` when there is none, or several such entries."""
+    if name in ok_list:
+        return name, ok_list[name]
+    same = [entry for entry in ok_list if where_free(entry) == where_free(name)]
+    if len(same) == 1:
+        return same[0], ok_list[same[0]]
+    return None, None
 
 
 def wilson(k: int, n: int, z: float = 1.96) -> Tuple[float, float]:
@@ -108,7 +136,8 @@ def main(argv: List[str] | None = None) -> int:
                "--sharding", "round-robin", "--jobs", args.jobs, "--output", str(out_dir)]
         if args.iterate:
             # Exactly the shard's mutants that were not caught (cargo-mutants' own --iterate
-            # would shard the list that is left, which is another sample).
+            # would shard the list that is left, which is another sample), found by file,
+            # change and function at any line (the tests written since may have moved them).
             first = read_outcomes(out_dir / "mutants.out" / "outcomes.json")
             again = sorted(n for n, s in first.items() if s not in ("CaughtMutant", "Timeout"))
             if not again:
@@ -116,7 +145,7 @@ def main(argv: List[str] | None = None) -> int:
             recheck = out_dir / "recheck"
             recheck.mkdir(exist_ok=True)
             cmd = ["cargo", "mutants", "-p", "vehid-core", "--file", args.file, "--jobs", args.jobs,
-                   "--output", str(recheck), "--re", "^(" + "|".join(re.escape(n) for n in again) + ")$"]
+                   "--output", str(recheck), "--re", "^(" + "|".join(where_free_pattern(n) for n in again) + ")$"]
         elif (out_dir / "recheck").exists():
             shutil.rmtree(out_dir / "recheck")  # a fresh run of the shard: earlier rechecks are void
         print("mutants:", " ".join(cmd)[:300], flush=True)
@@ -157,11 +186,15 @@ def main(argv: List[str] | None = None) -> int:
     for name, summary in tested:
         if summary != "MissedMutant":
             continue
-        reason = ok_list.get(name)
+        entry, reason = find_accepted(name, ok_list)
         print(f"  missed: {name}" + (f"  [accepted: {reason}]" if reason else "  [NOT ACCEPTED]"))
+        if entry is not None and entry != name:
+            print(f"    (accepted as {entry.split(': ')[0]}: the line moved; rename the entry in {ACCEPTED.name})")
         if reason is None:
             new.append(name)
-    stale = sorted(set(ok_list) & {n for n, s in tested if s != "MissedMutant"})
+    caught_now = {where_free(n) for n, s in tested if s != "MissedMutant"}
+    missed_now = {where_free(n) for n, s in tested if s == "MissedMutant"}
+    stale = sorted(e for e in ok_list if where_free(e) in caught_now - missed_now)
     for name in stale:
         print(f"  accepted but now caught (remove it from {ACCEPTED.name}): {name}")
     if new:

@@ -95,11 +95,11 @@ def main(argv: list[str] | None = None) -> int:
     listing = subprocess.run(
         [*test, "--no-run", "--message-format=json"], cwd=ROOT, env=env, check=True, capture_output=True, text=True
     ).stdout
-    binaries = sorted(
-        {m["executable"] for m in map(json.loads, listing.splitlines()) if m.get("reason") == "compiler-artifact" and m.get("executable")}
-    )
+    artifacts = [json.loads(line) for line in listing.splitlines()]
+    binaries = sorted({a["executable"] for a in artifacts if a.get("executable")})
     merged = profiles / "merged.profdata"
-    subprocess.run([str(bindir / "llvm-profdata"), "merge", "-sparse", *map(str, profiles.glob("*.profraw")), "-o", str(merged)], check=True)
+    raw = [str(p) for p in profiles.glob("*.profraw")]
+    subprocess.run([str(bindir / "llvm-profdata"), "merge", "-sparse", *raw, "-o", str(merged)], check=True)
     objects = sum((["-object", b] for b in binaries), [])
     lcov = subprocess.run(
         [str(bindir / "llvm-cov"), "export", "-format=lcov", f"-instr-profile={merged}", *objects],
