@@ -17,8 +17,9 @@ A survivor is either a gap in the tests (write the test) or a mutant no test can
 equivalent mutant, unreachable code, or a change of speed only. Those are listed, each with
 its reason, in ``benches/mutants_accepted.txt`` (``<mutant as cargo-mutants names it>  #
 <reason>``); the run fails (exit 1) when a survivor is not on that list. An entry whose line
-and column no longer match (an edit above it moved the mutant) still accepts the one survivor
-with the same file, change and function, and the run says to rename it; ``--iterate`` finds
+and column no longer match (an edit above it moved the mutant) still accepts a survivor with
+the same file, change and function when that change is the only one of its kind in the
+function now (else it could be another occurrence), and the run says to rename it; ``--iterate`` finds
 the first pass's survivors the same way. cargo-mutants
 itself shows progress; its full output stays in ``target/mutants/<shard>/mutants.out``.
 """
@@ -34,7 +35,7 @@ import shutil
 import subprocess
 import sys
 from pathlib import Path
-from typing import Dict, List, Tuple
+from typing import Dict, List, Set, Tuple
 
 ROOT = Path(__file__).resolve().parents[1]
 ACCEPTED = ROOT / "benches" / "mutants_accepted.txt"
@@ -70,16 +71,30 @@ def where_free_pattern(name: str) -> str:
     return re.escape(file) + r":\d+:\d+: " + re.escape(rest)
 
 
-def find_accepted(name: str, ok_list: Dict[str, str]) -> Tuple[str | None, str | None]:
+def find_accepted(name: str, ok_list: Dict[str, str], unique: Set[str]) -> Tuple[str | None, str | None]:
     """The accepted entry for the survivor ``name``, and its reason: the entry of the same name,
     else the one entry that differs only in line and column (the code above it moved; the
-    caller says to rename it). ``(None, None)`` when there is none, or several such entries."""
+    caller says to rename it), provided that ``name``'s change is the only one of its kind in
+    its function (``unique``: the ``where_free`` names that occur once in the current list),
+    so that it cannot be another occurrence. ``(None, None)`` otherwise."""
     if name in ok_list:
         return name, ok_list[name]
-    same = [entry for entry in ok_list if where_free(entry) == where_free(name)]
-    if len(same) == 1:
+    key = where_free(name)
+    same = [entry for entry in ok_list if where_free(entry) == key]
+    if len(same) == 1 and key in unique:
         return same[0], ok_list[same[0]]
     return None, None
+
+
+def unique_changes(file_glob: str) -> Set[str]:
+    """The ``where_free`` names that occur once among the mutants cargo-mutants lists now."""
+    done = subprocess.run(["cargo", "mutants", "-p", "vehid-core", "--file", file_glob, "--list"],
+                          cwd=ROOT, capture_output=True, text=True)
+    counts: Dict[str, int] = {}
+    for line in done.stdout.splitlines():
+        if line.strip():
+            counts[where_free(line.strip())] = counts.get(where_free(line.strip()), 0) + 1
+    return {k for k, n in counts.items() if n == 1}
 
 
 def wilson(k: int, n: int, z: float = 1.96) -> Tuple[float, float]:
@@ -182,11 +197,12 @@ def main(argv: List[str] | None = None) -> int:
     print(f"mutants: caught {caught + timeout} of {viable} viable = {100 * share:.1f} % "
           f"(95 % interval {100 * low:.1f}-{100 * high:.1f} %)")
     ok_list = accepted()
+    unique = unique_changes(args.file) if any(s == "MissedMutant" for _, s in tested) else set()
     new = []
     for name, summary in tested:
         if summary != "MissedMutant":
             continue
-        entry, reason = find_accepted(name, ok_list)
+        entry, reason = find_accepted(name, ok_list, unique)
         print(f"  missed: {name}" + (f"  [accepted: {reason}]" if reason else "  [NOT ACCEPTED]"))
         if entry is not None and entry != name:
             print(f"    (accepted as {entry.split(': ')[0]}: the line moved; rename the entry in {ACCEPTED.name})")

@@ -34,15 +34,20 @@ def test_wilson_interval_matches_its_closed_form():
 def test_a_survivor_whose_line_moved_is_still_accepted_and_named():
     moved = NAME.replace(":1089:58:", ":1101:7:")
     ok = {NAME: "equivalent"}
+    unique = {mc.where_free(NAME)}
     assert mc.where_free(moved) == mc.where_free(NAME)
-    assert mc.find_accepted(NAME, ok) == (NAME, "equivalent")
-    assert mc.find_accepted(moved, ok) == (NAME, "equivalent")
+    assert mc.find_accepted(NAME, ok, set()) == (NAME, "equivalent")
+    assert mc.find_accepted(moved, ok, unique) == (NAME, "equivalent")
+    # The same change twice in the function now: the survivor may be the other one.
+    assert mc.find_accepted(moved, ok, set()) == (None, None)
     # Another change, or another function, is another mutant.
-    assert mc.find_accepted(moved.replace("with <=", "with =="), ok) == (None, None)
-    assert mc.find_accepted(moved.replace("::plan", "::check"), ok) == (None, None)
+    other = moved.replace("with <=", "with ==")
+    assert mc.find_accepted(other, ok, {mc.where_free(other)}) == (None, None)
+    other = moved.replace("::plan", "::check")
+    assert mc.find_accepted(other, ok, {mc.where_free(other)}) == (None, None)
     # Two entries that differ only in line: which one is meant is unknown, so neither.
     twin = NAME.replace(":1089:58:", ":1200:3:")
-    assert mc.find_accepted(moved, {NAME: "a", twin: "b"}) == (None, None)
+    assert mc.find_accepted(moved, {NAME: "a", twin: "b"}, unique) == (None, None)
 
 
 def test_the_recheck_pattern_finds_the_mutant_at_any_line_only():
@@ -53,7 +58,7 @@ def test_the_recheck_pattern_finds_the_mutant_at_any_line_only():
     assert not re.fullmatch(pattern, NAME.replace("lanes.rs", "rows.rs"))
 
 
-def test_every_accepted_entry_has_a_reason_and_a_name_cargo_mutants_gives():
+def test_every_accepted_entry_has_a_reason_and_the_form_of_a_cargo_mutants_name():
     entries = mc.accepted()
     assert entries, "benches/mutants_accepted.txt is empty"
     shape = re.compile(r"crates/[\w/-]+\.rs:\d+:\d+: \S.*")
