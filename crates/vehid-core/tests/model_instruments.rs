@@ -288,7 +288,8 @@ fn must_show_srivc_figures() {
     assert!(ratios[2..].iter().all(|&r| r < 0.9), "{ratios:?}");
 }
 
-/// (d) Construction errors name the argument and the fix.
+/// (d) Construction errors name the argument and the fix; stability is judged on the linear
+/// part (an offset does not make a stable rig unstable).
 #[test]
 fn construction_errors_name_the_argument() {
     let arg = |r: Result<ModelIvIdentifier<f64, 3, 1>, Error>| match r {
@@ -313,6 +314,19 @@ fn construction_errors_name_the_argument() {
     );
     let err = IvIdentifier::<f64, 3, 1>::exact(msd(), 1).unwrap().with_model_instruments(DT, 1, 0, Some(&[1.0]));
     assert!(matches!(err, Err(Error::Shape { arg: "theta_aux", .. })), "{err:?}");
+    // Stability is the linear part's: a constant force `c` moves the state without changing
+    // Φ, so the rig with an offset of 10⁴ (a step of c·dt² ≈ 1 in q per sample from rest) is as
+    // stable as without one, and negative damping as unstable.
+    let (offset, _) = StructureBuilder::new(&["q", "v"], &["F"])
+        .equation("v", "a*F - k*q - b*v + c")
+        .known("q", "v")
+        .build::<f64>()
+        .unwrap();
+    let with = |theta: [f64; 4]| {
+        IvIdentifier::<f64, 4, 1>::exact(offset, 1).unwrap().with_model_instruments(DT, 4, 10, Some(&theta))
+    };
+    assert!(with([1.0, 8883.0, 18.8, 1e4]).is_ok(), "a stable rig with an offset refused");
+    assert!(matches!(with([1.0, 8883.0, -18.8, 1e4]), Err(Error::InvalidArgument { arg: "theta_aux", .. })));
 }
 
 /// (d) An estimate with unstable poles (data of a rig with negative damping) is never adopted
