@@ -729,14 +729,10 @@ mod tests {
 
     /// A structure with every kind of term, three groups of 3, 2 and 1 parameters (so two
     /// groups of lanes, one lane padding): ẋ0 = a x0 + b u0 + c − 0.5 x1,
-    /// ẋ1 = d (x2 − x1) + f sign(x3), ẋ2 = g der(0).
-    fn mixed_structure() -> Structure<f64> {
-        mixed_structure_in_order([0, 1, 2])
-    }
-
-    /// [`mixed_structure`] with its equations pushed in the order `order` (the parameters'
-    /// numbering kept, so that the groups, numbered by parameter, come in another order than
-    /// the equations: the fast path's lanes out of the equations' order).
+    /// ẋ1 = d (x2 − x1) + f sign(x3), ẋ2 = g der(0); its equations pushed in the order
+    /// `order` (the parameters' numbering kept: with another order than `[0, 1, 2]` the
+    /// groups, numbered by parameter, come in another order than the equations, and the fast
+    /// path's lanes are out of the equations' order).
     fn mixed_structure_in_order(order: [usize; 3]) -> Structure<f64> {
         let mut s = Structure::<f64>::new(4, 1, 6).unwrap();
         let (st, len) = s.push_combination(&[(Var::State(3), 1.0)]).unwrap();
