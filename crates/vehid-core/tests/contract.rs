@@ -217,6 +217,7 @@ fn contract<I: DynIdentifier<f64> + Clone + 'static>(name: &str, mut id: I, x: &
     let mut gated = [7u64; 2];
     id.gated_into(&mut gated).unwrap();
     assert_eq!(gated, [0, 0], "{name}: nothing gated without a gate");
+    assert_eq!(id.reinit_count(), 0, "{name}: no reinitialization asked for");
 
     // The boxed copy: the same estimate, and the concrete type behind it.
     let boxed = id.clone_box();
@@ -415,8 +416,8 @@ fn kalman_prior_means_and_accessors() {
     is_shape("shared", "noise_into", shared3.noise_into(&mut [0.0; 6]), 9, 6);
 }
 
-/// Mode shared counts what it gates and reinitializes, and says so through its own accessors
-/// and the trait's alike: one sample with a derivative 10⁴ σ off, gated (every row leaves
+/// Mode shared counts what it gates and reinitializes (mode full too), and says so through
+/// its own accessors and the trait's alike: one sample with a derivative 10⁴ σ off, gated (every row leaves
 /// it out: one more than on the clean samples); without the gate and with reinitialization
 /// on, as often as mode rows on the same samples.
 #[test]
@@ -440,10 +441,13 @@ fn kalman_shared_counts_gated_and_reinitialized_samples() {
     crate::common::feed(&mut s, &x, &z);
     let mut rows = KalmanIdentifierVec::<f64, N>::from_slices(&ROWS, &[50.0], &[RV, RV], reinit).unwrap();
     crate::common::feed(&mut rows, &x, &z);
-    // Shared runs the rows' rule (kalman::tests sweeps that one against the other).
+    // Shared and full run the rows' rule (kalman::tests sweeps them against it).
+    let mut full = FullKalmanIdentifierVec::<f64, N>::from_slices(&ROWS, &[50.0], &[RV, RV], reinit).unwrap();
+    crate::common::feed(&mut full, &x, &z);
     assert!(s.reinit_count() >= 2);
-    assert_eq!(s.reinit_count(), rows.reinit_count());
+    assert_eq!((s.reinit_count(), full.reinit_count()), (rows.reinit_count(), rows.reinit_count()));
     assert_eq!(Identifier::reinit_count(&s), s.reinit_count());
+    assert_eq!(Identifier::reinit_count(&full), full.reinit_count());
     assert_eq!(s.gated(), 0);
 }
 

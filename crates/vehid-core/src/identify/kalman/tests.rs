@@ -816,16 +816,19 @@ fn mode_full_takes_noise_free_rows_beside_noisy_ones() {
         data.iter().map(|(x, z)| (*x, V4::new(x.dot(&th), z[1], z[2], z[3]))).collect::<Vec<_>>()
     };
     let opts = KalmanOptions::default();
-    let mut full = FullKalmanIdentifier::<f64, 4, 2>::from_slices(&[0, 3], &[100.0], &[0.0, 0.04], opts).unwrap();
-    let mut rows = KalmanIdentifier::<f64, 4, 2>::new([0, 3], 100.0, [0.0, 0.04]).unwrap();
-    for (k, (x, z)) in truth.iter().enumerate() {
-        let a = full.update(x, z).unwrap_or_else(|err| panic!("sample {k} refused: {err:?}"));
-        let b = rows.update(x, z).unwrap();
-        assert!((a - b).abs().max() <= 1e-8 * (1.0 + b.abs().max()), "sample {k}: {a} vs {b}");
+    // The noise-free row first and second (its block of P on and off the diagonal's start).
+    for (order, r, at) in [([0, 3], [0.0, 0.04], 0), ([3, 0], [0.04, 0.0], 1)] {
+        let mut full = FullKalmanIdentifier::<f64, 4, 2>::from_slices(&order, &[100.0], &r, opts).unwrap();
+        let mut rows = KalmanIdentifier::<f64, 4, 2>::new(order, 100.0, r).unwrap();
+        for (k, (x, z)) in truth.iter().enumerate() {
+            let a = full.update(x, z).unwrap_or_else(|err| panic!("{order:?} sample {k} refused: {err:?}"));
+            let b = rows.update(x, z).unwrap();
+            assert!((a - b).abs().max() <= 1e-8 * (1.0 + b.abs().max()), "{order:?} sample {k}: {a} vs {b}");
+        }
+        assert_eq!(full.samples(), 300);
+        let th = full.theta_row(at);
+        assert!((th - V4::new(0.7, -1.2, 0.4, 2.0)).abs().max() < 1e-9, "{order:?}: {th}");
     }
-    assert_eq!(full.samples(), 300);
-    let th = full.theta_row(0);
-    assert!((th - V4::new(0.7, -1.2, 0.4, 2.0)).abs().max() < 1e-9, "{th}");
 }
 
 #[test]
