@@ -798,3 +798,35 @@ fn a_square_root_update_that_would_overflow_u_is_refused_before_it_starts() {
         }
     }
 }
+
+/// The Joseph form of the single-row filter (what every identifier on a `Structure` runs per
+/// group) on the same kind of sample: a consistent quarter-car sample scaled by 1e12 after
+/// 2,000 samples (`r ≪ √ε s`), whose update leaves `P` indefinite in rounding (here; at
+/// 1e10 it does not). Refused naming the square-root form, the filter unchanged; or, if
+/// taken, `P` positive definite.
+#[test]
+fn the_joseph_form_refuses_a_sample_that_would_break_positive_definiteness() {
+    use crate::model::QuarterCar;
+    use crate::sim::{SimConfig, Simulator};
+    let car = QuarterCar::<f64>::thesis();
+    let mut sim = Simulator::new(car.model(), SimConfig::new(0.05).road_sigma(0.1).deriv_noise(0.005), 4).unwrap();
+    let r: [f64; 2] = car.model().row_noise_var(0.1, 0.005).unwrap();
+    let opts = KalmanOptions { form: CovarianceForm::Joseph, ..Default::default() };
+    let mut row =
+        RowIdentifier::<f64, 4>::new(1000.0, r[0]).unwrap().configured(CovarianceForm::Joseph, &opts).unwrap();
+    for _ in 0..2000 {
+        let s = sim.next_sample();
+        row.update(&s.r, s.z[1]).unwrap();
+    }
+    let s = sim.next_sample();
+    let before = row;
+    let res = row.update(&(s.r * 1e12), s.z[1] * 1e12);
+    match res {
+        Err(Error::Singular { what }) => {
+            assert!(what.contains("form='sqrt'"), "{what}");
+            assert_eq!(row, before, "a refused sample changed the filter");
+        }
+        Ok(_) => assert!(super::row::positive_definite(&row.p(), 4), "taken, and P is not positive definite"),
+        Err(e) => panic!("{e}"),
+    }
+}
