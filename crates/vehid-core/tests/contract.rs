@@ -325,26 +325,32 @@ fn diag(r: &[f64]) -> Vec<f64> {
     (0..k * k).map(|j| if j % (k + 1) == 0 { r[j / k] } else { 0.0 }).collect()
 }
 
+/// What a Kalman identifier from the prior `p0 I` gives on `(x, z)` with noise variances `r`:
+/// ridge regression ([`ridge`]), its covariance, `R = diag(r)`, and the residual sums when the
+/// identifier keeps them (`ssr`).
+fn ridge_expect(x: &[f64], z: &[f64], p0: f64, r: &[f64], ssr: bool) -> Expect {
+    let (theta, cov, sums) = ridge(x, z, p0, r);
+    Expect {
+        params: Check::Value(theta, 1e-7),
+        cov: Check::Value(block_diag(&cov), 1e-7),
+        noise: Check::Value(diag(r), 0.0),
+        ssr: if ssr { Check::Value(sums, 1e-7) } else { Check::Unsupported },
+        reset: true,
+    }
+}
+
 /// Mode rows from the prior `p0 I`: ridge regression per row, its covariance, and the
 /// residual sums `r` times the minimized cost. Also `options()` and `theta_row`.
 #[test]
 fn kalman_rows_honour_the_contract() {
     let (x, z) = data();
     let (p0, r) = (50.0, [RV, 4.0 * RV]);
-    let (theta, cov, ssr) = ridge(&x, &z, p0, &r);
     let opts = KalmanOptions { gate: 0.0, ..KalmanOptions::default() };
     for form in [CovarianceForm::Standard, CovarianceForm::Joseph, CovarianceForm::Sqrt] {
         let o = KalmanOptions { form, ..opts };
         let id = KalmanIdentifierVec::<f64, N>::from_slices(&ROWS, &[p0], &r, o).unwrap();
         assert_eq!(id.options(), &o);
-        let ex = Expect {
-            params: Check::Value(theta.clone(), 1e-7),
-            cov: Check::Value(block_diag(&cov), 1e-7),
-            noise: Check::Value(diag(&r), 0.0),
-            ssr: Check::Value(ssr.clone(), 1e-7),
-            reset: true,
-        };
-        contract("rows", id, &x, &z, ex);
+        contract("rows", id, &x, &z, ridge_expect(&x, &z, p0, &r, true));
     }
 }
 
@@ -354,14 +360,7 @@ fn kalman_rows_honour_the_contract() {
 fn kalman_shared_and_full_honour_the_contract() {
     let (x, z) = data();
     let (p0, r) = (50.0, [RV, RV]);
-    let (theta, cov, _) = ridge(&x, &z, p0, &r);
-    let ex = || Expect {
-        params: Check::Value(theta.clone(), 1e-7),
-        cov: Check::Value(block_diag(&cov), 1e-7),
-        noise: Check::Value(diag(&r), 0.0),
-        ssr: Check::Unsupported,
-        reset: true,
-    };
+    let ex = || ridge_expect(&x, &z, p0, &r, false);
     let o = KalmanOptions::default();
     contract("shared", SharedKalmanIdentifierVec::<f64, N>::from_slices(&ROWS, &[p0], &r, o).unwrap(), &x, &z, ex());
     contract("full", FullKalmanIdentifierVec::<f64, N>::from_slices(&ROWS, &[p0], &r, o).unwrap(), &x, &z, ex());
@@ -457,20 +456,12 @@ fn kalman_shared_counts_gated_and_reinitialized_samples() {
 fn structured_kalman_honours_the_contract() {
     let (x, z) = data();
     let (p0, r) = (50.0, [RV, 4.0 * RV]);
-    let (theta, cov, ssr) = ridge(&x, &z, p0, &r);
     for form in [CovarianceForm::Standard, CovarianceForm::Joseph, CovarianceForm::Sqrt] {
         let o = KalmanOptions { form, gate: 0.0, ..KalmanOptions::default() };
         let st = Structure::full_rows(N, &ROWS).unwrap();
         let id = StructuredKalmanVec::<f64, 8>::new(st, StructuredPrior::Scalar(p0), None, &r, o).unwrap();
         assert_eq!(id.form(), form);
-        let ex = Expect {
-            params: Check::Value(theta.clone(), 1e-7),
-            cov: Check::Value(block_diag(&cov), 1e-7),
-            noise: Check::Value(diag(&r), 0.0),
-            ssr: Check::Value(ssr.clone(), 1e-7),
-            reset: true,
-        };
-        contract("structured", id, &x, &z, ex);
+        contract("structured", id, &x, &z, ridge_expect(&x, &z, p0, &r, true));
     }
 }
 
