@@ -663,3 +663,27 @@ fn boxed_kalman_builds_every_mode_from_a_run_time_spec() {
     assert_eq!(arg(&spec(Mode::Full, Prior::RowMatrices(flat_blocks.clone()))), "p0");
     assert_eq!(arg(&spec(Mode::Rows, Prior::RowMatrices(flat_blocks[..31].to_vec()))), "p0 32 31");
 }
+
+/// Mode full refuses, naming the option, each option it does not implement (its docs:
+/// retirement, the Joseph and square-root forms, Huber weighting, tracking), and takes the
+/// same options at their defaults.
+#[test]
+fn mode_full_names_each_option_it_does_not_take() {
+    let d = KalmanOptions::<f64>::default();
+    let refused = [
+        (KalmanOptions { retire_below: 1e-3, ..d }, "retire_below"),
+        (KalmanOptions { form: CovarianceForm::Joseph, ..d }, "form"),
+        (KalmanOptions { form: CovarianceForm::Sqrt, ..d }, "form"),
+        (KalmanOptions { huber: 2.0, ..d }, "huber"),
+    ];
+    for (o, name) in refused {
+        match FullKalmanIdentifierVec::<f64, N>::from_slices(&ROWS, &[1.0], &[RV], o) {
+            Err(Error::InvalidArgument { arg, .. }) => assert_eq!(arg, name),
+            other => panic!("{name}: {other:?}"),
+        }
+    }
+    let tracking =
+        FullKalmanIdentifierVec::<f64, N>::from_slices(&ROWS, &[1.0], &[RV], KalmanOptions { forgetting: 0.99, ..d });
+    assert!(matches!(tracking, Err(Error::InvalidArgument { arg: "forgetting", .. })), "{tracking:?}");
+    assert!(FullKalmanIdentifierVec::<f64, N>::from_slices(&ROWS, &[1.0], &[RV], d).is_ok());
+}
