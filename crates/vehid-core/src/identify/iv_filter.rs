@@ -506,6 +506,7 @@ mod tests {
             let y = 2.0 * h[0] - 1.0 * h[1] + 0.1 * (state - 0.5);
             let zeta = prev;
             f.update(&SVector::from([h[0], h[1], 0.0]), &SVector::from([zeta[0], zeta[1], 0.0]), y).unwrap();
+            assert_eq!(f.count(), k as u64 + 1, "every sample absorbed is counted");
             c += nalgebra::Vector2::from(zeta) * nalgebra::Vector2::from(h).transpose();
             b += nalgebra::Vector2::from(zeta) * y;
             prev = h;
