@@ -485,7 +485,7 @@ fn stochastic_gradients_honour_the_contract() {
     let mut sg = StochasticGradientVec::<f64, N>::from_slices(&ROWS, gain, &[0.4], &[0.0], 1).unwrap();
     contract("gradient", sg.clone(), &x, &z, ex());
     assert_eq!(sg.rows(), &ROWS[..]);
-    common_feed(&mut sg, &x[..40 * N], &z[..40 * N]);
+    crate::common::feed(&mut sg, &x[..40 * N], &z[..40 * N]);
     let mut theta = [0.0; 8];
     sg.params_into(&mut theta).unwrap();
     for i in 0..2 {
@@ -503,10 +503,6 @@ fn stochastic_gradients_honour_the_contract() {
     let sgs = StructuredGradient::<f64, 8>::new(st(), Gain::Lyapunov, &[1.0], None, 1).unwrap();
     assert_eq!(sgs.structure(), &st());
     contract("structured gradient", sgs, &x, &z, ex());
-}
-
-fn common_feed<I: Identifier<f64>>(id: &mut I, x: &[f64], z: &[f64]) {
-    crate::common::feed(id, x, z);
 }
 
 /// The instrumental-variable family on the full rows: the same contract (their estimates are
