@@ -450,6 +450,95 @@ fn kalman_shared_counts_gated_and_reinitialized_samples() {
     assert_eq!(s.gated(), 0);
 }
 
+/// Row `i`'s `s = S_ii / r_i = 1 + xᵀP_i x / r_i` before a sample at `x`, from the
+/// covariance the identifier reports (two rows).
+fn s_row(id: &dyn Identifier<f64>, x: &[f64], i: usize, r: &[f64; 2]) -> f64 {
+    let mut cov = vec![0.0; 4 * N * N];
+    id.covariance_into(&mut cov).unwrap();
+    let p = |a: usize, b: usize| cov[(i * N + a) * 2 * N + i * N + b];
+    1.0 + (0..N).map(|a| (0..N).map(|b| x[a] * p(a, b) * x[b]).sum::<f64>()).sum::<f64>() / r[i]
+}
+
+/// The joint gate's scale as `KalmanOptions::gate`'s docs define it, from what an identifier
+/// of two rows reports: `σ̂_i² = Σ w_i² / (n − N)`, `w_i² = e_i² r_i / S_ii` (`e_i² / s` in
+/// mode shared), a gated sample's `w_i²` Winsorized at `κ² σ̂_i²`.
+struct GateScale {
+    kappa: f64,
+    r: [f64; 2],
+    ssr: [f64; 2],
+    nobs: f64,
+}
+
+impl GateScale {
+    fn sigma2(&self, i: usize) -> f64 {
+        self.ssr[i] / (self.nobs - N as f64)
+    }
+
+    /// One sample through `id` and the scale; whether `id` gated it.
+    fn step(&mut self, id: &mut dyn Identifier<f64>, x: &[f64], z: &[f64]) -> bool {
+        let s = [s_row(id, x, 0, &self.r), s_row(id, x, 1, &self.r)];
+        let mut gated = [0u64; 2];
+        id.gated_into(&mut gated).unwrap();
+        let before = gated[0];
+        let mut e = [0.0; 2];
+        id.update_into(x, z, &[], &mut e).unwrap();
+        id.gated_into(&mut gated).unwrap();
+        let out = gated[0] > before;
+        for i in 0..2 {
+            let w2 = e[i] * e[i] / s[i];
+            self.ssr[i] += if out { w2.min(self.kappa * self.kappa * self.sigma2(i)) } else { w2 };
+        }
+        self.nobs += 1.0;
+        out
+    }
+}
+
+/// The joint gate's scale (modes shared and full) against [`GateScale`], through a gated
+/// sample whose regressor is 20 times the data's (`s` about 10, so `e²/s` and `e² s` are far
+/// apart): an outlier of 1000 σ on row 0 (Winsorized) and a residual inside the gate on row 1
+/// (taken whole). Then probes just outside and just inside `κ σ̂_i` on each row: exactly the
+/// first of each pair is gated.
+#[test]
+fn the_joint_gate_scale_is_the_winsorized_sum_of_normalized_residuals() {
+    let (x, z) = data();
+    let kappa = 4.0;
+    let opts = KalmanOptions { gate: kappa, ..KalmanOptions::default() };
+    let r = [RV, 2.0 * RV];
+    let shared = SharedKalmanIdentifierVec::<f64, N>::from_slices(&ROWS, &[50.0, 100.0], &r, opts).unwrap();
+    let full = FullKalmanIdentifierVec::<f64, N>::from_slices(&ROWS, &[50.0, 100.0], &r, opts).unwrap();
+    let modes: [(&str, Box<dyn Identifier<f64>>); 2] = [("shared", Box::new(shared)), ("full", Box::new(full))];
+    // A sample that fits the estimate exactly but for the residual `e_i` on row `i`.
+    let shaped = |id: &dyn Identifier<f64>, xs: &[f64], e: [f64; 2]| {
+        let mut theta = vec![0.0; 2 * N];
+        id.params_into(&mut theta).unwrap();
+        let mut zs = vec![0.0; N];
+        for (i, &row) in ROWS.iter().enumerate() {
+            zs[row] = (0..N).map(|a| theta[i * N + a] * xs[a]).sum::<f64>() + e[i];
+        }
+        zs
+    };
+    for (name, mut id) in modes {
+        let mut scale = GateScale { kappa, r, ssr: [0.0; 2], nobs: 0.0 };
+        for k in 0..300 {
+            scale.step(&mut *id, &x[k * N..(k + 1) * N], &z[k * N..(k + 1) * N]);
+        }
+        let far: Vec<f64> = x[300 * N..301 * N].iter().map(|v| 20.0 * v).collect();
+        let s_far = [s_row(&*id, &far, 0, &r), s_row(&*id, &far, 1, &r)];
+        assert!(s_far[1] > 5.0, "{name}: the far sample's s = {s_far:?}");
+        let zs = shaped(&*id, &far, [1e3 * (r[0] * s_far[0]).sqrt(), (2.0 * r[1] * s_far[1]).sqrt()]);
+        assert!(scale.step(&mut *id, &far, &zs), "{name}: the far outlier is gated");
+        for (k, i, factor, want) in
+            [(301, 1, 1.03, true), (302, 1, 0.97, false), (303, 0, 1.03, true), (304, 0, 0.97, false)]
+        {
+            let xs = &x[k * N..(k + 1) * N];
+            let mut e = [0.0; 2];
+            e[i] = (factor * kappa * kappa * scale.sigma2(i) * s_row(&*id, xs, i, &r)).sqrt();
+            let zs = shaped(&*id, xs, e);
+            assert_eq!(scale.step(&mut *id, xs, &zs), want, "{name}: row {i} at {factor} κ² σ̂²");
+        }
+    }
+}
+
 /// A structure of the full rows, from the prior `p0 I`: ridge regression, its covariance and
 /// residual sums; `form()` the form it was given.
 #[test]
