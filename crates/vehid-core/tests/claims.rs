@@ -1158,6 +1158,65 @@ fn noise_free_rows_learn_exactly_whatever_the_prior_scale() {
     }
 }
 
+/// A noise-free row skips a sample whose `xᵀPx` is at rounding level against `|x|₁ |Px|₁`
+/// (the collapsed-row floor), also when `P` is not collapsed along `x` but `x` reaches the
+/// unlearned direction only at rounding level: after `e₁, e₂, e₃` (which leave `P = e₄e₄ᵀ`
+/// exactly), `x = (1, 1, 1, 10⁻¹⁶)` carries nothing about `θ₄` that survives the rounding of
+/// `z`. Taking it would collapse `P` along `e₄` with `θ₄` still at its prior 0, for good;
+/// skipped, `e₄` teaches `θ₄` exactly. Every form of mode rows and mode full, whose floor is
+/// read per row (the noise-free row second).
+#[test]
+fn a_sample_reaching_the_unlearned_direction_at_rounding_level_teaches_noise_free_rows_nothing() {
+    let th = [V4::new(-3.0, 0.5, 2.0, 7.0), V4::new(0.25, 6.0, 2.5, -0.75)];
+    let z_of = |x: &V4| {
+        let mut z = V4::zeros();
+        z[1] = x.dot(&th[0]);
+        z[3] = x.dot(&th[1]);
+        z
+    };
+    let xs = [V4::x(), V4::y(), V4::z(), V4::new(1.0, 1.0, 1.0, 1e-16), V4::w()];
+    let mut ids: Vec<(String, Box<dyn Identifier<f64>>, usize)> = vec![];
+    for form in [CovarianceForm::Standard, CovarianceForm::Joseph, CovarianceForm::Sqrt] {
+        let id = KalmanIdentifier::<f64, 4, 2>::from_slices(&[1, 3], &[1.0], &[0.0, 0.0], opts(form)).unwrap();
+        ids.push((format!("rows {form:?}"), Box::new(id), 0));
+    }
+    // Mode full noise-free, and with a noisy first row (whose estimate is not exact: only the
+    // noise-free second row is checked).
+    let full = |r0: f64| {
+        FullKalmanIdentifier::<f64, 4, 2>::from_slices(
+            &[1, 3],
+            &[1.0],
+            &[r0, 0.0, 0.0, 0.0],
+            opts(CovarianceForm::Standard),
+        )
+        .unwrap()
+    };
+    ids.push(("full, R = 0".into(), Box::new(full(0.0)), 0));
+    ids.push(("full, R = diag(0.01, 0)".into(), Box::new(full(0.01)), 1));
+    for form in [CovarianceForm::Standard, CovarianceForm::Joseph, CovarianceForm::Sqrt] {
+        let mut f = vehid_core::identify::RowIdentifier::<f64, 4>::new(1.0, 0.0)
+            .unwrap()
+            .configured(form, &KalmanOptions::default())
+            .unwrap();
+        for x in &xs {
+            f.update(x, x.dot(&th[1])).unwrap();
+        }
+        assert!((f.theta() - th[1]).norm() <= 1e-12 * th[1].norm(), "row filter {form:?}: {}", f.theta());
+    }
+    for (name, mut id, first) in ids {
+        let mut e = [0.0; 2];
+        for x in &xs {
+            id.update_into(x.as_slice(), z_of(x).as_slice(), &[], &mut e).unwrap();
+        }
+        let mut got = [0.0; 8];
+        id.params_into(&mut got).unwrap();
+        for i in first..2 {
+            let g = V4::from_column_slice(&got[4 * i..4 * i + 4]);
+            assert!((g - th[i]).norm() <= 1e-12 * th[i].norm(), "{name}, row {i}: {g} against {}", th[i]);
+        }
+    }
+}
+
 /// A deterministic stream of regressors with entries in [−1, 1).
 fn regressors(seed: u64, n: usize) -> Vec<V4> {
     let mut s = seed;

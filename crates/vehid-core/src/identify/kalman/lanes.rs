@@ -366,6 +366,29 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
         go
     }
 
+    /// [`Self::collapsed_lanes`] for the square-root form, from `f = Uᵀx` and `v = D f`:
+    /// `xᵀPx = Σ f_j v_j`, `P x = U v`.
+    #[inline(never)]
+    fn collapsed_lanes_ud(&self, x: &SVector<T, N>, f: &[[T; L]; N], v: &[[T; L]; N], go: [T; L]) -> [T; L] {
+        let mut fv = [[T::zero(); L]; N];
+        let mut px = *v;
+        for j in 0..N {
+            for k in 0..L {
+                fv[j][k] = f[j][k] * v[j][k];
+            }
+            for i in 0..j {
+                for k in 0..L {
+                    px[i][k] += self.p[i][j][k] * v[j][k];
+                }
+            }
+        }
+        let mut s = lane_sum(fv);
+        for k in 0..L {
+            s[k] += self.r[k];
+        }
+        self.collapsed_lanes(x, px, s, go)
+    }
+
     /// Joseph's form, lane by lane: `P ← (I − g xᵀ) P (I − g xᵀ)ᵀ + r g gᵀ`, `g = P x / s`.
     #[inline(never)]
     fn joseph(&mut self, x: &SVector<T, N>, sc: LaneScratch<T, N, L>) {
@@ -583,8 +606,12 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
             }
         });
         let (mut gated, mut reff) = ([T::zero(); L], self.r);
-        // Lanes that step: active and not gated (the others keep their factors: ratio 1, p 0).
+        // Lanes that step: active, not collapsed along x (noise-free lanes, as in the
+        // covariance forms) and not gated (the others keep their factors: ratio 1, p 0).
         let mut act = self.active;
+        if self.any_r_zero {
+            act = self.collapsed_lanes_ud(x, &f, &v, act);
+        }
         if self.gate > T::zero() || self.huber > T::zero() {
             let mut fv = [[T::zero(); L]; N];
             for j in 0..N {

@@ -544,6 +544,21 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
         }
         // The innovation variance first (s = r + Σ f_j v_j), for the outlier screen.
         let s = (0..N).fold(self.r, |a, j| a + f[j] * v[j]);
+        if self.r == T::zero() {
+            // Noise-free data and xᵀPx at rounding level against |x|₁ |P x|₁ (`P x = U v`): as
+            // in the covariance forms, nothing is learned along x. (Taking such a sample would
+            // collapse P along a direction x reaches only at rounding level, with the
+            // estimate there made of rounding errors, for good.)
+            let mut px = v;
+            for i in 0..N {
+                for j in (i + 1)..N {
+                    px[i] += m[(i, j)] * v[j];
+                }
+            }
+            if s <= collapse_floor::<T, N>(x.abs().sum(), px.abs().sum()) {
+                return Ok(());
+            }
+        }
         let r_eff = if s > T::zero() && s.finite() {
             let (gate, huber, nobs, ssr, r) = (self.gate, self.huber, self.nobs, self.ssr, self.r);
             match screen(gate, huber, nobs, ssr, r, e, s, self.dim as usize) {
