@@ -768,33 +768,40 @@ fn noise_free_rows_with_leading_zeros_condition_the_prior_exactly() {
 }
 
 /// The square-root form updates `U` in place, so a sample whose update would overflow `U`
-/// must be refused before it starts (`plan_ud`'s bound `|U'_ij| ≤ |U_ij| + |b_i| |p_j|`):
-/// with `P(0) = diag(1e300, 1e-10, 1, 1)`, `r = 1e-300` and `x = (1e-300, 1e10, 0, 0)`,
-/// `α₀ = r + p₀₀ x₀² = 2e-300` and `p₁ = −x₁/α₀` overflows, though `α₁ ≈ 1e10` and every `v`
-/// are finite. Refused with an overflow error, every filter unchanged (the single-row filter,
-/// which plans on a copy, likewise), in lanes of one row and of several.
+/// must be refused before it starts (`plan_ud`'s bound `|U'_ij| ≤ |U_ij| + |b_i| |p_j|`,
+/// `|b_i| ≤ (1 + N max|U|) max|v|`). Two such samples, each with `α` and the step finite:
+/// - `P(0) = diag(1e300, 1e-10, 1, 1)`, `r = 1e-300`, `x = (1e-300, 1e10, 0, 0)`:
+///   `α₀ = r + p₀₀ x₀² = 2e-300` and `p₁ = −x₁/α₀` overflows;
+/// - `P(0) = diag(1e300, 1e-300, 1, 1)`, `r = 1`, `x = (1e-100, 1e300, 0, 0)`: every `p` and
+///   `v` finite (`v₀ = 1e200`, `p₁ = −1e200`) but `b₀ p₁` overflows.
+///
+/// Refused with an overflow error, every filter unchanged (the single-row filter, which plans
+/// on a copy, likewise), in lanes of one row and of several.
 #[test]
 fn a_square_root_update_that_would_overflow_u_is_refused_before_it_starts() {
-    let p0 = SMatrix::<f64, 4, 4>::from_diagonal(&SVector::<f64, 4>::new(1e300, 1e-10, 1.0, 1.0));
-    let opts = KalmanOptions { form: CovarianceForm::Sqrt, ..Default::default() };
-    let row = RowIdentifier::with_prior(SVector::zeros(), p0, 1e-300)
-        .unwrap()
-        .configured(CovarianceForm::Sqrt, &opts)
-        .unwrap();
-    let x = SVector::<f64, 4>::new(1e-300, 1e10, 0.0, 0.0);
-    let mut single = row;
-    assert_eq!(single.update(&x, 0.0), Err(crate::identify::OVERFLOW));
-    assert_eq!(single, row, "the single-row filter changed");
-    for k in [1usize, 3] {
-        let rows: Vec<usize> = [1usize, 3, 0][..k].to_vec();
-        let filters = vec![row; k];
-        let mut id = KalmanRows::<f64, 4, crate::identify::Dynamic>::from_filters(&rows, &filters, opts).unwrap();
-        let before = id.clone();
-        let z = SVector::<f64, 4>::zeros();
-        let err = id.update_into(x.as_slice(), z.as_slice(), &[], &mut vec![0.0; k]);
-        assert_eq!(err, Err(crate::identify::OVERFLOW), "{k} rows");
-        for i in 0..k {
-            assert_eq!(id.filter(i), before.filter(i), "{k} rows: row {i} changed");
+    let cases = [([1e300, 1e-10], 1e-300, [1e-300, 1e10]), ([1e300, 1e-300], 1.0, [1e-100, 1e300])];
+    for (d, r, x01) in cases {
+        let p0 = SMatrix::<f64, 4, 4>::from_diagonal(&SVector::<f64, 4>::new(d[0], d[1], 1.0, 1.0));
+        let opts = KalmanOptions { form: CovarianceForm::Sqrt, ..Default::default() };
+        let row = RowIdentifier::with_prior(SVector::zeros(), p0, r)
+            .unwrap()
+            .configured(CovarianceForm::Sqrt, &opts)
+            .unwrap();
+        let x = SVector::<f64, 4>::new(x01[0], x01[1], 0.0, 0.0);
+        let mut single = row;
+        assert_eq!(single.update(&x, 0.0), Err(crate::identify::OVERFLOW), "x = {x01:?}");
+        assert_eq!(single, row, "x = {x01:?}: the single-row filter changed");
+        for k in [1usize, 3] {
+            let rows: Vec<usize> = [1usize, 3, 0][..k].to_vec();
+            let filters = vec![row; k];
+            let mut id = KalmanRows::<f64, 4, crate::identify::Dynamic>::from_filters(&rows, &filters, opts).unwrap();
+            let before = id.clone();
+            let z = SVector::<f64, 4>::zeros();
+            let err = id.update_into(x.as_slice(), z.as_slice(), &[], &mut vec![0.0; k]);
+            assert_eq!(err, Err(crate::identify::OVERFLOW), "x = {x01:?}, {k} rows");
+            for i in 0..k {
+                assert_eq!(id.filter(i), before.filter(i), "x = {x01:?}, {k} rows: row {i} changed");
+            }
         }
     }
 }
