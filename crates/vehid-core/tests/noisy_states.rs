@@ -203,6 +203,9 @@ fn construction_errors_name_the_argument() {
     assert!(matches!(small, Err(Error::Capacity { arg: "P", .. })));
     let r = IvIdentifier::<f64, 2, 2>::new(s, 1, StructuredPrior::Exact, None, &[1.0, -1.0]);
     assert!(matches!(r, Err(Error::InvalidArgument { arg: "r", .. })));
+    // One r, or one per identified equation (the physical structure identifies 2).
+    let r = IvIdentifier::<f64, 2, 2>::new(s, 1, StructuredPrior::Exact, None, &[1.0; 3]);
+    assert!(matches!(r, Err(Error::Shape { arg: "r", expected: 2, got: 3 })), "{r:?}");
     let p0 = IvIdentifier::<f64, 2, 2>::new(s, 1, StructuredPrior::Scalar(-1.0), None, &[1.0]);
     assert!(matches!(p0, Err(Error::InvalidArgument { arg: "p0", .. })));
     let bc = |sw: &[f64]| BiasCompensatedLs::<f64, 4, 2>::full_rows(4, &[1, 3], sw).map(|_| ());

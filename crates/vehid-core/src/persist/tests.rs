@@ -692,6 +692,9 @@ fn a_corrupt_iv_identifier_is_refused() {
         *out.pointer_mut(path).unwrap_or_else(|| panic!("{path}")) = v;
         out
     };
+    // The ring's bound, `√(largest float) / 256` (its message): just below it is taken.
+    let ring_limit = f64::MAX.sqrt() / 256.0;
+    assert!(serde_json::from_value::<Iv>(with(&refined, "/ring/buf/0", json!(0.5 * ring_limit))).is_ok());
     let mut one_filter = refined.clone();
     one_filter["filters"].as_array_mut().unwrap().pop();
     let cases = [
@@ -708,6 +711,7 @@ fn a_corrupt_iv_identifier_is_refused() {
         (with(&refined, "/ring/head", json!(2)), "ring of delay + lags"),
         (with(&refined, "/samples", json!(1)), "ring filled by the samples"),
         (with(&refined, "/ring/buf/0", json!(1e200)), "past samples below"),
+        (with(&refined, "/ring/buf/0", json!(2.0 * ring_limit)), "past samples below"),
         (with(&refined, "/ring/buf/500", json!(1.0)), "past samples below"),
         (with(&plain, "/pred/outputs", json!(3)), "predictor of lags"),
         (with(&refined, "/eq_ssr/1", json!(-1.0)), "residual sums"),
