@@ -63,14 +63,13 @@ pub(crate) fn shared_regressor<T: Real, const P: usize>(
     if !(1..ne).all(|i| params(i).eq(params(0))) {
         return None;
     }
+    // `h = x` when equation 0's terms are `1 · x_j` for its group's parameter `j`, each once.
+    // Once is implied by the count: every parameter of group 0 appears in equation 0 (the
+    // group's only equation; a parameter in no equation is a group of its own, refused above
+    // as groups ≠ equations), so `dim` parameter terms cannot read one parameter twice.
     let dim = part.size[0] as usize;
-    let mut seen = 0u64;
     let identity = params(0).count() == dim
-        && params(0).all(|(coef, basis, local)| {
-            let fresh = seen & (1 << local) == 0;
-            seen |= 1 << local;
-            fresh && coef == T::one() && basis == Basis::Var(Var::State(local))
-        });
+        && params(0).all(|(coef, basis, local)| coef == T::one() && basis == Basis::Var(Var::State(local)));
     let known = (0..ne).any(|i| s.terms(i).iter().any(|t| t.param.is_none()));
     Some(if identity && !known { SharedRegressor::States } else { SharedRegressor::Terms })
 }
@@ -354,22 +353,42 @@ mod tests {
         compare(f32_rows, SharedRegressor::States, &data32);
     }
 
-    /// Equations with the same parameter terms (an input, an offset, a `sign`) and known terms
-    /// of their own share the step through equation 0's terms, bit for bit.
+    /// Equations with the same parameter terms (an input, an offset, a `sign`), with known
+    /// terms of their own and without, share the step through equation 0's terms, bit for bit.
+    /// Without known terms, parameter terms as many as the group's parameters that are not
+    /// each `1 · x_j` must not take `h = x`: an input among them, or `2 · x₁` beside `1 · 1`
+    /// (each half of `coef = 1 and basis = x_j` true for one term).
     #[test]
     fn equations_with_equal_terms_share_the_step() {
-        let mut s = Structure::<f64>::new(3, 1, 12).unwrap();
+        for variant in 0..3 {
+            equal_terms_share_the_step(variant);
+        }
+    }
+
+    fn equal_terms_share_the_step(variant: usize) {
+        let per = if variant < 2 { 4 } else { 3 }; // parameters per equation
+        let mut s = Structure::<f64>::new(3, 1, 3 * per).unwrap();
         let (start, len) = s.push_combination(&[(Var::State(1), 1.0), (Var::State(2), -0.5)]).unwrap();
         for (i, state) in [0usize, 2, 1].into_iter().enumerate() {
-            let p = |j: usize| Some((4 * i + j) as u8);
-            let terms = [
+            let p = |j: usize| Some((per * i + j) as u8);
+            let general = [
                 Term { coef: 1.0, param: p(0), basis: Basis::Var(Var::State(0)) },
-                Term { coef: 0.5, param: None, basis: Basis::Var(Var::State(state as u8)) },
                 Term { coef: -2.0, param: p(1), basis: Basis::Var(Var::Input(0)) },
                 Term { coef: 1.0, param: p(2), basis: Basis::One },
                 Term { coef: 1.0, param: p(3), basis: Basis::Sign { start, len } },
+                Term { coef: 0.5, param: None, basis: Basis::Var(Var::State(state as u8)) },
             ];
-            s.push_equation(state, &terms).unwrap();
+            let scaled = [
+                Term { coef: 1.0, param: p(0), basis: Basis::Var(Var::State(0)) },
+                Term { coef: 2.0, param: p(1), basis: Basis::Var(Var::State(1)) },
+                Term { coef: 1.0, param: p(2), basis: Basis::One },
+            ];
+            let terms = match variant {
+                0 => &general[..],
+                1 => &general[..4],
+                _ => &scaled[..],
+            };
+            s.push_equation(state, terms).unwrap();
         }
         let mut rng = 0x2545_f491_4f6c_dd1du64;
         let mut g = move || {
