@@ -86,6 +86,17 @@ def find_accepted(name: str, ok_list: Dict[str, str], unique: Set[str]) -> Tuple
     return None, None
 
 
+def stale_entries(ok_list: Dict[str, str], tested: List[Tuple[str, str]], unique: Set[str]) -> List[str]:
+    """The accepted entries this run caught: tested under their own name, or under another line
+    when their change is the only one of its kind in its function (``unique``), as
+    :func:`find_accepted` matches; never an entry whose function has the same change elsewhere
+    (``least_squares.rs:339:40`` caught says nothing of an accepted ``338:85``)."""
+    caught = {n for n, s in tested if s != "MissedMutant"}
+    missed = {where_free(n) for n, s in tested if s == "MissedMutant"}
+    moved = {where_free(n) for n in caught if where_free(n) in unique} - missed
+    return sorted(e for e in ok_list if e in caught or where_free(e) in moved)
+
+
 def unique_changes(file_glob: str) -> Set[str]:
     """The ``where_free`` names that occur once among the mutants cargo-mutants lists now."""
     done = subprocess.run(["cargo", "mutants", "-p", "vehid-core", "--file", file_glob, "--list"],
@@ -197,7 +208,7 @@ def main(argv: List[str] | None = None) -> int:
     print(f"mutants: caught {caught + timeout} of {viable} viable = {100 * share:.1f} % "
           f"(95 % interval {100 * low:.1f}-{100 * high:.1f} %)")
     ok_list = accepted()
-    unique = unique_changes(args.file) if any(s == "MissedMutant" for _, s in tested) else set()
+    unique = unique_changes(args.file) if tested else set()
     new = []
     for name, summary in tested:
         if summary != "MissedMutant":
@@ -208,9 +219,7 @@ def main(argv: List[str] | None = None) -> int:
             print(f"    (accepted as {entry.split(': ')[0]}: the line moved; rename the entry in {ACCEPTED.name})")
         if reason is None:
             new.append(name)
-    caught_now = {where_free(n) for n, s in tested if s != "MissedMutant"}
-    missed_now = {where_free(n) for n, s in tested if s == "MissedMutant"}
-    stale = sorted(e for e in ok_list if where_free(e) in caught_now - missed_now)
+    stale = stale_entries(ok_list, tested, unique)
     for name in stale:
         print(f"  accepted but now caught (remove it from {ACCEPTED.name}): {name}")
     if new:

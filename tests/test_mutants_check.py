@@ -50,6 +50,18 @@ def test_a_survivor_whose_line_moved_is_still_accepted_and_named():
     assert mc.find_accepted(moved, {NAME: "a", twin: "b"}, unique) == (None, None)
 
 
+def test_an_accepted_entry_is_stale_only_when_that_mutant_was_caught():
+    ok = {NAME: "equivalent"}
+    other_line = NAME.replace(":1089:58:", ":1090:40:")
+    # Caught under its own name: stale, whatever else the function holds.
+    assert mc.stale_entries(ok, [(NAME, "CaughtMutant")], set()) == [NAME]
+    # The same change at another line: stale only when the change is unique in its function
+    # (then it is this mutant, moved) and it did not also survive there.
+    assert mc.stale_entries(ok, [(other_line, "CaughtMutant")], set()) == []
+    assert mc.stale_entries(ok, [(other_line, "CaughtMutant")], {mc.where_free(NAME)}) == [NAME]
+    assert mc.stale_entries(ok, [(NAME, "MissedMutant")], {mc.where_free(NAME)}) == []
+
+
 def test_the_recheck_pattern_finds_the_mutant_at_any_line_only():
     pattern = mc.where_free_pattern(NAME)
     assert re.fullmatch(pattern, NAME)

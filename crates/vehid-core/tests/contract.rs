@@ -539,6 +539,38 @@ fn the_joint_gate_scale_is_the_winsorized_sum_of_normalized_residuals() {
     }
 }
 
+/// Mode rows counts a gated sample in its residual statistics Winsorized at the gate
+/// (`Identifier::residuals_into`, `KalmanOptions::gate`): `ssr ← λ ssr + κ² σ̂²` with
+/// `σ̂² = ssr / (nobs − N)`, `nobs ← λ nobs + 1`, on the row that gated it; the other row
+/// takes the sample. Every form, without forgetting and with `λ = 0.99`.
+#[test]
+fn mode_rows_counts_a_gated_sample_winsorized_at_the_gate() {
+    let (x, clean) = data();
+    let kappa = 4.0;
+    for form in [CovarianceForm::Standard, CovarianceForm::Joseph, CovarianceForm::Sqrt] {
+        for lambda in [1.0, 0.99] {
+            let opts = KalmanOptions { gate: kappa, form, forgetting: lambda, ..KalmanOptions::default() };
+            let mut id = KalmanIdentifierVec::<f64, N>::from_slices(&ROWS, &[50.0], &[RV, RV], opts).unwrap();
+            crate::common::feed(&mut id, &x[..300 * N], &clean[..300 * N]);
+            let what = format!("{form:?}, λ = {lambda}");
+            let (mut ssr, mut nobs, mut gated) = ([0.0; 2], [0.0; 2], [0u64; 2]);
+            id.residuals_into(&mut ssr, &mut nobs).unwrap();
+            id.gated_into(&mut gated).unwrap();
+            let mut z = clean[300 * N..301 * N].to_vec();
+            z[ROWS[0]] += 1e4 * RV.sqrt();
+            id.update_into(&x[300 * N..301 * N], &z, &[], &mut [0.0; 2]).unwrap();
+            let (mut ssr1, mut nobs1, mut gated1) = ([0.0; 2], [0.0; 2], [0u64; 2]);
+            id.residuals_into(&mut ssr1, &mut nobs1).unwrap();
+            id.gated_into(&mut gated1).unwrap();
+            assert_eq!((gated1[0], gated1[1]), (gated[0] + 1, gated[1]), "{what}: gated on row 0 only");
+            let want = lambda * ssr[0] + kappa * kappa * ssr[0] / (nobs[0] - N as f64);
+            assert!((ssr1[0] - want).abs() <= 1e-12 * want, "{what}: ssr {} for {want}", ssr1[0]);
+            assert!((nobs1[0] - (lambda * nobs[0] + 1.0)).abs() <= 1e-12 * nobs1[0], "{what}: nobs {}", nobs1[0]);
+            assert!((nobs1[1] - (lambda * nobs[1] + 1.0)).abs() <= 1e-12 * nobs1[1], "{what}: row 1 took it");
+        }
+    }
+}
+
 /// A structure of the full rows, from the prior `p0 I`: ridge regression, its covariance and
 /// residual sums; `form()` the form it was given.
 #[test]
