@@ -161,11 +161,11 @@ def main(argv: List[str] | None = None) -> int:
         cmd = ["cargo", "mutants", "-p", "vehid-core", "--file", args.file, "--shard", args.shard,
                "--sharding", "round-robin", "--jobs", args.jobs, "--output", str(out_dir)]
         if args.iterate:
-            # Exactly the shard's mutants that were not caught (cargo-mutants' own --iterate
+            # Exactly the shard's mutants that were missed (not the unviable: they do not build;
             # would shard the list that is left, which is another sample), found by file,
             # change and function at any line (the tests written since may have moved them).
             first = read_outcomes(out_dir / "mutants.out" / "outcomes.json")
-            again = sorted(n for n, s in first.items() if s not in ("CaughtMutant", "Timeout"))
+            again = sorted(n for n, s in first.items() if s == "MissedMutant")
             if not again:
                 print("mutants: nothing left to test again in this shard")
             recheck = out_dir / "recheck"
