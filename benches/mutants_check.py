@@ -161,9 +161,10 @@ def main(argv: List[str] | None = None) -> int:
         cmd = ["cargo", "mutants", "-p", "vehid-core", "--file", args.file, "--shard", args.shard,
                "--sharding", "round-robin", "--jobs", args.jobs, "--output", str(out_dir)]
         if args.iterate:
-            # Exactly the shard's mutants that were missed (not the unviable: they do not build;
-            # would shard the list that is left, which is another sample), found by file,
-            # change and function at any line (the tests written since may have moved them).
+            # Exactly the shard's mutants that were missed (not the unviable ones, which do not
+            # build; cargo-mutants' own --iterate would shard the list that is left, which is
+            # another sample), found by file, change and function at any line (the tests
+            # written since may have moved them).
             first = read_outcomes(out_dir / "mutants.out" / "outcomes.json")
             again = sorted(n for n, s in first.items() if s == "MissedMutant")
             if not again:
