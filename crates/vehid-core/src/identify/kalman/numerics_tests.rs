@@ -773,21 +773,30 @@ fn noise_free_rows_with_leading_zeros_condition_the_prior_exactly() {
 /// - `P(0) = diag(1e300, 1e-10, 1, 1)`, `r = 1e-300`, `x = (1e-300, 1e10, 0, 0)`:
 ///   `α₀ = r + p₀₀ x₀² = 2e-300` and `p₁ = −x₁/α₀` overflows;
 /// - `P(0) = diag(1e300, 1e-300, 1, 1)`, `r = 1`, `x = (1e-100, 1e300, 0, 0)`: every `p` and
-///   `v` finite (`v₀ = 1e200`, `p₁ = −1e200`) but `b₀ p₁` overflows.
+///   `v` finite (`v₀ = 1e200`, `p₁ = −1e200`) but `b₀ p₁` overflows;
+/// - `P(0)` with `P₀₀ = 1.5e308`, `P₀₁ = 1e154`, `P₁₁ = 1`, `P₂₂ = 1e-200`, `P₃₃ = 1` (so
+///   `U₀₁ = 1e154`), `r = 1`, `x = (0, 1, 1e155, 0)`: `max|v| max|p| = 1e155`, but
+///   `b₀ = U₀₁ v₁ = 1e154` and `b₀ p₂` overflows (the bound's `max|U|`).
 ///
 /// Refused with an overflow error, every filter unchanged (the single-row filter, which plans
 /// on a copy, likewise), in lanes of one row and of several.
 #[test]
 fn a_square_root_update_that_would_overflow_u_is_refused_before_it_starts() {
-    let cases = [([1e300, 1e-10], 1e-300, [1e-300, 1e10]), ([1e300, 1e-300], 1.0, [1e-100, 1e300])];
-    for (d, r, x01) in cases {
-        let p0 = SMatrix::<f64, 4, 4>::from_diagonal(&SVector::<f64, 4>::new(d[0], d[1], 1.0, 1.0));
+    let diag = |d: [f64; 4]| SMatrix::<f64, 4, 4>::from_diagonal(&SVector::<f64, 4>::from(d));
+    let mut coupled = diag([1.5e308, 1.0, 1e-200, 1.0]);
+    (coupled[(0, 1)], coupled[(1, 0)]) = (1e154, 1e154);
+    let cases = [
+        (diag([1e300, 1e-10, 1.0, 1.0]), 1e-300, [1e-300, 1e10, 0.0]),
+        (diag([1e300, 1e-300, 1.0, 1.0]), 1.0, [1e-100, 1e300, 0.0]),
+        (coupled, 1.0, [0.0, 1.0, 1e155]),
+    ];
+    for (p0, r, x01) in cases {
         let opts = KalmanOptions { form: CovarianceForm::Sqrt, ..Default::default() };
         let row = RowIdentifier::with_prior(SVector::zeros(), p0, r)
             .unwrap()
             .configured(CovarianceForm::Sqrt, &opts)
             .unwrap();
-        let x = SVector::<f64, 4>::new(x01[0], x01[1], 0.0, 0.0);
+        let x = SVector::<f64, 4>::new(x01[0], x01[1], x01[2], 0.0);
         let mut single = row;
         assert_eq!(single.update(&x, 0.0), Err(crate::identify::OVERFLOW), "x = {x01:?}");
         assert_eq!(single, row, "x = {x01:?}: the single-row filter changed");
