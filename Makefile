@@ -1,5 +1,6 @@
 # Developer entry points. Assumes only python3, cargo and access to PyPI / crates.io.
-#   make venv     .venv with maturin, numpy, pytest, pytest-xdist, mypy, ruff, scipy (tests: derivatives, t quantiles) (from PyPI)
+#   make venv     .venv with maturin, numpy, pytest, pytest-xdist, mypy, ruff, scipy (tests: derivatives, t quantiles),
+#                 matplotlib and pyarrow (the plot and parquet extras, tested) (from PyPI)
 #   make develop  build the extension (release) into .venv, editable
 #   make demo     build with the plot extra (matplotlib), reproduce the thesis (--quick) into report/, print its path
 #   make docs     the documentation site into site/ (open site/index.html): mkdocs-material with the
@@ -57,10 +58,12 @@ venv: $(VENV)/.installed
 
 # pytest-xdist runs the suite on every core (`-n auto`): most tests wait on the extension with
 # the GIL released or on subprocesses, so two workers halve pytest's time here. The stamp
-# depends on this Makefile, so that a venv made before a tool was added gets it.
+# depends on this Makefile, so that a venv made before a tool was added gets it. The extras'
+# packages (matplotlib for vehid[plot], pyarrow for vehid[parquet]) come too: without them a
+# clean `make test` skipped the 13 tests of the plots and of Parquet input.
 $(VENV)/.installed: Makefile
 	$(PYTHON) -m venv $(VENV)
-	$(VBIN)/python -m pip install --quiet maturin numpy pytest pytest-xdist mypy ruff scipy
+	$(VBIN)/python -m pip install --quiet maturin numpy pytest pytest-xdist mypy ruff scipy matplotlib pyarrow
 	touch $@
 
 # A stale extension module in python/vehid/ would shadow the fresh build: remove it first.

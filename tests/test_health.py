@@ -10,6 +10,7 @@ from the true state, the sensor noise levels)."""
 from __future__ import annotations
 
 import copy
+import importlib
 import importlib.util
 import io
 import json
@@ -528,6 +529,31 @@ def test_half_car_body_mass_and_bad_input() -> None:
     assert pickle.dumps(mon) == before
     with pytest.raises(vehid.VehidError, match="b_f"):
         vehid.Simulator(HALF, road="iso8608-C", changes=[(1.0, {"b": 1.0})])
+
+
+def test_vehid_monitor_plot_without_matplotlib_names_the_extra(
+    tmp_path: Path, damper_run: vehid.Run, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`--plot` without matplotlib: one line naming the extra, before the log is read (no
+    summary), exit 2, no file (the test venv has matplotlib, so the missing package is
+    simulated where `vehid.monitor` imports it)."""
+    real = importlib.import_module
+
+    def no_matplotlib(name: str, *args: Any) -> Any:
+        if name.split(".")[0] == "matplotlib":
+            raise ImportError(f"No module named {name!r}")
+        return real(name, *args)
+
+    monkeypatch.setattr(importlib, "import_module", no_matplotlib)
+    log = tmp_path / "run.csv"
+    np.savetxt(log, np.column_stack([damper_run.t, damper_run.y])[:2000], delimiter=",",
+               header="t,a_body,a_wheel,deflection", comments="", fmt="%.9g")
+    png = tmp_path / "run.png"
+    capsys.readouterr()
+    assert cli.main(["monitor", str(log), "--plot", str(png)]) == 2
+    err = capsys.readouterr().err
+    assert err == "vehid: error: --plot needs matplotlib: pip install 'vehid[plot]'\n", err
+    assert not png.exists()
 
 
 def test_vehid_monitor_model_half(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -3,6 +3,7 @@ counts), and the report's numbers are computed from the seed, not copied."""
 
 from __future__ import annotations
 
+import importlib
 import json
 import math
 import re
@@ -44,6 +45,29 @@ def test_reproduce_writes_a_report_with_verdicts(tmp_path: Path, capsys: pytest.
     else:
         assert (out / "fig-4-2.png").stat().st_size > 1000
         assert "fig-4-2.png" in html
+
+
+def test_reproduce_without_matplotlib_writes_the_report_without_images(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Without the plot extra the report is still written, says why it has no images and how
+    to get them, and links none (the missing package is simulated where `vehid.reproduce`
+    imports it: the test venv has matplotlib)."""
+    real = importlib.import_module
+
+    def no_matplotlib(name: str, *args: Any) -> Any:
+        if name.split(".")[0] == "matplotlib":
+            raise ImportError(f"No module named {name!r}")
+        return real(name, *args)
+
+    monkeypatch.setattr(importlib, "import_module", no_matplotlib)
+    out = _reproduce(tmp_path, 1, capsys)
+    md = (out / "index.md").read_text(encoding="utf-8")
+    assert "matplotlib is not installed (`pip install vehid[plot]`)" in md
+    for fig in ONE_PER_CHAPTER.split(","):
+        assert f"### Fig {fig}:" in md
+    assert not list(out.glob("*.png"))
+    assert ".png" not in md and ".png" not in (out / "index.html").read_text(encoding="utf-8")
 
 
 def test_reproduce_numbers_follow_the_seed(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

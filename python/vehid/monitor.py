@@ -349,6 +349,8 @@ def cmd_monitor(args: argparse.Namespace) -> int:
         raise _cli_error(str(e)) from None
     settings = {k: getattr(args, k) for k in ("window", "warmup", "min_change", "threshold", "confidence")
                 if getattr(args, k) is not None}
+    # matplotlib before the log: a missing plot extra is said at once, not after the whole run.
+    plt = _pyplot() if args.plot else None
     half = isinstance(car, HalfCar)
     channels = (HALF_SENSOR_COLUMNS if half else SENSOR_COLUMNS)[sensors]
     columns = (Column("t", "time", "s"),) + channels
@@ -408,8 +410,8 @@ def cmd_monitor(args: argparse.Namespace) -> int:
         if mon is None or feeder is None:
             raise _cli_error(f"{table.source} has no samples")
         summary(feeder, table.source, samples, sys.stderr)
-        if args.plot:
-            plot(feeder, car, args.plot)
+        if plt is not None:
+            plot(feeder, car, args.plot, plt)
     return 0
 
 
@@ -433,15 +435,19 @@ def summary(feeder: Feeder, source: str, samples: int, out: IO[str]) -> None:
           + f"; now {mon.status}", file=out, flush=True)
 
 
-def plot(feeder: Feeder, car: Union[QuarterCar, HalfCar], path: str) -> None:
-    """The tracked ratios with their 95 % bands, the times the monitor could not judge
-    (grey) and the events (vertical lines), into ``path`` (PNG, with the plot extra)."""
+def _pyplot() -> Any:
+    """matplotlib's pyplot on the Agg backend, or the error naming the plot extra."""
     try:
         mpl = importlib.import_module("matplotlib")
         mpl.use("Agg")
-        plt: Any = importlib.import_module("matplotlib.pyplot")
+        return importlib.import_module("matplotlib.pyplot")
     except ImportError:
         raise _cli_error("--plot needs matplotlib: pip install 'vehid[plot]'") from None
+
+
+def plot(feeder: Feeder, car: Union[QuarterCar, HalfCar], path: str, plt: Any) -> None:
+    """The tracked ratios with their 95 % bands, the times the monitor could not judge
+    (grey) and the events (vertical lines), into ``path`` (PNG, drawn with ``plt``, pyplot)."""
     if isinstance(car, HalfCar):
         _plot_half(plt, feeder, path)
         return
