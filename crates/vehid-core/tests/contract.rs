@@ -289,6 +289,71 @@ fn batch_least_squares_honours_the_contract() {
     assert_eq!((b.samples(), b.rows()), (0, &ROWS[..]));
 }
 
+/// Batch least squares' covariance `(XᵀX)⁻¹` where forming `XᵀX` loses it: `X = H D Vᵀ`
+/// with `H` four orthogonal ±1 columns of 16 rows (`HᵀH = 16 I`), `D = diag(1, 1e-3, 1e-6,
+/// 1e-9)` and `V` a rotation, so `(XᵀX)⁻¹ = V D⁻² Vᵀ / 16` in closed form. cond(X) = 1e9:
+/// the estimate exists (the rank test's floor is `16 ε`), and so must its covariance, though
+/// `XᵀX` (cond 1e18) is not positive definite in floating point. The columns are given in
+/// reverse too, so that the pivoting reorders them. States all below 1e-160 (the same `X`
+/// scaled) make `(XᵀX)⁻¹` overflow: an error naming `r`, not an infinite covariance.
+#[test]
+fn batch_covariance_is_the_inverse_gram_where_the_gram_cannot_be_formed() {
+    let l = 16;
+    let h = DMatrix::from_fn(l, N, |i, j| if (i >> j) & 1 == 0 { 1.0 } else { -1.0 });
+    let d = DVector::from_vec(vec![1.0, 1e-3, 1e-6, 1e-9]);
+    let rot = |a: usize, b: usize, t: f64| {
+        let mut g = DMatrix::<f64>::identity(N, N);
+        (g[(a, a)], g[(a, b)], g[(b, a)], g[(b, b)]) = (t.cos(), -t.sin(), t.sin(), t.cos());
+        g
+    };
+    let v = rot(0, 1, 0.7) * rot(1, 2, -1.1) * rot(2, 3, 0.4) * rot(0, 3, 2.0);
+    let x = &h * DMatrix::from_diagonal(&d) * v.transpose();
+    let want = &v * DMatrix::from_diagonal(&d.map(|di| 1.0 / (16.0 * di * di))) * v.transpose();
+    let gram = x.transpose() * &x;
+    assert!(
+        gram.clone().cholesky().is_none_or(|c| (c.inverse() - &want).amax() > 0.1 * want.amax()),
+        "the case must defeat the normal equations"
+    );
+    for reverse in [false, true] {
+        let col = |j: usize| if reverse { N - 1 - j } else { j };
+        let mut b = BatchLeastSquares::<f64, N>::new(&ROWS).unwrap();
+        let xs: Vec<f64> = (0..l).flat_map(|i| (0..N).map(move |j| (i, col(j)))).map(|(i, j)| x[(i, j)]).collect();
+        let zs: Vec<f64> = (0..l * N).map(|k| (k as f64 * 0.37).sin()).collect();
+        b.extend(&xs, &zs).unwrap();
+        b.solve().unwrap();
+        let kn = ROWS.len() * N;
+        let mut cov = vec![f64::NAN; kn * kn];
+        b.covariance_into(&mut cov).unwrap();
+        for i in 0..ROWS.len() {
+            for a in 0..N {
+                for c in 0..N {
+                    let got = cov[(i * N + a) * kn + i * N + c];
+                    let err = (got - want[(col(a), col(c))]).abs();
+                    assert!(
+                        err <= 1e-5 * want.amax(),
+                        "reverse {reverse}, row {i}, ({a}, {c}): {got} vs {}",
+                        want[(col(a), col(c))]
+                    );
+                }
+            }
+            for c in 0..kn {
+                if c / N != i {
+                    assert_eq!(cov[(i * N) * kn + c], 0.0, "cross-row block");
+                }
+            }
+        }
+        let mut tiny = BatchLeastSquares::<f64, N>::new(&ROWS).unwrap();
+        let small: Vec<f64> = xs.iter().map(|v| v * 1e-160).collect();
+        tiny.extend(&small, &zs).unwrap();
+        assert!(tiny.solve().is_ok());
+        assert!(
+            matches!(tiny.covariance_into(&mut cov), Err(Error::InvalidArgument { arg: "r", .. })),
+            "{:?}",
+            tiny.covariance_into(&mut cov)
+        );
+    }
+}
+
 /// The normal equations accumulated: θ the least-squares solution; no covariance, noise or
 /// residuals kept (the Python layer's `LeastSquares` reads them from the batch form). Also
 /// its own accessors and its cost per sample (`x xᵀ`: N² mul and add; `x z_i`: K·N), counted

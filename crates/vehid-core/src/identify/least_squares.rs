@@ -250,13 +250,31 @@ impl<T: Real, const N: usize> BatchLeastSquares<T, N> {
     /// direction alone (leverage above 1/2): an outlier that would bend the estimate.
     pub fn solve(&self) -> Result<std::vec::Vec<T>> {
         use faer::linalg::solvers::SolveLstsq;
+        let (l, k) = (self.samples(), self.rows.len());
+        let qr = self.checked_qr()?;
+        let zm = faer::Mat::<f64>::from_fn(l, k, |i, j| self.z[i * k + j].to_f64());
+        let sol = qr.solve_lstsq(&zm);
+        let mut out = std::vec![T::zero(); k * N];
+        for i in 0..k {
+            for j in 0..N {
+                let v = sol[(j, i)];
+                if !v.is_finite() {
+                    return Err(Error::RankDeficient { rank: N - 1, needed: N });
+                }
+                out[i * N + j] = T::of(v);
+            }
+        }
+        Ok(out)
+    }
+
+    /// The column-pivoted QR factorization `X Π = Q R` of the stored states, once the checks
+    /// of [`Self::solve`] (its errors) have passed.
+    fn checked_qr(&self) -> Result<faer::linalg::solvers::ColPivQr<f64>> {
         let l = self.samples();
-        let k = self.rows.len();
         if l < N {
             return Err(Error::RankDeficient { rank: l, needed: N });
         }
         let xm = faer::Mat::<f64>::from_fn(l, N, |i, j| self.x[i * N + j].to_f64());
-        let zm = faer::Mat::<f64>::from_fn(l, k, |i, j| self.z[i * k + j].to_f64());
         let qr = xm.col_piv_qr();
         let r = qr.R();
         let r00 = r[(0, 0)].abs();
@@ -276,18 +294,7 @@ impl<T: Real, const N: usize> BatchLeastSquares<T, N> {
         if let Some(sample) = self.dominating(true).filter(|&i| self.leverage(i) > 0.5) {
             return Err(Error::Dominated { sample });
         }
-        let sol = qr.solve_lstsq(&zm);
-        let mut out = std::vec![T::zero(); k * N];
-        for i in 0..k {
-            for j in 0..N {
-                let v = sol[(j, i)];
-                if !v.is_finite() {
-                    return Err(Error::RankDeficient { rank: N - 1, needed: N });
-                }
-                out[i * N + j] = T::of(v);
-            }
-        }
-        Ok(out)
+        Ok(qr)
     }
 
     /// The leverage `h_i = x_iᵀ (XᵀX)⁻¹ x_i ∈ [0, 1]` of stored sample `i` (the share of its
@@ -461,25 +468,42 @@ impl<T: Real, const N: usize> Identifier<T> for BatchLeastSquares<T, N> {
     }
 
     /// `(XᵀX)⁻¹` on each row's block (the same for every row): the covariance of the estimate
-    /// for unit noise variance ([`Identifier::noise_into`] gives 1).
+    /// for unit noise variance ([`Identifier::noise_into`] gives 1). From the factorization
+    /// that solves (`X Π = Q R`): `(XᵀX)⁻¹ = Π R⁻¹ R⁻ᵀ Πᵀ`, without forming `XᵀX` (whose
+    /// condition number is that of `X` squared), so it exists whenever the states give an
+    /// estimate. Errors as [`BatchLeastSquares::solve`]'s on the states, and
+    /// [`Error::InvalidArgument`] naming `r` when states so small (all below about `1e-154`)
+    /// make `(XᵀX)⁻¹` overflow.
     fn covariance_into(&self, out: &mut [T]) -> Result<()> {
         let k = self.rows.len();
         let kn = k * N;
         if out.len() != kn * kn {
             return Err(Error::Shape { arg: "out", expected: kn * kn, got: out.len() });
         }
-        self.solve()?;
-        let mut g = nalgebra::SMatrix::<f64, N, N>::zeros();
-        for x in self.x.chunks_exact(N) {
-            let v = nalgebra::SVector::<f64, N>::from_fn(|j, _| x[j].to_f64());
-            g += v * v.transpose();
+        let qr = self.checked_qr()?;
+        let r = qr.R();
+        // W = R⁻¹ (upper triangular), column by column: R w_c = e_c by back substitution.
+        let mut w = nalgebra::SMatrix::<f64, N, N>::zeros();
+        for c in 0..N {
+            for a in (0..=c).rev() {
+                let rhs = if a == c { 1.0 } else { 0.0 };
+                let sum = (a + 1..=c).fold(rhs, |acc, j| acc - r[(a, j)] * w[(j, c)]);
+                w[(a, c)] = sum / r[(a, a)];
+            }
         }
-        let inv = g.cholesky().map(|c| c.inverse()).ok_or(Error::RankDeficient { rank: N - 1, needed: N })?;
+        let cov = w * w.transpose(); // (Πᵀ XᵀX Π)⁻¹, in pivoted order
+        if !cov.iter().all(|v| v.is_finite()) {
+            return Err(Error::InvalidArgument {
+                arg: "r",
+                expected: "states large enough that (XᵀX)⁻¹ stays finite (rescale the units)",
+            });
+        }
+        let (order, _) = qr.P().arrays(); // column a of X Π is column order[a] of X
         out.fill(T::zero());
         for i in 0..k {
             for a in 0..N {
                 for b in 0..N {
-                    out[(i * N + a) * kn + i * N + b] = T::of(inv[(a, b)]);
+                    out[(i * N + order[a]) * kn + i * N + order[b]] = T::of(cov[(a, b)]);
                 }
             }
         }
