@@ -338,7 +338,7 @@ impl<T: Real, const P: usize, F: Flat<BcGroup<T, P>>, FI: Flat<IvFilter<T, P>>, 
                 }
             }
         }
-        Ok(nnls(&gm, &cv, n, self.estimated))
+        Ok(nnls(&gm, &cv, n, self.estimated).0)
     }
 
     /// Group `g`'s per-sample correction with the estimated variances `var` added to the
@@ -370,10 +370,16 @@ impl<T: Real, const P: usize, F: Flat<BcGroup<T, P>>, FI: Flat<IvFilter<T, P>>, 
 /// coordinate descent (Gauss–Seidel projected on `x ≥ 0`; exact in one sweep for a diagonal
 /// `G`), until no coordinate moves by more than `8 ε` of the largest, or [`MAX_SWEEPS`].
 /// A coordinate with `G_jj ≤ 0` (its column vanishes: nothing determines it) stays 0.
-fn nnls<T: Real>(g: &[[T; MAX_STATES]; MAX_STATES], c: &[T; MAX_STATES], n: usize, mask: u32) -> [T; MAX_STATES] {
+/// Returns `x` and the sweeps made.
+fn nnls<T: Real>(
+    g: &[[T; MAX_STATES]; MAX_STATES],
+    c: &[T; MAX_STATES],
+    n: usize,
+    mask: u32,
+) -> ([T; MAX_STATES], usize) {
     let mut x = [T::zero(); MAX_STATES];
     let tol = T::default_epsilon() * T::of(8.0);
-    for _ in 0..MAX_SWEEPS {
+    for sweep in 1..=MAX_SWEEPS {
         let (mut moved, mut size) = (T::zero(), T::zero());
         for j in (0..n).filter(|&j| mask & (1 << j) != 0) {
             if !(g[j][j] > T::zero()) {
@@ -386,10 +392,10 @@ fn nnls<T: Real>(g: &[[T; MAX_STATES]; MAX_STATES], c: &[T; MAX_STATES], n: usiz
             x[j] = new;
         }
         if !(moved > tol * size) {
-            break;
+            return (x, sweep);
         }
     }
-    x
+    (x, MAX_SWEEPS)
 }
 
 impl<T: Real, const P: usize, F: Flat<BcGroup<T, P>>, FI: Flat<IvFilter<T, P>>, const Q: usize> Identifier<T>
@@ -466,3 +472,64 @@ impl<T: Real, const P: usize, F: Flat<BcGroup<T, P>>, FI: Flat<IvFilter<T, P>>, 
 }
 
 const _: () = assert!(MAX_STATES <= 32 && MAX_PARAMS_LOCAL == MAX_PARAMS);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn padded(rows: &[&[f64]]) -> [[f64; MAX_STATES]; MAX_STATES] {
+        let mut g = [[0.0; MAX_STATES]; MAX_STATES];
+        for (i, r) in rows.iter().enumerate() {
+            g[i][..r.len()].copy_from_slice(r);
+        }
+        g
+    }
+
+    fn vector(v: &[f64]) -> [f64; MAX_STATES] {
+        let mut out = [0.0; MAX_STATES];
+        out[..v.len()].copy_from_slice(v);
+        out
+    }
+
+    /// The stopping rule and the answer (`nnls`' docs): for a diagonal `G` the first sweep
+    /// is exact (`x_j = max(0, c_j / G_jj)`) and the second sees nothing move, so it stops
+    /// after two; for a coupled `G` it stops at the Karush–Kuhn–Tucker point (`x ≥ 0`, the
+    /// gradient `G x − c` zero where `x > 0`, ≥ 0 where `x = 0`) well before [`MAX_SWEEPS`],
+    /// coordinates outside `mask` and those with `G_jj = 0` staying 0.
+    #[test]
+    fn nnls_stops_when_nothing_moves_at_the_constrained_minimum() {
+        let g = padded(&[&[4.0], &[0.0, 1.0], &[0.0, 0.0, 2.0]]);
+        let (x, sweeps) = nnls(&g, &vector(&[2.0, -1.0, 3.0]), 3, 0b111);
+        assert_eq!((&x[..3], sweeps), (&[0.5, 0.0, 1.5][..], 2));
+        // Coupled (positive definite), with one coordinate held at 0 by the bound, one
+        // outside the mask, one with a vanishing column.
+        let g = padded(&[
+            &[4.0, 1.5, -1.0, 0.5, 0.0],
+            &[1.5, 3.0, 0.8, 0.0, 0.0],
+            &[-1.0, 0.8, 2.5, 0.3, 0.0],
+            &[0.5, 0.0, 0.3, 1.0, 0.0],
+            &[0.0, 0.0, 0.0, 0.0, 0.0],
+        ]);
+        let c = vector(&[3.0, -2.0, 2.0, 1.0, 5.0]);
+        for mask in [0b11111u32, 0b10111] {
+            let (x, sweeps) = nnls(&g, &c, 5, mask);
+            assert!(sweeps > 2 && sweeps < MAX_SWEEPS, "mask {mask:b}: {sweeps} sweeps");
+            assert_eq!(x[4], 0.0, "the vanishing column");
+            if mask & 0b1000 == 0 {
+                assert_eq!(x[3], 0.0, "outside the mask");
+            } else {
+                assert!(x[3] > 0.0, "x[3] is free: {x:?}");
+            }
+            for j in (0..5).filter(|&j| mask & (1 << j) != 0 && g[j][j] > 0.0) {
+                let grad = (0..5).map(|k| g[j][k] * x[k]).sum::<f64>() - c[j];
+                assert!(x[j] >= 0.0, "mask {mask:b}: x[{j}] = {}", x[j]);
+                if x[j] > 0.0 {
+                    assert!(grad.abs() < 1e-12, "mask {mask:b}: free x[{j}], gradient {grad}");
+                } else {
+                    assert!(grad > -1e-12, "mask {mask:b}: bound x[{j}], gradient {grad}");
+                }
+            }
+            assert!(x[1] == 0.0 && x[0] > 0.0 && x[2] > 0.0, "mask {mask:b}: the bound must be active: {x:?}");
+        }
+    }
+}
