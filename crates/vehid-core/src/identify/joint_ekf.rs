@@ -301,7 +301,8 @@ impl<T: Real, const N: usize, const D: usize> JointEkf<T, N, D> {
     /// Checks a deserialized filter (feature `serde`; its structure checked itself): the sizes
     /// (`N` states, `D = N + params + 1`), a complete structure, the evaluation order and the
     /// equations' rows as the constructor computes them, the noise model, `dt`, `substeps`,
-    /// and a finite `ŝ` and `P`.
+    /// a finite `ŝ` and `P`, and the road slot as a step leaves it (`ŝ_u = 0`, `P_uu = σ_u²`,
+    /// no covariance with the rest).
     #[cfg(feature = "serde")]
     pub(crate) fn restored(&mut self) -> Result<()> {
         let corrupt = Error::InvalidArgument { arg: "state", expected: "a joint EKF's saved state" };
@@ -323,7 +324,17 @@ impl<T: Real, const N: usize, const D: usize> JointEkf<T, N, D> {
             return Err(corrupt);
         }
         check_finite("state", self.s.as_slice())?;
-        check_finite("state", self.p.as_slice())
+        check_finite("state", self.p.as_slice())?;
+        // The road slot as every step leaves it (and the constructor starts it): estimate 0,
+        // variance σ_u², uncorrelated with the states and parameters.
+        let road = D - 1;
+        if self.s[road] != T::zero()
+            || self.p[(road, road)] != self.noise.road_var
+            || (0..road).any(|j| self.p[(road, j)] != T::zero() || self.p[(j, road)] != T::zero())
+        {
+            return Err(corrupt);
+        }
+        Ok(())
     }
 
     /// The structure identified.

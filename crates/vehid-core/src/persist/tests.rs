@@ -859,6 +859,11 @@ fn a_corrupt_joint_ekf_is_refused() {
         (with("/dt", json!(-0.05)), "dt"),
         (with("/noise/state_var/2", json!(0.0)), "state_var"),
         (with("/noise/road_var", json!(-1.0)), "road_var"),
+        // The road slot (index 8 of 9; P column-major): estimate, variance, covariances.
+        (with("/s/8", json!(1e-3)), "joint EKF's saved state"),
+        (with("/p/80", json!(0.5 * good["noise"]["road_var"].as_f64().unwrap())), "joint EKF's saved state"),
+        (with("/p/8", json!(1e-6)), "joint EKF's saved state"),
+        (with("/p/77", json!(1e-6)), "joint EKF's saved state"),
     ];
     for (v, needle) in &cases {
         rejects::<Ekf>(v, needle);
