@@ -385,3 +385,47 @@ fn timing() {
     time("NE-BCLS physical, refined IV inside", &mut ne);
     read("NE-BCLS physical, refined IV inside", &ne);
 }
+
+/// The estimate is bias-compensated least squares at the estimated variances (its docs:
+/// `θ̂ = (A − N C(Σ̂))⁻¹ (b − N d(Σ̂))`): fed the same samples, `BiasCompensatedLs` built
+/// with `Σ_w = Σ̂_w` (read back) and the same `Σ_v` gives the same parameters to rounding.
+/// On the velocity row with a known term beside `x₂`'s parameter (`c x₂ + 2 x₂`: `c` is
+/// `A₁₂ − 2`), so that the output `y = ẋ₁ − 2 x₂` carries the noise of a regressor whose
+/// variance is estimated and its correction `d(Σ̂)` is not 0 (the physical structure and the
+/// full rows have none: `d = 0` there), and on the full rows.
+#[test]
+fn the_estimate_is_bcls_at_the_estimated_variances() {
+    use vehid_core::structure::StructureBuilder;
+    let (x, z) = quarter(3_000, 8.0, 69);
+    let close = |what: &str, a: &[f64], b: &[f64]| {
+        let scale = b.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for (i, (p, q)) in a.iter().zip(b).enumerate() {
+            assert!((p - q).abs() <= 1e-9 * scale, "{what}: θ[{i}] {p} against BCLS {q}");
+        }
+    };
+    let (st, _) = StructureBuilder::new(&["x0", "x1", "x2", "x3"], &[])
+        .equation("x1", "a*x0 + b*x1 + c*x2 + d*x3 + 2*x2")
+        .build::<f64>()
+        .unwrap();
+    let iv = IvIdentifier::<f64, 4, 1, Q>::exact(st, 1).unwrap().with_lags(LAGS).unwrap();
+    let mut known = NoiseEstimatingBclsLs::new(iv, &[DERIV * DERIV]).unwrap();
+    feed(&mut known, &x, &z);
+    let mut v = [0.0; 4];
+    known.state_noise_var_into(&mut v).unwrap();
+    assert!(v[2] > 0.0, "{v:?}");
+    let mut bc = BiasCompensatedLs::<f64, 4, 1>::new(st, &v, &[DERIV * DERIV], &[1.0]).unwrap();
+    feed(&mut bc, &x, &z);
+    close("known 2·x₂ term", &params(&known), &params(&bc));
+    // x₂'s noise matters here: compensated without it, the estimate moves far beyond rounding.
+    let mut plain =
+        BiasCompensatedLs::<f64, 4, 1>::new(st, &[v[0], v[1], 0.0, v[3]], &[DERIV * DERIV], &[1.0]).unwrap();
+    feed(&mut plain, &x, &z);
+    let gap = params(&plain).iter().zip(params(&bc)).fold(0.0f64, |m, (p, q)| m.max((p - q).abs()));
+    assert!(gap > 1e-6 * params(&bc).iter().fold(0.0f64, |m, q| m.max(q.abs())), "{gap}");
+    let mut rows = rows_ne(LAGS);
+    feed(&mut rows, &x, &z);
+    rows.state_noise_var_into(&mut v).unwrap();
+    let mut bc = BiasCompensatedLs::<f64, 4, 2>::full_rows(4, &[1, 3], &v).unwrap();
+    feed(&mut bc, &x, &z);
+    close("full rows", &params(&rows), &params(&bc));
+}
