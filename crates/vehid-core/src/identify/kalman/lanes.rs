@@ -367,7 +367,8 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
     }
 
     /// [`Self::collapsed_lanes`] for the square-root form, from `f = Uᵀx` and `v = D f`:
-    /// `xᵀPx = Σ f_j v_j`, `P x = U v`.
+    /// `xᵀPx = Σ f_j v_j`, `P x = U v`. (`s` without `r`: only the lanes with `r = 0` are
+    /// judged.)
     #[inline(never)]
     fn collapsed_lanes_ud(&self, x: &SVector<T, N>, f: &[[T; L]; N], v: &[[T; L]; N], go: [T; L]) -> [T; L] {
         let mut fv = [[T::zero(); L]; N];
@@ -382,11 +383,7 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
                 }
             }
         }
-        let mut s = lane_sum(fv);
-        for k in 0..L {
-            s[k] += self.r[k];
-        }
-        self.collapsed_lanes(x, px, s, go)
+        self.collapsed_lanes(x, px, lane_sum(fv), go)
     }
 
     /// Joseph's form, lane by lane: `P ← (I − g xᵀ) P (I − g xᵀ)ᵀ + r g gᵀ`, `g = P x / s`.
