@@ -14,9 +14,9 @@ use core::ops::ControlFlow;
 use nalgebra::{DMatrix, DVector};
 use vehid_core::identify::{
     BatchLeastSquares, BiasCompensatedVec, CovarianceForm, DynIdentifier, Dynamic, FullKalmanIdentifierVec, Gain,
-    GainKind, Identifier, IvIdentifierVec, KalmanIdentifierVec, KalmanOptions, LsAccumulator, NoiseEstimatingBclsVec,
-    Samples, SharedKalmanIdentifierVec, StochasticGradientVec, StructuredGradient, StructuredKalmanVec,
-    StructuredPrior,
+    GainKind, Identifier, IvIdentifierVec, KalmanIdentifierVec, KalmanOptions, KalmanRows, LsAccumulator,
+    NoiseEstimatingBclsVec, Samples, SharedKalmanIdentifierVec, StochasticGradientVec, StructuredGradient,
+    StructuredKalmanVec, StructuredPrior,
 };
 use vehid_core::structure::Structure;
 use vehid_core::Error;
@@ -513,6 +513,29 @@ fn kalman_shared_counts_gated_and_reinitialized_samples() {
     assert_eq!(Identifier::reinit_count(&s), s.reinit_count());
     assert_eq!(Identifier::reinit_count(&full), full.reinit_count());
     assert_eq!(s.gated(), 0);
+}
+
+/// Mode rows' reinitialization (Eq 4.36) does not depend on how its rows are packed into
+/// lanes: one lane per group (the update's several-group path) reinitializes on the same
+/// samples as both rows in one group, with θ̂ equal to rounding, in the standard form (the
+/// plain mode of the lanes) and the Joseph form (their general mode).
+#[test]
+fn mode_rows_reinitializes_alike_whatever_its_lanes() {
+    let (x, clean) = data();
+    let mut z = clean.clone();
+    z[400 * N + 1] += 1e4 * RV.sqrt();
+    for form in [CovarianceForm::Standard, CovarianceForm::Joseph] {
+        let o = KalmanOptions { reinit: true, form, ..KalmanOptions::default() };
+        let mut one = KalmanIdentifierVec::<f64, N>::from_slices(&ROWS, &[50.0], &[RV, RV], o).unwrap();
+        let mut split = KalmanRows::<f64, N, Dynamic<1>>::from_slices(&ROWS, &[50.0], &[RV, RV], o).unwrap();
+        crate::common::feed(&mut one, &x, &z);
+        crate::common::feed(&mut split, &x, &z);
+        assert!(one.reinit_count() >= 2, "{form:?}: {}", one.reinit_count());
+        assert_eq!(split.reinit_count(), one.reinit_count(), "{form:?}");
+        let (a, b) = (crate::common::params(&one), crate::common::params(&split));
+        let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        assert!(a.iter().zip(&b).all(|(p, q)| (p - q).abs() <= 1e-9 * scale), "{form:?}: {a:?} against {b:?}");
+    }
 }
 
 /// Row `i`'s `s = S_ii / r_i = 1 + xᵀP_i x / r_i` before a sample at `x`, from the
