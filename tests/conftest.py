@@ -1,9 +1,10 @@
 """Shared test helpers."""
 
+import importlib
 import signal
 import threading
 import time
-from typing import Callable
+from typing import Any, Callable
 
 import pytest
 
@@ -45,3 +46,20 @@ def _assert_releases_gil(call: Callable[[], None], calls: int) -> None:
 def assert_releases_gil() -> Callable[[Callable[[], None], int], None]:
     """``assert_releases_gil(call, calls)``: fails if ``call`` holds the GIL while it runs."""
     return _assert_releases_gil
+
+
+@pytest.fixture
+def hide_package(monkeypatch: pytest.MonkeyPatch) -> Callable[[str], None]:
+    """``hide_package(name)``: ``importlib.import_module``, as vehid imports its optional
+    extras, raises ImportError for ``name`` and its submodules (the test venv has them all)."""
+    real = importlib.import_module
+
+    def hide(package: str) -> None:
+        def fake(name: str, *args: Any) -> Any:
+            if name.split(".")[0] == package:
+                raise ImportError(f"No module named {name!r}")
+            return real(name, *args)
+
+        monkeypatch.setattr(importlib, "import_module", fake)
+
+    return hide

@@ -10,13 +10,12 @@ from the true state, the sensor noise levels)."""
 from __future__ import annotations
 
 import copy
-import importlib
 import importlib.util
 import io
 import json
 import pickle
 from pathlib import Path
-from typing import Any, Dict, List, Literal, Optional, Tuple
+from typing import Any, Callable, Dict, List, Literal, Optional, Tuple
 
 import numpy as np
 import pytest
@@ -532,19 +531,12 @@ def test_half_car_body_mass_and_bad_input() -> None:
 
 
 def test_vehid_monitor_plot_without_matplotlib_names_the_extra(
-    tmp_path: Path, damper_run: vehid.Run, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+    tmp_path: Path, damper_run: vehid.Run, capsys: pytest.CaptureFixture[str], hide_package: Callable[[str], None]
 ) -> None:
     """`--plot` without matplotlib: one line naming the extra, before the log is read (no
     summary), exit 2, no file (the test venv has matplotlib, so the missing package is
     simulated where `vehid.monitor` imports it)."""
-    real = importlib.import_module
-
-    def no_matplotlib(name: str, *args: Any) -> Any:
-        if name.split(".")[0] == "matplotlib":
-            raise ImportError(f"No module named {name!r}")
-        return real(name, *args)
-
-    monkeypatch.setattr(importlib, "import_module", no_matplotlib)
+    hide_package("matplotlib")
     log = tmp_path / "run.csv"
     np.savetxt(log, np.column_stack([damper_run.t, damper_run.y])[:2000], delimiter=",",
                header="t,a_body,a_wheel,deflection", comments="", fmt="%.9g")

@@ -370,16 +370,9 @@ def test_parquet_errors_name_the_row(plain: Path, tmp_path: Path, capsys: pytest
 
 
 def test_parquet_without_pyarrow_names_the_extra(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], hide_package: Callable[[str], None]
 ) -> None:
-    real = importlib.import_module
-
-    def no_pyarrow(name: str, *args: Any) -> Any:
-        if name.startswith("pyarrow"):
-            raise ImportError(f"No module named {name!r}")
-        return real(name, *args)
-
-    monkeypatch.setattr(importlib, "import_module", no_pyarrow)  # as vehid.io calls it
+    hide_package("pyarrow")
     path = tmp_path / "run.parquet"
     path.write_bytes(b"PAR1" + b"\x00" * 100 + b"PAR1")
     assert error_line(capsys, ["identify", str(path), "--model", "quarter"]) == (

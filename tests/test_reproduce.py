@@ -3,13 +3,12 @@ counts), and the report's numbers are computed from the seed, not copied."""
 
 from __future__ import annotations
 
-import importlib
 import json
 import math
 import re
 from html import escape as html_escape
 from pathlib import Path
-from typing import Any, Dict, List
+from typing import Any, Callable, Dict, List
 
 import pytest
 
@@ -48,19 +47,12 @@ def test_reproduce_writes_a_report_with_verdicts(tmp_path: Path, capsys: pytest.
 
 
 def test_reproduce_without_matplotlib_writes_the_report_without_images(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], hide_package: Callable[[str], None]
 ) -> None:
     """Without the plot extra the report is still written, says why it has no images and how
     to get them, and links none (the missing package is simulated where `vehid.reproduce`
     imports it: the test venv has matplotlib)."""
-    real = importlib.import_module
-
-    def no_matplotlib(name: str, *args: Any) -> Any:
-        if name.split(".")[0] == "matplotlib":
-            raise ImportError(f"No module named {name!r}")
-        return real(name, *args)
-
-    monkeypatch.setattr(importlib, "import_module", no_matplotlib)
+    hide_package("matplotlib")
     out = _reproduce(tmp_path, 1, capsys)
     md = (out / "index.md").read_text(encoding="utf-8")
     assert "matplotlib is not installed (`pip install vehid[plot]`)" in md
