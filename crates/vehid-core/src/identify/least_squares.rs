@@ -481,16 +481,10 @@ impl<T: Real, const N: usize> Identifier<T> for BatchLeastSquares<T, N> {
             return Err(Error::Shape { arg: "out", expected: kn * kn, got: out.len() });
         }
         let qr = self.checked_qr()?;
-        let r = qr.R();
-        // W = R⁻¹ (upper triangular), column by column: R w_c = e_c by back substitution.
-        let mut w = nalgebra::SMatrix::<f64, N, N>::zeros();
-        for c in 0..N {
-            for a in (0..=c).rev() {
-                let rhs = if a == c { 1.0 } else { 0.0 };
-                let sum = (a + 1..=c).fold(rhs, |acc, j| acc - r[(a, j)] * w[(j, c)]);
-                w[(a, c)] = sum / r[(a, a)];
-            }
-        }
+        type Square<const M: usize> = nalgebra::SMatrix<f64, M, M>;
+        let r = Square::<N>::from_fn(|a, b| qr.R()[(a, b)]);
+        // W = R⁻¹ (the checks keep R's diagonal away from 0).
+        let w: Square<N> = r.solve_upper_triangular(&Square::<N>::identity()).unwrap_or(Square::<N>::repeat(f64::NAN));
         let cov = w * w.transpose(); // (Πᵀ XᵀX Π)⁻¹, in pivoted order
         if !cov.iter().all(|v| v.is_finite()) {
             return Err(Error::InvalidArgument {
