@@ -21,7 +21,7 @@ use vehid_core::identify::{
 use vehid_core::structure::Structure;
 use vehid_core::Error;
 
-use crate::common::quarter;
+use crate::common::{close, quarter};
 
 const ROWS: [usize; 2] = [1, 3];
 const N: usize = 4;
@@ -93,14 +93,6 @@ fn block_diag(blocks: &[DMatrix<f64>]) -> Vec<f64> {
         at += b.nrows();
     }
     out
-}
-
-fn close(name: &str, what: &str, got: &[f64], want: &[f64], rel: f64) {
-    assert_eq!(got.len(), want.len(), "{name}: {what} length");
-    let scale = want.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(f64::MIN_POSITIVE);
-    for (j, (g, w)) in got.iter().zip(want).enumerate() {
-        assert!((g - w).abs() <= rel * scale, "{name}: {what}[{j}] = {g}, expected {w} (relative {rel})");
-    }
 }
 
 /// A [`Error::Shape`] saying the length it expected and the one it got.
@@ -533,8 +525,7 @@ fn mode_rows_reinitializes_alike_whatever_its_lanes() {
         assert!(one.reinit_count() >= 2, "{form:?}: {}", one.reinit_count());
         assert_eq!(split.reinit_count(), one.reinit_count(), "{form:?}");
         let (a, b) = (crate::common::params(&one), crate::common::params(&split));
-        let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        assert!(a.iter().zip(&b).all(|(p, q)| (p - q).abs() <= 1e-9 * scale), "{form:?}: {a:?} against {b:?}");
+        close("one lane per group", &format!("θ ({form:?})"), &b, &a, 1e-9);
     }
 }
 

@@ -14,7 +14,9 @@ use vehid_core::model::QuarterCar;
 use vehid_core::Error;
 
 use crate::common;
-use common::{feed, median, params, physical, quarter, time_updates, xi_physical, xi_rows, DERIV, LAGS, Q, ROAD};
+use common::{
+    close, feed, median, params, physical, quarter, time_updates, xi_physical, xi_rows, DERIV, LAGS, Q, ROAD,
+};
 
 /// Estimated σ_w per state (NaN where not estimated).
 fn sigmas<F, FI, const P: usize, const QQ: usize>(id: &NoiseEstimatingBcls<f64, P, F, FI, QQ>) -> [f64; 4]
@@ -397,12 +399,6 @@ fn timing() {
 fn the_estimate_is_bcls_at_the_estimated_variances() {
     use vehid_core::structure::StructureBuilder;
     let (x, z) = quarter(3_000, 8.0, 69);
-    let close = |what: &str, a: &[f64], b: &[f64]| {
-        let scale = b.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        for (i, (p, q)) in a.iter().zip(b).enumerate() {
-            assert!((p - q).abs() <= 1e-9 * scale, "{what}: θ[{i}] {p} against BCLS {q}");
-        }
-    };
     let (st, _) = StructureBuilder::new(&["x0", "x1", "x2", "x3"], &[])
         .equation("x1", "a*x0 + b*x1 + c*x2 + d*x3 + 2*x2")
         .build::<f64>()
@@ -415,7 +411,7 @@ fn the_estimate_is_bcls_at_the_estimated_variances() {
     assert!(v[2] > 0.0, "{v:?}");
     let mut bc = BiasCompensatedLs::<f64, 4, 1>::new(st, &v, &[DERIV * DERIV], &[1.0]).unwrap();
     feed(&mut bc, &x, &z);
-    close("known 2·x₂ term", &params(&known), &params(&bc));
+    close("known 2·x₂ term", "θ against BCLS", &params(&known), &params(&bc), 1e-9);
     // x₂'s noise matters here: compensated without it, the estimate moves far beyond rounding.
     let mut plain =
         BiasCompensatedLs::<f64, 4, 1>::new(st, &[v[0], v[1], 0.0, v[3]], &[DERIV * DERIV], &[1.0]).unwrap();
@@ -427,5 +423,5 @@ fn the_estimate_is_bcls_at_the_estimated_variances() {
     rows.state_noise_var_into(&mut v).unwrap();
     let mut bc = BiasCompensatedLs::<f64, 4, 2>::full_rows(4, &[1, 3], &v).unwrap();
     feed(&mut bc, &x, &z);
-    close("full rows", &params(&rows), &params(&bc));
+    close("full rows", "θ against BCLS", &params(&rows), &params(&bc), 1e-9);
 }

@@ -99,6 +99,16 @@ pub fn time_updates(name: &str, id: &mut dyn Identifier<f64>, x: &[f64], z: &[f6
     eprintln!("{name}: {:.0} ns/update", t.elapsed().as_nanos() as f64 / n as f64);
 }
 
+/// `got` equals `want` within `rel` of `want`'s largest magnitude, entry by entry (the
+/// message names `name`, `what` and the entry).
+pub fn close(name: &str, what: &str, got: &[f64], want: &[f64], rel: f64) {
+    assert_eq!(got.len(), want.len(), "{name}: {what} length");
+    let scale = want.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(f64::MIN_POSITIVE);
+    for (j, (g, w)) in got.iter().zip(want).enumerate() {
+        assert!((g - w).abs() <= rel * scale, "{name}: {what}[{j}] = {g}, expected {w} (relative {rel})");
+    }
+}
+
 /// The median of `v` (sorted copy; the mean of the middle two for an even length).
 pub fn median(v: &[f64]) -> f64 {
     let mut v = v.to_vec();
