@@ -17,7 +17,6 @@ checks the time column, prints and plots.
 from __future__ import annotations
 
 import argparse
-import importlib
 import json
 import math
 import sys
@@ -29,6 +28,7 @@ from numpy.typing import NDArray
 
 from . import Event, HalfCar, HealthMonitor, QuarterCar
 from .io import Column, Table, TableError, match_columns, open_table, parse_column_map
+from .reproduce import _load_pyplot
 
 #: Samples read per chunk.
 CHUNK = 100_000
@@ -436,13 +436,12 @@ def summary(feeder: Feeder, source: str, samples: int, out: IO[str]) -> None:
 
 
 def _pyplot() -> Any:
-    """matplotlib's pyplot on the Agg backend, or the error naming the plot extra."""
-    try:
-        mpl = importlib.import_module("matplotlib")
-        mpl.use("Agg")
-        return importlib.import_module("matplotlib.pyplot")
-    except ImportError:
-        raise _cli_error("--plot needs matplotlib: pip install 'vehid[plot]'") from None
+    """matplotlib's pyplot on the Agg backend (as ``vehid reproduce`` loads it), or the error
+    naming the plot extra."""
+    plt = _load_pyplot()
+    if plt is None:
+        raise _cli_error("--plot needs matplotlib: pip install 'vehid[plot]'")
+    return plt
 
 
 def plot(feeder: Feeder, car: Union[QuarterCar, HalfCar], path: str, plt: Any) -> None:
