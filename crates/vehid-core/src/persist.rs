@@ -386,6 +386,9 @@ mod impls {
     checked!("JointEkf", [T: Real, const N: usize, const DIM: usize] crate::identify::JointEkf<T, N, DIM>,
         ser: [T: Serialize], de: [T: Deserialize<'de>]);
 
+    checked!("Differenced", [T: Real, I: crate::identify::Identifier<T>] crate::identify::Differenced<T, I>,
+        ser: [T: Serialize, I: Serialize], de: [T: Deserialize<'de>, I: Deserialize<'de>]);
+
     checked!("TwoAxleStructured",
         [T: Real, const P: usize, F: crate::identify::Flat<crate::identify::RowIdentifier<T, P>>,
          B: RingStore<crate::identify::FrontRegression<T, P>>]

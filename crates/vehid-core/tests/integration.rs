@@ -19,6 +19,8 @@ mod noise_estimating;
 mod noisy_states;
 #[path = "physical_structure.rs"]
 mod physical_structure;
+#[path = "road.rs"]
+mod road;
 
 /// With `autotests = false`, a new file in `tests/` would silently never run: each one must be
 /// a module above or a `[[test]]` of Cargo.toml (read here as text: every `name = "…"` line of

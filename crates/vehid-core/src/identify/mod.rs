@@ -12,6 +12,7 @@
 //! | [`JointEkf`] (noisy measured states: states, parameters and road estimated together by an extended Kalman filter; the thesis' Ch. VII proposal) | Ljung 1979 | `joint_ekf.rs` |
 //! | [`TwoAxleIdentifier`] (two axles on one road: plain, Eq 6.14, road cancellation) | Eq 6.9, 6.12–6.14 | `two_axle.rs` |
 //! | [`TwoAxleStructured`] (road cancellation on a physical [`crate::structure::Structure`]: the half car's 12 parameters) | Eq 6.1–6.9 | `two_axle_structured.rs` |
+//! | [`Differenced`] (any identifier on a road that is not white: the samples quasi-differenced by the road's ISO 8608 shaping filter in distance; with [`InstrumentalVariables`] inside, consistent) | Anderson & Hsiao 1981; Cochrane & Orcutt 1949 | `road.rs` |
 //!
 //! All of them but [`JointEkf`] (which estimates the state too) regress the measured
 //! derivative of each unknown row on the measured state: `z_i(k) = r(k)ᵀ θ_i + ε_i(k)`
@@ -55,6 +56,7 @@ mod structured;
 mod structured_fast;
 mod structured_gradient;
 mod two_axle;
+mod road;
 mod two_axle_structured;
 
 #[cfg(feature = "alloc")]
@@ -99,6 +101,7 @@ pub use structured_gradient::StructuredGradient;
 #[cfg(feature = "alloc")]
 pub use two_axle::TwoAxleIdentifierVec;
 pub use two_axle::{Past, TwoAxle, TwoAxleConfig, TwoAxleIdentifier, WheelMethod};
+pub use road::{Differenced, RoadModel, Travel, MAX_ROAD_WEIGHT};
 #[cfg(feature = "alloc")]
 pub use two_axle_structured::TwoAxleStructuredVec;
 pub use two_axle_structured::{FrontRegression, TwoAxleStructured, TwoAxleStructuredConfig, TwoAxleStructuredKalman};
