@@ -212,10 +212,10 @@ fn a_restored_identifier_continues_bit_for_bit_and_corrupt_state_is_refused() {
     let json = serde_json::to_string(&id).unwrap();
     let v: serde_json::Value = serde_json::from_str(&json).unwrap();
     for (path, bad) in [
-        ("/prev/0", serde_json::json!(null)),
-        ("/travel/PerSample", serde_json::json!(-0.1)),
-        ("/seen", serde_json::json!(3)),
-        ("/prev/40", serde_json::json!(1.0)),
+        ("/state/prev/0", serde_json::json!(null)),
+        ("/state/travel/PerSample", serde_json::json!(-0.1)),
+        ("/state/seen", serde_json::json!(3)),
+        ("/state/prev/40", serde_json::json!(1.0)),
     ] {
         let mut w = v.clone();
         *w.pointer_mut(path).unwrap_or_else(|| panic!("{path} in {json}")) = bad;

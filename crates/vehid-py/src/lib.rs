@@ -19,6 +19,7 @@ mod model;
 mod noisy;
 mod persist;
 mod reproduce;
+mod road;
 mod sim;
 mod stats;
 mod structure;

@@ -224,13 +224,15 @@ pub struct PyIVIdentifier {
     delay: usize,
     lags: usize,
     model: Option<ModelArgs>,
+    road: Option<crate::road::Road>,
 }
 
 #[pymethods]
 impl PyIVIdentifier {
     #[new]
     #[pyo3(signature = (model, delay = 1, lags = None, p0 = None, r = None, *, theta0 = None,
-                        instruments = "delayed", dt = None, refresh = 100, substeps = 1))]
+                        instruments = "delayed", dt = None, refresh = 100, substeps = 1, road = "white",
+                        road_cutoff = None, spacing = None))]
     #[allow(clippy::too_many_arguments)]
     fn py_new(
         model: &Bound<'_, PyAny>,
@@ -243,9 +245,19 @@ impl PyIVIdentifier {
         dt: Option<f64>,
         refresh: i128,
         substeps: i128,
+        road: &str,
+        road_cutoff: Option<f64>,
+        spacing: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyClassInitializer<Self>> {
         let target = Target::of(model)?;
         let s = target.structure()?;
+        let road = crate::road::road_args(road, road_cutoff, spacing)?;
+        if road.is_some() && instruments == "model" {
+            return Err(VehidError::new_err(
+                "a coloured `road` takes instruments=\"delayed\" (the auxiliary model would be simulated from \
+                 differenced inputs)",
+            ));
+        }
         let (np, ne) = (s.params(), s.equations());
         let model_args = match instruments {
             "delayed" => None,
@@ -303,7 +315,31 @@ impl PyIVIdentifier {
             _ => iv_p::<32>(s, delay, lags, p0, th, &r, ma),
         }
         .map_err(core_err)?;
-        Ok(PyClassInitializer::from(target.wrap(inner)).add_subclass(Self { delay, lags, model: model_args }))
+        let inner = match road {
+            Some(road) => crate::road::wrap(inner, &s, road)?,
+            None => inner,
+        };
+        Ok(PyClassInitializer::from(target.wrap(inner)).add_subclass(Self { delay, lags, model: model_args, road }))
+    }
+
+    /// The road model: "white" (the thesis' road noise: samples identified as they are),
+    /// "random-walk" or "iso8608" (the samples quasi-differenced by the road's shaping filter
+    /// in distance first; `vehid_core::identify::Differenced`).
+    #[getter]
+    fn road(&self) -> &'static str {
+        self.road.map_or("white", |r| r.name())
+    }
+
+    /// The ISO 8608 shaping filter's cutoff, cycles/m (None unless road="iso8608").
+    #[getter]
+    fn road_cutoff(&self) -> Option<f64> {
+        self.road.and_then(|r| r.cutoff())
+    }
+
+    /// Metres travelled per sample, or "odometer" (the last column of `u`); None on a white road.
+    #[getter]
+    fn spacing<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        self.road.map(|r| r.spacing(py)).transpose()
     }
 
     /// "delayed" (the regressors `delay` samples back, or the predictor's with `lags`) or
@@ -350,12 +386,12 @@ impl PyIVIdentifier {
     /// A copy with its own core.
     fn __copy__(slf: &Bound<'_, Self>) -> PyResult<Py<Self>> {
         let py = slf.py();
-        let (delay, lags, model) = {
+        let (delay, lags, model, road) = {
             let b = slf.try_borrow()?;
-            (b.delay, b.lags, b.model)
+            (b.delay, b.lags, b.model, b.road)
         };
         let base = copy_base(slf.as_super())?;
-        Py::new(py, PyClassInitializer::from(base).add_subclass(Self { delay, lags, model }))
+        Py::new(py, PyClassInitializer::from(base).add_subclass(Self { delay, lags, model, road }))
     }
 
     /// The same as `__copy__`: the core shares nothing.

@@ -341,7 +341,8 @@ fn load_n<const N: usize>(core: Core, bytes: &[u8]) -> vehid_core::Result<Loaded
 /// The identifier's state: `(FORMAT, "vehid <version>", payload)`.
 fn state<'py>(py: Python<'py>, base: &PyIdentifier) -> PyResult<Bound<'py, PyTuple>> {
     let n = base.model.n;
-    let inner = base.inner.as_ref();
+    // A coloured-road wrapper: its inner identifier saved as any other, its own state beside.
+    let (inner, road) = crate::road::split(base.inner.as_ref());
     let found = match save_noisy(inner).map_err(crate::identify::raise)? {
         Some(saved) => Some(saved),
         None => save_newer(inner).map_err(crate::identify::raise)?,
@@ -358,7 +359,14 @@ fn state<'py>(py: Python<'py>, base: &PyIdentifier) -> PyResult<Bound<'py, PyTup
     let payload = postcard::to_allocvec(&Saved { core, model: base.model.clone(), state: bytes })
         .map_err(|e| VehidError::new_err(format!("cannot pickle the identifier: {e}")))?;
     let version = concat!("vehid ", env!("CARGO_PKG_VERSION"));
-    (FORMAT, version, PyBytes::new(py, &payload)).into_pyobject(py)
+    match road {
+        None => (FORMAT, version, PyBytes::new(py, &payload)).into_pyobject(py),
+        Some(road) => {
+            let extra = postcard::to_allocvec(road)
+                .map_err(|e| VehidError::new_err(format!("cannot pickle the identifier: {e}")))?;
+            (FORMAT, version, PyBytes::new(py, &payload), PyBytes::new(py, &extra)).into_pyobject(py)
+        }
+    }
 }
 
 /// The arguments that build a fresh identifier of `obj`'s class and settings.
@@ -391,6 +399,9 @@ fn blank_args<'py>(obj: &Bound<'py, PyIdentifier>) -> PyResult<(Bound<'py, PyTup
         } else if obj.is_instance_of::<PyIVIdentifier>() {
             kwargs.set_item("delay", obj.getattr("delay")?)?;
             kwargs.set_item("lags", obj.getattr("lags")?)?;
+            for key in ["road", "road_cutoff", "spacing"] {
+                kwargs.set_item(key, obj.getattr(key)?)?;
+            }
             let instruments: String = obj.getattr("instruments")?.extract()?;
             if instruments == "model" {
                 // Any valid auxiliary model's settings: the saved core (and its settings) replace it.
@@ -469,8 +480,13 @@ fn corrupt(what: &str) -> PyErr {
 /// `__setstate__`: checks the format version, decodes, checks that the core fits this
 /// object's class and model, then replaces the core.
 pub fn set_state(obj: &Bound<'_, PyIdentifier>, state: &Bound<'_, PyAny>) -> PyResult<()> {
-    let Ok((format, version, payload)) = state.extract::<(u32, String, Vec<u8>)>() else {
-        return Err(corrupt("its state is not a (format, version, bytes) tuple"));
+    // (format, version, payload), and for a coloured-road identifier its wrapper's state.
+    let (format, version, payload, road) = match state.extract::<(u32, String, Vec<u8>)>() {
+        Ok((f, v, p)) => (f, v, p, None),
+        Err(_) => match state.extract::<(u32, String, Vec<u8>, Vec<u8>)>() {
+            Ok((f, v, p, r)) => (f, v, p, Some(r)),
+            Err(_) => return Err(corrupt("its state is not a (format, version, bytes) tuple")),
+        },
     };
     if format != FORMAT {
         return Err(VehidError::new_err(format!(
@@ -564,6 +580,20 @@ pub fn set_state(obj: &Bound<'_, PyIdentifier>, state: &Bound<'_, PyAny>) -> PyR
             }
         }
     }
+    let mine = crate::road::of(borrow(obj)?.inner.as_ref());
+    let core = match road {
+        None if mine.is_none() => core,
+        Some(bytes) if mine.is_some() => {
+            let st: vehid_core::identify::RoadState<f64> = postcard::from_bytes(&bytes)
+                .map_err(|e| corrupt(&format!("its road state does not decode ({e})")))?;
+            let wrapped = crate::road::rewrap(core, st).map_err(|e| corrupt(&e.to_string()))?;
+            if crate::road::of(wrapped.as_ref()) != mine {
+                return Err(corrupt("its road model or spacing differ from this object's"));
+            }
+            wrapped
+        }
+        _ => return Err(corrupt("it was saved with another road model (white or coloured) than this object's")),
+    };
     borrow_mut(obj)?.inner = core;
     Ok(())
 }

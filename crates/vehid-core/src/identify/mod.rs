@@ -101,7 +101,9 @@ pub use structured_gradient::StructuredGradient;
 #[cfg(feature = "alloc")]
 pub use two_axle::TwoAxleIdentifierVec;
 pub use two_axle::{Past, TwoAxle, TwoAxleConfig, TwoAxleIdentifier, WheelMethod};
-pub use road::{Differenced, RoadModel, Travel, MAX_ROAD_WEIGHT};
+pub use road::{Differenced, RoadModel, RoadState, Travel, MAX_ROAD_WEIGHT};
+#[cfg(feature = "alloc")]
+pub use road::BoxedIdentifier;
 #[cfg(feature = "alloc")]
 pub use two_axle_structured::TwoAxleStructuredVec;
 pub use two_axle_structured::{FrontRegression, TwoAxleStructured, TwoAxleStructuredConfig, TwoAxleStructuredKalman};

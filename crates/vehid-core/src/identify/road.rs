@@ -154,6 +154,19 @@ pub enum Travel<T> {
 )]
 pub struct Differenced<T: Real, I> {
     inner: I,
+    state: RoadState<T>,
+}
+
+/// What [`Differenced`] keeps besides its inner identifier: the road model, the travel, and
+/// the last accepted sample (to save beside an inner identifier saved another way, and to
+/// rebuild with [`Differenced::with_state`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(bound(serialize = "T: serde::Serialize", deserialize = "T: Real + serde::Deserialize<'de>"))
+)]
+pub struct RoadState<T: Real> {
     road: RoadModel<T>,
     travel: Travel<T>,
     /// The last accepted sample: `x`, `z`, `u` (without the odometer), then the odometer.
@@ -191,7 +204,7 @@ impl<T: Real, I: Identifier<T>> Differenced<T, I> {
         if d.inputs != structure.inputs() || d.equations != structure.equations() {
             return Err(Error::Shape { arg: "inputs", expected: structure.inputs(), got: d.inputs });
         }
-        Ok(Self { inner, road, travel, prev: [T::zero(); SAMPLE_VALUES], primed: false, seen: 0 })
+        Ok(Self { inner, state: RoadState { road, travel, prev: [T::zero(); SAMPLE_VALUES], primed: false, seen: 0 } })
     }
 
     /// Checks that every identified equation of `structure` is linear in the states,
@@ -227,24 +240,51 @@ impl<T: Real, I: Identifier<T>> Differenced<T, I> {
         &self.inner
     }
 
+    /// The inner identifier, mutably (to read settings only its kind has).
+    pub fn inner_mut(&mut self) -> &mut I {
+        &mut self.inner
+    }
+
     /// The road model.
     pub fn road(&self) -> RoadModel<T> {
-        self.road
+        self.state.road
     }
 
     /// How the distance between samples is known.
     pub fn travel(&self) -> Travel<T> {
-        self.travel
+        self.state.travel
+    }
+
+    /// The wrapper's own state (road model, travel, last sample), e.g. to save it beside an
+    /// inner identifier saved another way.
+    pub fn state(&self) -> &RoadState<T> {
+        &self.state
+    }
+
+    /// Rebuilds a wrapper from an inner identifier and a saved [`RoadState`] (with every check
+    /// of a deserialized one).
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] (`arg` "state") naming what does not fit.
+    pub fn with_state(inner: I, state: RoadState<T>) -> Result<Self> {
+        let v = Self { inner, state };
+        v.check_state()?;
+        Ok(v)
+    }
+
+    /// Splits into the inner identifier and the wrapper's state.
+    pub fn into_parts(self) -> (I, RoadState<T>) {
+        (self.inner, self.state)
     }
 
     /// Forgets the last sample, so that the next one starts a new difference (after a gap in
     /// the data, or when the vehicle was lifted off the road). The estimate is kept.
     pub fn restart(&mut self) {
-        self.primed = false;
+        self.state.primed = false;
     }
 
     fn odometer(&self) -> bool {
-        matches!(self.travel, Travel::Odometer { .. })
+        matches!(self.state.travel, Travel::Odometer { .. })
     }
 }
 
@@ -267,17 +307,18 @@ impl<T: Real, I: Identifier<T>> Identifier<T> for Differenced<T, I> {
         check_finite("u_k", u)?;
         let (n, m) = (dims.states, dims.inputs - self.odometer() as usize);
         let s_now = if self.odometer() { u[m] } else { T::zero() };
-        if !self.primed {
+        if !self.state.primed {
             self.store(x, z, &u[..m], s_now);
-            self.primed = true;
-            self.seen += 1;
+            self.state.primed = true;
+            self.state.seen += 1;
             e.fill(T::zero());
             return Ok(());
         }
-        let (ds, w) = match self.travel {
+        let prev = &self.state.prev;
+        let (ds, w) = match self.state.travel {
             Travel::PerSample(ds) => (ds, T::one()),
             Travel::Odometer { reference } => {
-                let ds = s_now - self.prev[2 * n + m];
+                let ds = s_now - prev[2 * n + m];
                 if ds < T::zero() {
                     return Err(Error::InvalidArgument {
                         arg: "u_k",
@@ -288,16 +329,16 @@ impl<T: Real, I: Identifier<T>> Identifier<T> for Differenced<T, I> {
                 (ds, (reference / if ds > floor { ds } else { floor }).sqrt())
             }
         };
-        let rho = (-(self.road.rate() * ds)).exp();
+        let rho = (-(self.state.road.rate() * ds)).exp();
         let mut dx = [T::zero(); MAX_STATES];
         let mut dz = [T::zero(); MAX_STATES];
         let mut du = [T::zero(); MAX_INPUTS];
         for j in 0..n {
-            dx[j] = w * (x[j] - rho * self.prev[j]);
-            dz[j] = w * (z[j] - rho * self.prev[n + j]);
+            dx[j] = w * (x[j] - rho * prev[j]);
+            dz[j] = w * (z[j] - rho * prev[n + j]);
         }
         for j in 0..m {
-            du[j] = w * (u[j] - rho * self.prev[2 * n + j]);
+            du[j] = w * (u[j] - rho * prev[2 * n + j]);
         }
         let finite = dx[..n].iter().chain(&dz[..n]).chain(&du[..m]).all(|v| v.finite());
         if !finite {
@@ -308,7 +349,7 @@ impl<T: Real, I: Identifier<T>> Identifier<T> for Differenced<T, I> {
         }
         self.inner.update_into(&dx[..n], &dz[..n], &du[..m], e)?;
         self.store(x, z, &u[..m], s_now);
-        self.seen += 1;
+        self.state.seen += 1;
         Ok(())
     }
 
@@ -317,7 +358,7 @@ impl<T: Real, I: Identifier<T>> Identifier<T> for Differenced<T, I> {
     }
 
     fn samples(&self) -> u64 {
-        self.seen
+        self.state.seen
     }
 
     fn covariance_into(&self, out: &mut [T]) -> Result<()> {
@@ -356,22 +397,29 @@ impl<T: Real, I: Identifier<T>> Identifier<T> for Differenced<T, I> {
 impl<T: Real, I: Identifier<T>> Differenced<T, I> {
     fn store(&mut self, x: &[T], z: &[T], u: &[T], s: T) {
         let n = x.len();
-        self.prev[..n].copy_from_slice(x);
-        self.prev[n..2 * n].copy_from_slice(z);
-        self.prev[2 * n..2 * n + u.len()].copy_from_slice(u);
-        self.prev[2 * n + u.len()] = s;
+        let prev = &mut self.state.prev;
+        prev[..n].copy_from_slice(x);
+        prev[n..2 * n].copy_from_slice(z);
+        prev[2 * n..2 * n + u.len()].copy_from_slice(u);
+        prev[2 * n + u.len()] = s;
     }
 
-    /// Checks a deserialized wrapper (feature `serde`): its settings valid, the stored sample
-    /// finite and 0 beyond the inner identifier's sizes, and `seen` at least the inner's count.
+    /// Checks a deserialized wrapper (feature `serde`): as [`Differenced::with_state`].
     #[cfg(feature = "serde")]
     pub(crate) fn restored(&mut self) -> Result<()> {
+        self.check_state()
+    }
+
+    /// The state's settings valid, the stored sample finite and 0 beyond the inner
+    /// identifier's sizes, and `seen` at least the inner identifier's count.
+    fn check_state(&self) -> Result<()> {
         let corrupt = |expected| Err(Error::InvalidArgument { arg: "state", expected });
-        let ok_road = match self.road {
+        let st = &self.state;
+        let ok_road = match st.road {
             RoadModel::RandomWalk => true,
             RoadModel::Shaped { cutoff } => cutoff.finite() && cutoff >= T::zero(),
         };
-        let ok_travel = match self.travel {
+        let ok_travel = match st.travel {
             Travel::PerSample(v) | Travel::Odometer { reference: v } => v.finite() && v > T::zero(),
         };
         if !(ok_road && ok_travel) {
@@ -382,15 +430,80 @@ impl<T: Real, I: Identifier<T>> Differenced<T, I> {
         if used > SAMPLE_VALUES || d.states > MAX_STATES || d.inputs > MAX_INPUTS {
             return corrupt("a differenced identifier within the sample capacity");
         }
-        if !self.prev.iter().all(|v| v.finite()) || self.prev[used..].iter().any(|v| *v != T::zero()) {
+        if !st.prev.iter().all(|v| v.finite()) || st.prev[used..].iter().any(|v| *v != T::zero()) {
             return corrupt("a differenced identifier's last sample finite (and 0 beyond its size)");
         }
-        if !self.primed && self.prev.iter().any(|v| *v != T::zero()) && self.seen == 0 {
-            return corrupt("a differenced identifier without samples holding none");
-        }
-        if self.seen < self.inner.samples() {
+        if st.seen < self.inner.samples() || (st.primed && st.seen == 0) {
             return corrupt("a differenced identifier counting at least the samples its inner one took");
         }
         Ok(())
+    }
+}
+
+/// A boxed identifier as an [`Identifier`] (requires `alloc`): what [`Differenced`] wraps
+/// when the identifier is chosen at run time (the Python bindings).
+#[cfg(feature = "alloc")]
+#[derive(Debug)]
+pub struct BoxedIdentifier<T: Real>(pub alloc::boxed::Box<dyn super::DynIdentifier<T>>);
+
+#[cfg(feature = "alloc")]
+impl<T: Real> Clone for BoxedIdentifier<T> {
+    fn clone(&self) -> Self {
+        Self(self.0.clone_box())
+    }
+}
+
+#[cfg(feature = "alloc")]
+impl<T: Real> Identifier<T> for BoxedIdentifier<T> {
+    fn dims(&self) -> Dims {
+        self.0.dims()
+    }
+
+    fn rows(&self) -> &[usize] {
+        self.0.rows()
+    }
+
+    fn update_into(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
+        self.0.update_into(x, z, u, e)
+    }
+
+    fn params_into(&self, out: &mut [T]) -> Result<()> {
+        self.0.params_into(out)
+    }
+
+    fn samples(&self) -> u64 {
+        self.0.samples()
+    }
+
+    fn covariance_into(&self, out: &mut [T]) -> Result<()> {
+        self.0.covariance_into(out)
+    }
+
+    fn noise_into(&self, out: &mut [T]) -> Result<()> {
+        self.0.noise_into(out)
+    }
+
+    fn residuals_into(&self, ssr: &mut [T], nobs: &mut [T]) -> Result<()> {
+        self.0.residuals_into(ssr, nobs)
+    }
+
+    fn groups_into(&self, group_of_param: &mut [usize], group_of_eq: &mut [usize]) -> Result<()> {
+        self.0.groups_into(group_of_param, group_of_eq)
+    }
+
+    fn trace(&self) -> Option<T> {
+        self.0.trace()
+    }
+
+    fn reinit_count(&self) -> u32 {
+        self.0.reinit_count()
+    }
+
+    fn reset_covariance(&mut self, p0: T) -> Result<()> {
+        self.0.reset_covariance(p0)
+    }
+
+    fn gated_into(&self, out: &mut [u64]) -> Result<()> {
+        self.0.gated_into(out)
     }
 }

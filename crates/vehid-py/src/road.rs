@@ -1,0 +1,137 @@
+//! The `road=` setting of the identifiers that take one (`IVIdentifier`): argument parsing,
+//! wrapping the core identifier in `identify::Differenced`, and what pickling needs (the
+//! inner identifier is saved as usual, the wrapper's `RoadState` beside it).
+
+use crate::{core_err, VehidError};
+use pyo3::prelude::*;
+use vehid_core::identify::{BoxedIdentifier, Differenced, DynIdentifier, RoadModel, RoadState, Travel};
+use vehid_core::structure::Structure;
+
+/// The cutoff of `road="iso8608"` unless `road_cutoff=` says otherwise: vehid's ISO 8608
+/// drives' shaping filter, cycles/m.
+pub const DEFAULT_CUTOFF: f64 = vehid_core::sim::DEFAULT_CUTOFF;
+
+/// The distance per sample at which a sample has weight 1 with `spacing="odometer"`, m.
+pub const ODOMETER_REFERENCE: f64 = 1.0;
+
+/// A coloured-road setting: the model and how the distance per sample is known.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Road {
+    pub model: RoadModel<f64>,
+    pub travel: Travel<f64>,
+}
+
+impl Road {
+    /// `road` as the Python getter gives it.
+    pub fn name(&self) -> &'static str {
+        match self.model {
+            RoadModel::RandomWalk => "random-walk",
+            RoadModel::Shaped { .. } => "iso8608",
+        }
+    }
+
+    /// `road_cutoff` (None for the random walk).
+    pub fn cutoff(&self) -> Option<f64> {
+        match self.model {
+            RoadModel::RandomWalk => None,
+            RoadModel::Shaped { cutoff } => Some(cutoff),
+        }
+    }
+
+    /// `spacing`: metres per sample, or "odometer".
+    pub fn spacing<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        match self.travel {
+            Travel::PerSample(ds) => Ok(ds.into_pyobject(py)?.into_any()),
+            Travel::Odometer { .. } => Ok("odometer".into_pyobject(py)?.into_any()),
+        }
+    }
+}
+
+/// Parses `road`, `road_cutoff` and `spacing` (None: the white road of the thesis).
+pub fn road_args(road: &str, cutoff: Option<f64>, spacing: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Road>> {
+    let model = match road {
+        "white" => {
+            if cutoff.is_some() || spacing.is_some() {
+                return Err(VehidError::new_err(
+                    "`road_cutoff` and `spacing` describe a coloured road: give them with road=\"random-walk\" or \
+                     road=\"iso8608\"",
+                ));
+            }
+            return Ok(None);
+        }
+        "random-walk" => {
+            if cutoff.is_some() {
+                return Err(VehidError::new_err(
+                    "`road_cutoff` is for road=\"iso8608\" (a random walk has none)",
+                ));
+            }
+            RoadModel::RandomWalk
+        }
+        "iso8608" => {
+            let c = cutoff.unwrap_or(DEFAULT_CUTOFF);
+            if !(c.is_finite() && c >= 0.0) {
+                return Err(VehidError::new_err(format!(
+                    "`road_cutoff` must be finite and >= 0 cycles/m (the shaping filter's n_c; 0 is a random walk), \
+                     got {c}"
+                )));
+            }
+            RoadModel::Shaped { cutoff: c }
+        }
+        other => {
+            return Err(VehidError::new_err(format!(
+                "unknown `road` {other:?}: expected \"white\" (the thesis' road noise), \"random-walk\" or \
+                 \"iso8608\" (a road whose height is a random walk / ISO 8608 shaping filter in distance)"
+            )))
+        }
+    };
+    let need = || {
+        VehidError::new_err(format!(
+            "road={road:?} needs `spacing`: the distance travelled per sample in metres (speed × sample interval, \
+             e.g. 15 m/s × 0.005 s = 0.075), or \"odometer\" with the odometer reading (m) as the last column of `u`"
+        ))
+    };
+    let travel = match spacing {
+        None => return Err(need()),
+        Some(v) => match v.extract::<String>() {
+            Ok(t) if t == "odometer" => Travel::Odometer { reference: ODOMETER_REFERENCE },
+            Ok(_) => return Err(need()),
+            Err(_) => {
+                let ds: f64 = v.extract().map_err(|_| need())?;
+                if !(ds.is_finite() && ds > 0.0) {
+                    return Err(VehidError::new_err(format!(
+                        "`spacing` must be finite and > 0 metres per sample, got {ds}"
+                    )));
+                }
+                Travel::PerSample(ds)
+            }
+        },
+    };
+    Ok(Some(Road { model, travel }))
+}
+
+/// `inner` (an identifier on `s`) fed the samples differenced for `road`.
+pub fn wrap(inner: Box<dyn DynIdentifier<f64>>, s: &Structure<f64>, road: Road) -> PyResult<Box<dyn DynIdentifier<f64>>> {
+    let d = Differenced::new(BoxedIdentifier(inner), s, road.model, road.travel).map_err(core_err)?;
+    Ok(Box::new(d))
+}
+
+type Wrapped = Differenced<f64, BoxedIdentifier<f64>>;
+
+/// The identifier behind a coloured-road wrapper and the wrapper's state (the identifier
+/// itself and None when it has none).
+pub fn split(inner: &dyn DynIdentifier<f64>) -> (&dyn DynIdentifier<f64>, Option<&RoadState<f64>>) {
+    match inner.as_any().downcast_ref::<Wrapped>() {
+        Some(d) => (d.inner().0.as_ref(), Some(d.state())),
+        None => (inner, None),
+    }
+}
+
+/// `core` wrapped again with a saved state.
+pub fn rewrap(core: Box<dyn DynIdentifier<f64>>, state: RoadState<f64>) -> vehid_core::Result<Box<dyn DynIdentifier<f64>>> {
+    Ok(Box::new(Wrapped::with_state(BoxedIdentifier(core), state)?))
+}
+
+/// The setting a wrapper was built with (None: no wrapper).
+pub fn of(inner: &dyn DynIdentifier<f64>) -> Option<Road> {
+    inner.as_any().downcast_ref::<Wrapped>().map(|d| Road { model: d.road(), travel: d.travel() })
+}
