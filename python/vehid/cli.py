@@ -40,6 +40,7 @@ from numpy.typing import NDArray
 from . import (
     BatchLeastSquares,
     HalfCar,
+    IVIdentifier,
     KalmanIdentifier,
     LinearModel,
     QuarterCar,
@@ -296,6 +297,7 @@ class Layout:
     true_x: List[int] = field(default_factory=list)
     true_dx: List[int] = field(default_factory=list)
     u: List[int] = field(default_factory=list)
+    s: Optional[int] = None
 
     def add(self, col: Column, position: int, header: str) -> int:
         """Reads header column ``position`` as ``col``; its place in a chunk."""
@@ -348,9 +350,10 @@ def _misfits(table: Table, unknown: List[int], name: str, model: LinearModel) ->
 
 def resolve_layout(
     table: Table, name: str, model: LinearModel, mapping: Dict[str, str], no_time: bool, file_truth: bool,
-    notes: IO[str],
+    notes: IO[str], distance: bool = False,
 ) -> Layout:
-    """Matches the header of ``table`` to the columns of a run of ``name``: which to read."""
+    """Matches the header of ``table`` to the columns of a run of ``name``: which to read
+    (``distance``: also the distance column ``s``, where there is one)."""
     n, m = model.n_states, model.n_inputs
     cols = model_columns(name)
     match = match_columns(table.names, list(cols.values()), mapping, table.source)
@@ -403,6 +406,8 @@ def resolve_layout(
             absent = ", ".join(c for c in truth if c not in index)
             print(f"vehid: note: {table.source}: the true_* columns are incomplete (no {absent}): no xi; "
                   "pass --truth for one", file=notes)
+    if distance and "s" in index:
+        layout.s = layout.add(cols["s"], index["s"], table.names[index["s"]])
     unused = [repr(table.names[i]) for i in match.unknown]
     if unused:
         print(f"vehid: note: {table.source}: ignoring column(s) {', '.join(unused[:8])}"
@@ -729,10 +734,49 @@ def delimiter(text: str) -> str:
                                      f"got {text!r}")
 
 
-Identifier = Union[KalmanIdentifier, StochasticGradient, BatchLeastSquares, TwoAxleIdentifier]
+Identifier = Union[KalmanIdentifier, StochasticGradient, BatchLeastSquares, TwoAxleIdentifier, IVIdentifier]
+
+#: ``--road`` choices of ``vehid identify``.
+ROADS = ("white", "iso8608", "random-walk")
 
 
-def make_identifier(args: argparse.Namespace, model: LinearModel) -> Identifier:
+def coloured(args: argparse.Namespace) -> bool:
+    """``--road`` names a road that is not white (the equations are differenced, method iv)."""
+    return getattr(args, "road", "white") != "white"
+
+
+def road_options(args: argparse.Namespace, spacing: Union[float, str]) -> Dict[str, Any]:
+    """The keywords of ``IVIdentifier`` for ``--road``, with ``spacing`` (m per sample or
+    "odometer")."""
+    kw: Dict[str, Any] = {"road": args.road, "spacing": spacing}
+    if args.road == "iso8608" and args.road_cutoff is not None:
+        kw["road_cutoff"] = args.road_cutoff
+    if args.delay is not None:
+        kw["delay"] = args.delay
+    return kw
+
+
+def check_road_args(args: argparse.Namespace) -> None:
+    """Refuses ``--road`` settings that do not fit together, before any reading."""
+    if not coloured(args):
+        if args.road_cutoff is not None or args.speed is not None or args.delay is not None:
+            raise CliError("--road-cutoff, --speed and --delay describe a road that is not white: add --road "
+                           "iso8608 (or random-walk)")
+        return
+    if args.method != "kalman":
+        raise CliError(f"--road {args.road} identifies by instrumental variables on the differenced equations; "
+                       f"--method {args.method} (least squares or a gradient on them) would be biased by the road: "
+                       "drop --method")
+    if args.road == "random-walk" and args.road_cutoff is not None:
+        raise CliError("--road-cutoff is for --road iso8608 (a random walk has no cutoff)")
+    if args.delay is not None and args.delay < 1:
+        raise CliError(f"--delay must be >= 1 sample, got {args.delay}")
+    args.method = "iv"
+
+
+def make_identifier(args: argparse.Namespace, model: LinearModel, spacing: Union[float, str] = 1.0) -> Identifier:
+    if args.method == "iv":
+        return IVIdentifier(model, **road_options(args, spacing))
     if args.method == "kalman":
         return KalmanIdentifier(
             model,
@@ -774,12 +818,36 @@ def feed_batch_least_squares(ls: BatchLeastSquares, r: NDArray[np.float64], z: N
     ls.fit(r, z)  # all or nothing per chunk
 
 
-def feed(ident: Identifier, r: NDArray[np.float64], z: NDArray[np.float64]) -> None:
-    """One chunk into the identifier; every recursive ``fit`` continues where it stopped."""
+def feed(
+    ident: Identifier, r: NDArray[np.float64], z: NDArray[np.float64], odometer: Optional[NDArray[np.float64]] = None
+) -> None:
+    """One chunk into the identifier; every recursive ``fit`` continues where it stopped
+    (``odometer``: the distance column, m, for a coloured-road identifier that reads it)."""
     if isinstance(ident, BatchLeastSquares):
         feed_batch_least_squares(ident, r, z)
+    elif odometer is not None:
+        ident.fit(r, z, u=np.ascontiguousarray(odometer[:, None]))
     else:
         ident.fit(r, z)
+
+
+def road_spacing(
+    args: argparse.Namespace, source: str, layout: "Layout", first: NDArray[np.float64]
+) -> Union[float, str]:
+    """The distance per sample for ``--road``: ``--speed`` times the first chunk's median
+    sample interval, or "odometer" when the file's distance column ``s`` is read."""
+    if args.speed is None:
+        if layout.s is None:
+            raise CliError(f"--road {args.road} needs the distance travelled: {source} has no distance column s "
+                           "(m; map yours with --columns s=NAME), so give the constant speed with --speed M/S")
+        return "odometer"
+    if layout.t is None or len(first) < 2:
+        raise CliError(f"--road {args.road} --speed needs the time column (the distance per sample is speed x the "
+                       "sample interval): drop --no-time, or give a distance column s instead")
+    dt = float(np.median(np.diff(first[:, layout.t])))
+    if not (math.isfinite(dt) and dt > 0):
+        raise CliError(f"{source}: the time column's median interval is {dt}: no distance per sample from --speed")
+    return float(args.speed * dt)
 
 
 def method_options(args: argparse.Namespace) -> Dict[str, Any]:
@@ -792,19 +860,27 @@ def method_options(args: argparse.Namespace) -> Dict[str, Any]:
     if args.method == "two-axle":
         return {"p0": THESIS_P0 if args.p0 == "exact" else args.p0, "road_sigma": args.road_sigma,
                 "deriv_noise": args.deriv_noise, "spacing": args.spacing, "wheel_method": args.wheel_method}
+    if args.method == "iv":
+        opts: Dict[str, Any] = {"road": args.road, "delay": 1 if args.delay is None else args.delay}
+        if args.road == "iso8608":
+            opts["road_cutoff"] = 0.01 if args.road_cutoff is None else args.road_cutoff
+        opts["distance"] = f"--speed {args.speed} m/s" if args.speed is not None else "the file's column s"
+        return opts
     return {}
 
 
 def physical_identifier(
-    args: argparse.Namespace, model: LinearModel, known: Dict[str, float]
-) -> Optional[KalmanIdentifier]:
+    args: argparse.Namespace, model: LinearModel, known: Dict[str, float], spacing: Union[float, str] = 1.0
+) -> Optional[Union[KalmanIdentifier, IVIdentifier]]:
     """The quarter car's physical structure with the known wheel mass, identified by least
     squares on the same samples (exact start, no gate): its constants come with 95 %
     intervals (``car.physical(stats)``). ``None`` for the other methods and for the half car
     (its physical structure also needs the lever arms, and on one road it is biased: see the
     README's "Models linear in their parameters")."""
-    if args.model != "quarter" or args.method not in ("kalman", "ls"):
+    if args.model != "quarter" or args.method not in ("kalman", "ls", "iv"):
         return None
+    if args.method == "iv":
+        return IVIdentifier(model.structure(known=known), **road_options(args, spacing))
     return KalmanIdentifier(model.structure(known=known), gate=0.0)
 
 
@@ -912,12 +988,16 @@ def cmd_identify(args: argparse.Namespace) -> int:
     except TableError as e:
         raise CliError(str(e)) from None
     truth = parse_truth(args.truth, args.model)
-    ident = make_identifier(args, model)  # option errors before any reading
+    check_road_args(args)
+    ident: Optional[Identifier] = make_identifier(args, model)  # option errors before any reading
     known = known_masses(args)
     structured = physical_identifier(args, model, known)
+    if coloured(args):  # built at the first chunk, when the distance per sample is known
+        ident, structured = None, None
     with open_table(args.file, delimiter=args.delimiter) as table:
         source = table.source
-        layout = resolve_layout(table, args.model, model, mapping, args.no_time, truth is None, sys.stderr)
+        layout = resolve_layout(table, args.model, model, mapping, args.no_time, truth is None, sys.stderr,
+                                distance=coloured(args) and args.speed is None)
         time = None
         if layout.t is not None:
             time = TimeCheck(table, layout.used["t"], layout.labels[layout.t], sys.stderr)
@@ -928,9 +1008,14 @@ def cmd_identify(args: argparse.Namespace) -> int:
             if time is not None and layout.t is not None:
                 time.add(data[:, layout.t], chunk.lines)
             x, dx = np.ascontiguousarray(data[:, layout.x]), np.ascontiguousarray(data[:, layout.dx])
-            feed(ident, x, dx)
+            odometer = None if layout.s is None else data[:, layout.s]
+            if ident is None:
+                spacing = road_spacing(args, source, layout, data)
+                ident = make_identifier(args, model, spacing)
+                structured = physical_identifier(args, model, known, spacing)
+            feed(ident, x, dx, odometer)
             if structured is not None:
-                structured.fit(x, dx)
+                feed(structured, x, dx, odometer)
             if fit is not None:
                 fit.add(data[:, layout.true_x], data[:, layout.u], data[:, layout.true_dx])
             progress.step(len(data), table.consumed)
@@ -942,13 +1027,14 @@ def cmd_identify(args: argparse.Namespace) -> int:
             f"{source} has {samples} sample{'s' if samples != 1 else ''}; the {MODEL_NAMES[args.model]} "
             f"needs at least {n} (one per state), and many more for a useful estimate"
         )
+    assert ident is not None  # built at the first chunk at the latest, and there was one
     theta = ident.theta
     rows = list(model.unknown_rows)
     # 95 % intervals of the rows' entries, where the identifier keeps the statistics.
     conf_int: Optional[NDArray[np.float64]] = None
-    if args.method in ("kalman", "ls"):
+    if args.method in ("kalman", "ls", "iv"):
         try:
-            stats = cast(Union[KalmanIdentifier, BatchLeastSquares], ident).stats()
+            stats = cast(Union[KalmanIdentifier, BatchLeastSquares, IVIdentifier], ident).stats()
             conf_int = np.asarray(stats.conf_int).reshape(len(rows), n, 2)
         except VehidError:
             conf_int = None
@@ -1037,8 +1123,9 @@ def cmd_identify(args: argparse.Namespace) -> int:
         print(f"physical constants (known: {given}): not available: {physical_error}")
     if intervals is not None:
         print()
-        print(f"physical constants in the car's physical structure (least squares on the same samples, known: "
-              f"{given}), 95 % intervals:")
+        how = ("instrumental variables on the differenced equations" if args.method == "iv"
+               else "least squares on the same samples")
+        print(f"physical constants in the car's physical structure ({how}, known: {given}), 95 % intervals:")
         for k, (v, lo, hi) in intervals.items():
             if k in known:
                 continue
@@ -1219,6 +1306,20 @@ def build_parser() -> argparse.ArgumentParser:
     ident.add_argument("--h", type=parse_floats, default=None, metavar="H",
                        help="sg: weights, one value, one per unknown row or one per parameter, comma-separated "
                             "(default 1)")
+    ident.add_argument("--road", choices=ROADS, default="white",
+                       help="what the unmeasured road input is: white (the thesis' road noise, default: least "
+                            "squares is right), or iso8608 / random-walk (a real road, whose height is a random "
+                            "walk in distance: least squares is biased there; the equations are differenced by the "
+                            "road's shaping filter and identified by instrumental variables, method iv). Needs the "
+                            "distance travelled: --speed, or a distance column s (m, e.g. an odometer)")
+    ident.add_argument("--road-cutoff", type=float, default=None, metavar="NC",
+                       help="--road iso8608: the shaping filter's cutoff, cycles/m (default 0.01, vehid's drives)")
+    ident.add_argument("--speed", type=positive_float, default=None,
+                       help="--road iso8608/random-walk: the constant speed, m/s (the distance per sample is speed "
+                            "x the median sample interval); without it the file's distance column s is read")
+    ident.add_argument("--delay", type=int, default=None,
+                       help="--road iso8608/random-walk: the instruments' delay in samples (default 1; use 2 when the "
+                            "measured states carry white noise, whose difference is correlated over two samples)")
     ident.add_argument("--m", type=positive_float, default=1.0, help="quarter: known wheel mass m, kg (default 1)")
     ident.add_argument("--m1", type=positive_float, default=1.0, help="half: known front wheel mass m1, kg (default 1)")
     ident.add_argument("--m2", type=positive_float, default=1.0, help="half: known rear wheel mass m2, kg (default 1)")

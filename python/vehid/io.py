@@ -96,6 +96,13 @@ STATES: Dict[str, Tuple[Tuple[str, str], ...]] = {
     ),
 }
 
+#: The state channels of a drive with state sensors (``vehid simulate --road iso8608-C --sensors
+#: state``), in the order of :data:`STATES`: read as ``x1..`` (and ``d`` + name as ``dx1..``).
+DRIVE_STATES: Dict[str, Tuple[str, ...]] = {
+    "quarter": ("zw", "vw", "zb", "vb"),
+    "half": ("z1", "v1", "z2", "v2", "zb", "vb", "ph", "om"),
+}
+
 #: Header names taken as the time column ``t`` (after :func:`normalize`), in seconds.
 TIME_NAMES = ("t", "time", "time_s", "t_s", "seconds")
 
@@ -130,6 +137,8 @@ class Column:
     name: str
     alias: Optional[str]
     unit: str
+    #: Further header names taken as this column (a drive's channel names: ``zw``, ``dzw``).
+    more: Tuple[str, ...] = ()
 
     def describe(self) -> str:
         """``"x1 (wheel_pos, m)"``: the name, the alias and the unit, as messages show it."""
@@ -140,7 +149,7 @@ class Column:
         """Every header name (normalized) taken as this column."""
         if self.name == "t":
             return TIME_NAMES
-        return (self.name,) if self.alias is None else (self.name, self.alias)
+        return ((self.name,) if self.alias is None else (self.name, self.alias)) + self.more
 
 
 def run_columns(model: str, n_states: int, n_inputs: int) -> List[Column]:
@@ -155,8 +164,10 @@ def run_columns(model: str, n_states: int, n_inputs: int) -> List[Column]:
         raise ValueError(f"the {model} model has {len(table)} named states, not {n_states}")
     states = [(f"x{i}", alias, unit) for i, (alias, unit) in enumerate(table, start=1)]
     derivs = [(f"d{name}", None if a is None else f"d_{a}", _per_second(u)) for name, a, u in states]
+    drive = DRIVE_STATES.get(model, ())
+    more = [(d,) for d in drive] + [(f"d{d}",) for d in drive] if drive else [()] * (2 * n_states)
     cols = [Column("t", "time", "s")]
-    cols += [Column(name, a, u) for name, a, u in states + derivs]
+    cols += [Column(name, a, u, m) for (name, a, u), m in zip(states + derivs, more)]
     cols += [Column(f"true_{name}", None if a is None else f"true_{a}", u) for name, a, u in states + derivs]
     cols += [Column(f"u{j}", None, "m") for j in range(1, n_inputs + 1)]
     cols.append(Column("s", "distance", "m"))
