@@ -74,7 +74,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--classes", default="B,C,D,E")
     ap.add_argument("--speeds", default="10,20,30,varying")
     ap.add_argument("--lags", type=int, default=None, help="IVIdentifier lags (default: its own)")
-    ap.add_argument("--noise", type=float, default=0.0, help="white state and derivative noise, fraction of each signal's std")
+    ap.add_argument("--noise", type=float, default=0.0,
+                    help="white state and derivative noise, fraction of each signal's std")
     ap.add_argument("--json", default=None)
     a = ap.parse_args(argv)
     car = vehid.QuarterCar.passenger()
@@ -110,15 +111,17 @@ def main(argv: list[str] | None = None) -> int:
         results.append(row)
         cov = " ".join(f"{k} {100 * row['coverage'][k]:.0f}%" for k in CONSTANTS)
         print(
-            f"[{i + 1}/{len(settings)} {time.time() - t0:.0f} s] {label}: within 5 %: road {within['road']}/{row['first']},"
-            f" thesis {within['thesis']}/{row['first']}; 95 % coverage {cov}; median worst error"
+            f"[{i + 1}/{len(settings)} {time.time() - t0:.0f} s] {label}: within 5 %: road"
+            f" {within['road']}/{row['first']}, thesis {within['thesis']}/{row['first']}; 95 % coverage {cov};"
+            f" median worst error"
             f" {100 * row['median_worst_error']:.2f} %",
             flush=True,
         )
     print("\nsetting        | within 5 % (coloured road / thesis) | 95 % coverage M, k1, k2, b")
     for r in results:
         cov = ", ".join(f"{100 * r['coverage'][k]:.0f}" for k in CONSTANTS)
-        print(f"{r['setting']:<14} | {r['within_5pct_road']}/{r['first']} / {r['within_5pct_thesis']}/{r['first']:<24} | {cov}")
+        within = f"{r['within_5pct_road']}/{r['first']} / {r['within_5pct_thesis']}/{r['first']}"
+        print(f"{r['setting']:<14} | {within:<35} | {cov}")
     if a.json:
         with open(a.json, "w") as f:
             json.dump({"seed0": a.seed0, "seeds": a.seeds, "results": results}, f, indent=1)

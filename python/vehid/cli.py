@@ -832,7 +832,7 @@ def feed(
 
 
 def road_spacing(
-    args: argparse.Namespace, source: str, layout: "Layout", first: NDArray[np.float64]
+    args: argparse.Namespace, source: str, layout: Layout, first: NDArray[np.float64]
 ) -> Union[float, str]:
     """The distance per sample for ``--road``: ``--speed`` times the first chunk's median
     sample interval, or "odometer" when the file's distance column ``s`` is read."""
