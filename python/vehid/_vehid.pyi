@@ -341,7 +341,16 @@ class IVIdentifier(Identifier):
         dt: Optional[float] = None,
         refresh: int = 100,
         substeps: int = 1,
+        road: Literal["white", "random-walk", "iso8608"] = "white",
+        road_cutoff: Optional[float] = None,
+        spacing: Optional[Union[float, Literal["odometer"]]] = None,
     ) -> IVIdentifier: ...
+    @property
+    def road(self) -> Literal["white", "random-walk", "iso8608"]: ...
+    @property
+    def road_cutoff(self) -> Optional[float]: ...
+    @property
+    def spacing(self) -> Optional[Union[float, Literal["odometer"]]]: ...
     @property
     def delay(self) -> int: ...
     @property
