@@ -84,6 +84,8 @@ BENCHES = [
     "half_health",                  # health/half_monitor_update_f64 (issue 17, half car; binary count_health)
     "quarter_health_state",         # health/monitor_update_state_f64 (issue 17, state sensors, measured rate)
     "half_health_state",            # health/half_monitor_update_state_f64 (issue 17, half car, state sensors)
+    "quarter_iv_physical_road",     # update_f64/quarter/iv_physical_road (Differenced: the coloured-road identifier)
+    "quarter_iv_physical_drive",    # the same IV without the road model, same samples (binary count_road)
 ]
 # Benches counted by a binary other than count_updates (kept apart so that their code does not
 # change how count_updates is compiled).
@@ -92,6 +94,8 @@ OTHER_BINARIES = {
     "half_health": "count_health",
     "quarter_health_state": "count_health",
     "half_health_state": "count_health",
+    "quarter_iv_physical_road": "count_road",
+    "quarter_iv_physical_drive": "count_road",
 }
 
 

@@ -196,3 +196,76 @@ def test_vehid_identify_road_needs_a_distance(tmp_path: Path, capsys: pytest.Cap
     assert cli.main(["simulate", "--model", "quarter", "--n", "200", "-o", str(log)]) == 0  # no column s
     assert cli.main(["identify", str(log), "--model", "quarter", "--road", "iso8608"]) == 2
     assert "--speed" in capsys.readouterr().err
+
+
+# --- the model check: whiteness of the residuals ------------------------------------------
+
+
+def test_ljung_box_is_the_textbook_statistic_with_scipy_p_values() -> None:
+    chi2 = pytest.importorskip("scipy.stats").chi2
+    rng = np.random.default_rng(8301)
+    for n, lags in ((50, 1), (400, 10), (3000, 25)):
+        x = rng.standard_normal(n).cumsum() if lags == 10 else rng.standard_normal(n)
+        d = x - x.mean()
+        rho = np.array([d[j:] @ d[:-j] for j in range(1, lags + 1)]) / (d @ d)
+        q = n * (n + 2) * np.sum(rho**2 / (n - np.arange(1, lags + 1)))
+        stat, p = vehid.ljung_box(x, lags=lags)
+        assert stat == pytest.approx(q, rel=1e-12)
+        assert p == pytest.approx(chi2.sf(q, lags), rel=1e-10, abs=1e-300)
+    for bad, match in (([1.0] * 30, "variance"), ([1.0, np.nan] * 20, "NaN"), (np.zeros((5, 5)), "one series")):
+        with pytest.raises(ValueError, match=match):
+            vehid.ljung_box(bad, lags=3)
+    with pytest.raises(ValueError, match="lags"):
+        vehid.ljung_box(rng.standard_normal(10), lags=10)
+
+
+def test_residuals_are_the_equations_minus_the_estimate() -> None:
+    car = vehid.QuarterCar()
+    run = vehid.Simulator(car, road_sigma=0.1, deriv_noise=0.005, seed=8311).run(3000)
+    kf = vehid.KalmanIdentifier(car)
+    kf.fit(run.r, run.z)
+    want = np.column_stack([run.z[:, row] - run.r @ kf.theta[i] for i, row in enumerate(car.unknown_rows)])
+    np.testing.assert_allclose(kf.residuals(run.r, run.z), want, rtol=1e-12, atol=1e-12)
+    s = car.structure(known={"m": 1.0})
+    ks = vehid.KalmanIdentifier(s)
+    ks.fit(run.r, run.z)
+    p = ks.params
+    by_structure = np.array([s.derivative(p, x, None) for x in run.r[:50]])
+    # The structure's wheel equation reads der(body_vel): its residual uses the measured one.
+    got = ks.residuals(run.r[:50], run.z[:50])
+    np.testing.assert_allclose(got[:, 0], run.z[:50, 3] - by_structure[:, 3], rtol=1e-10, atol=1e-12)
+
+
+def test_the_check_warns_on_iso_roads_and_rarely_on_the_thesis_white_road() -> None:
+    # White road (the thesis' simulation): residuals white, a warning at the 1 % level; 60 runs
+    # give more than 4 warnings with probability < 0.4 %. ISO roads: every run warned.
+    car = vehid.QuarterCar()
+    false = 0
+    for seed in range(8400, 8460):
+        run = vehid.Simulator(car, road_sigma=0.1, deriv_noise=0.005, seed=seed).run(8000)
+        kf = vehid.KalmanIdentifier(car)
+        kf.fit(run.r, run.z)
+        checks = cli.residual_checks(kf, "quarter", list(car.unknown_rows), run.r, run.z)
+        assert len(checks) == 2
+        false += sum(not c["white"] for c in checks if c["state"] == "wheel_vel")
+    assert false <= 4, false
+    for seed in range(8500, 8520):
+        run = drive(seed, n=8000, road="iso8608-B", speed=10.0 + seed % 20)
+        kf = vehid.KalmanIdentifier(CAR)
+        kf.fit(run.x, run.xdot)
+        checks = cli.residual_checks(kf, "quarter", list(CAR.unknown_rows), run.x, run.xdot)
+        wheel = [c for c in checks if c["state"] == "wheel_vel"]
+        assert wheel and not wheel[0]["white"], (seed, checks)
+
+
+def test_vehid_identify_warns_when_the_road_is_not_white(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    log = tmp_path / "drive.csv"
+    argv = ["simulate", "--model", "quarter", "--road", "iso8608-C", "--sensors", "state", "--n", "20000"]
+    assert cli.main([*argv, "--seed", "8161", "-o", str(log)]) == 0
+    capsys.readouterr()
+    assert cli.main(["identify", str(log), "--model", "quarter", "--m", "40"]) == 0
+    err = capsys.readouterr().err
+    assert "warning: the residuals of d(wheel_vel)/dt are not white" in err and "--road iso8608" in err
+    assert cli.main(["identify", str(log), "--model", "quarter", "--m", "40", "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert [c["white"] for c in report["residual_checks"] if c["state"] == "wheel_vel"] == [False]

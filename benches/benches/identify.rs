@@ -313,6 +313,16 @@ fn noisy_states(c: &mut Criterion) {
         let _ = black_box(iv.update_into(x.as_slice(), z.as_slice(), &[], &mut e));
     };
     bench_updates(c, "update_f64", &data, &mut update, "quarter/iv_physical");
+    // The same on a coloured road: the samples quasi-differenced first (identify::Differenced).
+    let s = *ph.structure();
+    let inner = IvIdentifier::<f64, 2, 2>::exact(s, 1).unwrap();
+    let road = vehid_core::identify::RoadModel::Shaped { cutoff: 0.01 };
+    let mut id = vehid_core::identify::Differenced::new(inner, &s, road, vehid_core::identify::Travel::PerSample(0.075))
+        .unwrap();
+    let mut update = |x: &SVector<f64, 4>, z: &SVector<f64, 4>| {
+        let _ = black_box(id.update_into(x.as_slice(), z.as_slice(), &[], &mut e));
+    };
+    bench_updates(c, "update_f64", &data, &mut update, "quarter/iv_physical_road");
     let mut bc = BiasCompensatedLs::<f64, 4, 2>::full_rows(4, &q.unknown_rows(), &[6.4e-5]).unwrap();
     let mut update = |x: &SVector<f64, 4>, z: &SVector<f64, 4>| {
         let _ = black_box(bc.update_into(x.as_slice(), z.as_slice(), &[], &mut e));

@@ -50,6 +50,7 @@ from . import (
     TwoAxleIdentifier,
     VehidError,
     __version__,
+    ljung_box,
     xi,
 )
 from .io import (
@@ -831,6 +832,48 @@ def feed(
         ident.fit(r, z)
 
 
+#: Samples (the most recent) whose residuals the whiteness check of ``vehid identify`` reads.
+DIAG_SAMPLES = 20_000
+#: Lags of that Ljung-Box test.
+DIAG_LAGS = 10
+#: Its level: a white-noise equation is warned about in 1 % of runs.
+DIAG_ALPHA = 0.01
+
+
+def residual_checks(
+    ident: Identifier, model_name: str, rows: List[int], x: NDArray[np.float64], dx: NDArray[np.float64]
+) -> List[Dict[str, Any]]:
+    """The Ljung-Box whiteness test of each identified equation's residuals at the final
+    estimate, on the samples ``x``, ``dx`` (the most recent :data:`DIAG_SAMPLES`): one dict per
+    equation with its ``state`` name, ``lb_stat``, ``lb_pvalue`` and ``white`` (p >=
+    :data:`DIAG_ALPHA`); an equation without residual variance (noise-free) is left out."""
+    out: List[Dict[str, Any]] = []
+    if len(x) <= 2 * DIAG_LAGS:
+        return out
+    res = ident.residuals(x, dx)
+    names = STATES.get(model_name)
+    for i, row in enumerate(rows):
+        try:
+            stat, p = ljung_box(res[:, i], lags=DIAG_LAGS)
+        except VehidError:
+            continue
+        state = names[row][0] if names else f"x{row + 1}"
+        out.append({"row": row, "state": state, "lb_stat": stat, "lb_pvalue": p, "white": bool(p >= DIAG_ALPHA)})
+    return out
+
+
+def residual_warning(check: Dict[str, Any]) -> str:
+    """The one-line warning for an equation whose residuals are not white."""
+    wheel = "wheel" in check["state"]
+    cause = ("the road input is not white noise (a real road's height is a random walk in distance), so least "
+             "squares on this equation is biased, and so are the constants it gives: identify with --road iso8608 "
+             "(and --speed or a distance column s)") if wheel else (
+             "an input or disturbance the model does not hold enters it (or the sensors' noise is not white): its "
+             "estimate and intervals assume white noise")
+    return (f"the residuals of d({check['state']})/dt are not white (Ljung-Box Q = {check['lb_stat']:.4g} over "
+            f"{DIAG_LAGS} lags, p = {check['lb_pvalue']:.2g}): {cause}")
+
+
 def road_spacing(
     args: argparse.Namespace, source: str, layout: Layout, first: NDArray[np.float64]
 ) -> Union[float, str]:
@@ -1003,6 +1046,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
             time = TimeCheck(table, layout.used["t"], layout.labels[layout.t], sys.stderr)
         fit = TruthFit(n, model.n_inputs) if layout.true_x else None
         progress = Progress(sys.stderr, source, table.size)
+        recent: Tuple[NDArray[np.float64], NDArray[np.float64]] = (np.empty((0, n)), np.empty((0, n)))
         for chunk in table.chunks(layout.columns, layout.labels, CHUNK):
             data = chunk.data
             if time is not None and layout.t is not None:
@@ -1016,6 +1060,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
             feed(ident, x, dx, odometer)
             if structured is not None:
                 feed(structured, x, dx, odometer)
+            recent = (np.concatenate([recent[0], x])[-DIAG_SAMPLES:], np.concatenate([recent[1], dx])[-DIAG_SAMPLES:])
             if fit is not None:
                 fit.add(data[:, layout.true_x], data[:, layout.u], data[:, layout.true_dx])
             progress.step(len(data), table.consumed)
@@ -1047,6 +1092,11 @@ def cmd_identify(args: argparse.Namespace) -> int:
     note = prior_note(args, ident, rows)
     if note is not None:
         print(f"vehid: note: {note}", file=sys.stderr)
+    # The white-noise assumption of least squares, checked on the residuals.
+    checks = residual_checks(ident, args.model, rows, *recent) if args.method in ("kalman", "ls") else []
+    for check in checks:
+        if not check["white"]:
+            print(f"vehid: warning: {residual_warning(check)}", file=sys.stderr)
     physical: Optional[Dict[str, float]] = None
     physical_error: Optional[str] = None
     try:
@@ -1083,6 +1133,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
             "physical": physical,
             "physical_intervals": None if intervals is None else {k: list(v) for k, v in intervals.items()},
             "prior_note": note,
+            "residual_checks": checks,
             "physical_error": physical_error,
             "truth": None if truth is None else {"source": truth.source, "constants": truth.constants},
             "true_theta": None if truth is None else _json_array(truth.theta),

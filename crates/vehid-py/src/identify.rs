@@ -299,6 +299,61 @@ impl PyIdentifier {
         crate::persist::set_state(slf, state)
     }
 
+    /// Each identified equation's residual at the current estimate, (samples, equations):
+    /// `z_i − (known terms + hᵀθ̂)` for the equations as written (before any road
+    /// differencing), in the order of `unknown_rows`. Model checks read them (whiteness:
+    /// `vehid.ljung_box`). GIL released.
+    #[pyo3(signature = (r, z, u = None))]
+    fn residuals<'py>(
+        slf: &Bound<'py, Self>,
+        py: Python<'py>,
+        r: &Bound<'py, PyAny>,
+        z: &Bound<'py, PyAny>,
+        u: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let this = borrow(slf)?;
+        let theta = this.params_vec(py)?;
+        let structure = match &this.structure {
+            Some(st) => st.get().core,
+            None => vehid_core::structure::Structure::full_rows(this.model.n, &this.model.rows).map_err(core_err)?,
+        };
+        if structure.params() != theta.len() {
+            return Err(VehidError::new_err(
+                "residuals need an identifier whose parameters are its model's unknown rows or its Structure's \
+                 parameters",
+            ));
+        }
+        let (n, m, ne) = (structure.states(), structure.inputs(), structure.equations());
+        let rt = Table::new(r, "r", None, n, "measured states")?;
+        let zt = Table::new(z, "z", Some(rt.rows), n, "measured derivatives, like `r`")?;
+        let ut = match (u, m) {
+            (_, 0) => None,
+            (None, m) => {
+                return Err(VehidError::new_err(format!(
+                    "`u` is needed: the model has {m} measured inputs (shape (samples, {m}))"
+                )))
+            }
+            (Some(u), m) => Some(Table::new(u, "u", Some(rt.rows), m, "measured inputs")?),
+        };
+        let rows = rt.rows;
+        let (x, zz) = (rt.data(), zt.data());
+        let uu = ut.as_ref().map_or(&[][..], |t| t.data());
+        finite("r", x)?;
+        finite("z", zz)?;
+        finite("u", uu)?;
+        let out = py.detach(|| {
+            let mut out = vec![0.0; rows * ne];
+            for k in 0..rows {
+                let (xk, zk, uk) = (&x[k * n..(k + 1) * n], &zz[k * n..(k + 1) * n], &uu[k * m..(k + 1) * m]);
+                for i in 0..ne {
+                    out[k * ne + i] = structure.residual(i, &theta, xk, zk, uk);
+                }
+            }
+            out
+        });
+        to_array2(py, rows, ne, out)
+    }
+
     /// A copy with its own core (the model is shared: models are immutable).
     fn __copy__<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyAny>> {
         crate::persist::copy(slf)

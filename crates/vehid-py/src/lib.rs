@@ -128,6 +128,7 @@ fn _vehid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(structure::_physical_structure, m)?)?;
     m.add_function(wrap_pyfunction!(structure::validate, m)?)?;
     m.add_function(wrap_pyfunction!(xi, m)?)?;
+    m.add_function(wrap_pyfunction!(stats::ljung_box, m)?)?;
     m.add_function(wrap_pyfunction!(snr_db, m)?)?;
     m.add_function(wrap_pyfunction!(reproduce::reproduce_report, m)?)?;
     Ok(())

@@ -189,3 +189,22 @@ pub(crate) fn physical_from_stats<'py>(
     }
     Ok(out)
 }
+
+/// The Ljung–Box test of the whiteness of `x` over lags 1..`lags` (statsmodels'
+/// `acorr_ljungbox(x, lags=[lags])`): `(lb_stat, lb_pvalue)`, with
+/// `Q = n (n + 2) Σ_j ρ̂_j² / (n − j)` and the p-value `P(χ²(lags) > Q)`. A small p-value says
+/// the series is not white (Ljung & Box 1978).
+#[pyfunction]
+#[pyo3(signature = (x, lags = 10))]
+pub fn ljung_box(py: Python<'_>, x: &Bound<'_, PyAny>, lags: i128) -> PyResult<(f64, f64)> {
+    let a = crate::convert::array(x, "x")?;
+    if a.shape.len() != 1 {
+        return Err(VehidError::new_err(format!(
+            "`x` must be one series (n,), got shape {}",
+            crate::convert::shape_str(&a.shape)
+        )));
+    }
+    let lags = crate::convert::size(lags, "lags")?;
+    let lb = py.detach(|| vehid_core::stats::ljung_box(&a.data, lags)).map_err(core_err)?;
+    Ok((lb.stat, lb.pvalue))
+}

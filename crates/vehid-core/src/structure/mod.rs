@@ -492,6 +492,16 @@ impl<T: Real> Structure<T> {
         y
     }
 
+    /// The residual of identified equation `i` at one sample and parameters `p`:
+    /// `z_state − Σ known terms − hᵀ p` (the regression of [`Structure::regression`] at `p`).
+    /// No allocation.
+    pub fn residual(&self, i: usize, p: &[T], x: &[T], z: &[T], u: &[T]) -> T {
+        let mut h = [T::zero(); MAX_PARAMS];
+        let np = self.params();
+        let y = self.regression(i, x, z, u, &mut h[..np]);
+        h[..np].iter().zip(p).fold(y, |acc, (&hj, &pj)| acc - hj * pj)
+    }
+
     /// `ẋ` at `(x, u)` and parameters `p` into `out` (`n` values), every equation evaluated
     /// in dependency order so that `der(·)` terms read the derivatives just computed. States
     /// without an equation get 0 (see [`Structure::complete`]).
