@@ -155,6 +155,9 @@ pub enum Travel<T> {
 pub struct Differenced<T: Real, I> {
     inner: I,
     state: RoadState<T>,
+    /// `ρ` for [`Travel::PerSample`] (1 otherwise): computed once, not per sample.
+    #[cfg_attr(feature = "serde", serde(skip, default = "T::one"))]
+    rho: T,
 }
 
 /// What [`Differenced`] keeps besides its inner identifier: the road model, the travel, and
@@ -204,7 +207,8 @@ impl<T: Real, I: Identifier<T>> Differenced<T, I> {
         if d.inputs != structure.inputs() || d.equations != structure.equations() {
             return Err(Error::Shape { arg: "inputs", expected: structure.inputs(), got: d.inputs });
         }
-        Ok(Self { inner, state: RoadState { road, travel, prev: [T::zero(); SAMPLE_VALUES], primed: false, seen: 0 } })
+        let state = RoadState { road, travel, prev: [T::zero(); SAMPLE_VALUES], primed: false, seen: 0 };
+        Ok(Self { inner, rho: fixed_rho(&state), state })
     }
 
     /// Checks that every identified equation of `structure` is linear in the states,
@@ -267,7 +271,7 @@ impl<T: Real, I: Identifier<T>> Differenced<T, I> {
     /// # Errors
     /// [`Error::InvalidArgument`] (`arg` "state") naming what does not fit.
     pub fn with_state(inner: I, state: RoadState<T>) -> Result<Self> {
-        let v = Self { inner, state };
+        let v = Self { inner, rho: fixed_rho(&state), state };
         v.check_state()?;
         Ok(v)
     }
@@ -302,12 +306,13 @@ impl<T: Real, I: Identifier<T>> Identifier<T> for Differenced<T, I> {
     fn update_into(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
         let dims = self.dims();
         check_lengths(dims, x, z, u, e)?;
-        check_finite("r_k", x)?;
-        check_finite("z_k", z)?;
-        check_finite("u_k", u)?;
         let (n, m) = (dims.states, dims.inputs - self.odometer() as usize);
         let s_now = if self.odometer() { u[m] } else { T::zero() };
         if !self.state.primed {
+            // Nothing checks this sample but here: it is only stored.
+            check_finite("r_k", x)?;
+            check_finite("z_k", z)?;
+            check_finite("u_k", u)?;
             self.store(x, z, &u[..m], s_now);
             self.state.primed = true;
             self.state.seen += 1;
@@ -315,21 +320,22 @@ impl<T: Real, I: Identifier<T>> Identifier<T> for Differenced<T, I> {
             return Ok(());
         }
         let prev = &self.state.prev;
-        let (ds, w) = match self.state.travel {
-            Travel::PerSample(ds) => (ds, T::one()),
+        let (rho, w) = match self.state.travel {
+            Travel::PerSample(_) => (self.rho, T::one()),
             Travel::Odometer { reference } => {
                 let ds = s_now - prev[2 * n + m];
-                if ds < T::zero() {
+                if !(ds >= T::zero() && ds.finite()) {
                     return Err(Error::InvalidArgument {
                         arg: "u_k",
-                        expected: "an odometer reading (the last input, m) that never decreases",
+                        expected: "an odometer reading (the last input, m) that is finite and never decreases",
                     });
                 }
                 let floor = reference / T::of(MAX_ROAD_WEIGHT * MAX_ROAD_WEIGHT);
-                (ds, (reference / if ds > floor { ds } else { floor }).sqrt())
+                let rate = self.state.road.rate();
+                let rho = if rate == T::zero() { T::one() } else { (-(rate * ds)).exp() };
+                (rho, (reference / if ds > floor { ds } else { floor }).sqrt())
             }
         };
-        let rho = (-(self.state.road.rate() * ds)).exp();
         let mut dx = [T::zero(); MAX_STATES];
         let mut dz = [T::zero(); MAX_STATES];
         let mut du = [T::zero(); MAX_INPUTS];
@@ -340,13 +346,9 @@ impl<T: Real, I: Identifier<T>> Identifier<T> for Differenced<T, I> {
         for j in 0..m {
             du[j] = w * (u[j] - rho * prev[2 * n + j]);
         }
-        let finite = dx[..n].iter().chain(&dz[..n]).chain(&du[..m]).all(|v| v.finite());
-        if !finite {
-            return Err(Error::InvalidArgument {
-                arg: "r_k",
-                expected: "samples whose difference from the last one is finite (values below ~1e307)",
-            });
-        }
+        // A NaN or infinity in the sample, or a difference that overflows, makes a difference
+        // non-finite, which the inner identifier refuses (naming r_k, z_k or u_k), changing
+        // nothing; the stored sample is replaced only after it took the sample.
         self.inner.update_into(&dx[..n], &dz[..n], &du[..m], e)?;
         self.store(x, z, &u[..m], s_now);
         self.state.seen += 1;
@@ -407,7 +409,9 @@ impl<T: Real, I: Identifier<T>> Differenced<T, I> {
     /// Checks a deserialized wrapper (feature `serde`): as [`Differenced::with_state`].
     #[cfg(feature = "serde")]
     pub(crate) fn restored(&mut self) -> Result<()> {
-        self.check_state()
+        self.check_state()?;
+        self.rho = fixed_rho(&self.state);
+        Ok(())
     }
 
     /// The state's settings valid, the stored sample finite and 0 beyond the inner
@@ -437,6 +441,15 @@ impl<T: Real, I: Identifier<T>> Differenced<T, I> {
             return corrupt("a differenced identifier counting at least the samples its inner one took");
         }
         Ok(())
+    }
+}
+
+/// `ρ = exp(−2π n_c Δs)` of a constant distance per sample (1 with an odometer, where it is
+/// computed per sample).
+fn fixed_rho<T: Real>(state: &RoadState<T>) -> T {
+    match state.travel {
+        Travel::PerSample(ds) => (-(state.road.rate() * ds)).exp(),
+        Travel::Odometer { .. } => T::one(),
     }
 }
 
