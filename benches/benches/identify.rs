@@ -317,8 +317,9 @@ fn noisy_states(c: &mut Criterion) {
     let s = *ph.structure();
     let inner = IvIdentifier::<f64, 2, 2>::exact(s, 1).unwrap();
     let road = vehid_core::identify::RoadModel::Shaped { cutoff: 0.01 };
-    let mut id = vehid_core::identify::Differenced::new(inner, &s, road, vehid_core::identify::Travel::PerSample(0.075))
-        .unwrap();
+    let mut id =
+        vehid_core::identify::Differenced::new(inner, &s, road, vehid_core::identify::Travel::PerSample(0.075))
+            .unwrap();
     let mut update = |x: &SVector<f64, 4>, z: &SVector<f64, 4>| {
         let _ = black_box(id.update_into(x.as_slice(), z.as_slice(), &[], &mut e));
     };

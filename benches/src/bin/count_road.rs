@@ -54,7 +54,9 @@ fn run(n: usize, road: bool) -> vehid_core::Result<String> {
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let (which, n) = match (args.first().map(String::as_str), args.get(1).map(|s| s.parse::<usize>())) {
-        (Some(w @ ("quarter_iv_physical_road" | "quarter_iv_physical_drive")), Some(Ok(n))) if args.len() == 2 => (w, n),
+        (Some(w @ ("quarter_iv_physical_road" | "quarter_iv_physical_drive")), Some(Ok(n))) if args.len() == 2 => {
+            (w, n)
+        }
         _ => {
             eprintln!("usage: count_road quarter_iv_physical_road|quarter_iv_physical_drive N");
             return ExitCode::from(2);

@@ -6,10 +6,10 @@
 use nalgebra::{DMatrix, DVector};
 use rand::{rngs::Xoshiro256PlusPlus, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
+use vehid_core::identify::KalmanOptions;
 use vehid_core::identify::{
     Differenced, Identifier, IvIdentifier, RoadModel, StructuredKalman, StructuredPrior, Travel,
 };
-use vehid_core::identify::KalmanOptions;
 use vehid_core::model::QuarterCar;
 use vehid_core::sim::{DriveConfig, QuarterDrive, SensorSet};
 use vehid_core::structure::{Basis, Structure, Term, Var};
@@ -166,16 +166,16 @@ fn equations_that_do_not_difference_are_refused() {
     let mut s = Structure::new(2, 0, 3).unwrap();
     let t = |p: u8, v: u8| Term { coef: 1.0, param: Some(p), basis: Basis::Var(Var::State(v)) };
     s.push_equation(0, &[t(0, 0), t(1, 1), Term { coef: 1.0, param: Some(2), basis: Basis::One }]).unwrap();
-    let inner = StructuredKalman::<f64, 4, 1>::new(s, StructuredPrior::Exact, None, &[1.0], KalmanOptions::default())
-        .unwrap();
+    let inner =
+        StructuredKalman::<f64, 4, 1>::new(s, StructuredPrior::Exact, None, &[1.0], KalmanOptions::default()).unwrap();
     let err = Differenced::new(inner, &s, RoadModel::RandomWalk, Travel::PerSample(1.0)).unwrap_err();
     assert!(matches!(err, Error::NotIdentifiable { what } if what.contains("offset")), "{err}");
 
     let mut s = Structure::new(2, 0, 2).unwrap();
     let (start, len) = s.push_combination(&[(Var::State(1), 1.0)]).unwrap();
     s.push_equation(0, &[t(0, 0), Term { coef: 1.0, param: Some(1), basis: Basis::Sign { start, len } }]).unwrap();
-    let inner = StructuredKalman::<f64, 2, 1>::new(s, StructuredPrior::Exact, None, &[1.0], KalmanOptions::default())
-        .unwrap();
+    let inner =
+        StructuredKalman::<f64, 2, 1>::new(s, StructuredPrior::Exact, None, &[1.0], KalmanOptions::default()).unwrap();
     let err = Differenced::new(inner, &s, RoadModel::RandomWalk, Travel::PerSample(1.0)).unwrap_err();
     assert!(matches!(err, Error::NotIdentifiable { what } if what.contains("sign")), "{err}");
 

@@ -584,8 +584,8 @@ pub fn set_state(obj: &Bound<'_, PyIdentifier>, state: &Bound<'_, PyAny>) -> PyR
     let core = match road {
         None if mine.is_none() => core,
         Some(bytes) if mine.is_some() => {
-            let st: vehid_core::identify::RoadState<f64> = postcard::from_bytes(&bytes)
-                .map_err(|e| corrupt(&format!("its road state does not decode ({e})")))?;
+            let st: vehid_core::identify::RoadState<f64> =
+                postcard::from_bytes(&bytes).map_err(|e| corrupt(&format!("its road state does not decode ({e})")))?;
             let wrapped = crate::road::rewrap(core, st).map_err(|e| corrupt(&e.to_string()))?;
             if crate::road::of(wrapped.as_ref()) != mine {
                 return Err(corrupt("its road model or spacing differ from this object's"));

@@ -61,9 +61,7 @@ pub fn road_args(road: &str, cutoff: Option<f64>, spacing: Option<&Bound<'_, PyA
         }
         "random-walk" => {
             if cutoff.is_some() {
-                return Err(VehidError::new_err(
-                    "`road_cutoff` is for road=\"iso8608\" (a random walk has none)",
-                ));
+                return Err(VehidError::new_err("`road_cutoff` is for road=\"iso8608\" (a random walk has none)"));
             }
             RoadModel::RandomWalk
         }
@@ -110,7 +108,11 @@ pub fn road_args(road: &str, cutoff: Option<f64>, spacing: Option<&Bound<'_, PyA
 }
 
 /// `inner` (an identifier on `s`) fed the samples differenced for `road`.
-pub fn wrap(inner: Box<dyn DynIdentifier<f64>>, s: &Structure<f64>, road: Road) -> PyResult<Box<dyn DynIdentifier<f64>>> {
+pub fn wrap(
+    inner: Box<dyn DynIdentifier<f64>>,
+    s: &Structure<f64>,
+    road: Road,
+) -> PyResult<Box<dyn DynIdentifier<f64>>> {
     let d = Differenced::new(BoxedIdentifier(inner), s, road.model, road.travel).map_err(core_err)?;
     Ok(Box::new(d))
 }
@@ -127,7 +129,10 @@ pub fn split(inner: &dyn DynIdentifier<f64>) -> (&dyn DynIdentifier<f64>, Option
 }
 
 /// `core` wrapped again with a saved state.
-pub fn rewrap(core: Box<dyn DynIdentifier<f64>>, state: RoadState<f64>) -> vehid_core::Result<Box<dyn DynIdentifier<f64>>> {
+pub fn rewrap(
+    core: Box<dyn DynIdentifier<f64>>,
+    state: RoadState<f64>,
+) -> vehid_core::Result<Box<dyn DynIdentifier<f64>>> {
     Ok(Box::new(Wrapped::with_state(BoxedIdentifier(core), state)?))
 }
 

@@ -51,12 +51,12 @@ mod joint_ekf;
 mod kalman;
 mod least_squares;
 mod noise_estimating;
+mod road;
 mod store;
 mod structured;
 mod structured_fast;
 mod structured_gradient;
 mod two_axle;
-mod road;
 mod two_axle_structured;
 
 #[cfg(feature = "alloc")]
@@ -93,6 +93,9 @@ pub use least_squares::LsAccumulator;
 #[cfg(feature = "alloc")]
 pub use noise_estimating::NoiseEstimatingBclsVec;
 pub use noise_estimating::{NoiseEstimatingBcls, NoiseEstimatingBclsLs};
+#[cfg(feature = "alloc")]
+pub use road::BoxedIdentifier;
+pub use road::{Differenced, RoadModel, RoadState, Travel, MAX_ROAD_WEIGHT};
 pub use store::{Dynamic, Fixed, Flat, NoScratch, Store, DYNAMIC_LANES};
 #[cfg(feature = "alloc")]
 pub use structured::StructuredKalmanVec;
@@ -101,9 +104,6 @@ pub use structured_gradient::StructuredGradient;
 #[cfg(feature = "alloc")]
 pub use two_axle::TwoAxleIdentifierVec;
 pub use two_axle::{Past, TwoAxle, TwoAxleConfig, TwoAxleIdentifier, WheelMethod};
-pub use road::{Differenced, RoadModel, RoadState, Travel, MAX_ROAD_WEIGHT};
-#[cfg(feature = "alloc")]
-pub use road::BoxedIdentifier;
 #[cfg(feature = "alloc")]
 pub use two_axle_structured::TwoAxleStructuredVec;
 pub use two_axle_structured::{FrontRegression, TwoAxleStructured, TwoAxleStructuredConfig, TwoAxleStructuredKalman};

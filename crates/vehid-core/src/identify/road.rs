@@ -149,7 +149,10 @@ pub enum Travel<T> {
     derive(serde::Serialize, serde::Deserialize),
     serde(
         remote = "Self",
-        bound(serialize = "T: serde::Serialize, I: serde::Serialize", deserialize = "T: serde::Deserialize<'de>, I: serde::Deserialize<'de>")
+        bound(
+            serialize = "T: serde::Serialize, I: serde::Serialize",
+            deserialize = "T: serde::Deserialize<'de>, I: serde::Deserialize<'de>"
+        )
     )
 )]
 pub struct Differenced<T: Real, I> {

@@ -38,7 +38,7 @@ pub use cusum::{
     CUSUM_SCALARS, CUSUM_SQUARES_SCALARS,
 };
 pub use dist::{normal_cdf, normal_ppf, normal_sf, t_cdf, t_ppf, t_sf};
-pub use whiteness::{chi2_sf, ljung_box, LjungBox};
 #[cfg(feature = "alloc")]
 pub use summary::Summary;
 pub use summary::{condition_number, summary_into, SummaryBuffers, SummaryScalars, SYMMETRY_TOLERANCE};
+pub use whiteness::{chi2_sf, ljung_box, LjungBox};
