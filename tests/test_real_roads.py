@@ -35,24 +35,28 @@ def structure() -> vehid.Structure:
 
 
 def test_the_thesis_identifier_is_far_off_and_the_coloured_road_one_within_five_percent() -> None:
-    for seed in (8101, 8102, 8103):
-        run = drive(seed, n=40_000)
-        thesis = vehid.KalmanIdentifier(structure())
-        thesis.fit(run.x, run.xdot)
+    # The documented claim: 300 s at 200 Hz, every constant within 5 % on >= 9 of 10 seeds.
+    good = 0
+    for seed in range(8101, 8111):
+        run = drive(seed, n=60_000)
         road = vehid.IVIdentifier(structure(), road="iso8608", spacing=15.0 * DT)
         road.fit(run.x, run.xdot)
-        bad = CAR.physical(thesis.stats(), m=TRUTH["m"])
-        good = CAR.physical(road.stats(), m=TRUTH["m"])
-        assert bad["M"][0] < 0.3 * TRUTH["M"], bad  # the bias the issue reports (52 kg for 320)
-        for k in CONSTANTS:
-            assert abs(good[k][0] / TRUTH[k] - 1) < 0.05, (seed, k, good[k])
+        got = CAR.physical(road.stats(), m=TRUTH["m"])
+        good += all(abs(got[k][0] / TRUTH[k] - 1) < 0.05 for k in CONSTANTS)
+        if seed == 8101:
+            thesis = vehid.KalmanIdentifier(structure())
+            thesis.fit(run.x, run.xdot)
+            bad = CAR.physical(thesis.stats(), m=TRUTH["m"])
+            assert bad["M"][0] < 0.3 * TRUTH["M"], bad  # the bias the issue reports (52 kg for 320)
+    assert good >= 9, good
 
 
 def test_the_estimate_is_instrumental_variables_on_the_quasi_differences_computed_by_numpy() -> None:
     run = drive(8111, n=8000)
     s = structure()
-    iv = vehid.IVIdentifier(s, delay=1, lags=0, road="iso8608", spacing=15.0 * DT)
+    iv = vehid.IVIdentifier(s, delay=1, road="iso8608", spacing=15.0 * DT, min_spacing=0.0)
     iv.fit(run.x, run.xdot)
+    assert iv.lags == 0  # the default on a coloured road
     rho = np.exp(-2 * np.pi * 0.01 * 15.0 * DT)
     x = run.x[1:] - rho * run.x[:-1]
     z = run.xdot[1:] - rho * run.xdot[:-1]
@@ -82,12 +86,32 @@ def test_odometer_at_constant_speed_equals_the_spacing_and_varying_speed_is_iden
         assert abs(got[k][0] / TRUTH[k] - 1) < 0.05, (k, got[k])
 
 
+def test_on_an_independent_smooth_road_spaced_samples_are_needed_and_enough() -> None:
+    # A road generated and integrated without vehid (benches/independent_road.py: random-phase
+    # harmonics over ISO 8608's band, scipy's lsim): its increments are correlated below ~0.18 m.
+    from bench_scripts import load  # tests/ is on sys.path under pytest
+
+    pytest.importorskip("scipy")
+    sim = load("independent_road")
+    for seed, speed in ((8601, 10.0), (8602, 15.0), (8603, 25.0)):
+        x, xd, _ = sim.simulate(TRUTH, "C", speed, DT, 40_000, seed)
+        spaced = vehid.IVIdentifier(structure(), road="iso8608", spacing=speed * DT)  # 0.25 m apart
+        spaced.fit(x, xd)
+        got = CAR.physical(spaced.stats(), m=TRUTH["m"])
+        for k in CONSTANTS:
+            assert abs(got[k][0] / TRUTH[k] - 1) < 0.05, (seed, k, got[k])
+        every = vehid.IVIdentifier(structure(), road="iso8608", spacing=speed * DT, min_spacing=0.0)
+        every.fit(x, xd)
+        if speed <= 15.0:  # 5 cm and 7.5 cm per sample: instruments correlated with the road's increments
+            assert abs(CAR.physical(every.stats(), m=TRUTH["m"])["M"][0] / TRUTH["M"] - 1) > 0.2
+
+
 def test_the_intervals_cover_the_truth_over_seeds() -> None:
     # 40 seeds: a nominal 95 % interval misses in more than 6 of 40 with probability < 1 %.
     miss = {k: 0 for k in CONSTANTS}
     for seed in range(8200, 8240):
         run = drive(seed, n=12_000)
-        iv = vehid.IVIdentifier(structure(), lags=0, road="iso8608", spacing=15.0 * DT)
+        iv = vehid.IVIdentifier(structure(), road="iso8608", spacing=15.0 * DT)
         iv.fit(run.x, run.xdot)
         for k, (_, lo, hi) in CAR.physical(iv.stats(), m=TRUTH["m"]).items():
             if k in miss:
@@ -101,14 +125,14 @@ def test_a_coloured_road_identifier_pickles_and_copies_and_continues_bit_for_bit
     iv.fit(run.x[:3000], run.xdot[:3000], u=run.s[:3000, None])
     copies = [pickle.loads(pickle.dumps(iv, protocol=p)) for p in (2, 5)] + [copy.copy(iv), copy.deepcopy(iv)]
     for c in copies:
-        assert (c.road, c.road_cutoff, c.spacing) == ("iso8608", 0.02, "odometer")
+        assert (c.road, c.road_cutoff, c.spacing, c.min_spacing) == ("iso8608", 0.02, "odometer", 0.25)
     for ident in [iv, *copies]:
         ident.fit(run.x[3000:], run.xdot[3000:], u=run.s[3000:, None])
     for c in copies:
         assert np.array_equal(c.params, iv.params)
         assert c.samples == iv.samples == 6000
     # A state saved with another road model is refused, naming why.
-    white = vehid.IVIdentifier(structure())
+    white = vehid.IVIdentifier(structure(), lags=0)  # the same instruments: only the road differs
     reduce = iv.__reduce__()
     with pytest.raises(vehid.VehidError, match="road"):
         white.__setstate__(reduce[2])
@@ -127,6 +151,8 @@ def test_a_coloured_road_identifier_pickles_and_copies_and_continues_bit_for_bit
         ({"road": "iso8608", "spacing": 0.0}, "spacing"),
         ({"road": "iso8608", "spacing": float("nan")}, "spacing"),
         ({"road": "iso8608", "spacing": "gps"}, "spacing"),
+        ({"road": "iso8608", "spacing": 0.1, "min_spacing": -0.5}, "min_spacing"),
+        ({"min_spacing": 0.3}, "coloured road"),
     ],
 )
 def test_bad_road_arguments_are_refused_naming_the_fix(kwargs: dict, match: str) -> None:

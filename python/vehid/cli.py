@@ -750,6 +750,8 @@ def road_options(args: argparse.Namespace, spacing: Union[float, str]) -> Dict[s
     """The keywords of ``IVIdentifier`` for ``--road``, with ``spacing`` (m per sample or
     "odometer")."""
     kw: Dict[str, Any] = {"road": args.road, "spacing": spacing}
+    if args.min_spacing is not None:
+        kw["min_spacing"] = args.min_spacing
     if args.road == "iso8608" and args.road_cutoff is not None:
         kw["road_cutoff"] = args.road_cutoff
     if args.delay is not None:
@@ -760,9 +762,9 @@ def road_options(args: argparse.Namespace, spacing: Union[float, str]) -> Dict[s
 def check_road_args(args: argparse.Namespace) -> None:
     """Refuses ``--road`` settings that do not fit together, before any reading."""
     if not coloured(args):
-        if args.road_cutoff is not None or args.speed is not None or args.delay is not None:
-            raise CliError("--road-cutoff, --speed and --delay describe a road that is not white: add --road "
-                           "iso8608 (or random-walk)")
+        if any(v is not None for v in (args.road_cutoff, args.speed, args.delay, args.min_spacing)):
+            raise CliError("--road-cutoff, --speed, --delay and --min-spacing describe a road that is not white: add "
+                           "--road iso8608 (or random-walk)")
         return
     if args.method != "kalman":
         raise CliError(f"--road {args.road} identifies by instrumental variables on the differenced equations; "
@@ -904,7 +906,8 @@ def method_options(args: argparse.Namespace) -> Dict[str, Any]:
         return {"p0": THESIS_P0 if args.p0 == "exact" else args.p0, "road_sigma": args.road_sigma,
                 "deriv_noise": args.deriv_noise, "spacing": args.spacing, "wheel_method": args.wheel_method}
     if args.method == "iv":
-        opts: Dict[str, Any] = {"road": args.road, "delay": 1 if args.delay is None else args.delay}
+        opts: Dict[str, Any] = {"road": args.road, "delay": 1 if args.delay is None else args.delay,
+                                "min_spacing": 0.25 if args.min_spacing is None else args.min_spacing}
         if args.road == "iso8608":
             opts["road_cutoff"] = 0.01 if args.road_cutoff is None else args.road_cutoff
         opts["distance"] = f"--speed {args.speed} m/s" if args.speed is not None else "the file's column s"
@@ -1368,6 +1371,10 @@ def build_parser() -> argparse.ArgumentParser:
     ident.add_argument("--speed", type=positive_float, default=None,
                        help="--road iso8608/random-walk: the constant speed, m/s (the distance per sample is speed "
                             "x the median sample interval); without it the file's distance column s is read")
+    ident.add_argument("--min-spacing", type=float, default=None, metavar="M",
+                       help="--road iso8608/random-walk: the least distance between two differenced samples, m "
+                            "(default 0.25: a road as a tyre feels it is smooth over shorter stretches; 0: every "
+                            "sample, for simulated roads whose increments are independent from sample to sample)")
     ident.add_argument("--delay", type=int, default=None,
                        help="--road iso8608/random-walk: the instruments' delay in samples (default 1; use 2 when the "
                             "measured states carry white noise, whose difference is correlated over two samples)")

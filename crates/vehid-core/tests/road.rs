@@ -107,7 +107,10 @@ fn odometer_at_constant_speed_is_the_per_sample_distance_and_weights_by_distance
         StructuredKalman::<f64, 2, 1>::new(s, StructuredPrior::Scalar(10.0), None, &[1.0], KalmanOptions::default())
             .unwrap()
     };
-    let mut one = Differenced::new(prior(), &s, road, Travel::Odometer { reference: 2.0 }).unwrap();
+    let mut one = Differenced::new(prior(), &s, road, Travel::Odometer { reference: 2.0 })
+        .unwrap()
+        .with_min_spacing(0.0)
+        .unwrap();
     one.update_into(&[1.0, 0.5], &[0.0, 0.0], &[10.0], &mut e).unwrap();
     assert_eq!(e, [0.0], "the first sample only starts a difference");
     one.update_into(&[1.0, 0.5], &[1.0, 0.0], &[18.0], &mut e).unwrap();
@@ -124,6 +127,42 @@ fn odometer_at_constant_speed_is_the_per_sample_distance_and_weights_by_distance
     one.update_into(&[1.0, 0.5], &[2.0, 0.0], &[18.0], &mut e).unwrap();
     by_hand.update_into(&[0.0, 0.0], &[10.0, 0.0], &[], &mut d).unwrap();
     assert_eq!(e, d, "a sample over no distance weighs MAX_ROAD_WEIGHT = 10");
+}
+
+#[test]
+fn samples_closer_than_min_spacing_are_skipped() {
+    let (x, z, _) = random_walk_data(2000, 15);
+    let s = two_param();
+    let road = RoadModel::Shaped { cutoff: 0.01 };
+    // 0.075 m per sample, at least 0.25 m apart: every fourth sample is differenced.
+    let mut spaced = Differenced::new(kalman(s), &s, road, Travel::PerSample(0.075)).unwrap();
+    assert_eq!(spaced.min_spacing(), vehid_core::identify::DEFAULT_MIN_SPACING);
+    let mut every4 =
+        Differenced::new(kalman(s), &s, road, Travel::PerSample(0.3)).unwrap().with_min_spacing(0.0).unwrap();
+    let mut odo = Differenced::new(kalman(s), &s, road, Travel::Odometer { reference: 0.3 }).unwrap();
+    let mut e = [0.0];
+    for k in 0..2000 {
+        let (xk, zk) = (&x[2 * k..2 * k + 2], &z[2 * k..2 * k + 2]);
+        spaced.update_into(xk, zk, &[], &mut e).unwrap();
+        odo.update_into(xk, zk, &[0.075 * k as f64], &mut e).unwrap();
+        if k % 4 == 0 {
+            every4.update_into(xk, zk, &[], &mut e).unwrap();
+        } else {
+            assert_eq!(e, [0.0], "a skipped sample has no innovation");
+        }
+    }
+    let (mut a, mut b, mut c) = ([0.0; 2], [0.0; 2], [0.0; 2]);
+    spaced.params_into(&mut a).unwrap();
+    every4.params_into(&mut b).unwrap();
+    odo.params_into(&mut c).unwrap();
+    for j in 0..2 {
+        assert!((a[j] - b[j]).abs() < 1e-12 * b[j].abs(), "{a:?} against every fourth sample {b:?}");
+        assert!((c[j] - b[j]).abs() < 1e-9 * b[j].abs(), "odometer {c:?} against every fourth sample {b:?}");
+    }
+    assert_eq!((spaced.samples(), spaced.inner().samples()), (2000, 499));
+    // A skipped sample is still checked.
+    assert!(matches!(spaced.update_into(&[f64::NAN, 0.0], &[0.0, 0.0], &[], &mut e), Err(Error::NonFinite { .. })));
+    assert!(Differenced::new(kalman(s), &s, road, Travel::PerSample(0.1)).unwrap().with_min_spacing(-1.0).is_err());
 }
 
 #[test]

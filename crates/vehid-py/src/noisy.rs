@@ -232,7 +232,7 @@ impl PyIVIdentifier {
     #[new]
     #[pyo3(signature = (model, delay = 1, lags = None, p0 = None, r = None, *, theta0 = None,
                         instruments = "delayed", dt = None, refresh = 100, substeps = 1, road = "white",
-                        road_cutoff = None, spacing = None))]
+                        road_cutoff = None, spacing = None, min_spacing = None))]
     #[allow(clippy::too_many_arguments)]
     fn py_new(
         model: &Bound<'_, PyAny>,
@@ -248,10 +248,11 @@ impl PyIVIdentifier {
         road: &str,
         road_cutoff: Option<f64>,
         spacing: Option<&Bound<'_, PyAny>>,
+        min_spacing: Option<f64>,
     ) -> PyResult<PyClassInitializer<Self>> {
         let target = Target::of(model)?;
         let s = target.structure()?;
-        let road = crate::road::road_args(road, road_cutoff, spacing)?;
+        let road = crate::road::road_args(road, road_cutoff, spacing, min_spacing)?;
         if road.is_some() && instruments == "model" {
             return Err(VehidError::new_err(
                 "a coloured `road` takes instruments=\"delayed\" (the auxiliary model would be simulated from \
@@ -285,7 +286,10 @@ impl PyIVIdentifier {
                 )))
             }
         };
-        let lags = if model_args.is_some() { Some(0) } else { lags };
+        // On a coloured road the instruments are the delayed regressors unless `lags` says
+        // otherwise: on a road that is smooth at the sample scale the predictor finds the part
+        // of the road its past predicts, which is the error (road.rs, "Smooth roads").
+        let lags = if model_args.is_some() || (road.is_some() && lags.is_none()) { Some(0) } else { lags };
         let (delay, lags) = instrument_args(&s, delay, lags)?;
         let is_model = matches!(target, Target::Model(_));
         let (kind, p0_data) = prior_arg(p0, np, ne, is_model)?;
@@ -334,6 +338,12 @@ impl PyIVIdentifier {
     #[getter]
     fn road_cutoff(&self) -> Option<f64> {
         self.road.and_then(|r| r.cutoff())
+    }
+
+    /// The least distance between two differenced samples, m (None on a white road).
+    #[getter]
+    fn min_spacing(&self) -> Option<f64> {
+        self.road.map(|r| r.min_spacing)
     }
 
     /// Metres travelled per sample, or "odometer" (the last column of `u`); None on a white road.

@@ -11,6 +11,9 @@ use vehid_core::structure::Structure;
 /// drives' shaping filter, cycles/m.
 pub const DEFAULT_CUTOFF: f64 = vehid_core::sim::DEFAULT_CUTOFF;
 
+/// The least distance between differenced samples unless `min_spacing=` says otherwise, m.
+pub const DEFAULT_MIN_SPACING: f64 = vehid_core::identify::DEFAULT_MIN_SPACING;
+
 /// The distance per sample at which a sample has weight 1 with `spacing="odometer"`, m.
 pub const ODOMETER_REFERENCE: f64 = 1.0;
 
@@ -19,6 +22,8 @@ pub const ODOMETER_REFERENCE: f64 = 1.0;
 pub struct Road {
     pub model: RoadModel<f64>,
     pub travel: Travel<f64>,
+    /// The least distance between differenced samples, m.
+    pub min_spacing: f64,
 }
 
 impl Road {
@@ -47,14 +52,20 @@ impl Road {
     }
 }
 
-/// Parses `road`, `road_cutoff` and `spacing` (None: the white road of the thesis).
-pub fn road_args(road: &str, cutoff: Option<f64>, spacing: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Road>> {
+/// Parses `road`, `road_cutoff`, `spacing` and `min_spacing` (None: the white road of the
+/// thesis).
+pub fn road_args(
+    road: &str,
+    cutoff: Option<f64>,
+    spacing: Option<&Bound<'_, PyAny>>,
+    min_spacing: Option<f64>,
+) -> PyResult<Option<Road>> {
     let model = match road {
         "white" => {
-            if cutoff.is_some() || spacing.is_some() {
+            if cutoff.is_some() || spacing.is_some() || min_spacing.is_some() {
                 return Err(VehidError::new_err(
-                    "`road_cutoff` and `spacing` describe a coloured road: give them with road=\"random-walk\" or \
-                     road=\"iso8608\"",
+                    "`road_cutoff`, `spacing` and `min_spacing` describe a coloured road: give them with \
+                     road=\"random-walk\" or road=\"iso8608\"",
                 ));
             }
             return Ok(None);
@@ -104,7 +115,13 @@ pub fn road_args(road: &str, cutoff: Option<f64>, spacing: Option<&Bound<'_, PyA
             }
         },
     };
-    Ok(Some(Road { model, travel }))
+    let min_spacing = min_spacing.unwrap_or(DEFAULT_MIN_SPACING);
+    if !(min_spacing.is_finite() && min_spacing >= 0.0) {
+        return Err(VehidError::new_err(format!(
+            "`min_spacing` must be finite and >= 0 metres (0: every sample is differenced), got {min_spacing}"
+        )));
+    }
+    Ok(Some(Road { model, travel, min_spacing }))
 }
 
 /// `inner` (an identifier on `s`) fed the samples differenced for `road`.
@@ -113,7 +130,9 @@ pub fn wrap(
     s: &Structure<f64>,
     road: Road,
 ) -> PyResult<Box<dyn DynIdentifier<f64>>> {
-    let d = Differenced::new(BoxedIdentifier(inner), s, road.model, road.travel).map_err(core_err)?;
+    let d = Differenced::new(BoxedIdentifier(inner), s, road.model, road.travel)
+        .and_then(|d| d.with_min_spacing(road.min_spacing))
+        .map_err(core_err)?;
     Ok(Box::new(d))
 }
 
@@ -138,5 +157,8 @@ pub fn rewrap(
 
 /// The setting a wrapper was built with (None: no wrapper).
 pub fn of(inner: &dyn DynIdentifier<f64>) -> Option<Road> {
-    inner.as_any().downcast_ref::<Wrapped>().map(|d| Road { model: d.road(), travel: d.travel() })
+    inner
+        .as_any()
+        .downcast_ref::<Wrapped>()
+        .map(|d| Road { model: d.road(), travel: d.travel(), min_spacing: d.min_spacing() })
 }
