@@ -157,8 +157,9 @@ pub fn rewrap(
 
 /// The setting a wrapper was built with (None: no wrapper).
 pub fn of(inner: &dyn DynIdentifier<f64>) -> Option<Road> {
-    inner
-        .as_any()
-        .downcast_ref::<Wrapped>()
-        .map(|d| Road { model: d.road(), travel: d.travel(), min_spacing: d.min_spacing() })
+    inner.as_any().downcast_ref::<Wrapped>().map(|d| Road {
+        model: d.road(),
+        travel: d.travel(),
+        min_spacing: d.min_spacing(),
+    })
 }
