@@ -32,6 +32,7 @@ __all__ = [
     "_physical_structure",
     "validate",
     "xi",
+    "ljung_box",
     "snr_db",
     "reproduce_report",
 ]
