@@ -122,13 +122,22 @@ pub(crate) fn power_terms(a: f64, b: f64, x: f64, y: f64) -> f64 {
 pub(crate) fn ibeta_fraction(a: f64, b: f64, x: f64, y: f64) -> f64 {
     let lin = a * y - b * x + 1.0;
     let b0 = a * lin / (a + 1.0);
-    let mut f = if b0 == 0.0 { TINY } else { b0 };
-    let (mut c, mut d) = (f, 0.0);
-    for m in 1..=MAX_TERMS {
-        let m = m as f64;
+    lentz(b0, |m| {
         let den = a + 2.0 * m - 1.0;
         let am = ((a + m - 1.0) / den) * ((a + b + m - 1.0) / den) * m * (b - m) * x * x;
         let bm = m + m * (b - m) * x / den + (a + m) * (lin + m * (1.0 + y)) / (den + 2.0);
+        (am, bm)
+    })
+}
+
+/// `b₀ + a₁/(b₁ + a₂/(b₂ + …))` by the modified Lentz method (Press et al., *Numerical
+/// Recipes*, §5.2), `terms(m)` giving `(a_m, b_m)` for `m = 1, 2, …`; stops when a step changes
+/// the value by at most one ulp, or after [`MAX_TERMS`] terms.
+pub(crate) fn lentz(b0: f64, mut terms: impl FnMut(f64) -> (f64, f64)) -> f64 {
+    let mut f = if b0 == 0.0 { TINY } else { b0 };
+    let (mut c, mut d) = (f, 0.0);
+    for m in 1..=MAX_TERMS {
+        let (am, bm) = terms(m as f64);
         d = bm + am * d;
         if libm::fabs(d) < TINY {
             d = TINY;

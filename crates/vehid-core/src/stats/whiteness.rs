@@ -12,8 +12,8 @@
 use crate::{Error, Result};
 
 /// `P(χ²(df) > x)`, the chi-square survival function (scipy `stats.chi2.sf`): the regularized
-/// upper incomplete gamma function `Q(df/2, x/2)`, by its series below `a + 1` and Lentz's
-/// continued fraction above (Press et al., *Numerical Recipes*, §6.2; relative error a few
+/// upper incomplete gamma function `Q(df/2, x/2)`, by its series below `a + 1` and its continued
+/// fraction (modified Lentz, shared with the incomplete beta) above (Press et al., *Numerical Recipes*, §6.2; relative error a few
 /// 1e-15 against scipy in the tests).
 ///
 /// # Errors
@@ -46,31 +46,10 @@ pub fn chi2_sf(x: f64, df: f64) -> Result<f64> {
         }
         return Ok((1.0 - sum * libm::exp(log_front)).max(0.0));
     }
-    // Q(a, h) = e^{-h} h^a / Γ(a) · 1/(h + 1 − a − 1·(1−a)/(h + 3 − a − …)), modified Lentz.
-    let tiny = 1e-300;
-    let mut b = h + 1.0 - a;
-    let mut c = 1.0 / tiny;
-    let mut d = 1.0 / b;
-    let mut f = d;
-    for i in 1..10_000 {
-        let an = -(i as f64) * (i as f64 - a);
-        b += 2.0;
-        d = an * d + b;
-        if libm::fabs(d) < tiny {
-            d = tiny;
-        }
-        c = b + an / c;
-        if libm::fabs(c) < tiny {
-            c = tiny;
-        }
-        d = 1.0 / d;
-        let delta = d * c;
-        f *= delta;
-        if libm::fabs(delta - 1.0) < 1e-16 {
-            break;
-        }
-    }
-    Ok(libm::exp(log_front) * f)
+    // Q(a, h) = e^{-h} h^a / Γ(a) / F, F = b₀ + a₁/(b₁ + …) with b_i = h + 1 − a + 2i,
+    // a_i = −i (i − a) (Numerical Recipes §6.2).
+    let f = super::beta::lentz(h + 1.0 - a, |i| (-i * (i - a), h + 1.0 - a + 2.0 * i));
+    Ok(libm::exp(log_front) / f)
 }
 
 /// The Ljung–Box test of a series' whiteness (statsmodels `acorr_ljungbox(x, lags=[h])`).
