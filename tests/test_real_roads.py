@@ -310,3 +310,24 @@ def test_vehid_identify_warns_when_the_road_is_not_white(tmp_path: Path, capsys:
     assert cli.main(["identify", str(log), "--model", "quarter", "--m", "40", "--json"]) == 0
     report = json.loads(capsys.readouterr().out)
     assert [c["white"] for c in report["residual_checks"] if c["state"] == "wheel_vel"] == [False]
+
+
+def test_the_half_car_on_an_iso_road_by_road_cancellation() -> None:
+    # The rear wheel meets the front wheel's road a wheelbase later whatever its spectrum, so
+    # cancelling it identifies all 28 entries on an ISO road too (true states, fresh seeds).
+    half = vehid.HalfCar.passenger()
+    p = half.params
+    s = half.structure(known={k: p[k] for k in ("m1", "m2", "l1", "l2")})
+    rows = list(half.unknown_rows)
+    nz = half.a[rows] != 0
+    assert nz.sum() == 28
+    for seed, speed in ((8701, 10.0), (8702, 20.0)):
+        run = vehid.Simulator(half, dt=DT, road="iso8608-D", speed=speed, sensors="state", seed=seed).run(20_000)
+        two = vehid.TwoAxleIdentifier(s, car=half, spacing=speed * DT, compensate=False)
+        two.fit(run.x, run.xdot)
+        err = np.abs(two.a_hat[rows][nz] / half.a[rows][nz] - 1)
+        assert err.max() < 0.05, (seed, err.max())
+        rows_only = vehid.KalmanIdentifier(half)  # the thesis' rows, white-road assumption
+        rows_only.fit(run.x, run.xdot)
+        wheel = np.abs(rows_only.a_hat[rows][nz] / half.a[rows][nz] - 1)
+        assert wheel.max() > 0.2, wheel.max()
