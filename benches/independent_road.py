@@ -14,6 +14,9 @@ identifier on data whose road and integrator share none of vehid's code or assum
 
 ``simulate(params, cls, speed, dt, n, seed)`` returns ``(x, xdot, s)``: states, derivatives and
 distance travelled, as ``vehid.Simulator(..., sensors="state").run(n)``'s ``x``, ``xdot``, ``s``.
+``simulate_lift_off(...)`` the same with a tyre that only pushes (the static load included: it
+leaves the ground when the road falls away faster than the wheel), by a fixed-step RK4 of its
+own, and which samples were off the ground.
 """
 
 from __future__ import annotations
@@ -80,3 +83,41 @@ def simulate(
     hk = h[::SUBSTEPS]
     xdot = x @ a.T + np.outer(hk, b[:, 0])
     return np.ascontiguousarray(x), np.ascontiguousarray(xdot), s_fine[::SUBSTEPS].copy()
+
+
+GRAVITY = 9.80665
+
+
+def simulate_lift_off(
+    params: Dict[str, float], cls: str, speed: float, dt: float, n: int, seed: int, substeps: int = 10
+) -> Tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+    """``(x, xdot, lifted)``: the quarter car on a class-``cls`` road at a constant ``speed``
+    whose tyre force ``k1 (h − z_w) + (M + m) g`` is clipped at 0 (states: deviations from the
+    static equilibrium), integrated by RK4 with ``substeps`` steps per sample (the road linear
+    within a step); ``lifted`` marks the samples with the tyre off the ground."""
+    big_m, m, k1, k2, b = (params[k] for k in ("M", "m", "k1", "k2", "b"))
+    rng = np.random.default_rng(seed)
+    h_step = dt / substeps
+    s = np.arange(n * substeps + 1) * speed * h_step
+    road = spectral_road(cls, float(s[-1]) + 1.0, rng)
+    h = np.interp(s / GRID, np.arange(road.size), road)
+    weight = (big_m + m) * GRAVITY
+
+    def rhs(x: NDArray[np.float64], r: float) -> Tuple[NDArray[np.float64], bool]:
+        zw, vw, zb, vb = x
+        tyre = max(k1 * (r - zw) + weight, 0.0) - weight
+        spring = k2 * (zb - zw) + b * (vb - vw)
+        return np.array([vw, (tyre + spring) / m, vb, -spring / big_m]), tyre <= -weight
+
+    x = np.array([h[0], 0.0, h[0], 0.0])
+    xs, xds, lifted = np.empty((n, 4)), np.empty((n, 4)), np.zeros(n, dtype=bool)
+    for k in range(n * substeps):
+        r0, r1 = h[k], h[k + 1]
+        a1, off = rhs(x, r0)
+        if k % substeps == 0:
+            xs[k // substeps], xds[k // substeps], lifted[k // substeps] = x, a1, off
+        a2, _ = rhs(x + 0.5 * h_step * a1, 0.5 * (r0 + r1))
+        a3, _ = rhs(x + 0.5 * h_step * a2, 0.5 * (r0 + r1))
+        a4, _ = rhs(x + h_step * a3, r1)
+        x = x + h_step / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+    return xs, xds, lifted

@@ -331,3 +331,36 @@ def test_the_half_car_on_an_iso_road_by_road_cancellation() -> None:
         rows_only.fit(run.x, run.xdot)
         wheel = np.abs(rows_only.a_hat[rows][nz] / half.a[rows][nz] - 1)
         assert wheel.max() > 0.2, wheel.max()
+
+
+def test_lift_off_is_found_and_flagged() -> None:
+    # Class E at 25 m/s with a tyre that only pushes (benches/independent_road.py, RK4 of its
+    # own): off the ground a large share of the time, where the linear model does not hold, and
+    # the constants come out biased. The check counts every lifted sample (the nominal body mass
+    # 10 % off serves) and changes nothing else; the command line flags the constants.
+    from bench_scripts import load  # tests/ is on sys.path under pytest
+
+    sim = load("independent_road")
+    x, xd, lifted = sim.simulate_lift_off(TRUTH, "E", 25.0, DT, 30_000, 8801)
+    assert 0.02 < lifted.mean() < 0.5, lifted.mean()
+    plain = vehid.IVIdentifier(structure(), road="iso8608", spacing=25.0 * DT)
+    plain.fit(x, xd)
+    off = CAR.physical(plain.stats(), m=TRUTH["m"])
+    assert max(abs(off[k][0] / TRUTH[k] - 1) for k in CONSTANTS) > 0.08, off
+    for nominal in (TRUTH["M"], 1.1 * TRUTH["M"], 0.9 * TRUTH["M"]):
+        checked = vehid.IVIdentifier(structure(), road="iso8608", spacing=25.0 * DT, lift_off=(nominal, TRUTH["m"]))
+        checked.fit(x, xd)
+        assert lifted.sum() - 0.001 * len(x) <= checked.lifted <= 1.5 * lifted.sum(), (checked.lifted, lifted.sum())
+        np.testing.assert_array_equal(checked.params, plain.params)
+    # On a drive whose tyre stays on the ground nothing is counted.
+    run = drive(8802, n=20_000, road="iso8608-B", speed=15.0)
+    calm = vehid.IVIdentifier(structure(), road="iso8608", spacing=15.0 * DT, lift_off=(TRUTH["M"], TRUTH["m"]))
+    calm.fit(run.x, run.xdot)
+    assert calm.lifted == 0
+    with pytest.raises(ValueError, match="lift_off"):
+        vehid.IVIdentifier(structure(), road="iso8608", spacing=0.1, lift_off=(-1.0, 40.0))
+    with pytest.raises(ValueError, match="coloured road"):
+        vehid.IVIdentifier(structure(), lift_off=(320.0, 40.0))
+    half = vehid.HalfCar.passenger()
+    with pytest.raises(ValueError, match="quarter car"):
+        vehid.IVIdentifier(half, road="iso8608", spacing=0.1, lift_off=(640.0, 40.0))

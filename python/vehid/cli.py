@@ -752,6 +752,8 @@ def road_options(args: argparse.Namespace, spacing: Union[float, str]) -> Dict[s
     kw: Dict[str, Any] = {"road": args.road, "spacing": spacing}
     if args.min_spacing is not None:
         kw["min_spacing"] = args.min_spacing
+    if args.lift_off is not None:
+        kw["lift_off"] = (args.lift_off, args.m)
     if args.road == "iso8608" and args.road_cutoff is not None:
         kw["road_cutoff"] = args.road_cutoff
     if args.delay is not None:
@@ -762,9 +764,9 @@ def road_options(args: argparse.Namespace, spacing: Union[float, str]) -> Dict[s
 def check_road_args(args: argparse.Namespace) -> None:
     """Refuses ``--road`` settings that do not fit together, before any reading."""
     if not coloured(args):
-        if any(v is not None for v in (args.road_cutoff, args.speed, args.delay, args.min_spacing)):
-            raise CliError("--road-cutoff, --speed, --delay and --min-spacing describe a road that is not white: add "
-                           "--road iso8608 (or random-walk)")
+        if any(v is not None for v in (args.road_cutoff, args.speed, args.delay, args.min_spacing, args.lift_off)):
+            raise CliError("--road-cutoff, --speed, --delay, --min-spacing and --lift-off describe a road that is not "
+                           "white: add --road iso8608 (or random-walk)")
         return
     if args.method != "kalman":
         raise CliError(f"--road {args.road} identifies by instrumental variables on the differenced equations; "
@@ -774,6 +776,8 @@ def check_road_args(args: argparse.Namespace) -> None:
         raise CliError("--road-cutoff is for --road iso8608 (a random walk has no cutoff)")
     if args.delay is not None and args.delay < 1:
         raise CliError(f"--delay must be >= 1 sample, got {args.delay}")
+    if args.lift_off is not None and args.model != "quarter":
+        raise CliError("--lift-off checks the quarter car's tyre contact (--model quarter)")
     args.method = "iv"
 
 
@@ -833,6 +837,9 @@ def feed(
     else:
         ident.fit(r, z)
 
+
+#: The share of samples counted off the ground above which ``--lift-off`` flags the constants.
+LIFT_WARN = 0.005
 
 #: Samples (the most recent) whose residuals the whiteness check of ``vehid identify`` reads.
 DIAG_SAMPLES = 20_000
@@ -911,6 +918,8 @@ def method_options(args: argparse.Namespace) -> Dict[str, Any]:
         if args.road == "iso8608":
             opts["road_cutoff"] = 0.01 if args.road_cutoff is None else args.road_cutoff
         opts["distance"] = f"--speed {args.speed} m/s" if args.speed is not None else "the file's column s"
+        if args.lift_off is not None:
+            opts["lift_off"] = [args.lift_off, args.m]
         return opts
     return {}
 
@@ -1095,6 +1104,14 @@ def cmd_identify(args: argparse.Namespace) -> int:
     note = prior_note(args, ident, rows)
     if note is not None:
         print(f"vehid: note: {note}", file=sys.stderr)
+    lifted = None
+    if args.method == "iv" and args.lift_off is not None:
+        lifted = cast(IVIdentifier, structured if structured is not None else ident).lifted
+        if lifted > LIFT_WARN * samples:
+            print(f"vehid: warning: {source}: the tyre was off the ground, or about to leave it, in {lifted} of "
+                  f"{samples} samples ({100 * lifted / samples:.2g} %; tyre force from the accelerations below a fifth "
+                  "of the static load): the linear model does not hold there, and the constants are biased (on an "
+                  "ISO class E road at 25 m/s, 8-20 %): do not trust them", file=sys.stderr)
     # The white-noise assumption of least squares, checked on the residuals.
     checks = residual_checks(ident, args.model, rows, *recent) if args.method in ("kalman", "ls") else []
     for check in checks:
@@ -1137,6 +1154,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
             "physical_intervals": None if intervals is None else {k: list(v) for k, v in intervals.items()},
             "prior_note": note,
             "residual_checks": checks,
+            "lifted": lifted,
             "physical_error": physical_error,
             "truth": None if truth is None else {"source": truth.source, "constants": truth.constants},
             "true_theta": None if truth is None else _json_array(truth.theta),
@@ -1375,6 +1393,10 @@ def build_parser() -> argparse.ArgumentParser:
                        help="--road iso8608/random-walk: the least distance between two differenced samples, m "
                             "(default 0.25: a road as a tyre feels it is smooth over shorter stretches; 0: every "
                             "sample, for simulated roads whose increments are independent from sample to sample)")
+    ident.add_argument("--lift-off", type=positive_float, default=None, metavar="M",
+                       help="--road, quarter car: count the samples where the tyre is off the ground (its force from "
+                            "the accelerations near zero), given the body mass M in kg (a nominal value serves) and "
+                            "--m, and flag the constants when there are any (the linear model does not hold there)")
     ident.add_argument("--delay", type=int, default=None,
                        help="--road iso8608/random-walk: the instruments' delay in samples (default 1; use 2 when the "
                             "measured states carry white noise, whose difference is correlated over two samples)")

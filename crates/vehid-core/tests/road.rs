@@ -8,7 +8,7 @@ use rand::{rngs::Xoshiro256PlusPlus, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 use vehid_core::identify::KalmanOptions;
 use vehid_core::identify::{
-    Differenced, Identifier, IvIdentifier, RoadModel, StructuredKalman, StructuredPrior, Travel,
+    Contact, Differenced, Identifier, IvIdentifier, RoadModel, StructuredKalman, StructuredPrior, Travel,
 };
 use vehid_core::model::QuarterCar;
 use vehid_core::sim::{DriveConfig, QuarterDrive, SensorSet};
@@ -163,6 +163,50 @@ fn samples_closer_than_min_spacing_are_skipped() {
     // A skipped sample is still checked.
     assert!(matches!(spaced.update_into(&[f64::NAN, 0.0], &[0.0, 0.0], &[], &mut e), Err(Error::NonFinite { .. })));
     assert!(Differenced::new(kalman(s), &s, road, Travel::PerSample(0.1)).unwrap().with_min_spacing(-1.0).is_err());
+}
+
+#[test]
+fn lifted_samples_are_counted_and_used_as_any_other() {
+    // Two states (read as wheel and body accelerations z[0], z[1] for the check): masses 1 and
+    // 3, so a sample counts as lifted when z0 + 3 z1 < -4 g (1 - LIFT_OFF_LOAD).
+    let (x, mut z, _) = random_walk_data(400, 16);
+    let lifted_at = [57usize, 58, 200];
+    for &k in &lifted_at {
+        z[2 * k + 1] = -20.0; // z0 + 3 z1 well below the limit
+    }
+    let s = two_param();
+    let contact = Contact { wheel: 0, body: 1, m_wheel: 1.0, m_body: 3.0 };
+    let mk = || {
+        Differenced::new(kalman(s), &s, RoadModel::RandomWalk, Travel::PerSample(1.0))
+            .unwrap()
+            .with_min_spacing(0.0)
+            .unwrap()
+    };
+    let mut checked = mk().with_contact(contact).unwrap();
+    let mut plain = mk();
+    let mut e = [0.0];
+    let lim = -4.0 * 9.80665 * (1.0 - vehid_core::identify::LIFT_OFF_LOAD);
+    for k in 0..400 {
+        let (xk, zk) = (&x[2 * k..2 * k + 2], &z[2 * k..2 * k + 2]);
+        assert!(zk[0] + 3.0 * zk[1] >= lim || lifted_at.contains(&k), "sample {k} lifted by chance");
+        checked.update_into(xk, zk, &[], &mut e).unwrap();
+        plain.update_into(xk, zk, &[], &mut e).unwrap();
+    }
+    let (mut a, mut b) = ([0.0; 2], [0.0; 2]);
+    checked.params_into(&mut a).unwrap();
+    plain.params_into(&mut b).unwrap();
+    assert_eq!(a, b, "the check only counts");
+    assert_eq!((checked.lifted(), checked.samples()), (3, 400));
+    // A refused lifted sample is not counted.
+    assert!(checked.update_into(&[f64::NAN, 0.0], &[0.0, -20.0], &[], &mut e).is_err());
+    assert_eq!(checked.lifted(), 3);
+    let bad = Contact { wheel: 2, ..contact };
+    assert!(mk().with_contact(bad).is_err());
+    assert!(mk().with_contact(Contact { m_body: 0.0, ..contact }).is_err());
+    // Saved and restored, the check goes with it.
+    let back: Differenced<f64, StructuredKalman<f64, 2, 1>> =
+        postcard::from_bytes(&postcard::to_allocvec(&checked).unwrap()).unwrap();
+    assert_eq!((back.contact(), back.lifted()), (Some(contact), 3));
 }
 
 #[test]

@@ -232,7 +232,7 @@ impl PyIVIdentifier {
     #[new]
     #[pyo3(signature = (model, delay = 1, lags = None, p0 = None, r = None, *, theta0 = None,
                         instruments = "delayed", dt = None, refresh = 100, substeps = 1, road = "white",
-                        road_cutoff = None, spacing = None, min_spacing = None))]
+                        road_cutoff = None, spacing = None, min_spacing = None, lift_off = None))]
     #[allow(clippy::too_many_arguments)]
     fn py_new(
         model: &Bound<'_, PyAny>,
@@ -249,10 +249,11 @@ impl PyIVIdentifier {
         road_cutoff: Option<f64>,
         spacing: Option<&Bound<'_, PyAny>>,
         min_spacing: Option<f64>,
+        lift_off: Option<(f64, f64)>,
     ) -> PyResult<PyClassInitializer<Self>> {
         let target = Target::of(model)?;
         let s = target.structure()?;
-        let road = crate::road::road_args(road, road_cutoff, spacing, min_spacing)?;
+        let road = crate::road::road_args(road, road_cutoff, spacing, min_spacing, lift_off)?;
         if road.is_some() && instruments == "model" {
             return Err(VehidError::new_err(
                 "a coloured `road` takes instruments=\"delayed\" (the auxiliary model would be simulated from \
@@ -338,6 +339,20 @@ impl PyIVIdentifier {
     #[getter]
     fn road_cutoff(&self) -> Option<f64> {
         self.road.and_then(|r| r.cutoff())
+    }
+
+    /// The lift-off check's `(M, m)`, kg (None: no check).
+    #[getter]
+    fn lift_off(&self) -> Option<(f64, f64)> {
+        self.road.and_then(|r| r.lift_off)
+    }
+
+    /// Samples counted off the ground, or about to leave it (0 without the check): a run with
+    /// any has biased constants (the linear model does not hold in flight).
+    #[getter]
+    fn lifted(slf: &Bound<'_, Self>) -> PyResult<u64> {
+        let base = crate::guard::borrow(slf.as_super())?;
+        Ok(crate::road::lifted(base.inner.as_ref()).unwrap_or(0))
     }
 
     /// The least distance between two differenced samples, m (None on a white road).

@@ -399,7 +399,7 @@ fn blank_args<'py>(obj: &Bound<'py, PyIdentifier>) -> PyResult<(Bound<'py, PyTup
         } else if obj.is_instance_of::<PyIVIdentifier>() {
             kwargs.set_item("delay", obj.getattr("delay")?)?;
             kwargs.set_item("lags", obj.getattr("lags")?)?;
-            for key in ["road", "road_cutoff", "spacing", "min_spacing"] {
+            for key in ["road", "road_cutoff", "spacing", "min_spacing", "lift_off"] {
                 kwargs.set_item(key, obj.getattr(key)?)?;
             }
             let instruments: String = obj.getattr("instruments")?.extract()?;

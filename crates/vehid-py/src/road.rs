@@ -4,7 +4,7 @@
 
 use crate::{core_err, VehidError};
 use pyo3::prelude::*;
-use vehid_core::identify::{BoxedIdentifier, Differenced, DynIdentifier, RoadModel, RoadState, Travel};
+use vehid_core::identify::{BoxedIdentifier, Contact, Differenced, DynIdentifier, RoadModel, RoadState, Travel};
 use vehid_core::structure::Structure;
 
 /// The cutoff of `road="iso8608"` unless `road_cutoff=` says otherwise: vehid's ISO 8608
@@ -24,6 +24,8 @@ pub struct Road {
     pub travel: Travel<f64>,
     /// The least distance between differenced samples, m.
     pub min_spacing: f64,
+    /// The lift-off check's body and wheel masses `(M, m)`, kg (the quarter car).
+    pub lift_off: Option<(f64, f64)>,
 }
 
 impl Road {
@@ -59,10 +61,11 @@ pub fn road_args(
     cutoff: Option<f64>,
     spacing: Option<&Bound<'_, PyAny>>,
     min_spacing: Option<f64>,
+    lift_off: Option<(f64, f64)>,
 ) -> PyResult<Option<Road>> {
     let model = match road {
         "white" => {
-            if cutoff.is_some() || spacing.is_some() || min_spacing.is_some() {
+            if cutoff.is_some() || spacing.is_some() || min_spacing.is_some() || lift_off.is_some() {
                 return Err(VehidError::new_err(
                     "`road_cutoff`, `spacing` and `min_spacing` describe a coloured road: give them with \
                      road=\"random-walk\" or road=\"iso8608\"",
@@ -121,7 +124,14 @@ pub fn road_args(
             "`min_spacing` must be finite and >= 0 metres (0: every sample is differenced), got {min_spacing}"
         )));
     }
-    Ok(Some(Road { model, travel, min_spacing }))
+    if let Some((big_m, m)) = lift_off {
+        if !(big_m.is_finite() && big_m > 0.0 && m.is_finite() && m > 0.0) {
+            return Err(VehidError::new_err(format!(
+                "`lift_off` must be (M, m): the body and wheel masses in kg, finite and > 0, got ({big_m}, {m})"
+            )));
+        }
+    }
+    Ok(Some(Road { model, travel, min_spacing, lift_off }))
 }
 
 /// `inner` (an identifier on `s`) fed the samples differenced for `road`.
@@ -130,9 +140,19 @@ pub fn wrap(
     s: &Structure<f64>,
     road: Road,
 ) -> PyResult<Box<dyn DynIdentifier<f64>>> {
-    let d = Differenced::new(BoxedIdentifier(inner), s, road.model, road.travel)
+    let mut d = Differenced::new(BoxedIdentifier(inner), s, road.model, road.travel)
         .and_then(|d| d.with_min_spacing(road.min_spacing))
         .map_err(core_err)?;
+    if let Some((big_m, m)) = road.lift_off {
+        if s.states() != 4 {
+            return Err(VehidError::new_err(format!(
+                "`lift_off` checks the quarter car (states wheel_pos, wheel_vel, body_pos, body_vel); this model has \
+                 {} states",
+                s.states()
+            )));
+        }
+        d = d.with_contact(Contact { wheel: 1, body: 3, m_wheel: m, m_body: big_m }).map_err(core_err)?;
+    }
     Ok(Box::new(d))
 }
 
@@ -161,5 +181,11 @@ pub fn of(inner: &dyn DynIdentifier<f64>) -> Option<Road> {
         model: d.road(),
         travel: d.travel(),
         min_spacing: d.min_spacing(),
+        lift_off: d.contact().map(|c| (c.m_body, c.m_wheel)),
     })
+}
+
+/// Samples a coloured-road wrapper found lifted off (None: no wrapper).
+pub fn lifted(inner: &dyn DynIdentifier<f64>) -> Option<u64> {
+    inner.as_any().downcast_ref::<Wrapped>().map(|d| d.lifted())
 }

@@ -95,7 +95,9 @@ pub use noise_estimating::NoiseEstimatingBclsVec;
 pub use noise_estimating::{NoiseEstimatingBcls, NoiseEstimatingBclsLs};
 #[cfg(feature = "alloc")]
 pub use road::BoxedIdentifier;
-pub use road::{Differenced, RoadModel, RoadState, Travel, DEFAULT_MIN_SPACING, MAX_ROAD_WEIGHT};
+pub use road::{
+    Contact, Differenced, RoadModel, RoadState, Travel, DEFAULT_MIN_SPACING, LIFT_OFF_LOAD, MAX_ROAD_WEIGHT,
+};
 pub use store::{Dynamic, Fixed, Flat, NoScratch, Store, DYNAMIC_LANES};
 #[cfg(feature = "alloc")]
 pub use structured::StructuredKalmanVec;
