@@ -317,8 +317,10 @@ fn noisy_states(c: &mut Criterion) {
     let s = *ph.structure();
     let inner = IvIdentifier::<f64, 2, 2>::exact(s, 1).unwrap();
     let road = vehid_core::identify::RoadModel::Shaped { cutoff: 0.01 };
+    // Every sample differenced (min_spacing 0): the cost per differenced sample, its worst case.
     let mut id =
         vehid_core::identify::Differenced::new(inner, &s, road, vehid_core::identify::Travel::PerSample(0.075))
+            .and_then(|d| d.with_min_spacing(0.0))
             .unwrap();
     let mut update = |x: &SVector<f64, 4>, z: &SVector<f64, 4>| {
         let _ = black_box(id.update_into(x.as_slice(), z.as_slice(), &[], &mut e));
