@@ -220,9 +220,35 @@ pub enum Travel<T> {
 pub struct Differenced<T: Real, I> {
     inner: I,
     state: RoadState<T>,
-    /// `ρ` for [`Travel::PerSample`] (1 otherwise): computed once, not per sample.
-    #[cfg_attr(feature = "serde", serde(skip, default = "T::one"))]
+    /// Derived from `state` once, not per sample (rebuilt on load).
+    #[cfg_attr(feature = "serde", serde(skip, default = "Gap::unset"))]
+    gap: Gap<T>,
+}
+
+/// At a constant distance per sample: the samples from one differenced sample to the next
+/// (the least whole number whose distance reaches `min_spacing`, at least 1) and `ρ` over
+/// them. With an odometer: 1 and 1 (both are worked out per sample there).
+#[derive(Debug, Clone, Copy)]
+struct Gap<T> {
+    samples: u32,
     rho: T,
+}
+
+impl<T: Real> Gap<T> {
+    fn unset() -> Self {
+        Self { samples: 1, rho: T::one() }
+    }
+
+    fn of(state: &RoadState<T>) -> Self {
+        match state.travel {
+            Travel::PerSample(ds) => {
+                let g = libm::ceil(state.min_spacing.to_f64() / ds.to_f64());
+                let samples = if g.is_finite() && g >= 1.0 { g.min(f64::from(u32::MAX)) as u32 } else { 1 };
+                Self { samples, rho: gap_rho(state, samples) }
+            }
+            Travel::Odometer { .. } => Self::unset(),
+        }
+    }
 }
 
 /// What [`Differenced`] keeps besides its inner identifier: the road model, the travel, and
@@ -252,7 +278,7 @@ pub struct RoadState<T: Real> {
     since: u32,
     /// The tyre contact check (None: every sample is taken as on the road).
     contact: Option<Contact<T>>,
-    /// Samples found lifted off (not used).
+    /// Samples counted off the ground (or about to leave it).
     lifted: u64,
 }
 
@@ -279,8 +305,11 @@ impl<T: Real, I: Identifier<T>> Differenced<T, I> {
         if d.states != structure.states() {
             return Err(Error::Shape { arg: "states", expected: structure.states(), got: d.states });
         }
-        if d.inputs != structure.inputs() || d.equations != structure.equations() {
+        if d.inputs != structure.inputs() {
             return Err(Error::Shape { arg: "inputs", expected: structure.inputs(), got: d.inputs });
+        }
+        if d.equations != structure.equations() {
+            return Err(Error::Shape { arg: "equations", expected: structure.equations(), got: d.equations });
         }
         let state = RoadState {
             road,
@@ -293,7 +322,7 @@ impl<T: Real, I: Identifier<T>> Differenced<T, I> {
             contact: None,
             lifted: 0,
         };
-        Ok(Self { inner, rho: fixed_rho(&state), state })
+        Ok(Self { inner, gap: Gap::of(&state), state })
     }
 
     /// Differences only samples at least `min_spacing` metres apart (≥ 0; 0: every sample;
@@ -305,7 +334,7 @@ impl<T: Real, I: Identifier<T>> Differenced<T, I> {
     pub fn with_min_spacing(mut self, min_spacing: T) -> Result<Self> {
         check_nonneg("min_spacing", min_spacing)?;
         self.state.min_spacing = min_spacing;
-        self.rho = fixed_rho(&self.state);
+        self.gap = Gap::of(&self.state);
         Ok(self)
     }
 
@@ -373,11 +402,6 @@ impl<T: Real, I: Identifier<T>> Differenced<T, I> {
         &self.inner
     }
 
-    /// The inner identifier, mutably (to read settings only its kind has).
-    pub fn inner_mut(&mut self) -> &mut I {
-        &mut self.inner
-    }
-
     /// The road model.
     pub fn road(&self) -> RoadModel<T> {
         self.state.road
@@ -400,14 +424,9 @@ impl<T: Real, I: Identifier<T>> Differenced<T, I> {
     /// # Errors
     /// [`Error::InvalidArgument`] (`arg` "state") naming what does not fit.
     pub fn with_state(inner: I, state: RoadState<T>) -> Result<Self> {
-        let v = Self { inner, rho: fixed_rho(&state), state };
+        let v = Self { inner, gap: Gap::of(&state), state };
         v.check_state()?;
         Ok(v)
-    }
-
-    /// Splits into the inner identifier and the wrapper's state.
-    pub fn into_parts(self) -> (I, RoadState<T>) {
-        (self.inner, self.state)
     }
 
     /// Forgets the last sample, so that the next one starts a new difference (after a gap in
@@ -435,73 +454,13 @@ impl<T: Real, I: Identifier<T>> Identifier<T> for Differenced<T, I> {
     fn update_into(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
         let dims = self.dims();
         check_lengths(dims, x, z, u, e)?;
-        let (n, m) = (dims.states, dims.inputs - self.odometer() as usize);
-        let s_now = if self.odometer() { u[m] } else { T::zero() };
-        if let Some(c) = self.state.contact {
+        let lifted = self.state.contact.is_some_and(|c| {
             let (aw, ab) = (z[c.wheel as usize], z[c.body as usize]);
-            let lifted = c.m_wheel * aw + c.m_body * ab < -(c.m_wheel + c.m_body) * T::of(G * (1.0 - LIFT_OFF_LOAD));
-            if lifted {
-                // Counted once the sample is taken (below), so that a refused one changes nothing.
-                return self.update_counted(x, z, u, e);
-            }
-        }
-        if !self.state.primed {
-            // Nothing checks this sample but here: it is only stored.
-            check_finite("r_k", x)?;
-            check_finite("z_k", z)?;
-            check_finite("u_k", u)?;
-            self.store(x, z, &u[..m], s_now);
-            self.state.primed = true;
-            self.state.seen += 1;
-            self.state.since = 0;
-            e.fill(T::zero());
-            return Ok(());
-        }
-        let prev = &self.state.prev;
-        let (rho, w) = match self.state.travel {
-            Travel::PerSample(ds) => {
-                let since = self.state.since.saturating_add(1);
-                if T::of(f64::from(since)) * ds < self.state.min_spacing {
-                    return self.skip(x, z, u, e, since);
-                }
-                // The usual gap (the spacing rounded up to whole samples) has ρ computed once.
-                let rho = if since == self.gap() { self.rho } else { gap_rho(&self.state, since) };
-                (rho, T::one())
-            }
-            Travel::Odometer { reference } => {
-                let ds = s_now - prev[2 * n + m];
-                if !(ds >= T::zero() && ds.finite()) {
-                    return Err(Error::InvalidArgument {
-                        arg: "u_k",
-                        expected: "an odometer reading (the last input, m) that is finite and never decreases",
-                    });
-                }
-                if ds < self.state.min_spacing {
-                    return self.skip(x, z, u, e, 0);
-                }
-                let floor = reference / T::of(MAX_ROAD_WEIGHT * MAX_ROAD_WEIGHT);
-                let rate = self.state.road.rate();
-                let rho = if rate == T::zero() { T::one() } else { (-(rate * ds)).exp() };
-                (rho, (reference / if ds > floor { ds } else { floor }).sqrt())
-            }
-        };
-        let mut dx = [T::zero(); MAX_STATES];
-        let mut dz = [T::zero(); MAX_STATES];
-        let mut du = [T::zero(); MAX_INPUTS];
-        for j in 0..n {
-            dx[j] = w * (x[j] - rho * prev[j]);
-            dz[j] = w * (z[j] - rho * prev[n + j]);
-        }
-        for j in 0..m {
-            du[j] = w * (u[j] - rho * prev[2 * n + j]);
-        }
-        // A NaN or infinity in the sample, or a difference that overflows, makes a difference
-        // non-finite, which the inner identifier refuses (naming r_k, z_k or u_k), changing
-        // nothing; the stored sample is replaced only after it took the sample.
-        self.inner.update_into(&dx[..n], &dz[..n], &du[..m], e)?;
-        self.store(x, z, &u[..m], s_now);
-        self.state.seen += 1;
-        self.state.since = 0;
+            c.m_wheel * aw + c.m_body * ab < -(c.m_wheel + c.m_body) * T::of(G * (1.0 - LIFT_OFF_LOAD))
+        });
+        self.step(dims, x, z, u, e)?;
+        // Counted once the sample is taken, so that a refused one changes nothing.
+        self.state.lifted += u64::from(lifted);
         Ok(())
     }
 
@@ -547,31 +506,76 @@ impl<T: Real, I: Identifier<T>> Identifier<T> for Differenced<T, I> {
 }
 
 impl<T: Real, I: Identifier<T>> Differenced<T, I> {
-    /// The usual update of a sample counted as lifted: the count rises only if it is taken.
-    fn update_counted(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
-        let contact = self.state.contact.take();
-        let r = self.update_into(x, z, u, e);
-        self.state.contact = contact;
-        if r.is_ok() {
-            self.state.lifted += 1;
+    /// One sample of checked lengths: stored to start a difference, skipped (closer than
+    /// `min_spacing`), or differenced and given to the inner identifier.
+    fn step(&mut self, dims: Dims, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
+        let (n, m) = (dims.states, dims.inputs - self.odometer() as usize);
+        let s_now = if self.odometer() { u[m] } else { T::zero() };
+        if !self.state.primed {
+            // Nothing checks this sample but here: it is only stored.
+            check_sample(x, z, u)?;
+            self.store(x, z, &u[..m], s_now);
+            self.state.primed = true;
+            self.state.seen += 1;
+            self.state.since = 0;
+            e.fill(T::zero());
+            return Ok(());
         }
-        r
+        let prev = &self.state.prev;
+        let (rho, w) = match self.state.travel {
+            Travel::PerSample(_) => {
+                let since = self.state.since.saturating_add(1);
+                if since < self.gap.samples {
+                    return self.skip(x, z, u, e, since);
+                }
+                // `since` exceeds the gap only for a state saved with another spacing.
+                let rho = if since == self.gap.samples { self.gap.rho } else { gap_rho(&self.state, since) };
+                (rho, T::one())
+            }
+            Travel::Odometer { reference } => {
+                let ds = s_now - prev[2 * n + m];
+                if !(ds >= T::zero() && ds.finite()) {
+                    return Err(Error::InvalidArgument {
+                        arg: "u_k",
+                        expected: "an odometer reading (the last input, m) that is finite and never decreases",
+                    });
+                }
+                if ds < self.state.min_spacing {
+                    return self.skip(x, z, u, e, 0);
+                }
+                let floor = reference / T::of(MAX_ROAD_WEIGHT * MAX_ROAD_WEIGHT);
+                let rate = self.state.road.rate();
+                let rho = if rate == T::zero() { T::one() } else { (-(rate * ds)).exp() };
+                (rho, (reference / if ds > floor { ds } else { floor }).sqrt())
+            }
+        };
+        let mut dx = [T::zero(); MAX_STATES];
+        let mut dz = [T::zero(); MAX_STATES];
+        let mut du = [T::zero(); MAX_INPUTS];
+        for j in 0..n {
+            dx[j] = w * (x[j] - rho * prev[j]);
+            dz[j] = w * (z[j] - rho * prev[n + j]);
+        }
+        for j in 0..m {
+            du[j] = w * (u[j] - rho * prev[2 * n + j]);
+        }
+        // A NaN or infinity in the sample, or a difference that overflows, makes a difference
+        // non-finite, which the inner identifier refuses (naming r_k, z_k or u_k), changing
+        // nothing; the stored sample is replaced only after it took the sample.
+        self.inner.update_into(&dx[..n], &dz[..n], &du[..m], e)?;
+        self.store(x, z, &u[..m], s_now);
+        self.state.seen += 1;
+        self.state.since = 0;
+        Ok(())
     }
 
     /// A sample closer than `min_spacing` to the stored one: checked, counted, not used.
     fn skip(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T], since: u32) -> Result<()> {
-        check_finite("r_k", x)?;
-        check_finite("z_k", z)?;
-        check_finite("u_k", u)?;
+        check_sample(x, z, u)?;
         self.state.since = since;
         self.state.seen += 1;
         e.fill(T::zero());
         Ok(())
-    }
-
-    /// Samples between two differenced ones at a constant distance per sample.
-    fn gap(&self) -> u32 {
-        gap_samples(&self.state)
     }
 
     fn store(&mut self, x: &[T], z: &[T], u: &[T], s: T) {
@@ -587,7 +591,7 @@ impl<T: Real, I: Identifier<T>> Differenced<T, I> {
     #[cfg(feature = "serde")]
     pub(crate) fn restored(&mut self) -> Result<()> {
         self.check_state()?;
-        self.rho = fixed_rho(&self.state);
+        self.gap = Gap::of(&self.state);
         Ok(())
     }
 
@@ -633,22 +637,6 @@ impl<T: Real, I: Identifier<T>> Differenced<T, I> {
     }
 }
 
-/// Samples from one differenced sample to the next at a constant distance per sample: the
-/// least whole number whose distance reaches `min_spacing` (at least 1).
-fn gap_samples<T: Real>(state: &RoadState<T>) -> u32 {
-    match state.travel {
-        Travel::PerSample(ds) => {
-            let g = libm::ceil(state.min_spacing.to_f64() / ds.to_f64());
-            if g.is_finite() && g >= 1.0 {
-                g.min(f64::from(u32::MAX)) as u32
-            } else {
-                1
-            }
-        }
-        Travel::Odometer { .. } => 1,
-    }
-}
-
 /// `ρ = exp(−2π n_c Δs)` over `since` samples at a constant distance per sample.
 fn gap_rho<T: Real>(state: &RoadState<T>, since: u32) -> T {
     match state.travel {
@@ -657,10 +645,12 @@ fn gap_rho<T: Real>(state: &RoadState<T>, since: u32) -> T {
     }
 }
 
-/// `ρ` of the usual gap ([`gap_samples`]) at a constant distance per sample (1 with an
-/// odometer, where it is computed per differenced sample).
-fn fixed_rho<T: Real>(state: &RoadState<T>) -> T {
-    gap_rho(state, gap_samples(state))
+/// Every value of a sample that is stored or skipped (not handed to the inner identifier,
+/// which checks its own) finite.
+fn check_sample<T: Real>(x: &[T], z: &[T], u: &[T]) -> Result<()> {
+    check_finite("r_k", x)?;
+    check_finite("z_k", z)?;
+    check_finite("u_k", u)
 }
 
 /// A boxed identifier as an [`Identifier`] (requires `alloc`): what [`Differenced`] wraps
