@@ -841,6 +841,10 @@ def feed(
 #: The share of samples counted off the ground above which ``--lift-off`` flags the constants.
 LIFT_WARN = 0.005
 
+#: The methods whose residuals ``vehid identify`` checks for whiteness (least squares: the
+#: thesis' white-road assumption).
+WHITE_ROAD_METHODS = ("kalman", "ls")
+
 #: Samples (the most recent) whose residuals the whiteness check of ``vehid identify`` reads.
 DIAG_SAMPLES = 20_000
 #: Lags of that Ljung-Box test.
@@ -902,8 +906,9 @@ def road_spacing(
     return float(args.speed * dt)
 
 
-def method_options(args: argparse.Namespace) -> Dict[str, Any]:
-    """The settings that shaped the estimate, for the report."""
+def method_options(args: argparse.Namespace, ident: Optional[Identifier] = None) -> Dict[str, Any]:
+    """The settings that shaped the estimate, for the report (``--road``: as the identifier
+    ``ident`` took them, its defaults included)."""
     if args.method == "kalman":
         return {"p0": kalman_p0(args), "road_sigma": args.road_sigma, "deriv_noise": args.deriv_noise,
                 "mode": args.mode, "reinit": args.reinit}
@@ -912,14 +917,13 @@ def method_options(args: argparse.Namespace) -> Dict[str, Any]:
     if args.method == "two-axle":
         return {"p0": THESIS_P0 if args.p0 == "exact" else args.p0, "road_sigma": args.road_sigma,
                 "deriv_noise": args.deriv_noise, "spacing": args.spacing, "wheel_method": args.wheel_method}
-    if args.method == "iv":
-        opts: Dict[str, Any] = {"road": args.road, "delay": 1 if args.delay is None else args.delay,
-                                "min_spacing": 0.25 if args.min_spacing is None else args.min_spacing}
-        if args.road == "iso8608":
-            opts["road_cutoff"] = 0.01 if args.road_cutoff is None else args.road_cutoff
+    if args.method == "iv" and isinstance(ident, IVIdentifier):
+        opts: Dict[str, Any] = {"road": ident.road, "delay": ident.delay, "min_spacing": ident.min_spacing}
+        if ident.road_cutoff is not None:
+            opts["road_cutoff"] = ident.road_cutoff
         opts["distance"] = f"--speed {args.speed} m/s" if args.speed is not None else "the file's column s"
-        if args.lift_off is not None:
-            opts["lift_off"] = [args.lift_off, args.m]
+        if ident.lift_off is not None:
+            opts["lift_off"] = list(ident.lift_off)
         return opts
     return {}
 
@@ -1046,9 +1050,11 @@ def cmd_identify(args: argparse.Namespace) -> int:
     check_road_args(args)
     ident: Optional[Identifier] = make_identifier(args, model)  # option errors before any reading
     known = known_masses(args)
-    structured = physical_identifier(args, model, known)
+    structured = None
     if coloured(args):  # built at the first chunk, when the distance per sample is known
-        ident, structured = None, None
+        ident = None
+    else:
+        structured = physical_identifier(args, model, known)
     with open_table(args.file, delimiter=args.delimiter) as table:
         source = table.source
         layout = resolve_layout(table, args.model, model, mapping, args.no_time, truth is None, sys.stderr,
@@ -1072,7 +1078,9 @@ def cmd_identify(args: argparse.Namespace) -> int:
             feed(ident, x, dx, odometer)
             if structured is not None:
                 feed(structured, x, dx, odometer)
-            recent = (np.concatenate([recent[0], x])[-DIAG_SAMPLES:], np.concatenate([recent[1], dx])[-DIAG_SAMPLES:])
+            if args.method in WHITE_ROAD_METHODS:  # the residuals' whiteness is checked on the last samples
+                recent = (np.concatenate([recent[0], x])[-DIAG_SAMPLES:],
+                          np.concatenate([recent[1], dx])[-DIAG_SAMPLES:])
             if fit is not None:
                 fit.add(data[:, layout.true_x], data[:, layout.u], data[:, layout.true_dx])
             progress.step(len(data), table.consumed)
@@ -1113,7 +1121,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
                   "of the static load): the linear model does not hold there, and the constants are biased (on an "
                   "ISO class E road at 25 m/s, 8-20 %): do not trust them", file=sys.stderr)
     # The white-noise assumption of least squares, checked on the residuals.
-    checks = residual_checks(ident, args.model, rows, *recent) if args.method in ("kalman", "ls") else []
+    checks = residual_checks(ident, args.model, rows, *recent) if args.method in WHITE_ROAD_METHODS else []
     for check in checks:
         if not check["white"]:
             print(f"vehid: warning: {residual_warning(check)}", file=sys.stderr)
@@ -1142,7 +1150,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
             "source": source,
             "model": args.model,
             "method": args.method,
-            "options": method_options(args),
+            "options": method_options(args, ident),
             "samples": samples,
             "columns": layout.used,
             "time": None if time is None else time.report(),
@@ -1162,7 +1170,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
         }
         print(json.dumps(report, allow_nan=False))
         return 0
-    opts = ", ".join(f"{k} {v}" for k, v in method_options(args).items())
+    opts = ", ".join(f"{k} {v}" for k, v in method_options(args, ident).items())
     print(f"{source}: {samples} samples, {MODEL_NAMES[args.model]} ({n} states), method {args.method}"
           + (f" ({opts})" if opts else ""))
     if time is None:

@@ -40,6 +40,18 @@ fn linear_model<'a, 'py>(model: &'a Bound<'py, PyAny>) -> PyResult<&'a Bound<'py
     })
 }
 
+/// The measured inputs `u` of a batch of `rows` samples as a table of `m` columns (None when
+/// the model has none and none were given).
+fn input_table<'py>(u: Option<&Bound<'py, PyAny>>, m: usize, rows: usize) -> PyResult<Option<Table<'py>>> {
+    match (u, m) {
+        (None, 0) => Ok(None),
+        (None, m) => {
+            Err(VehidError::new_err(format!("`u` is needed: the model has {m} measured inputs (shape (samples, {m}))")))
+        }
+        (Some(u), m) => Ok(Some(Table::new(u, "u", Some(rows), m, "measured inputs")?)),
+    }
+}
+
 /// Maps a core error to a Python exception: `MemoryError` for allocations that failed,
 /// `KeyboardInterrupt` passes through, `VehidError` for everything else.
 pub(crate) fn raise(e: Error) -> PyErr {
@@ -185,15 +197,7 @@ impl PyIdentifier {
         let d = this.inner.dims();
         let rt = Table::new(r, "r", None, d.states, "measured states")?;
         let zt = Table::new(z, "z", Some(rt.rows), d.states, "measured derivatives, like `r`")?;
-        let ut = match (u, d.inputs) {
-            (None, 0) => None,
-            (None, m) => {
-                return Err(VehidError::new_err(format!(
-                    "`u` is needed: the model has {m} measured inputs (shape (samples, {m}))"
-                )))
-            }
-            (Some(u), m) => Some(Table::new(u, "u", Some(rt.rows), m, "measured inputs")?),
-        };
+        let ut = input_table(u, d.inputs, rt.rows)?;
         let samples = Samples::new(d.states, d.inputs, rt.data(), zt.data(), ut.as_ref().map_or(&[][..], |t| t.data()))
             .map_err(raise)?;
         let len = samples.len();
@@ -326,15 +330,7 @@ impl PyIdentifier {
         let (n, m, ne) = (structure.states(), structure.inputs(), structure.equations());
         let rt = Table::new(r, "r", None, n, "measured states")?;
         let zt = Table::new(z, "z", Some(rt.rows), n, "measured derivatives, like `r`")?;
-        let ut = match (u, m) {
-            (_, 0) => None,
-            (None, m) => {
-                return Err(VehidError::new_err(format!(
-                    "`u` is needed: the model has {m} measured inputs (shape (samples, {m}))"
-                )))
-            }
-            (Some(u), m) => Some(Table::new(u, "u", Some(rt.rows), m, "measured inputs")?),
-        };
+        let ut = input_table(u, m, rt.rows)?;
         let rows = rt.rows;
         let (x, zz) = (rt.data(), zt.data());
         let uu = ut.as_ref().map_or(&[][..], |t| t.data());

@@ -67,8 +67,8 @@ pub fn road_args(
         "white" => {
             if cutoff.is_some() || spacing.is_some() || min_spacing.is_some() || lift_off.is_some() {
                 return Err(VehidError::new_err(
-                    "`road_cutoff`, `spacing` and `min_spacing` describe a coloured road: give them with \
-                     road=\"random-walk\" or road=\"iso8608\"",
+                    "`road_cutoff`, `spacing`, `min_spacing` and `lift_off` describe a coloured road: give them \
+                     with road=\"random-walk\" or road=\"iso8608\"",
                 ));
             }
             return Ok(None);
