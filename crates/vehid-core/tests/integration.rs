@@ -11,6 +11,8 @@ mod claims;
 mod contract;
 #[path = "half_one_road.rs"]
 mod half_one_road;
+#[path = "health_behaviour.rs"]
+mod health_behaviour;
 #[path = "model_instruments.rs"]
 mod model_instruments;
 #[path = "noise_estimating.rs"]
