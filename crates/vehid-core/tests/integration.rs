@@ -19,6 +19,8 @@ mod model_instruments;
 mod noise_estimating;
 #[path = "noisy_states.rs"]
 mod noisy_states;
+#[path = "parser_property.rs"]
+mod parser_property;
 #[path = "physical_structure.rs"]
 mod physical_structure;
 #[path = "road.rs"]
