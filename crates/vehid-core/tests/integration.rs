@@ -13,6 +13,8 @@ mod contract;
 mod half_one_road;
 #[path = "health_behaviour.rs"]
 mod health_behaviour;
+#[path = "identify_noise.rs"]
+mod identify_noise;
 #[path = "model_instruments.rs"]
 mod model_instruments;
 #[path = "noise_estimating.rs"]
