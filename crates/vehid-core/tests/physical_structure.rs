@@ -181,3 +181,69 @@ fn constants_follow_from_the_parameters_with_the_delta_method_standard_error() {
     }
     check(&HalfCar::structure(known).unwrap(), &truth);
 }
+
+/// The realistic sensors' structure: `k2` and `b` with `M` known (or the ratios without it),
+/// an offset; `m` and `k1` are not determined, and say what they need.
+#[test]
+fn realistic_structure_says_what_the_rest_needs() {
+    let c = QuarterCar::<f64>::passenger().constants();
+    let ps = QuarterCar::realistic_structure([Some(c[0]), None, None, None, None]).unwrap();
+    assert_eq!(ps.param_names(), ["k2", "b", "offset"]);
+    assert_eq!(ps.needs(0), None);
+    for c in [1, 2] {
+        assert!(ps.needs(c).unwrap().contains("tyre force"), "{:?}", ps.needs(c));
+    }
+    // Its equation at the true parameters: a_body = −(k2 d + b v)/M, the offset 0.
+    let mut p = [0.0; 3];
+    ps.params_of(&c, &mut p).unwrap();
+    assert_eq!(p, [c[3], c[4], 0.0]);
+    let (x, z) = ([0.01, -0.2, 0.0], [-0.2, 0.0, -(c[3] * 0.01 - c[4] * 0.2) / c[0]]);
+    assert!(ps.structure().residual(0, &p, &x, &z, &[]).abs() < 1e-12);
+    // Without a known mass only the ratios: every constant needs a mass, or the tyre force.
+    let ratios = QuarterCar::<f64>::realistic_structure([None; 5]).unwrap();
+    assert_eq!(ratios.param_names(), ["k2/M", "b/M", "offset"]);
+    for c in [0, 3, 4] {
+        assert!(ratios.needs(c).unwrap().contains("known mass"), "{:?}", ratios.needs(c));
+    }
+    // The state sensors' structure determines everything once m is known.
+    let full = QuarterCar::<f64>::structure([None, Some(c[1]), None, None, None]).unwrap();
+    assert!((0..5).all(|c| full.needs(c).is_none()));
+}
+
+/// The state-variable filter's fit of the realistic sensors' body equation: on drives over ISO
+/// roads with the default (biased, noisy) sensors, `k2` and `b` with `M` known within their
+/// intervals and within 1 %; the offset takes the body accelerometer's bias.
+#[test]
+fn state_filter_fit_of_the_realistic_sensors() {
+    use vehid_core::identify::{StateFilterFit, DEFAULT_BANDWIDTH, DEFAULT_BLOCK};
+    use vehid_core::sim::{DriveConfig, QuarterDrive, RoadClass};
+    let (car, dt) = (QuarterCar::<f64>::passenger(), 0.005);
+    let c = car.constants();
+    let ps = QuarterCar::realistic_structure([Some(c[0]), None, None, None, None]).unwrap();
+    let (mut inside, mut runs) = (0, 0);
+    for (seed, road, speed) in
+        [(52_101, RoadClass::C, 15.0), (52_102, RoadClass::B, 10.0), (52_103, RoadClass::D, 25.0)]
+    {
+        let mut fit = StateFilterFit::new(*ps.structure(), dt, DEFAULT_BANDWIDTH, DEFAULT_BLOCK).unwrap();
+        let mut drive = QuarterDrive::new(car, DriveConfig::new(dt).road(road).speed(speed), seed).unwrap();
+        for _ in 0..(120.0 / dt) as usize {
+            fit.update(drive.next_sample().y()).unwrap();
+        }
+        let st = fit.stats(0.05).unwrap();
+        for (j, want) in [(0, c[3]), (1, c[4])] {
+            let (lo, hi) = st.conf_int[j];
+            runs += 1;
+            inside += usize::from(lo <= want && want <= hi);
+            assert!(
+                (st.params[j] - want).abs() < 0.01 * want,
+                "{seed} {}: {} vs {want}",
+                ps.param_names()[j],
+                st.params[j]
+            );
+        }
+        let bias = drive.biases()[0];
+        assert!((st.params[2] - bias).abs() < 0.005, "offset {} for a bias {bias}", st.params[2]);
+    }
+    // Six intervals at 95 %: at least five cover the truth (P(≤ 4) = 0.3 % if they are right).
+    assert!(inside >= 5, "{inside} of {runs} intervals cover the truth");
+}

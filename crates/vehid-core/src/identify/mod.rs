@@ -13,6 +13,7 @@
 //! | [`TwoAxleIdentifier`] (two axles on one road: plain, Eq 6.14, road cancellation) | Eq 6.9, 6.12–6.14 | `two_axle.rs` |
 //! | [`TwoAxleStructured`] (road cancellation on a physical [`crate::structure::Structure`]: the half car's 12 parameters) | Eq 6.1–6.9 | `two_axle_structured.rs` |
 //! | [`Differenced`] (any identifier on a road that is not white: the samples quasi-differenced by the road's ISO 8608 shaping filter in distance; with [`InstrumentalVariables`] inside, consistent) | Anderson & Hsiao 1981; Cochrane & Orcutt 1949 | `road.rs` |
+//! | [`StateFilterFit`] (the body equation from a body accelerometer and a deflection sensor: a state-variable filter on both sides, cluster-robust intervals for its coloured residuals) | Young 1981; Garnier et al. 2003; Cameron & Miller 2015 | `state_filter.rs` |
 //!
 //! All of them but [`JointEkf`] (which estimates the state too) regress the measured
 //! derivative of each unknown row on the measured state: `z_i(k) = r(k)ᵀ θ_i + ε_i(k)`
@@ -52,6 +53,8 @@ mod kalman;
 mod least_squares;
 mod noise_estimating;
 mod road;
+#[cfg(feature = "alloc")]
+mod state_filter;
 mod store;
 mod structured;
 mod structured_fast;
@@ -98,6 +101,8 @@ pub use road::BoxedIdentifier;
 pub use road::{
     Contact, Differenced, RoadModel, RoadState, Travel, DEFAULT_MIN_SPACING, LIFT_OFF_LOAD, MAX_ROAD_WEIGHT,
 };
+#[cfg(feature = "alloc")]
+pub use state_filter::{StateFilterFit, DEFAULT_BANDWIDTH, DEFAULT_BLOCK};
 pub use store::{Dynamic, Fixed, Flat, NoScratch, Store, DYNAMIC_LANES};
 #[cfg(feature = "alloc")]
 pub use structured::StructuredKalmanVec;

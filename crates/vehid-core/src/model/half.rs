@@ -1,6 +1,7 @@
 //! The half car (Eq 6.1–6.8).
 
 use super::physical::{der, st, tk, tt, Builder, PhysicalStructure, TemplateTerm};
+use super::quarter::STATE_SENSORS_READ_ALL;
 use super::{scale_ls, LinearModel, RowSet};
 use crate::error::{check_finite, check_positive};
 use crate::{Error, Real, Result};
@@ -364,7 +365,7 @@ impl<T: Real> HalfCar<T> {
         let rear = [tt(-l1 / l, 11, der(5)), tt(one / l, 12, der(7)), tt(-one, 13, st(2))];
         let k = |i: u8| [tk(one, st(i))];
         let (k0, k2, k4, k6) = (k(1), k(3), k(5), k(7));
-        Builder { states: 8, constants: &Self::CONSTANTS, edges: &edges, known: &known }
+        Builder { states: 8, constants: &Self::CONSTANTS, edges: &edges, known: &known, absent: STATE_SENSORS_READ_ALL }
             .build(&[(5, &heave), (7, &pitch), (1, &front), (3, &rear)], &[(0, &k0), (2, &k2), (4, &k4), (6, &k6)])
     }
 }

@@ -28,6 +28,12 @@ pub const MAX_CONSTANTS: usize = 12;
 /// Most edges (ratio slots) of a vehicle's equations.
 pub(crate) const MAX_EDGES: usize = 16;
 
+/// The edge index of a template term whose parameter is a free offset (named `"offset"`, in
+/// the unit of its equation): a sensor's bias or zero error, not a ratio of constants. It
+/// determines no constant, and its true value for a vehicle ([`PhysicalStructure::params_of`])
+/// is 0 (unbiased sensors).
+pub(crate) const OFFSET: u8 = u8::MAX;
+
 /// One term of a vehicle's equation template: `coef × edge × basis`, or `coef × basis`
 /// when `edge` is `None`.
 #[derive(Debug, Clone, Copy)]
@@ -57,6 +63,10 @@ pub struct PhysicalStructure<T> {
     known: [Option<T>; MAX_CONSTANTS],
     /// Each constant as `factor × Π θ_j^{exp_j}` (`None`: not determined).
     mono: [Option<(T, [i8; MAX_PARAMS])>; MAX_CONSTANTS],
+    /// Whether each constant appears in an identified equation.
+    appears: [bool; MAX_CONSTANTS],
+    /// What a constant in no equation needs (see [`PhysicalStructure::needs`]).
+    absent: &'static str,
 }
 
 /// Builds a [`PhysicalStructure`] from a vehicle description.
@@ -67,6 +77,9 @@ pub(crate) struct Builder<'a, T> {
     /// parameter (`"k2/M"`).
     pub edges: &'a [(u8, u8, &'static str)],
     pub known: &'a [Option<T>],
+    /// What a constant that appears in no equation would need to be determined (a sensor
+    /// these equations do not read), for [`PhysicalStructure::needs`].
+    pub absent: &'static str,
 }
 
 impl<T: Real> Builder<'_, T> {
@@ -87,9 +100,15 @@ impl<T: Real> Builder<'_, T> {
         let mut used = [false; MAX_EDGES];
         for (_, terms) in equations {
             for t in terms.iter() {
-                if let Some(e) = t.edge {
+                if let Some(e) = t.edge.filter(|&e| e != OFFSET) {
                     used[e as usize] = true;
                 }
+            }
+        }
+        let mut appears = [false; MAX_CONSTANTS];
+        for (e, &(a, b, _)) in self.edges.iter().enumerate() {
+            if used[e] {
+                (appears[a as usize], appears[b as usize]) = (true, true);
             }
         }
         let mut names = [""; MAX_PARAMS];
@@ -121,6 +140,13 @@ impl<T: Real> Builder<'_, T> {
             };
             value[e] = EdgeValue::Param { j: j as u8, mult };
         }
+        let offset = equations.iter().any(|(_, terms)| terms.iter().any(|t| t.edge == Some(OFFSET)));
+        let offset_j = np as u8;
+        if offset {
+            param_edges[np] = (OFFSET, None);
+            names[np] = "offset";
+            np += 1;
+        }
         let mut s = Structure::new(self.states, 0, np)?;
         // Every equation's terms with the edges resolved; equations left without a parameter
         // (every edge known) join the known ones, after the identified.
@@ -130,7 +156,11 @@ impl<T: Real> Builder<'_, T> {
         for (state, tmpl) in all {
             let (_, terms, n) = &mut eqs[n_eq];
             for t in tmpl.iter() {
-                let (coef, param) = match t.edge.map(|e| value[e as usize]) {
+                let resolve = |e: u8| match e {
+                    OFFSET => EdgeValue::Param { j: offset_j, mult: T::one() },
+                    e => value[e as usize],
+                };
+                let (coef, param) = match t.edge.map(resolve) {
                     None => (t.coef, None),
                     Some(EdgeValue::Fixed(v)) => (t.coef * v, None),
                     Some(EdgeValue::Param { j, mult }) => (t.coef * mult, Some(j)),
@@ -163,7 +193,7 @@ impl<T: Real> Builder<'_, T> {
             }
         }
         for (j, &(a, b)) in param_edges[..np].iter().enumerate() {
-            if b.is_none() {
+            if b.is_none() && a != OFFSET {
                 let mut e = [0i8; MAX_PARAMS];
                 e[j] = 1;
                 mono[a as usize] = Some((T::one(), e));
@@ -196,7 +226,17 @@ impl<T: Real> Builder<'_, T> {
         constants[..nc].copy_from_slice(self.constants);
         let mut known = [None; MAX_CONSTANTS];
         known[..nc].copy_from_slice(self.known);
-        Ok(PhysicalStructure { structure: s, names, param_edges, constants, n_constants: nc as u8, known, mono })
+        Ok(PhysicalStructure {
+            structure: s,
+            names,
+            param_edges,
+            constants,
+            n_constants: nc as u8,
+            known,
+            mono,
+            appears,
+            absent: self.absent,
+        })
     }
 }
 
@@ -226,6 +266,23 @@ impl<T: Real> PhysicalStructure<T> {
         self.mono[c].is_some()
     }
 
+    /// Why constant `c` is not determined, in words that say what would determine it, or
+    /// `None` when it is (or is known): a constant that appears in the equations only in ratios
+    /// needs one constant of its ratios known (a mass: the equations are homogeneous in the
+    /// constants, so data fix only ratios); one that appears in no equation needs the signals
+    /// these equations do not read (the structure's own reason, e.g. for the body equation of
+    /// the realistic sensors: the tyre force).
+    pub fn needs(&self, c: usize) -> Option<&'static str> {
+        if c >= self.n_constants as usize || self.mono[c].is_some() {
+            return None;
+        }
+        Some(if self.appears[c] {
+            "a known mass: these equations fix only ratios of the constants (give one mass as known)"
+        } else {
+            self.absent
+        })
+    }
+
     /// The true parameter values of the structure for a vehicle with these constants (in the
     /// order of [`PhysicalStructure::constant_names`]) into `out`.
     ///
@@ -239,6 +296,7 @@ impl<T: Real> PhysicalStructure<T> {
         for (j, o) in out.iter_mut().enumerate() {
             let (a, b) = self.param_edges[j];
             *o = match b {
+                None if a == OFFSET => T::zero(),
                 None => constants[a as usize],
                 Some(b) => constants[a as usize] / constants[b as usize],
             };

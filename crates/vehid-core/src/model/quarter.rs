@@ -1,8 +1,9 @@
 //! The quarter car (Eq 3.8–3.13).
 
-use super::physical::{der, st, tk, tt, Builder, PhysicalStructure};
+use super::physical::{der, st, tk, tt, Builder, PhysicalStructure, TemplateTerm, OFFSET};
 use super::{scale_ls, LinearModel, RowSet};
 use crate::error::{check_finite, check_positive};
+use crate::structure::Basis;
 use crate::{Error, Real, Result};
 use nalgebra::SMatrix;
 
@@ -213,7 +214,47 @@ impl<T: Real> QuarterCar<T> {
         let body = [tt(-one, 0, st(2)), tt(one, 0, st(0)), tt(-one, 1, st(3)), tt(one, 1, st(1))];
         let wheel = [tt(-one, 2, der(3)), tt(-one, 3, st(0))];
         let (kw, kb) = ([tk(one, st(1))], [tk(one, st(3))]);
-        Builder { states: 4, constants: &Self::CONSTANTS, edges: &edges, known: &known }
+        Builder { states: 4, constants: &Self::CONSTANTS, edges: &edges, known: &known, absent: STATE_SENSORS_READ_ALL }
             .build(&[(3, &body), (1, &wheel)], &[(0, &kw), (2, &kb)])
     }
+
+    /// The physical structure that the realistic sensors determine
+    /// ([`crate::model::SensorSet::Realistic`]: body and wheel accelerometers and a deflection
+    /// sensor), states `d, v, vb` (deflection `zb − zw`, m; its rate, m/s; the body's
+    /// velocity, whose derivative is the body accelerometer's `a_body`):
+    ///
+    /// ```text
+    /// v̇b = −(k2/M) d − (b/M) v + offset                body (Eq 3.10 / M)
+    /// ḋ = v                                             known
+    /// ```
+    ///
+    /// The body equation is free of the road and of absolute positions, so it holds on any
+    /// road; `offset` (m/s²) takes the body accelerometer's bias and the deflection sensor's
+    /// zero error (`−(k2/M) d₀`). No sensor measures `v`: [`crate::identify::StateFilterFit`]
+    /// fits this equation through a state-variable filter, reading `a_body` as the derivative
+    /// of `vb` and never `vb` itself.
+    ///
+    /// What these sensors determine: `k2/M` and `b/M`; with `M` known, `k2` and `b`
+    /// ([`PhysicalStructure::constant`]). The wheel's equation needs the tyre force
+    /// `k1 (u − zw)`, which no accelerometer or deflection sensor measures (the wheel's absolute
+    /// position and the road's height are both unknown), so `m` and `k1` are not determined
+    /// ([`PhysicalStructure::needs`] says so), whatever else is known.
+    ///
+    /// # Errors
+    /// As [`QuarterCar::structure`]; a known `k2` or `b` (with `M` unknown) is used.
+    pub fn realistic_structure(known: [Option<T>; 5]) -> Result<PhysicalStructure<T>> {
+        let edges = [(3, 0, "k2/M"), (4, 0, "b/M")];
+        let one = T::one();
+        let body =
+            [tt(-one, 0, st(0)), tt(-one, 1, st(1)), TemplateTerm { coef: one, edge: Some(OFFSET), basis: Basis::One }];
+        let absent = "the tyre force k1 (u - zw): the wheel's absolute position and the road height, which \
+                      accelerometers and a deflection sensor do not measure (record the state sensors, or a \
+                      wheel-force sensor)";
+        Builder { states: 3, constants: &Self::CONSTANTS, edges: &edges, known: &known, absent }
+            .build(&[(2, &body)], &[(0, &[tk(one, st(1))])])
+    }
 }
+
+/// What a constant in none of the state sensors' equations would need (every constant of the
+/// quarter and half car appears in them, so this is never said).
+pub(crate) const STATE_SENSORS_READ_ALL: &str = "signals these equations do not read";

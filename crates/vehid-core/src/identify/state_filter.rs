@@ -1,0 +1,386 @@
+//! The body equation from the sensors a car has: a body accelerometer and a deflection
+//! sensor, through a state-variable filter, with intervals that hold for its coloured
+//! residuals.
+//!
+//! The body equation of the quarter car (Eq 3.10 / M, [`crate::model::QuarterCar::realistic_structure`])
+//!
+//! ```text
+//! a_body = −(k2/M) d − (b/M) ḋ + offset
+//! ```
+//!
+//! needs the deflection rate `ḋ`, which no sensor measures. Differentiating the deflection
+//! amplifies its noise, and estimating `ḋ` with a kinematic filter from the accelerometers
+//! ([`crate::health::DeflectionFilter`]) leaves a rate error correlated with `ḋ` (from the
+//! accelerations' interpolation between samples) that biases `b/M` by about a percent — far
+//! outside the intervals of a long drive. The state-variable filter (Young 1981; the
+//! `SVF` of Garnier, Mensler & Richard's CONTSID, *Control Eng. Practice* 11, 2003) applies
+//! one stable low-pass `F(s) = λ² / (s + λ)²` to both sides of the equation, which is linear
+//! with constant coefficients, so it still holds for the filtered signals:
+//!
+//! ```text
+//! F[a_body] = −(k2/M) F[d] − (b/M) (sF)[d] + offset        (F(0) = 1)
+//! ```
+//!
+//! where `(sF)[d] = F[ḋ]`, the smoothed deflection rate, comes from the deflection samples
+//! alone. `F` is discretized by the bilinear (Tustin) transform, the same for every signal.
+//! The derivative inside it is a five-point central difference,
+//! `ḋ_k ≈ (d_{k−2} − 8 d_{k−1} + 8 d_{k+1} − d_{k+2}) / (12 Δt)` (relative error
+//! `(ωΔt)⁴/30`), with `a_body` and `d` delayed by the same two samples: the bilinear
+//! differentiator `sF` itself is off by `(ωΔt)²/12`, which at the wheel-hop frequency (~10 Hz,
+//! passed a little by `F`) biased `b/M` by 0.04–0.07 % — several standard errors on a 300 s
+//! drive. The deflection noise enters `F[ḋ]` with a power that grows as `λ³`, so `λ` is kept
+//! low (default 10 rad/s; `benches/real_roads.py --sensors realistic` for the figures).
+//!
+//! The filtered equation's residual is coloured (the filter's impulse response lasts about
+//! `5/λ`), so the least-squares standard errors would be several times too small. The
+//! covariance is instead cluster-robust over consecutive blocks of samples (Cameron & Miller,
+//! *J. Human Resources* 50, 2015; statsmodels `cov_type="cluster"`), blocks much longer than
+//! the residual's correlation (default 2 s):
+//!
+//! ```text
+//! θ̂ = A⁻¹ c,   A = Σ h hᵀ,  c = Σ h y,   g_b = c_b − A_b θ̂  (block b's score)
+//! cov = A⁻¹ (Σ_b g_b g_bᵀ) A⁻¹ · G/(G − 1) · (N − 1)/(N − k)
+//! ```
+//!
+//! (`G` blocks, `N` samples, `k` parameters: statsmodels' small-sample correction) and the
+//! intervals use Student's t with `G − 1` degrees of freedom.
+//!
+//! The parameters are those of the structure given (the ratios `k2/M, b/M`, or `k2, b` with
+//! `M` known, and the offset), so [`crate::model::PhysicalStructure::constant`] maps them to
+//! the constants.
+
+use super::EstimateStats;
+use crate::structure::{Structure, MAX_PARAMS};
+use crate::{Error, Result};
+use alloc::vec::Vec;
+
+/// Default bandwidth `λ` of the state-variable filter, rad/s.
+pub const DEFAULT_BANDWIDTH: f64 = 10.0;
+/// Default length of the blocks of the cluster-robust covariance, s.
+pub const DEFAULT_BLOCK: f64 = 2.0;
+/// Most parameters of the body equation (`k2/M`, `b/M`, offset).
+const NP: usize = 3;
+
+/// Samples of `[a_body, deflection]` kept for the five-point derivative.
+const HISTORY: usize = 5;
+
+/// A second-order IIR filter in transposed direct form II (`y = b0 u + s0`,
+/// `s0 ← b1 u − a1 y + s1`, `s1 ← b2 u − a2 y`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+struct Biquad {
+    b: [f64; 3],
+    a: [f64; 2],
+    s: [f64; 2],
+}
+
+impl Biquad {
+    /// The bilinear transform (`s = K (1 − z⁻¹)/(1 + z⁻¹)`, `K = 2/dt`) of `λ² / (s + λ)²`:
+    /// with `α = K + λ`, `β = λ − K`, `(s + λ)² = (α + β z⁻¹)² / (1 + z⁻¹)²`.
+    fn bilinear(dt: f64, lambda: f64) -> Self {
+        let k = 2.0 / dt;
+        let (al, be) = (k + lambda, lambda - k);
+        let g = lambda * lambda / (al * al);
+        Self { b: [g, 2.0 * g, g], a: [2.0 * be / al, be * be / (al * al)], s: [0.0; 2] }
+    }
+
+    #[inline]
+    fn step(&mut self, u: f64) -> f64 {
+        let y = self.b[0] * u + self.s[0];
+        self.s = [self.b[1] * u - self.a[0] * y + self.s[1], self.b[2] * u - self.a[1] * y];
+        y
+    }
+
+    /// The state of a filter whose input has been `u` for ever (no start transient from an
+    /// offset).
+    fn prime(&mut self, u: f64) {
+        let dc = (self.b[0] + self.b[1] + self.b[2]) / (1.0 + self.a[0] + self.a[1]);
+        let y = dc * u;
+        let s1 = self.b[2] * u - self.a[1] * y;
+        self.s = [self.b[1] * u - self.a[0] * y + s1, s1];
+    }
+}
+
+/// Sums of one block of samples: `A = Σ h hᵀ`, `c = Σ h y`, `Σ y²`, the count.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+struct Moments {
+    a: [[f64; NP]; NP],
+    c: [f64; NP],
+    yy: f64,
+    n: u64,
+}
+
+impl Moments {
+    fn add(&mut self, o: &Moments) {
+        for i in 0..NP {
+            for j in 0..NP {
+                self.a[i][j] += o.a[i][j];
+            }
+            self.c[i] += o.c[i];
+        }
+        self.yy += o.yy;
+        self.n += o.n;
+    }
+}
+
+/// The body equation of the realistic sensors identified through a state-variable filter,
+/// with cluster-robust intervals (module documentation). Samples are the realistic channels
+/// `[a_body, a_wheel, deflection]` (m/s², m/s², m; the wheel's is not read).
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct StateFilterFit {
+    structure: Structure<f64>,
+    dt: f64,
+    bandwidth: f64,
+    block: u64,
+    skip: u64,
+    filters: [Biquad; 3],
+    /// The last [`HISTORY`] samples `[a_body, deflection]`, oldest first.
+    history: [[f64; 2]; HISTORY],
+    since_start: u64,
+    current: Moments,
+    blocks: Vec<Moments>,
+}
+
+impl StateFilterFit {
+    /// A fit of `structure`'s one identified equation, which reads the states `d, v` and the
+    /// derivative of state 2 (as [`crate::model::QuarterCar::realistic_structure`]), from
+    /// samples every `dt` s, filter bandwidth `bandwidth` (rad/s, [`DEFAULT_BANDWIDTH`]) and
+    /// blocks of `block` s ([`DEFAULT_BLOCK`]).
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] naming `dt`, `bandwidth` (finite, > 0, below the Nyquist
+    /// frequency `π/dt` by a factor of 10 so that the bilinear transform is accurate) or
+    /// `block` (finite, at least `20/λ` and one sample); [`Error::Unsupported`] for a
+    /// structure with more than one identified equation, other than 3 states or more than 3
+    /// parameters.
+    pub fn new(structure: Structure<f64>, dt: f64, bandwidth: f64, block: f64) -> Result<Self> {
+        crate::error::check_positive("dt", dt)?;
+        if !(bandwidth.is_finite() && bandwidth > 0.0 && bandwidth * dt <= core::f64::consts::PI / 10.0) {
+            return Err(Error::InvalidArgument {
+                arg: "bandwidth",
+                expected: "a filter bandwidth in rad/s, > 0 and at most a tenth of the Nyquist frequency pi/dt",
+            });
+        }
+        if !(block.is_finite() && block >= 20.0 / bandwidth && block >= dt) {
+            return Err(Error::InvalidArgument {
+                arg: "block",
+                expected: "a block length in seconds of at least 20/bandwidth (the residuals' correlation)",
+            });
+        }
+        if structure.equations() != 1 || structure.states() != 3 || structure.params() > NP || structure.inputs() != 0 {
+            return Err(Error::Unsupported {
+                what: "a state-variable-filter fit other than of the realistic sensors' body equation \
+                       (QuarterCar::realistic_structure)",
+            });
+        }
+        let f = Biquad::bilinear(dt, bandwidth);
+        Ok(Self {
+            structure,
+            dt,
+            bandwidth,
+            block: libm::round(block / dt).max(1.0) as u64,
+            skip: libm::ceil(10.0 / (bandwidth * dt)) as u64,
+            filters: [f; 3],
+            history: [[0.0; 2]; HISTORY],
+            since_start: 0,
+            current: Moments::default(),
+            blocks: Vec::new(),
+        })
+    }
+
+    /// Whether a restored value keeps every invariant [`StateFilterFit::update`] and
+    /// [`StateFilterFit::stats`] rely on: its settings valid and its filters the ones they
+    /// give, every sum finite, each block within the block length, the normal matrices
+    /// symmetric with a non-negative diagonal.
+    pub fn is_consistent(&self) -> bool {
+        let Ok(fresh) = Self::new(self.structure, self.dt, self.bandwidth, self.block as f64 * self.dt) else {
+            return false;
+        };
+        let coefficients = |f: &Biquad| (f.b, f.a);
+        let filters_ok = self.filters.iter().zip(&fresh.filters).all(|(f, g)| coefficients(f) == coefficients(g))
+            && self.filters.iter().all(|f| f.s.iter().all(|v| v.is_finite()))
+            && self.history.iter().flatten().all(|v| v.is_finite());
+        let block_ok = |m: &Moments| {
+            m.n <= self.block
+                && m.yy.is_finite()
+                && m.yy >= 0.0
+                && m.c.iter().all(|v| v.is_finite())
+                && (0..NP).all(|i| m.a[i][i] >= 0.0 && (0..NP).all(|j| m.a[i][j].is_finite() && m.a[i][j] == m.a[j][i]))
+        };
+        fresh.block == self.block
+            && fresh.skip == self.skip
+            && filters_ok
+            && block_ok(&self.current)
+            && self.blocks.iter().all(|b| block_ok(b) && b.n > 0)
+    }
+
+    /// The structure fitted.
+    pub fn structure(&self) -> &Structure<f64> {
+        &self.structure
+    }
+
+    /// Sample interval, s.
+    pub fn dt(&self) -> f64 {
+        self.dt
+    }
+
+    /// Filter bandwidth `λ`, rad/s.
+    pub fn bandwidth(&self) -> f64 {
+        self.bandwidth
+    }
+
+    /// Block length, samples.
+    pub fn block(&self) -> u64 {
+        self.block
+    }
+
+    /// Samples left out after each start while the filters settle: `⌈10/(λ dt)⌉`, and the
+    /// four of the first five-point derivative.
+    pub fn settling(&self) -> u64 {
+        self.skip + HISTORY as u64 - 1
+    }
+
+    /// Samples used.
+    pub fn samples(&self) -> u64 {
+        self.blocks.iter().map(|b| b.n).sum::<u64>() + self.current.n
+    }
+
+    /// One sample of the realistic channels `[a_body, a_wheel, deflection]`.
+    ///
+    /// # Errors
+    /// [`Error::Shape`] for other than 3 values; [`Error::NonFinite`] (`"y"`) — nothing changes
+    /// (a gap: call [`StateFilterFit::restart`]); [`Error::OutOfMemory`] when a finished block
+    /// cannot be stored.
+    pub fn update(&mut self, y: &[f64]) -> Result<()> {
+        if y.len() != 3 {
+            return Err(Error::Shape { arg: "y", expected: 3, got: y.len() });
+        }
+        crate::error::check_finite("y", y)?;
+        if self.current.n >= self.block {
+            self.blocks.try_reserve(1).map_err(|_| Error::OutOfMemory { what: "a block of samples", bytes: 104 })?;
+            self.blocks.push(core::mem::take(&mut self.current));
+        }
+        self.history.rotate_left(1);
+        self.history[HISTORY - 1] = [y[0], y[2]];
+        self.since_start += 1;
+        if self.since_start < HISTORY as u64 {
+            return Ok(());
+        }
+        // The centre sample (two back) and the deflection's rate there.
+        let [ab, d] = self.history[2];
+        let h = &self.history;
+        let rate = (h[0][1] - 8.0 * h[1][1] + 8.0 * h[3][1] - h[4][1]) / (12.0 * self.dt);
+        if self.since_start == HISTORY as u64 {
+            self.filters[0].prime(ab);
+            self.filters[1].prime(d);
+            self.filters[2].prime(rate);
+        }
+        let fa = self.filters[0].step(ab);
+        let fd = self.filters[1].step(d);
+        let fv = self.filters[2].step(rate);
+        if self.since_start <= self.settling() {
+            return Ok(());
+        }
+        let (x, z) = ([fd, fv, 0.0], [fv, 0.0, fa]);
+        let np = self.structure.params();
+        let mut h = [0.0; MAX_PARAMS];
+        let yv = self.structure.regression(0, &x, &z, &[], &mut h[..np]);
+        let m = &mut self.current;
+        for i in 0..np {
+            for j in 0..np {
+                m.a[i][j] += h[i] * h[j];
+            }
+            m.c[i] += h[i] * yv;
+        }
+        m.yy += yv * yv;
+        m.n += 1;
+        Ok(())
+    }
+
+    /// Rows of the realistic channels (`N × 3`, row-major), as [`StateFilterFit::update`] on
+    /// each; every value is checked first, so a bad one changes nothing.
+    ///
+    /// # Errors
+    /// As [`StateFilterFit::update`]; [`Error::NonFinite`] gives the flat index.
+    pub fn fit(&mut self, y: &[f64]) -> Result<()> {
+        if y.len() % 3 != 0 {
+            return Err(Error::Shape { arg: "y", expected: 3, got: y.len() % 3 });
+        }
+        crate::error::check_finite("y", y)?;
+        let need = (y.len() / 3) as u64 / self.block.max(1) + 1;
+        self.blocks
+            .try_reserve(need as usize)
+            .map_err(|_| Error::OutOfMemory { what: "the blocks of samples", bytes: need as usize * 104 })?;
+        y.chunks_exact(3).try_for_each(|row| self.update(row))
+    }
+
+    /// A gap in the record: the filters start again at the next sample (the first
+    /// [`StateFilterFit::settling`] samples after it are left out, and the last two before it
+    /// were never used: the derivative needs two samples on each side), and the current
+    /// block ends.
+    pub fn restart(&mut self) {
+        self.since_start = 0;
+        if self.current.n > 0 {
+            if self.blocks.try_reserve(1).is_ok() {
+                self.blocks.push(core::mem::take(&mut self.current));
+            }
+        }
+    }
+
+    /// The estimate, its cluster-robust covariance and `1 − alpha` intervals (module
+    /// documentation); `df` is `G − 1`, `sigma2` the filtered equation's residual variance.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for `alpha` outside (0, 1); [`Error::InvalidArgument`]
+    /// naming `samples` for fewer than `k + 1` blocks (too short a record: the covariance needs
+    /// blocks); [`Error::RankDeficient`] when the filtered deflection and its rate do not
+    /// determine the parameters (no excitation: a smooth road, a car at rest).
+    pub fn stats(&self, alpha: f64) -> Result<EstimateStats> {
+        if !(alpha > 0.0 && alpha < 1.0) {
+            return Err(Error::InvalidArgument { arg: "alpha", expected: "a level in (0, 1), e.g. 0.05" });
+        }
+        let np = self.structure.params();
+        let parts = || self.blocks.iter().chain((self.current.n > 0).then_some(&self.current));
+        let g = parts().count();
+        if g < np + 1 {
+            return Err(Error::InvalidArgument {
+                arg: "samples",
+                expected: "more data: at least one block (block seconds) per parameter and one more",
+            });
+        }
+        let mut total = Moments::default();
+        parts().for_each(|b| total.add(b));
+        let a = nalgebra::DMatrix::from_fn(np, np, |i, j| total.a[i][j]);
+        let scale = (0..np).map(|i| a[(i, i)]).fold(0.0, f64::max);
+        let chol = nalgebra::linalg::Cholesky::new(a.clone());
+        let rank =
+            chol.as_ref().map_or(0, |c| (0..np).filter(|&i| c.l()[(i, i)] * c.l()[(i, i)] > 1e-12 * scale).count());
+        let chol = chol.filter(|_| rank == np).ok_or(Error::RankDeficient { rank, needed: np })?;
+        let ainv = chol.inverse();
+        let c = nalgebra::DVector::from_fn(np, |i, _| total.c[i]);
+        let theta = &ainv * &c;
+        let mut meat = nalgebra::DMatrix::<f64>::zeros(np, np);
+        for b in parts() {
+            let gb = nalgebra::DVector::from_fn(np, |i, _| b.c[i] - (0..np).map(|j| b.a[i][j] * theta[j]).sum::<f64>());
+            meat += &gb * gb.transpose();
+        }
+        let (n, gf, k) = (total.n as f64, g as f64, np as f64);
+        let cov = &ainv * meat * &ainv * (gf / (gf - 1.0) * (n - 1.0) / (n - k));
+        let ssr = (total.yy - 2.0 * theta.dot(&c) + (theta.transpose() * &a * &theta)[(0, 0)]).max(0.0);
+        let df = gf - 1.0;
+        let q = crate::stats::t_ppf(1.0 - alpha / 2.0, df)?;
+        let bse: Vec<f64> = (0..np).map(|i| cov[(i, i)].max(0.0).sqrt()).collect();
+        Ok(EstimateStats {
+            params: theta.iter().copied().collect(),
+            cov: (0..np * np).map(|i| cov[(i / np, i % np)]).collect(),
+            conf_int: (0..np).map(|i| (theta[i] - q * bse[i], theta[i] + q * bse[i])).collect(),
+            bse,
+            df: alloc::vec![df; np],
+            sigma2: alloc::vec![ssr / (n - k)],
+            nobs: alloc::vec![n],
+            alpha,
+        })
+    }
+}
