@@ -11,6 +11,8 @@
 //! | Student's t and the normal: CDF, survival function, quantile (scipy `stats.t`, `stats.norm`) | [`t_cdf`], [`t_sf`], [`t_ppf`], [`normal_cdf`], [`normal_sf`], [`normal_ppf`] | `dist.rs` (`beta.rs`: incomplete beta) |
 //! | OLS summary (statsmodels `OLSResults`) | [`summary_into`] with [`SummaryBuffers`] → [`SummaryScalars`], [`Summary`] (alloc), [`condition_number`], [`SYMMETRY_TOLERANCE`] | `summary.rs` (`eigen.rs`: Jacobi) |
 //! | Ljung–Box whiteness test (statsmodels `acorr_ljungbox`), chi-square survival function (scipy `stats.chi2.sf`) | [`ljung_box`] → [`LjungBox`], [`chi2_sf`] | `whiteness.rs` |
+//! | Cross-correlation of a residual with a regressor (statsmodels `ccf`) | [`ccf_into`] | `whiteness.rs` |
+//! | Recursive residuals (statsmodels `RecursiveLSResults.resid_recursive`) | [`recursive_residuals`] (alloc) | `recursive.rs` |
 //! | CUSUM and CUSUM of squares (statsmodels `RecursiveLSResults`) | [`cusum_into`], [`cusum_squares_into`], [`cusum_bound`], [`cusum_scalar`], [`cusum_squares_bounds`], [`cusum_squares_critical`], [`CUSUM_SCALARS`], [`CUSUM_SQUARES_SCALARS`], [`Cusum`] (alloc) | `cusum.rs` |
 //!
 //! Functions that return a `Vec` (the [`Summary`] and [`Cusum`] structs) need `alloc`; the
@@ -25,6 +27,8 @@ mod beta;
 mod cusum;
 mod dist;
 mod eigen;
+#[cfg(feature = "alloc")]
+mod recursive;
 mod summary;
 mod whiteness;
 
@@ -39,6 +43,8 @@ pub use cusum::{
 };
 pub use dist::{normal_cdf, normal_ppf, normal_sf, t_cdf, t_ppf, t_sf};
 #[cfg(feature = "alloc")]
+pub use recursive::recursive_residuals;
+#[cfg(feature = "alloc")]
 pub use summary::Summary;
 pub use summary::{condition_number, summary_into, SummaryBuffers, SummaryScalars, SYMMETRY_TOLERANCE};
-pub use whiteness::{chi2_sf, ljung_box, LjungBox};
+pub use whiteness::{ccf_into, chi2_sf, ljung_box, LjungBox};

@@ -673,3 +673,54 @@ fn cusum_struct_detects_a_break_in_mean_and_in_variance() {
     // Levels without a CUSUM constant are refused.
     assert!(matches!(Cusum::new(&stable, 0.2), Err(Error::InvalidArgument { arg: "alpha", .. })));
 }
+
+#[test]
+fn recursive_residuals_are_the_forecast_errors_of_least_squares_on_each_prefix() {
+    // Second algorithm: least squares on the first t samples by normal equations, solved anew.
+    let (n, p) = (40, 3);
+    let h: Vec<f64> = (0..n * p).map(|i| libm::sin(1.3 * i as f64) + if i % p == 2 { 1.0 } else { 0.0 }).collect();
+    let y: Vec<f64> = (0..n).map(|t| h[t * p] * 2.0 - h[t * p + 1] + 0.05 * libm::cos(7.7 * t as f64)).collect();
+    let w = super::recursive_residuals(&h, &y, p).unwrap();
+    assert_eq!(w.len(), n - p);
+    for t in p..n {
+        let a = nalgebra::DMatrix::from_row_slice(t, p, &h[..t * p]);
+        let ata = a.transpose() * &a;
+        let inv = ata.clone().try_inverse().unwrap();
+        let theta = &inv * a.transpose() * nalgebra::DVector::from_column_slice(&y[..t]);
+        let ht = nalgebra::DVector::from_column_slice(&h[t * p..(t + 1) * p]);
+        let want = (y[t] - ht.dot(&theta)) / libm::sqrt(1.0 + (ht.transpose() * &inv * &ht)[(0, 0)]);
+        assert!((w[t - p] - want).abs() < 1e-9 * (1.0 + want.abs()), "t {t}: {} vs {want}", w[t - p]);
+    }
+    // A record that begins at rest: the residuals start once the rows determine the parameters,
+    // and are then the same as on the record without the idle samples.
+    let mut idle = vec![0.0; 5 * p];
+    idle.extend_from_slice(&h);
+    let mut yi = vec![0.0; 5];
+    yi.extend_from_slice(&y);
+    let wi = super::recursive_residuals(&idle, &yi, p).unwrap();
+    assert_eq!(wi.len(), w.len());
+    for (a, b) in wi.iter().zip(&w) {
+        assert!((a - b).abs() < 1e-9 * (1.0 + b.abs()), "{a} vs {b}");
+    }
+    assert!(matches!(
+        super::recursive_residuals(&[1.0; 8], &[1.0, 2.0, 3.0, 4.0], 2),
+        Err(Error::RankDeficient { .. })
+    ));
+    assert!(matches!(super::recursive_residuals(&h[..6], &y[..2], 3), Err(Error::InvalidArgument { arg: "y", .. })));
+}
+
+#[test]
+fn ccf_finds_the_lag_of_a_delayed_copy() {
+    let x: Vec<f64> = (0..400).map(|t| libm::sin(0.37 * t as f64 * t as f64)).collect();
+    // y leads x by 3 samples: x_{t+3} = y_t.
+    let y: Vec<f64> = (0..400).map(|t| x[(t + 3).min(399)]).collect();
+    let mut out = [0.0; 6];
+    super::ccf_into(&x, &y, &mut out).unwrap();
+    let best = (0..6).max_by(|&a, &b| out[a].partial_cmp(&out[b]).unwrap()).unwrap();
+    assert_eq!(best, 3, "{out:?}");
+    assert!(out[3] > 0.95, "{out:?}");
+    // The other way round the copy is 3 samples in the past: no lag in 0..6 matches.
+    super::ccf_into(&y, &x, &mut out).unwrap();
+    assert!(out.iter().all(|c| c.abs() < 0.3), "{out:?}");
+    assert!(matches!(super::ccf_into(&x, &y[..10], &mut out), Err(Error::Shape { .. })));
+}

@@ -1,5 +1,6 @@
 //! Whiteness of residuals: the Ljung–Box portmanteau test (statsmodels' `acorr_ljungbox`) and
-//! the chi-square survival function it needs.
+//! the chi-square survival function it needs; the residuals' cross-correlation with a
+//! regressor (statsmodels' `ccf`).
 //!
 //! An identifier's equation `z_i = θᵀφ + ε` is estimated without bias only when `ε` is white
 //! and independent of `φ` (the thesis' road noise, Eq 4.25). A real road's height is a random
@@ -94,6 +95,42 @@ pub fn ljung_box(x: &[f64], lags: usize) -> Result<LjungBox> {
     }
     let stat = nf * (nf + 2.0) * q;
     Ok(LjungBox { stat, pvalue: chi2_sf(stat, lags as f64)?, lags, rho1 })
+}
+
+/// The cross-correlation of `x` with `y` at lags `0..out.len()` into `out` (statsmodels
+/// `ccf(x, y, adjusted=True)`): `ccf_k = c_k / (σ_x σ_y)`, `c_k = Σ_{t} (x_{t+k} − x̄)(y_t − ȳ)
+/// / (n − k)` (`x` lags `y` by `k`), `σ` the standard deviations with `ddof = 0`. A residual
+/// that is white and independent of a regressor has `ccf_k ≈ 0` within `±2/√n`; a road that
+/// is not white leaves the wheel equation's residuals correlated with the wheel's position.
+/// Two passes, no allocation.
+///
+/// # Errors
+/// [`Error::Shape`] for `x` and `y` of different lengths; [`Error::InvalidArgument`] naming
+/// `out` when it asks for `n` lags or more; [`Error::NonFinite`]; [`Error::Singular`] for a
+/// series without variance.
+pub fn ccf_into(x: &[f64], y: &[f64], out: &mut [f64]) -> Result<()> {
+    let n = x.len();
+    if y.len() != n {
+        return Err(Error::Shape { arg: "y", expected: n, got: y.len() });
+    }
+    if out.len() > n {
+        return Err(Error::InvalidArgument { arg: "nlags", expected: "at most the number of samples" });
+    }
+    crate::error::check_finite("x", x)?;
+    crate::error::check_finite("y", y)?;
+    let mx = x.iter().sum::<f64>() / n as f64;
+    let my = y.iter().sum::<f64>() / n as f64;
+    let vx = x.iter().map(|v| (v - mx) * (v - mx)).sum::<f64>() / n as f64;
+    let vy = y.iter().map(|v| (v - my) * (v - my)).sum::<f64>() / n as f64;
+    if !(vx > 0.0 && vy > 0.0) {
+        return Err(Error::Singular { what: "the cross-correlation of a series without variance (all values equal)" });
+    }
+    let scale = libm::sqrt(vx) * libm::sqrt(vy);
+    for (k, o) in out.iter_mut().enumerate() {
+        let c: f64 = x[k..].iter().zip(y).map(|(a, b)| (a - mx) * (b - my)).sum();
+        *o = c / (n - k) as f64 / scale;
+    }
+    Ok(())
 }
 
 #[cfg(test)]
