@@ -27,6 +27,7 @@ from ._vehid import (
     KalmanIdentifier,
     LinearModel,
     QuarterCar,
+    RealisticIdentifier,
     Run,
     Simulator,
     Stats,
@@ -35,11 +36,15 @@ from ._vehid import (
     TwoAxleIdentifier,
     VehidError,
     __version__,
+    ccf,
+    cusum,
     ljung_box,
+    recursive_residuals,
     snr_db,
     validate,
     xi,
 )
+from .diagnostics import diagnostics
 
 __all__ = [
     "AxleSampler",
@@ -54,6 +59,7 @@ __all__ = [
     "KalmanIdentifier",
     "LinearModel",
     "QuarterCar",
+    "RealisticIdentifier",
     "Run",
     "Simulator",
     "Stats",
@@ -62,7 +68,11 @@ __all__ = [
     "TwoAxleIdentifier",
     "VehidError",
     "__version__",
+    "ccf",
+    "cusum",
+    "diagnostics",
     "ljung_box",
+    "recursive_residuals",
     "reproduce",
     "snr_db",
     "validate",

@@ -1038,6 +1038,13 @@ def model_arg(text: str) -> str:
 
 
 def cmd_identify(args: argparse.Namespace) -> int:
+    if args.sensors == "realistic":
+        from .identify_realistic import RealisticError, cmd_identify_realistic
+
+        try:
+            return cmd_identify_realistic(args)
+        except RealisticError as e:
+            raise CliError(str(e)) from None
     if args.model not in MODELS:
         return cmd_identify_file(args)
     model = MODELS[args.model]()
@@ -1408,6 +1415,20 @@ def build_parser() -> argparse.ArgumentParser:
     ident.add_argument("--delay", type=int, default=None,
                        help="--road iso8608/random-walk: the instruments' delay in samples (default 1; use 2 when the "
                             "measured states carry white noise, whose difference is correlated over two samples)")
+    ident.add_argument("--sensors", choices=["state", "realistic"], default="state",
+                       help="state (default): the measured state and its derivative (the thesis' sensors, columns "
+                            "zw, vw, zb, vb and their derivatives); realistic: a body and a wheel accelerometer and a "
+                            "deflection sensor (columns a_body, a_wheel, deflection; quarter car), which determine "
+                            "k2/M and b/M (k2 and b with --M) on any road, never m or k1 (printed as not "
+                            "identifiable, with what they need)")
+    ident.add_argument("--M", type=positive_float, default=None,
+                       help="--sensors realistic: the known body mass M, kg (then k2 and b, else only k2/M and b/M)")
+    ident.add_argument("--bandwidth", type=positive_float, default=10.0,
+                       help="--sensors realistic: the state-variable filter's bandwidth, rad/s (default 10)")
+    ident.add_argument("--block", type=positive_float, default=2.0,
+                       help="--sensors realistic: the blocks of the cluster-robust intervals, s (default 2)")
+    ident.add_argument("--dt", type=positive_float, default=None,
+                       help="--sensors realistic: the sample interval, s, when the log has no time column")
     ident.add_argument("--m", type=positive_float, default=1.0, help="quarter: known wheel mass m, kg (default 1)")
     ident.add_argument("--m1", type=positive_float, default=1.0, help="half: known front wheel mass m1, kg (default 1)")
     ident.add_argument("--m2", type=positive_float, default=1.0, help="half: known rear wheel mass m2, kg (default 1)")

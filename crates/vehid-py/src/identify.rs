@@ -303,6 +303,50 @@ impl PyIdentifier {
         crate::persist::set_state(slf, state)
     }
 
+    /// The regression of identified equation `equation` at each sample: `(H, y)` with `H`
+    /// (samples, n_params) the regressors and `y` (samples,) the left side less the known
+    /// terms, so that `y = H @ params + residual` (the core's `Structure::regression`; a
+    /// linear model's rows as its full-row structure). For `recursive_residuals`, `ccf`.
+    #[pyo3(signature = (r, z, u = None, equation = 0))]
+    fn regressors<'py>(
+        slf: &Bound<'py, Self>,
+        py: Python<'py>,
+        r: &Bound<'py, PyAny>,
+        z: &Bound<'py, PyAny>,
+        u: Option<&Bound<'py, PyAny>>,
+        equation: usize,
+    ) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, numpy::PyArray1<f64>>)> {
+        let this = borrow(slf)?;
+        let structure = match &this.structure {
+            Some(st) => st.get().core,
+            None => vehid_core::structure::Structure::full_rows(this.model.n, &this.model.rows).map_err(core_err)?,
+        };
+        let (n, m, ne, np) = (structure.states(), structure.inputs(), structure.equations(), structure.params());
+        if equation >= ne {
+            return Err(VehidError::new_err(format!(
+                "`equation` must be below {ne} (the identified equations, in order), got {equation}"
+            )));
+        }
+        let rt = Table::new(r, "r", None, n, "measured states")?;
+        let zt = Table::new(z, "z", Some(rt.rows), n, "measured derivatives, like `r`")?;
+        let ut = input_table(u, m, rt.rows)?;
+        let rows = rt.rows;
+        let (x, zz) = (rt.data(), zt.data());
+        let uu = ut.as_ref().map_or(&[][..], |t| t.data());
+        finite("r", x)?;
+        finite("z", zz)?;
+        finite("u", uu)?;
+        let (h, y) = py.detach(|| {
+            let (mut h, mut y) = (vec![0.0; rows * np], vec![0.0; rows]);
+            for k in 0..rows {
+                let (xk, zk, uk) = (&x[k * n..(k + 1) * n], &zz[k * n..(k + 1) * n], &uu[k * m..(k + 1) * m]);
+                y[k] = structure.regression(equation, xk, zk, uk, &mut h[k * np..(k + 1) * np]);
+            }
+            (h, y)
+        });
+        Ok((to_array2(py, rows, np, h)?, numpy::IntoPyArray::into_pyarray(y, py)))
+    }
+
     /// Each identified equation's residual at the current estimate, (samples, equations):
     /// `z_i − (known terms + hᵀθ̂)` for the equations as written (before any road
     /// differencing), in the order of `unknown_rows`. Model checks read them (whiteness:

@@ -18,6 +18,7 @@ mod joint_ekf;
 mod model;
 mod noisy;
 mod persist;
+mod realistic;
 mod reproduce;
 mod road;
 mod sim;
@@ -125,10 +126,14 @@ fn _vehid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<stats::PyStats>()?;
     m.add_class::<health::PyHealthMonitor>()?;
     m.add_class::<health::PyEvent>()?;
+    m.add_class::<realistic::PyRealisticIdentifier>()?;
     m.add_function(wrap_pyfunction!(structure::_physical_structure, m)?)?;
     m.add_function(wrap_pyfunction!(structure::validate, m)?)?;
     m.add_function(wrap_pyfunction!(xi, m)?)?;
     m.add_function(wrap_pyfunction!(stats::ljung_box, m)?)?;
+    m.add_function(wrap_pyfunction!(stats::ccf, m)?)?;
+    m.add_function(wrap_pyfunction!(stats::recursive_residuals, m)?)?;
+    m.add_function(wrap_pyfunction!(stats::cusum, m)?)?;
     m.add_function(wrap_pyfunction!(snr_db, m)?)?;
     m.add_function(wrap_pyfunction!(reproduce::reproduce_report, m)?)?;
     Ok(())

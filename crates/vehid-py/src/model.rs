@@ -278,8 +278,13 @@ impl PyLinearModel {
     /// (QuarterCar with m known: "k2/M", "b/M", "M", "k1"; the body equation in ratio form,
     /// the wheel's in momentum form through der(x4)), states x1..xn. HalfCar needs l1 and l2
     /// known (they enter the pitch lever arms).
-    #[pyo3(signature = (known = None))]
-    fn structure(&self, known: Option<&Bound<'_, PyAny>>) -> PyResult<crate::structure::PyStructure> {
+    ///
+    /// `sensors="realistic"` (QuarterCar): the body equation the realistic sensors determine,
+    /// `dvb/dt = -(k2/M) d - (b/M) v + offset`, states `d, v, vb` (deflection, its rate, the
+    /// body's velocity): parameters k2/M, b/M, offset (k2, b, offset with M known); m and k1 are
+    /// not determined (`not_identifiable` says why). Fit it with `RealisticIdentifier`.
+    #[pyo3(signature = (known = None, sensors = "state"))]
+    fn structure(&self, known: Option<&Bound<'_, PyAny>>, sensors: &str) -> PyResult<crate::structure::PyStructure> {
         use crate::structure::{CarKind, PyStructure};
         let car = match self.kind {
             Kind::Quarter(_) => CarKind::Quarter,
@@ -290,7 +295,7 @@ impl PyLinearModel {
                 ))
             }
         };
-        PyStructure::physical(car, known)
+        PyStructure::physical(car, known, crate::structure::sensors_arg(sensors)?)
     }
 
     /// Physical constants from identified rows `theta_hat` (len(unknown_rows), n).

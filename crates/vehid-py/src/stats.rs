@@ -138,6 +138,7 @@ pub(crate) fn physical_from_stats<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let consts = car.constants();
     // The structure the stats came from, or the one `known` describes.
+    let realistic = st.structure.as_ref().is_some_and(|s| s.get().realistic());
     let known_k = match (known.filter(|k| !k.is_empty()), &st.structure) {
         (Some(k), _) => known_constants(car, Some(k.as_any()))?,
         (None, Some(s)) => match &s.get().origin {
@@ -157,7 +158,7 @@ pub(crate) fn physical_from_stats<'py>(
             ))
         }
     };
-    let ph = PyStructure::physical_known(car, known_k)?;
+    let ph = PyStructure::physical_known(car, known_k, realistic)?;
     if ph.params != st.names {
         return Err(VehidError::new_err(format!(
             "these stats belong to parameters {:?}, but the structure with these known constants has {:?}: use \
@@ -207,4 +208,91 @@ pub fn ljung_box(py: Python<'_>, x: &Bound<'_, PyAny>, lags: i128) -> PyResult<(
     let lags = crate::convert::size(lags, "lags")?;
     let lb = py.detach(|| vehid_core::stats::ljung_box(&a.data, lags)).map_err(core_err)?;
     Ok((lb.stat, lb.pvalue))
+}
+
+/// One 1-D float series from `obj`, named `arg` in errors.
+fn series(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Vec<f64>> {
+    let a = crate::convert::array(obj, arg)?;
+    if a.shape.len() != 1 {
+        return Err(VehidError::new_err(format!(
+            "`{arg}` must be one series (n,), got shape {}",
+            crate::convert::shape_str(&a.shape)
+        )));
+    }
+    Ok(a.data)
+}
+
+/// The cross-correlation of `x` with `y` at lags 0..nlags-1 (statsmodels'
+/// `ccf(x, y, adjusted=True)[:nlags]`): `ccf[k] = Σ_t (x[t+k] - x̄)(y[t] - ȳ) / (n - k) / (σx σy)`.
+/// Residuals that are white and independent of a regressor stay within ±2/√n.
+#[pyfunction]
+#[pyo3(signature = (x, y, nlags = None))]
+pub fn ccf<'py>(
+    py: Python<'py>,
+    x: &Bound<'py, PyAny>,
+    y: &Bound<'py, PyAny>,
+    nlags: Option<i128>,
+) -> PyResult<Bound<'py, numpy::PyArray1<f64>>> {
+    let (x, y) = (series(x, "x")?, series(y, "y")?);
+    let lags = match nlags {
+        Some(l) => crate::convert::size(l, "nlags")?,
+        None => x.len(),
+    };
+    let out = py
+        .detach(|| {
+            let mut out = vec![0.0; lags];
+            vehid_core::stats::ccf_into(&x, &y, &mut out).map(|_| out)
+        })
+        .map_err(core_err)?;
+    Ok(numpy::IntoPyArray::into_pyarray(out, py))
+}
+
+/// The recursive residuals of the regression of `y` (n,) on `h` (n, p) (Brown, Durbin & Evans
+/// 1975; statsmodels' `RecursiveLS(y, h).fit().resid_recursive[p:]`): n - p one-step forecast
+/// errors, each scaled to the noise variance; independent N(0, σ²) under the model.
+#[pyfunction]
+pub fn recursive_residuals<'py>(
+    py: Python<'py>,
+    h: &Bound<'py, PyAny>,
+    y: &Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, numpy::PyArray1<f64>>> {
+    let a = crate::convert::array(h, "h")?;
+    let y = series(y, "y")?;
+    let p = match a.shape[..] {
+        [rows, p] if rows == y.len() && p > 0 => p,
+        _ => {
+            return Err(VehidError::new_err(format!(
+                "`h` must have shape ({}, n_params): one row of regressors per value of `y`, got {}",
+                y.len(),
+                crate::convert::shape_str(&a.shape)
+            )))
+        }
+    };
+    let w = py.detach(|| vehid_core::stats::recursive_residuals(&a.data, &y, p)).map_err(core_err)?;
+    Ok(numpy::IntoPyArray::into_pyarray(w, py))
+}
+
+/// The CUSUM and CUSUM-of-squares tests of recursive residuals `w` at level `alpha` (0.01,
+/// 0.05 or 0.10; statsmodels' `RecursiveLSResults.cusum`, `cusum_squares` and their
+/// significance bounds): a dict with `cusum` (m,), `cusum_bound` (m,; the lower bound is its
+/// negative), `cusum_squares` (m,), `cusum_squares_bounds` (m, 2), `sigma`, `alpha`, and
+/// `first_cusum_crossing` / `first_cusum_squares_crossing`: the first index outside its
+/// bounds (evidence that the parameters or the noise changed), or None.
+#[pyfunction]
+#[pyo3(signature = (w, alpha = 0.05))]
+pub fn cusum<'py>(py: Python<'py>, w: &Bound<'py, PyAny>, alpha: f64) -> PyResult<Bound<'py, pyo3::types::PyDict>> {
+    let w = series(w, "w")?;
+    let c = py.detach(|| vehid_core::stats::Cusum::new(&w, alpha)).map_err(core_err)?;
+    let out = pyo3::types::PyDict::new(py);
+    let bounds: Vec<f64> = c.cusum_squares_bounds.iter().flatten().copied().collect();
+    out.set_item("first_cusum_crossing", c.first_cusum_crossing())?;
+    out.set_item("first_cusum_squares_crossing", c.first_cusum_squares_crossing())?;
+    out.set_item("sigma", c.sigma)?;
+    out.set_item("alpha", c.alpha)?;
+    let m = c.len();
+    out.set_item("cusum", numpy::IntoPyArray::into_pyarray(c.cusum, py))?;
+    out.set_item("cusum_bound", numpy::IntoPyArray::into_pyarray(c.cusum_bound, py))?;
+    out.set_item("cusum_squares", numpy::IntoPyArray::into_pyarray(c.cusum_squares, py))?;
+    out.set_item("cusum_squares_bounds", crate::model::to_array2(py, m, 2, bounds)?)?;
+    Ok(out)
 }

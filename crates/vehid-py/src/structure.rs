@@ -18,8 +18,9 @@ use vehid_core::structure::{Structure, StructureBuilder};
 pub(crate) enum Origin {
     /// Equation texts: `(state, text)` identified, `(state, text)` known, declared parameters.
     Text { equations: Vec<(String, String)>, known: Vec<(String, String)>, parameters: Option<Vec<String>> },
-    /// A car's physical structure with these constants known (in the car's constant order).
-    Physical { car: CarKind, known: Vec<Option<f64>>, physical: Box<PhysicalStructure<f64>> },
+    /// A car's physical structure with these constants known (in the car's constant order),
+    /// for the state sensors or (`realistic`) the body equation the realistic sensors determine.
+    Physical { car: CarKind, known: Vec<Option<f64>>, realistic: bool, physical: Box<PhysicalStructure<f64>> },
 }
 
 /// The cars with a physical structure.
@@ -45,14 +46,23 @@ impl CarKind {
         }
     }
 
-    /// The physical structure with `known` constants (core order) fixed.
-    pub(crate) fn physical(self, known: &[Option<f64>]) -> vehid_core::Result<PhysicalStructure<f64>> {
+    /// The physical structure with `known` constants (core order) fixed, for the state
+    /// sensors or the realistic ones.
+    pub(crate) fn physical(self, known: &[Option<f64>], realistic: bool) -> vehid_core::Result<PhysicalStructure<f64>> {
         match self {
             CarKind::Quarter => {
                 let mut k = [None; 5];
                 k.copy_from_slice(known);
-                QuarterCar::structure(k)
+                if realistic {
+                    QuarterCar::realistic_structure(k)
+                } else {
+                    QuarterCar::structure(k)
+                }
             }
+            CarKind::Half if realistic => Err(vehid_core::Error::Unsupported {
+                what: "the half car's structure for the realistic sensors (identify each axle's body equation \
+                       with QuarterCar.structure(sensors=\"realistic\") on its channels, or use the state sensors)",
+            }),
             CarKind::Half => {
                 let mut k = [None; 12];
                 k.copy_from_slice(known);
@@ -149,21 +159,33 @@ impl PyStructure {
     }
 
     /// A car's physical structure; `known` maps constant names to values.
-    pub(crate) fn physical(car: CarKind, known: Option<&Bound<'_, PyAny>>) -> PyResult<Self> {
-        Self::physical_known(car, known_constants(car, known)?)
+    pub(crate) fn physical(car: CarKind, known: Option<&Bound<'_, PyAny>>, realistic: bool) -> PyResult<Self> {
+        Self::physical_known(car, known_constants(car, known)?, realistic)
     }
 
-    /// A car's physical structure with constants `k` (one per [`CarKind::constants`]) known.
-    pub(crate) fn physical_known(car: CarKind, k: Vec<Option<f64>>) -> PyResult<Self> {
-        let ph = car.physical(&k).map_err(core_err)?;
+    /// A car's physical structure with constants `k` (one per [`CarKind::constants`]) known;
+    /// the realistic sensors' states are named `d, v, vb` (deflection, its rate, the body's
+    /// velocity), the state sensors' `x1..xn`.
+    pub(crate) fn physical_known(car: CarKind, k: Vec<Option<f64>>, realistic: bool) -> PyResult<Self> {
+        let ph = car.physical(&k, realistic).map_err(core_err)?;
         let n = ph.structure().states();
+        let states = if realistic {
+            ["d", "v", "vb"].iter().map(|s| s.to_string()).collect()
+        } else {
+            (1..=n).map(|i| format!("x{i}")).collect()
+        };
         Ok(Self {
             core: *ph.structure(),
-            states: (1..=n).map(|i| format!("x{i}")).collect(),
+            states,
             inputs: vec![],
             params: ph.param_names().iter().map(|s| s.to_string()).collect(),
-            origin: Origin::Physical { car, known: k, physical: Box::new(ph) },
+            origin: Origin::Physical { car, known: k, realistic, physical: Box::new(ph) },
         })
+    }
+
+    /// Whether this is a car's structure for the realistic sensors.
+    pub(crate) fn realistic(&self) -> bool {
+        matches!(self.origin, Origin::Physical { realistic: true, .. })
     }
 
     /// [`PyStructure::simulate`]'s work: the simulated states, row-major.
@@ -241,6 +263,22 @@ impl PyStructure {
             _ => None,
         };
         Self::from_text(states, inputs, equations, known, parameters)
+    }
+
+    /// The constants of a car's structure that its data cannot determine, each with what
+    /// would determine it: `{constant: "needs ..."}` (empty for a structure from text, and when
+    /// every constant follows). `car.physical(stats)` leaves these out.
+    #[getter]
+    fn not_identifiable<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let out = PyDict::new(py);
+        if let Origin::Physical { car, physical, .. } = &self.origin {
+            for (c, name) in car.constants().iter().enumerate() {
+                if let Some(why) = physical.needs(c) {
+                    out.set_item(*name, why)?;
+                }
+            }
+        }
+        Ok(out)
     }
 
     /// The parameter names, in the order of `params` and of every vector over parameters.
@@ -358,7 +396,7 @@ impl PyStructure {
                     py_str_list(&self.params)
                 )
             }
-            Origin::Physical { car, known, .. } => {
+            Origin::Physical { car, known, realistic, .. } => {
                 let k: Vec<String> = car
                     .constants()
                     .iter()
@@ -366,9 +404,10 @@ impl PyStructure {
                     .filter_map(|(c, v)| v.map(|v| format!("{}: {v:?}", py_str(c))))
                     .collect();
                 format!(
-                    "{}.structure(known={{{}}}) (parameters {})",
+                    "{}.structure(known={{{}}}{}) (parameters {})",
                     car.name(),
                     k.join(", "),
+                    if *realistic { ", sensors='realistic'" } else { "" },
                     py_str_list(&self.params)
                 )
             }
@@ -397,7 +436,7 @@ impl PyStructure {
                 let args = (s.states.clone(), s.inputs.clone(), eq, kn, parameters.clone()).into_pyobject(py)?;
                 (slf.get_type(), args).into_pyobject(py)
             }
-            Origin::Physical { car, known, .. } => {
+            Origin::Physical { car, known, realistic, .. } => {
                 let kn = PyDict::new(py);
                 for (c, v) in car.constants().iter().zip(known) {
                     if let Some(v) = v {
@@ -405,21 +444,37 @@ impl PyStructure {
                     }
                 }
                 let f = py.import("vehid._vehid")?.getattr("_physical_structure")?;
-                (f, (car.name(), kn).into_pyobject(py)?).into_pyobject(py)
+                let sensors = if *realistic { "realistic" } else { "state" };
+                (f, (car.name(), kn, sensors).into_pyobject(py)?).into_pyobject(py)
             }
         }
     }
 }
 
-/// Rebuilds `QuarterCar.structure(known)` / `HalfCar.structure(known)` when unpickling.
+/// Rebuilds `QuarterCar.structure(known, sensors)` / `HalfCar.structure(known)` when
+/// unpickling.
 #[pyfunction]
-pub(crate) fn _physical_structure(car: &str, known: &Bound<'_, PyAny>) -> PyResult<PyStructure> {
+#[pyo3(signature = (car, known, sensors = "state"))]
+pub(crate) fn _physical_structure(car: &str, known: &Bound<'_, PyAny>, sensors: &str) -> PyResult<PyStructure> {
     let kind = match car {
         "QuarterCar" => CarKind::Quarter,
         "HalfCar" => CarKind::Half,
         other => return Err(VehidError::new_err(format!("no physical structure for {other:?}"))),
     };
-    PyStructure::physical(kind, Some(known))
+    PyStructure::physical(kind, Some(known), sensors_arg(sensors)?)
+}
+
+/// `sensors=`: `"state"` (false) or `"realistic"` (true).
+pub(crate) fn sensors_arg(sensors: &str) -> PyResult<bool> {
+    match sensors {
+        "state" => Ok(false),
+        "realistic" => Ok(true),
+        other => Err(VehidError::new_err(format!(
+            "`sensors` must be \"state\" (the measured state and derivative) or \"realistic\" \
+             (accelerometers and a deflection sensor), got {}",
+            py_str(other)
+        ))),
+    }
 }
 
 /// A 1-D float vector of exactly `len` values.

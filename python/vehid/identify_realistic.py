@@ -1,0 +1,202 @@
+"""``vehid identify LOG --model quarter --sensors realistic``: the constants a car's own sensors
+determine.
+
+A body accelerometer, a wheel accelerometer and a suspension deflection sensor (the channels
+``a_body``, ``a_wheel``, ``deflection`` of ``vehid simulate --sensors realistic`` and ``vehid
+monitor``) determine the body equation ``dvb/dt = -(k2/M) d - (b/M) v + offset``: the ratios
+k2/M and b/M, and with the body mass known (``--M``) k2 and b. The tyre force ``k1 (u - zw)``
+is measured by none of them (the wheel's absolute position and the road height are unknown),
+so m and k1 are printed as not identifiable, with what would determine them. The fit is the
+core's state-variable filter (``vehid.RealisticIdentifier``); this module reads the log,
+restarts the filter at gaps and prints.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from typing import Any, Dict, List, Optional, Tuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from . import QuarterCar, RealisticIdentifier, VehidError
+from .io import Column, TableError, match_columns, open_table, parse_column_map
+from .monitor import SENSOR_COLUMNS
+
+CHUNK = 65_536
+# A step between samples this many times the sample interval is a gap: the filter restarts.
+GAP_FACTOR = 1.5
+UNITS = {"k2": "N/m", "b": "N s/m", "k2/M": "1/s^2", "b/M": "1/s", "offset": "m/s^2", "M": "kg", "m": "kg",
+         "k1": "N/m"}
+
+
+class RealisticError(Exception):
+    """A user error, reported in one line (exit status 2)."""
+
+
+def _gaps(t: NDArray[np.float64], prev: Optional[float], dt: float, where: str) -> NDArray[np.bool_]:
+    """Whether each sample follows a gap (a step longer than GAP_FACTOR sample intervals)."""
+    full = t if prev is None else np.concatenate([[prev], t])
+    step = np.diff(full)
+    if (step <= 0).any() or not np.isfinite(step).all():
+        raise RealisticError(f"{where}: the time column must increase from sample to sample")
+    gap = step > GAP_FACTOR * dt
+    return gap if prev is not None else np.concatenate([[False], gap])
+
+
+def cmd_identify_realistic(args: argparse.Namespace) -> int:
+    if args.model != "quarter":
+        raise RealisticError(
+            "--sensors realistic: the quarter car only (--model quarter); for the half car identify each axle's "
+            "body equation from its own channels (a_body_f, a_wheel_f, deflection_f as a quarter car), or record "
+            "the state sensors")
+    known: Dict[str, float] = {} if args.M is None else {"M": args.M}
+    truth = _truth(args.truth)
+    try:
+        structure = QuarterCar.passenger().structure(known=known, sensors="realistic")
+        mapping = parse_column_map(args.columns or [])
+    except (VehidError, TableError) as e:
+        raise RealisticError(str(e)) from None
+    channels = SENSOR_COLUMNS["realistic"]
+    ident: Optional[RealisticIdentifier] = None
+    samples = gaps = missing = 0
+    with open_table(args.file, delimiter=args.delimiter) as table:
+        match = match_columns(table.names, (Column("t", "time", "s"),) + channels, mapping, where=table.source)
+        absent = [c for c in channels if c.name not in match.index]
+        if absent:
+            raise RealisticError(
+                f"{table.source} has no column {', '.join(c.describe() for c in absent)} for --sensors realistic "
+                f"(its columns: {', '.join(repr(h) for h in table.names[:12])}); map yours with --columns "
+                f"{absent[0].name}=NAME")
+        has_t = "t" in match.index and not args.no_time
+        if not has_t and args.dt is None:
+            raise RealisticError(f"{table.source} has no time column t: give the sample interval with --dt SECONDS")
+        cols = ([match.index["t"]] if has_t else []) + [match.index[c.name] for c in channels]
+        labels = (["t"] if has_t else []) + [c.describe() for c in channels]
+        prev: Optional[float] = None
+        for chunk in table.chunks(cols, labels, CHUNK, missing=True):
+            data = chunk.data
+            y = np.ascontiguousarray(data[:, 1:] if has_t else data)
+            if ident is None:
+                dt = args.dt
+                if dt is None:
+                    if len(data) < 2:
+                        raise RealisticError(f"{table.source}: one sample cannot give the sample interval: give --dt")
+                    dt = float(np.median(np.diff(data[:, 0])))
+                try:
+                    ident = RealisticIdentifier(structure, dt, bandwidth=args.bandwidth, block=args.block)
+                except VehidError as e:
+                    raise RealisticError(f"{table.source}: {e}") from None
+            restart = np.zeros(len(y), dtype=bool)
+            if has_t:
+                restart = _gaps(data[:, 0], prev, ident.dt, table.source)
+                prev = float(data[-1, 0])
+            bad = ~np.isfinite(y).all(axis=1)  # a missing value: the sample is left out, the filter restarts
+            missing += int(bad.sum())
+            gaps += int(restart.sum())
+            start = 0
+            for i in np.flatnonzero(restart | bad).tolist() + [len(y)]:
+                if start < i:
+                    ident.fit(y[start:i])
+                if i < len(y):
+                    ident.restart()
+                    start = i + 1 if bad[i] else i
+            samples += len(y)
+        source = table.source
+    if ident is None:
+        raise RealisticError(f"{source} has no samples")
+    try:
+        st = ident.stats()
+    except VehidError as e:
+        raise RealisticError(f"{source}: {e}") from None
+    car = QuarterCar.passenger()
+    constants = car.physical(st) if known else {}
+    needs = structure.not_identifiable
+    report = _report(args, source, samples, gaps, missing, ident, st, constants, needs, truth)
+    if args.json:
+        print(json.dumps(report, allow_nan=False))
+    else:
+        _print(report)
+    return 0
+
+
+def _truth(text: Optional[str]) -> Optional[Dict[str, float]]:
+    if text is None:
+        return None
+    if text.strip() == "passenger":
+        return dict(QuarterCar.passenger().params)
+    if text.strip() == "thesis":
+        return dict(QuarterCar().params)
+    out: Dict[str, float] = {}
+    for item in text.split(","):
+        key, sep, value = item.partition("=")
+        try:
+            out[key.strip()] = float(value)
+        except ValueError:
+            raise RealisticError(f"--truth: {item.strip()!r} is not NAME=VALUE") from None
+        if not sep or not math.isfinite(out[key.strip()]):
+            raise RealisticError(f"--truth: {item.strip()!r} is not NAME=VALUE with a finite value")
+    return out
+
+
+def _report(args: argparse.Namespace, source: str, samples: int, gaps: int, missing: int,
+            ident: RealisticIdentifier, st: Any, constants: Dict[str, Tuple[float, float, float]],
+            needs: Dict[str, str], truth: Optional[Dict[str, float]]) -> Dict[str, Any]:
+    params: List[Dict[str, Any]] = []
+    for name, v, (lo, hi) in zip(st.names, st.params.tolist(), st.conf_int.tolist()):
+        true = None
+        if truth is not None and "/" in name:
+            a, b = name.split("/")
+            true = truth[a] / truth[b] if a in truth and b in truth else None
+        elif truth is not None and name in truth:
+            true = truth[name]
+        params.append({"name": name, "value": v, "low": lo, "high": hi, "true": true})
+    consts = {k: {"value": v, "low": lo, "high": hi, "true": None if truth is None else truth.get(k)}
+              for k, (v, lo, hi) in constants.items()}
+    return {
+        "source": source,
+        "model": "quarter",
+        "sensors": "realistic",
+        "samples": samples,
+        "used": ident.samples,
+        "restarts": gaps,
+        "missing": missing,
+        "dt": ident.dt,
+        "bandwidth": ident.bandwidth,
+        "block": ident.block,
+        "blocks": float(st.df[0]) + 1,
+        "alpha": st.alpha,
+        "known": {"M": args.M} if args.M is not None else {},
+        "params": params,
+        "constants": consts,
+        "not_identifiable": {k: v for k, v in needs.items() if k not in constants},
+    }
+
+
+def _print(r: Dict[str, Any]) -> None:
+    print(f"{r['source']}: {r['samples']} samples ({r['used']} used; {r['restarts']} restart(s) at gaps, "
+          f"{r['missing']} with a missing value), quarter car, realistic sensors (a_body, a_wheel, deflection), "
+          f"sample interval {r['dt']:.6g} s")
+    print(f"method: state-variable filter (bandwidth {r['bandwidth']:g} rad/s) on the body equation, intervals "
+          f"cluster-robust over {r['blocks']:.0f} blocks of {r['block']:g} s")
+    print()
+    level = f"{100 * (1 - r['alpha']):g} %"
+    print(f"body equation dvb/dt = -(k2/M) d - (b/M) v + offset, {level} intervals:")
+    for p in r["params"]:
+        band = f"[{p['low']:.6g}, {p['high']:.6g}]"
+        true = f"true {p['true']:.6g}" if p["true"] is not None else ""
+        print(f"  {p['name']:6s} = {p['value']:<12.6g} {band:26s} {UNITS.get(p['name'], ''):7s} {true}".rstrip())
+    print()
+    given = ", ".join(f"{k} = {v:g} kg" for k, v in r["known"].items()) or "none"
+    print(f"physical constants (known: {given}), {level} intervals:")
+    for k, c in r["constants"].items():
+        if k in r["known"]:
+            continue
+        band = f"[{c['low']:.6g}, {c['high']:.6g}]"
+        true = f"true {c['true']:.6g}" if c["true"] is not None else ""
+        print(f"  {k:3s} = {c['value']:<12.6g} {band:26s} {UNITS.get(k, ''):7s} {true}".rstrip())
+    for k, why in r["not_identifiable"].items():
+        print(f"  {k:3s}   not identifiable from these signals: needs {why}")
