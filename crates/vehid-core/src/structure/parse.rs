@@ -13,8 +13,11 @@
 //! basis (a state, an input, `der(state)`, or `sign`/`pos`/`neg` of a linear combination of
 //! states, inputs and derivatives): the model stays linear in its parameters.
 
-use super::{Basis, Structure, Term, Var, MAX_COMBINATION, MAX_PARAMS, MAX_TERMS};
+use super::{
+    Basis, Structure, Term, Var, MAX_COMBINATION, MAX_EQUATIONS, MAX_INPUTS, MAX_PARAMS, MAX_STATES, MAX_TERMS,
+};
 use crate::Real;
+use std::collections::HashSet;
 use std::string::{String, ToString};
 use std::vec::Vec;
 use std::{format, vec};
@@ -112,19 +115,25 @@ impl StructureBuilder {
     /// position), a product of two parameters or two variables, an unused or confounded
     /// parameter, capacities exceeded.
     pub fn build<T: Real>(&self) -> Result<(Structure<T>, Names), StructureError> {
-        check_names("states", &self.states)?;
+        // Counts first: nothing below is done on more names or equations than fit.
+        check_count("states", self.states.len(), MAX_STATES)?;
+        check_count("inputs", self.inputs.len(), MAX_INPUTS)?;
+        if let Some(p) = &self.params {
+            check_count("parameters", p.len(), MAX_PARAMS)?;
+        }
+        check_count("equations", self.equations.len() + self.known.len(), MAX_EQUATIONS)?;
+        let states = check_names("states", &self.states)?;
         check_names("inputs", &self.inputs)?;
-        for s in &self.inputs {
-            if self.states.contains(s) {
-                return err("inputs", format!("'{s}' is also a state: give inputs and states different names"));
-            }
+        if let Some(s) = self.inputs.iter().find(|s| states.contains(s.as_str())) {
+            return err("inputs", format!("'{s}' is also a state: give inputs and states different names"));
         }
         if self.states.is_empty() {
             return err("states", "at least one state is needed");
         }
         if let Some(p) = &self.params {
             check_names("parameters", p)?;
-            if let Some(s) = p.iter().find(|p| self.states.contains(p) || self.inputs.contains(p)) {
+            let inputs: HashSet<&str> = self.inputs.iter().map(String::as_str).collect();
+            if let Some(s) = p.iter().find(|p| states.contains(p.as_str()) || inputs.contains(p.as_str())) {
                 return err("parameters", format!("'{s}' is also a state or input name"));
             }
         }
@@ -211,8 +220,18 @@ impl StructureBuilder {
     }
 }
 
-fn check_names(item: &str, names: &[String]) -> Result<(), StructureError> {
-    for (i, n) in names.iter().enumerate() {
+/// `count` names or equations, at most `max`.
+fn check_count(item: &str, count: usize, max: usize) -> Result<(), StructureError> {
+    if count > max {
+        return err(item, format!("{count} given; at most {max} are supported"));
+    }
+    Ok(())
+}
+
+/// Each name valid and given once; the names as a set.
+fn check_names<'n>(item: &str, names: &'n [String]) -> Result<HashSet<&'n str>, StructureError> {
+    let mut seen = HashSet::with_capacity(names.len());
+    for n in names {
         let mut chars = n.chars();
         let ok = chars.next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
             && chars.all(|c| c.is_ascii_alphanumeric() || c == '_');
@@ -222,11 +241,11 @@ fn check_names(item: &str, names: &[String]) -> Result<(), StructureError> {
         if matches!(n.as_str(), "sign" | "pos" | "neg" | "der") {
             return err(item, format!("'{n}' is a function name: choose another name"));
         }
-        if names[..i].contains(n) {
+        if !seen.insert(n.as_str()) {
             return err(item, format!("'{n}' is given twice"));
         }
     }
-    Ok(())
+    Ok(seen)
 }
 
 fn state_index(states: &[String], name: &str, item: &str) -> Result<usize, StructureError> {
@@ -662,5 +681,36 @@ mod tests {
         assert_eq!(&part.local[..4], &[0, 1, 0, 2]);
         assert_eq!(&part.group_of_eq[..3], &[0, 1, 0]);
         assert_eq!(part.largest(), 3);
+    }
+
+    fn assert_limit(r: Result<(Structure<f64>, Names), StructureError>, item: &str, words: &str) {
+        let e = r.unwrap_err();
+        assert_eq!(e.item, item, "{e}");
+        assert!(e.message.contains(words), "{e}");
+    }
+
+    #[test]
+    fn counts_are_checked_before_names_are_compared() {
+        let many = |prefix: &str, n: usize| (0..n).map(|i| format!("{prefix}{i}")).collect::<Vec<_>>();
+        let t = std::time::Instant::now();
+        let r = StructureBuilder::new(&["x"], &[]).parameters(&many("p", 200_000)).equation("x", "p0*x").build();
+        assert_limit(r, "parameters", "200000 given; at most 32 are supported");
+        let r = StructureBuilder::new(&many("x", 200_000), &[]).equation("x0", "a*x0").build();
+        assert_limit(r, "states", "200000 given; at most 16 are supported");
+        let r = StructureBuilder::new(&many("x", 2), &many("u", 200_000)).equation("x0", "a*x0").build();
+        assert_limit(r, "inputs", "200000 given; at most 8 are supported");
+        assert!(t.elapsed().as_secs_f64() < 1.0, "{:?}", t.elapsed());
+        let mut b = StructureBuilder::new(&["x"], &[]);
+        for _ in 0..17 {
+            b = b.equation("x", "a*x");
+        }
+        assert_limit(b.build(), "equations", "17 given; at most 16 are supported");
+        // The names are still checked, once each.
+        let r = StructureBuilder::new(&["x", "v", "x"], &[]).equation("x", "a*x").build::<f64>();
+        assert_limit(r, "states", "'x' is given twice");
+        let r = StructureBuilder::new(&["x"], &["u", "x"]).equation("x", "a*x").build::<f64>();
+        assert_limit(r, "inputs", "'x' is also a state");
+        let r = StructureBuilder::new(&["x"], &["u"]).parameters(&["a", "u"]).equation("x", "a*x").build::<f64>();
+        assert_limit(r, "parameters", "'u' is also a state or input name");
     }
 }
