@@ -85,6 +85,13 @@ impl CarKind {
 /// name is an error). A parameter may appear in several equations (shared). Bad text, a
 /// misspelled name, a product of two parameters, a parameter no equation uses or two that the
 /// data can never tell apart raise VehidError naming the equation.
+///
+/// Limits, each checked before the work it bounds (VehidError naming the equation or the list
+/// and the limit): at most 16 states, 8 inputs, 32 parameters and 16 equations; an equation
+/// text of at most 10,000 bytes, nested at most 64 levels deep (parentheses, `sign(`/`pos(`/
+/// `neg(` calls and unary minus signs each add one), and at most 96 terms in all once products
+/// are expanded and like terms merged (`(1+1)*(1+1)*a*x` is one term); a product is sized
+/// before it is expanded.
 #[pyclass(name = "Structure", module = "vehid._vehid", frozen)]
 pub struct PyStructure {
     pub(crate) core: Structure<f64>,

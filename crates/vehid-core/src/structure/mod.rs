@@ -19,7 +19,7 @@
 mod parse;
 
 #[cfg(feature = "std")]
-pub use parse::{Names, StructureBuilder, StructureError};
+pub use parse::{Names, StructureBuilder, StructureError, MAX_DEPTH, MAX_TEXT_BYTES};
 
 use crate::{Error, Real, Result};
 

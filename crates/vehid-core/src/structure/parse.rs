@@ -12,12 +12,41 @@
 //! resulting term must be `number × [parameter] × [basis]` with at most one parameter and one
 //! basis (a state, an input, `der(state)`, or `sign`/`pos`/`neg` of a linear combination of
 //! states, inputs and derivatives): the model stays linear in its parameters.
+//!
+//! ## Limits
+//! Every limit is checked before the work it bounds, so that no text, however written, can
+//! exhaust the stack, the memory or the time of the process that parses it:
+//! - a text is at most [`MAX_TEXT_BYTES`] (10,000) bytes long, checked before it is read;
+//! - parentheses, function calls and unary minus signs nest at most [`MAX_DEPTH`] (64)
+//!   levels deep, checked as the parser descends (the parser recurses once per level);
+//! - a sum or a product has at most [`MAX_TERMS`] (96) terms once like terms are merged: a
+//!   product's size is the product of its factors' sizes, checked before it is expanded
+//!   (`(1+1)*(1+1)*…` is one term; `(a+b+…)*(x+y+…)` of 12 × 9 terms is refused);
+//! - at most [`MAX_STATES`], [`MAX_INPUTS`] and [`MAX_PARAMS`] names, and [`MAX_EQUATIONS`]
+//!   equations, counted before any name is compared; a new parameter beyond [`MAX_PARAMS`]
+//!   stops the parse where it appears.
+//!
+//! Each is a [`StructureError`] naming the equation (or the list of names) and the limit.
 
-use super::{Basis, Structure, Term, Var, MAX_COMBINATION, MAX_PARAMS, MAX_TERMS};
+use super::{
+    Basis, Structure, Term, Var, MAX_COMBINATION, MAX_EQUATIONS, MAX_INPUTS, MAX_PARAMS, MAX_STATES, MAX_TERMS,
+};
 use crate::Real;
+use std::collections::HashSet;
 use std::string::{String, ToString};
 use std::vec::Vec;
 use std::{format, vec};
+
+/// Longest equation text, in bytes (characters, for ASCII text). At most [`MAX_TERMS`] terms
+/// fit in any case; 10,000 bytes leave about 100 bytes for each.
+pub const MAX_TEXT_BYTES: usize = 10_000;
+
+/// Deepest nesting of parentheses, function calls (`sign(`, `pos(`, `neg(`) and unary minus
+/// signs (`--x`) in an equation: the parser descends one level of recursion for each. At 64
+/// levels it uses about 0.7 MiB of stack when vehid-core is built without optimization (10
+/// KiB per level, measured), 0.1 MiB at `opt-level = 1` (1.4 KiB per level): a 2 MiB thread
+/// stack, the default of a spawned Rust thread, holds it.
+pub const MAX_DEPTH: usize = 64;
 
 /// A structure's names: states, inputs, parameters, and the states whose equations are
 /// identified (in order) — everything the numeric [`Structure`] leaves out.
@@ -112,19 +141,25 @@ impl StructureBuilder {
     /// position), a product of two parameters or two variables, an unused or confounded
     /// parameter, capacities exceeded.
     pub fn build<T: Real>(&self) -> Result<(Structure<T>, Names), StructureError> {
-        check_names("states", &self.states)?;
+        // Counts first: nothing below is done on more names or equations than fit.
+        check_count("states", self.states.len(), MAX_STATES)?;
+        check_count("inputs", self.inputs.len(), MAX_INPUTS)?;
+        if let Some(p) = &self.params {
+            check_count("parameters", p.len(), MAX_PARAMS)?;
+        }
+        check_count("equations", self.equations.len() + self.known.len(), MAX_EQUATIONS)?;
+        let states = check_names("states", &self.states)?;
         check_names("inputs", &self.inputs)?;
-        for s in &self.inputs {
-            if self.states.contains(s) {
-                return err("inputs", format!("'{s}' is also a state: give inputs and states different names"));
-            }
+        if let Some(s) = self.inputs.iter().find(|s| states.contains(s.as_str())) {
+            return err("inputs", format!("'{s}' is also a state: give inputs and states different names"));
         }
         if self.states.is_empty() {
             return err("states", "at least one state is needed");
         }
         if let Some(p) = &self.params {
             check_names("parameters", p)?;
-            if let Some(s) = p.iter().find(|p| self.states.contains(p) || self.inputs.contains(p)) {
+            let inputs: HashSet<&str> = self.inputs.iter().map(String::as_str).collect();
+            if let Some(s) = p.iter().find(|p| states.contains(p.as_str()) || inputs.contains(p.as_str())) {
                 return err("parameters", format!("'{s}' is also a state or input name"));
             }
         }
@@ -154,9 +189,8 @@ impl StructureBuilder {
             let poly = ctx.parse(text, &item, false)?;
             parsed.push((si, poly, item));
         }
-        if ctx.params.len() > MAX_PARAMS {
-            return err("equations", format!("{} parameters; at most {MAX_PARAMS} are supported", ctx.params.len()));
-        }
+        // The parser stops at the parameter beyond MAX_PARAMS.
+        debug_assert!(ctx.params.len() <= MAX_PARAMS);
         let mut s = Structure::<T>::new(self.states.len(), self.inputs.len(), ctx.params.len()).or_else(|_| {
             err(
                 "structure",
@@ -211,8 +245,18 @@ impl StructureBuilder {
     }
 }
 
-fn check_names(item: &str, names: &[String]) -> Result<(), StructureError> {
-    for (i, n) in names.iter().enumerate() {
+/// `count` names or equations, at most `max`.
+fn check_count(item: &str, count: usize, max: usize) -> Result<(), StructureError> {
+    if count > max {
+        return err(item, format!("{count} given; at most {max} are supported"));
+    }
+    Ok(())
+}
+
+/// Each name valid and given once; the names as a set.
+fn check_names<'n>(item: &str, names: &'n [String]) -> Result<HashSet<&'n str>, StructureError> {
+    let mut seen = HashSet::with_capacity(names.len());
+    for n in names {
         let mut chars = n.chars();
         let ok = chars.next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
             && chars.all(|c| c.is_ascii_alphanumeric() || c == '_');
@@ -222,11 +266,11 @@ fn check_names(item: &str, names: &[String]) -> Result<(), StructureError> {
         if matches!(n.as_str(), "sign" | "pos" | "neg" | "der") {
             return err(item, format!("'{n}' is a function name: choose another name"));
         }
-        if names[..i].contains(n) {
+        if !seen.insert(n.as_str()) {
             return err(item, format!("'{n}' is given twice"));
         }
     }
-    Ok(())
+    Ok(seen)
 }
 
 fn state_index(states: &[String], name: &str, item: &str) -> Result<usize, StructureError> {
@@ -265,6 +309,26 @@ struct Ctx<'a> {
     inputs: &'a [String],
     params: Vec<String>,
     fixed: bool,
+}
+
+/// Why parsing stopped: a syntax error, reported with its position and the text, or a limit
+/// reached, whose message says where (the text may be long: it is not repeated).
+#[derive(Debug)]
+enum Stop {
+    Syntax(String),
+    Limit(String),
+}
+
+impl From<String> for Stop {
+    fn from(message: String) -> Self {
+        Stop::Syntax(message)
+    }
+}
+
+impl From<&str> for Stop {
+    fn from(message: &str) -> Self {
+        Stop::Syntax(message.to_string())
+    }
 }
 
 struct Lexer<'s> {
@@ -335,12 +399,25 @@ impl Lexer<'_> {
 
 impl Ctx<'_> {
     fn parse(&mut self, text: &str, item: &str, params_allowed: bool) -> Result<Poly, StructureError> {
+        if text.len() > MAX_TEXT_BYTES {
+            return err(
+                item,
+                format!(
+                    "the text is {} bytes long; at most {MAX_TEXT_BYTES} are supported (and {MAX_TERMS} terms): \
+                     shorten the names or simplify the expression",
+                    text.len()
+                ),
+            );
+        }
         let mut lx = Lexer { text, pos: 0 };
         let at = |lx: &Lexer<'_>, msg: String| StructureError {
             item: item.to_string(),
             message: format!("{msg} at position {} of \"{text}\"", lx.pos + 1),
         };
-        let poly = self.expr(&mut lx, item, params_allowed).map_err(|m| at(&lx, m))?;
+        let poly = self.expr(&mut lx, item, params_allowed, 0).map_err(|stop| match stop {
+            Stop::Syntax(m) => at(&lx, m),
+            Stop::Limit(message) => StructureError { item: item.to_string(), message },
+        })?;
         match lx.next().map_err(|m| at(&lx, m))? {
             Tok::End => {}
             t => return Err(at(&lx, format!("unexpected {}", describe(&t)))),
@@ -352,7 +429,8 @@ impl Ctx<'_> {
         Ok(poly)
     }
 
-    fn expr(&mut self, lx: &mut Lexer<'_>, item: &str, pa: bool) -> Result<Poly, String> {
+    /// A sum at nesting `depth`; at most MAX_TERMS terms once like terms are merged.
+    fn expr(&mut self, lx: &mut Lexer<'_>, item: &str, pa: bool, depth: usize) -> Result<Poly, Stop> {
         let mut sign = 1.0;
         match lx.peek()? {
             Tok::Op('+') => {
@@ -364,29 +442,53 @@ impl Ctx<'_> {
             }
             _ => {}
         }
-        let mut out = scale(self.product(lx, item, pa)?, sign);
+        let mut out = scale(self.product(lx, item, pa, depth)?, sign);
         loop {
             match lx.peek()? {
                 Tok::Op('+') => {
                     lx.next()?;
-                    out.extend(self.product(lx, item, pa)?);
+                    out.extend(self.product(lx, item, pa, depth)?);
                 }
                 Tok::Op('-') => {
                     lx.next()?;
-                    out.extend(scale(self.product(lx, item, pa)?, -1.0));
+                    out.extend(scale(self.product(lx, item, pa, depth)?, -1.0));
                 }
                 _ => return Ok(out),
+            }
+            if out.len() > MAX_TERMS {
+                out = collect(out);
+                if out.len() > MAX_TERMS {
+                    return Err(Stop::Limit(format!(
+                        "more than {MAX_TERMS} different terms in the sum by position {}: at most {MAX_TERMS} are \
+                         supported",
+                        lx.pos
+                    )));
+                }
             }
         }
     }
 
-    fn product(&mut self, lx: &mut Lexer<'_>, item: &str, pa: bool) -> Result<Poly, String> {
-        let mut acc = self.factor(lx, item, pa)?;
+    /// A product at nesting `depth`, expanded; its size (the product of its factors' sizes) is
+    /// checked against MAX_TERMS before it is expanded.
+    fn product(&mut self, lx: &mut Lexer<'_>, item: &str, pa: bool, depth: usize) -> Result<Poly, Stop> {
+        let mut acc = self.factor(lx, item, pa, depth)?;
         loop {
             match lx.peek()? {
                 Tok::Op('*') => {
                     lx.next()?;
-                    let f = self.factor(lx, item, pa)?;
+                    let mut f = self.factor(lx, item, pa, depth)?;
+                    if acc.len().saturating_mul(f.len()) > MAX_TERMS {
+                        (acc, f) = (collect(acc), collect(f));
+                        if acc.len().saturating_mul(f.len()) > MAX_TERMS {
+                            return Err(Stop::Limit(format!(
+                                "the product ending at position {} has {} × {} terms: at most {MAX_TERMS} are \
+                                 supported",
+                                lx.pos,
+                                acc.len(),
+                                f.len()
+                            )));
+                        }
+                    }
                     acc = multiply(&acc, &f, self)?;
                 }
                 Tok::Op('/') => {
@@ -399,7 +501,8 @@ impl Ctx<'_> {
                                 "division by {} (divide only by numbers: the model must stay linear in its parameters; \
                                  make the quotient one parameter)",
                                 describe(&t)
-                            ))
+                            )
+                            .into())
                         }
                     }
                 }
@@ -408,15 +511,17 @@ impl Ctx<'_> {
         }
     }
 
-    fn factor(&mut self, lx: &mut Lexer<'_>, item: &str, pa: bool) -> Result<Poly, String> {
+    /// A factor at nesting `depth`: parentheses, a function call or a unary minus descend one
+    /// level, at most to MAX_DEPTH (checked before the parser recurses).
+    fn factor(&mut self, lx: &mut Lexer<'_>, item: &str, pa: bool, depth: usize) -> Result<Poly, Stop> {
         match lx.next()? {
             Tok::Num(c) => Ok(vec![Mono { coef: c, param: None, basis: None }]),
             Tok::Op('(') => {
-                let e = self.expr(lx, item, pa)?;
+                let e = self.expr(lx, item, pa, deeper(depth, lx)?)?;
                 expect_close(lx)?;
                 Ok(e)
             }
-            Tok::Op('-') => Ok(scale(self.factor(lx, item, pa)?, -1.0)),
+            Tok::Op('-') => Ok(scale(self.factor(lx, item, pa, deeper(depth, lx)?)?, -1.0)),
             Tok::Name(n) => {
                 let fun = match n.as_str() {
                     "sign" => Some(Fun::Sign),
@@ -430,16 +535,20 @@ impl Ctx<'_> {
                     }
                     let Tok::Name(s) = lx.next()? else { return Err("der(·) takes one state name".into()) };
                     let Some(i) = self.states.iter().position(|x| *x == s) else {
-                        return Err(format!("der({s}): '{s}' is not a state (states: {})", self.states.join(", ")));
+                        return Err(
+                            format!("der({s}): '{s}' is not a state (states: {})", self.states.join(", ")).into()
+                        );
                     };
                     expect_close(lx)?;
                     return Ok(vec![Mono { coef: 1.0, param: None, basis: Some(B::Var(Var::Deriv(i as u8))) }]);
                 }
                 if let Some(f) = fun {
                     if lx.next()? != Tok::Op('(') {
-                        return Err(format!("{n} must be followed by '(' and a combination of states and inputs"));
+                        return Err(
+                            format!("{n} must be followed by '(' and a combination of states and inputs").into()
+                        );
                     }
-                    let inner = self.expr(lx, item, pa)?;
+                    let inner = self.expr(lx, item, pa, deeper(depth, lx)?)?;
                     expect_close(lx)?;
                     let mut comb = Vec::new();
                     for m in collect(inner) {
@@ -452,18 +561,22 @@ impl Ctx<'_> {
                                     self.params[p],
                                     self.states.join(", "),
                                     list(self.inputs)
-                                ))
+                                )
+                                .into())
                             }
                             (None, None) => {
                                 return Err(format!(
                                     "{n}(·) holds a constant: only states, inputs and der(·) may appear"
-                                ))
+                                )
+                                .into())
                             }
-                            (None, Some(B::Fun(..))) => return Err(format!("{n}(·) of a function is not supported")),
+                            (None, Some(B::Fun(..))) => {
+                                return Err(format!("{n}(·) of a function is not supported").into())
+                            }
                         }
                     }
                     if comb.is_empty() {
-                        return Err(format!("{n}(·) of zero"));
+                        return Err(format!("{n}(·) of zero").into());
                     }
                     return Ok(vec![Mono { coef: 1.0, param: None, basis: Some(B::Fun(f, comb)) }]);
                 }
@@ -478,7 +591,8 @@ impl Ctx<'_> {
                         "'{n}' is not a state or input (known equations take no parameters; states: {}; inputs: {})",
                         self.states.join(", "),
                         list(self.inputs)
-                    ));
+                    )
+                    .into());
                 }
                 let p = match self.params.iter().position(|x| *x == n) {
                     Some(p) => p,
@@ -488,7 +602,16 @@ impl Ctx<'_> {
                         self.states.join(", "),
                         list(self.inputs),
                         self.params.join(", ")
-                    ))
+                    )
+                        .into())
+                    }
+                    None if self.params.len() == MAX_PARAMS => {
+                        return Err(Stop::Limit(format!(
+                            "'{n}' (ending at position {}) would be parameter {}: at most {MAX_PARAMS} are supported \
+                             (shared by all equations)",
+                            lx.pos,
+                            MAX_PARAMS + 1
+                        )))
                     }
                     None => {
                         self.params.push(n);
@@ -497,9 +620,21 @@ impl Ctx<'_> {
                 };
                 Ok(vec![Mono { coef: 1.0, param: Some(p), basis: None }])
             }
-            t => Err(format!("expected a number, a name or '(' but found {}", describe(&t))),
+            t => Err(format!("expected a number, a name or '(' but found {}", describe(&t)).into()),
         }
     }
+}
+
+/// `depth + 1`, or the limit error when that is beyond MAX_DEPTH.
+fn deeper(depth: usize, lx: &Lexer<'_>) -> Result<usize, Stop> {
+    if depth < MAX_DEPTH {
+        return Ok(depth + 1);
+    }
+    Err(Stop::Limit(format!(
+        "nested more than {MAX_DEPTH} levels deep at position {}: at most {MAX_DEPTH} levels of parentheses, \
+         function calls and unary minus signs are supported; simplify the expression",
+        lx.pos
+    )))
 }
 
 fn list(names: &[String]) -> String {
@@ -662,5 +797,136 @@ mod tests {
         assert_eq!(&part.local[..4], &[0, 1, 0, 2]);
         assert_eq!(&part.group_of_eq[..3], &[0, 1, 0]);
         assert_eq!(part.largest(), 3);
+    }
+
+    /// Runs `f` on a thread with a 1 MiB stack, half what a spawned thread gets by default:
+    /// a parser that recursed once per level of a 10,000-byte text would overflow it (about
+    /// 1.3 KiB per level at the test profile's `opt-level = 1`).
+    fn on_small_stack<R: Send + 'static>(f: impl FnOnce() -> R + Send + 'static) -> R {
+        std::thread::Builder::new().stack_size(1 << 20).spawn(f).unwrap().join().unwrap()
+    }
+
+    fn one_state(text: String) -> Result<(Structure<f64>, Names), StructureError> {
+        StructureBuilder::new(&["x"], &[]).equation("x", &text).build::<f64>()
+    }
+
+    fn assert_limit(r: Result<(Structure<f64>, Names), StructureError>, item: &str, words: &str) {
+        let e = r.unwrap_err();
+        assert_eq!(e.item, item, "{e}");
+        assert!(e.message.contains(words), "{e}");
+    }
+
+    #[test]
+    fn deep_nesting_is_refused_before_the_stack_overflows() {
+        // Each text is under MAX_TEXT_BYTES, so only the depth limit stops it.
+        // The position is that of the 65th level's '(' or '-' (a leading '-' is not a level).
+        let texts = [
+            (format!("{}a*x{}", "(".repeat(4990), ")".repeat(4990)), 65),
+            (format!("{}a*x", "-".repeat(9990)), 66),
+            (format!("a*{}x{}", "sign(".repeat(1600), ")".repeat(1600)), 2 + 65 * 5),
+            (format!("a*{}x{}", "-(".repeat(3300), ")".repeat(3300)), 2 * 65),
+        ];
+        for (text, position) in texts {
+            assert!(text.len() <= MAX_TEXT_BYTES);
+            let r = on_small_stack(move || one_state(text));
+            assert_limit(r, "equation for x", &format!("nested more than 64 levels deep at position {position}:"));
+        }
+        // 64 levels are parsed, 65 are not.
+        let at = |n: usize| format!("{}a*x{}", "(".repeat(n), ")".repeat(n));
+        let (s, _) = on_small_stack(move || one_state(at(MAX_DEPTH))).unwrap();
+        assert_eq!(s.params(), 1);
+        let r = on_small_stack(move || one_state(at(MAX_DEPTH + 1)));
+        assert_limit(r, "equation for x", "nested more than 64 levels");
+    }
+
+    #[test]
+    fn long_texts_are_refused_before_they_are_read() {
+        // The texts of the report: they crashed the parser (stack overflow) or, with 200,000
+        // parameter names, took minutes in name comparisons.
+        let texts = [
+            format!("{}a*x{}", "(".repeat(10_000), ")".repeat(10_000)),
+            format!("{}a*x", "-".repeat(20_000)),
+            format!("a*{}x{}", "sign(".repeat(10_000), ")".repeat(10_000)),
+            (0..200_000).map(|i| format!("p{i}*x")).collect::<Vec<_>>().join(" + "),
+        ];
+        for text in texts {
+            let n = text.len();
+            let t = std::time::Instant::now();
+            let r = on_small_stack(move || one_state(text));
+            assert_limit(r, "equation for x", &format!("{n} bytes long; at most 10000 are supported"));
+            assert!(t.elapsed().as_secs_f64() < 1.0, "{:?}", t.elapsed());
+        }
+        let r = one_state(format!("a*x{}", " ".repeat(MAX_TEXT_BYTES - 3)));
+        assert_eq!(r.unwrap().0.params(), 1);
+    }
+
+    #[test]
+    fn products_are_sized_before_they_are_expanded() {
+        // 2^40 terms before like terms are merged: one term once they are.
+        let text = format!("{}*a*x", ["(1+1)"; 40].join("*"));
+        let (s, _) = one_state(text).unwrap();
+        let mut h = [0.0];
+        s.regression(0, &[1.0], &[0.0], &[], &mut h);
+        assert_eq!(h[0], 2f64.powi(40));
+        // 12 parameters times 9 states: 108 different terms.
+        let states = ["x", "y1", "y2", "y3", "y4", "y5", "y6", "y7", "y8"];
+        let text = "(a+b+c+d+e+f+g+h+i+j+k+l)*(x+y1+y2+y3+y4+y5+y6+y7+y8)";
+        let r = StructureBuilder::new(&states, &[]).equation("x", text).build::<f64>();
+        assert_limit(r, "equation for x", "the product ending at position 53 has 12 × 9 terms: at most 96");
+    }
+
+    #[test]
+    fn sums_are_bounded_once_like_terms_are_merged() {
+        let states: Vec<String> = (0..16).map(|i| format!("x{i}")).collect();
+        let inputs: Vec<String> = (0..8).map(|i| format!("u{i}")).collect();
+        let build = |text: &str| StructureBuilder::new(&states, &inputs).equation("x0", text).build::<f64>();
+        // 200 copies of one term are one term.
+        let (s, _) = build(&["a*x1"; 200].join(" + ")).unwrap();
+        let mut h = [0.0];
+        let mut x = [0.0; 16];
+        x[1] = 1.0;
+        s.regression(0, &x, &[0.0; 16], &[0.0; 8], &mut h);
+        assert_eq!(h[0], 200.0);
+        // 5 parameters times 24 variables: 120 different terms.
+        let vars: Vec<&String> = states.iter().chain(&inputs).collect();
+        let text = ["a", "b", "c", "d", "e"]
+            .iter()
+            .flat_map(|p| vars.iter().map(move |v| format!("{p}*{v}")))
+            .collect::<Vec<_>>()
+            .join(" + ");
+        assert_limit(build(&text), "equation for x0", "more than 96 different terms in the sum by position");
+    }
+
+    #[test]
+    fn counts_are_checked_before_names_are_compared() {
+        let many = |prefix: &str, n: usize| (0..n).map(|i| format!("{prefix}{i}")).collect::<Vec<_>>();
+        let t = std::time::Instant::now();
+        let r = StructureBuilder::new(&["x"], &[]).parameters(&many("p", 200_000)).equation("x", "p0*x").build();
+        assert_limit(r, "parameters", "200000 given; at most 32 are supported");
+        let r = StructureBuilder::new(&many("x", 200_000), &[]).equation("x0", "a*x0").build();
+        assert_limit(r, "states", "200000 given; at most 16 are supported");
+        let r = StructureBuilder::new(&many("x", 2), &many("u", 200_000)).equation("x0", "a*x0").build();
+        assert_limit(r, "inputs", "200000 given; at most 8 are supported");
+        assert!(t.elapsed().as_secs_f64() < 1.0, "{:?}", t.elapsed());
+        let mut b = StructureBuilder::new(&["x"], &[]);
+        for _ in 0..17 {
+            b = b.equation("x", "a*x");
+        }
+        assert_limit(b.build(), "equations", "17 given; at most 16 are supported");
+        // Parameters found in the text: the parse stops at the 33rd, in whichever equation.
+        let text = (0..33).map(|i| format!("p{i}*x")).collect::<Vec<_>>().join(" + ");
+        assert_limit(one_state(text), "equation for x", "'p32' (ending at position 249) would be parameter 33");
+        let r = StructureBuilder::new(&["x", "y"], &[])
+            .equation("x", &(0..20).map(|i| format!("p{i}*x")).collect::<Vec<_>>().join(" + "))
+            .equation("y", &(10..40).map(|i| format!("p{i}*y")).collect::<Vec<_>>().join(" + "))
+            .build::<f64>();
+        assert_limit(r, "equation for y", "'p32'");
+        // The names are still checked, once each.
+        let r = StructureBuilder::new(&["x", "v", "x"], &[]).equation("x", "a*x").build::<f64>();
+        assert_limit(r, "states", "'x' is given twice");
+        let r = StructureBuilder::new(&["x"], &["u", "x"]).equation("x", "a*x").build::<f64>();
+        assert_limit(r, "inputs", "'x' is also a state");
+        let r = StructureBuilder::new(&["x"], &["u"]).parameters(&["a", "u"]).equation("x", "a*x").build::<f64>();
+        assert_limit(r, "parameters", "'u' is also a state or input name");
     }
 }
