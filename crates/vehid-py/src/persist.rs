@@ -519,8 +519,10 @@ pub fn set_state(obj: &Bound<'_, PyIdentifier>, state: &Bound<'_, PyAny>) -> PyR
             saved.core == Core::TwoAxle
         }
     } else if on_structure {
+        // BatchLeastSquares on a structure is the exact-start structured Kalman identifier.
+        let kalman = obj.is_instance_of::<PyKalmanIdentifier>() || obj.is_instance_of::<PyBatchLeastSquares>();
         matches!(
-            (saved.core, obj.is_instance_of::<PyKalmanIdentifier>(), obj.is_instance_of::<PyStochasticGradient>()),
+            (saved.core, kalman, obj.is_instance_of::<PyStochasticGradient>()),
             (Core::Structured(_), true, _) | (Core::StructuredGradient(_), _, true)
         )
     } else if obj.is_instance_of::<PyKalmanIdentifier>() {

@@ -204,9 +204,12 @@ impl<T: Real> HalfHealthMonitor<T> {
         let fresh = Self::new(self.cfg)?;
         let corrupt =
             crate::Error::InvalidArgument { arg: "state", expected: "a half-car health monitor's saved state" };
-        if self.head >= MAX_DELAY || self.len >= self.cfg.stuck_samples || self.run.iter().any(|&r| r > MAX_DELAY) {
+        if self.head >= MAX_DELAY || self.len >= self.cfg.stuck_samples {
             return Err(corrupt);
         }
+        // A run counted past the limit (saved before the count saturated) is the same state.
+        let limit = self.cfg.stuck_samples;
+        self.run.iter_mut().for_each(|r| *r = (*r).min(limit));
         if fresh.n_warm != self.n_warm || fresh.n_burn != self.n_burn || fresh.n_settle != self.n_settle {
             return Err(corrupt);
         }

@@ -352,9 +352,12 @@ impl<T: Real> HealthMonitor<T> {
     pub(crate) fn restored(&mut self) -> Result<()> {
         let fresh = Self::new(self.cfg)?;
         let corrupt = Error::InvalidArgument { arg: "state", expected: "a health monitor's saved state" };
-        if self.head >= MAX_DELAY || self.len >= self.cfg.stuck_samples || self.run.iter().any(|&r| r > MAX_DELAY) {
+        if self.head >= MAX_DELAY || self.len >= self.cfg.stuck_samples {
             return Err(corrupt);
         }
+        // A run counted past the limit (saved before the count saturated) is the same state.
+        let limit = self.cfg.stuck_samples;
+        self.run.iter_mut().for_each(|r| *r = (*r).min(limit));
         if fresh.n_warm != self.n_warm || fresh.n_burn != self.n_burn || fresh.n_settle != self.n_settle {
             return Err(corrupt);
         }
@@ -757,7 +760,8 @@ pub(crate) fn stuck_step<T: Real, const C: usize>(
     let mut stuck = false;
     for i in 0..C {
         if have_prev && y[i] == prev[i] {
-            run[i] += 1;
+            // Saturated at the limit: a channel stuck for hours keeps a small, savable count.
+            run[i] = (run[i] + 1).min(limit);
         } else {
             run[i] = 0;
         }

@@ -473,3 +473,31 @@ fn f32_state_sensor_monitor_detects_the_damper_at_8_percent() {
     assert_eq!(events[0].parameter, Constant::Damper);
     assert!((events[0].change + 0.1).abs() < 0.03 && events[0].t > 40.0, "{:?}", events[0]);
 }
+
+/// A monitor saved while a channel has been stuck for longer than the delay line (here 300
+/// samples) restores and continues as the original.
+#[cfg(feature = "serde")]
+#[test]
+fn a_monitor_saved_during_a_long_stuck_channel_restores() {
+    let car = QuarterCar::<f64>::passenger();
+    let mut drive = QuarterDrive::new(car, DriveConfig::new(0.005), 9701).unwrap();
+    let mut mon = HealthMonitor::new(HealthConfig::new(0.005, car)).unwrap();
+    for _ in 0..(25.0 / 0.005) as usize {
+        mon.update(drive.next_sample().y()).unwrap();
+    }
+    let stuck = drive.next_sample().y()[2];
+    for _ in 0..300 {
+        let mut y = drive.next_sample().y().to_vec();
+        y[2] = stuck;
+        mon.update(&y).unwrap();
+    }
+    assert_eq!(mon.status(), Status::CannotJudge(Reason::Stuck));
+    let bytes = postcard::to_allocvec(&mon).unwrap();
+    let mut back: HealthMonitor<f64> = postcard::from_bytes(&bytes).unwrap();
+    assert_eq!(back, mon);
+    for _ in 0..2000 {
+        let s = drive.next_sample();
+        assert_eq!(mon.update(s.y()).unwrap(), back.update(s.y()).unwrap());
+    }
+    assert_eq!(back, mon);
+}
