@@ -723,4 +723,10 @@ fn ccf_finds_the_lag_of_a_delayed_copy() {
     super::ccf_into(&y, &x, &mut out).unwrap();
     assert!(out.iter().all(|c| c.abs() < 0.3), "{out:?}");
     assert!(matches!(super::ccf_into(&x, &y[..10], &mut out), Err(Error::Shape { .. })));
+    // By hand: x = 1..4, y = [1, 0, 0, 0]; lag 1: Σ_{t<3} (x_{t+1} − 2.5)(y_t − 0.25) / 3
+    // = (−0.375 − 0.125 − 0.375)/3, over σx σy = √1.25 √0.1875 (the adjusted denominator n − k).
+    let mut two = [0.0; 2];
+    super::ccf_into(&[1.0, 2.0, 3.0, 4.0], &[1.0, 0.0, 0.0, 0.0], &mut two).unwrap();
+    let want = -0.875 / 3.0 / (1.25f64.sqrt() * 0.1875f64.sqrt());
+    assert!((two[1] - want).abs() < 1e-15, "{} vs {want}", two[1]);
 }
