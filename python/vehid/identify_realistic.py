@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
 from typing import Any, Dict, List, Optional, Tuple
 
 import numpy as np

@@ -152,6 +152,9 @@ fn vector(obj: Option<&Bound<'_, PyAny>>, arg: &str, len: usize) -> PyResult<Vec
     Ok(a.data)
 }
 
+/// A regression `(H, y)`: regressors (samples, parameters) and left sides (samples,).
+type Regression<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, numpy::PyArray1<f64>>);
+
 #[pymethods]
 impl PyIdentifier {
     /// One sample: measured state `r_k` (n,) and derivative `z_k` (n,) (and the measured
@@ -315,7 +318,7 @@ impl PyIdentifier {
         z: &Bound<'py, PyAny>,
         u: Option<&Bound<'py, PyAny>>,
         equation: usize,
-    ) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, numpy::PyArray1<f64>>)> {
+    ) -> PyResult<Regression<'py>> {
         let this = borrow(slf)?;
         let structure = match &this.structure {
             Some(st) => st.get().core,

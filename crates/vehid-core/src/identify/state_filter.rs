@@ -322,10 +322,10 @@ impl StateFilterFit {
     /// block ends.
     pub fn restart(&mut self) {
         self.since_start = 0;
-        if self.current.n > 0 {
-            if self.blocks.try_reserve(1).is_ok() {
-                self.blocks.push(core::mem::take(&mut self.current));
-            }
+        // (Without memory for one more block the current one spans the gap: the estimate is the
+        // same, the covariance counts one block fewer.)
+        if self.current.n > 0 && self.blocks.try_reserve(1).is_ok() {
+            self.blocks.push(core::mem::take(&mut self.current));
         }
     }
 
