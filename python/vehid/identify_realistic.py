@@ -93,7 +93,8 @@ def cmd_identify_realistic(args: argparse.Namespace) -> int:
             if has_t:
                 restart = _gaps(data[:, 0], prev, ident.dt, table.source)
                 prev = float(data[-1, 0])
-            bad = ~np.isfinite(y).all(axis=1)  # a missing value: the sample is left out, the filter restarts
+            # A missing value: the sample is left out and the filter restarts.
+            bad = np.asarray(~np.isfinite(y).all(axis=1), dtype=bool)
             missing += int(bad.sum())
             gaps += int(restart.sum())
             start = 0
@@ -102,7 +103,7 @@ def cmd_identify_realistic(args: argparse.Namespace) -> int:
                     ident.fit(y[start:i])
                 if i < len(y):
                     ident.restart()
-                    start = i + 1 if bad[i] else i
+                    start = i + 1 if bool(bad[i]) else i
             samples += len(y)
         source = table.source
     if ident is None:
