@@ -53,7 +53,7 @@ def noisy(a: np.ndarray, frac: float, rng: np.random.Generator) -> np.ndarray:
 
 def one_run(
     car: vehid.QuarterCar, cls: str, speed: float | None, seed: int, lags: int | None, noise: float = 0.0,
-    generator: str = "vehid",
+    generator: str = "vehid", min_spacing: float | None = None,
 ) -> dict[str, dict[str, tuple]]:
     truth = car.params
     s = car.structure(known={"m": truth["m"]})
@@ -70,11 +70,12 @@ def one_run(
     thesis = vehid.KalmanIdentifier(s)
     thesis.fit(x, xd)
     out["thesis"] = car.physical(thesis.stats(), m=truth["m"])
+    spaced = {} if min_spacing is None else {"min_spacing": min_spacing}
     if speed is None:
-        road = vehid.IVIdentifier(s, delay, lags=lags, road="iso8608", spacing="odometer")
+        road = vehid.IVIdentifier(s, delay, lags=lags, road="iso8608", spacing="odometer", **spaced)
         road.fit(x, xd, u=dist[:, None])
     else:
-        road = vehid.IVIdentifier(s, delay, lags=lags, road="iso8608", spacing=speed * DT)
+        road = vehid.IVIdentifier(s, delay, lags=lags, road="iso8608", spacing=speed * DT, **spaced)
         road.fit(x, xd)
     out["road"] = car.physical(road.stats(), m=truth["m"])
     return out
@@ -192,6 +193,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--noise", type=float, default=0.0,
                     help="white state and derivative noise, fraction of each signal's std")
     ap.add_argument("--generator", choices=["vehid", "independent"], default="vehid")
+    ap.add_argument("--min-spacing", type=float, default=None,
+                    help="IVIdentifier min_spacing, m (default: its own, 0.25)")
     ap.add_argument("--half", action="store_true", help="the half car by road cancellation instead")
     ap.add_argument("--lift-off", action="store_true",
                     help="class E at 25 m/s with a tyre that lifts off instead: counted and flagged?")
@@ -215,7 +218,7 @@ def main(argv: list[str] | None = None) -> int:
         cover = {k: 0 for k in CONSTANTS}
         worst = []
         for j, seed in enumerate(range(a.seed0, a.seed0 + a.seeds)):
-            res = one_run(car, cls, speed, seed, a.lags, a.noise, a.generator)
+            res = one_run(car, cls, speed, seed, a.lags, a.noise, a.generator, a.min_spacing)
             for name, phys in res.items():
                 err = max(abs(phys[k][0] / truth[k] - 1) for k in CONSTANTS)
                 if j < a.first:
