@@ -30,11 +30,11 @@
 #   make bench-check    regression gate: instructions per update under valgrind's callgrind
 #                 (release build) against benches/callgrind_baseline.json; fails on > 5 % growth
 #   make bench-check-update  rewrite that baseline deliberately (see below)
-#   make soak     f32 soak (issue 13): 10^8 square-root-form updates per run, quarter and half car,
+#   make soak     f32 soak: 10^8 square-root-form updates per run, quarter and half car,
 #                 excited and still, states x1/x10/x0.1: P positive definite and theta finite at every
 #                 check, xi within 10x of f64; a table at the end (SOAK_UPDATES=1e6 for a short run;
 #                 about an hour in full; not in `test`)
-#   make fuzz     the fuzz harness (tests/fuzz_harness.py, issue 13): FUZZ_CALLS=100000 seeded calls of the
+#   make fuzz     the fuzz harness (tests/fuzz_harness.py): FUZZ_CALLS=100000 seeded calls of the
 #                 whole Python API with random shapes, dtypes, NaN/inf, huge and subnormal values, None and
 #                 strings; 0 panics, only ValueError/TypeError/VehidError/MemoryError/OverflowError, every
 #                 rejected call leaves its object bit for bit unchanged; progress lines, the seed
@@ -155,13 +155,13 @@ install-check:
 
 # The wheel as the release workflow builds it (`maturin build --release`, abi3), installed into
 # a fresh venv with pip alone: from outside the source tree the README's Python examples run,
-# its console examples print what it shows, and simulate | identify reports xi (issue 16).
+# its console examples print what it shows, and simulate | identify reports xi.
 wheel-check: venv
 	rm -rf dist
 	env -u CONDA_PREFIX $(VBIN)/maturin build --release --out dist
 	VEHID_WHEEL="$$(ls dist/vehid-*.whl)" $(VBIN)/python -m pytest -q -rs tests/test_install_check.py -k wheel
 
-# Python fit() against the Rust update on the same data, in one run (issue 11: <= 1.25x).
+# Python fit() against the Rust update on the same data, in one run (budget: <= 1.25x).
 bench-fit: develop
 	$(CARGO) build -q --release -p vehid-benches --bin time_updates
 	$(VBIN)/python benches/python/fit_vs_rust.py
@@ -227,7 +227,7 @@ FUZZ_SEED ?= 1
 fuzz: develop
 	FUZZ_CALLS=$(FUZZ_CALLS) FUZZ_SEED=$(FUZZ_SEED) $(VBIN)/python tests/fuzz_harness.py
 
-# Mutation testing (issue 18): cargo-mutants on MUTANTS_FILE, one round-robin shard at a time
+# Mutation testing: cargo-mutants on MUTANTS_FILE, one round-robin shard at a time
 # (a mutant costs about a minute here; benches/mutants_check.py explains the sampling), the
 # caught fraction with its 95 % interval, and a failure for any survivor not accepted with a
 # reason in benches/mutants_accepted.txt. Installs cargo-mutants (crates.io) when missing.

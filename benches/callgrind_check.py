@@ -70,20 +70,20 @@ BENCHES = [
     "half_rows_forget",   # update_f64/half/kalman_rows_forget
     "quarter_rows_exact",  # update_f64/quarter/kalman_rows_exact (after the exact start)
     "half_rows_exact",    # update_f64/half/kalman_rows_exact
-    "quarter_structured_rows",      # update_f64/quarter/structured_rows (issue 14: <= 1.5x quarter_rows_vec)
+    "quarter_structured_rows",      # update_f64/quarter/structured_rows (target: <= 1.5x quarter_rows_vec)
     "quarter_structured_physical",  # update_f64/quarter/structured_physical
     "quarter_structured_sg",        # update_f64/quarter/structured_sg_venter
-    "quarter_iv_rows",              # update_f64/quarter/iv_rows (issue 15)
+    "quarter_iv_rows",              # update_f64/quarter/iv_rows (recursive IV, noisy state sensors)
     "quarter_iv_physical",          # update_f64/quarter/iv_physical
     "quarter_bcls_rows",            # update_f64/quarter/bcls_rows
-    "quarter_ekf_physical",         # update_f64/quarter/ekf_physical (issue 15: the joint EKF's cost)
-    "quarter_nebcls_rows",          # update_f64/quarter/nebcls_rows (issue 15: Sigma_w estimated)
-    "half_two_axle_physical",       # update_f64/half/two_axle_physical (issue 14: road cancellation, physical)
-    "msd_iv_model",                 # update_f64/msd/iv_model (issue 15: instruments from the auxiliary model, SRIVC)
-    "quarter_health",               # health/monitor_update_f64 (issue 17; binary count_health)
-    "half_health",                  # health/half_monitor_update_f64 (issue 17, half car; binary count_health)
-    "quarter_health_state",         # health/monitor_update_state_f64 (issue 17, state sensors, measured rate)
-    "half_health_state",            # health/half_monitor_update_state_f64 (issue 17, half car, state sensors)
+    "quarter_ekf_physical",         # update_f64/quarter/ekf_physical (the joint EKF's cost)
+    "quarter_nebcls_rows",          # update_f64/quarter/nebcls_rows (Sigma_w estimated)
+    "half_two_axle_physical",       # update_f64/half/two_axle_physical (road cancellation, physical)
+    "msd_iv_model",                 # update_f64/msd/iv_model (instruments from the auxiliary model, SRIVC)
+    "quarter_health",               # health/monitor_update_f64 (binary count_health)
+    "half_health",                  # health/half_monitor_update_f64 (half car; binary count_health)
+    "quarter_health_state",         # health/monitor_update_state_f64 (state sensors, measured rate)
+    "half_health_state",            # health/half_monitor_update_state_f64 (half car, state sensors)
     "quarter_iv_physical_road",     # update_f64/quarter/iv_physical_road (Differenced: the coloured-road identifier)
     "quarter_iv_physical_drive",    # the same IV without the road model, same samples (binary count_road)
 ]

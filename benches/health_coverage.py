@@ -1,4 +1,4 @@
-"""Coverage of the health monitor's event intervals (issue 17): over many seeds, the share of
+"""Coverage of the health monitor's event intervals: over many seeds, the share of
 events whose 95 % interval of ``after`` holds the true new value, and the standardized errors
 ``(after - truth) / se`` (mean 0, standard deviation 1 for honest intervals).
 

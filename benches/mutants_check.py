@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Mutation testing of vehid-core with cargo-mutants (issue 18): `make mutants`.
+"""Mutation testing of vehid-core with cargo-mutants: `make mutants`.
 
 Runs ``cargo mutants`` on the files given (default: ``crates/vehid-core/src/identify/**``,
 5,187 mutants on 2026-11-26) and reports the fraction of viable mutants the Rust tests catch,

@@ -1,4 +1,4 @@
-"""Identification on ISO 8608 roads (the real-roads issue's must-show): the passenger quarter car,
+"""Identification on ISO 8608 roads (the real-roads must-show): the passenger quarter car,
 its true states and derivatives, 300 s at 200 Hz per run.
 
 ``--generator vehid`` (default) drives the car with vehid's own simulator (the ISO 8608 shaping
@@ -12,7 +12,7 @@ odometer given), over ``--seeds`` seeds from ``--seed0``:
 - the thesis' identifier (the exact-start Kalman identifier, i.e. least squares, on the physical
   structure with the wheel mass known) and vehid's coloured-road identifier
   (``IVIdentifier(structure, road="iso8608", spacing=...)``), each giving M, k1, k2, b;
-- how many of the first ``--first`` seeds have every constant within 5 % (the issue: >= 9 of 10);
+- how many of the first ``--first`` seeds have every constant within 5 % (target: >= 9 of 10);
 - how often each constant's nominal 95 % interval holds the truth over all seeds (90-98 %).
 
 Prints one progress line per setting and a table at the end; ``--json PATH`` writes the figures.

@@ -1,4 +1,4 @@
-"""Issue 14's worked examples on seeds they were not developed on.
+"""The structures' worked examples (friction rig, asymmetric damper) on seeds they were not developed on.
 
 The friction rig's derivative filter (a cubic Savitzky-Golay window of 21 samples, with the
 samples within one window of a velocity reversal left out) was chosen on seeds 11-13, and the

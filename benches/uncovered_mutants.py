@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The mutants on lines no Rust test runs (issue 18): `make mutants-uncovered`.
+"""The mutants on lines no Rust test runs: `make mutants-uncovered`.
 
 cargo-mutants judges a mutant by vehid-core's and vehid-thesis' Rust tests. A mutant on a
 line those tests never execute survives for certain, whatever the tests check; finding them

@@ -1,4 +1,4 @@
-"""A seeded fuzzer of vehid's whole public Python API (issue 13): models and their methods,
+"""A seeded fuzzer of vehid's whole public Python API: models and their methods,
 ``Simulator``, every identifier (``KalmanIdentifier`` with all its options,
 ``StochasticGradient``, ``BatchLeastSquares``, ``TwoAxleIdentifier``), ``AxleSampler``, ``xi``
 and ``snr_db``, called with random shapes, dtypes, NaN/inf, huge and subnormal values,
@@ -420,7 +420,7 @@ class Episode:
                 kw = g.kwargs(n, k, [("road_sigma", 1.0), ("hold", g.pick([0.05, 1.0, 1e-300, 1e300, 1e160]))])
                 hold = number(kw.get("hold"))
                 if n == 16 and hold is not None and 1.0 < abs(hold) < 1e30:
-                    kw["hold"] = 1.0  # long but legal computations (issue 13: seconds): not what this searches for
+                    kw["hold"] = 1.0  # long but legal computations (seconds each): not what this searches for
                 self.call("output_std", model.output_std, **kw)
             elif method == "row_noise_var":
                 kw = g.kwargs(n, k, [("road_sigma", g.pick([0.1, 1e155])), ("deriv_noise", 0.005)])

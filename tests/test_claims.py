@@ -1,4 +1,4 @@
-"""Claims that had no test failing when they broke (issue 18), each against an independent
+"""Claims that had no test failing when they broke, each against an independent
 reference (``docs/claims.md`` lists the deliberate breaks these tests were seen to catch):
 
 - the stochastic gradient (Eq 2.56, 5.2–5.18) step by step against numpy written from the

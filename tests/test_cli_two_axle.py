@@ -1,4 +1,4 @@
-"""`vehid simulate --speed` and `vehid identify --method two-axle` (issue 6) end to end."""
+"""`vehid simulate --speed` and `vehid identify --method two-axle` end to end."""
 
 import json
 import subprocess

@@ -1,4 +1,4 @@
-"""The suspension health monitor from Python (issue 17): drives on an ISO 8608 road with
+"""The suspension health monitor from Python: drives on an ISO 8608 road with
 parameter changes and sensor sets (``Simulator(road=, changes=, sensors=)``), the monitor
 (``vehid.HealthMonitor``, ``vehid.Event``) and ``vehid monitor`` on logs, good and bad.
 

@@ -61,7 +61,7 @@ def test_pip_install_in_a_fresh_venv(tmp_path: Path) -> None:
 
 @pytest.mark.skipif(not os.environ.get("VEHID_WHEEL"), reason="set VEHID_WHEEL to a built wheel (make wheel-check)")
 def test_the_wheel_installs_into_a_fresh_venv_and_passes_the_quickstarts(tmp_path: Path) -> None:
-    """Issue 16: a wheel built as the release workflow builds it (``maturin build --release``)
+    """A wheel built as the release workflow builds it (``maturin build --release``)
     installs into a fresh venv with nothing but pip, and from outside the source tree the
     README's Python examples run, its command-line examples print what the README shows, and
     ``vehid simulate | vehid identify`` reports ξ."""

@@ -1,5 +1,5 @@
-"""vehid.JointEKF: joint state, parameter and road estimation (the core's JointEkf, issue 15
-item 3), against the figures of crates/vehid-core/tests/joint_ekf.rs on the same samples.
+"""vehid.JointEKF: joint state, parameter and road estimation (the core's JointEkf), against
+the figures of crates/vehid-core/tests/joint_ekf.rs on the same samples.
 
 The setting is the Rust test's: the thesis' quarter car, road sigma 0.1, derivative noise 0.1,
 dt 0.05 s, state noise 8 % of the road sigma, a prior at half or 1.5 times the truth

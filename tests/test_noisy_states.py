@@ -19,7 +19,7 @@ ROAD, DERIV, DT = 0.1, 0.1, 0.05
 
 
 def noisy_run(pct: float, n: int = 40_000, seed: int = 7) -> vehid.Run:
-    """The quarter car with state noise pct % of the road sigma (issue 15's setting)."""
+    """The quarter car with state noise pct % of the road sigma (the noisy-state setting)."""
     car = vehid.QuarterCar()
     sim = vehid.Simulator(car, dt=DT, road_sigma=ROAD, state_noise=pct / 100 * ROAD, deriv_noise=DERIV, seed=seed)
     return sim.run(n)

@@ -1,5 +1,5 @@
 """The figures README.md states beside its runnable Python examples are the figures the
-examples print (issue 18: "the README's printed figures are run but never compared").
+examples print (so that the README's printed figures are not only run but compared).
 
 The blocks are taken from README.md itself (never copied here) and run in order, as
 ``test_docstrings.py::test_readme_python_blocks`` runs them, with ``print`` recorded by the

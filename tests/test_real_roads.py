@@ -47,7 +47,7 @@ def test_the_thesis_identifier_is_far_off_and_the_coloured_road_one_within_five_
             thesis = vehid.KalmanIdentifier(structure())
             thesis.fit(run.x, run.xdot)
             bad = CAR.physical(thesis.stats(), m=TRUTH["m"])
-            assert bad["M"][0] < 0.3 * TRUTH["M"], bad  # the bias the issue reports (52 kg for 320)
+            assert bad["M"][0] < 0.3 * TRUTH["M"], bad  # the thesis identifier's known bias (52 kg for 320)
     assert good >= 9, good
 
 

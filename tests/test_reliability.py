@@ -1,5 +1,5 @@
-"""Issue 13 ("online for months: never die, never lie"): one regression test per reproducer,
-asserting the behaviour the issue asks for (a clear ``VehidError`` / ``ValueError`` /
+"""Reliability ("online for months: never die, never lie"): one regression test per reproducer,
+asserting the required behaviour (a clear ``VehidError`` / ``ValueError`` /
 ``MemoryError`` naming the argument, or the correct result), never the old behaviour.
 
 Tests marked ``xfail(strict=True)`` state what the library does not do yet; the fix removes
@@ -832,4 +832,4 @@ def test_cli_cases_are_covered() -> None:
     for name, tests in CLI_CASES.items():
         text = (TESTS / name).read_text()
         for test in tests:
-            assert f"def {test}(" in text, f"{name} no longer has {test} (issue 13's CLI reproducers)"
+            assert f"def {test}(" in text, f"{name} no longer has {test} (a CLI reproducer)"

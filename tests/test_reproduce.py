@@ -325,7 +325,7 @@ def test_reproduce_draws_each_figure_once(tmp_path: Path, monkeypatch: pytest.Mo
     assert (tmp_path / "once" / "fig-4-4-constants.png").exists() and len(draws) == 3
 
 
-# ---- The report for an engineer (issue 16, item 6): the identified physical constants ----
+# ---- The report for an engineer: the identified physical constants ----
 
 QUARTER_CONSTANTS = [("M", "kg", 10.0), ("k1", "N/m", 90.0), ("k2", "N/m", 50.0), ("b", "N·s/m", 40.0)]
 

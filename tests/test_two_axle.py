@@ -1,4 +1,4 @@
-"""Two axles on one road (issue 6): road simulator, AxleSampler, TwoAxleIdentifier."""
+"""Two axles on one road: road simulator, AxleSampler, TwoAxleIdentifier."""
 
 import numpy as np
 import pytest

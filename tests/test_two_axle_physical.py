@@ -1,5 +1,5 @@
 """vehid.TwoAxleIdentifier on a Structure: road cancellation on the half car's physical
-structure (the core's TwoAxleStructured, issue 14), against the figures of
+structure (the core's TwoAxleStructured), against the figures of
 crates/vehid-core/tests/half_one_road.rs on the same samples.
 
 The setting is the Rust test's (and the README's "Two axles on one road"): the thesis' half

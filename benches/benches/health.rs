@@ -1,4 +1,4 @@
-//! ns per sample of `HealthMonitor::update` (issue 17's fleet target: ≤ 100 ns per sample
+//! ns per sample of `HealthMonitor::update` (the fleet target: ≤ 100 ns per sample
 //! per vehicle, so one core follows 50,000 vehicles at 200 Hz), f64 and f32; and of the half
 //! car's `HalfHealthMonitor::update` (f64; `health/half_monitor_update_f64`, passenger half
 //! car, realistic sensors over both axles, same road and rate).

@@ -80,7 +80,7 @@ macro_rules! kalman_benches {
             "half/kalman_rows",
         );
 
-        // Issue 12's paths: the square-root form, exponential forgetting, and the exact start
+        // The online forms: the square-root form, exponential forgetting, and the exact start
         // once it has ended (the first samples of the cycle identify the parameters).
         for (name, opts, exact) in [
             ("sqrt", KalmanOptions { form: CovarianceForm::Sqrt, ..KalmanOptions::default() }, false),
@@ -240,7 +240,7 @@ fn identifiers(c: &mut Criterion) {
 }
 
 /// Identifiers on a Structure against the plain rows update for the same parameters
-/// (issue 14: at most 1.5x): the quarter car's full rows as a structure (8 parameters in two
+/// (target: at most 1.5x): the quarter car's full rows as a structure (8 parameters in two
 /// groups of 4), its physical structure with m known (4 parameters, two groups of 2), and the
 /// stochastic gradient on the full-row structure.
 fn structured(c: &mut Criterion) {
@@ -285,7 +285,7 @@ fn structured(c: &mut Criterion) {
     );
 }
 
-/// Noisy state sensors (issue 15): recursive IV on the quarter car's full rows (8 parameters
+/// Noisy state sensors: recursive IV on the quarter car's full rows (8 parameters
 /// in two groups of 4: compare with `quarter/kalman_rows`), with the refined instruments'
 /// predictor (6 lags: a 49-regressor least-squares predictor per sample), on the physical
 /// structure, and the bias-compensated sums.
@@ -377,7 +377,7 @@ fn noisy_states(c: &mut Criterion) {
     bench_updates(c, "update_f64", &data, &mut update, "quarter/nebcls_rows");
 }
 
-/// Road cancellation on the half car's physical structure (issue 14; count_updates'
+/// Road cancellation on the half car's physical structure (as count_updates'
 /// half_two_axle_physical): sampled every 0.3 m at 6 m/s, the rear axle 10 samples behind,
 /// m1, m2, l1, l2 known (12 parameters), the exact start. Compare with
 /// `half/kalman_rows` (32 parameters, no pairing).

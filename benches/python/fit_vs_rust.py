@@ -1,4 +1,4 @@
-"""Python ``fit()`` against the Rust update, per sample, measured in one run (issue 11).
+"""Python ``fit()`` against the Rust update, per sample, measured in one run.
 
 For the quarter car and the half car (thesis values, decoupled Kalman rows, p0 = 1000, R
 from road σ 0.1 and derivative noise 0.005) on the same seeded data (dt 0.05 s, road σ 0.1,

@@ -1,5 +1,5 @@
 """``vehid monitor``: the suspension health monitor (:class:`vehid.HealthMonitor`) over a
-log of a car's sensors, printing one line per change it finds (issue 17).
+log of a car's sensors, printing one line per change it finds.
 
 The log is read in chunks through :mod:`vehid.io` (CSV in any common dialect, or Parquet);
 its columns are the sensor channels (``a_body, a_wheel, deflection`` for the realistic

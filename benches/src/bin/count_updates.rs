@@ -69,7 +69,8 @@ fn samples<const N: usize, const M: usize>(model: LinearModel<f64, N, M>) -> veh
     Ok((0..LEN).map(|_| sim.next_sample()).map(|s| (s.r, s.z)).collect())
 }
 
-/// The issue-12 variants of the rows identifier, by bench name suffix.
+/// The online-form variants of the rows identifier (square-root form, forgetting, exact
+/// start), by bench name suffix.
 fn variant<const N: usize, const K: usize>(
     bench: &str,
     rows: &[usize],
@@ -206,9 +207,10 @@ fn sim_exact(n: usize) -> vehid_core::Result<String> {
     Ok(format!("{last:?}"))
 }
 
-/// The identifiers on a [`Structure`] (issues 14 and 15), a function of their own so that
-/// their code does not change how the other benches' loops are compiled in [`run`] (with them
-/// inlined there, quarter_sim_exact grew from 605 to 676 instructions per sample).
+/// The identifiers on a [`Structure`] (Kalman, gradient, IV, bias-compensated, joint EKF), a
+/// function of their own so that their code does not change how the other benches' loops are
+/// compiled in [`run`] (with them inlined there, quarter_sim_exact grew from 605 to 676
+/// instructions per sample).
 #[inline(never)]
 fn structured(bench: &str, n: usize) -> vehid_core::Result<String> {
     let q = QuarterCar::<f64>::thesis();
@@ -296,7 +298,7 @@ fn ekf_physical(q: &QuarterCar<f64>) -> vehid_core::Result<JointEkf<f64, 4, 9>> 
     JointEkf::new(*ps.structure(), &guess, &var, 1.0, EkfNoise::from_sigmas(0.008, 0.005, b, 0.1), 0.05, 5)
 }
 
-/// Road cancellation on the half car's physical structure (issue 14), as the criterion bench
+/// Road cancellation on the half car's physical structure, as the criterion bench
 /// update_f64/half/two_axle_physical: the thesis' half car sampled every 0.3 m at 6 m/s, the
 /// rear axle 10 samples behind, m1, m2, l1, l2 known (12 parameters), the exact start.
 #[inline(never)]

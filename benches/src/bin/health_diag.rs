@@ -1,4 +1,4 @@
-//! Diagnosis of the health monitor with the thesis' state sensors (issue 17): the bias and the
+//! Diagnosis of the health monitor with the thesis' state sensors: the bias and the
 //! spread of the tracked `k2/M`, `b/M` on one no-change drive (passenger quarter car, class C
 //! at 15 m/s, 200 Hz), for the tracker `Rls3` (window 6 s) fed by different regressors:
 //!

@@ -1,4 +1,4 @@
-//! The health monitor's experiment (issue 17): quarter car with passenger-car constants,
+//! The health monitor's experiment: quarter car with passenger-car constants,
 //! ISO 8608 class C at 15 m/s, realistic sensors at 200 Hz.
 //!
 //! - Detection: damper −10 %, spring −10 %, body mass +20 % at t = 60 s, `--seeds` seeds each

@@ -1,4 +1,4 @@
-//! Soak of the recommended online form in `f32` (issue 13): `SOAK_UPDATES` updates (default
+//! Soak of the recommended online form in `f32`: `SOAK_UPDATES` updates (default
 //! 10⁸, ≈ 58 days at 20 Hz) of `KalmanIdentifier<f32, N, K>` with
 //! `KalmanOptions { form: CovarianceForm::Sqrt, .. }` per run, each against the same run in
 //! `f64`.

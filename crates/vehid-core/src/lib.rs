@@ -18,7 +18,7 @@
 //! - [`simd`]: the run-time choice of vector instructions (results never depend on it);
 //! - [`identify`]: batch least squares, the Kalman-filter identifier, stochastic gradient,
 //!   and the two-axle identifier (thesis' Eq 6.14 and road cancellation);
-//! - [`health`]: the suspension health monitor (issue 17): `k2/M`, `b/M` tracked from
+//! - [`health`]: the suspension health monitor: `k2/M`, `b/M` tracked from
 //!   accelerometers and a deflection sensor, changes detected and named;
 //! - [`stats`]: the estimates' uncertainty as statsmodels names it (`bse`, `conf_int`,
 //!   `sigma2`, `cov_params`), Student's t, and the CUSUM tests of the recursive residuals.

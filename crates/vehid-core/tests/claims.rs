@@ -1,4 +1,4 @@
-//! Claims that had no test failing when they broke (issue 18), each against an independent
+//! Claims that had no test failing when they broke, each against an independent
 //! reference:
 //!
 //! - the stochastic gradient (Eq 2.56, 5.2–5.18: Venter, Lyapunov and Ljung gains, the `Σ_w`

@@ -5,7 +5,7 @@
 //! residual sums the trait's docs define, what the identifier was built with (rows, noise,
 //! groups), and typed errors for every buffer of the wrong length.
 //!
-//! A mutation-testing aid as much as a test (issue 18): coverage of the Rust tests showed
+//! A mutation-testing aid as much as a test: coverage of the Rust tests showed
 //! these read-outs executed by pytest only (through the extension), so a broken accessor
 //! passed every Rust test.
 

@@ -1,4 +1,4 @@
-//! The half car on one road (issue 14): road cancellation on the half car's physical
+//! The half car on one road: road cancellation on the half car's physical
 //! structure (12 parameters, `m1`, `m2`, `l1`, `l2` known) gives every one of the 28 non-zero
 //! entries of the four unknown rows of `A` within 5 % after 20,000 samples, on at least 9 of
 //! 10 seeds; the rows identifier ([`TwoAxleIdentifier`], method `Cancel`) beside it on the
@@ -178,7 +178,7 @@ fn variants() {
     );
 }
 
-/// Issue 14's must-show: every one of the 28 entries within 5 % after 20,000 samples on at
+/// Must-show: every one of the 28 entries within 5 % after 20,000 samples on at
 /// least 9 of 10 seeds (seeds 1–10, the ones the identifier was developed on; `fresh_seeds`
 /// measures on others). The rows identifier's worst entries are printed beside it.
 #[test]

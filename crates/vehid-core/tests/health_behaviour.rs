@@ -257,7 +257,7 @@ fn run(mon: &mut HealthMonitor<f64>, d: &mut QuarterDrive<f64>, seconds: f64) ->
 #[test]
 fn no_false_alarm_over_seeds() {
     // Documented (docs/capabilities/health.md): no false alarm in 200 h without change, the
-    // CUSUMs left at zero; the requirement is at most 1 per 10 h. 16 drives of 50 s
+    // CUSUMs left at zero; the requirement is at most 1 per 10 h. 16 drives of 50 s
     // (30 s judged each, 8 min in all): at 1 per 10 h the chance of 2 or more alarms is
     // below 10⁻³, so 2 alarms reject the claimed calibration.
     let (drives, seconds) = (16, 50.0);

@@ -1,4 +1,4 @@
-//! The joint state and parameter EKF (issue 15, item 3) on the quarter car with white noise
+//! The joint state and parameter EKF on the quarter car with white noise
 //! on the measured state (road σ_u 0.1, derivative noise σ_v 0.1, dt 0.05 s), against the
 //! thesis' Kalman rows identifier.
 //!
@@ -296,7 +296,7 @@ fn rk4_discretization_error() {
     assert!(ep < 3e-4 && eg < 3e-4, "{ep} {eg}");
 }
 
-/// Must-show (issue 15, item 3): seeds 3000–3011 (none used while developing), 40,000
+/// Must-show: seeds 3000–3011 (none used while developing), 40,000
 /// samples each, release; the prior of [`guess`]; ξ of the rows 1 and 3 implied by the
 /// estimate; Kalman = the thesis' rows identifier (p0 1000, R from the noise levels) on the
 /// same samples. Measured (median / worst over the 12 seeds):

@@ -1,5 +1,5 @@
-//! Bias-compensated least squares with the state-noise variances estimated from the data
-//! (issue 15, item 2): `NoiseEstimatingBcls` on the quarter car in the setting of
+//! Bias-compensated least squares with the state-noise variances estimated from the data:
+//! `NoiseEstimatingBcls` on the quarter car in the setting of
 //! `noisy_states.rs` (rows 1 and 3, white road σ_u 0.1, dt 0.05 s, derivative noise σ_v 0.1,
 //! white state noise σ_w a percentage of σ_u on every state).
 //!
@@ -323,7 +323,7 @@ fn a_saved_identifier_continues_bit_for_bit() {
     assert!(err.to_string().contains("share structure and samples"), "{err}");
 }
 
-/// Must-show (issue 15, item 2): seeds 2000–2011 (not used while developing), 40,000
+/// Must-show: seeds 2000–2011 (not used while developing), 40,000
 /// samples, σ_w 2, 8, 32 % of σ_u on every state; "NE-BCLS" = this identifier, its
 /// instruments refined (6 lags) unless said. Measured (release; median / worst over 12):
 ///

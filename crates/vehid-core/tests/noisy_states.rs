@@ -1,4 +1,4 @@
-//! Noisy state sensors (issue 15): recursive instrumental variables and bias-compensated
+//! Noisy state sensors: recursive instrumental variables and bias-compensated
 //! least squares against the thesis' Kalman identifier, on the quarter car with white noise
 //! on the measured state (road σ_u 0.1, derivative noise σ_v 0.1, dt 0.05 s).
 //!
@@ -405,7 +405,7 @@ impl ToF32 for [f64] {
     }
 }
 
-/// Must-show (issue 15), seeds 1000–1019 (none used while choosing the method or its
+/// Must-show, seeds 1000–1019 (none used while choosing the method or its
 /// defaults), 40,000 samples each, release mode, Kalman = the thesis' identifier (p0 1000,
 /// R from the noise levels), IV exact start, delay 1:
 ///
@@ -460,7 +460,7 @@ fn must_show_xi_over_seeds() {
     assert!(median(&rows) <= 0.15);
 }
 
-/// Must-show consistency (issue 15): the full rows' error √ξ (median over seeds 1100–1109)
+/// Must-show consistency: the full rows' error √ξ (median over seeds 1100–1109)
 /// falls like 1/√N from 10⁴ to 10⁶ samples at 8 % state noise. Measured log-log slopes of
 /// the median (release, seeds 1100–1109): full rows refined IV −0.576 (median √ξ 0.429,
 /// 0.369, 0.171, 0.117, 0.028 at 10⁴, 10^4.5, …, 10⁶), full rows delayed-regressor IV

@@ -77,7 +77,7 @@ fn sustained(xis: &[(usize, f64)]) -> Option<usize> {
     }
 }
 
-/// Issue 14's must-show: the Fig 4-2 scenario (road σ 0.1, σ_v 0.005, dt 0.05, m known),
+/// Must-show: the Fig 4-2 scenario (road σ 0.1, σ_v 0.005, dt 0.05, m known),
 /// online from an exact start. The physical structure holds ξ ≤ 0.08 from within 4000
 /// samples on at least 90 % of 50 seeds; the thesis' full rows (exact start, the true R) on
 /// the same data beside it. Seeds 9000-9049; `SEED0=30000` runs 30000-30049 instead (to measure

@@ -1,4 +1,4 @@
-//! Two axles on one road (Ch. VI.D, issue 6): the asynchronous sampler's properties, the
+//! Two axles on one road (Ch. VI.D): the asynchronous sampler's properties, the
 //! thesis' Fig 6-7/6-8/6-9 protocol, road cancellation, Eq 6.14 written again from the
 //! equations, and varying speed.
 //!
@@ -348,8 +348,8 @@ fn road_cancellation_over_8_seeds() {
     check_cancellation_acceptance(&white.iter().map(|r| r[1]).collect::<Vec<_>>(), &ratio);
 }
 
-/// Issue 6's acceptance for road cancellation (thesis protocol, 20,000 samples), over the
-/// seeds' results (row ξ, worst wheel parameter): as issue 6 states it, in medians over the
+/// The acceptance for road cancellation (thesis protocol, 20,000 samples), over the
+/// seeds' results (row ξ, worst wheel parameter): in medians over the
 /// seeds, the wheel rows' share of ξ ≤ 0.05, every wheel parameter within 10 %, and ≥ 10×
 /// smaller wheel-row ξ than the plain rows (`ratio`: plain / cancelled per seed); and per seed
 /// that no run is far off.
@@ -424,7 +424,7 @@ fn fig_6_7_to_6_9_and_road_cancellation_over_8_seeds() {
         fig69[1],
         fig69[1] / fig68[1]
     );
-    // Acceptance (issue 6), as `road_cancellation_over_8_seeds` checks it.
+    // Acceptance, as `road_cancellation_over_8_seeds` checks it.
     let ratios: Vec<f64> = white
         .iter()
         .map(|r| {

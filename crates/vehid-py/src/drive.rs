@@ -1,5 +1,5 @@
 //! `Simulator(car, road="iso8608-C", speed=, changes=, sensors=)`: a quarter-car or half-car
-//! drive on an ISO 8608 road with parameter changes and a sensor set (issue 17), the core's
+//! drive on an ISO 8608 road with parameter changes and a sensor set, the core's
 //! [`QuarterDrive`] and [`HalfDrive`]. Conversion and validation only; the core simulates.
 
 use crate::convert::{py_str, speed_arg};

@@ -1,4 +1,4 @@
-//! Threads and interrupts (issue 13): what the bindings do when one object is used from two
+//! Threads and interrupts: what the bindings do when one object is used from two
 //! threads, and when Ctrl-C arrives during a long call.
 //!
 //! Threads: a method that releases the GIL (`fit`, `theta` of a large batch, `Simulator.run`)

@@ -1,4 +1,4 @@
-//! `HealthMonitor` and `Event` (issue 17): the core's [`health::HealthMonitor`] for the
+//! `HealthMonitor` and `Event`: the core's [`health::HealthMonitor`] for the
 //! quarter car and [`health::HalfHealthMonitor`] for the half car. Conversion and validation
 //! only; the core does every computation.
 

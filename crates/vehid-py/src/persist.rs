@@ -36,7 +36,7 @@ use vehid_core::Error;
 
 /// Version of the pickled state's layout. Raise it when the payload or any serialized core
 /// type changes in a way older readers (or this reader, for older payloads) cannot follow.
-/// 2: modes `shared` and `full` keep the outlier gate's statistics (issue 13).
+/// 2: modes `shared` and `full` keep the outlier gate's statistics.
 /// (`Core::Iv`, `Core::BiasCompensated`, `Core::JointEkf`, `Core::TwoAxleStructured`,
 /// `Core::NoiseEstimating` and `Core::IvModel` were added within format 2: new variants at the end of [`Core`]
 /// leave every older payload's encoding unchanged, so it still loads.)

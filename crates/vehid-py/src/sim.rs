@@ -284,7 +284,7 @@ impl Engine {
 /// metres (irregular in time when the speed varies), the road is a white height per `spacing`
 /// metres held over distance, and `run.s` is the distance travelled.
 ///
-/// A drive (issue 17; a `QuarterCar` or a `HalfCar`): `road="iso8608-A"` .. `"iso8608-E"` (or `"flat"`)
+/// A drive (a `QuarterCar` or a `HalfCar`): `road="iso8608-A"` .. `"iso8608-E"` (or `"flat"`)
 /// is an ISO 8608 road profile by distance, `speed` m/s (a scalar, default 15, or one value
 /// per sample), `changes=[(t, {"b": 1350.0}), (t, {"k2": 19800.0}, ramp), ...]` steps (or
 /// ramps over `ramp` seconds) of the constants 'M', 'm', 'k1', 'k2', 'b' from `t` seconds,

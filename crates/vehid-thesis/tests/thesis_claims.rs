@@ -99,7 +99,7 @@ fn fig_4_2_body_row_fast_wheel_row_slow() {
     // Road noise only: it enters the wheel row, so that row is learned against noise
     // 90·σ_u while the body row sees only σ_v. Claim: the body row converges within 1,000
     // iterations; ξ needs tens of thousands of iterations to fall below 0.08 (the thesis:
-    // more than 40,000), and it does fall below it. Two-sided (issue 18): a seed that never
+    // more than 40,000), and it does fall below it. Two-sided: a seed that never
     // settles fails the test (with 60,000 iterations four of the eight did not, and the old
     // median test passed on ∞).
     // Measured (seeds 11..88): settled after 23,500 to 86,000 iterations, median 72,750.

@@ -1,4 +1,4 @@
-//! Suspension health monitoring (issue 17): from a car's own sensors to the physical
+//! Suspension health monitoring: from a car's own sensors to the physical
 //! constants that changed, online, without allocation, in `no_std`; the quarter car
 //! ([`HealthMonitor`]) and the half car ([`HalfHealthMonitor`], section "The half car").
 //!
@@ -212,7 +212,7 @@
 //! move on the window's time scale. The threshold's calibration was rerun: no excursion at
 //! constant speed, before or after (`health_experiment --car half --calibrate`). Why: the fits
 //! were some 60 % of an update's instructions (4073 per update with an `8 × 8` factor every
-//! sample, 920 now; issue 17's fleet figure is 100 ns per sample per vehicle).
+//! sample, 920 now; the fleet target is 100 ns per sample per vehicle).
 //!
 //! The generalized least squares weighs each coefficient by what it knows:
 //! on a car with a dynamic index near 1 (`J ≈ M a b`) the cross coefficients `α_fr` are

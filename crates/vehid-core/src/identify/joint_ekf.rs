@@ -1,5 +1,5 @@
 //! Joint state and parameter estimation: an extended Kalman filter on the augmented state
-//! (the thesis' Ch. VII proposal for further study; issue 15, item 3).
+//! (the thesis' Ch. VII proposal for further study).
 //!
 //! The regression identifiers treat the measured state `r(k)` as the regressor, so noise on
 //! it biases them (errors in variables, Ch. IV.D). Here the state is not a regressor but an

@@ -169,8 +169,8 @@ fn f32_models_build() {
 
 /// `a_hat` puts `θ` (row-major, one unknown row of `A` after another) into the unknown rows
 /// and keeps the known ones: the true rows give `A` back exactly, a changed entry moves only
-/// its own place, and a `θ` of the wrong length or with a NaN is refused (issue 18: the
-/// length check's `k · N` survived mutation, nothing in Rust called `a_hat`).
+/// its own place, and a `θ` of the wrong length or with a NaN is refused (written because
+/// the length check's `k · N` survived mutation: nothing in Rust called `a_hat`).
 #[test]
 fn a_hat_fills_the_unknown_rows_row_major() {
     fn check<const N: usize, const M: usize>(model: &LinearModel<f64, N, M>) {

@@ -247,7 +247,7 @@ fn two_axle_with_its_ring() {
     }
 }
 
-/// The half car's physical structure on one road (issue 14), in the fixed store with a
+/// The half car's physical structure on one road (road cancellation), in the fixed store with a
 /// parameter capacity `P` equal to its largest group's (4) and above it (6), and in the heap
 /// store, split inside the first `d = 10` samples and after.
 #[test]

@@ -1,4 +1,4 @@
-//! Realistic drives of the quarter car (issue 17): an ISO 8608 road by distance at a speed
+//! Realistic drives of the quarter car: an ISO 8608 road by distance at a speed
 //! that may change per sample, parameter changes (steps and linear ramps of the physical
 //! constants) at given times, and the sensors a car carries.
 //!

@@ -1,4 +1,4 @@
-//! Realistic drives of the half car (issue 17): the quarter car's drive (`drive.rs`) with two
+//! Realistic drives of the half car: the quarter car's drive (`drive.rs`) with two
 //! axles on one ISO 8608 road, parameter changes per axle, and the sensors over both axles.
 //!
 //! **Car.** The [`HalfCar`] of Eq 6.1–6.6, state `[x1, ẋ1, x2, ẋ2, x3, ẋ3, φ, φ̇]` (front

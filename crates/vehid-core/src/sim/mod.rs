@@ -19,7 +19,7 @@
 //! Files: `config.rs` (settings, pulses, the integration method), `time.rs` ([`Simulator`],
 //! samples at a fixed interval), `road.rs` ([`RoadSimulator`]: two axles on one road, samples
 //! by distance at a speed profile), `run.rs` ([`Run`], a whole simulation in memory),
-//! `drive.rs` ([`QuarterDrive`]: realistic drives of issue 17 — an ISO 8608 road by distance,
+//! `drive.rs` ([`QuarterDrive`]: realistic drives — an ISO 8608 road by distance,
 //! parameter changes at given times, accelerometers and a deflection sensor; `iso8608.rs`:
 //! the road by distance); `half_drive.rs` ([`HalfDrive`]: the same for the half car, the rear
 //! wheel a wheelbase behind the front on one road).

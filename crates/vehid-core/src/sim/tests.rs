@@ -254,8 +254,8 @@ fn road_bad_configs() {
     assert!(mk(0.3, 3.0).is_none());
 }
 
-/// `k()` is the index of the next sample: 0 before the first, one more after each (issue 18:
-/// `Simulator::k` returning a constant survived mutation; the tests compared it only with
+/// `k()` is the index of the next sample: 0 before the first, one more after each (written
+/// because `Simulator::k` returning a constant survived mutation; the tests compared it only with
 /// itself).
 #[test]
 fn the_sample_index_counts_the_samples_drawn() {

@@ -1,5 +1,5 @@
 //! Figures beyond the thesis (not in Kessler 1986): which identifier to use when the
-//! measured state is noisy (issue 15).
+//! measured state is noisy.
 //!
 //! - **Fig B-1**: ξ (Eq 3.17) after [`SWEEP_SAMPLES`] samples against the state noise σ_w, for
 //!   every method vehid has for noisy states and the thesis' own identifier, on the thesis'

@@ -498,7 +498,7 @@ fn xi_of<I: Identifier<f64>>(mut id: I, seed: u64, n: usize, outlier: impl Fn(f6
 
 #[test]
 fn modes_shared_and_full_gate_outliers_as_rows_does() {
-    // Issue 13: the same one-in-10⁴ outliers (1e30, 1e3 times the signal) as
+    // The same one-in-10⁴ outliers (1e30, 1e3 times the signal) as
     // `the_gate_keeps_outliers_out_of_the_estimate`, in modes shared and full.
     use crate::model::QuarterCar;
     let car = QuarterCar::<f64>::thesis();
@@ -532,7 +532,7 @@ fn modes_shared_and_full_gate_outliers_as_rows_does() {
 
 #[test]
 fn an_overflow_through_z_names_z_k_in_every_mode() {
-    // Issue 13: a derivative of 1.7e308 used to be reported as `r_k` in modes shared and full.
+    // A derivative of 1.7e308 used to be reported as `r_k` in modes shared and full.
     let x = V4::new(0.01, -0.02, 0.03, 0.01);
     let mut z = V4::zeros();
     z[1] = 1.7e308;

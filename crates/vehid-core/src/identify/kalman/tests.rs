@@ -523,7 +523,7 @@ fn several_lane_groups_equal_one_and_reject_as_a_whole() {
 
 #[test]
 fn batch_least_squares_names_a_full_rank_dominating_sample() {
-    // Issue 13: one sample of 1e10 (far beyond the others) keeps the regression full rank
+    // One sample of 1e10 (far beyond the others) keeps the regression full rank
     // but decides a direction alone: named, not solved silently wrong; removed, it solves.
     let car = crate::model::QuarterCar::<f64>::thesis();
     let cfg = crate::sim::SimConfig::new(0.05).road_sigma(0.1).deriv_noise(0.005);
