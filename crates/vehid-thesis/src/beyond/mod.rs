@@ -237,8 +237,8 @@ impl RoadsIdent {
     pub fn setup(self) -> &'static str {
         match self {
             RoadsIdent::Thesis => {
-                "StructuredKalman on QuarterCar::structure (k2/M, b/M, M, k1; m = 40 kg known), exact start (batch \
-                 least squares on the first samples, then recursive), r = 1; every sample; assumes the road is white"
+                "StructuredKalman on QuarterCar::structure (k2/M, b/M, M, k1; m = 40 kg known), exact start (no \
+                 prior: least squares on every sample so far), r = 1; every sample; assumes the road is white"
             }
             RoadsIdent::RealRoad => {
                 "Differenced(IvIdentifier) on the same structure: RoadModel::Shaped { cutoff: 0.01 cycles/m } (ISO \
@@ -361,8 +361,8 @@ const fn rc(text: &'static str, check: RoadsCheck) -> RoadsClaim {
 const ALL_CLASSES: &[RoadClass] = &[A, B, C, D, E];
 
 /// Fig B-3's claims. They hold in both modes (quick: 24,000 samples, 10 seeds per class;
-/// full: 60,000, 16), with margins measured on base seeds 1986 and 7 (the module docs of
-/// `vehid-thesis` give the numbers). A tighter per-seed claim does not hold: every constant
+/// full: 60,000, 16), with margins measured on base seeds 1986 and 7
+/// (`docs/capabilities/real-roads.md` gives the numbers). A tighter per-seed claim does not hold: every constant
 /// within 5 % on at least 90 % of the seeds of every class fails on class E in the full mode
 /// (14 of 16) and on most classes in the quick mode (7–9 of 10); the classes differ only by
 /// their seeds (the module docs), so that is the spread of the estimate, not the roughness.
