@@ -1,8 +1,8 @@
 //! Fig B-1, B-2 and B-3 (beyond the thesis) alone: runs them through the reproduction runner
 //! and writes `fig-B-1.svg`, `fig-B-3.svg`, `beyond.md` and `beyond.json` into a directory.
 //!
-//! `cargo run --release -p vehid-thesis --example beyond -- [--quick] [--seeds N] [--seed S] [OUT]`
-//! (OUT defaults to `report-beyond/`).
+//! `cargo run --release -p vehid-thesis --example beyond -- [--quick] [--seeds N] [--seed S]
+//! [--only B-1,B-3] [OUT]` (OUT defaults to `report-beyond/`).
 
 use std::io::Write;
 use vehid_thesis::{beyond, run, Progress, RunOptions};
@@ -18,6 +18,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "--seeds" => opts.seeds = Some(args.next().ok_or("--seeds N")?.parse()?),
             "--seed" => opts.base_seed = args.next().ok_or("--seed S")?.parse()?,
             "--threads" => opts.threads = Some(args.next().ok_or("--threads N")?.parse()?),
+            "--only" => opts.only = args.next().ok_or("--only IDS")?.split(',').map(|s| s.trim().to_string()).collect(),
             other => out = other.into(),
         }
     }

@@ -133,7 +133,8 @@ pub fn roads_svg(r: &RoadsResult) -> String {
         .filter(|&v| ok(v))
         .collect();
     let lo = all.iter().copied().fold(0.01, f64::min).log10().floor();
-    let hi = all.iter().copied().fold(1.0, f64::max).log10().ceil();
+    // A decade above the largest error: the thesis' identifier's errors near 1 stay off the frame.
+    let hi = (3.0 * all.iter().copied().fold(1.0, f64::max)).log10().ceil();
     let py = |v: f64| bottom - (bottom - top) * (v.max(10f64.powf(lo)).log10() - lo) / (hi - lo).max(1.0);
     let nc = r.classes.len().max(1);
     let mut s = String::new();
