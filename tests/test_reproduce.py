@@ -531,3 +531,69 @@ def test_reproduce_beyond_draws_b1_and_tabulates_b2(tmp_path: Path, monkeypatch:
     assert md.count("*agrees*") + md.count("*differs*") == len(sweep["verdicts"]) + len(half["verdicts"])
     for f in kept:
         close(f)
+
+
+# ---- Beyond the thesis: Fig B-3, real roads ----
+
+ROADS_KEYS = {"id", "title", "origin", "samples", "full_samples", "seeds", "speed", "dt", "classes", "constants",
+              "units", "truth", "known", "setup", "rows", "verdicts", "cpu_seconds"}
+ROADS_CELL_KEYS = {"class", "value", "lo", "hi", "rel_err", "median", "min", "max", "covered", "refused", "errors"}
+
+
+def test_reproduce_draws_b3_real_roads(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                       capsys: pytest.CaptureFixture[str]) -> None:
+    plt = pytest.importorskip("matplotlib.pyplot")
+    plt.close("all")
+    close = plt.close
+    kept: List[Any] = []
+    monkeypatch.setattr(plt, "close", kept.append)
+    out = tmp_path / "roads"
+    argv = ["reproduce", "--quick", "--only", "B-3", "--seeds", "3", "--max-iterations", "12000", "--out", str(out),
+            "--no-tables", "--quiet"]
+    assert main(argv) == 0
+    assert Path(capsys.readouterr().out.strip()) == out / "index.md"
+    data = json.loads((out / "report.json").read_text(encoding="utf-8"))
+    assert "sweep" not in data and "half_one_road" not in data
+    roads = data["real_roads"]
+    # The binding's keys: those of the runner's JSON (vehid_thesis::report::RoadsResult).
+    assert set(roads) == ROADS_KEYS and all(set(c) == ROADS_CELL_KEYS for r in roads["rows"] for c in r["cells"])
+    assert (roads["id"], roads["samples"], roads["seeds"]) == ("B-3", 12_000, 3)
+    assert roads["classes"] == ["A", "B", "C", "D", "E"] and roads["constants"] == ["M", "k1", "k2", "b"]
+    assert roads["truth"] == [320.0, 200_000.0, 22_000.0, 1_500.0] and roads["known"]["value"] == 40.0
+    assert [r["label"] for r in roads["rows"]] == list(vehid.reproduce.ROADS_NAMES)
+    for r in roads["rows"]:
+        for c in r["cells"]:
+            for k, t in enumerate(roads["truth"]):
+                assert c["rel_err"][k] == pytest.approx([abs(v / t - 1) for v in c["value"][k]], rel=1e-12)
+                assert c["covered"][k] == sum(lo <= t <= hi for lo, hi in zip(c["lo"][k], c["hi"][k]))
+    # The thesis' identifier is far off (M about a sixth of its value), the real-road one close.
+    thesis, real = roads["rows"]
+    assert all(c["median"][0] > 0.5 for c in thesis["cells"]) and all(c["median"][0] < 0.2 for c in real["cells"])
+    # The figure: one panel per constant (medians and ranges per identifier, log axis), one of coverage.
+    assert (out / "fig-B-3.png").stat().st_size > 10_000
+    figs = [f for f in kept if f._suptitle is not None and f._suptitle.get_text().startswith("Fig B-3:")]
+    assert len(figs) == 1
+    axes = figs[0].axes
+    assert len(axes) == 5
+    for k, ax in enumerate(axes[:4]):
+        assert ax.get_yscale() == "log" and ax.get_title().startswith(vehid.reproduce._symbol(roads["constants"][k]))
+        marks = [ln for ln in ax.get_lines() if ln.get_marker() == "o"]
+        assert len(marks) == 2
+        for ln, r in zip(marks, roads["rows"]):
+            assert list(ln.get_ydata()) == pytest.approx([c["median"][k] for c in r["cells"]])
+    cov = axes[4]
+    heights = [p.get_height() for p in cov.patches]
+    want = [vehid.reproduce._coverage(roads, c) for r in roads["rows"] for c in r["cells"]]
+    assert heights == pytest.approx(want)
+    assert "beyond the thesis" in figs[0]._suptitle.get_text()
+    # The report's text: the figure, the numbers, the reading, the claims as a table.
+    md = (out / "index.md").read_text(encoding="utf-8")
+    html = (out / "index.html").read_text(encoding="utf-8")
+    assert "### Fig B-3:" in md and "![Fig B-3](fig-B-3.png)" in md and "<img src='fig-B-3.png'" in html
+    assert "vehid's comparison of its identifiers on real roads" in md and "“Fig B-3”" in html
+    name, m = vehid.reproduce._roads_name(real["label"]), vehid.reproduce._fmt(100 * real["cells"][0]["median"][0])
+    assert f"| {name} | A | {m} (" in md
+    assert "largest median error" in md and "### Fig B-3, beyond the thesis" in md
+    assert md.count("*agrees*") + md.count("*differs*") == len(roads["verdicts"]) == 6
+    for f in kept:
+        close(f)

@@ -13,8 +13,11 @@ counterpart marked *agrees*, *differs* or *inconclusive* (the run was shorter th
 and bounds the measured number from below only), and the tables for Eq 4.28, Eq 4.32, Eq 4.34 and
 Table I. When they ran, the figures beyond the thesis (not Kessler's) follow: Fig B-1, ξ after
 the run on a log scale against the state noise σ_w, one line per method for noisy states
-(median and 25–75 % band over seeds, ``fig-B-1.png``), and Fig B-2, the half car on one road,
-as a table; their claims are rows of the tables. Every number in the report is computed by the run.
+(median and 25–75 % band over seeds, ``fig-B-1.png``), Fig B-2, the half car on one road,
+as a table, and Fig B-3, "real roads": the relative error of the passenger car's constants M,
+k1, k2, b (log axis) on ISO 8608 roads of classes A–E for the thesis' identifier and the
+real-road one, with the coverage of their 95 % intervals (``fig-B-3.png``); their claims are
+rows of the tables. Every number in the report is computed by the run.
 
 >>> data = run(quick=True, only=["3-5"], seeds=2, max_iterations=100, tables=False)
 >>> data["figures"][0]["id"], len(data["figures"][0]["curves"])
@@ -338,7 +341,8 @@ def _constants_table(fig: Json) -> Tuple[List[str], List[List[str]], str]:
     return head, rows, caption
 
 
-# ---- Beyond the thesis: Fig B-1 (ξ against σ_w) and Fig B-2 (the half car on one road) ----
+# ---- Beyond the thesis: Fig B-1 (ξ against σ_w), Fig B-2 (the half car on one road) and
+# Fig B-3 (real roads) ----
 
 #: The legend's name of each Fig B-1 method, as docs/capabilities/noisy-states.md names them
 #: (the Python class, the model it runs on), keyed by the runner's label
@@ -469,19 +473,167 @@ def _half_conclusion(half: Json) -> str:
             f"of rows {_fmt(best)} (acceptable: ≤ 0.08).")
 
 
+#: The legend's name of each Fig B-3 identifier (the Python class and how it is built), keyed by
+#: the runner's label (vehid_thesis::beyond::RoadsIdent::label).
+ROADS_NAMES = {
+    "thesis' identifier (least squares, white road)":
+        "thesis' identifier: KalmanIdentifier on the physical structure (least squares, white road)",
+    "real-road identifier (IV, ISO 8608 road differenced)":
+        "real-road identifier: IVIdentifier(road=\"iso8608\") on the physical structure",
+}
+
+
+def _roads_name(label: str) -> str:
+    return ROADS_NAMES.get(label, label)
+
+
+def _coverage(roads: Json, cell: Json) -> float:
+    """The fraction of a cell's 95 % intervals (every constant, every seed) that hold the truth."""
+    total = len(roads["constants"]) * roads["seeds"]
+    return sum(cell["covered"]) / total if total else math.nan
+
+
+def _ratio_median(roads: Json, row: Json, k: int) -> float:
+    """The median over classes of the median estimate over seeds of constant ``k``, over its true value."""
+    meds = [_median(c["value"][k]) / roads["truth"][k] for c in row["cells"]]
+    return _median([v for v in meds if math.isfinite(v)])
+
+
+def _plot_roads(plt: Any, roads: Json, path: Path) -> None:
+    """Fig B-3: one panel per constant, the relative error (log axis, shared) per road class, per
+    identifier the median over seeds (marker) and the range (bar), 5 % dashed, the thesis'
+    identifier's estimate as a fraction of the truth written beside its markers; and a panel of
+    the fraction of the 95 % intervals that hold the true constant, per class and identifier."""
+    f = plt.figure(figsize=(10, 7.2))
+    grid = f.add_gridspec(2, 3, width_ratios=[1, 1, 0.9], wspace=0.32, hspace=0.36)
+    classes = roads["classes"]
+    xs = list(range(len(classes)))
+    rows = roads["rows"]
+    width = 0.3 / max(1, len(rows) - 1) if len(rows) > 1 else 0.0
+    ends = [v for r in rows for c in r["cells"] for v in c["min"] + c["max"] if math.isfinite(v) and v > 0]
+    ylim = (10 ** math.floor(math.log10(min(ends + [0.01]))), 10 ** math.ceil(math.log10(max(ends + [1.0])) + 0.3))
+    for k, (name, unit, truth) in enumerate(zip(roads["constants"], roads["units"], roads["truth"])):
+        ax = f.add_subplot(grid[k // 2, k % 2])
+        for i, r in enumerate(rows):
+            dx = (i - (len(rows) - 1) / 2) * width
+            med = [c["median"][k] for c in r["cells"]]
+            lo = [c["min"][k] for c in r["cells"]]
+            hi = [c["max"][k] for c in r["cells"]]
+            # A log axis shows positive finite values only (∞: no estimate on a seed).
+            pts = [(x + dx, m, m - a, b - m) for x, m, a, b in zip(xs, med, lo, hi)
+                   if all(math.isfinite(v) and v > 0 for v in (m, a, b))]
+            ax.errorbar([p[0] for p in pts], [p[1] for p in pts], yerr=[[p[2] for p in pts], [p[3] for p in pts]],
+                        fmt="o", ms=4, color=f"C{i}", capsize=2, lw=1.2,
+                        label=_roads_name(r["label"]) if k == 0 else None)
+        ratio = _ratio_median(roads, rows[0], k)
+        if math.isfinite(ratio):
+            ax.text(0.5, 0.97, f"thesis' estimate ≈ {ratio:.2g} × true", transform=ax.transAxes, ha="center",
+                    va="top", fontsize=7, color="C0")
+        ax.axhline(0.05, color="k", ls="--", lw=0.8, label="5 %" if k == 0 else None)
+        ax.set_yscale("log")
+        ax.set_ylim(*ylim)
+        ax.set_xticks(xs)
+        ax.set_xticklabels(classes)
+        ax.set_xlim(-0.5, len(classes) - 0.5)
+        ax.set_title(f"{_symbol(name)} (true {truth:g} {_unit_tex(unit)})", fontsize=9)
+        if k % 2 == 0:
+            ax.set_ylabel(r"relative error $|\hat{c}/c - 1|$")
+        if k // 2 == 1:
+            ax.set_xlabel("ISO 8608 road class")
+        ax.grid(True, which="both", alpha=0.25)
+    ax = f.add_subplot(grid[:, 2])
+    bw = 0.8 / max(1, len(rows))
+    total = len(roads["constants"]) * roads["seeds"]
+    for i, r in enumerate(rows):
+        dx = (i - (len(rows) - 1) / 2) * bw
+        for x, c in zip(xs, r["cells"]):
+            ax.bar(x + dx, _coverage(roads, c), width=bw, color=f"C{i}", alpha=0.8)
+            ax.text(x + dx, _coverage(roads, c) + 0.01, f"{sum(c['covered'])}", ha="center", va="bottom",
+                    fontsize=6, color=f"C{i}")
+    ax.axhline(0.95, color="k", ls=":", lw=0.8)
+    ax.set_ylim(0, 1.08)
+    ax.set_xticks(xs)
+    ax.set_xticklabels(classes)
+    ax.set_xlabel("ISO 8608 road class")
+    ax.set_ylabel(f"fraction of 95 % intervals holding the true constant (of {total})")
+    ax.set_title(f"coverage (M, k1, k2, b × {roads['seeds']} seeds;\ndotted: the nominal 95 %)", fontsize=9)
+    ax.grid(True, axis="y", alpha=0.25)
+    handles, labels = f.axes[0].get_legend_handles_labels()
+    f.legend(handles, labels, fontsize=7, loc="lower center", ncol=3, frameon=False)
+    band = (f"median (marker) and range (bar) over {roads['seeds']} seeds per class" if roads["seeds"] > 1
+            else "one seed per class (no range)")
+    drive = f"{_fmt(roads['samples'] * roads['dt'])} s at {_fmt(roads['speed'])} m/s, dt = {roads['dt']:g} s"
+    sub = (f"beyond the thesis (not a figure of Kessler 1986); vehid, {band}, {roads['samples']} samples ({drive}) "
+           f"per run; passenger quarter car, true states, m = {_fmt(roads['known']['value'])} kg known")
+    title = textwrap.wrap(f"Fig {roads['id']}: {roads['title']}", 120) + textwrap.wrap(sub, 140)
+    f.suptitle("\n".join(_tex(t) for t in title), fontsize=8.5)
+    f.subplots_adjust(left=0.08, right=0.98, top=0.84, bottom=0.13)
+    f.savefig(path, dpi=110)
+    plt.close(f)
+
+
+def _roads_table(roads: Json) -> Tuple[List[str], List[List[str]], str]:
+    """Fig B-3's numbers: one row per identifier and class: per constant the median (worst)
+    relative error in %, the intervals holding the truth, and seeds with no estimate."""
+    truths = zip(roads["constants"], roads["truth"], roads["units"])
+    head = (["identifier", "class"] + [f"{k}: error % (true {t:g} {u})" for k, t, u in truths]
+            + ["95 % intervals holding the truth", "no estimate"])
+    rows = []
+    for r in roads["rows"]:
+        for c in r["cells"]:
+            none = f"{len(c['errors'])}/{roads['seeds']}: {c['errors'][0][1]}" if c["errors"] else "—"
+            rows.append([_roads_name(r["label"]), c["class"]]
+                        + [f"{_fmt(100 * m)} ({_fmt(100 * w)})" for m, w in zip(c["median"], c["max"])]
+                        + [" ".join(f"{k} {n}/{roads['seeds']}" for k, n in zip(roads["constants"], c["covered"])),
+                           none])
+    caption = (f"Relative error |estimate / truth − 1| in %, median (worst seed) over {roads['seeds']} seeds per "
+               f"class after {roads['samples']} samples (∞: no estimate). {roads['setup']}")
+    return head, rows, caption
+
+
+def _roads_conclusion(roads: Json) -> str:
+    """The figure's reading: each identifier's largest median error over the classes and
+    constants, and the real-road identifier's pooled coverage."""
+    parts = []
+    for r in roads["rows"]:
+        worst = max(((m, c["class"], k) for c in r["cells"] for m, k in zip(c["median"], roads["constants"])),
+                    key=lambda x: math.inf if math.isnan(x[0]) else x[0])
+        held = sum(sum(c["covered"]) for c in r["cells"])
+        total = len(r["cells"]) * len(roads["constants"]) * roads["seeds"]
+        parts.append(f"{_roads_name(r['label'])}: largest median error {_fmt(100 * worst[0])} % "
+                     f"({worst[2]}, class {worst[1]}), 95 % intervals holding the truth {held} of {total}")
+    return "; ".join(parts) + "."
+
+
 def _not_run(half: Json) -> List[str]:
     return [f"Not run, {m}: {why}." for m, why in half["not_run"]]
 
 
+#: The report's keys of the figures beyond the thesis, in the report's order.
+BEYOND_KEYS = ("sweep", "half_one_road", "real_roads")
+
+
+def _beyond_intro(data: Json, quote: str) -> str:
+    """The section's first paragraph: what the figures compare and which tables hold their claims."""
+    figs = [data[k] for k in BEYOND_KEYS if k in data]
+    close = "”" if quote == "“" else quote
+    names = " and ".join(f"{quote}Fig {f['id']}{close}" for f in figs)
+    what = []
+    if "sweep" in data or "half_one_road" in data:
+        what.append("for noisy states")
+    if "real_roads" in data:
+        what.append("on real roads")
+    return (f"Not figures of Kessler (1986): vehid's comparison of its identifiers {' and '.join(what)}. Their "
+            f"claims and verdicts are in the table{'s' if len(figs) > 1 else ''} {names} below.")
+
+
 def _beyond_md(data: Json, images: Dict[str, str]) -> List[str]:
     """The section of the figures beyond the thesis (their claims and verdicts: in Tables)."""
-    sweep, half = data.get("sweep"), data.get("half_one_road")
-    if sweep is None and half is None:
+    sweep, half, roads = data.get("sweep"), data.get("half_one_road"), data.get("real_roads")
+    if sweep is None and half is None and roads is None:
         return []
-    md = ["## Beyond the thesis", "",
-          "Not figures of Kessler (1986): vehid's comparison of its identifiers for noisy states. Their claims "
-          "and verdicts are in the tables \"Fig B-1\" and \"Fig B-2\" below.", ""]
-    for fig, table in ((sweep, _sweep_table), (half, _half_table)):
+    md = ["## Beyond the thesis", "", _beyond_intro(data, "\""), ""]
+    for fig, table in ((sweep, _sweep_table), (half, _half_table), (roads, _roads_table)):
         if fig is None:
             continue
         md += [f"### Fig {fig['id']}: {fig['title']}", "", f"**{fig['origin']}.**", ""]
@@ -493,6 +645,9 @@ def _beyond_md(data: Json, images: Dict[str, str]) -> List[str]:
         md.append("")
         if fig is half:
             md += [f"**{_half_conclusion(half)}**", ""] + [f"- {_md_cell(s)}" for s in _not_run(half)] + [""]
+        elif fig is roads and roads is not None:
+            md += [f"**{_md_cell(_roads_conclusion(roads))}**", ""]
+            md += [f"- {_roads_name(r['label'])}: {_md_cell(r['setup'])}" for r in roads["rows"]] + [""]
         else:
             md += [f"- {_beyond_name(c['label'])}: {_md_cell(c['setup'])}" for c in fig["curves"]] + [""]
     return md
@@ -501,13 +656,11 @@ def _beyond_md(data: Json, images: Dict[str, str]) -> List[str]:
 def _beyond_html(data: Json, images: Dict[str, str]) -> List[str]:
     """:func:`_beyond_md` as HTML."""
     e = html.escape
-    sweep, half = data.get("sweep"), data.get("half_one_road")
-    if sweep is None and half is None:
+    sweep, half, roads = data.get("sweep"), data.get("half_one_road"), data.get("real_roads")
+    if sweep is None and half is None and roads is None:
         return []
-    h = ["<h2>Beyond the thesis</h2>",
-         "<p>Not figures of Kessler (1986): vehid's comparison of its identifiers for noisy states. Their claims "
-         "and verdicts are in the tables “Fig B-1” and “Fig B-2” below.</p>"]
-    for fig, table in ((sweep, _sweep_table), (half, _half_table)):
+    h = ["<h2>Beyond the thesis</h2>", f"<p>{e(_beyond_intro(data, '“'))}</p>"]
+    for fig, table in ((sweep, _sweep_table), (half, _half_table), (roads, _roads_table)):
         if fig is None:
             continue
         h.append(f"<h3>Fig {e(fig['id'])}: {e(fig['title'])}</h3><p><strong>{e(fig['origin'])}.</strong></p>")
@@ -521,6 +674,10 @@ def _beyond_html(data: Json, images: Dict[str, str]) -> List[str]:
         if fig is half:
             h.append(f"<p><strong>{e(_half_conclusion(half))}</strong></p><ul>"
                      + "".join(f"<li>{e(s)}</li>" for s in _not_run(half)) + "</ul>")
+        elif fig is roads and roads is not None:
+            h.append(f"<p><strong>{e(_roads_conclusion(roads))}</strong></p><ul>"
+                     + "".join(f"<li>{e(_roads_name(r['label']))}: {e(r['setup'])}</li>" for r in roads["rows"])
+                     + "</ul>")
         else:
             h.append("<ul>" + "".join(f"<li>{e(_beyond_name(c['label']))}: {e(c['setup'])}</li>"
                                       for c in fig["curves"]) + "</ul>")
@@ -623,11 +780,16 @@ def write_report(data: Json, out: Path, command: str = "vehid reproduce", starte
             name = f"fig-{sweep['id']}.png"
             _plot_sweep(plt, sweep, out / name)
             images[sweep["id"]] = name
+        roads = data.get("real_roads")
+        if roads is not None:
+            name = f"fig-{roads['id']}.png"
+            _plot_roads(plt, roads, out / name)
+            images[roads["id"]] = name
     rows = _claim_rows(data)
     ok, bad, open_ = rows["agrees"], rows["differs"], rows["inconclusive"]
     skipped = [f for f in data["figures"] if f["skipped"]]
     mode = "quick" if data["quick"] else "full"
-    beyond = [data[k] for k in ("sweep", "half_one_road") if k in data]
+    beyond = [data[k] for k in BEYOND_KEYS if k in data]
     seeds = max((f["seeds"] for f in data["figures"] + beyond), default=0)
     head = (
         f"Generated by `{command}` ({mode} mode: {seeds} seeds per curve, base seed {data['base_seed']}, "
@@ -648,6 +810,9 @@ def write_report(data: Json, out: Path, command: str = "vehid reproduce", starte
         "identifier has a covariance) and the true value (dashed)."
         + (" Fig B-1 (beyond the thesis): ξ after the run (log axis) against the state noise σ_w, median over "
            "seeds (line) and 25–75 % band (shaded) per method." if "sweep" in data else "")
+        + (" Fig B-3 (beyond the thesis): the relative error of each constant (log axis) per ISO 8608 road class, "
+           "median (marker) and range (bar) over seeds per identifier, and the coverage of the 95 % intervals."
+           if "real_roads" in data else "")
         if plt is not None
         else "matplotlib is not installed (`pip install vehid[plot]`): the report has no images; "
         "every number below is still computed."

@@ -13,8 +13,8 @@ use std::io::Write;
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 use vehid_thesis::{
-    run, CurveResult, FigureResult, HalfCell, HalfResult, HalfRow, IdentifiedConstants, Progress, Report, RunOptions,
-    SweepCurve, SweepResult, Table, TableRow, Verdict,
+    run, CurveResult, FigureResult, HalfCell, HalfResult, HalfRow, IdentifiedConstants, Progress, Report, RoadsCell,
+    RoadsResult, RoadsRow, RunOptions, SweepCurve, SweepResult, Table, TableRow, Verdict,
 };
 
 /// Runs the reproduction and returns the report as nested dicts and lists (NaN and ±inf
@@ -73,7 +73,8 @@ pub fn reproduce_report<'py>(
 }
 
 /// The report as nested dicts and lists, with the keys of its JSON (`Report::to_json`): as
-/// there, `sweep` (Fig B-1) and `half_one_road` (Fig B-2) only when they ran.
+/// there, `sweep` (Fig B-1), `half_one_road` (Fig B-2) and `real_roads` (Fig B-3) only when
+/// they ran.
 fn report_dict<'py>(py: Python<'py>, r: &Report) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     d.set_item("quick", r.quick)?;
@@ -87,6 +88,9 @@ fn report_dict<'py>(py: Python<'py>, r: &Report) -> PyResult<Bound<'py, PyDict>>
     }
     if let Some(h) = &r.half_one_road {
         d.set_item("half_one_road", half_dict(py, h)?)?;
+    }
+    if let Some(h) = &r.real_roads {
+        d.set_item("real_roads", roads_dict(py, h)?)?;
     }
     Ok(d)
 }
@@ -286,6 +290,60 @@ fn half_cell_dict<'py>(py: Python<'py>, c: &HalfCell) -> PyResult<Bound<'py, PyD
     for (key, values) in [("wheel", &c.wheel), ("body", &c.body), ("worst_entry", &c.worst_entry)] {
         d.set_item(key, values.as_slice())?;
     }
+    d.set_item("refused", c.refused)?;
+    d.set_item("errors", errors_list(py, &c.errors)?)?;
+    Ok(d)
+}
+
+/// Fig B-3 (beyond the thesis), with the keys of `RoadsResult`'s JSON.
+fn roads_dict<'py>(py: Python<'py>, r: &RoadsResult) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("id", r.id)?;
+    d.set_item("title", r.title)?;
+    d.set_item("origin", r.origin)?;
+    d.set_item("samples", r.samples)?;
+    d.set_item("full_samples", r.full_samples)?;
+    d.set_item("seeds", r.seeds)?;
+    d.set_item("speed", r.speed)?;
+    d.set_item("dt", r.dt)?;
+    d.set_item("classes", r.classes.as_slice())?;
+    d.set_item("constants", r.constants.as_slice())?;
+    d.set_item("units", r.units.as_slice())?;
+    d.set_item("truth", r.truth.as_slice())?;
+    let known = PyDict::new(py);
+    known.set_item("name", r.known.name)?;
+    known.set_item("unit", r.known.unit)?;
+    known.set_item("value", r.known.value)?;
+    d.set_item("known", known)?;
+    d.set_item("setup", r.setup.as_str())?;
+    d.set_item("rows", list(py, &r.rows, roads_row_dict)?)?;
+    d.set_item("verdicts", list(py, &r.verdicts, verdict_dict)?)?;
+    d.set_item("cpu_seconds", r.cpu_seconds)?;
+    Ok(d)
+}
+
+fn roads_row_dict<'py>(py: Python<'py>, r: &RoadsRow) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("label", r.label)?;
+    d.set_item("setup", r.setup)?;
+    d.set_item("cells", list(py, &r.cells, roads_cell_dict)?)?;
+    Ok(d)
+}
+
+fn roads_cell_dict<'py>(py: Python<'py>, c: &RoadsCell) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("class", c.class)?;
+    for (key, values) in [("value", &c.value), ("lo", &c.lo), ("hi", &c.hi), ("rel_err", &c.rel_err)] {
+        let l = PyList::empty(py);
+        for per_seed in values {
+            l.append(per_seed.as_slice())?;
+        }
+        d.set_item(key, l)?;
+    }
+    for (key, values) in [("median", &c.median), ("min", &c.min), ("max", &c.max)] {
+        d.set_item(key, values.as_slice())?;
+    }
+    d.set_item("covered", c.covered.as_slice())?;
     d.set_item("refused", c.refused)?;
     d.set_item("errors", errors_list(py, &c.errors)?)?;
     Ok(d)

@@ -1,14 +1,15 @@
-//! Fig B-1 and B-2 (beyond the thesis) alone: runs them through the reproduction runner and
-//! writes `fig-B-1.svg`, `beyond.md` and `beyond.json` into a directory.
+//! Fig B-1, B-2 and B-3 (beyond the thesis) alone: runs them through the reproduction runner
+//! and writes `fig-B-1.svg`, `fig-B-3.svg`, `beyond.md` and `beyond.json` into a directory.
 //!
-//! `cargo run --release -p vehid-thesis --example beyond -- [--quick] [--seeds N] [--seed S] [OUT]`
-//! (OUT defaults to `report-beyond/`).
+//! `cargo run --release -p vehid-thesis --example beyond -- [--quick] [--seeds N] [--seed S]
+//! [--only B-1,B-3] [OUT]` (OUT defaults to `report-beyond/`).
 
 use std::io::Write;
 use vehid_thesis::{beyond, run, Progress, RunOptions};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let mut opts = RunOptions { only: vec!["B-1".into(), "B-2".into()], tables: false, ..RunOptions::default() };
+    let mut opts =
+        RunOptions { only: vec!["B-1".into(), "B-2".into(), "B-3".into()], tables: false, ..RunOptions::default() };
     let mut out = std::path::PathBuf::from("report-beyond");
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -17,6 +18,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "--seeds" => opts.seeds = Some(args.next().ok_or("--seeds N")?.parse()?),
             "--seed" => opts.base_seed = args.next().ok_or("--seed S")?.parse()?,
             "--threads" => opts.threads = Some(args.next().ok_or("--threads N")?.parse()?),
+            "--only" => opts.only = args.next().ok_or("--only IDS")?.split(',').map(|s| s.trim().to_string()).collect(),
             other => out = other.into(),
         }
     }
@@ -37,6 +39,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     if let Some(s) = &report.sweep {
         std::fs::write(out.join("fig-B-1.svg"), beyond::sweep_svg(s))?;
+    }
+    if let Some(r) = &report.real_roads {
+        std::fs::write(out.join("fig-B-3.svg"), beyond::roads_svg(r))?;
     }
     std::fs::write(out.join("beyond.md"), beyond::markdown(&report, &cmd))?;
     std::fs::write(out.join("beyond.json"), report.to_json())?;

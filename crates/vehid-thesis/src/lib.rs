@@ -8,7 +8,9 @@
 //! - [`beyond`]: figures beyond the thesis (not in Kessler 1986), run by the same runner and
 //!   selected by id: Fig B-1, ξ after the run against the state noise σ_w for every identifier
 //!   for noisy states and the thesis' own (quarter car), and Fig B-2, the half car on one road
-//!   with noisy states; their claims checked like the thesis', mirrored as report tables;
+//!   with noisy states, and Fig B-3, "real roads": the thesis' identifier against the real-road
+//!   one on ISO 8608 roads of classes A–E (the passenger car's constants M, k1, k2, b and their
+//!   95 % intervals); their claims checked like the thesis', mirrored as report tables;
 //! - [`figures`]: [`EXPERIMENTS`], one [`Experiment`] per figure of Chapters III–VI (3-2 …
 //!   3-7, 4-1 … 4-9, 5-1 … 5-4, 6-2 … 6-9) with its curves, identifiers and the thesis'
 //!   claims as checkable [`Claim`]s;
@@ -58,7 +60,7 @@ pub use figures::{
 };
 pub use report::{
     fmt_num, ConstantSeries, CurveResult, FigureResult, HalfCell, HalfResult, HalfRow, IdentifiedConstants,
-    KnownConstant, Report, SweepCurve, SweepResult, Table, TableRow, Verdict,
+    KnownConstant, Report, RoadsCell, RoadsResult, RoadsRow, SweepCurve, SweepResult, Table, TableRow, Verdict,
 };
 pub use runner::{run, Progress, RunOptions, CONSTANT_POINTS, QUICK_ITERATIONS};
 pub use seeds::job_seed;

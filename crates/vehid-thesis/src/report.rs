@@ -19,8 +19,9 @@
 //! least squares. The scalar floats (σ, `seconds`, `truth`) are always finite. The Rust
 //! values and the Python binding's objects keep NaN and ±∞ as they are.
 //!
-//! The figures beyond the thesis ([`SweepResult`], [`HalfResult`]) follow the same rule (their
-//! per-seed ξ is ∞ where an identifier gave no estimate); they are written only when they ran.
+//! The figures beyond the thesis ([`SweepResult`], [`HalfResult`], [`RoadsResult`]) follow the
+//! same rule (their per-seed ξ and relative errors are ∞ where an identifier gave no estimate,
+//! B-3's estimates and interval ends NaN); they are written only when they ran.
 //!
 //! `ident` and `model` are serialized as their Rust `Debug` text (e.g.
 //! `Kalman { p0_wheel: 1000.0, p0_body: 1000.0, r_scale: 1.0, reinit: false }`), which is what
@@ -318,6 +319,92 @@ pub struct HalfResult {
     pub cpu_seconds: f64,
 }
 
+/// One identifier of Fig B-3 on one road class: per constant and seed the estimate, its 95 %
+/// interval and its relative error, and their summaries over seeds.
+#[derive(Debug, Clone, Serialize)]
+pub struct RoadsCell {
+    /// The ISO 8608 class, `"A"` … `"E"`.
+    pub class: &'static str,
+    /// Per constant ([`RoadsResult::constants`] order), per seed: the estimate (NaN: none).
+    #[serde(serialize_with = "ser::nested_non_finite_as_null")]
+    pub value: Vec<Vec<f64>>,
+    /// Per constant, per seed: the lower end of the 95 % interval (NaN: none).
+    #[serde(serialize_with = "ser::nested_non_finite_as_null")]
+    pub lo: Vec<Vec<f64>>,
+    /// Per constant, per seed: the upper end of the 95 % interval (NaN: none).
+    #[serde(serialize_with = "ser::nested_non_finite_as_null")]
+    pub hi: Vec<Vec<f64>>,
+    /// Per constant, per seed: the relative error `|estimate / truth − 1|` (∞: no estimate).
+    #[serde(serialize_with = "ser::nested_non_finite_as_null")]
+    pub rel_err: Vec<Vec<f64>>,
+    /// Per constant: the median relative error over seeds.
+    #[serde(serialize_with = "ser::non_finite_as_null")]
+    pub median: Vec<f64>,
+    /// Per constant: the smallest relative error over seeds.
+    #[serde(serialize_with = "ser::non_finite_as_null")]
+    pub min: Vec<f64>,
+    /// Per constant: the largest relative error over seeds (the worst seed).
+    #[serde(serialize_with = "ser::non_finite_as_null")]
+    pub max: Vec<f64>,
+    /// Per constant: the seeds whose 95 % interval holds the true value.
+    pub covered: Vec<usize>,
+    /// Samples refused, summed over seeds.
+    pub refused: u64,
+    /// The seeds with no estimate and the identifier's error.
+    pub errors: Vec<(usize, String)>,
+}
+
+/// One identifier of Fig B-3.
+#[derive(Debug, Clone, Serialize)]
+pub struct RoadsRow {
+    /// The legend text.
+    pub label: &'static str,
+    /// How it is set up and what it is told.
+    pub setup: &'static str,
+    /// One cell per class of [`RoadsResult::classes`].
+    pub cells: Vec<RoadsCell>,
+}
+
+/// Fig B-3 (beyond the thesis), "real roads": the thesis' identifier against the real-road one
+/// on ISO 8608 roads of classes A–E.
+#[derive(Debug, Clone, Serialize)]
+pub struct RoadsResult {
+    /// `"B-3"`.
+    pub id: &'static str,
+    /// Caption.
+    pub title: &'static str,
+    /// Where it comes from: not from the thesis.
+    pub origin: &'static str,
+    /// Samples per run.
+    pub samples: usize,
+    /// Samples per run of the full mode.
+    pub full_samples: usize,
+    /// Seeds per class.
+    pub seeds: usize,
+    /// Speed, m/s.
+    pub speed: f64,
+    /// Sample interval, s.
+    pub dt: f64,
+    /// The ISO 8608 classes, `"A"` … `"E"`.
+    pub classes: Vec<&'static str>,
+    /// The constants' names (`M`, `k1`, `k2`, `b`).
+    pub constants: Vec<&'static str>,
+    /// Their units.
+    pub units: Vec<&'static str>,
+    /// Their true values (the passenger car's).
+    pub truth: Vec<f64>,
+    /// The constant held known: the wheel mass.
+    pub known: KnownConstant,
+    /// The simulation and the seeds, one paragraph.
+    pub setup: String,
+    /// One row per identifier.
+    pub rows: Vec<RoadsRow>,
+    /// Its claims evaluated.
+    pub verdicts: Vec<Verdict>,
+    /// Wall time of its jobs summed over the worker threads, s.
+    pub cpu_seconds: f64,
+}
+
 /// Everything a reproduction produced.
 #[derive(Debug, Clone, Serialize)]
 pub struct Report {
@@ -331,7 +418,7 @@ pub struct Report {
     pub seconds: f64,
     /// Figures.
     pub figures: Vec<FigureResult>,
-    /// Tables (with, when Fig B-1 / B-2 ran, their claims and numbers as tables too: the form
+    /// Tables (with, when Fig B-1 / B-2 / B-3 ran, their claims and numbers as tables too: the form
     /// a renderer that knows only figures of ξ against iterations can show).
     pub tables: Vec<Table>,
     /// Fig B-1 (beyond the thesis), when selected (absent from the JSON otherwise; the Python
@@ -342,6 +429,10 @@ pub struct Report {
     /// [`Report::sweep`] for the binding; `vehid reproduce` shows it as a table).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub half_one_road: Option<HalfResult>,
+    /// Fig B-3 (beyond the thesis), when selected (absent from the JSON otherwise; as
+    /// [`Report::sweep`] for the binding; `vehid reproduce` draws it).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub real_roads: Option<RoadsResult>,
 }
 
 impl Report {

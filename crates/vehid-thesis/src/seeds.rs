@@ -28,3 +28,10 @@ pub fn job_seed(base: u64, exp: &Experiment, curve: usize, seed_index: usize) ->
 pub fn beyond_seed(base: u64, id: &str, seed_index: usize) -> u64 {
     mix(mix(base ^ fig_hash(id)) ^ mix(0xB_E70D ^ seed_index as u64))
 }
+
+/// The seed of realization `seed_index` of curve `curve` of a figure beyond the thesis whose
+/// curves are independent ensembles (Fig B-3's road classes): distinct from
+/// [`beyond_seed`]'s and from every other curve's.
+pub fn beyond_class_seed(base: u64, id: &str, curve: usize, seed_index: usize) -> u64 {
+    mix(beyond_seed(base, id, seed_index) ^ mix(0xC1A5_5000 ^ (curve as u64 + 1)))
+}

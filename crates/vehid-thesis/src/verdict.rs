@@ -1,10 +1,13 @@
 //! Claims evaluated against the measurements: one [`Verdict`] per [`ThesisClaim`], and per
 //! claim of the figures beyond the thesis ([`SweepClaim`], [`HalfClaim`]).
 
-use crate::beyond::{HalfCheck, HalfClaim, HalfMethod, Part, QuarterMethod, SweepCheck, SweepClaim};
+use crate::beyond::{
+    HalfCheck, HalfClaim, HalfMethod, Part, QuarterMethod, RoadsCheck, RoadsClaim, RoadsIdent, SweepCheck, SweepClaim,
+};
 use crate::figures::{Claim, ThesisClaim};
-use crate::report::{fmt_num, CurveResult, HalfCell, HalfResult, SweepResult, Verdict};
+use crate::report::{fmt_num, CurveResult, HalfCell, HalfResult, RoadsCell, RoadsResult, SweepResult, Verdict};
 use crate::stats::median;
+use vehid_core::sim::RoadClass;
 
 fn iters_text(v: f64, n: usize) -> String {
     if v.is_infinite() {
@@ -265,4 +268,142 @@ pub(crate) fn evaluate_half(claim: &HalfClaim, r: &HalfResult) -> Verdict {
     };
     let note = if agrees { String::new() } else { "outside the claimed range".to_string() };
     Verdict { claim: claim.text.to_string(), measured, agrees, note }
+}
+
+/// The cells of `ident` on `classes` (`None` when a class was not run).
+fn roads_cells<'a>(r: &'a RoadsResult, ident: RoadsIdent, classes: &[RoadClass]) -> Option<Vec<&'a RoadsCell>> {
+    let mi = RoadsIdent::ALL.iter().position(|&x| x == ident)?;
+    let row = r.rows.get(mi)?;
+    classes
+        .iter()
+        .map(|&c| {
+            let letter = crate::beyond::class_letter(c);
+            row.cells.iter().find(|cell| cell.class == letter)
+        })
+        .collect()
+}
+
+fn classes_text(classes: &[RoadClass]) -> String {
+    classes.iter().map(|&c| crate::beyond::class_letter(c)).collect::<Vec<_>>().join(", ")
+}
+
+/// Fig B-3's claim evaluated against its runs.
+pub(crate) fn evaluate_roads(claim: &RoadsClaim, r: &RoadsResult) -> Verdict {
+    let (n, seeds) = (r.samples, r.seeds);
+    let classes = match claim.check {
+        RoadsCheck::AllWithin { classes, .. }
+        | RoadsCheck::Median { classes, .. }
+        | RoadsCheck::Coverage { classes, .. }
+        | RoadsCheck::Ratio { classes, .. } => classes,
+    };
+    let missing = || Verdict {
+        claim: claim.text.to_string(),
+        measured: format!("the classes {} were not all run", classes_text(classes)),
+        agrees: false,
+        note: "the claim's classes are not among the run's".to_string(),
+    };
+    let (measured, agrees) = match claim.check {
+        RoadsCheck::AllWithin { ident, classes, tol, lo, hi } => {
+            let Some(cells) = roads_cells(r, ident, classes) else { return missing() };
+            let counts: Vec<(usize, &str)> = cells
+                .iter()
+                .map(|c| ((0..seeds).filter(|&s| c.rel_err.iter().all(|e| e[s] <= tol)).count(), c.class))
+                .collect();
+            let frac = |k: usize| if seeds == 0 { f64::NAN } else { k as f64 / seeds as f64 };
+            let ok = counts.iter().all(|&(k, _)| in_range(frac(k), lo, hi));
+            let txt = counts.iter().map(|(k, c)| format!("{c} {k}/{seeds}")).collect::<Vec<_>>().join(", ");
+            (
+                format!(
+                    "seeds with every constant within {} % ({}, {n} samples): {txt} (claimed fraction {})",
+                    fmt_num(tol * 100.0),
+                    ident.label(),
+                    range_text(lo, hi)
+                ),
+                ok,
+            )
+        }
+        RoadsCheck::Median { ident, constants, classes, lo, hi } => {
+            let Some(cells) = roads_cells(r, ident, classes) else { return missing() };
+            let idx: Vec<(usize, &str)> =
+                constants.iter().filter_map(|&k| r.constants.iter().position(|&x| x == k).map(|i| (i, k))).collect();
+            if idx.len() != constants.len() {
+                return missing();
+            }
+            let vals: Vec<(f64, &str, &str)> =
+                cells.iter().flat_map(|c| idx.iter().map(move |&(i, k)| (c.median[i], c.class, k))).collect();
+            let ok = vals.iter().all(|&(v, _, _)| in_range(v, lo, hi));
+            let (min, max) = extremes(&vals);
+            (
+                format!(
+                    "median relative error of {} ({}, {n} samples) over classes {}: smallest {}, largest {} (claimed \
+                     range {})",
+                    constants.join(", "),
+                    ident.label(),
+                    classes_text(classes),
+                    min,
+                    max,
+                    range_text(lo, hi)
+                ),
+                ok,
+            )
+        }
+        RoadsCheck::Coverage { ident, classes, lo, hi } => {
+            let Some(cells) = roads_cells(r, ident, classes) else { return missing() };
+            let held: usize = cells.iter().flat_map(|c| c.covered.iter()).sum();
+            let total = cells.len() * r.constants.len() * seeds;
+            let frac = if total == 0 { f64::NAN } else { held as f64 / total as f64 };
+            let per = cells
+                .iter()
+                .map(|c| format!("{} {}/{}", c.class, c.covered.iter().sum::<usize>(), r.constants.len() * seeds))
+                .collect::<Vec<_>>()
+                .join(", ");
+            (
+                format!(
+                    "95 % intervals holding the true constant ({}, {n} samples): {held} of {total} = {} % ({per}; \
+                     claimed fraction {})",
+                    ident.label(),
+                    fmt_num(100.0 * frac),
+                    range_text(lo, hi)
+                ),
+                in_range(frac, lo, hi),
+            )
+        }
+        RoadsCheck::Ratio { a, b, classes, lo, hi } => {
+            let (Some(ca), Some(cb)) = (roads_cells(r, a, classes), roads_cells(r, b, classes)) else {
+                return missing();
+            };
+            let mut vals = vec![];
+            for (x, y) in ca.iter().zip(&cb) {
+                for (i, k) in r.constants.iter().enumerate() {
+                    let ratios: Vec<f64> = x.rel_err[i].iter().zip(&y.rel_err[i]).map(|(p, q)| p / q).collect();
+                    vals.push((median(&ratios), x.class, *k));
+                }
+            }
+            let ok = vals.iter().all(|&(v, _, _)| in_range(v, lo, hi));
+            let (min, max) = extremes(&vals);
+            (
+                format!(
+                    "median over seeds of the relative error's ratio {} / {} per class and constant ({n} samples): \
+                     smallest {min}, largest {max} (claimed range {})",
+                    a.label(),
+                    b.label(),
+                    range_text(lo, hi)
+                ),
+                ok,
+            )
+        }
+    };
+    let note = if agrees { String::new() } else { "outside the claimed range".to_string() };
+    Verdict { claim: claim.text.to_string(), measured, agrees, note }
+}
+
+/// The smallest and the largest of `(value, class, constant)`, as text (NaN counts as largest).
+fn extremes(vals: &[(f64, &str, &str)]) -> (String, String) {
+    let key = |v: f64| if v.is_nan() { f64::INFINITY } else { v };
+    let text = |x: Option<&(f64, &str, &str)>| {
+        x.map_or("n/a".to_string(), |&(v, c, k)| format!("{} (class {c}, {k})", fmt_num(v)))
+    };
+    let min = vals.iter().min_by(|a, b| key(a.0).total_cmp(&key(b.0)));
+    let max = vals.iter().max_by(|a, b| key(a.0).total_cmp(&key(b.0)));
+    (text(min), text(max))
 }

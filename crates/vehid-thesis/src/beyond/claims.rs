@@ -1,8 +1,9 @@
-//! The claims of Fig B-1 and B-2 (vehid's, not the thesis'), in a form the runs check
+//! The claims of Fig B-1, B-2 and B-3 (vehid's, not the thesis'), in a form the runs check
 //! (`verdict.rs` evaluates them). Every bound is two-sided where a value outside it on
 //! either side would mean something is wrong.
 
-use super::{HalfMethod, QuarterMethod};
+use super::{HalfMethod, QuarterMethod, RoadsIdent};
+use vehid_core::sim::RoadClass;
 
 /// A checkable statement about Fig B-1 (medians over seeds of ξ after the run).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -113,4 +114,74 @@ pub struct HalfClaim {
     pub text: &'static str,
     /// Its checkable form.
     pub check: HalfCheck,
+}
+
+/// A checkable statement about Fig B-3 (relative errors `|estimate / truth − 1|` of the
+/// constants M, k1, k2, b over seeds, per road class).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum RoadsCheck {
+    /// On every listed class, the fraction of seeds on which every constant of `ident` is
+    /// within `tol` lies in `[lo, hi]` (no estimate: not within).
+    AllWithin {
+        /// Identifier.
+        ident: RoadsIdent,
+        /// Road classes.
+        classes: &'static [RoadClass],
+        /// Relative error bound.
+        tol: f64,
+        /// Lower bound of the fraction.
+        lo: f64,
+        /// Upper bound of the fraction.
+        hi: f64,
+    },
+    /// On every listed class, the median over seeds of each listed constant's relative error
+    /// of `ident` lies in `[lo, hi]`.
+    Median {
+        /// Identifier.
+        ident: RoadsIdent,
+        /// Constants, by name (`M`, `k1`, `k2`, `b`).
+        constants: &'static [&'static str],
+        /// Road classes.
+        classes: &'static [RoadClass],
+        /// Lower bound.
+        lo: f64,
+        /// Upper bound.
+        hi: f64,
+    },
+    /// The fraction of `ident`'s 95 % intervals that hold the true constant, pooled over the
+    /// listed classes, the four constants and the seeds, lies in `[lo, hi]` (no interval: not
+    /// held).
+    Coverage {
+        /// Identifier.
+        ident: RoadsIdent,
+        /// Road classes.
+        classes: &'static [RoadClass],
+        /// Lower bound.
+        lo: f64,
+        /// Upper bound.
+        hi: f64,
+    },
+    /// On every listed class and for every constant, the median over seeds of the ratio of
+    /// relative errors `a / b` (same seed, same samples) lies in `[lo, hi]`.
+    Ratio {
+        /// Numerator identifier.
+        a: RoadsIdent,
+        /// Denominator identifier.
+        b: RoadsIdent,
+        /// Road classes.
+        classes: &'static [RoadClass],
+        /// Lower bound.
+        lo: f64,
+        /// Upper bound.
+        hi: f64,
+    },
+}
+
+/// A claim of Fig B-3 with its one-line statement.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RoadsClaim {
+    /// The claim, one line.
+    pub text: &'static str,
+    /// Its checkable form.
+    pub check: RoadsCheck,
 }

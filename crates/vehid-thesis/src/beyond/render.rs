@@ -1,8 +1,9 @@
-//! Fig B-1 drawn (SVG, no dependencies) and both figures as markdown: the rendering of the
-//! figures beyond the thesis for readers of the Rust runner's output (the `beyond` example).
+//! Fig B-1 and B-3 drawn (SVG, no dependencies) and the three figures as markdown: the
+//! rendering of the figures beyond the thesis for readers of the Rust runner's output (the
+//! `beyond` example).
 
-use super::{tables::NOT_THESIS, HALF_ID, SWEEP_ID};
-use crate::report::{fmt_num, HalfResult, Report, SweepResult, Verdict};
+use super::{tables::NOT_THESIS, HALF_ID, ROADS_ID, SWEEP_ID};
+use crate::report::{fmt_num, HalfResult, Report, RoadsResult, SweepResult, Verdict};
 use crate::stats::{median, ACCEPTABLE_XI};
 use std::fmt::Write;
 
@@ -116,6 +117,123 @@ pub fn sweep_svg(r: &SweepResult) -> String {
     s
 }
 
+/// Fig B-3 as an SVG: one panel per constant, the relative error (log axis) per road class,
+/// per identifier the median (marker) and the range over seeds (bar); under the real-road
+/// identifier's markers, the seeds whose 95 % interval holds the truth.
+pub fn roads_svg(r: &RoadsResult) -> String {
+    let (w, h) = (1000.0, 470.0);
+    let (top, bottom, left, gap) = (70.0, 390.0, 70.0, 20.0);
+    let pw = (w - left - 20.0 - gap * 3.0) / 4.0;
+    let ok = |v: f64| v.is_finite() && v > 0.0;
+    let all: Vec<f64> = r
+        .rows
+        .iter()
+        .flat_map(|row| row.cells.iter().flat_map(|c| c.min.iter().chain(&c.max)))
+        .copied()
+        .filter(|&v| ok(v))
+        .collect();
+    let lo = all.iter().copied().fold(0.01, f64::min).log10().floor();
+    // A decade above the largest error: the thesis' identifier's errors near 1 stay off the frame.
+    let hi = (3.0 * all.iter().copied().fold(1.0, f64::max)).log10().ceil();
+    let py = |v: f64| bottom - (bottom - top) * (v.max(10f64.powf(lo)).log10() - lo) / (hi - lo).max(1.0);
+    let nc = r.classes.len().max(1);
+    let mut s = String::new();
+    let _ = write!(
+        s,
+        "<svg xmlns='http://www.w3.org/2000/svg' width='{w}' height='{h}' font-family='sans-serif' font-size='12'>\
+         <rect width='100%' height='100%' fill='white'/>\
+         <text x='{left}' y='22' font-size='14'>Fig {} (beyond the thesis — not a figure of Kessler 1986): real roads</text>\
+         <text x='{left}' y='40' font-size='11' fill='#444'>relative error |estimate / truth − 1| after {} samples ({} m/s, \
+         dt {} s), median and range over {} seeds per ISO 8608 class; passenger quarter car, m known</text>",
+        esc(r.id),
+        r.samples,
+        r.speed,
+        r.dt,
+        r.seeds
+    );
+    for (ki, name) in r.constants.iter().enumerate() {
+        let x0 = left + ki as f64 * (pw + gap);
+        let x1 = x0 + pw;
+        let px = |ci: usize| x0 + pw * (ci as f64 + 0.5) / nc as f64;
+        let mut e = lo as i32;
+        while e <= hi as i32 {
+            let y = py(10f64.powi(e));
+            let _ = write!(s, "<line x1='{x0}' y1='{y}' x2='{x1}' y2='{y}' stroke='#ddd'/>");
+            if ki == 0 {
+                let _ = write!(s, "<text x='{}' y='{}' text-anchor='end'>1e{e}</text>", x0 - 6.0, y + 4.0);
+            }
+            e += 1;
+        }
+        let y5 = py(0.05);
+        let _ = write!(
+            s,
+            "<line x1='{x0}' y1='{y5}' x2='{x1}' y2='{y5}' stroke='black' stroke-dasharray='5 4'/>\
+             <rect x='{x0}' y='{top}' width='{pw}' height='{}' fill='none' stroke='black'/>\
+             <text x='{}' y='{}' text-anchor='middle' font-size='13'>{} (true {})</text>",
+            bottom - top,
+            (x0 + x1) / 2.0,
+            top - 8.0,
+            esc(name),
+            fmt_num(r.truth[ki])
+        );
+        for (ci, c) in r.classes.iter().enumerate() {
+            let _ = write!(s, "<text x='{}' y='{}' text-anchor='middle'>{c}</text>", px(ci), bottom + 16.0);
+        }
+        for (mi, row) in r.rows.iter().enumerate() {
+            let col = COLORS[mi % COLORS.len()];
+            let dx = if mi == 0 { -7.0 } else { 7.0 };
+            for (ci, cell) in row.cells.iter().enumerate() {
+                let x = px(ci) + dx;
+                if ok(cell.min[ki]) || ok(cell.max[ki]) {
+                    let (a, b) = (py(cell.min[ki]), py(if ok(cell.max[ki]) { cell.max[ki] } else { 10f64.powf(hi) }));
+                    let _ =
+                        write!(s, "<line x1='{x}' y1='{a:.1}' x2='{x}' y2='{b:.1}' stroke='{col}' stroke-width='2'/>");
+                }
+                if ok(cell.median[ki]) {
+                    let _ = write!(s, "<circle cx='{x:.1}' cy='{:.1}' r='4' fill='{col}'/>", py(cell.median[ki]));
+                }
+                if mi == r.rows.len() - 1 {
+                    let _ = write!(
+                        s,
+                        "<text x='{x:.1}' y='{}' text-anchor='middle' font-size='9' fill='{col}'>{}/{}</text>",
+                        bottom - 4.0,
+                        cell.covered[ki],
+                        r.seeds
+                    );
+                }
+            }
+        }
+    }
+    let _ = write!(
+        s,
+        "<text x='{}' y='{}' text-anchor='middle'>ISO 8608 road class</text>\
+         <text transform='translate(18 {}) rotate(-90)' text-anchor='middle'>relative error (log axis)</text>",
+        (left + w - 20.0) / 2.0,
+        bottom + 34.0,
+        (top + bottom) / 2.0
+    );
+    for (mi, row) in r.rows.iter().enumerate() {
+        let col = COLORS[mi % COLORS.len()];
+        let x = left + 380.0 * mi as f64;
+        let _ = write!(
+            s,
+            "<circle cx='{x}' cy='{}' r='4' fill='{col}'/><text x='{}' y='{}'>{}</text>",
+            h - 22.0,
+            x + 8.0,
+            h - 18.0,
+            esc(row.label)
+        );
+    }
+    let _ = write!(
+        s,
+        "<text x='{left}' y='{}' font-size='10' fill='#444'>dashed: 5 %; small numbers: seeds whose 95 % interval holds \
+         the truth (real-road identifier)</text>",
+        h - 4.0
+    );
+    s.push_str("</svg>\n");
+    s
+}
+
 fn md_cell(s: &str) -> String {
     s.replace('|', "\\|").replace('\n', " ")
 }
@@ -220,21 +338,68 @@ fn half_md(md: &mut String, r: &HalfResult) {
     verdicts_md(md, &r.verdicts);
 }
 
-/// Fig B-1 and B-2 of `report` as markdown (the image is `fig-B-1.svg` beside it); `command`
-/// is how the report was made.
+fn roads_md(md: &mut String, r: &RoadsResult) {
+    let _ = writeln!(md, "## Fig {ROADS_ID}: {}\n\n**{}.**\n\n{}\n", r.title, r.origin, r.setup);
+    let _ = writeln!(md, "![Fig {ROADS_ID}](fig-{ROADS_ID}.svg)\n");
+    let _ = write!(
+        md,
+        "Median (worst seed) relative error, %, and the seeds whose 95 % interval holds the truth, after {} samples, \
+         {} seeds per class:\n\n| identifier | class |",
+        r.samples, r.seeds
+    );
+    for (k, t) in r.constants.iter().zip(&r.truth) {
+        let _ = write!(md, " {k} (true {}) |", fmt_num(*t));
+    }
+    md.push_str(" no estimate |\n|---|---|");
+    md.push_str(&"---|".repeat(r.constants.len() + 1));
+    md.push('\n');
+    for row in &r.rows {
+        for c in &row.cells {
+            let _ = write!(md, "| {} | {} |", md_cell(row.label), c.class);
+            for i in 0..r.constants.len() {
+                let _ = write!(
+                    md,
+                    " {} ({}); {}/{} |",
+                    fmt_num(100.0 * c.median[i]),
+                    fmt_num(100.0 * c.max[i]),
+                    c.covered[i],
+                    r.seeds
+                );
+            }
+            let none = if c.errors.is_empty() {
+                "—".to_string()
+            } else {
+                format!("{}/{}: {}", c.errors.len(), r.seeds, c.errors[0].1)
+            };
+            let _ = writeln!(md, " {} |", md_cell(&none));
+        }
+    }
+    md.push('\n');
+    for row in &r.rows {
+        let _ = writeln!(md, "- {}: {}", row.label, md_cell(row.setup));
+    }
+    md.push('\n');
+    verdicts_md(md, &r.verdicts);
+}
+
+/// Fig B-1, B-2 and B-3 of `report` as markdown (the images are `fig-B-1.svg` and
+/// `fig-B-3.svg` beside it); `command` is how the report was made.
 pub fn markdown(report: &Report, command: &str) -> String {
-    let mut md = String::from("# vehid: identifiers for noisy states (beyond the thesis)\n\n");
+    let mut md = String::from("# vehid: identifiers for noisy states and real roads (beyond the thesis)\n\n");
     let _ = writeln!(
         md,
         "Generated by `{command}`. Not figures of Kessler (1986): vehid's comparison of its identifiers for noisy \
-         states. Every number is computed by the run; the claims' `thesis` column in the reproduction report reads \
-         \"{NOT_THESIS}\".\n"
+         states and on real roads. Every number is computed by the run; the claims' `thesis` column in the \
+         reproduction report reads \"{NOT_THESIS}\".\n"
     );
     if let Some(r) = &report.sweep {
         sweep_md(&mut md, r);
     }
     if let Some(r) = &report.half_one_road {
         half_md(&mut md, r);
+    }
+    if let Some(r) = &report.real_roads {
+        roads_md(&mut md, r);
     }
     md
 }

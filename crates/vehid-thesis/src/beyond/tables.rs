@@ -1,11 +1,11 @@
-//! Fig B-1 and B-2 as report tables: the claims as rows (with the verdict), the numbers in
+//! Fig B-1, B-2 and B-3 as report tables: the claims as rows (with the verdict), the numbers in
 //! the table's text. This is the form a renderer that draws only figures of ξ against
 //! iterations can show; [`super::render`] draws B-1 against σ_w (SVG), and so does the
 //! Python report (`vehid reproduce`, from [`crate::Report::sweep`]), which keeps these tables
 //! for the claims and their verdicts.
 
-use super::{HALF_ID, SWEEP_ID};
-use crate::report::{fmt_num, HalfResult, SweepResult, Table, TableRow, Verdict};
+use super::{HALF_ID, ROADS_ID, SWEEP_ID};
+use crate::report::{fmt_num, HalfResult, RoadsResult, SweepResult, Table, TableRow, Verdict};
 use crate::stats::median;
 
 /// The `thesis` column of a row that is vehid's claim, not the thesis'.
@@ -75,8 +75,61 @@ pub fn half_numbers(r: &HalfResult) -> String {
     )
 }
 
+/// Fig B-3's numbers, one sentence per identifier: per class the median (worst) relative error
+/// of each constant, in %, and the seeds whose 95 % interval holds it.
+pub fn roads_numbers(r: &RoadsResult) -> String {
+    let per = r
+        .rows
+        .iter()
+        .map(|row| {
+            let cells = row
+                .cells
+                .iter()
+                .map(|c| {
+                    let k = (0..r.constants.len())
+                        .map(|i| {
+                            format!(
+                                "{} {} ({}; {}/{}; median estimate {} {})",
+                                r.constants[i],
+                                fmt_num(100.0 * c.median[i]),
+                                fmt_num(100.0 * c.max[i]),
+                                c.covered[i],
+                                r.seeds,
+                                fmt_num(median(&c.value[i])),
+                                r.units[i]
+                            )
+                        })
+                        .collect::<Vec<_>>()
+                        .join(", ");
+                    let none = if c.errors.is_empty() {
+                        String::new()
+                    } else {
+                        format!(", no estimate on {} seeds ({})", c.errors.len(), c.errors[0].1)
+                    };
+                    format!("class {}: {k}{none}", c.class)
+                })
+                .collect::<Vec<_>>();
+            format!("{}: {}", row.label, cells.join("; "))
+        })
+        .collect::<Vec<_>>()
+        .join(". ");
+    format!(
+        "Median (worst seed) relative error in %, the seeds whose 95 % interval holds the truth and the median \
+         estimate, after {} samples over {} seeds per class (true values: {}): {per}",
+        r.samples,
+        r.seeds,
+        r.constants
+            .iter()
+            .zip(&r.truth)
+            .zip(&r.units)
+            .map(|((k, t), u)| format!("{k} {} {u}", fmt_num(*t)))
+            .collect::<Vec<_>>()
+            .join(", ")
+    )
+}
+
 /// The tables of the figures that ran.
-pub fn tables(sweep: Option<&SweepResult>, half: Option<&HalfResult>) -> Vec<Table> {
+pub fn tables(sweep: Option<&SweepResult>, half: Option<&HalfResult>, roads: Option<&RoadsResult>) -> Vec<Table> {
     let mut out = vec![];
     if let Some(r) = sweep {
         out.push(Table {
@@ -89,6 +142,13 @@ pub fn tables(sweep: Option<&SweepResult>, half: Option<&HalfResult>) -> Vec<Tab
         out.push(Table {
             title: format!("Fig {HALF_ID}, beyond the thesis (not from Kessler 1986): {}", r.title),
             method: format!("{}. {} {}", r.origin, r.setup, half_numbers(r)),
+            rows: r.verdicts.iter().map(row).collect(),
+        });
+    }
+    if let Some(r) = roads {
+        out.push(Table {
+            title: format!("Fig {ROADS_ID}, beyond the thesis (not from Kessler 1986): {}", r.title),
+            method: format!("{}. {} {}", r.origin, r.setup, roads_numbers(r)),
             rows: r.verdicts.iter().map(row).collect(),
         });
     }

@@ -9,13 +9,14 @@ mod ident;
 mod job;
 
 pub use constants::CONSTANT_POINTS;
+pub(crate) use constants::{structure_constants, Estimate};
 
 pub(crate) use job::Trace;
 
 use crate::beyond;
 use crate::figures::{select, Experiment, ModelKind};
 use crate::report::{FigureResult, Report};
-use crate::seeds::{beyond_seed, job_seed};
+use crate::seeds::{beyond_class_seed, beyond_seed, job_seed};
 use crate::stats::summarize;
 use crate::tables::tables;
 use crate::verdict::evaluate;
@@ -93,13 +94,13 @@ fn grid(n: usize) -> Vec<u64> {
 /// An unknown figure id in `only`; a simulation or identifier error (a bug in the table).
 pub fn run(opts: &RunOptions, progress: &(dyn Fn(Progress<'_>) + Sync)) -> crate::Result<Report> {
     let start = std::time::Instant::now();
-    // Figures beyond the thesis (B-1, B-2) are selected by id like the thesis' figures; an
+    // Figures beyond the thesis (B-1, B-2, B-3) are selected by id like the thesis' figures; an
     // empty selection runs everything.
     let (beyond_ids, thesis_ids): (Vec<String>, Vec<String>) =
         opts.only.iter().cloned().partition(|id| beyond::is_beyond(id));
     let exps = if !opts.only.is_empty() && thesis_ids.is_empty() { vec![] } else { select(&thesis_ids)? };
     let wants = |id: &str| opts.only.is_empty() || beyond_ids.iter().any(|b| b.trim() == id);
-    let (run_sweep, run_half) = (wants(beyond::SWEEP_ID), wants(beyond::HALF_ID));
+    let (run_sweep, run_half, run_roads) = (wants(beyond::SWEEP_ID), wants(beyond::HALF_ID), wants(beyond::ROADS_ID));
     let seeds = opts.seeds.unwrap_or(if opts.quick { 5 } else { 16 }).max(1);
     // The figures beyond the thesis keep at least MIN_SEEDS seeds unless `seeds` is given.
     let beyond_seeds = opts.seeds.unwrap_or(seeds.max(beyond::MIN_SEEDS)).max(1);
@@ -113,8 +114,10 @@ pub fn run(opts: &RunOptions, progress: &(dyn Fn(Progress<'_>) + Sync)) -> crate
     };
     let iters_of = |e: &Experiment| cap(if opts.quick { e.iterations.min(QUICK_ITERATIONS) } else { e.iterations });
     let beyond_samples = cap(if opts.quick { beyond::QUICK_SWEEP_SAMPLES } else { beyond::SWEEP_SAMPLES });
-    // Jobs: a curve × seed of a thesis figure, or a level × seed of B-1 / B-2; longest first
-    // for a balanced finish (a B job runs every method on its samples: 7 or 6 identifiers).
+    let roads_samples = cap(if opts.quick { beyond::QUICK_ROADS_SAMPLES } else { beyond::ROADS_SAMPLES });
+    // Jobs: a curve × seed of a thesis figure, a level × seed of B-1 / B-2 or a class × seed of
+    // B-3; longest first for a balanced finish (a B job runs every method on its samples: 7, 6
+    // or 2 identifiers).
     let grids: Vec<Vec<u64>> = exps.iter().map(|e| grid(iters_of(e))).collect();
     let mut jobs: Vec<Job> = vec![];
     for (fi, e) in exps.iter().enumerate() {
@@ -134,6 +137,9 @@ pub fn run(opts: &RunOptions, progress: &(dyn Fn(Progress<'_>) + Sync)) -> crate
         if run_half {
             jobs.extend((0..beyond::HALF_LEVELS.len()).map(|li| Job::Half(li, s)));
         }
+        if run_roads {
+            jobs.extend((0..beyond::ROAD_CLASSES.len()).map(|ci| Job::Roads(ci, s)));
+        }
     }
     let cost = |j: &Job| match *j {
         Job::Curve(fi, _, _) => {
@@ -142,6 +148,7 @@ pub fn run(opts: &RunOptions, progress: &(dyn Fn(Progress<'_>) + Sync)) -> crate
         }
         Job::Sweep(..) => beyond_samples * 20,
         Job::Half(..) => beyond_samples * 30,
+        Job::Roads(..) => roads_samples * 2,
     };
     jobs.sort_by_key(|j| core::cmp::Reverse(cost(j)));
     let results: Mutex<Vec<Slot>> = Mutex::new((0..jobs.len()).map(|_| None).collect());
@@ -168,6 +175,11 @@ pub fn run(opts: &RunOptions, progress: &(dyn Fn(Progress<'_>) + Sync)) -> crate
                         let seed = beyond_seed(opts.base_seed, beyond::HALF_ID, s);
                         let out = beyond::half_job(beyond::HALF_LEVELS[li], beyond_samples, seed);
                         (out.map(Out::Half), beyond::HALF_ID)
+                    }
+                    Job::Roads(ci, s) => {
+                        let seed = beyond_class_seed(opts.base_seed, beyond::ROADS_ID, ci, s);
+                        let out = beyond::roads_job(beyond::ROAD_CLASSES[ci], roads_samples, seed);
+                        (out.map(Out::Roads), beyond::ROADS_ID)
                     }
                 };
                 results.lock().unwrap_or_else(|p| p.into_inner())[i] = Some((out, t0.elapsed().as_secs_f64()));
@@ -219,7 +231,8 @@ pub fn run(opts: &RunOptions, progress: &(dyn Fn(Progress<'_>) + Sync)) -> crate
         vec![vec![vec![]; beyond_seeds]; beyond::SWEEP_LEVELS.len()],
         vec![vec![vec![]; beyond_seeds]; beyond::HALF_LEVELS.len()],
     );
-    let (mut sweep_cpu, mut half_cpu) = (0.0, 0.0);
+    let mut roads_out = vec![vec![vec![]; beyond_seeds]; beyond::ROAD_CLASSES.len()];
+    let (mut sweep_cpu, mut half_cpu, mut roads_cpu) = (0.0, 0.0, 0.0);
     for (ji, j) in jobs.iter().enumerate() {
         match *j {
             Job::Sweep(li, s) => {
@@ -234,6 +247,12 @@ pub fn run(opts: &RunOptions, progress: &(dyn Fn(Progress<'_>) + Sync)) -> crate
                     half_cpu += t;
                 }
             }
+            Job::Roads(ci, s) => {
+                if let (Out::Roads(v), t) = take(&mut results, ji)? {
+                    roads_out[ci][s] = v;
+                    roads_cpu += t;
+                }
+            }
             Job::Curve(..) => {}
         }
     }
@@ -242,11 +261,13 @@ pub fn run(opts: &RunOptions, progress: &(dyn Fn(Progress<'_>) + Sync)) -> crate
     });
     let half_one_road =
         run_half.then(|| beyond::half_result(&beyond::HALF_LEVELS, &half_out, beyond_samples, half_cpu));
+    let real_roads =
+        run_roads.then(|| beyond::roads_result(&roads_out, roads_samples, beyond::ROADS_SAMPLES, roads_cpu));
     let mut tables = match table_out {
         Some(t) => t?,
         None => vec![],
     };
-    tables.extend(beyond::tables(sweep.as_ref(), half_one_road.as_ref()));
+    tables.extend(beyond::tables(sweep.as_ref(), half_one_road.as_ref(), real_roads.as_ref()));
     Ok(Report {
         quick: opts.quick,
         base_seed: opts.base_seed,
@@ -256,6 +277,7 @@ pub fn run(opts: &RunOptions, progress: &(dyn Fn(Progress<'_>) + Sync)) -> crate
         tables,
         sweep,
         half_one_road,
+        real_roads,
     })
 }
 
@@ -268,12 +290,14 @@ enum Job {
     Sweep(usize, usize),
     /// Fig B-2's (level, seed index).
     Half(usize, usize),
+    /// Fig B-3's (road class, seed index).
+    Roads(usize, usize),
 }
 
 impl Job {
     fn seed(&self) -> usize {
         match *self {
-            Job::Curve(_, _, s) | Job::Sweep(_, s) | Job::Half(_, s) => s,
+            Job::Curve(_, _, s) | Job::Sweep(_, s) | Job::Half(_, s) | Job::Roads(_, s) => s,
         }
     }
 }
@@ -286,6 +310,7 @@ enum Out {
     Trace(Trace),
     Sweep(Vec<beyond::QuarterXi>),
     Half(Vec<beyond::HalfXi>),
+    Roads(Vec<beyond::RoadConstants>),
 }
 
 /// Job `ji`'s output and its wall time, taken out of the results (each is read once).
