@@ -17,7 +17,7 @@ use vehid_core::sim::{RoadClass, DEFAULT_CUTOFF};
 
 /// The line that marks both figures as vehid's own.
 pub const ORIGIN: &str = "beyond the thesis: not a figure of Kessler (1986); vehid's comparison of the identifiers \
-                          for noisy states (issue 15)";
+                          for noisy states";
 
 /// Fig B-3's origin line.
 pub const ROADS_ORIGIN: &str = "beyond the thesis: not a figure of Kessler (1986); vehid's comparison of the thesis' \
