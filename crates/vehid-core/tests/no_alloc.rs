@@ -227,3 +227,29 @@ fn model_instruments() {
     assert_eq!(n, 0, "model instruments: {n} allocations in 300 updates");
     assert!(fixed.adopted() > 10);
 }
+
+/// The realistic sensors' state-variable-filter fit takes samples, and closes blocks (every
+/// 0.35 s here), without allocating.
+#[test]
+fn the_state_filter_fit_does_not_allocate_per_sample() {
+    use vehid_core::identify::StateFilterFit;
+    use vehid_core::model::QuarterCar;
+    let ps = QuarterCar::<f64>::realistic_structure([Some(320.0), None, None, None, None]).unwrap();
+    let dt = 0.005;
+    let mut fit = StateFilterFit::new(*ps.structure(), dt, 60.0, 0.35).unwrap();
+    let sample = |k: usize| {
+        let t = k as f64 * dt;
+        [-(t * 7.0).sin(), 0.3 * (t * 60.0).sin(), 0.01 * (t * 7.0).sin() + 0.001 * (t * 3.1).cos()]
+    };
+    for k in 0..300 {
+        fit.update(&sample(k)).unwrap();
+    }
+    let before = allocations();
+    for k in 300..2300 {
+        fit.update(&sample(k)).unwrap();
+    }
+    fit.restart();
+    let n = allocations() - before;
+    assert_eq!(n, 0, "state filter fit: {n} allocations in 2000 updates (28 blocks)");
+    assert!(fit.stats(0.05).is_ok());
+}

@@ -53,6 +53,7 @@ use super::EstimateStats;
 use crate::structure::{Structure, MAX_PARAMS};
 use crate::{Error, Result};
 use alloc::vec::Vec;
+use nalgebra::{DMatrix, DVector};
 
 /// Default bandwidth `λ` of the state-variable filter, rad/s.
 pub const DEFAULT_BANDWIDTH: f64 = 10.0;
@@ -124,6 +125,56 @@ impl Moments {
     }
 }
 
+/// The sums over closed blocks that the cluster-robust covariance needs, kept without storing
+/// the blocks: with a block's score `g_b = c_b − A_b θ`,
+/// `Σ_b g_b g_bᵀ = Σ c_b c_bᵀ − Σ (c_b θᵀ A_bᵀ + A_b θ c_bᵀ) + Σ A_b θ θᵀ A_bᵀ`, so the sums
+/// `Σ c_b c_bᵀ`, `Σ c_b ⊗ A_b` and `Σ A_b ⊗ A_b` (fixed size) give it for any θ later.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+struct Clusters {
+    total: Moments,
+    cc: [[f64; NP]; NP],
+    ca: [[[f64; NP]; NP]; NP],
+    aa: [[[[f64; NP]; NP]; NP]; NP],
+    blocks: u64,
+}
+
+impl Clusters {
+    /// Takes in one block's sums.
+    fn close(&mut self, b: &Moments) {
+        if b.n == 0 {
+            return;
+        }
+        self.total.add(b);
+        for i in 0..NP {
+            for j in 0..NP {
+                self.cc[i][j] += b.c[i] * b.c[j];
+                for l in 0..NP {
+                    self.ca[i][j][l] += b.c[i] * b.a[j][l];
+                    for m in 0..NP {
+                        self.aa[i][j][l][m] += b.a[i][j] * b.a[l][m];
+                    }
+                }
+            }
+        }
+        self.blocks += 1;
+    }
+
+    /// `Σ_b g_b g_bᵀ` at `θ` (`np` parameters).
+    fn meat(&self, theta: &DVector<f64>, np: usize) -> DMatrix<f64> {
+        DMatrix::from_fn(np, np, |i, j| {
+            let mut v = self.cc[i][j];
+            for l in 0..np {
+                v -= (self.ca[i][j][l] + self.ca[j][i][l]) * theta[l];
+                for m in 0..np {
+                    v += self.aa[i][l][j][m] * theta[l] * theta[m];
+                }
+            }
+            v
+        })
+    }
+}
+
 /// The body equation of the realistic sensors identified through a state-variable filter,
 /// with cluster-robust intervals (module documentation). Samples are the realistic channels
 /// `[a_body, a_wheel, deflection]` (m/s², m/s², m; the wheel's is not read).
@@ -140,7 +191,7 @@ pub struct StateFilterFit {
     history: [[f64; 2]; HISTORY],
     since_start: u64,
     current: Moments,
-    blocks: Vec<Moments>,
+    closed: Clusters,
 }
 
 impl StateFilterFit {
@@ -186,7 +237,7 @@ impl StateFilterFit {
             history: [[0.0; 2]; HISTORY],
             since_start: 0,
             current: Moments::default(),
-            blocks: Vec::new(),
+            closed: Clusters::default(),
         })
     }
 
@@ -213,7 +264,12 @@ impl StateFilterFit {
             && fresh.skip == self.skip
             && filters_ok
             && block_ok(&self.current)
-            && self.blocks.iter().all(|b| block_ok(b) && b.n > 0)
+            && block_ok(&self.closed.total)
+            && self.closed.total.n >= self.closed.blocks
+            && (self.closed.blocks > 0 || self.closed.total == Moments::default())
+            && self.closed.cc.iter().flatten().chain(self.closed.ca.iter().flatten().flatten()).all(|v| v.is_finite())
+            && self.closed.aa.iter().flatten().flatten().flatten().all(|v| v.is_finite())
+            && (0..NP).all(|i| self.closed.cc[i][i] >= 0.0)
     }
 
     /// The structure fitted.
@@ -244,23 +300,21 @@ impl StateFilterFit {
 
     /// Samples used.
     pub fn samples(&self) -> u64 {
-        self.blocks.iter().map(|b| b.n).sum::<u64>() + self.current.n
+        self.closed.total.n + self.current.n
     }
 
     /// One sample of the realistic channels `[a_body, a_wheel, deflection]`.
     ///
     /// # Errors
     /// [`Error::Shape`] for other than 3 values; [`Error::NonFinite`] (`"y"`) — nothing changes
-    /// (a gap: call [`StateFilterFit::restart`]); [`Error::OutOfMemory`] when a finished block
-    /// cannot be stored.
+    /// (a gap: call [`StateFilterFit::restart`]). No allocation.
     pub fn update(&mut self, y: &[f64]) -> Result<()> {
         if y.len() != 3 {
             return Err(Error::Shape { arg: "y", expected: 3, got: y.len() });
         }
         crate::error::check_finite("y", y)?;
         if self.current.n >= self.block {
-            self.blocks.try_reserve(1).map_err(|_| Error::OutOfMemory { what: "a block of samples", bytes: 104 })?;
-            self.blocks.push(core::mem::take(&mut self.current));
+            self.closed.close(&core::mem::take(&mut self.current));
         }
         self.history.rotate_left(1);
         self.history[HISTORY - 1] = [y[0], y[2]];
@@ -309,10 +363,6 @@ impl StateFilterFit {
             return Err(Error::Shape { arg: "y", expected: 3, got: y.len() % 3 });
         }
         crate::error::check_finite("y", y)?;
-        let need = (y.len() / 3) as u64 / self.block.max(1) + 1;
-        self.blocks
-            .try_reserve(need as usize)
-            .map_err(|_| Error::OutOfMemory { what: "the blocks of samples", bytes: need as usize * 104 })?;
         y.chunks_exact(3).try_for_each(|row| self.update(row))
     }
 
@@ -322,11 +372,7 @@ impl StateFilterFit {
     /// block ends.
     pub fn restart(&mut self) {
         self.since_start = 0;
-        // (Without memory for one more block the current one spans the gap: the estimate is the
-        // same, the covariance counts one block fewer.)
-        if self.current.n > 0 && self.blocks.try_reserve(1).is_ok() {
-            self.blocks.push(core::mem::take(&mut self.current));
-        }
+        self.closed.close(&core::mem::take(&mut self.current));
     }
 
     /// The estimate, its cluster-robust covariance and `1 − alpha` intervals (module
@@ -342,30 +388,27 @@ impl StateFilterFit {
             return Err(Error::InvalidArgument { arg: "alpha", expected: "a level in (0, 1), e.g. 0.05" });
         }
         let np = self.structure.params();
-        let parts = || self.blocks.iter().chain((self.current.n > 0).then_some(&self.current));
-        let g = parts().count();
+        // The open block counts as one more cluster.
+        let mut all = self.closed;
+        all.close(&self.current);
+        let g = all.blocks as usize;
         if g < np + 1 {
             return Err(Error::InvalidArgument {
                 arg: "samples",
                 expected: "more data: at least one block (block seconds) per parameter and one more",
             });
         }
-        let mut total = Moments::default();
-        parts().for_each(|b| total.add(b));
-        let a = nalgebra::DMatrix::from_fn(np, np, |i, j| total.a[i][j]);
+        let total = all.total;
+        let a = DMatrix::from_fn(np, np, |i, j| total.a[i][j]);
         let scale = (0..np).map(|i| a[(i, i)]).fold(0.0, f64::max);
         let chol = nalgebra::linalg::Cholesky::new(a.clone());
         let rank =
             chol.as_ref().map_or(0, |c| (0..np).filter(|&i| c.l()[(i, i)] * c.l()[(i, i)] > 1e-12 * scale).count());
         let chol = chol.filter(|_| rank == np).ok_or(Error::RankDeficient { rank, needed: np })?;
         let ainv = chol.inverse();
-        let c = nalgebra::DVector::from_fn(np, |i, _| total.c[i]);
+        let c = DVector::from_fn(np, |i, _| total.c[i]);
         let theta = &ainv * &c;
-        let mut meat = nalgebra::DMatrix::<f64>::zeros(np, np);
-        for b in parts() {
-            let gb = nalgebra::DVector::from_fn(np, |i, _| b.c[i] - (0..np).map(|j| b.a[i][j] * theta[j]).sum::<f64>());
-            meat += &gb * gb.transpose();
-        }
+        let meat = all.meat(&theta, np);
         let (n, gf, k) = (total.n as f64, g as f64, np as f64);
         let cov = &ainv * meat * &ainv * (gf / (gf - 1.0) * (n - 1.0) / (n - k));
         let ssr = (total.yy - 2.0 * theta.dot(&c) + (theta.transpose() * &a * &theta)[(0, 0)]).max(0.0);
