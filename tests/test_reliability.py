@@ -514,6 +514,32 @@ def test_one_identifier_used_from_two_threads_raises_vehid_error() -> None:
     assert observable(kf) == observable(ref)
 
 
+@pytest.mark.parametrize("kind", ["iv", "bias"])
+def test_the_noise_robust_identifiers_used_from_two_threads_raise_vehid_error(kind: str) -> None:
+    # Their own attributes, repr, copy and pickle raised pyo3's RuntimeError "Already mutably
+    # borrowed" during another thread's fit.
+    rng = np.random.default_rng(2)
+    x = rng.standard_normal((1_000_000, 8))
+    z = x @ H.a.T + 0.01 * rng.standard_normal((1_000_000, 8))
+    ident: Any = vehid.IVIdentifier(H) if kind == "iv" else vehid.BiasCompensated(H, state_noise_var=1e-4)
+    t = threading.Thread(target=ident.fit, args=(x, z))
+    t.start()
+    try:
+        assert wait_until_busy(lambda: ident.samples, t), "the fit ended before the test could see it running"
+        names = ["delay", "lags", "road", "road_cutoff", "lift_off", "min_spacing", "spacing", "instruments", "dt",
+                 "refresh", "substeps"] if kind == "iv" else ["estimates_noise", "instruments"]
+        calls: Dict[str, Callable[[], Any]] = {name: (lambda n=name: getattr(ident, n)) for name in names}
+        calls.update({"repr": lambda: repr(ident), "copy": lambda: copy.copy(ident),
+                      "pickle": lambda: ident.__reduce__()})
+        for name, call in calls.items():
+            with pytest.raises(vehid.VehidError, match=IN_USE):
+                call()
+            assert t.is_alive(), f"the fit ended before {name} was tried: make it longer"
+    finally:
+        t.join()
+    assert ident.samples == len(x)
+
+
 def test_one_identifier_per_thread_works() -> None:
     # What the message advises: copies, one per thread, all in parallel.
     rng = np.random.default_rng(1)

@@ -331,20 +331,23 @@ impl PyIVIdentifier {
     /// "random-walk" or "iso8608" (the samples quasi-differenced by the road's shaping filter
     /// in distance first; `vehid_core::identify::Differenced`).
     #[getter]
-    fn road(&self) -> &'static str {
-        self.road.map_or("white", |r| r.name())
+    fn road(slf: &Bound<'_, Self>) -> PyResult<&'static str> {
+        let this = crate::guard::borrow(slf)?;
+        Ok(this.road.map_or("white", |r| r.name()))
     }
 
     /// The ISO 8608 shaping filter's cutoff, cycles/m (None unless road="iso8608").
     #[getter]
-    fn road_cutoff(&self) -> Option<f64> {
-        self.road.and_then(|r| r.cutoff())
+    fn road_cutoff(slf: &Bound<'_, Self>) -> PyResult<Option<f64>> {
+        let this = crate::guard::borrow(slf)?;
+        Ok(this.road.and_then(|r| r.cutoff()))
     }
 
     /// The lift-off check's `(M, m)`, kg (None: no check).
     #[getter]
-    fn lift_off(&self) -> Option<(f64, f64)> {
-        self.road.and_then(|r| r.lift_off)
+    fn lift_off(slf: &Bound<'_, Self>) -> PyResult<Option<(f64, f64)>> {
+        let this = crate::guard::borrow(slf)?;
+        Ok(this.road.and_then(|r| r.lift_off))
     }
 
     /// Samples counted off the ground, or about to leave it (0 without the check): a run with
@@ -357,62 +360,72 @@ impl PyIVIdentifier {
 
     /// The least distance between two differenced samples, m (None on a white road).
     #[getter]
-    fn min_spacing(&self) -> Option<f64> {
-        self.road.map(|r| r.min_spacing)
+    fn min_spacing(slf: &Bound<'_, Self>) -> PyResult<Option<f64>> {
+        let this = crate::guard::borrow(slf)?;
+        Ok(this.road.map(|r| r.min_spacing))
     }
 
     /// Metres travelled per sample, or "odometer" (the last column of `u`); None on a white road.
     #[getter]
-    fn spacing<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
-        self.road.map(|r| r.spacing(py)).transpose()
+    fn spacing<'py>(slf: &Bound<'py, Self>, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        let this = crate::guard::borrow(slf)?;
+        this.road.map(|r| r.spacing(py)).transpose()
     }
 
     /// "delayed" (the regressors `delay` samples back, or the predictor's with `lags`) or
     /// "model" (the auxiliary model's noise-free states).
     #[getter]
-    fn instruments(&self) -> &'static str {
-        if self.model.is_some() {
-            "model"
-        } else {
-            "delayed"
-        }
+    fn instruments(slf: &Bound<'_, Self>) -> PyResult<&'static str> {
+        let this = crate::guard::borrow(slf)?;
+        Ok({
+            if this.model.is_some() {
+                "model"
+            } else {
+                "delayed"
+            }
+        })
     }
 
     /// The auxiliary model's sample interval, seconds (None: `instruments="delayed"`).
     #[getter]
-    fn dt(&self) -> Option<f64> {
-        self.model.map(|m| m.dt)
+    fn dt(slf: &Bound<'_, Self>) -> PyResult<Option<f64>> {
+        let this = crate::guard::borrow(slf)?;
+        Ok(this.model.map(|m| m.dt))
     }
 
     /// Samples between refreshes of the auxiliary model (100 when unused).
     #[getter]
-    fn refresh(&self) -> usize {
-        self.model.map_or(100, |m| m.refresh)
+    fn refresh(slf: &Bound<'_, Self>) -> PyResult<usize> {
+        let this = crate::guard::borrow(slf)?;
+        Ok(this.model.map_or(100, |m| m.refresh))
     }
 
     /// RK4 steps of the auxiliary model per sample (1 when unused).
     #[getter]
-    fn substeps(&self) -> u32 {
-        self.model.map_or(1, |m| m.substeps)
+    fn substeps(slf: &Bound<'_, Self>) -> PyResult<u32> {
+        let this = crate::guard::borrow(slf)?;
+        Ok(this.model.map_or(1, |m| m.substeps))
     }
 
     /// The instruments' delay, samples.
     #[getter]
-    fn delay(&self) -> usize {
-        self.delay
+    fn delay(slf: &Bound<'_, Self>) -> PyResult<usize> {
+        let this = crate::guard::borrow(slf)?;
+        Ok(this.delay)
     }
 
     /// Past samples the refined instruments' predictor reads (0: the delayed regressors).
     #[getter]
-    fn lags(&self) -> usize {
-        self.lags
+    fn lags(slf: &Bound<'_, Self>) -> PyResult<usize> {
+        let this = crate::guard::borrow(slf)?;
+        Ok(this.lags)
     }
 
     /// A copy with its own core.
     fn __copy__(slf: &Bound<'_, Self>) -> PyResult<Py<Self>> {
         let py = slf.py();
         let (delay, lags, model, road) = {
-            let b = slf.try_borrow()?;
+            let b = crate::guard::borrow(slf)?;
             (b.delay, b.lags, b.model, b.road)
         };
         let base = copy_base(slf.as_super())?;
@@ -424,22 +437,23 @@ impl PyIVIdentifier {
         Self::__copy__(slf)
     }
 
-    fn __repr__(slf: PyRef<'_, Self>) -> String {
+    fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
+        let slf = crate::guard::borrow(slf)?;
         let base = slf.as_super();
-        format!(
+        Ok(format!(
             "IVIdentifier(delay={}, lags={}, unknown_rows={}, samples={}, instruments={})",
             slf.delay,
             slf.lags,
             crate::convert::py_tuple(base.inner.rows()),
             base.inner.samples(),
-            crate::convert::py_str(slf.instruments())
-        )
+            crate::convert::py_str(if slf.model.is_some() { "model" } else { "delayed" })
+        ))
     }
 }
 
 /// A fresh base object with a copy of `base`'s core and model.
 fn copy_base(base: &Bound<'_, PyIdentifier>) -> PyResult<PyIdentifier> {
-    let b = base.try_borrow()?;
+    let b = crate::guard::borrow(base)?;
     let inner = b.inner.clone_box();
     Ok(match &b.structure {
         Some(s) => PyIdentifier::on_structure(inner, s.bind(base.py())),
@@ -623,17 +637,18 @@ impl PyBiasCompensated {
         Self::__copy__(slf)
     }
 
-    fn __repr__(slf: PyRef<'_, Self>) -> String {
+    fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
+        let slf = crate::guard::borrow(slf)?;
         let base = slf.as_super();
         let noise = match estimating(base.inner.as_ref(), None) {
             Some(Ok((d, l))) => format!("state_noise_var='estimate', delay={d}, lags={l}, "),
             _ => String::new(),
         };
-        format!(
+        Ok(format!(
             "BiasCompensated({noise}unknown_rows={}, samples={})",
             crate::convert::py_tuple(base.inner.rows()),
             base.inner.samples()
-        )
+        ))
     }
 }
 
