@@ -17,7 +17,7 @@ from vehid import cli
 PYTHONPATH = str(Path(cli.__file__).resolve().parents[1])
 
 
-def vehid_sh(command: str, timeout: float = 120) -> "subprocess.CompletedProcess[str]":
+def vehid_sh(command: str, timeout: float = 120) -> subprocess.CompletedProcess[str]:
     """Runs ``command`` in ``sh -c``, with ``vehid`` standing for this interpreter's ``-m vehid``."""
     env = {**os.environ, "PYTHONPATH": PYTHONPATH}
     script = command.replace("vehid ", f"'{sys.executable}' -m vehid ")
@@ -46,3 +46,52 @@ def test_reproduce_seed_out_of_range(seed: str, tmp_path: Path, capsys: pytest.C
     assert error_line(capsys, ["reproduce", "--seed", seed, "--out", str(tmp_path / "r")]) == (
         f"vehid: error: argument --seed: expected a whole number from 0 to 18446744073709551615 (2**64 - 1), "
         f"got {seed} (see vehid reproduce --help)")
+
+
+# --- closed pipes, closed stdin and stdout --------------------------------------------------
+
+MODEL = """states = ["q", "v"]
+inputs = ["u"]
+[equations]
+v = "a*u - b*v"
+[known]
+q = "v"
+"""
+
+
+@pytest.fixture()
+def model_run(tmp_path: Path) -> Path:
+    """A model file m.toml and 200,000 inputs u.csv (more than a pipe holds) in ``tmp_path``."""
+    (tmp_path / "m.toml").write_text(MODEL)
+    rows = "\n".join(f"{0.01 * i!r},{(i % 7) * 0.1!r}" for i in range(200_000))
+    (tmp_path / "u.csv").write_text("t,u\n" + rows + "\n")
+    return tmp_path
+
+
+@pytest.mark.parametrize("command", [
+    "vehid simulate --model quarter --n 200000 -o -",
+    "vehid simulate --model quarter --road iso8608-C --n 200000 -o -",
+    "vehid simulate --model half --road iso8608-C --n 200000 -o -",
+    "vehid simulate --model {d}/m.toml --input {d}/u.csv --params a=1,b=2 -o -",
+])
+def test_closed_pipe_ends_quietly(command: str, model_run: Path) -> None:
+    piped = vehid_sh(f"( {command.format(d=model_run)}; echo \"status $?\" >&2 ) | head -1")
+    assert piped.stdout.count("\n") == 1 and piped.stdout.startswith("t,")
+    assert piped.stderr == "status 0\n"
+
+
+@pytest.mark.parametrize("command, message", [
+    ("vehid simulate --model {d}/m.toml --input {d}/u.csv --params a=1,b=2 -o - >&-",
+     "vehid: error: -o -: standard output is closed"),
+    ("vehid simulate --model quarter --road iso8608-C --n 10 -o - >&-",
+     "vehid: error: -o -: standard output is closed"),
+    ("vehid simulate --model {d}/m.toml --input - --params a=1,b=2 -o {d}/out.csv <&-",
+     "vehid: error: -: standard input is closed: give a file name, or pipe the data in"),
+    ("vehid identify - --model quarter <&-",
+     "vehid: error: -: standard input is closed: give a file name, or pipe the data in"),
+    ("vehid monitor - <&-",
+     "vehid: error: -: standard input is closed: give a file name, or pipe the data in"),
+])
+def test_closed_stdin_or_stdout(command: str, message: str, model_run: Path) -> None:
+    done = vehid_sh(command.format(d=model_run))
+    assert (done.returncode, done.stderr) == (2, message + "\n")

@@ -397,6 +397,8 @@ def open_table(path: str, delimiter: Optional[str] = None, stdin: Any = None) ->
     ``None`` to sniff, one character, or :data:`WHITESPACE`."""
     if path == "-":
         stream = stdin if stdin is not None else sys.stdin
+        if stream is None:  # started with stdin closed (<&-)
+            raise TableError("-: standard input is closed: give a file name, or pipe the data in")
         raw: Any = getattr(stream, "buffer", stream)
         if isinstance(raw, _stdio.TextIOBase):  # a text stream without bytes below (io.StringIO)
             raw = _TextAsBytes(raw)

@@ -150,7 +150,11 @@ def cmd_simulate_drive(args: argparse.Namespace) -> int:
         if given:
             raise _cli_error(f"{name} does not apply to a drive (the road's roughness is its class)")
     from . import Simulator
+    from .cli import _close_quietly, _open_output, _stdout, run_chunks
 
+    to_stdout = args.output == "-"
+    if to_stdout:
+        _stdout()  # closed: said before the work
     car = drive_car(args.car, half=half)
     sensors: Literal["realistic", "state"] = args.sensors or "realistic"
     kw: Dict[str, Any] = {}
@@ -159,27 +163,33 @@ def cmd_simulate_drive(args: argparse.Namespace) -> int:
     sim = Simulator(car, dt=0.005 if args.dt is None else args.dt, road=args.road,
                     speed=15.0 if args.speed is None else args.speed,
                     changes=[parse_change(c) for c in args.change or []], sensors=sensors, seed=args.seed, **kw)
-    from .cli import _close_quietly, _open_output, run_chunks
 
     header = ["t", *(sim.channels or ()), "s", *(f"true_{c}" for c in TRUE_COLUMNS[half])]
-    to_stdout = args.output == "-"
-    out: IO[str] = sys.stdout if to_stdout else _open_output(args.output)
-    try:
+
+    def write(out: IO[str]) -> None:
         out.write(",".join(header) + "\n")
         for run in run_chunks(sim, args.n, progress=sys.stderr):
             assert run.s is not None and run.constants is not None  # a drive has both
             data = np.column_stack([run.t, run.y, run.s, run.constants])
             out.writelines(",".join(map(repr, row)) + "\n" for row in data.tolist())
+
+    if to_stdout:  # a closed pipe (quiet) or a full disk: main() reports it, as for every command
+        out = _stdout()
+        write(out)
         out.flush()
-        if not to_stdout:
-            out.close()
+        return 0
+    out = _open_output(args.output)
+    try:
+        write(out)
+        out.close()
     except OSError as e:
-        if not to_stdout:
-            _close_quietly(out)
+        _close_quietly(out)
         raise _cli_error(f"-o {args.output}: cannot write ({e.strerror or e})") from None
-    if not to_stdout:
-        print(f"vehid: wrote {args.n} samples of a drive on {args.road} ({sensors} sensors) to {args.output}",
-              file=sys.stderr)
+    except BaseException:
+        _close_quietly(out)
+        raise
+    print(f"vehid: wrote {args.n} samples of a drive on {args.road} ({sensors} sensors) to {args.output}",
+          file=sys.stderr)
     return 0
 
 
