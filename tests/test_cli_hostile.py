@@ -95,3 +95,23 @@ def test_closed_pipe_ends_quietly(command: str, model_run: Path) -> None:
 def test_closed_stdin_or_stdout(command: str, message: str, model_run: Path) -> None:
     done = vehid_sh(command.format(d=model_run))
     assert (done.returncode, done.stderr) == (2, message + "\n")
+
+
+# --- model files that are not UTF-8 text ------------------------------------------------------
+
+
+@pytest.mark.parametrize("content, byte, offset, fix", [
+    (b"\xff\xfe" + MODEL.encode("utf-16-le"), 0xFF, 0,  # UTF-16 with its byte-order mark (Notepad's "Unicode")
+     "it is UTF-16: convert it (iconv -f UTF-16 -t UTF-8)"),
+    (bytes(range(256)), 0x80, 128, "save it as UTF-8 text"),  # binary
+])
+def test_model_file_not_utf8(content: bytes, byte: int, offset: int, fix: str, model_run: Path,
+                             capsys: pytest.CaptureFixture[str]) -> None:
+    bad = model_run / "bad.toml"
+    bad.write_bytes(content)
+    data = model_run / "d.csv"
+    data.write_text("t,q,v,dv,u\n0,0,0,0,0\n")
+    expected = (f"vehid: error: {bad} is not a UTF-8 TOML model file (byte 0x{byte:02x} at offset {offset}): {fix}")
+    assert error_line(capsys, ["identify", str(data), "--model", str(bad)]) == expected
+    assert error_line(capsys, ["simulate", "--model", str(bad), "--input", str(model_run / "u.csv"),
+                               "--params", "a=1,b=2", "-o", "-"]) == expected

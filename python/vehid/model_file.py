@@ -87,6 +87,11 @@ def load(path: str) -> ModelFile:
         raise ModelFileError(f"{path}: is a directory, not a model file") from None
     except OSError as e:
         raise ModelFileError(f"{path}: cannot read ({e.strerror or e})") from None
+    except UnicodeDecodeError as e:
+        utf16 = e.object[:2] in (b"\xff\xfe", b"\xfe\xff")
+        fix = "it is UTF-16: convert it (iconv -f UTF-16 -t UTF-8)" if utf16 else "save it as UTF-8 text"
+        raise ModelFileError(f"{path} is not a UTF-8 TOML model file (byte 0x{e.object[e.start]:02x} at offset "
+                             f"{e.start}): {fix}") from None
     except tomllib.TOMLDecodeError as e:
         raise ModelFileError(f"{path}: not valid TOML: {e}") from None
     unknown = sorted(set(doc) - _SECTIONS)
