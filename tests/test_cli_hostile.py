@@ -115,3 +115,27 @@ def test_model_file_not_utf8(content: bytes, byte: int, offset: int, fix: str, m
     assert error_line(capsys, ["identify", str(data), "--model", str(bad)]) == expected
     assert error_line(capsys, ["simulate", "--model", str(bad), "--input", str(model_run / "u.csv"),
                                "--params", "a=1,b=2", "-o", "-"]) == expected
+
+
+# --- over-long CSV headers and cells -----------------------------------------------------------
+
+
+def test_csv_header_over_the_limit(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    names = ["t", "x1", "x2", "x3", "x4", "dx1", "dx2", "dx3", "dx4"] + [f"extra_column_{i}" for i in range(9000)]
+    header = ",".join(names)
+    assert len(header) > 131_072
+    path = tmp_path / "wide.csv"
+    path.write_text(header + "\n" + ",".join(["0"] * len(names)) + "\n")
+    expected = (f"vehid: error: {path}, line 1: the header line is {len(header):,} bytes, over the limit of "
+                "131,072: write the file with only the columns needed (or shorter names)")
+    assert error_line(capsys, ["identify", str(path), "--model", "quarter"]) == expected
+    assert error_line(capsys, ["monitor", str(path)]) == expected
+    assert error_line(capsys, ["identify", str(path), "--model", "quarter", "--delimiter", ";"]) == expected
+
+
+def test_csv_cell_over_the_field_limit(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "long-cell.csv"
+    path.write_text("t,x1,x2,x3,x4,dx1,dx2,dx3,dx4\n0,1,2,3,4,5,6,7,8\n0.1,1,2,3,4,5,6,7," + "8" * 140_000 + "\n")
+    assert error_line(capsys, ["identify", str(path), "--model", "quarter"]) == (
+        f"vehid: error: {path}, line 3, column 'dx4' (d_body_vel, m/s^2): '{'8' * 30}'... (140,000 characters) "
+        "is not a finite number (drop or repair that sample)")
