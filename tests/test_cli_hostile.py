@@ -139,3 +139,34 @@ def test_csv_cell_over_the_field_limit(tmp_path: Path, capsys: pytest.CaptureFix
     assert error_line(capsys, ["identify", str(path), "--model", "quarter"]) == (
         f"vehid: error: {path}, line 3, column 'dx4' (d_body_vel, m/s^2): '{'8' * 30}'... (140,000 characters) "
         "is not a finite number (drop or repair that sample)")
+
+
+# --- a model file's time column ------------------------------------------------------------------
+
+
+def _model_data(path: Path, times: List[str]) -> None:
+    """Samples of ``dv = a*u - b*v`` (a = 2, b = 0.5) at ``times``."""
+    rows = []
+    for i, t in enumerate(times):
+        v, u = 0.1 * (i % 5), 0.3 * (i % 3)
+        rows.append(f"{t},{0.01 * i!r},{v!r},{2 * u - 0.5 * v!r},{u!r}")
+    path.write_text("t,q,v,dv,u\n" + "\n".join(rows) + "\n")
+
+
+@pytest.mark.parametrize("mapped", [False, True])
+def test_model_file_time_is_checked(mapped: bool, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    model = tmp_path / "m.toml"
+    model.write_text(MODEL + ('[columns]\nt = "t"\n' if mapped else ""))
+    data = tmp_path / "d.csv"
+    times = [f"{0.1 * i!r}" for i in range(20)]
+    _model_data(data, times)
+    assert cli.main(["identify", str(data), "--model", str(model)]) == 0  # increasing: fine
+    capsys.readouterr()
+    _model_data(data, times[:10] + [times[3]] + times[11:])
+    assert error_line(capsys, ["identify", str(data), "--model", str(model)]) == (
+        f"vehid: error: {data}, line 12: time {float(times[3])!r} s is before {float(times[9])!r} s on line 11: "
+        "the time column 't' (time) must increase strictly (sort the file by time)")
+    _model_data(data, times[:10] + ["nan"] + times[11:])
+    assert error_line(capsys, ["identify", str(data), "--model", str(model)]) == (
+        f"vehid: error: {data}, line 12, column 't' (time): 'nan' is not a finite number (drop or repair that sample)")
+    assert cli.main(["identify", str(data), "--model", str(model), "--no-time"]) == 0  # not read

@@ -1016,12 +1016,20 @@ def cmd_identify_file(args: argparse.Namespace) -> int:
     """``identify --model model.toml``: a Structure from a model file."""
     from . import model_file
 
+    checks: List[TimeCheck] = []
     try:
         mf = model_file.load(args.model)
         with open_table(args.file, delimiter=args.delimiter) as table:
-            report = model_file.identify(mf, table, args.method, CHUNK)
+
+            def time_check(name: str, label: str) -> TimeCheck:
+                checks.append(TimeCheck(table, name, label, sys.stderr))
+                return checks[-1]
+
+            report = model_file.identify(mf, table, args.method, CHUNK, time=None if args.no_time else time_check)
     except model_file.ModelFileError as e:
         raise CliError(str(e)) from None
+    for check in checks:
+        check.finish()
     if args.json:
         print(json.dumps({"source": args.file, "model": args.model, "method": args.method, **report}))
         return 0
