@@ -170,3 +170,32 @@ def test_model_file_time_is_checked(mapped: bool, tmp_path: Path, capsys: pytest
     assert error_line(capsys, ["identify", str(data), "--model", str(model)]) == (
         f"vehid: error: {data}, line 12, column 't' (time): 'nan' is not a finite number (drop or repair that sample)")
     assert cli.main(["identify", str(data), "--model", str(model), "--no-time"]) == 0  # not read
+
+
+# --- reproduce --out, checked before the work ------------------------------------------------
+
+
+def test_reproduce_out_not_writable_fails_before_the_work(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    import vehid.reproduce
+
+    def work(args: object) -> int:
+        raise AssertionError("the reproduction ran before --out was checked")
+
+    monkeypatch.setattr(vehid.reproduce, "command", work)
+    line = error_line(capsys, ["reproduce", "--quick", "--out", "/proc/x"])
+    assert line.startswith("vehid: error: --out /proc/x: cannot write into /proc (")
+    assert line.endswith("): choose a writable directory")
+    assert not Path("/proc/x").exists()
+
+
+def test_reproduce_out_check_leaves_no_trace(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import vehid.reproduce
+
+    seen: List[List[str]] = []
+    monkeypatch.setattr(vehid.reproduce, "command", lambda args: seen.append(os.listdir(tmp_path)) or 0)
+    assert cli.main(["reproduce", "--quick", "--out", str(tmp_path / "a" / "b")]) == 0
+    assert seen == [[]] and os.listdir(tmp_path) == []  # nothing created before the work, no probe left
+    (tmp_path / "r").mkdir()
+    assert cli.main(["reproduce", "--quick", "--out", str(tmp_path / "r")]) == 0
+    assert os.listdir(tmp_path / "r") == []

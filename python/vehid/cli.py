@@ -1254,14 +1254,28 @@ def cmd_identify(args: argparse.Namespace) -> int:
 
 
 def _check_out_dir(out: str) -> None:
-    """Fails now, not after the whole reproduction, when ``--out`` cannot be a directory."""
+    """Fails now, not after the whole reproduction, when ``--out`` cannot be a directory the
+    report can be written into: a probe is created, then removed, in ``--out`` (a file) or,
+    when it does not exist yet, in its nearest existing parent (a directory, as ``--out``
+    and its parents will be). Nothing is left behind, so an argument error found later
+    creates nothing."""
+    import tempfile
+
     probe = Path(out)
     while not probe.exists() and probe.parent != probe:
         probe = probe.parent
     if not probe.is_dir():
         raise CliError(f"--out {out}: {probe} is not a directory")
-    if not os.access(probe, os.W_OK | os.X_OK):
-        raise CliError(f"--out {out}: cannot write into {probe} (permission denied)")
+    try:
+        if probe == Path(out):
+            fd, name = tempfile.mkstemp(prefix=".vehid-probe-", dir=probe)
+            os.close(fd)
+            os.remove(name)
+        else:
+            os.rmdir(tempfile.mkdtemp(prefix=".vehid-probe-", dir=probe))
+    except OSError as e:
+        raise CliError(f"--out {out}: cannot write into {probe} ({e.strerror or e}): choose a writable directory") \
+            from None
 
 
 def cmd_reproduce(args: argparse.Namespace) -> int:
