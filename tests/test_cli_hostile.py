@@ -199,3 +199,32 @@ def test_reproduce_out_check_leaves_no_trace(tmp_path: Path, monkeypatch: pytest
     (tmp_path / "r").mkdir()
     assert cli.main(["reproduce", "--quick", "--out", str(tmp_path / "r")]) == 0
     assert os.listdir(tmp_path / "r") == []
+
+
+# --- monitor --dt: the message names --dt ---------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def drive(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("drive") / "drive.csv"
+    assert cli.main(["simulate", "--model", "quarter", "--road", "iso8608-C", "--n", "400", "-o", str(path)]) == 0
+    return path
+
+
+@pytest.mark.parametrize("dt, message", [
+    ("1e-9", "--dt 1e-09: too short a sample interval for the monitor's filters (the deflection filter's gain does "
+             "not settle): give the log's sample interval in seconds, e.g. --dt 0.005 for 200 Hz"),
+    ("100", "--dt 100: the tracking window (--window, default 6 s) must span at least 10 sample intervals: give a "
+            "shorter --dt, or --window 1000 or more"),
+    ("0", "--dt 0: the sample interval must be a finite number of seconds > 0"),
+    ("-1", "--dt -1: the sample interval must be a finite number of seconds > 0"),
+    ("nan", "--dt nan: the sample interval must be a finite number of seconds > 0"),
+])
+def test_monitor_dt_is_named(dt: str, message: str, drive: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert error_line(capsys, ["monitor", str(drive), "--dt", dt]) == f"vehid: error: {message}"
+
+
+def test_monitor_window_given_keeps_its_name(drive: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert error_line(capsys, ["monitor", str(drive), "--dt", "1", "--window", "5"]) == (
+        "vehid: error: --window 5: expected at least 10 sample intervals (--dt 1): give --window 10 or more, "
+        "or a shorter --dt")
