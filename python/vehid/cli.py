@@ -161,6 +161,13 @@ def _open_output(path: str) -> IO[str]:
         raise CliError(f"-o {path}: cannot create ({e.strerror or e})") from None
 
 
+def _stdout() -> IO[str]:
+    """Standard output for ``-o -``; an error when the command started with it closed (``>&-``)."""
+    if sys.stdout is None:
+        raise CliError("-o -: standard output is closed")
+    return sys.stdout
+
+
 def cmd_simulate_file(args: argparse.Namespace) -> int:
     """``simulate --model model.toml --input u.csv --params ...``: free-run simulation of a
     Structure over measured inputs."""
@@ -172,6 +179,8 @@ def cmd_simulate_file(args: argparse.Namespace) -> int:
         x0 = None if args.x0 is None else [float(v) for v in args.x0.split(",")]
     except ValueError:
         raise CliError(f"--x0 {args.x0}: expected numbers, comma-separated") from None
+    if args.output == "-":
+        _stdout()  # before the work
     try:
         mf = model_file.load(args.model)
         params = model_file.parse_params(mf, args.params)
@@ -179,14 +188,23 @@ def cmd_simulate_file(args: argparse.Namespace) -> int:
             header, rows = model_file.simulate(mf, table, params, 0.05 if args.dt is None else args.dt, x0, CHUNK)
     except model_file.ModelFileError as e:
         raise CliError(str(e)) from None
-    out = sys.stdout if args.output == "-" else _open_output(args.output)
-    try:
+    if args.output == "-":  # a closed pipe or a full disk: main() reports it
+        out = _stdout()
         out.write(",".join(header) + "\n")
         np.savetxt(out, rows, delimiter=",", fmt="%.17g")
         out.flush()
-    finally:
-        if out is not sys.stdout:
-            out.close()
+        return 0
+    out = _open_output(args.output)
+    try:
+        out.write(",".join(header) + "\n")
+        np.savetxt(out, rows, delimiter=",", fmt="%.17g")
+        out.close()
+    except OSError as e:
+        _close_quietly(out)
+        raise CliError(f"-o {args.output}: cannot write ({e.strerror or e})") from None
+    except BaseException:
+        _close_quietly(out)
+        raise
     return 0
 
 
@@ -219,9 +237,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     )
     to_stdout = args.output == "-"
     if to_stdout:
-        if sys.stdout is None:  # started with stdout closed (>&-)
-            raise CliError("-o -: standard output is closed")
-        out: IO[str] = sys.stdout
+        out: IO[str] = _stdout()
         out.write(",".join(csv_header(model.n_states, model.n_inputs, distance)) + "\n")
         for run in run_chunks(sim, args.n, progress=sys.stderr):
             write_csv_rows(out, run, distance)
@@ -1000,12 +1016,20 @@ def cmd_identify_file(args: argparse.Namespace) -> int:
     """``identify --model model.toml``: a Structure from a model file."""
     from . import model_file
 
+    checks: List[TimeCheck] = []
     try:
         mf = model_file.load(args.model)
         with open_table(args.file, delimiter=args.delimiter) as table:
-            report = model_file.identify(mf, table, args.method, CHUNK)
+
+            def time_check(name: str, label: str) -> TimeCheck:
+                checks.append(TimeCheck(table, name, label, sys.stderr))
+                return checks[-1]
+
+            report = model_file.identify(mf, table, args.method, CHUNK, time=None if args.no_time else time_check)
     except model_file.ModelFileError as e:
         raise CliError(str(e)) from None
+    for check in checks:
+        check.finish()
     if args.json:
         print(json.dumps({"source": args.file, "model": args.model, "method": args.method, **report}))
         return 0
@@ -1230,14 +1254,28 @@ def cmd_identify(args: argparse.Namespace) -> int:
 
 
 def _check_out_dir(out: str) -> None:
-    """Fails now, not after the whole reproduction, when ``--out`` cannot be a directory."""
+    """Fails now, not after the whole reproduction, when ``--out`` cannot be a directory the
+    report can be written into: a probe is created, then removed, in ``--out`` (a file) or,
+    when it does not exist yet, in its nearest existing parent (a directory, as ``--out``
+    and its parents will be). Nothing is left behind, so an argument error found later
+    creates nothing."""
+    import tempfile
+
     probe = Path(out)
     while not probe.exists() and probe.parent != probe:
         probe = probe.parent
     if not probe.is_dir():
         raise CliError(f"--out {out}: {probe} is not a directory")
-    if not os.access(probe, os.W_OK | os.X_OK):
-        raise CliError(f"--out {out}: cannot write into {probe} (permission denied)")
+    try:
+        if probe == Path(out):
+            fd, name = tempfile.mkstemp(prefix=".vehid-probe-", dir=probe)
+            os.close(fd)
+            os.remove(name)
+        else:
+            os.rmdir(tempfile.mkdtemp(prefix=".vehid-probe-", dir=probe))
+    except OSError as e:
+        raise CliError(f"--out {out}: cannot write into {probe} ({e.strerror or e}): choose a writable directory") \
+            from None
 
 
 def cmd_reproduce(args: argparse.Namespace) -> int:

@@ -116,6 +116,8 @@ DELIMITERS = (",", ";", "\t", "|")
 BLOCK = 1 << 20
 #: A line longer than this (bytes) is refused: not a table (e.g. ``/dev/zero``).
 MAX_LINE = 1 << 20
+#: A header line longer than this (bytes) is refused (the :mod:`csv` module's field limit).
+MAX_HEADER = 131_072
 
 
 class TableError(ValueError):
@@ -397,6 +399,8 @@ def open_table(path: str, delimiter: Optional[str] = None, stdin: Any = None) ->
     ``None`` to sniff, one character, or :data:`WHITESPACE`."""
     if path == "-":
         stream = stdin if stdin is not None else sys.stdin
+        if stream is None:  # started with stdin closed (<&-)
+            raise TableError("-: standard input is closed: give a file name, or pipe the data in")
         raw: Any = getattr(stream, "buffer", stream)
         if isinstance(raw, _stdio.TextIOBase):  # a text stream without bytes below (io.StringIO)
             raw = _TextAsBytes(raw)
@@ -445,7 +449,10 @@ def _split(line: str, delimiter: Optional[str]) -> List[str]:
     """The cells of one line (quotes removed)."""
     if delimiter is None or delimiter == WHITESPACE:
         return [c.strip('"') for c in line.split()]
-    return next(csv.reader([line], delimiter=delimiter, skipinitialspace=True), [])
+    try:
+        return next(csv.reader([line], delimiter=delimiter, skipinitialspace=True), [])
+    except csv.Error:  # a cell over the csv module's field limit: no column name or number anyway
+        return [c.strip().strip('"') for c in line.split(delimiter)]
 
 
 def _sniff(header: str, sample: Optional[str]) -> str:
@@ -618,6 +625,10 @@ class _CsvTable(Table):
                 continue
             break
         self.header_line = number
+        size = len(text.encode("utf-8"))
+        if size > MAX_HEADER:
+            raise TableError(f"{self.where(number)}: the header line is {size:,} bytes, over the limit of "
+                             f"{MAX_HEADER:,}: write the file with only the columns needed (or shorter names)")
         sample = None
         for i in range(100):
             ahead = lines.peek(i)
@@ -681,7 +692,7 @@ class _CsvTable(Table):
                 row = int(np.argmin(finite.all(axis=1)))
                 col = int(np.argmin(finite[row]))
                 cell = _split(lines[row], self.delimiter)[cols[col]].strip()
-                raise TableError(f"{self.where(int(numbers[row]))}, column {labels[col]}: {cell!r} is not a "
+                raise TableError(f"{self.where(int(numbers[row]))}, column {labels[col]}: {_show_cell(cell)} is not a "
                                  "finite number (drop or repair that sample)")
             yield Chunk(data=data, lines=numbers)
 
@@ -716,8 +727,17 @@ class _CsvTable(Table):
                     return TableError(f"{self.where(int(number))}, column {label}: empty cell "
                                       "(a missing value: drop or repair that sample)")
                 if not _is_number(cell):
-                    return TableError(f"{self.where(int(number))}, column {label}: {cell!r} is not a number")
+                    return TableError(f"{self.where(int(number))}, column {label}: {_show_cell(cell)} is not a number")
         return TableError(f"{self.source}: {fallback}")
+
+
+def _show_cell(cell: str) -> str:
+    """A cell as messages quote it: its first characters only, when it is long.
+
+    >>> _show_cell("1.5x"), _show_cell("8" * 1000)
+    ("'1.5x'", "'888888888888888888888888888888'... (1,000 characters)")
+    """
+    return repr(cell) if len(cell) <= 40 else f"{cell[:30]!r}... ({len(cell):,} characters)"
 
 
 def _is_number(text: str) -> bool:

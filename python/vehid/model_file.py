@@ -27,7 +27,7 @@ from __future__ import annotations
 import re
 import sys
 from dataclasses import dataclass, field
-from typing import Any, Dict, List, Optional, Tuple
+from typing import Any, Callable, Dict, List, Optional, Tuple
 
 from ._vehid import Structure, VehidError
 
@@ -87,6 +87,11 @@ def load(path: str) -> ModelFile:
         raise ModelFileError(f"{path}: is a directory, not a model file") from None
     except OSError as e:
         raise ModelFileError(f"{path}: cannot read ({e.strerror or e})") from None
+    except UnicodeDecodeError as e:
+        utf16 = e.object[:2] in (b"\xff\xfe", b"\xfe\xff")
+        fix = "it is UTF-16: convert it (iconv -f UTF-16 -t UTF-8)" if utf16 else "save it as UTF-8 text"
+        raise ModelFileError(f"{path} is not a UTF-8 TOML model file (byte 0x{e.object[e.start]:02x} at offset "
+                             f"{e.start}): {fix}") from None
     except tomllib.TOMLDecodeError as e:
         raise ModelFileError(f"{path}: not valid TOML: {e}") from None
     unknown = sorted(set(doc) - _SECTIONS)
@@ -125,11 +130,17 @@ def load(path: str) -> ModelFile:
 
 
 def identify(
-    model: ModelFile, table: Any, method: str, chunk: int, alpha: float = 0.05
+    model: ModelFile, table: Any, method: str, chunk: int, alpha: float = 0.05,
+    time: Optional[Callable[[str, str], Any]] = None,
 ) -> Dict[str, Any]:
     """Identifies ``model``'s parameters from an open table (:func:`vehid.io.open_table`),
     chunk by chunk (memory bounded). Returns the report: samples, names, params, bse,
-    conf_int, sigma2."""
+    conf_int, sigma2.
+
+    ``time``: given the time column's name and label, the check of its values (an object
+    whose ``add(t, lines)`` raises on a bad time); the time column is ``[columns]``' ``t``,
+    else a column named ``t``. ``None``: the time column is not read (a ``t`` in
+    ``[columns]`` must still be in the file)."""
     import numpy as np
 
     from ._vehid import BatchLeastSquares, Identifier, KalmanIdentifier
@@ -139,8 +150,11 @@ def identify(
     for kind, mapping in (("state", model.x), ("derivative of", model.dx), ("input", model.u)):
         for name, col in mapping.items():
             wanted[col] = f"{kind} {name}"
-    if model.t is not None:
-        wanted[model.t] = "time"
+    t_col = model.t
+    if t_col is None and time is not None and "t" in table.names and "t" not in wanted:
+        t_col = "t"
+    if t_col is not None:
+        wanted[t_col] = "time"
     missing = [c for c in wanted if c not in table.names]
     if missing:
         raise ModelFileError(
@@ -152,9 +166,11 @@ def identify(
     cols = [table.names.index(model.x[st]) for st in states]
     dcols = {st: table.names.index(c) for st, c in model.dx.items()}
     ucols = [table.names.index(model.u[i]) for i in inputs]
-    order = cols + list(dcols.values()) + ucols
+    tcols = [] if t_col is None or time is None else [table.names.index(t_col)]
+    order = cols + list(dcols.values()) + ucols + tcols
     what = {table.names.index(c): w for c, w in wanted.items()}
     labels = [f"{table.names[i]!r} ({what[i]})" for i in order]
+    check = None if not tcols or time is None or t_col is None else time(t_col, labels[-1])
     ident: Identifier
     if method == "kalman":
         ident = KalmanIdentifier(s)
@@ -172,7 +188,9 @@ def identify(
         for j, st in enumerate(states):
             if st in pos:
                 z[:, j] = data[:, pos[st]]
-        u = np.ascontiguousarray(data[:, n + nd :]) if inputs else None
+        if check is not None:
+            check.add(np.ascontiguousarray(data[:, -1]), ch.lines)
+        u = np.ascontiguousarray(data[:, n + nd : n + nd + len(inputs)]) if inputs else None
         ident.fit(x, z, u=u)
         samples += len(data)
     stats = ident.stats(alpha=alpha)

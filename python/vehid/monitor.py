@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 import sys
 from dataclasses import dataclass, field
 from typing import IO, Any, Callable, Dict, List, Literal, Optional, Sequence, Tuple, Union
@@ -150,7 +151,11 @@ def cmd_simulate_drive(args: argparse.Namespace) -> int:
         if given:
             raise _cli_error(f"{name} does not apply to a drive (the road's roughness is its class)")
     from . import Simulator
+    from .cli import _close_quietly, _open_output, _stdout, run_chunks
 
+    to_stdout = args.output == "-"
+    if to_stdout:
+        _stdout()  # closed: said before the work
     car = drive_car(args.car, half=half)
     sensors: Literal["realistic", "state"] = args.sensors or "realistic"
     kw: Dict[str, Any] = {}
@@ -159,27 +164,33 @@ def cmd_simulate_drive(args: argparse.Namespace) -> int:
     sim = Simulator(car, dt=0.005 if args.dt is None else args.dt, road=args.road,
                     speed=15.0 if args.speed is None else args.speed,
                     changes=[parse_change(c) for c in args.change or []], sensors=sensors, seed=args.seed, **kw)
-    from .cli import _close_quietly, _open_output, run_chunks
 
     header = ["t", *(sim.channels or ()), "s", *(f"true_{c}" for c in TRUE_COLUMNS[half])]
-    to_stdout = args.output == "-"
-    out: IO[str] = sys.stdout if to_stdout else _open_output(args.output)
-    try:
+
+    def write(out: IO[str]) -> None:
         out.write(",".join(header) + "\n")
         for run in run_chunks(sim, args.n, progress=sys.stderr):
             assert run.s is not None and run.constants is not None  # a drive has both
             data = np.column_stack([run.t, run.y, run.s, run.constants])
             out.writelines(",".join(map(repr, row)) + "\n" for row in data.tolist())
+
+    if to_stdout:  # a closed pipe (quiet) or a full disk: main() reports it, as for every command
+        out = _stdout()
+        write(out)
         out.flush()
-        if not to_stdout:
-            out.close()
+        return 0
+    out = _open_output(args.output)
+    try:
+        write(out)
+        out.close()
     except OSError as e:
-        if not to_stdout:
-            _close_quietly(out)
+        _close_quietly(out)
         raise _cli_error(f"-o {args.output}: cannot write ({e.strerror or e})") from None
-    if not to_stdout:
-        print(f"vehid: wrote {args.n} samples of a drive on {args.road} ({sensors} sensors) to {args.output}",
-              file=sys.stderr)
+    except BaseException:
+        _close_quietly(out)
+        raise
+    print(f"vehid: wrote {args.n} samples of a drive on {args.road} ({sensors} sensors) to {args.output}",
+          file=sys.stderr)
     return 0
 
 
@@ -340,7 +351,44 @@ def _time_steps(t: NDArray[np.float64], prev: Optional[float], dt: float, table:
     return steps if prev is not None else np.concatenate([[0], steps]).astype(np.int64)
 
 
+#: The monitor's default tracking window, s (``--window``).
+DEFAULT_WINDOW = 6.0
+
+
+def _health_monitor(car: Union[QuarterCar, HalfCar], dt: float, sensors: Literal["realistic", "state"],
+                    settings: Dict[str, Any], args: argparse.Namespace, source: str) -> HealthMonitor:
+    """The monitor at the sample interval ``dt``; an error the core finds in a setting the
+    user never gave is said as what it is: a sample interval (``--dt`` or the time column's)
+    that does not fit it."""
+    from . import VehidError
+
+    given = (f"--dt {args.dt:g}" if args.dt is not None
+             else f"the sample interval {dt:.6g} s (the median interval of {source}'s time column)")
+    try:
+        return HealthMonitor(car, dt=dt, sensors=sensors, **settings)
+    except VehidError as e:
+        m = re.match(r"invalid `(\w+)`: (.*)", str(e))
+        name = m.group(1) if m else ""
+        if name == "window":
+            least = f"{10 * dt:.6g}"
+            if args.window is None:
+                raise _cli_error(f"{given}: the tracking window (--window, default {DEFAULT_WINDOW:g} s) must span at "
+                                 f"least 10 sample intervals: give a shorter --dt, or --window {least} or more") \
+                    from None
+            raise _cli_error(f"--window {args.window:g}: expected at least 10 sample intervals ({given}): give "
+                             f"--window {least} or more, or a shorter --dt") from None
+        if name == "bias_walk":
+            raise _cli_error(f"{given}: too short a sample interval for the monitor's filters (the deflection "
+                             "filter's gain does not settle): give the log's sample interval in seconds, e.g. "
+                             "--dt 0.005 for 200 Hz") from None
+        if name == "dt":
+            raise _cli_error(f"{given}: the sample interval must be a finite number of seconds > 0") from None
+        raise
+
+
 def cmd_monitor(args: argparse.Namespace) -> int:
+    if args.dt is not None and not (math.isfinite(args.dt) and args.dt > 0):
+        raise _cli_error(f"--dt {args.dt:g}: the sample interval must be a finite number of seconds > 0")
     car = nominal_car(args.model, args.car)
     sensors: Literal["realistic", "state"] = args.sensors
     try:
@@ -387,7 +435,7 @@ def cmd_monitor(args: argparse.Namespace) -> int:
                     if len(d) == 0:
                         raise _cli_error(f"{table.source}: one sample cannot give the sample interval: give --dt")
                     dt = float(np.median(d))
-                mon = HealthMonitor(car, dt=dt, sensors=sensors, **settings)
+                mon = _health_monitor(car, dt, sensors, settings, args, table.source)
                 feeder = Feeder(mon, float(data[0, 0]) if has_t else 0.0, sys.stdout, args.json)
             assert feeder is not None
             if has_t:

@@ -1009,6 +1009,29 @@ def _positive_int(text: str) -> int:
     return v
 
 
+#: The largest seed the core takes (a 64-bit unsigned integer).
+SEED_MAX = 2**64 - 1
+
+
+def _seed(text: str) -> int:
+    """``--seed``: a whole number the core's 64-bit seed holds.
+
+    >>> _seed("1986")
+    1986
+    >>> _seed("-1")
+    Traceback (most recent call last):
+    ...
+    argparse.ArgumentTypeError: expected a whole number from 0 to 18446744073709551615 (2**64 - 1), got -1
+    """
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if not 0 <= v <= SEED_MAX:
+        raise argparse.ArgumentTypeError(f"expected a whole number from 0 to {SEED_MAX} (2**64 - 1), got {v}")
+    return v
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """The ``vehid reproduce`` options."""
     p.add_argument("--quick", action="store_true",
@@ -1016,7 +1039,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", default="report/", help="output directory (default report/)")
     p.add_argument("--only", default=None, metavar="IDS",
                    help="comma-separated figure ids, e.g. 4-2,4-5 (default: all)")
-    p.add_argument("--seed", type=int, default=1986, help="base seed (default 1986)")
+    p.add_argument("--seed", type=_seed, default=1986, help="base seed (default 1986)")
     p.add_argument("--seeds", type=_positive_int, default=None, help="seeds per curve (default 5 quick, 16 full)")
     p.add_argument("--max-iterations", type=_positive_int, default=None, help="cap the iterations of every curve")
     p.add_argument("--threads", type=_positive_int, default=None, help="worker threads (default: all cores)")
