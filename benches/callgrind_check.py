@@ -86,6 +86,7 @@ BENCHES = [
     "half_health_state",            # health/half_monitor_update_state_f64 (half car, state sensors)
     "quarter_iv_physical_road",     # update_f64/quarter/iv_physical_road (Differenced: the coloured-road identifier)
     "quarter_iv_physical_drive",    # the same IV without the road model, same samples (binary count_road)
+    "quarter_state_filter_realistic",  # update_f64/quarter/state_filter_realistic (binary count_road)
 ]
 # Benches counted by a binary other than count_updates (kept apart so that their code does not
 # change how count_updates is compiled).
@@ -96,6 +97,7 @@ OTHER_BINARIES = {
     "half_health_state": "count_health",
     "quarter_iv_physical_road": "count_road",
     "quarter_iv_physical_drive": "count_road",
+    "quarter_state_filter_realistic": "count_road",
 }
 
 

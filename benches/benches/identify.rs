@@ -409,6 +409,34 @@ fn two_axle(c: &mut Criterion) {
     bench_updates(c, "update_f64", &data, &mut update, "half/two_axle_physical");
 }
 
+/// The realistic sensors' body-equation fit (`identify::StateFilterFit`, the Python
+/// `RealisticIdentifier`): one sample `[a_body, a_wheel, deflection]` of a passenger car's drive
+/// on an ISO class C road at 15 m/s (200 Hz), M known; blocks of 2 s close as they fill.
+fn state_filter(c: &mut Criterion) {
+    use vehid_core::identify::{StateFilterFit, DEFAULT_BANDWIDTH, DEFAULT_BLOCK};
+    use vehid_core::sim::{DriveConfig, QuarterDrive};
+    let car = QuarterCar::<f64>::passenger();
+    let mut drive = QuarterDrive::new(car, DriveConfig::new(0.005).speed(15.0), 42).unwrap();
+    let data: Vec<[f64; 3]> = (0..LEN)
+        .map(|_| {
+            let s = drive.next_sample();
+            [s.y()[0], s.y()[1], s.y()[2]]
+        })
+        .collect();
+    let ps = QuarterCar::realistic_structure([Some(car.constants()[0]), None, None, None, None]).unwrap();
+    let mut fit = StateFilterFit::new(*ps.structure(), 0.005, DEFAULT_BANDWIDTH, DEFAULT_BLOCK).unwrap();
+    let mut g = c.benchmark_group("update_f64");
+    g.throughput(Throughput::Elements(1));
+    let mut i = 0usize;
+    g.bench_function("quarter/state_filter_realistic", |b| {
+        b.iter(|| {
+            let _ = black_box(fit.update(black_box(&data[i])));
+            i = (i + 1) & (LEN - 1);
+        })
+    });
+    g.finish();
+}
+
 fn batch_least_squares(c: &mut Criterion) {
     let q = QuarterCar::<f64>::thesis();
     let data = samples(q.model());
@@ -451,5 +479,5 @@ fn config() -> Criterion {
         .sample_size(30)
 }
 
-criterion_group! { name = benches; config = config(); targets = identifiers, structured, noisy_states, two_axle, batch_least_squares, simulator }
+criterion_group! { name = benches; config = config(); targets = identifiers, structured, noisy_states, two_axle, state_filter, batch_least_squares, simulator }
 criterion_main!(benches);

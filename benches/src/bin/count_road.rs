@@ -10,6 +10,8 @@
 //! the same IV identifier without the road model on the same samples, so that the wrapper's
 //! own cost is the difference. The data are generated whatever `N` is, so the instructions of
 //! `N` updates are the count with `N` minus the count with `N = 0`.
+//! `quarter_state_filter_realistic N`: the realistic sensors' body-equation fit
+//! (`StateFilterFit`, M known) on the same drive's realistic channels, past 2,000 samples.
 
 use std::hint::black_box;
 use std::process::ExitCode;
@@ -56,18 +58,50 @@ fn run(n: usize, road: bool) -> vehid_core::Result<String> {
     Ok(format!("{bad} refused, params {p:?}"))
 }
 
+fn run_state_filter(n: usize) -> vehid_core::Result<String> {
+    use vehid_core::identify::{StateFilterFit, DEFAULT_BANDWIDTH, DEFAULT_BLOCK};
+    let car = QuarterCar::<f64>::passenger();
+    let dt = 0.005;
+    let mut drive = QuarterDrive::new(car, DriveConfig::new(dt), 42)?;
+    let data: Vec<[f64; 3]> = (0..LEN + 2000)
+        .map(|_| {
+            let mut y = [0.0; 3];
+            y.copy_from_slice(drive.next_sample().y());
+            y
+        })
+        .collect();
+    let ps = QuarterCar::<f64>::realistic_structure([Some(car.constants()[0]), None, None, None, None])?;
+    let mut fit = StateFilterFit::new(*ps.structure(), dt, DEFAULT_BANDWIDTH, DEFAULT_BLOCK)?;
+    for y in &data[..2000] {
+        fit.update(y)?;
+    }
+    let mut bad = 0;
+    for y in data[2000..].iter().cycle().take(n) {
+        bad += usize::from(black_box(fit.update(black_box(y))).is_err());
+    }
+    Ok(format!("{bad} refused, {} samples", fit.samples()))
+}
+
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let (which, n) = match (args.first().map(String::as_str), args.get(1).map(|s| s.parse::<usize>())) {
-        (Some(w @ ("quarter_iv_physical_road" | "quarter_iv_physical_drive")), Some(Ok(n))) if args.len() == 2 => {
-            (w, n)
-        }
+        (
+            Some(w @ ("quarter_iv_physical_road" | "quarter_iv_physical_drive" | "quarter_state_filter_realistic")),
+            Some(Ok(n)),
+        ) if args.len() == 2 => (w, n),
         _ => {
-            eprintln!("usage: count_road quarter_iv_physical_road|quarter_iv_physical_drive N");
+            eprintln!(
+                "usage: count_road quarter_iv_physical_road|quarter_iv_physical_drive|quarter_state_filter_realistic N"
+            );
             return ExitCode::from(2);
         }
     };
-    match run(n, which == "quarter_iv_physical_road") {
+    let result = if which == "quarter_state_filter_realistic" {
+        run_state_filter(n)
+    } else {
+        run(n, which == "quarter_iv_physical_road")
+    };
+    match result {
         Ok(state) => {
             println!("{state}");
             ExitCode::SUCCESS
