@@ -152,6 +152,66 @@ fn vector(obj: Option<&Bound<'_, PyAny>>, arg: &str, len: usize) -> PyResult<Vec
     Ok(a.data)
 }
 
+/// Measured samples for an identifier's equations, checked: the states `r`, derivatives `z`
+/// and inputs `u` as tables of its structure's sizes (a linear model's rows as its full-row
+/// structure), every value finite. What `residuals` and `regressors` read.
+struct Measured<'py> {
+    rows: usize,
+    n: usize,
+    m: usize,
+    r: Table<'py>,
+    z: Table<'py>,
+    u: Option<Table<'py>>,
+}
+
+impl<'py> Measured<'py> {
+    fn read(
+        this: &PyIdentifier,
+        r: &Bound<'py, PyAny>,
+        z: &Bound<'py, PyAny>,
+        u: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<(vehid_core::structure::Structure<f64>, Self)> {
+        let structure = match &this.structure {
+            Some(st) => st.get().core,
+            None => vehid_core::structure::Structure::full_rows(this.model.n, &this.model.rows).map_err(core_err)?,
+        };
+        let (n, m) = (structure.states(), structure.inputs());
+        let rt = Table::new(r, "r", None, n, "measured states")?;
+        let zt = Table::new(z, "z", Some(rt.rows), n, "measured derivatives, like `r`")?;
+        let ut = input_table(u, m, rt.rows)?;
+        finite("r", rt.data())?;
+        finite("z", zt.data())?;
+        finite("u", ut.as_ref().map_or(&[][..], |t| t.data()))?;
+        Ok((structure, Self { rows: rt.rows, n, m, r: rt, z: zt, u: ut }))
+    }
+
+    /// The samples as plain slices (which may cross into a GIL-free closure).
+    fn samples(&self) -> Rows<'_> {
+        let u = self.u.as_ref().map_or(&[][..], |t| t.data());
+        Rows { rows: self.rows, n: self.n, m: self.m, x: self.r.data(), z: self.z.data(), u }
+    }
+}
+
+/// Row-major samples of states, derivatives and inputs.
+struct Rows<'a> {
+    rows: usize,
+    n: usize,
+    m: usize,
+    x: &'a [f64],
+    z: &'a [f64],
+    u: &'a [f64],
+}
+
+impl Rows<'_> {
+    /// `f(k, x_k, z_k, u_k)` for every sample `k`.
+    fn each(&self, mut f: impl FnMut(usize, &[f64], &[f64], &[f64])) {
+        let (n, m) = (self.n, self.m);
+        for k in 0..self.rows {
+            f(k, &self.x[k * n..(k + 1) * n], &self.z[k * n..(k + 1) * n], &self.u[k * m..(k + 1) * m]);
+        }
+    }
+}
+
 /// A regression `(H, y)`: regressors (samples, parameters) and left sides (samples,).
 type Regression<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, numpy::PyArray1<f64>>);
 
@@ -319,32 +379,19 @@ impl PyIdentifier {
         u: Option<&Bound<'py, PyAny>>,
         equation: usize,
     ) -> PyResult<Regression<'py>> {
-        let this = borrow(slf)?;
-        let structure = match &this.structure {
-            Some(st) => st.get().core,
-            None => vehid_core::structure::Structure::full_rows(this.model.n, &this.model.rows).map_err(core_err)?,
-        };
-        let (n, m, ne, np) = (structure.states(), structure.inputs(), structure.equations(), structure.params());
+        let (structure, data) = Measured::read(&*borrow(slf)?, r, z, u)?;
+        let (ne, np, rows) = (structure.equations(), structure.params(), data.rows);
         if equation >= ne {
             return Err(VehidError::new_err(format!(
                 "`equation` must be below {ne} (the identified equations, in order), got {equation}"
             )));
         }
-        let rt = Table::new(r, "r", None, n, "measured states")?;
-        let zt = Table::new(z, "z", Some(rt.rows), n, "measured derivatives, like `r`")?;
-        let ut = input_table(u, m, rt.rows)?;
-        let rows = rt.rows;
-        let (x, zz) = (rt.data(), zt.data());
-        let uu = ut.as_ref().map_or(&[][..], |t| t.data());
-        finite("r", x)?;
-        finite("z", zz)?;
-        finite("u", uu)?;
+        let data = data.samples();
         let (h, y) = py.detach(|| {
             let (mut h, mut y) = (vec![0.0; rows * np], vec![0.0; rows]);
-            for k in 0..rows {
-                let (xk, zk, uk) = (&x[k * n..(k + 1) * n], &zz[k * n..(k + 1) * n], &uu[k * m..(k + 1) * m]);
+            data.each(|k, xk, zk, uk| {
                 y[k] = structure.regression(equation, xk, zk, uk, &mut h[k * np..(k + 1) * np]);
-            }
+            });
             (h, y)
         });
         Ok((to_array2(py, rows, np, h)?, numpy::IntoPyArray::into_pyarray(y, py)))
@@ -364,34 +411,21 @@ impl PyIdentifier {
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let this = borrow(slf)?;
         let theta = this.params_vec(py)?;
-        let structure = match &this.structure {
-            Some(st) => st.get().core,
-            None => vehid_core::structure::Structure::full_rows(this.model.n, &this.model.rows).map_err(core_err)?,
-        };
+        let (structure, data) = Measured::read(&this, r, z, u)?;
         if structure.params() != theta.len() {
             return Err(VehidError::new_err(
                 "residuals need an identifier whose parameters are its model's unknown rows or its Structure's \
                  parameters",
             ));
         }
-        let (n, m, ne) = (structure.states(), structure.inputs(), structure.equations());
-        let rt = Table::new(r, "r", None, n, "measured states")?;
-        let zt = Table::new(z, "z", Some(rt.rows), n, "measured derivatives, like `r`")?;
-        let ut = input_table(u, m, rt.rows)?;
-        let rows = rt.rows;
-        let (x, zz) = (rt.data(), zt.data());
-        let uu = ut.as_ref().map_or(&[][..], |t| t.data());
-        finite("r", x)?;
-        finite("z", zz)?;
-        finite("u", uu)?;
+        let (ne, rows, data) = (structure.equations(), data.rows, data.samples());
         let out = py.detach(|| {
             let mut out = vec![0.0; rows * ne];
-            for k in 0..rows {
-                let (xk, zk, uk) = (&x[k * n..(k + 1) * n], &zz[k * n..(k + 1) * n], &uu[k * m..(k + 1) * m]);
+            data.each(|k, xk, zk, uk| {
                 for i in 0..ne {
                     out[k * ne + i] = structure.residual(i, &theta, xk, zk, uk);
                 }
-            }
+            });
             out
         });
         to_array2(py, rows, ne, out)
