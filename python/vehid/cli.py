@@ -188,23 +188,12 @@ def cmd_simulate_file(args: argparse.Namespace) -> int:
             header, rows = model_file.simulate(mf, table, params, 0.05 if args.dt is None else args.dt, x0, CHUNK)
     except model_file.ModelFileError as e:
         raise CliError(str(e)) from None
-    if args.output == "-":  # a closed pipe or a full disk: main() reports it
-        out = _stdout()
+
+    def write(out: IO[str]) -> None:
         out.write(",".join(header) + "\n")
         np.savetxt(out, rows, delimiter=",", fmt="%.17g")
-        out.flush()
-        return 0
-    out = _open_output(args.output)
-    try:
-        out.write(",".join(header) + "\n")
-        np.savetxt(out, rows, delimiter=",", fmt="%.17g")
-        out.close()
-    except OSError as e:
-        _close_quietly(out)
-        raise CliError(f"-o {args.output}: cannot write ({e.strerror or e})") from None
-    except BaseException:
-        _close_quietly(out)
-        raise
+
+    write_output(args.output, write)
     return 0
 
 
@@ -235,35 +224,44 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         method=args.method,
         **road_kw,
     )
-    to_stdout = args.output == "-"
-    if to_stdout:
-        out: IO[str] = _stdout()
+
+    def write(out: IO[str]) -> None:
         out.write(",".join(csv_header(model.n_states, model.n_inputs, distance)) + "\n")
         for run in run_chunks(sim, args.n, progress=sys.stderr):
             write_csv_rows(out, run, distance)
-        out.flush()  # a full disk or a closed pipe: main() reports it
-        return 0
-    out = _open_output(args.output)
+
+    write_output(args.output, write, remove_partial=True)
+    if args.output != "-":
+        print(f"vehid: wrote {args.n} samples of the {args.model} car to {args.output}", file=sys.stderr)
+    return 0
+
+
+def write_output(path: str, write: Callable[[IO[str]], None], remove_partial: bool = False) -> None:
+    """``write(out)`` to ``-o path``: standard output for ``-`` (a closed pipe or a full disk:
+    main() reports it, as for every command), else a new file, closed; a write error there is
+    one CliError line (the partial file removed when ``remove_partial``)."""
+    if path == "-":
+        out = _stdout()
+        write(out)
+        out.flush()
+        return
+    out = _open_output(path)
     try:
-        out.write(",".join(csv_header(model.n_states, model.n_inputs, distance)) + "\n")
-        for run in run_chunks(sim, args.n, progress=sys.stderr):
-            write_csv_rows(out, run, distance)
+        write(out)
         out.close()
     except OSError as e:
         _close_quietly(out)
         removed = ""
-        if os.path.isfile(args.output):
+        if remove_partial and os.path.isfile(path):
             try:
-                os.remove(args.output)
+                os.remove(path)
                 removed = "; removed the partial file"
             except OSError:
                 pass
-        raise CliError(f"-o {args.output}: cannot write ({e.strerror or e}){removed}") from None
+        raise CliError(f"-o {path}: cannot write ({e.strerror or e}){removed}") from None
     except BaseException:
         _close_quietly(out)
         raise
-    print(f"vehid: wrote {args.n} samples of the {args.model} car to {args.output}", file=sys.stderr)
-    return 0
 
 
 def _close_quietly(f: IO[str]) -> None:

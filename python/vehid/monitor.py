@@ -151,7 +151,7 @@ def cmd_simulate_drive(args: argparse.Namespace) -> int:
         if given:
             raise _cli_error(f"{name} does not apply to a drive (the road's roughness is its class)")
     from . import Simulator
-    from .cli import _close_quietly, _open_output, _stdout, run_chunks
+    from .cli import _stdout, run_chunks, write_output
 
     to_stdout = args.output == "-"
     if to_stdout:
@@ -174,21 +174,9 @@ def cmd_simulate_drive(args: argparse.Namespace) -> int:
             data = np.column_stack([run.t, run.y, run.s, run.constants])
             out.writelines(",".join(map(repr, row)) + "\n" for row in data.tolist())
 
-    if to_stdout:  # a closed pipe (quiet) or a full disk: main() reports it, as for every command
-        out = _stdout()
-        write(out)
-        out.flush()
+    write_output(args.output, write)
+    if to_stdout:
         return 0
-    out = _open_output(args.output)
-    try:
-        write(out)
-        out.close()
-    except OSError as e:
-        _close_quietly(out)
-        raise _cli_error(f"-o {args.output}: cannot write ({e.strerror or e})") from None
-    except BaseException:
-        _close_quietly(out)
-        raise
     print(f"vehid: wrote {args.n} samples of a drive on {args.road} ({sensors} sensors) to {args.output}",
           file=sys.stderr)
     return 0
