@@ -410,6 +410,10 @@ def test_a_corrupt_monitor_pickle_is_refused() -> None:
     fresh = fn(*args)
     with pytest.raises(vehid.VehidError, match="format 99"):
         fresh.__setstate__((99, version, payload))
+    # The layout before the sensor check (format 1) is refused, naming both formats.
+    with pytest.raises(vehid.VehidError, match=f"format 1, and this vehid .* reads format {fmt} only"):
+        fresh.__setstate__((1, "vehid 0.0.0", payload))
+    assert fmt == 2
     with pytest.raises(vehid.VehidError, match="does not decode"):
         fresh.__setstate__((fmt, version, payload[: len(payload) // 2]))
     with pytest.raises(vehid.VehidError, match="not a \\(format, version, bytes\\) tuple"):

@@ -10,6 +10,7 @@
 use nalgebra::{SMatrix, SVector};
 use vehid_core::health::{
     Constant, DeflectionFilter, HealthConfig, HealthMonitor, RateGain, Reason, Rls, Rls3, Status, JUMP_GATE,
+    OFFSET_WALK,
 };
 use vehid_core::model::QuarterCar;
 use vehid_core::sim::{Change, DriveConfig, QuarterDrive};
@@ -95,6 +96,8 @@ impl Detector {
         let lambda = self.fast.lambda();
         let n_warm = (self.cfg.warmup / self.cfg.dt).ceil() as usize;
         let n_burn = (1.0 / self.cfg.dt).ceil() as usize;
+        // The tracker's offset `c` is a random walk (`OFFSET_WALK`), the reference's is not.
+        self.fast.release(2, OFFSET_WALK);
         let Some(t_ref) = self.theta_ref else {
             let e = self.reference.update(&phi, a).unwrap();
             self.fast.update(&phi, a).unwrap();

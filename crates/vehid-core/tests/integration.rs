@@ -27,6 +27,8 @@ mod parser_property;
 mod physical_structure;
 #[path = "road.rs"]
 mod road;
+#[path = "sensor_faults.rs"]
+mod sensor_faults;
 
 /// With `autotests = false`, a new file in `tests/` would silently never run: each one must be
 /// a module above or a `[[test]]` of Cargo.toml (read here as text: every `name = "…"` line of

@@ -17,7 +17,7 @@ const CHECK: usize = 1 << 16;
 
 /// Version of a pickled monitor's state layout (raise it when the core's serialized form
 /// changes in a way older readers cannot follow).
-pub const STATE_FORMAT: u32 = 1;
+pub const STATE_FORMAT: u32 = 2;
 
 /// A detected change of one physical constant (reported by `HealthMonitor`).
 ///
@@ -262,6 +262,7 @@ fn status_str(s: Status) -> &'static str {
             Reason::Stuck => "cannot judge: stuck sensor",
             Reason::Jump => "cannot judge: jump in the data",
             Reason::Reacquiring => "cannot judge: reacquiring",
+            Reason::Sensors => "cannot judge: sensors disagree",
         },
     }
 }
@@ -399,7 +400,7 @@ impl PyHealthMonitor {
 
     /// What the monitor is doing: "warmup", "monitoring", "settling", or "cannot judge:
     /// low excitation" / "missing samples" / "stuck sensor" / "jump in the data" /
-    /// "reacquiring".
+    /// "reacquiring" / "sensors disagree".
     #[getter]
     fn status(slf: &Bound<'_, Self>) -> PyResult<&'static str> {
         Ok(status_str(borrow(slf)?.inner.status()))

@@ -46,6 +46,11 @@ pub enum Reason {
     Jump,
     /// Restarting the kinematic filter after missing or stuck data (`reacquire` seconds).
     Reacquiring,
+    /// The deflection sensor and the accelerometers disagree: the deflection's second
+    /// derivative no longer matches `a_body − a_wheel` with the warm-up's gain (a sensor whose
+    /// gain changed, an inverted or swapped channel; `consistency.rs`). Nothing about the
+    /// car is judged until they agree again for one `window`.
+    Sensors,
 }
 
 /// What the monitor is doing.

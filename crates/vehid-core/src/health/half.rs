@@ -1,9 +1,13 @@
 //! [`HalfHealthMonitor`]: the quarter car's monitor for the half car (module documentation
 //! of [`crate::health`], section "The half car", for the derivation).
 
+use super::consistency::KinematicCheck;
 use super::event::{Event, Reason, Status};
 use super::kinematic::{DeflectionFilter, RateGain};
-use super::monitor::{cusum_step, screen, stuck_step, HealthConfig, Phase, JUMP_GATE, MAX_DELAY};
+use super::monitor::{
+    cusum_step, samples_of, screen, stuck_step, HealthConfig, Phase, JUMP_GATE, MAX_DELAY, OFFSET_RELEASE, OFFSET_WALK,
+    SENSOR_TOLERANCE,
+};
 use super::pattern::{fit_kron, Fit};
 use super::rls::Rls;
 use crate::model::{HalfCar, HalfConstant, SensorSet};
@@ -133,6 +137,9 @@ pub struct HalfHealthMonitor<T: Real> {
     g: [[T; 2]; 5],
     zero_k: [[u64; 2]; 5],
     onset: u64,
+    check: [KinematicCheck<T>; 2],
+    n_flush: u64,
+    fault_left: u64,
     belief: [T; 12],
     events: u64,
 }
@@ -190,6 +197,9 @@ impl<T: Real> HalfHealthMonitor<T> {
             g: [[T::zero(); 2]; 5],
             zero_k: [[0; 2]; 5],
             onset: 0,
+            check: [KinematicCheck::new(cfg.dt, lambda); 2],
+            n_flush: samples_of(cfg.window, cfg.dt),
+            fault_left: 0,
             belief: cfg.car.constants(),
             events: 0,
             cfg,
@@ -219,6 +229,9 @@ impl<T: Real> HalfHealthMonitor<T> {
             || !self.sigma.iter().flatten().all(finite)
             || !self.belief.iter().all(|v| finite(v) && *v > T::zero())
         {
+            return Err(corrupt);
+        }
+        if !self.check.iter().all(|c| c.is_valid()) || self.n_flush != fresh.n_flush || self.fault_left > self.n_flush {
             return Err(corrupt);
         }
         self.n_decide = fresh.n_decide;
@@ -381,6 +394,13 @@ impl<T: Real> HalfHealthMonitor<T> {
             self.interrupt(Reason::Jump);
             return Ok(None);
         };
+        let warm = self.phase == Phase::Warmup;
+        self.check[0].update(y[4], y[0] - y[2], warm);
+        self.check[1].update(y[5], y[1] - y[3], warm);
+        let tol = self.cfg.min_change * T::of(SENSOR_TOLERANCE);
+        if !warm && (self.check[0].disagrees(tol) || self.check[1].disagrees(tol)) {
+            self.fault_left = self.n_flush;
+        }
         if self.reacq_left > 0 {
             self.reacq_left -= 1;
             self.reason = Some(Reason::Reacquiring);
@@ -404,10 +424,17 @@ impl<T: Real> HalfHealthMonitor<T> {
     }
 
     /// Drops the held-back samples and restarts both kinematic filters.
+    /// The offsets `c` of every tracker are released, as the quarter car's monitor does.
     fn interrupt(&mut self, reason: Reason) {
         self.len = 0;
         self.kf[0].reset();
         self.kf[1].reset();
+        self.check[0].restart();
+        self.check[1].restart();
+        let q = T::of(OFFSET_RELEASE);
+        self.reference.release(4, q);
+        self.fast.release(4, q);
+        self.post.release(4, q);
         self.reacq_left = self.n_reacq;
         self.reason = Some(reason);
     }
@@ -417,6 +444,16 @@ impl<T: Real> HalfHealthMonitor<T> {
         let [df, vf, dr, vr, af, ar] = row;
         let phi = SVector::<T, 5>::new(-df, -vf, -dr, -vr, T::one());
         let y = SVector::<T, 2>::new(af, ar);
+        self.fast.release(4, T::of(OFFSET_WALK));
+        if self.fault_left > 0 && self.phase != Phase::Warmup {
+            // The sensors disagree (as in the quarter car's monitor): track, judge nothing.
+            self.fault_left -= 1;
+            self.fast.update_all(&phi, &y);
+            self.phase = Phase::Monitoring;
+            self.g = [[T::zero(); 2]; 5];
+            self.reason = Some(Reason::Sensors);
+            return None;
+        }
         match self.phase {
             Phase::Warmup => {
                 let e = self.reference.update_all(&phi, &y);
@@ -459,6 +496,7 @@ impl<T: Real> HalfHealthMonitor<T> {
             }
             Phase::Settling => {
                 self.fast.update_all(&phi, &y);
+                self.post.release(4, T::of(OFFSET_WALK));
                 self.post.update_all(&phi, &y);
                 self.post_n += 1;
                 if self.post_n >= self.n_settle {
@@ -581,6 +619,16 @@ impl<T: Real> HalfHealthMonitor<T> {
     /// Ends the settling: names the constant whose pattern fits best, reports it, moves the
     /// reference (`None` for a settled change below `min_change / 2`: the alarm is dropped).
     fn finish(&mut self) -> Option<Event<T, HalfConstant>> {
+        // A change that arrived with a moved sensor gain is the sensor's: the gain's tracker
+        // lags the ratios' by a few seconds, so it is looked at again before reporting.
+        let tol = self.cfg.min_change * T::of(SENSOR_TOLERANCE);
+        if self.check.iter().any(|c| c.moved(tol)) {
+            self.g = [[T::zero(); 2]; 5];
+            self.phase = Phase::Monitoring;
+            self.fault_left = self.n_flush;
+            self.reason = Some(Reason::Sensors);
+            return None;
+        }
         let one = T::one();
         let best = self.fits(true).and_then(|fits| {
             (0..5)
@@ -625,6 +673,7 @@ impl<T: Real> HalfHealthMonitor<T> {
         self.phase = Phase::Monitoring;
         if !self.try_reference(self.sigma, th, &p) {
             self.phase = Phase::Warmup;
+            self.check.iter_mut().for_each(|c| c.clear_reference());
             self.warm_n = 0;
             self.e2_sum = [[T::zero(); 2]; 2];
             self.e2_n = 0;

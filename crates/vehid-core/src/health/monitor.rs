@@ -1,6 +1,7 @@
 //! [`HealthMonitor`]: tracking of `k2/M`, `b/M` and change detection (module documentation
 //! of [`crate::health`] for the design).
 
+use super::consistency::KinematicCheck;
 use super::event::{Constant, Estimate, Event, Reason, Status};
 use super::kinematic::{DeflectionFilter, RateGain};
 use super::rls::Rls3;
@@ -15,6 +16,22 @@ pub const MAX_DELAY: usize = 64;
 /// Innovation gate of the kinematic filter, standard deviations: a larger jump of the
 /// deflection against the integrated accelerations is [`Reason::Jump`].
 pub const JUMP_GATE: f64 = 8.0;
+
+/// Largest relative change of the sensors' kinematic gain ([`KinematicCheck`]) the monitor
+/// judges through, as a fraction of `min_change` (a deflection gain error `ε` moves both
+/// ratios by about `−ε`; at `0.4 δ` it stays below the CUSUM's allowance `δ/2`).
+pub const SENSOR_TOLERANCE: f64 = 0.4;
+
+/// What a restart adds to the unscaled variance of the body equation's offset `c`
+/// ([`crate::health::Rls::release`]): as much as the trackers start with.
+pub(crate) const OFFSET_RELEASE: f64 = 1e6;
+
+/// Random-walk variance of the body equation's offset `c` per sample, in the trackers'
+/// unscaled units ([`crate::health::Rls::release`]): `c` moves with a drifting sensor zero,
+/// and a tracker that holds it constant over its window lets the drift into `k2/M`. The
+/// offset's own memory is then about `1/√q` samples (200: one second at 200 Hz). The
+/// warm-up's reference holds `c` constant (least squares on the warm-up's rows).
+pub const OFFSET_WALK: f64 = 2.5e-5;
 
 /// Number of channels [`HealthMonitor::update`] reads with the realistic sensors:
 /// `a_body` (m/s²), `a_wheel` (m/s²), `deflection` (m), `model::REALISTIC_CHANNELS`.
@@ -192,7 +209,7 @@ impl<T: Real> HealthConfig<T> {
 }
 
 /// Samples of a duration (at least 1).
-fn samples_of<T: Real>(seconds: T, dt: T) -> u64 {
+pub(crate) fn samples_of<T: Real>(seconds: T, dt: T) -> u64 {
     let n = libm::ceil(seconds.to_f64() / dt.to_f64());
     if n >= 1.0 {
         n as u64
@@ -286,6 +303,9 @@ pub struct HealthMonitor<T: Real> {
     onset: u64,
     belief: [T; 3],
     events: u64,
+    check: KinematicCheck<T>,
+    n_flush: u64,
+    fault_left: u64,
 }
 
 impl<T: Real> HealthMonitor<T> {
@@ -341,6 +361,9 @@ impl<T: Real> HealthMonitor<T> {
             onset: 0,
             belief: [cfg.car.m_body(), cfg.car.k2(), cfg.car.b()],
             events: 0,
+            check: KinematicCheck::new(cfg.dt, lambda),
+            n_flush: samples_of(cfg.window, cfg.dt),
+            fault_left: 0,
             cfg,
         })
     }
@@ -364,6 +387,9 @@ impl<T: Real> HealthMonitor<T> {
         let finite = |v: T| v.to_f64().is_finite();
         let stats = [self.sigma2, self.e2_sum, self.e1_sum, self.inflate, self.z];
         if !stats.iter().all(|&v| finite(v)) || !self.belief.iter().all(|&v| finite(v) && v > T::zero()) {
+            return Err(corrupt);
+        }
+        if !self.check.is_valid() || self.n_flush != fresh.n_flush || self.fault_left > self.n_flush {
             return Err(corrupt);
         }
         self.rate = fresh.rate;
@@ -482,6 +508,10 @@ impl<T: Real> HealthMonitor<T> {
             self.interrupt(Reason::Jump);
             return Ok(None);
         };
+        self.check.update(y[2], y[0] - y[1], self.phase == Phase::Warmup);
+        if self.phase != Phase::Warmup && self.check.disagrees(self.cfg.min_change * T::of(SENSOR_TOLERANCE)) {
+            self.fault_left = self.n_flush;
+        }
         if self.reacq_left > 0 {
             self.reacq_left -= 1;
             self.reason = Some(Reason::Reacquiring);
@@ -506,9 +536,16 @@ impl<T: Real> HealthMonitor<T> {
     }
 
     /// Drops the held-back samples and restarts the kinematic filter.
+    /// The offset `c` of every tracker is released (`Rls::release`): a sensor whose zero
+    /// jumped, or came back from a gap with another zero, moves `c` and nothing else.
     fn interrupt(&mut self, reason: Reason) {
         self.len = 0;
         self.kf.reset();
+        self.check.restart();
+        let q = T::of(OFFSET_RELEASE);
+        self.reference.release(2, q);
+        self.fast.release(2, q);
+        self.post.release(2, q);
         self.reacq_left = self.n_reacq;
         self.reason = Some(reason);
     }
@@ -516,6 +553,18 @@ impl<T: Real> HealthMonitor<T> {
     /// Uses one regression row `a_body = −(k2/M) d − (b/M) ḋ + c` of sample `kr`.
     fn feed(&mut self, kr: u64, d: T, v: T, a: T) -> Option<Event<T>> {
         let phi = SVector::<T, 3>::new(-d, -v, T::one());
+        if self.fault_left > 0 && self.phase != Phase::Warmup {
+            // The sensors disagree: track (so that the faulty samples age out of the
+            // tracker) but judge nothing, and drop an alarm being settled.
+            self.fault_left -= 1;
+            self.fast.update(&phi, a);
+            self.phase = Phase::Monitoring;
+            self.g = [[T::zero(); 2]; 2];
+            self.reason = Some(Reason::Sensors);
+            return None;
+        }
+        let q = T::of(OFFSET_WALK);
+        self.fast.release(2, q);
         match self.phase {
             Phase::Warmup => {
                 let e = self.reference.update(&phi, a);
@@ -549,6 +598,7 @@ impl<T: Real> HealthMonitor<T> {
             }
             Phase::Settling => {
                 self.fast.update(&phi, a);
+                self.post.release(2, q);
                 self.post.update(&phi, a);
                 self.post_n += 1;
                 if self.post_n >= self.n_settle {
@@ -625,6 +675,16 @@ impl<T: Real> HealthMonitor<T> {
     /// (`None`: the settled change is smaller than `min_change / 2`, a transient such as a
     /// jump in the data; the alarm is dropped and the reference kept.)
     fn finish(&mut self) -> Option<Event<T>> {
+        // A change that arrived with a moved sensor gain is the sensor's: the gain's tracker
+        // lags the ratios' by a few seconds, so it is looked at again before reporting.
+        let tol = self.cfg.min_change * T::of(SENSOR_TOLERANCE);
+        if self.check.moved(tol) {
+            self.g = [[T::zero(); 2]; 2];
+            self.phase = Phase::Monitoring;
+            self.fault_left = self.n_flush;
+            self.reason = Some(Reason::Sensors);
+            return None;
+        }
         let th = *self.post.theta();
         let p = *self.post.p();
         let s2 = self.sigma2;
@@ -697,6 +757,7 @@ impl<T: Real> HealthMonitor<T> {
         if !self.try_reference(s2, [th[0], th[1]], var) {
             // Too uncertain to be a reference: learn it again.
             self.phase = Phase::Warmup;
+            self.check.clear_reference();
             self.warm_n = 0;
             self.e2_sum = T::zero();
             self.e2_n = 0;

@@ -57,6 +57,14 @@ impl<T: Real, const N: usize, const O: usize> Rls<T, N, O> {
         self.cap = cap;
     }
 
+    /// Lets parameter `j` jump by an unknown amount: adds `q` to `P_jj` (the time update of
+    /// a Kalman filter whose parameter `j` takes a random step of variance `q σ²`). The
+    /// next samples learn its new value; the other parameters keep their estimates and, in
+    /// the limit of a large `q`, lose only what they knew through parameter `j`.
+    pub fn release(&mut self, j: usize, q: T) {
+        self.p[(j, j)] += q;
+    }
+
     /// The estimate `Θ` (`N × O`).
     pub fn theta(&self) -> &SMatrix<T, N, O> {
         &self.theta
