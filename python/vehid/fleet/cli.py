@@ -6,7 +6,7 @@ import argparse
 import os
 import sys
 import time
-from typing import IO, Any, Callable
+from typing import IO, Any, Callable, Optional
 
 DESCRIPTION = ("The suspension health monitor over a fleet's logs (DIR/vehicle=<id>/day=<YYYY-MM-DD>/*.parquet "
                "and DIR/fleet.toml), day after day, into a store (Parquet: state, events, problems); locally or on "
@@ -17,11 +17,12 @@ class ProgressBar:
     """Progress over vehicle-days on ``out``: a bar redrawn in place on a terminal, else a line
     every ``every`` seconds; always a last line."""
 
-    def __init__(self, what: str, out: IO[str] = sys.stderr, every: float = 5.0) -> None:
-        self.what, self.out, self.every = what, out, every
+    def __init__(self, what: str, out: Optional[IO[str]] = None, every: float = 5.0) -> None:
+        self.what, self.every = what, every
+        self.out = sys.stderr if out is None else out
         self.t0 = time.monotonic()
         self.last = -1e9
-        self.tty = bool(getattr(out, "isatty", lambda: False)())
+        self.tty = bool(getattr(self.out, "isatty", lambda: False)())
 
     def __call__(self, done: int, total: int) -> None:
         now = time.monotonic()
