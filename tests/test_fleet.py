@@ -20,9 +20,10 @@ from fleet_helpers import assert_same_store, days_of, make_fleet, store_tables, 
 import vehid
 import vehid.fleet as fleet
 from vehid.cli import main
-from vehid.fleet import engine, store as store_mod
+from vehid.fleet import engine
+from vehid.fleet import store as store_mod
 from vehid.fleet.fold import GAP_CAP, DayError, fold, pack_state, unpack_state
-from vehid.fleet.layout import read_day, scan
+from vehid.fleet.layout import scan
 
 
 @pytest.fixture(scope="module")

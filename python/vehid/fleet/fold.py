@@ -100,11 +100,10 @@ def channels(config: VehicleConfig) -> Tuple[Column, ...]:
 
 def day_arrays(table: Any, config: VehicleConfig, where: str = "the day") -> Tuple[NDArray[np.float64],
                                                                                   NDArray[np.float64]]:
-    """``(t, y)`` of a day's pyarrow table: times (s) and the channels (float64, NaN where a
-    cell is missing); :class:`DayError` for a missing column or a time that is not a number."""
+    """``(t, y)`` of a day's pyarrow table: times (s) and the channels (float64, C order, NaN
+    where a cell is missing); :class:`DayError` for a missing column or one that is not numbers."""
     pa = module("pyarrow")
     pc = module("pyarrow.compute")
-
     chans = channels(config)
     try:
         match = match_columns(table.column_names, (Column("t", "time", "s"),) + chans, dict(config.columns),
@@ -120,12 +119,15 @@ def day_arrays(table: Any, config: VehicleConfig, where: str = "the day") -> Tup
         col = table.column(match.index[name])
         if not (pa.types.is_integer(col.type) or pa.types.is_floating(col.type)):
             raise DayError(f"column {table.column_names[match.index[name]]!r} holds {col.type}, not numbers")
-        values = pc.cast(col, pa.float64()).fill_null(math.nan)
-        return np.asarray(values.to_numpy(), dtype=np.float64)
+        if col.null_count:
+            col = pc.cast(col, pa.float64()).fill_null(math.nan)
+        return np.asarray(col.to_numpy())
 
-    t = floats("t")
-    y = np.column_stack([floats(c.name) for c in chans]) if len(t) else np.zeros((0, len(chans)))
-    return t, np.ascontiguousarray(y)
+    t = floats("t").astype(np.float64, copy=False)
+    y = np.empty((len(t), len(chans)))
+    for j, c in enumerate(chans):
+        y[:, j] = floats(c.name)
+    return t, y
 
 
 def fold(state: Optional[bytes], table: Any, config: VehicleConfig) -> DayResult:
@@ -135,8 +137,9 @@ def fold(state: Optional[bytes], table: Any, config: VehicleConfig) -> DayResult
 
     The summary holds ``t0``, ``t1`` (s, the first and last time), ``samples`` (rows),
     ``seconds`` (rows × dt), ``missing`` (missing samples fed for gaps), ``status`` (seconds
-    of driving in ``warmup``, ``judged`` and ``cannot judge``, with ``reasons``, seconds per
-    reason), ``end_status``, ``trend`` (every :data:`TREND` s: ``t`` and the tracked ratios by
+    of driving in ``warmup``, ``judged`` and ``cannot judge``: the status after each block of
+    :data:`BLOCK` s, counted for the block), ``reasons`` (seconds per reason of "cannot judge"),
+    ``end_status``, ``trend`` (every :data:`TREND` s of driving: ``t`` and the tracked ratios by
     name, null where the monitor could not judge) and ``config`` (the settings' fingerprint).
 
     Raises :class:`DayError` (nothing changes) for a day it cannot use."""
@@ -157,26 +160,21 @@ def fold(state: Optional[bytes], table: Any, config: VehicleConfig) -> DayResult
                            "order or repeated: sort the day's files, drop duplicated samples)")
         raise DayError(f"row {i + 2}: the sample interval {d[i]:.6g} s is under half of dt = {dt:g} s "
                        "(fleet.toml's dt, or resample the log)")
-    steps = np.minimum(np.rint(d / dt).astype(np.int64) - 1, int(round(GAP_CAP / dt)))
-    # The fed rows: a missing sample first (after an earlier day), then the rows with their gaps.
-    lead = 0 if state is None else 1
-    gaps = np.concatenate([[lead], steps]).astype(np.int64)
-    pos = np.arange(len(t)) + np.cumsum(gaps)  # index of each row among the fed rows
-    n_fed = int(pos[-1]) + 1
-    fed = np.full((n_fed, y.shape[1]), math.nan)
-    fed[pos] = y
-    real = np.zeros(n_fed, dtype=bool)
-    real[pos] = True
-    t_fed = np.empty(n_fed)
-    t_fed[pos] = t
-    fill = np.flatnonzero(~real)
-    if len(fill):  # a missing sample's time: the next row's time minus whole intervals
-        nxt = np.searchsorted(pos, fill)
-        t_fed[fill] = t[nxt] - (pos[nxt] - fill) * dt
+    cap = int(round(GAP_CAP / dt))
+    # Segments of rows between gaps; before each, its missing samples (one before the first
+    # row after an earlier day).
+    breaks = np.flatnonzero(d >= 1.5 * dt) + 1
+    starts = np.concatenate([[0], breaks]).astype(np.int64)
+    ends = np.concatenate([breaks, [len(t)]]).astype(np.int64)
+    before = np.minimum(np.rint(d[breaks - 1] / dt).astype(np.int64) - 1, cap) if len(breaks) else np.zeros(0, int)
+    missing = np.concatenate([[0 if state is None else 1], before]).astype(np.int64)
+    # Where each segment's first row falls among the samples fed today.
+    fed_start = starts + np.cumsum(missing)
 
     s0 = mon.samples
+    width = y.shape[1]
     block = max(1, int(round(BLOCK / dt)))
-    every = max(1, int(round(TREND / BLOCK)))
+    trend_rows = max(1, int(round(TREND / dt)))
     names = ("k2_f", "b_f", "k2_r", "b_r") if config.half else ("k2/M", "b/M")
     shares: Dict[str, float] = {"warmup": 0.0, "judged": 0.0, "cannot judge": 0.0}
     reasons: Dict[str, float] = {}
@@ -185,39 +183,51 @@ def fold(state: Optional[bytes], table: Any, config: VehicleConfig) -> DayResult
     events: List[Dict[str, Any]] = []
 
     def day_time(tm: float) -> float:
+        """The day's time of the monitor's time ``tm`` (a missing sample's: its row's less
+        whole intervals)."""
         k = int(round(tm / dt)) - s0
-        if 0 <= k < n_fed:
-            return float(t_fed[k])
-        return float(t_fed[0] + k * dt) if k < 0 else float(t_fed[-1] + (k - n_fed + 1) * dt)
+        j = max(0, int(np.searchsorted(fed_start, k, side="right")) - 1)
+        row = starts[j] + (k - fed_start[j])
+        if row < starts[j]:
+            return float(t[starts[j]] - (starts[j] - row) * dt)
+        if row >= ends[j]:
+            return float(t[ends[j] - 1] + (row - ends[j] + 1) * dt)
+        return float(t[row])
 
-    for b, i in enumerate(range(0, n_fed, block)):
+    def feed(rows: NDArray[np.float64], where: float) -> None:
         try:
-            evs = mon.fit(fed[i : i + block])
+            evs = mon.fit(rows)
         except VehidError as e:
-            raise DayError(f"near t = {t_fed[i]:.3f} s: the monitor refused the samples ({e})") from None
+            raise DayError(f"near t = {where:.3f} s: the monitor refused the samples ({e})") from None
         for ev in evs:
             p = ev.parameter
-            corner = p.split("_", 1)[1] if "_" in p else None
             events.append({"t": day_time(ev.t), "parameter": p, "before": ev.before, "after": ev.after,
-                           "low": ev.low, "high": ev.high, "corner": corner, "t_change": day_time(ev.t_change),
-                           "change": ev.change})
-        status = mon.status
-        seconds = float(real[i : i + block].sum()) * dt
-        judged = status in ("monitoring", "settling")
-        if judged:
-            shares["judged"] += seconds
-        elif status == "warmup":
-            shares["warmup"] += seconds
-        else:
-            shares["cannot judge"] += seconds
-            why = status.split(": ", 1)[-1]
-            reasons[why] = reasons.get(why, 0.0) + seconds
-        if b % every == 0:
-            trend_t.append(round(float(t_fed[min(i + block, n_fed) - 1]), 3))
-            trend_v.append(_tracked(mon.estimate, config.half) if judged else [None] * len(names))
+                           "low": ev.low, "high": ev.high, "corner": p.split("_", 1)[1] if "_" in p else None,
+                           "t_change": day_time(ev.t_change), "change": ev.change})
+
+    for a, b, gap in zip(starts.tolist(), ends.tolist(), missing.tolist()):
+        if gap:
+            feed(np.full((gap, width), math.nan), float(t[a]))
+        for i in range(a, b, block):
+            j = min(i + block, b)
+            feed(y[i:j], float(t[i]))
+            status = mon.status
+            seconds = (j - i) * dt
+            judged = status in ("monitoring", "settling")
+            if judged:
+                shares["judged"] += seconds
+            elif status == "warmup":
+                shares["warmup"] += seconds
+            else:
+                shares["cannot judge"] += seconds
+                why = status.split(": ", 1)[-1]
+                reasons[why] = reasons.get(why, 0.0) + seconds
+            if j // trend_rows > i // trend_rows or i == 0:
+                trend_t.append(round(float(t[j - 1]), 3))
+                trend_v.append(_tracked(mon.estimate, config.half) if judged else [None] * len(names))
     summary: Dict[str, Any] = {
         "t0": float(t[0]), "t1": float(t[-1]), "samples": int(len(t)), "seconds": round(len(t) * dt, 9),
-        "missing": int(n_fed - len(t)), "status": {k: round(v, 6) for k, v in shares.items()},
+        "missing": int(missing.sum()), "status": {k: round(v, 6) for k, v in shares.items()},
         "reasons": {k: round(v, 6) for k, v in sorted(reasons.items())}, "end_status": mon.status,
         "trend": {"names": list(names), "t": trend_t, "values": trend_v}, "config": config.fingerprint(),
     }

@@ -73,7 +73,8 @@ def scan(root: str) -> Dataset:
 
 
 def read_day(files: List[str]) -> Any:
-    """The day's files joined into one pyarrow table (in the files' name order);
+    """The day's files joined into one pyarrow table (in the files' name order; read on the
+    calling thread: the engines run many days side by side);
     :class:`DayError` naming the file for one that cannot be read or does not fit the others."""
     pa = module("pyarrow")
     pq = module("pyarrow.parquet")
@@ -83,7 +84,7 @@ def read_day(files: List[str]) -> Any:
     tables = []
     for path in files:
         try:
-            tables.append(pq.read_table(path))
+            tables.append(pq.read_table(path, use_threads=False))
         except Exception as e:  # pyarrow's ArrowInvalid / OSError family
             raise DayError(f"{os.path.basename(path)}: not a readable Parquet file "
                            f"({str(e).splitlines()[0] if str(e) else type(e).__name__})") from None

@@ -17,6 +17,7 @@ from __future__ import annotations
 import datetime
 import math
 import os
+import threading
 from typing import Any, Callable, Dict, List, Literal, Optional, Tuple
 
 import numpy as np
@@ -82,14 +83,19 @@ def _fleet_toml(plans: List[Tuple[str, Dict[str, Any]]], dt: float) -> str:
 
 
 def simulate(directory: str, vehicles: int, days: int, hours: float, faults: float, seed: int = 1, *,
-             start: str = "2026-01-05", dt: float = 0.005,
-             progress: Optional[Callable[[int, int], None]] = None) -> Any:
+             start: str = "2026-01-05", dt: float = 0.005, first: int = 0, total: Optional[int] = None,
+             workers: int = 1, progress: Optional[Callable[[int, int], None]] = None) -> Any:
     """Writes a simulated fleet into ``directory``: ``vehicles`` vehicles × ``days`` days ×
     ``hours`` hours of driving a day (sampled every ``dt`` s), ``faults`` (0..1) of the
     vehicles with one injected fault, from ``seed``; the first day is ``start``
     (YYYY-MM-DD). Writes ``fleet.toml``, the logs and ``truth.parquet`` (vehicle, day, t (s
     from the day's start), parameter, before, after), and returns the truth table.
-    ``progress(done, total)`` is called after each vehicle. ``ValueError`` names a bad argument."""
+
+    ``first`` and ``total`` write vehicles ``first .. first + vehicles - 1`` of a fleet of
+    ``total`` (default: ``first + vehicles``): a large fleet in parts, the same vehicles as in
+    one go. ``workers`` threads simulate vehicles side by side (the result does not depend
+    on it). ``progress(done, total)`` is called after each vehicle. ``ValueError`` names a
+    bad argument."""
     pa = module("pyarrow")
     pq = module("pyarrow.parquet")
 
@@ -114,66 +120,98 @@ def simulate(directory: str, vehicles: int, days: int, hours: float, faults: flo
         raise ValueError(f"{directory}: is a file; give a directory for the fleet")
     if os.path.isdir(directory) and os.listdir(directory):
         raise ValueError(f"{directory}: not empty; give a new or empty directory (a simulation never overwrites)")
+    total = first + vehicles if total is None else total
+    if first < 0 or total < first + vehicles:
+        raise ValueError(f"first={first}, total={total}: expected 0 <= first and first + vehicles <= total")
     os.makedirs(directory, exist_ok=True)
-    n_faulty = int(round(faults * vehicles))
-    faulty = set(np.random.default_rng([seed, 2**31]).permutation(vehicles)[:n_faulty].tolist())
-    width = max(5, len(str(vehicles - 1)))
-    plans = [(f"v{i:0{width}d}", _vehicle_plan(seed, i, i in faulty, days, hours)) for i in range(vehicles)]
+    n_faulty = int(round(faults * total))
+    faulty = set(np.random.default_rng([seed, 2**31]).permutation(total)[:n_faulty].tolist())
+    width = max(5, len(str(total - 1)))
+    plans = [(f"v{i:0{width}d}", _vehicle_plan(seed, i, i in faulty, days, hours))
+             for i in range(first, first + vehicles)]
     with open(os.path.join(directory, "fleet.toml"), "w", encoding="utf-8") as f:
         f.write(_fleet_toml(plans, dt))
+    rows: List[List[Tuple[Any, ...]]] = [[] for _ in plans]
+    done = [0]
+    lock = threading.Lock()
+
+    def one(k: int) -> None:
+        rows[k] = _drive(directory, plans[k][0], plans[k][1], days, hours, dt, day0)
+        with lock:
+            done[0] += 1
+            if progress is not None:
+                progress(done[0], len(plans))
+
+    if workers > 1:
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            list(pool.map(one, range(len(plans))))
+    else:
+        for k in range(len(plans)):
+            one(k)
     truth: Dict[str, List[Any]] = {k: [] for k in ("vehicle", "day", "t", "parameter", "before", "after")}
-    n = int(round(hours * 3600.0 / dt))
-    for k, (vid, plan) in enumerate(plans):
-        rng = plan["rng"]
-        constants = dict(plan["constants"])
-        for d in range(days):
-            day = (day0 + datetime.timedelta(days=d)).isoformat()
-            road = ROADS[int(rng.choice(3, p=[0.3, 0.5, 0.2]))]
-            speed = float(rng.uniform(8.0, 25.0))
-            depart = float(np.round(rng.uniform(7 * 3600, 9 * 3600) / dt) * dt)
-            trips = [n] if n * dt < 1200 else [n // 2, n - n // 2]
-            pause = float(np.round(rng.uniform(600, 2400) / dt) * dt)
-            changes: List[Tuple[float, Dict[str, float]]] = []
-            changed: Optional[Tuple[str, float]] = None
-            fault = plan["fault"]
-            if fault is not None and fault[0] == d:
-                _, at, param, factor = fault
-                at = float(np.round(at / dt) * dt)
-                name = HALF_NAMES[param] if plan["half"] else param
-                before = constants[name]
-                after = float(f"{before * factor:.5g}")
-                changes = [(at, {param: after})]
-                changed = (name, after)
-                t_day = depart + at + (pause if len(trips) == 2 and at >= trips[0] * dt else 0.0)
-                for col, v in zip(truth, (vid, day, t_day, param, before, after)):
-                    truth[col].append(v)
-            sim = Simulator(_car(plan, constants), dt=dt, road=road, speed=speed, changes=changes,
-                            sensors="realistic", seed=plan["seeds"][d])
-            vdir = os.path.join(directory, f"vehicle={vid}", f"day={day}")
-            os.makedirs(vdir, exist_ok=True)
-            t0 = depart
-            for j, count in enumerate(trips):
-                if j == 1:
-                    t0 += pause
-                per_file = int(round(FILE_SECONDS / dt))
-                for s in range(0, count, per_file):
-                    m = min(per_file, count - s)
-                    r = sim.run(m)
-                    t = t0 + (np.arange(m) + s) * dt
-                    cols: Dict[str, Any] = {"t": pa.array(t, pa.float64())}
-                    for c, name in enumerate(r.channels):
-                        cols[name] = pa.array(r.y[:, c].astype(np.float32))
-                    start_t = float(t[0])
-                    hh, rest = divmod(int(start_t), 3600)
-                    fname = f"{hh:02d}-{rest // 60:02d}-{rest % 60:02d}.parquet"
-                    pq.write_table(pa.table(cols), os.path.join(vdir, fname))
-                t0 += count * dt
-            if changed is not None:  # the fault stays
-                constants[changed[0]] = changed[1]
-        if progress is not None:
-            progress(k + 1, vehicles)
+    for vrows in rows:
+        for r in vrows:
+            for col, v in zip(truth, r):
+                truth[col].append(v)
     types = {"vehicle": pa.string(), "day": pa.string(), "t": pa.float64(), "parameter": pa.string(),
              "before": pa.float64(), "after": pa.float64()}
     table = pa.table({k: pa.array(v, types[k]) for k, v in truth.items()})
     pq.write_table(table, os.path.join(directory, "truth.parquet"))
     return table
+
+
+def _drive(directory: str, vid: str, plan: Dict[str, Any], days: int, hours: float, dt: float,
+           day0: datetime.date) -> List[Tuple[Any, ...]]:
+    """Simulates and writes one vehicle's days; its truth rows."""
+    pa = module("pyarrow")
+    pq = module("pyarrow.parquet")
+    truth: List[Tuple[Any, ...]] = []
+    n = int(round(hours * 3600.0 / dt))
+    rng = plan["rng"]
+    constants = dict(plan["constants"])
+    for d in range(days):
+        day = (day0 + datetime.timedelta(days=d)).isoformat()
+        road = ROADS[int(rng.choice(3, p=[0.3, 0.5, 0.2]))]
+        speed = float(rng.uniform(8.0, 25.0))
+        depart = float(np.round(rng.uniform(7 * 3600, 9 * 3600) / dt) * dt)
+        trips = [n] if n * dt < 1200 else [n // 2, n - n // 2]
+        pause = float(np.round(rng.uniform(600, 2400) / dt) * dt)
+        changes: List[Tuple[float, Dict[str, float]]] = []
+        changed: Optional[Tuple[str, float]] = None
+        fault = plan["fault"]
+        if fault is not None and fault[0] == d:
+            _, at, param, factor = fault
+            at = float(np.round(at / dt) * dt)
+            name = HALF_NAMES[param] if plan["half"] else param
+            before = constants[name]
+            after = float(f"{before * factor:.5g}")
+            changes = [(at, {param: after})]
+            changed = (name, after)
+            t_day = depart + at + (pause if len(trips) == 2 and at >= trips[0] * dt else 0.0)
+            truth.append((vid, day, t_day, param, before, after))
+        sim = Simulator(_car(plan, constants), dt=dt, road=road, speed=speed, changes=changes,
+                        sensors="realistic", seed=plan["seeds"][d])
+        vdir = os.path.join(directory, f"vehicle={vid}", f"day={day}")
+        os.makedirs(vdir, exist_ok=True)
+        t0 = depart
+        for j, count in enumerate(trips):
+            if j == 1:
+                t0 += pause
+            per_file = int(round(FILE_SECONDS / dt))
+            for s in range(0, count, per_file):
+                m = min(per_file, count - s)
+                r = sim.run(m)
+                t = t0 + (np.arange(m) + s) * dt
+                cols: Dict[str, Any] = {"t": pa.array(t, pa.float64())}
+                for c, name in enumerate(r.channels):
+                    cols[name] = pa.array(r.y[:, c].astype(np.float32))
+                start_t = float(t[0])
+                hh, rest = divmod(int(start_t), 3600)
+                fname = f"{hh:02d}-{rest // 60:02d}-{rest % 60:02d}.parquet"
+                pq.write_table(pa.table(cols), os.path.join(vdir, fname))
+            t0 += count * dt
+        if changed is not None:  # the fault stays
+            constants[changed[0]] = changed[1]
+    return truth
