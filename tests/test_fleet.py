@@ -389,7 +389,8 @@ def test_cli_simulate_run_report(tmp_path: Path, capsys: pytest.CaptureFixture[s
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["fleet", "run", "{tmp}/none", "--store", "{tmp}/s"], "fleet.toml: no such file"),
+    (["fleet", "run", "{tmp}/none", "--store", "{tmp}/s"], "none: not a directory (a fleet:"),
+    (["fleet", "run", "{tmp}/empty", "--store", "{tmp}/s"], "fleet.toml: no such file"),
     (["fleet", "run", "{tmp}", "--store", "{tmp}/file"], "is a file; give a directory"),
     (["fleet", "run", "{tmp}", "--store", "{tmp}/s", "--from", "2026-02-30"], "since='2026-02-30': expected a day"),
     (["fleet", "report", "{tmp}/s", "-o", "{tmp}/r.html"], "not a fleet store (no state.parquet)"),
@@ -400,6 +401,38 @@ def test_cli_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[s
                                  message: str) -> None:
     (tmp_path / "fleet.toml").write_text("[defaults]\n")
     (tmp_path / "file").write_text("x")
+    (tmp_path / "empty").mkdir()
     assert main([a.replace("{tmp}", str(tmp_path)) for a in argv]) == 2
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1 and "Traceback" not in err
+
+
+def test_a_process_killed_mid_write_leaves_a_store_that_reads(src: Path, clean: Path, tmp_path: Path) -> None:
+    """A real process death (SIGKILL, no cleanup runs) while it writes state.parquet: the
+    store reads as it was, and the rerun removes the half-written file and completes it."""
+    import signal
+    import subprocess
+    import sys
+
+    store = tmp_path / "store"
+    fleet.run(str(subset(src, tmp_path / "d1", days_of(src)[:1])), str(store), workers=1)
+    before = store_tables(store)
+    script = (
+        "import os, signal, sys, pyarrow.parquet as pq, vehid.fleet as fleet\n"
+        "real = pq.write_table\n"
+        "def dies(table, where, **kw):\n"
+        "    real(table.slice(0, table.num_rows // 2), where, **kw)\n"
+        "    os.kill(os.getpid(), signal.SIGKILL)\n"
+        "pq.write_table = dies\n"
+        "fleet.run(sys.argv[1], sys.argv[2], workers=1)\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", script, str(src), str(store)], capture_output=True,
+                          env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}, timeout=120)
+    assert proc.returncode == -signal.SIGKILL, proc.stderr
+    assert any(".tmp-" in n for n in os.listdir(store))  # the half-written file is still there
+    after = store_tables(store)
+    for name in before:
+        assert after[name].equals(before[name]), name
+    fleet.run(str(src), str(store), workers=1)
+    assert not any(".tmp-" in n or n == ".lock" for n in os.listdir(store))
+    assert_same_store(clean, store)

@@ -165,8 +165,8 @@ def add_parser(sub: Any) -> None:
                      help="a Dask scheduler (e.g. tcp://10.0.0.5:8786): run on its cluster (needs vehid[fleet])")
     r.add_argument("--from", default=None, metavar="DAY",
                    help="recompute every vehicle's days from DAY (YYYY-MM-DD) on, replacing them")
-    r.add_argument("--batch", type=_count(1), default=None, help="vehicles per task (default: about 4 tasks per "
-                   "worker, at most 64)")
+    r.add_argument("--batch", type=_count(1), default=None, help="vehicles per task (default: 1 locally; on Dask "
+                   "about 4 tasks per worker, at most 64)")
     r.set_defaults(func=cmd_run)
     rep = cmds.add_parser("report", help="write the store's report: one static HTML page")
     rep.add_argument("store", metavar="STORE", help="the store's directory")

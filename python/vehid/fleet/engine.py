@@ -182,8 +182,8 @@ def run(fleet: str, store: str, client: Any = None, workers: Optional[int] = Non
     every vehicle's days from that day on, replacing them (the same logs give the same rows).
     ``client``: a ``dask.distributed.Client`` (the work runs on its cluster; the fleet and the
     store must be paths its workers can read); else a local pool of ``workers`` threads
-    (default: the number of CPUs). ``batch``: vehicles per task (default: about four tasks per
-    worker, at most 64 vehicles). ``progress(done, total)`` is called with the vehicle-days
+    (default: the number of CPUs). ``batch``: vehicles per task (default: one locally; on Dask
+    about four tasks per worker, at most 64 vehicles). ``progress(done, total)`` is called with the vehicle-days
     processed. The store is committed every ``commit_every`` seconds of wall time and at the end.
 
     Raises ``ValueError`` (:class:`~vehid.fleet.config.ConfigError`,
@@ -198,8 +198,8 @@ def run(fleet: str, store: str, client: Any = None, workers: Optional[int] = Non
         raise ValueError(f"batch={batch!r}: expected a number of vehicles per task >= 1")
     if since is not None:
         since = _check_day(since, "since")
-    load_config(os.path.join(fleet, CONFIG))  # the fleet's errors before the store is created
-    scan(fleet)
+    scan(fleet)  # the fleet's errors before the store is created
+    load_config(os.path.join(fleet, CONFIG))
     if os.path.exists(store) and not os.path.isdir(store):
         raise StoreError(f"--store {store}: is a file; give a directory (created if missing)")
     try:
@@ -207,6 +207,9 @@ def run(fleet: str, store: str, client: Any = None, workers: Optional[int] = Non
     except OSError as e:
         raise StoreError(f"--store {store}: cannot create the directory ({e.strerror or e})") from None
     with _Lock(store):
+        for name in os.listdir(store):  # what a process killed while writing left behind
+            if ".parquet.tmp-" in name:
+                os.remove(os.path.join(store, name))
         st = open_store(store)
         tasks, problems = plan(fleet, st, since)
         if since is not None:
@@ -216,7 +219,10 @@ def run(fleet: str, store: str, client: Any = None, workers: Optional[int] = Non
         st.run_problems = problems
         total = sum(len(t[3]) for t in tasks)
         n_workers = workers or (len(_dask_workers(client)) if client is not None else os.cpu_count() or 1)
-        size = batch or max(1, min(64, math.ceil(len(tasks) / (4 * max(1, n_workers)))))
+        # Locally a task is one vehicle (threads cost nothing to start); on Dask about four
+        # tasks per worker, so that the scheduler sees few, long tasks.
+        size = batch or (max(1, min(64, math.ceil(len(tasks) / (4 * max(1, n_workers))))) if client is not None
+                         else 1)
         done_days = 0
         seconds = 0.0
         last_commit = time.monotonic()
