@@ -436,3 +436,16 @@ def test_a_process_killed_mid_write_leaves_a_store_that_reads(src: Path, clean: 
     fleet.run(str(src), str(store), workers=1)
     assert not any(".tmp-" in n or n == ".lock" for n in os.listdir(store))
     assert_same_store(clean, store)
+
+
+def test_simulate_in_parts_writes_the_same_vehicles(tmp_path: Path) -> None:
+    from vehid.fleet.simulate import simulate
+
+    whole = simulate(str(tmp_path / "whole"), 4, 1, 0.05, 0.5, 21)
+    parts = [simulate(str(tmp_path / f"p{k}"), 2, 1, 0.05, 0.5, 21, first=2 * k, total=4, workers=2)
+             for k in range(2)]
+    assert whole.to_pylist() == parts[0].to_pylist() + parts[1].to_pylist() and whole.num_rows == 2
+    for f in sorted((tmp_path / "whole").glob("vehicle=*/day=*/*.parquet")):
+        rel = f.relative_to(tmp_path / "whole")
+        other = next(p / rel for p in (tmp_path / "p0", tmp_path / "p1") if (p / rel).exists())
+        assert pq.read_table(f).equals(pq.read_table(other))

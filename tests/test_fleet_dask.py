@@ -64,3 +64,13 @@ def test_a_worker_killed_mid_run_changes_nothing(client: Any, src: Path, local: 
     assert killed and res.processed == len(list(src.glob("vehicle=*/day=*")))
     assert_same_store(local, store)
     client.wait_for_workers(2, timeout=60)  # the nanny restarted it
+
+
+def test_cli_run_on_a_scheduler(client: Any, src: Path, local: Path, tmp_path: Path,
+                                capsys: pytest.CaptureFixture[str]) -> None:
+    from vehid.cli import main
+
+    store = tmp_path / "store"
+    assert main(["fleet", "run", str(src), "--store", str(store), "--scheduler", client.scheduler.address]) == 0
+    assert "vehicle-days" in capsys.readouterr().err
+    assert_same_store(local, store)
