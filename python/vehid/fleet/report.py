@@ -2,9 +2,10 @@
 
 The vehicles with events come first (the latest event first), then the others; per vehicle
 its events (which constant, when, from what to what, the change and its interval), a small
-inline SVG of its tracked ratios over its days (each as its change in % from its first judged
-value; red lines at the events), the share of its driving the monitor could not judge, and its
-problems. No script, no external file: it opens from a disk or a mail attachment.
+inline SVG of its tracked ratios against the hours of its logs (its days end to end; each ratio
+as its change in % from its first judged value; red lines at the events), the share of its
+driving the monitor could not judge, and its problems. No script, no external file: it
+opens from a disk or a mail attachment.
 """
 
 from __future__ import annotations
@@ -33,9 +34,10 @@ def _clock(t: float) -> str:
     return f"{h:02d}:{rest // 60:02d}:{rest % 60:02d}"
 
 
-def _svg(points: List[Tuple[float, List[Any]]], names: List[str], marks: List[float], width: int = 260,
-         height: int = 64) -> str:
-    """A small line plot: each series as its change (%) from its first finite value."""
+def _svg(points: List[Tuple[float, List[Any]]], names: List[str], marks: List[float], breaks: List[float],
+         width: int = 260, height: int = 64) -> str:
+    """A small line plot against the hours of logs: each series as its change (%) from its
+    first finite value; red lines at ``marks`` (events), grey ones at ``breaks`` (a new day)."""
     if not points:
         return '<span class="muted">no trend</span>'
     xs = [p[0] for p in points]
@@ -62,6 +64,8 @@ def _svg(points: List[Tuple[float, List[Any]]], names: List[str], marks: List[fl
              f'viewBox="0 0 {width} {height}" role="img" aria-label="tracked ratios, % change">',
              f'<rect width="{width}" height="{height}" fill="#fafafa"/>',
              f'<line x1="0" x2="{width}" y1="{py(0.0)}" y2="{py(0.0)}" stroke="#bbb" stroke-dasharray="2,2"/>']
+    for b in breaks:
+        parts.append(f'<line x1="{px(b)}" x2="{px(b)}" y1="0" y2="{height}" stroke="#ccc" stroke-width="1"/>')
     for m in marks:
         parts.append(f'<line x1="{px(m)}" x2="{px(m)}" y1="0" y2="{height}" stroke="#d00" stroke-width="1"/>')
     for j, s in enumerate(series):
@@ -80,21 +84,25 @@ def _vehicles(store: Any) -> Dict[str, Dict[str, Any]]:
     for (vid, day), row in sorted(store.rows.items()):
         s = json.loads(row.summary)
         v = out.setdefault(vid, {"days": [], "events": [], "seconds": 0.0, "cannot": 0.0, "problems": [],
-                                 "points": [], "names": [], "marks": [], "status": ""})
-        k = len(v["days"])
+                                 "points": [], "names": [], "marks": [], "status": "", "x": 0.0, "breaks": []})
         v["days"].append(day)
         if s.get("problem") is not None:
             v["problems"].append((day, s["problem"]))
             continue
+        # x: hours of the vehicle's logs, the days put end to end (a day from its first sample to its last)
+        x0, t0 = v["x"], s["t0"]
+        if v["points"]:
+            v["breaks"].append(x0)
         v["seconds"] += s["seconds"]
         v["cannot"] += s["status"]["cannot judge"]
         v["status"] = s["end_status"]
         v["names"] = s["trend"]["names"]
         for t, vals in zip(s["trend"]["t"], s["trend"]["values"]):
-            v["points"].append((k + t / 86400.0, vals))
+            v["points"].append((x0 + (t - t0) / 3600.0, vals))
         for ev in s["events"]:
             v["events"].append((day, ev))
-            v["marks"].append(k + ev["t"] / 86400.0)
+            v["marks"].append(x0 + (ev["t"] - t0) / 3600.0)
+        v["x"] = x0 + (s["t1"] - t0) / 3600.0
     for vid, day, reason in store.run_problems:
         if vid in out:
             out[vid]["problems"].append((day, reason))
@@ -120,9 +128,9 @@ def render(store_path: str) -> str:
            f"{n_events} events on {len(with_events)} vehicles; {len(store.problems_table())} problems. "
            f"Store: <code>{esc(store_path)}</code>.</p>",
            "<p>Trend: each tracked ratio (quarter car: k2/M, b/M; half car: each corner's spring and damper "
-           "coefficient) as its change in % from its first judged value, over the vehicle's days; red lines: "
-           "events. <em>Cannot judge</em>: the share of the driving time the monitor could not judge (too little "
-           "excitation, missing or stuck data).</p>",
+           "coefficient) as its change in % from its first judged value, against the hours of the vehicle's logs "
+           "(its days end to end, grey lines between them); red lines: events. <em>Cannot judge</em>: the share "
+           "of the driving time the monitor could not judge (too little excitation, missing or stuck data).</p>",
            '<table id="vehicles"><thead><tr><th>vehicle</th><th>days</th><th class="num">hours</th>'
            '<th>events</th><th>trend</th><th class="num">cannot judge</th><th>now</th></tr></thead><tbody>']
     for vid in ordered:
@@ -140,7 +148,7 @@ def render(store_path: str) -> str:
         out.append(f'<tr data-vehicle="{esc(vid)}" data-events="{len(v["events"])}"><td>{esc(vid)}</td>'
                    f'<td>{days}</td><td class="num">{v["seconds"] / 3600:.2f}</td>'
                    f'<td>{"".join(evs) or "<span class=muted>none</span>"}</td>'
-                   f'<td>{_svg(v["points"], v["names"], v["marks"])}</td>'
+                   f'<td>{_svg(v["points"], v["names"], v["marks"], v["breaks"])}</td>'
                    f'<td class="num">{"–" if math.isnan(share) else f"{100 * share:.1f} %"}</td>'
                    f'<td>{esc(v["status"])}</td></tr>')
     out.append("</tbody></table>")
