@@ -9,13 +9,14 @@ processes (its start not counted). Figures in vehicle-hours of 200 Hz logs per s
 medians over the repeats, and end to end against raw × cores. Then, on paper, the cluster for
 ``--paper-vehicles`` vehicles driving ``--paper-hours`` a day for a year.
 
-``detect``: ``--vehicles`` vehicles × 1 day × ``--hours`` (``--faults`` of them with one
+``detect``: ``--vehicles`` vehicles × ``--days`` × ``--hours`` (``--faults`` of them with one
 injected fault, fresh seeds from ``--seed``), simulated in parts of ``--part`` vehicles,
 each part run through ``vehid.fleet.run`` into one store and then deleted (the logs of 1,000
 vehicle-hours would take ~20 GB). Scores the store's events against ``truth.parquet``: a
 fault is found when an event names its constant within ``--window`` s after it (recall); an
 event is right when it is such a first match (precision); false alarms per 10 h are the
-events on fault-free driving (vehicles without a fault, and the time before a fault).
+events on fault-free driving (vehicles without a fault, the time before a fault, and the days
+after it: the car does not change again).
 
     .venv/bin/python benches/fleet.py throughput --vehicles 16 --hours 1 --workers 2 --seed 1
     .venv/bin/python benches/fleet.py detect --vehicles 1000 --hours 1 --faults 0.5 --seed 7100000
@@ -184,8 +185,8 @@ def detect(args: argparse.Namespace) -> None:
         for first in range(0, args.vehicles, args.part):
             n = min(args.part, args.vehicles - first)
             part = os.path.join(work, f"part{first}")
-            truth += simulate(part, n, 1, args.hours, args.faults, args.seed, first=first, total=args.vehicles,
-                              workers=args.workers).to_pylist()
+            truth += simulate(part, n, args.days, args.hours, args.faults, args.seed, first=first,
+                              total=args.vehicles, workers=args.workers).to_pylist()
             fleet.run(part, store, workers=args.workers)
             shutil.rmtree(part)
             done = first + n
@@ -200,10 +201,11 @@ def detect(args: argparse.Namespace) -> None:
             by_kind.setdefault(k, [0, 0])[0] += 1
         ev = st.events_table().to_pylist()
         for f in truth:
-            if any(e["vehicle"] == f["vehicle"] and e["parameter"] == f["parameter"]
+            if any((e["vehicle"], e["day"], e["parameter"]) == (f["vehicle"], f["day"], f["parameter"])
                    and f["t"] <= e["t"] <= f["t"] + args.window for e in ev):
                 by_kind[f["parameter"]][1] += 1
-        print(f"\nFleet detection, {args.vehicles} vehicles × {args.hours:g} h (seed {args.seed}, {args.faults:g} with "
+        print(f"\nFleet detection, {args.vehicles} vehicles × {args.days} days × {args.hours:g} h "
+              f"(seed {args.seed}, {args.faults:g} with "
               f"a fault; vehid {vehid.__version__}), {time.perf_counter() - t0:.0f} s:")
         print(f"  faults {s['faults']}: found {s['found']}, named right {s['named right']} "
               f"(recall {100 * s['recall']:.1f} %), {s['after within 3 points']} within 3 points of the new value; "
@@ -233,7 +235,8 @@ def main() -> None:
     tp.set_defaults(func=throughput)
     dp = sub.add_parser("detect", help="recall, precision and false alarms on a simulated fleet")
     dp.add_argument("--vehicles", type=int, default=1000)
-    dp.add_argument("--hours", type=float, default=1.0)
+    dp.add_argument("--hours", type=float, default=1.0, help="hours of driving a day")
+    dp.add_argument("--days", type=int, default=1, help="days per vehicle (a fault on one of them)")
     dp.add_argument("--faults", type=float, default=0.5)
     dp.add_argument("--seed", type=int, default=7100000)
     dp.add_argument("--part", type=int, default=50, help="vehicles simulated per part (disk use)")
