@@ -61,6 +61,7 @@ def _client(address: str) -> Any:
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
+    """``vehid fleet simulate DIR --vehicles N --days D --hours H --faults FRACTION --seed S``."""
     from .simulate import simulate
 
     try:
@@ -74,6 +75,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
+    """``vehid fleet run DIR --store STORE [--workers N | --scheduler ADDRESS] [--from DAY]``."""
     from .engine import run
 
     client = _client(args.scheduler) if args.scheduler else None
@@ -96,6 +98,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
+    """``vehid fleet report STORE -o report.html``."""
     from .report import report
 
     try:
