@@ -111,7 +111,7 @@ def throughput(args: argparse.Namespace) -> None:
         print(f"\nThroughput, {hours:.1f} vehicle-hours of 200 Hz logs ({args.vehicles} vehicles, a fifth half cars), "
               f"{os.cpu_count()} CPUs, medians of {args.repeats} (vehid {vehid.__version__}, seed {args.seed}):")
         for k, v in med.items():
-            print(f"  {k:<22} {v:8.1f} vehicle-hours/s  ({v * 3600 / 200 / 3600:8.0f} vehicles at 200 Hz in real time"
+            print(f"  {k:<22} {v:8.1f} vehicle-hours/s  ({v * 3600:8.0f} vehicles at 200 Hz in real time"
                   f"{', ' + format(1e9 / (v * 3600 * 200), '.0f') + ' ns/sample' if k.startswith('raw 1') else ''})")
         cores = args.workers
         for k in (f"local {args.workers} threads", f"dask {args.workers} processes"):

@@ -7,7 +7,8 @@ classes (compact, sedan, SUV), one in five a passenger half car; each vehicle's 
 its class's within ±3 %. Each day it drives ``hours`` on an ISO 8608 road of class B, C or D
 at 8–25 m/s, leaving between 07:00 and 09:00; a drive of 20 minutes or more is two trips with
 a 10–40 minute stop between them; each trip is written as files of at most 30 minutes, named
-by their start time. A faulty vehicle (``faults`` of the fleet, rounded) has one change on one
+by their start time (``t`` as float64, the channels as float32, plain encoding, LZ4). A
+faulty vehicle (``faults`` of the fleet, rounded) has one change on one
 of its days, at least 60 s into that day's driving and 60 s before its end: a damper
 −15 to −40 %, a spring −10 to −25 % or (quarter cars) a body mass +15 to +35 %; it stays after.
 """
@@ -210,7 +211,8 @@ def _drive(directory: str, vid: str, plan: Dict[str, Any], days: int, hours: flo
                 start_t = float(t[0])
                 hh, rest = divmod(int(start_t), 3600)
                 fname = f"{hh:02d}-{rest // 60:02d}-{rest % 60:02d}.parquet"
-                pq.write_table(pa.table(cols), os.path.join(vdir, fname))
+                # Sensor noise gains nothing from dictionary encoding and reads twice as fast without.
+                pq.write_table(pa.table(cols), os.path.join(vdir, fname), use_dictionary=False, compression="lz4")
             t0 += count * dt
         if changed is not None:  # the fault stays
             constants[changed[0]] = changed[1]
