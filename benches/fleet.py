@@ -123,8 +123,7 @@ def throughput(args: argparse.Namespace) -> None:
         print(f"\nOn paper: {args.paper_vehicles:,} vehicles × {args.paper_hours:g} h a day × 365 days = "
               f"{vh_year / 1e6:.0f} M vehicle-hours a year; end to end at {per_core:.1f} vehicle-hours/s per core: "
               f"{core_hours:,.0f} core-hours a year, {core_hours / 365:,.0f} a day: each night's logs in 1 hour on "
-              f"{core_hours / 365:,.0f} cores (e.g. {int(np.ceil(core_hours / 365 / 32))} machines of 32 cores), "
-              f"or continuously on {int(np.ceil(core_hours / 365 / 24))} cores. Logs: "
+              f"{core_hours / 365:,.0f} cores, or all day long on {core_hours / 365 / 24:.1f} cores. Logs: "
               f"{size / (hours * 3600) * args.paper_vehicles * args.paper_hours * 3600 * 365 / 1e15:.1f} PB a year "
               f"as written here; the store: {per_day / 1e3:.1f} kB per vehicle-day, "
               f"{per_day * args.paper_vehicles * 365 / 1e9:.0f} GB a year (every day's state kept).")
@@ -150,14 +149,19 @@ def _score(truth: List[Dict[str, Any]], events: List[Dict[str, Any]], states: An
             delays.append(e["t"] - f["t"])
             errors.append(100 * (e["after"] / f["after"] - 1))
     false, after_fault = 0, 0
+    false_by: Dict[str, int] = {}
+    after_by: Dict[str, int] = {}
     for e in events:
         if (e["vehicle"], e["day"], e["t"], e["parameter"]) in matched:
             continue
         f = faults.get((e["vehicle"], e["day"]))
         if f is None or e["t"] < f["t"]:
             false += 1
+            false_by[e["parameter"]] = false_by.get(e["parameter"], 0) + 1
         else:
             after_fault += 1
+            key = f"{f['parameter']}: {e['parameter']}"
+            after_by[key] = after_by.get(key, 0) + 1
     driving = states.column("summary").to_pylist()
     summ = [json.loads(s) for s in driving]
     total_s = sum(s.get("seconds", 0.0) for s in summ)
@@ -169,7 +173,7 @@ def _score(truth: List[Dict[str, Any]], events: List[Dict[str, Any]], states: An
             "recall": named / max(1, len(truth)), "precision": len(matched) / max(1, len(events)),
             "false alarms": false, "fault-free hours": clean_s / 3600,
             "false alarms per 10 h": 10 * false / max(1e-9, clean_s / 3600),
-            "other events after a fault": after_fault,
+            "other events after a fault": after_fault, "false by": false_by, "after by": after_by,
             "delay median s": statistics.median(delays) if delays else float("nan"),
             "delay p95 s": float(np.percentile(delays, 95)) if delays else float("nan"),
             "after within 3 points": sum(abs(x) <= 3 for x in errors),
@@ -214,6 +218,9 @@ def detect(args: argparse.Namespace) -> None:
                                                                    sorted(by_kind.items())))
         print(f"  events {s['events']}: precision {100 * s['precision']:.1f} %; {s['other events after a fault']} "
               f"further events after a fault")
+        print("  further events after a fault (fault: event): "
+              + ", ".join(f"{k} {v}" for k, v in sorted(s["after by"].items())))
+        print("  false alarms by constant: " + ", ".join(f"{k} {v}" for k, v in sorted(s["false by"].items())))
         print(f"  false alarms {s['false alarms']} in {s['fault-free hours']:.0f} fault-free hours: "
               f"{s['false alarms per 10 h']:.2f} per 10 h; cannot judge {s['cannot judge %']:.2f} % of "
               f"{s['hours']:.0f} h")
