@@ -60,9 +60,11 @@ def _load(src: str) -> List[Tuple[fleet.VehicleConfig, np.ndarray]]:
     return out
 
 
-def _raw(data: List[Tuple[fleet.VehicleConfig, np.ndarray]], workers: int) -> float:
-    """Seconds to monitor every vehicle-day in memory, on ``workers`` threads."""
+def _raw(data: List[Tuple[fleet.VehicleConfig, np.ndarray]], workers: int, cpu: List[float]) -> float:
+    """Seconds to monitor every vehicle-day in memory, on ``workers`` threads (the CPU
+    seconds this process spent appended to ``cpu``)."""
     mons = [vc.monitor_new() for vc, _ in data]
+    c0 = time.process_time()
     t0 = time.perf_counter()
     if workers == 1:
         for m, (_, y) in zip(mons, data):
@@ -70,7 +72,9 @@ def _raw(data: List[Tuple[fleet.VehicleConfig, np.ndarray]], workers: int) -> fl
     else:
         with ThreadPoolExecutor(max_workers=workers) as pool:
             list(pool.map(lambda k: mons[k].fit(data[k][1]), range(len(data))))
-    return time.perf_counter() - t0
+    el = time.perf_counter() - t0
+    cpu.append(time.process_time() - c0)
+    return el
 
 
 def throughput(args: argparse.Namespace) -> None:
@@ -91,16 +95,25 @@ def throughput(args: argparse.Namespace) -> None:
                                            f"local {args.workers} threads": [], f"dask {args.workers} processes": []}
         with LocalCluster(n_workers=args.workers, threads_per_worker=1, processes=True,
                           dashboard_address=None) as cluster, Client(cluster) as client:
+            cpu: Dict[str, List[float]] = {k: [] for k in figures}
             for r in range(args.repeats):
-                figures["raw 1 thread"].append(hours / _raw(data, 1))
-                figures[f"raw {args.workers} threads"].append(hours / _raw(data, args.workers))
+                figures["raw 1 thread"].append(hours / _raw(data, 1, cpu["raw 1 thread"]))
+                figures[f"raw {args.workers} threads"].append(
+                    hours / _raw(data, args.workers, cpu[f"raw {args.workers} threads"]))
                 for name, kw in ((f"local {args.workers} threads", {"workers": args.workers}),
                                  (f"dask {args.workers} processes", {"client": client})):
                     store = os.path.join(work, "store")
                     shutil.rmtree(store, ignore_errors=True)
+                    w0 = client.run(time.process_time)
+                    c0 = time.process_time()
                     t1 = time.perf_counter()
                     res = fleet.run(src, store, **kw)
                     figures[name].append(res.log_seconds / 3600 / (time.perf_counter() - t1))
+                    c1 = time.process_time() - c0
+                    if "client" in kw:  # the workers' CPU seconds too
+                        w1 = client.run(time.process_time)
+                        c1 += sum(w1[w] - w0[w] for w in w1 if w in w0)
+                    cpu[name].append(c1)
                 _say(f"repeat {r + 1}/{args.repeats}: " + ", ".join(f"{k} {v[-1]:.1f}" for k, v in figures.items())
                      + " vehicle-hours/s; load average " + " ".join(f"{x:.1f}" for x in os.getloadavg()))
         med = {k: statistics.median(v) for k, v in figures.items()}
@@ -113,6 +126,11 @@ def throughput(args: argparse.Namespace) -> None:
         for k, v in med.items():
             print(f"  {k:<22} {v:8.1f} vehicle-hours/s  ({v * 3600:8.0f} vehicles at 200 Hz in real time"
                   f"{', ' + format(1e9 / (v * 3600 * 200), '.0f') + ' ns/sample' if k.startswith('raw 1') else ''})")
+        print("  CPU seconds per vehicle-hour (all threads and processes; what load on a shared machine does not "
+              "change):")
+        cpu_med = {k: statistics.median(v) / hours for k, v in cpu.items()}
+        for k, v in cpu_med.items():
+            print(f"  {k:<22} {1000 * v:8.1f} ms  (end to end / raw: {cpu_med['raw 1 thread'] / v:.2f})")
         cores = args.workers
         for k in (f"local {args.workers} threads", f"dask {args.workers} processes"):
             print(f"  {k}: {100 * med[k] / (raw1 * cores):.0f} % of raw × {cores} cores, "
