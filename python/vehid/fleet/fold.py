@@ -115,18 +115,25 @@ def day_arrays(table: Any, config: VehicleConfig, where: str = "the day") -> Tup
         raise DayError(f"missing column(s) {', '.join(absent)} (columns: {', '.join(table.column_names[:12])}); "
                        "name them so, or map them with columns = {...} in fleet.toml")
 
-    def floats(name: str) -> NDArray[np.float64]:
+    def into(out: NDArray[np.float64], name: str) -> None:
+        """The column ``name`` into ``out`` (a view), chunk by chunk: no joined copy."""
         col = table.column(match.index[name])
         if not (pa.types.is_integer(col.type) or pa.types.is_floating(col.type)):
             raise DayError(f"column {table.column_names[match.index[name]]!r} holds {col.type}, not numbers")
         if col.null_count:
             col = pc.cast(col, pa.float64()).fill_null(math.nan)
-        return np.asarray(col.to_numpy())
+        at = 0
+        for chunk in col.chunks:
+            k = len(chunk)
+            out[at : at + k] = chunk.to_numpy(zero_copy_only=False)
+            at += k
 
-    t = floats("t").astype(np.float64, copy=False)
-    y = np.empty((len(t), len(chans)))
+    n = table.num_rows
+    t = np.empty(n)
+    into(t, "t")
+    y = np.empty((n, len(chans)))
     for j, c in enumerate(chans):
-        y[:, j] = floats(c.name)
+        into(y[:, j], c.name)
     return t, y
 
 
