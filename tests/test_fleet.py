@@ -449,3 +449,14 @@ def test_simulate_in_parts_writes_the_same_vehicles(tmp_path: Path) -> None:
         rel = f.relative_to(tmp_path / "whole")
         other = next(p / rel for p in (tmp_path / "p0", tmp_path / "p1") if (p / rel).exists())
         assert pq.read_table(f).equals(pq.read_table(other))
+
+
+def test_a_missing_extra_is_one_line_naming_it(src: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                               hide_package: Any) -> None:
+    hide_package("pyarrow")
+    assert main(["fleet", "run", str(src), "--store", str(tmp_path / "s")]) == 2
+    assert "needs pyarrow: pip install 'vehid[fleet]'" in capsys.readouterr().err
+    assert not (tmp_path / "s").exists()
+    hide_package("distributed")
+    assert main(["fleet", "run", str(src), "--store", str(tmp_path / "s"), "--scheduler", "tcp://127.0.0.1:1"]) == 2
+    assert "--scheduler needs dask.distributed: pip install 'vehid[fleet]'" in capsys.readouterr().err

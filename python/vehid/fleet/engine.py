@@ -198,6 +198,7 @@ def run(fleet: str, store: str, client: Any = None, workers: Optional[int] = Non
         raise ValueError(f"batch={batch!r}: expected a number of vehicles per task >= 1")
     if since is not None:
         since = _check_day(since, "since")
+    module("pyarrow.parquet")  # a missing extra before anything is created
     scan(fleet)  # the fleet's errors before the store is created
     load_config(os.path.join(fleet, CONFIG))
     if os.path.exists(store) and not os.path.isdir(store):
