@@ -94,7 +94,7 @@ def throughput(args: argparse.Namespace) -> None:
         figures: Dict[str, List[float]] = {"raw 1 thread": [], f"raw {args.workers} threads": [],
                                            f"local {args.workers} threads": [], f"dask {args.workers} processes": []}
         with LocalCluster(n_workers=args.workers, threads_per_worker=1, processes=True,
-                          dashboard_address=None) as cluster, Client(cluster) as client:
+                          dashboard_address=":0") as cluster, Client(cluster) as client:
             cpu: Dict[str, List[float]] = {k: [] for k in figures}
             for r in range(args.repeats):
                 figures["raw 1 thread"].append(hours / _raw(data, 1, cpu["raw 1 thread"]))
