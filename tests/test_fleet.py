@@ -460,3 +460,22 @@ def test_a_missing_extra_is_one_line_naming_it(src: Path, tmp_path: Path, capsys
     hide_package("distributed")
     assert main(["fleet", "run", str(src), "--store", str(tmp_path / "s"), "--scheduler", "tcp://127.0.0.1:1"]) == 2
     assert "--scheduler needs dask.distributed: pip install 'vehid[fleet]'" in capsys.readouterr().err
+
+
+def test_a_changed_fleet_toml_is_noticed_not_mixed_in(src: Path, tmp_path: Path) -> None:
+    days = days_of(src)
+    lake = subset(src, tmp_path / "lake", days[:1])
+    store = tmp_path / "store"
+    fleet.run(str(lake), str(store), workers=1)
+    subset(src, lake, days)  # the next days arrive (with the same fleet.toml), then it is edited
+    toml = (lake / "fleet.toml").read_text()
+    vid = sorted(p.name[len("vehicle="):] for p in lake.glob("vehicle=*"))[0]
+    head, entry = toml.split(f"[vehicles.{vid}]\n", 1)
+    (lake / "fleet.toml").write_text(head + f"[vehicles.{vid}]\nmonitor = {{ warmup = 25.0 }}\n" + entry)
+    res = fleet.run(str(lake), str(store), workers=1)
+    probs = res.problems.to_pylist()
+    assert [(p["vehicle"], p["day"]) for p in probs] == [(vid, days[0])]
+    assert "fleet.toml changed for this vehicle" in probs[0]["reason"] and f"--from {days[0]}" in probs[0]["reason"]
+    assert store_mod.open_store(str(store)).days(vid) == days[:1]  # its new days wait
+    res = fleet.run(str(lake), str(store), workers=1, since=days[0])
+    assert res.problems.num_rows == 0 and store_mod.open_store(str(store)).days(vid) == days
