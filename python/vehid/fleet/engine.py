@@ -182,9 +182,10 @@ def run(fleet: str, store: str, client: Any = None, workers: Optional[int] = Non
     every vehicle's days from that day on, replacing them (the same logs give the same rows).
     ``client``: a ``dask.distributed.Client`` (the work runs on its cluster; the fleet and the
     store must be paths its workers can read); else a local pool of ``workers`` threads
-    (default: the number of CPUs). ``batch``: vehicles per task (default: one locally; on Dask
-    about four tasks per worker, at most 64 vehicles). ``progress(done, total)`` is called with the vehicle-days
-    processed. The store is committed every ``commit_every`` seconds of wall time and at the end.
+    (default: the number of CPUs). ``batch``: vehicles per task (default: one locally; on
+    Dask about four tasks per worker, at most 64 vehicles). ``progress(done, total)`` is called
+    with the vehicle-days processed. The store is committed every ``commit_every`` seconds of
+    wall time and at the end.
 
     Raises ``ValueError`` (:class:`~vehid.fleet.config.ConfigError`,
     :class:`~vehid.fleet.store.StoreError`) for a bad argument, fleet file or store; bad data
@@ -213,9 +214,9 @@ def run(fleet: str, store: str, client: Any = None, workers: Optional[int] = Non
                 os.remove(os.path.join(store, name))
         st = open_store(store)
         tasks, problems = plan(fleet, st, since)
-        if since is not None:
-            present = set(scan(fleet).vehicles)
-            for key in [k for k in st.rows if k[0] in present and k[1] >= since]:
+        if since is not None:  # the days recomputed are replaced; a vehicle left out keeps its rows
+            chained = {t[0] for t in tasks}
+            for key in [k for k in st.rows if k[0] in chained and k[1] >= since]:
                 del st.rows[key]
         st.run_problems = problems
         total = sum(len(t[3]) for t in tasks)
