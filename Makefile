@@ -59,12 +59,13 @@ venv: $(VENV)/.installed
 # pytest-xdist runs the suite on every core (`-n auto`): most tests wait on the extension with
 # the GIL released or on subprocesses, so two workers halve pytest's time here. The stamp
 # depends on this Makefile, so that a venv made before a tool was added gets it. The extras'
-# packages (matplotlib for vehid[plot], pyarrow for vehid[parquet]) come too: without them a
+# packages (matplotlib for vehid[plot], pyarrow for vehid[parquet], pyarrow and dask[distributed] for
+# vehid[fleet]: its tests start a real Dask cluster) come too: without them a
 # clean `make test` skipped the 13 tests of the plots and of Parquet input. statsmodels is the
 # independent reference of the residual diagnostics and the realistic sensors' intervals.
 $(VENV)/.installed: Makefile
 	$(PYTHON) -m venv $(VENV)
-	$(VBIN)/python -m pip install --quiet maturin numpy pytest pytest-xdist mypy ruff scipy statsmodels matplotlib pyarrow
+	$(VBIN)/python -m pip install --quiet maturin numpy pytest pytest-xdist mypy ruff scipy statsmodels matplotlib pyarrow "dask[distributed]"
 	touch $@
 
 # A stale extension module in python/vehid/ would shadow the fresh build: remove it first.

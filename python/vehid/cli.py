@@ -1495,6 +1495,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     _reproduce_arguments(rep)
     rep.set_defaults(func=cmd_reproduce)
+    from .fleet.cli import add_parser as _fleet_parser
+
+    _fleet_parser(sub)
     return parser
 
 

@@ -1,0 +1,278 @@
+"""Fleet figures: end-to-end throughput and a fleet detection run.
+
+``throughput``: a simulated fleet (``--vehicles`` × 1 day × ``--hours``) written as Parquet,
+then, ``--repeats`` times in turn on the same data: the monitor's raw speed (each
+vehicle-day's samples already in memory, ``HealthMonitor.fit`` in one call; one thread, and
+``--workers`` threads), the local engine end to end (read Parquet → monitor → write the store)
+with ``--workers`` threads, and the Dask engine on a ``LocalCluster`` of ``--workers`` worker
+processes (its start not counted). Figures in vehicle-hours of 200 Hz logs per second; the
+medians over the repeats, and end to end against raw × cores. Then, on paper, the cluster for
+``--paper-vehicles`` vehicles driving ``--paper-hours`` a day for a year.
+
+``detect``: ``--vehicles`` vehicles × ``--days`` × ``--hours`` (``--faults`` of them with one
+injected fault, fresh seeds from ``--seed``), simulated in parts of ``--part`` vehicles,
+each part run through ``vehid.fleet.run`` into one store and then deleted (the logs of 1,000
+vehicle-hours would take ~20 GB). Scores the store's events against ``truth.parquet``: a
+fault is found when an event names its constant within ``--window`` s after it (recall); an
+event is right when it is such a first match (precision); false alarms per 10 h are the
+events on fault-free driving (vehicles without a fault, the time before a fault, and the days
+after it: the car does not change again).
+
+    .venv/bin/python benches/fleet.py throughput --vehicles 16 --hours 1 --workers 2 --seed 1
+    .venv/bin/python benches/fleet.py detect --vehicles 1000 --hours 1 --faults 0.5 --seed 7100000
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import statistics
+import sys
+import tempfile
+import time
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any, Dict, List, Tuple
+
+import numpy as np
+import pyarrow.parquet as pq
+
+import vehid
+import vehid.fleet as fleet
+from vehid.fleet.cli import ProgressBar
+from vehid.fleet.fold import day_arrays
+from vehid.fleet.layout import read_day, scan
+from vehid.fleet.simulate import simulate
+
+
+def _say(text: str) -> None:
+    print(text, file=sys.stderr, flush=True)
+
+
+def _load(src: str) -> List[Tuple[fleet.VehicleConfig, np.ndarray]]:
+    cfg = fleet.load_config(os.path.join(src, "fleet.toml"))
+    out = []
+    for vid, days in scan(src).vehicles.items():
+        vc = cfg.vehicle(vid)
+        for _, files in days:
+            out.append((vc, day_arrays(read_day(files), vc)[1]))
+    return out
+
+
+def _raw(data: List[Tuple[fleet.VehicleConfig, np.ndarray]], workers: int, cpu: List[float]) -> float:
+    """Seconds to monitor every vehicle-day in memory, on ``workers`` threads (the CPU
+    seconds this process spent appended to ``cpu``)."""
+    mons = [vc.monitor_new() for vc, _ in data]
+    c0 = time.process_time()
+    t0 = time.perf_counter()
+    if workers == 1:
+        for m, (_, y) in zip(mons, data):
+            m.fit(y)
+    else:
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            list(pool.map(lambda k: mons[k].fit(data[k][1]), range(len(data))))
+    el = time.perf_counter() - t0
+    cpu.append(time.process_time() - c0)
+    return el
+
+
+def throughput(args: argparse.Namespace) -> None:
+    from distributed import Client, LocalCluster
+
+    work = tempfile.mkdtemp(prefix="vehid-fleet-bench-")
+    try:
+        src = os.path.join(work, "fleet")
+        t0 = time.perf_counter()
+        simulate(src, args.vehicles, 1, args.hours, 0.3, args.seed, workers=args.workers,
+                 progress=ProgressBar("simulate: vehicles"))
+        size = sum(os.path.getsize(os.path.join(d, f)) for d, _, fs in os.walk(src) for f in fs)
+        _say(f"simulated {args.vehicles} vehicle-days × {args.hours:g} h in {time.perf_counter() - t0:.1f} s "
+             f"({size / 1e6:.0f} MB of Parquet)")
+        data = _load(src)
+        hours = sum(len(y) for _, y in data) * 0.005 / 3600
+        figures: Dict[str, List[float]] = {"raw 1 thread": [], f"raw {args.workers} threads": [],
+                                           f"local {args.workers} threads": [], f"dask {args.workers} processes": []}
+        with LocalCluster(n_workers=args.workers, threads_per_worker=1, processes=True,
+                          dashboard_address=":0") as cluster, Client(cluster) as client:
+            cpu: Dict[str, List[float]] = {k: [] for k in figures}
+            for r in range(args.repeats):
+                figures["raw 1 thread"].append(hours / _raw(data, 1, cpu["raw 1 thread"]))
+                figures[f"raw {args.workers} threads"].append(
+                    hours / _raw(data, args.workers, cpu[f"raw {args.workers} threads"]))
+                for name, kw in ((f"local {args.workers} threads", {"workers": args.workers}),
+                                 (f"dask {args.workers} processes", {"client": client})):
+                    store = os.path.join(work, "store")
+                    shutil.rmtree(store, ignore_errors=True)
+                    w0 = client.run(time.process_time)
+                    c0 = time.process_time()
+                    t1 = time.perf_counter()
+                    res = fleet.run(src, store, **kw)
+                    figures[name].append(res.log_seconds / 3600 / (time.perf_counter() - t1))
+                    c1 = time.process_time() - c0
+                    if "client" in kw:  # the workers' CPU seconds too
+                        w1 = client.run(time.process_time)
+                        c1 += sum(w1[w] - w0[w] for w in w1 if w in w0)
+                    cpu[name].append(c1)
+                _say(f"repeat {r + 1}/{args.repeats}: " + ", ".join(f"{k} {v[-1]:.1f}" for k, v in figures.items())
+                     + " vehicle-hours/s; load average " + " ".join(f"{x:.1f}" for x in os.getloadavg()))
+        med = {k: statistics.median(v) for k, v in figures.items()}
+        raw1 = med["raw 1 thread"]
+        state = pq.read_table(os.path.join(work, "store", "state.parquet"))
+        per_day = sum(len(s or b"") + len(j) for s, j in zip(state.column("state").to_pylist(),
+                                                            state.column("summary").to_pylist())) / state.num_rows
+        print(f"\nThroughput, {hours:.1f} vehicle-hours of 200 Hz logs ({args.vehicles} vehicles, a fifth half cars), "
+              f"{os.cpu_count()} CPUs, medians of {args.repeats} (vehid {vehid.__version__}, seed {args.seed}):")
+        for k, v in med.items():
+            print(f"  {k:<22} {v:8.1f} vehicle-hours/s  ({v * 3600:8.0f} vehicles at 200 Hz in real time"
+                  f"{', ' + format(1e9 / (v * 3600 * 200), '.0f') + ' ns/sample' if k.startswith('raw 1') else ''})")
+        print("  CPU seconds per vehicle-hour (all threads and processes; what load on a shared machine does not "
+              "change):")
+        cpu_med = {k: statistics.median(v) / hours for k, v in cpu.items()}
+        for k, v in cpu_med.items():
+            print(f"  {k:<22} {1000 * v:8.1f} ms  (end to end / raw: {cpu_med['raw 1 thread'] / v:.2f})")
+        cores = args.workers
+        for k in (f"local {args.workers} threads", f"dask {args.workers} processes"):
+            print(f"  {k}: {100 * med[k] / (raw1 * cores):.0f} % of raw × {cores} cores, "
+                  f"{100 * med[k] / med[f'raw {args.workers} threads']:.0f} % of raw on {args.workers} threads")
+        per_core = max(med[f"local {args.workers} threads"], med[f"dask {args.workers} processes"]) / cores
+        vh_year = args.paper_vehicles * args.paper_hours * 365
+        core_hours = vh_year / per_core / 3600
+        print(f"\nOn paper: {args.paper_vehicles:,} vehicles × {args.paper_hours:g} h a day × 365 days = "
+              f"{vh_year / 1e6:.0f} M vehicle-hours a year; end to end at {per_core:.1f} vehicle-hours/s per core: "
+              f"{core_hours:,.0f} core-hours a year, {core_hours / 365:,.0f} a day: each night's logs in 1 hour on "
+              f"{core_hours / 365:,.0f} cores, or all day long on {core_hours / 365 / 24:.1f} cores. Logs: "
+              f"{size / (hours * 3600) * args.paper_vehicles * args.paper_hours * 3600 * 365 / 1e15:.1f} PB a year "
+              f"as written here; the store: {per_day / 1e3:.1f} kB per vehicle-day, "
+              f"{per_day * args.paper_vehicles * 365 / 1e9:.0f} GB a year (every day's state kept).")
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def _score(truth: List[Dict[str, Any]], events: List[Dict[str, Any]], states: Any, window: float,
+           hours: float) -> Dict[str, Any]:
+    faults = {(f["vehicle"], f["day"]): f for f in truth}
+    matched = set()
+    found, named, delays, errors = 0, 0, [], []
+    for f in truth:
+        evs = [e for e in events if (e["vehicle"], e["day"]) == (f["vehicle"], f["day"])
+               and f["t"] <= e["t"] <= f["t"] + window]
+        if evs:
+            found += 1
+        right = [e for e in evs if e["parameter"] == f["parameter"]]
+        if right:
+            e = right[0]
+            matched.add((e["vehicle"], e["day"], e["t"], e["parameter"]))
+            named += 1
+            delays.append(e["t"] - f["t"])
+            errors.append(100 * (e["after"] / f["after"] - 1))
+    false, after_fault = 0, 0
+    false_by: Dict[str, int] = {}
+    after_by: Dict[str, int] = {}
+    for e in events:
+        if (e["vehicle"], e["day"], e["t"], e["parameter"]) in matched:
+            continue
+        f = faults.get((e["vehicle"], e["day"]))
+        if f is None or e["t"] < f["t"]:
+            false += 1
+            false_by[e["parameter"]] = false_by.get(e["parameter"], 0) + 1
+        else:
+            after_fault += 1
+            key = f"{f['parameter']}: {e['parameter']}"
+            after_by[key] = after_by.get(key, 0) + 1
+    driving = states.column("summary").to_pylist()
+    summ = [json.loads(s) for s in driving]
+    total_s = sum(s.get("seconds", 0.0) for s in summ)
+    cannot = sum(s["status"]["cannot judge"] for s in summ if "status" in s)
+    clean_s = total_s - sum(
+        next(s for (v, d), s in zip(zip(states.column("vehicle").to_pylist(), states.column("day").to_pylist()), summ)
+             if (v, d) == k).get("t1", 0.0) - f["t"] for k, f in faults.items())
+    return {"faults": len(truth), "found": found, "named right": named, "events": len(events),
+            "recall": named / max(1, len(truth)), "precision": len(matched) / max(1, len(events)),
+            "false alarms": false, "fault-free hours": clean_s / 3600,
+            "false alarms per 10 h": 10 * false / max(1e-9, clean_s / 3600),
+            "other events after a fault": after_fault, "false by": false_by, "after by": after_by,
+            "delay median s": statistics.median(delays) if delays else float("nan"),
+            "delay p95 s": float(np.percentile(delays, 95)) if delays else float("nan"),
+            "after within 3 points": sum(abs(x) <= 3 for x in errors),
+            "cannot judge %": 100 * cannot / max(1e-9, total_s), "hours": total_s / 3600}
+
+
+def detect(args: argparse.Namespace) -> None:
+    work = tempfile.mkdtemp(prefix="vehid-fleet-detect-")
+    t0 = time.perf_counter()
+    try:
+        store = os.path.join(work, "store")
+        truth: List[Dict[str, Any]] = []
+        for first in range(0, args.vehicles, args.part):
+            n = min(args.part, args.vehicles - first)
+            part = os.path.join(work, f"part{first}")
+            truth += simulate(part, n, args.days, args.hours, args.faults, args.seed, first=first,
+                              total=args.vehicles, workers=args.workers).to_pylist()
+            fleet.run(part, store, workers=args.workers)
+            shutil.rmtree(part)
+            done = first + n
+            el = time.perf_counter() - t0
+            _say(f"detect: {done}/{args.vehicles} vehicles simulated and monitored, {el:.0f} s "
+                 f"(about {el / done * (args.vehicles - done):.0f} s left)")
+        st = fleet.open_store(store)
+        s = _score(truth, st.events_table().to_pylist(), st.state_table(), args.window, args.hours)
+        by_kind: Dict[str, List[int]] = {}
+        for f in truth:
+            k = f["parameter"]
+            by_kind.setdefault(k, [0, 0])[0] += 1
+        ev = st.events_table().to_pylist()
+        for f in truth:
+            if any((e["vehicle"], e["day"], e["parameter"]) == (f["vehicle"], f["day"], f["parameter"])
+                   and f["t"] <= e["t"] <= f["t"] + args.window for e in ev):
+                by_kind[f["parameter"]][1] += 1
+        print(f"\nFleet detection, {args.vehicles} vehicles × {args.days} days × {args.hours:g} h "
+              f"(seed {args.seed}, {args.faults:g} with "
+              f"a fault; vehid {vehid.__version__}), {time.perf_counter() - t0:.0f} s:")
+        print(f"  faults {s['faults']}: found {s['found']}, named right {s['named right']} "
+              f"(recall {100 * s['recall']:.1f} %), {s['after within 3 points']} within 3 points of the new value; "
+              f"delay median {s['delay median s']:.2f} s, p95 {s['delay p95 s']:.2f} s")
+        print("  per constant (faults, named right): " + ", ".join(f"{k} {v[0]}/{v[1]}" for k, v in
+                                                                   sorted(by_kind.items())))
+        print(f"  events {s['events']}: precision {100 * s['precision']:.1f} %; {s['other events after a fault']} "
+              f"further events after a fault")
+        print("  further events after a fault (fault: event): "
+              + ", ".join(f"{k} {v}" for k, v in sorted(s["after by"].items())))
+        print("  false alarms by constant: " + ", ".join(f"{k} {v}" for k, v in sorted(s["false by"].items())))
+        print(f"  false alarms {s['false alarms']} in {s['fault-free hours']:.0f} fault-free hours: "
+              f"{s['false alarms per 10 h']:.2f} per 10 h; cannot judge {s['cannot judge %']:.2f} % of "
+              f"{s['hours']:.0f} h")
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    sub = p.add_subparsers(dest="what", required=True)
+    tp = sub.add_parser("throughput", help="end-to-end throughput beside the raw monitor")
+    tp.add_argument("--vehicles", type=int, default=16)
+    tp.add_argument("--hours", type=float, default=1.0)
+    tp.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    tp.add_argument("--repeats", type=int, default=3)
+    tp.add_argument("--seed", type=int, default=1)
+    tp.add_argument("--paper-vehicles", type=int, default=100_000)
+    tp.add_argument("--paper-hours", type=float, default=2.0, help="hours of driving per vehicle and day")
+    tp.set_defaults(func=throughput)
+    dp = sub.add_parser("detect", help="recall, precision and false alarms on a simulated fleet")
+    dp.add_argument("--vehicles", type=int, default=1000)
+    dp.add_argument("--hours", type=float, default=1.0, help="hours of driving a day")
+    dp.add_argument("--days", type=int, default=1, help="days per vehicle (a fault on one of them)")
+    dp.add_argument("--faults", type=float, default=0.5)
+    dp.add_argument("--seed", type=int, default=7100000)
+    dp.add_argument("--part", type=int, default=50, help="vehicles simulated per part (disk use)")
+    dp.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    dp.add_argument("--window", type=float, default=60.0, help="s after a fault in which its event counts")
+    dp.set_defaults(func=detect)
+    args = p.parse_args()
+    if min(args.vehicles, args.workers) < 1 or args.hours <= 0:
+        p.error("--vehicles, --workers >= 1 and --hours > 0")
+    args.func(args)
+
+
+if __name__ == "__main__":
+    main()
