@@ -54,14 +54,16 @@ def inverted(y: np.ndarray) -> None:
     y[AT:, 2] = -y[AT:, 2]
 
 
+# The status each fault must show after it starts: a reason, "" for any "cannot judge", None for
+# none (a drifting zero is followed by the offset of the body equation: nothing to report).
 FAULTS = {
     "bias step 5 sd": (bias_step(5.0), "jump in the data"),
     "bias step 100 sd": (bias_step(100.0), "jump in the data"),
     "drift 1 sd per 10 s": (drift, None),
     "gain 0.9": (gain(0.9), "sensors disagree"),
     "gain 1.1": (gain(1.1), "sensors disagree"),
-    "swapped accelerometers": (swapped, None),
-    "inverted deflection": (inverted, None),
+    "swapped accelerometers": (swapped, ""),
+    "inverted deflection": (inverted, ""),
 }
 
 
@@ -80,8 +82,9 @@ def test_a_sensor_fault_is_no_event_and_says_why(name: str) -> None:
                 statuses.append(mon.status)
         assert events == [], f"{name}, seed {seed}: {events}"
         cannot = {s for s in statuses if s.startswith("cannot judge") and s != "cannot judge: low excitation"}
-        assert cannot, f"{name}, seed {seed}: never 'cannot judge' after the fault"
         if why is not None:
+            assert cannot, f"{name}, seed {seed}: never 'cannot judge' after the fault"
+        if why:
             assert f"cannot judge: {why}" in cannot, (name, cannot)
 
 
