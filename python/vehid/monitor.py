@@ -17,6 +17,7 @@ checks the time column, prints and plots.
 from __future__ import annotations
 
 import argparse
+import datetime
 import json
 import math
 import re
@@ -28,6 +29,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import Event, HalfCar, HealthMonitor, QuarterCar
+from . import fieldlog
+from .align import nominal_interval
 from .io import Column, Table, TableError, match_columns, open_table, parse_column_map
 from .reproduce import _load_pyplot
 
@@ -249,6 +252,7 @@ class Feeder:
         self.ref0: Optional[Dict[str, Any]] = None
 
     def feed(self, y: NDArray[np.float64]) -> None:
+        self.missing += int(np.isnan(y).any(axis=1).sum())  # a sample with a missing channel is missing
         for i in range(0, len(y), self.block):
             self._step(y[i : i + self.block])
 
@@ -377,18 +381,22 @@ def _health_monitor(car: Union[QuarterCar, HalfCar], dt: float, sensors: Literal
 def cmd_monitor(args: argparse.Namespace) -> int:
     if args.dt is not None and not (math.isfinite(args.dt) and args.dt > 0):
         raise _cli_error(f"--dt {args.dt:g}: the sample interval must be a finite number of seconds > 0")
-    car = nominal_car(args.model, args.car)
+    car = nominal_car(args.model or "quarter", args.car)
     sensors: Literal["realistic", "state"] = args.sensors
-    try:
-        mapping = parse_column_map(args.columns or [])
-    except TableError as e:
-        raise _cli_error(str(e)) from None
     settings = {k: getattr(args, k) for k in ("window", "warmup", "min_change", "threshold", "confidence")
                 if getattr(args, k) is not None}
+    if getattr(args, "noise", None):
+        settings["sensor_noise"] = parse_noise(args.noise)
     # matplotlib before the log: a missing plot extra is said at once, not after the whole run.
     plt = _pyplot() if args.plot else None
     half = isinstance(car, HalfCar)
     channels = (HALF_SENSOR_COLUMNS if half else SENSOR_COLUMNS)[sensors]
+    if args.file != "-":
+        return _monitor_file(args, car, sensors, settings, channels, plt)
+    try:
+        mapping = parse_column_map(args.columns or [])
+    except TableError as e:
+        raise _cli_error(str(e)) from None
     columns = (Column("t", "time", "s"),) + channels
     with open_table(args.file, delimiter=args.delimiter) as table:
         match = match_columns(table.names, columns, mapping, where=table.source)
@@ -419,10 +427,9 @@ def cmd_monitor(args: argparse.Namespace) -> int:
             if mon is None:
                 dt = args.dt
                 if dt is None:
-                    d = np.diff(data[:, 0])
-                    if len(d) == 0:
+                    dt = nominal_interval(data[:, 0])
+                    if not math.isfinite(dt):
                         raise _cli_error(f"{table.source}: one sample cannot give the sample interval: give --dt")
-                    dt = float(np.median(d))
                 mon = _health_monitor(car, dt, sensors, settings, args, table.source)
                 feeder = Feeder(mon, float(data[0, 0]) if has_t else 0.0, sys.stdout, args.json)
             assert feeder is not None
@@ -449,6 +456,85 @@ def cmd_monitor(args: argparse.Namespace) -> int:
         if plt is not None:
             plot(feeder, car, args.plot, plt)
     return 0
+
+
+def _monitor_file(args: argparse.Namespace, car: Union[QuarterCar, HalfCar], sensors: Literal["realistic", "state"],
+                  settings: Dict[str, Any], channels: Sequence[Column], plt: Any) -> int:
+    """``vehid monitor`` on a file or a bag (:mod:`vehid.fieldlog`): the channels read in SI,
+    put on one grid (resampled where their rates differ, the deflection's delay removed),
+    checked against the named car, then fed to the monitor."""
+    names = [c.name for c in channels]
+    cmap: Optional[fieldlog.ChannelMap] = None
+    pairs: List[str] = []
+    try:
+        for text in args.columns or []:
+            if fieldlog.is_channel_map(text):
+                if cmap is not None:
+                    raise TableError(f"--columns {text}: one channel map at a time ({cmap.path} is given too)")
+                cmap = fieldlog.load_channel_map(text, names)
+            else:
+                pairs.append(text)
+        mapping = parse_column_map(pairs)
+        log = fieldlog.read_log(args.file, channels, cmap, mapping, args.delimiter, args.dt)
+        dt = fieldlog.grid_interval(log, args.dt)
+    except TableError as e:
+        raise _cli_error(str(e)) from None
+    mon = _health_monitor(car, dt, sensors, settings, args, log.source)
+    try:
+        al = fieldlog.align(log, dt, cmap.channels if cmap else None)
+        if sensors == "realistic" and not isinstance(car, HalfCar):
+            p = car.params
+            fieldlog.car_check(al, p["k2"] / p["M"], p["b"] / p["M"], _car_words(args))
+    except TableError as e:
+        raise _cli_error(str(e)) from None
+    for note in al.notes:
+        print(f"vehid: note: {note}", file=sys.stderr, flush=True)
+    t0 = 0.0 if log.absolute else al.t0
+    if log.absolute:
+        start = datetime.datetime.fromtimestamp(al.t0, datetime.timezone.utc).isoformat(timespec="milliseconds")
+        print(f"vehid: note: times are seconds from the log's start, {start}", file=sys.stderr, flush=True)
+    feeder = Feeder(mon, t0, sys.stdout, args.json)
+    feeder.feed(np.ascontiguousarray(al.y))
+    summary(feeder, log.source, len(al.y), sys.stderr)
+    if plt is not None:
+        plot(feeder, car, args.plot, plt)
+    return 0
+
+
+def _car_words(args: argparse.Namespace) -> str:
+    """How the user named the nominal car, for messages."""
+    given = f"--model {args.model}" if args.model else "--model quarter (the default: the thesis' 10 kg car)"
+    return given + (f" --car {args.car}" if args.car else "")
+
+
+#: ``--noise`` names: the sensor noise standard deviations the monitor assumes.
+NOISE_NAMES = ("a_body", "a_wheel", "deflection", "a_body_bias", "a_wheel_bias")
+
+
+def parse_noise(text: str) -> Dict[str, float]:
+    """``--noise a_body=0.06,deflection=0.0009`` (m/s^2, m: the sensors' white noise per
+    sample at the log's rate) to the monitor's ``sensor_noise``.
+
+    >>> parse_noise("a_body=0.06, deflection=9e-4")
+    {'a_body': 0.06, 'deflection': 0.0009}
+    """
+    out: Dict[str, float] = {}
+    for item in text.split(","):
+        if not item.strip():
+            continue
+        name, sep, value = item.partition("=")
+        name = name.strip()
+        if not sep or name not in NOISE_NAMES:
+            raise _cli_error(f"--noise {text}: expected NAME=VALUE with NAME in {', '.join(NOISE_NAMES)} "
+                             f"(m/s^2, m), got {item.strip()!r}")
+        try:
+            v = float(value)
+        except ValueError:
+            raise _cli_error(f"--noise {text}: {name}={value.strip()!r} is not a number") from None
+        if not (math.isfinite(v) and v > 0):
+            raise _cli_error(f"--noise {text}: {name} must be a finite number > 0")
+        out[name] = v
+    return out
 
 
 def summary(feeder: Feeder, source: str, samples: int, out: IO[str]) -> None:
@@ -572,8 +658,10 @@ DESCRIPTION = (
 
 def add_arguments(p: argparse.ArgumentParser, delimiter: Callable[[str], str]) -> None:
     """The options of ``vehid monitor`` (``delimiter``: the parser of ``--delimiter``)."""
-    p.add_argument("file", metavar="FILE", help="CSV or Parquet log, '-' for stdin (CSV)")
-    p.add_argument("--model", default="quarter", metavar="MODEL",
+    p.add_argument("file", metavar="FILE",
+                   help="CSV or Parquet log, a ROS 2 bag (.mcap, .db3, a bag folder; with --columns channels.toml) "
+                        "or '-' for stdin (CSV)")
+    p.add_argument("--model", default=None, metavar="MODEL",
                    help="the nominal car: quarter (the thesis' values, default), passenger (M=320 kg, m=40 kg, "
                         "k1=200 kN/m, k2=22 kN/m, b=1500 N s/m) or half (a passenger half car: M=640 kg, "
                         "J=1040 kg m^2, l1=1.2 m, l2=1.5 m, k12/k22=24/22 kN/m, b1/b2=1600/1400 N s/m; columns "
@@ -588,7 +676,12 @@ def add_arguments(p: argparse.ArgumentParser, delimiter: Callable[[str], str]) -
     p.add_argument("--dt", type=float, default=None,
                    help="sample interval, s (default: the median interval of the time column)")
     p.add_argument("--columns", action="append", metavar="MAP",
-                   help="NAME=COLUMN,...: which file column holds each channel (e.g. a_body=acc_z_body)")
+                   help="NAME=COLUMN,...: which file column holds each channel (e.g. a_body=acc_z_body); or a "
+                        "channels.toml mapping each channel to a topic (bags, MCAP) or a column, with field, unit "
+                        "(m, mm, m/s, mm/s, m/s^2, g), sign, scale, gravity and delay (see docs: field logs)")
+    p.add_argument("--noise", default=None, metavar="STDS",
+                   help="the sensors' white noise per sample, e.g. a_body=0.06,a_wheel=0.3,deflection=0.0009 "
+                        "(m/s^2, m; default 0.02, 0.1, 0.0003): declare noisier sensors than the defaults")
     p.add_argument("--delimiter", type=delimiter, default=None, metavar="D", help="CSV separator (default: sniffed)")
     p.add_argument("--window", type=float, default=None, help="tracking window T_f, s (default 6)")
     p.add_argument("--warmup", type=float, default=None, help="seconds of data forming the reference (default 20)")

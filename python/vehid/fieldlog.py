@@ -1,0 +1,699 @@
+"""Field logs: a car's sensor channels from data-logger tables and ROS 2 bags, in SI units on
+one clock, for ``vehid monitor`` and ``vehid inspect``.
+
+* :func:`load_channel_map` reads a ``channels.toml`` (which topic or column feeds each vehid
+  channel, its field, unit, sign, scale, gravity and delay).
+* :func:`read_log` reads the channels of a CSV or Parquet table (units from ``[mm]``
+  headers, the map or Parquet field metadata; time in s, ms, us, ns or timestamps; empty
+  cells missing) or of a ROS 2 bag (``.mcap``, ``.db3``, a bag folder; through ``rosbags``)
+  as :class:`Series`: times (s) and values (SI) per channel.
+* :func:`align` puts them on one grid (:mod:`vehid.align`: the nominal rate, the
+  resampler, the deflection's delay estimated and removed) and checks that they are
+  plausible (units, the deflection's sign, gravity, the named car) before any result.
+
+Every error is a :class:`vehid.io.TableError` (a ``ValueError``) with one line naming the
+column, topic or key and the fix.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tomllib
+from dataclasses import dataclass, field
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from . import align as _align
+from .io import (STANDARD_GRAVITY, Column, TableError, match_columns, normalize, open_table, quantity_of,
+                 si_factor)
+
+__all__ = ["Aligned", "ChannelMap", "ChannelSpec", "Log", "Series", "align", "is_bag", "is_channel_map",
+           "load_channel_map", "read_log", "BAG_SUFFIXES"]
+
+#: File suffixes read as ROS bags (a folder is read as a rosbag2 bag too).
+BAG_SUFFIXES = (".mcap", ".db3", ".bag")
+#: The monitor's calibrated rate: the grid's interval when the channels' rates differ, s.
+DEFAULT_DT = 0.005
+#: Samples read per chunk of a table.
+CHUNK = 200_000
+#: A deflection delay under this (s) is reported, not removed.
+DELAY_TOLERANCE = 0.25e-3
+#: A clock that jumps back, or forward by more than this (s), is refused.
+MAX_JUMP = 3600.0
+#: Keys a channel's section may hold.
+SPEC_KEYS = ("topic", "column", "field", "joint", "unit", "gravity", "sign", "scale", "delay")
+#: What each ROS message type gives by default: ``(field, unit, gravity)``.
+MESSAGE_FIELDS: Dict[str, Tuple[str, str, Optional[str]]] = {
+    "sensor_msgs/msg/Imu": ("linear_acceleration.z", "m/s^2", "included"),
+    "sensor_msgs/msg/JointState": ("position", "m", None),
+    "std_msgs/msg/Float64": ("data", "", None),
+    "std_msgs/msg/Float32": ("data", "", None),
+    "geometry_msgs/msg/AccelStamped": ("accel.linear.z", "m/s^2", None),
+    "geometry_msgs/msg/Vector3Stamped": ("vector.z", "", None),
+    "sensor_msgs/msg/Range": ("range", "m", None),
+}
+
+
+@dataclass
+class ChannelSpec:
+    """Where one vehid channel comes from (a section of ``channels.toml``)."""
+
+    channel: str
+    topic: Optional[str] = None
+    column: Optional[str] = None
+    field: Optional[str] = None
+    #: JointState: the joint's name (else ``position[0]`` or ``field = "position[i]"``).
+    joint: Optional[str] = None
+    unit: Optional[str] = None
+    #: Accelerations: ``"included"`` (specific force, REP 145) or ``"removed"``; ``None``: as
+    #: the message type says (Imu: included), else detected from the mean.
+    gravity: Optional[str] = None
+    sign: float = 1.0
+    sign_given: bool = False
+    scale: float = 1.0
+    #: A known delay of this channel against the others, s (then none is estimated).
+    delay: Optional[float] = None
+
+
+@dataclass
+class ChannelMap:
+    """A ``channels.toml``: the channels, the time column (tables) and which stamp (bags)."""
+
+    path: str
+    channels: Dict[str, ChannelSpec]
+    time_column: Optional[str] = None
+    time_unit: Optional[str] = None
+    #: Bags: ``"header"`` (``header.stamp``, default) or ``"log"`` (the time the message was logged).
+    stamp: str = "header"
+
+
+def is_bag(path: str) -> bool:
+    """Whether ``path`` is read as a ROS bag: a ``.mcap``, ``.db3`` or ``.bag`` file, or a folder."""
+    return os.path.isdir(path) or path.lower().endswith(BAG_SUFFIXES)
+
+
+def is_channel_map(path: str) -> bool:
+    """Whether a ``--columns`` value is a ``channels.toml`` (a TOML file with sections of
+    keys, ``[a_body] column = ...``) rather than ``NAME=COLUMN`` pairs or a flat mapping file."""
+    if "=" in path or not path.lower().endswith(".toml") or not os.path.isfile(path):
+        return False
+    try:
+        with open(path, "rb") as f:
+            data = tomllib.load(f)
+    except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError):
+        return False
+    return any(isinstance(v, dict) for v in data.values())
+
+
+def load_channel_map(path: str, channels: Sequence[str]) -> ChannelMap:
+    """Reads ``path`` (TOML) for the vehid channels ``channels``: one section per channel
+    (``[a_body]``: ``topic`` or ``column``, ``field``, ``joint``, ``unit``, ``gravity``,
+    ``sign``, ``scale``, ``delay``), an optional ``[time]`` section (``column``, ``unit``) and
+    an optional top-level ``stamp = "header" | "log"``."""
+    where = f"--columns {path}"
+    try:
+        with open(path, "rb") as f:
+            data = tomllib.load(f)
+    except OSError as e:
+        raise TableError(f"{where}: cannot read ({e.strerror or e})") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        raise TableError(f"{where}: not a TOML file ({e})") from None
+    specs: Dict[str, ChannelSpec] = {}
+    out = ChannelMap(path, specs)
+    for key, value in data.items():
+        if key == "stamp":
+            if value not in ("header", "log"):
+                raise TableError(f"{where}: stamp = {value!r}: expected \"header\" (header.stamp) or \"log\" "
+                                 "(the time the message was logged)")
+            out.stamp = str(value)
+            continue
+        if not isinstance(value, dict):
+            raise TableError(f"{where}: {key} = {value!r}: expected sections [CHANNEL] (channels: "
+                             f"{', '.join(channels)}, time) or stamp = \"header\"|\"log\"")
+        if key in ("time", "t"):
+            bad = [k for k in value if k not in ("column", "unit")]
+            if bad:
+                raise TableError(f"{where}: [{key}] {bad[0]}: the time section takes column and unit")
+            out.time_column = _text(value, "column", where, key)
+            out.time_unit = _text(value, "unit", where, key)
+            continue
+        if key not in channels:
+            raise TableError(f"{where}: [{key}] is not a channel here; the channels are {', '.join(channels)} "
+                             "(and [time])")
+        specs[key] = _spec(key, value, where)
+    return out
+
+
+def _text(section: Mapping[str, Any], key: str, where: str, name: str) -> Optional[str]:
+    value = section.get(key)
+    if value is not None and not isinstance(value, str):
+        raise TableError(f"{where}: [{name}] {key} = {value!r}: expected a string")
+    return value
+
+
+def _number(section: Mapping[str, Any], key: str, where: str, name: str) -> Optional[float]:
+    value = section.get(key)
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise TableError(f"{where}: [{name}] {key} = {value!r}: expected a finite number")
+    return float(value)
+
+
+def _spec(name: str, section: Mapping[str, Any], where: str) -> ChannelSpec:
+    bad = [k for k in section if k not in SPEC_KEYS]
+    if bad:
+        raise TableError(f"{where}: [{name}] {bad[0]}: unknown key; a channel takes {', '.join(SPEC_KEYS)}")
+    spec = ChannelSpec(name, topic=_text(section, "topic", where, name), column=_text(section, "column", where, name),
+                       field=_text(section, "field", where, name), joint=_text(section, "joint", where, name),
+                       unit=_text(section, "unit", where, name), gravity=_text(section, "gravity", where, name))
+    if (spec.topic is None) == (spec.column is None):
+        raise TableError(f"{where}: [{name}] needs one of topic = \"/...\" (bags, MCAP) or column = \"...\" "
+                         "(CSV, Parquet)")
+    if spec.gravity not in (None, "included", "removed"):
+        raise TableError(f"{where}: [{name}] gravity = {spec.gravity!r}: expected \"included\" (specific force, "
+                         "as an IMU reports) or \"removed\"")
+    sign = _number(section, "sign", where, name)
+    if sign is not None:
+        if sign not in (1.0, -1.0):
+            raise TableError(f"{where}: [{name}] sign = {sign:g}: expected 1 or -1")
+        spec.sign, spec.sign_given = sign, True
+    scale = _number(section, "scale", where, name)
+    if scale is not None:
+        if scale == 0:
+            raise TableError(f"{where}: [{name}] scale = 0: expected a non-zero factor")
+        spec.scale = scale
+    spec.delay = _number(section, "delay", where, name)
+    return spec
+
+
+@dataclass
+class Series:
+    """One channel as read: times ``t`` (s; since 1970 where the log has absolute times) and
+    values ``v`` (SI; NaN missing), with where they came from and in which unit."""
+
+    channel: str
+    source: str
+    t: NDArray[np.float64]
+    v: NDArray[np.float64]
+    unit: str
+    unit_from: str
+    #: Table rows (line numbers) of the samples, for messages; ``None`` for bags.
+    lines: Optional[NDArray[np.int64]] = None
+    #: Whether gravity was removed from this channel (accelerations).
+    gravity_removed: bool = False
+    #: What the message type says of gravity (an IMU: ``"included"``, REP 145), if anything.
+    gravity: Optional[str] = None
+
+
+@dataclass
+class Log:
+    """A log's channels: ``series`` in the order asked for; ``absolute``: times since 1970."""
+
+    source: str
+    kind: str
+    series: List[Series]
+    absolute: bool
+    notes: List[str] = field(default_factory=list)
+
+
+def read_log(path: str, channels: Sequence[Column], cmap: Optional[ChannelMap] = None,
+             pairs: Optional[Mapping[str, str]] = None, delimiter: Optional[str] = None,
+             dt: Optional[float] = None) -> Log:
+    """The channels ``channels`` of the log ``path`` (a table, or a bag when :func:`is_bag`),
+    through the channel map ``cmap`` or ``NAME=COLUMN`` ``pairs`` (tables), in SI."""
+    if is_bag(path):
+        if cmap is None:
+            raise TableError(f"{path}: a ROS bag: map its topics to the channels with --columns channels.toml "
+                             f"({', '.join(c.name for c in channels)}; vehid inspect {path} lists its topics)")
+        return _read_bag(path, channels, cmap)
+    return _read_table(path, channels, cmap, pairs or {}, delimiter, dt)
+
+
+# --- tables ---------------------------------------------------------------------------
+
+#: Further names of a time column (after :func:`vehid.io.normalize`).
+MORE_TIME_NAMES = ("timestamp", "time_stamp", "datetime", "zeit")
+
+
+def _read_table(path: str, channels: Sequence[Column], cmap: Optional[ChannelMap], pairs: Mapping[str, str],
+                delimiter: Optional[str], dt: Optional[float]) -> Log:
+    mapping = dict(pairs)
+    specs = cmap.channels if cmap else {}
+    for name, spec in specs.items():
+        if spec.column is None:
+            raise TableError(f"--columns {cmap.path if cmap else ''}: [{name}] topic = {spec.topic!r}: {path} is a "
+                             "table: give column = \"...\"")
+        mapping[name] = spec.column
+    if cmap and cmap.time_column:
+        mapping["t"] = cmap.time_column
+    with open_table(path, delimiter=delimiter) as table:
+        cols = (Column("t", "time", "s"),) + tuple(channels)
+        match = match_columns(table.names, cols, mapping, where=table.source)
+        if "t" not in match.index:
+            more = [i for i, h in enumerate(table.names) if normalize(h) in MORE_TIME_NAMES]
+            if len(more) == 1:
+                match.index["t"] = more[0]
+        absent = [c for c in channels if c.name not in match.index]
+        if absent:
+            shown = ", ".join(repr(h) for h in table.names[:12]) + (", ..." if len(table.names) > 12 else "")
+            raise TableError(f"{table.source} has no column {', '.join(c.describe() for c in absent)} (its columns: "
+                             f"{shown}); map yours with --columns {absent[0].name}=NAME or a channels.toml")
+        has_t = "t" in match.index
+        if not has_t and dt is None:
+            raise TableError(f"{table.source} has no time column t: give the sample interval with --dt SECONDS")
+        order = ([match.index["t"]] if has_t else []) + [match.index[c.name] for c in channels]
+        labels = (["t"] if has_t else []) + [c.describe() for c in channels]
+        factors: List[Tuple[float, str, str]] = []
+        for c in channels:
+            i = match.index[c.name]
+            factors.append(_unit(specs.get(c.name), table.declared_unit(i), c, f"{table.source}, column "
+                                 f"{table.names[i]!r}"))
+        time_factor, absolute = 1.0, False
+        if has_t:
+            i = match.index["t"]
+            absolute = table.is_timestamp(i)
+            declared = (cmap.time_unit if cmap and cmap.time_unit else None) or table.declared_unit(i)
+            if declared and not absolute:
+                time_factor = si_factor(declared, "time", f"{table.source}, time column {table.names[i]!r}")
+        blocks, lines = [], []
+        for chunk in table.chunks(order, labels, CHUNK, missing=True, stamps=[0] if has_t else []):
+            blocks.append(chunk.data)
+            lines.append(chunk.lines)
+        if not blocks:
+            raise TableError(f"{table.source} has no samples")
+        data = np.concatenate(blocks)
+        rows = np.concatenate(lines)
+        if has_t:
+            t = data[:, 0] * time_factor
+            if np.isnan(t).any():
+                row = int(np.argmax(np.isnan(t)))
+                raise TableError(f"{table.where(int(rows[row]))}: the time is missing: every sample needs its time "
+                                 "(drop the sample: the gap is then seen in the time column)")
+            absolute = absolute or bool(t[0] > 1e8)  # seconds since 1970 (timestamps)
+            values = data[:, 1:]
+        else:
+            assert dt is not None
+            t = np.arange(len(data)) * dt
+            values = data
+        _increasing(t, rows, table.where)
+        series = []
+        for j, c in enumerate(channels):
+            factor, unit, unit_from = factors[j]
+            spec = specs.get(c.name)
+            sign = spec.sign * spec.scale if spec else 1.0
+            i = match.index[c.name]
+            series.append(Series(c.name, f"column {table.names[i]!r}", t, values[:, j] * factor * sign, unit,
+                                 unit_from, lines=rows))
+        return Log(table.source, table.kind, series, absolute)
+
+
+def _increasing(t: NDArray[np.float64], rows: NDArray[np.int64], where: Any) -> None:
+    d = np.diff(t)
+    if len(d) and not (d > 0).all():
+        i = int(np.argmin(d > 0))
+        raise TableError(f"{where(int(rows[i + 1]))}: time {float(t[i + 1])!r} s does not increase after "
+                         f"{float(t[i])!r} s: the time column must increase strictly (sort the log, drop duplicated "
+                         "samples)")
+
+
+def _unit(spec: Optional[ChannelSpec], declared: Optional[str], column: Column, where: str) -> Tuple[float, str, str]:
+    """``(factor to SI, unit, where the unit came from)`` of a channel."""
+    quantity = quantity_of(column.unit)
+    if spec is not None and spec.unit:
+        unit, source = spec.unit, "channel map"
+    elif declared:
+        unit, source = declared, "declared"
+    else:
+        return 1.0, column.unit, "none declared: SI taken"
+    if not quantity:
+        if unit.strip() != column.unit:
+            raise TableError(f"{where}: unit {unit!r}: vehid reads this channel only in {column.unit}")
+        return 1.0, unit, source
+    return si_factor(unit, quantity, where), unit, source
+
+
+# --- bags -----------------------------------------------------------------------------
+
+
+def _rosbags() -> Tuple[Any, Any, Any]:
+    try:
+        from rosbags.highlevel import AnyReader
+        from rosbags.typesys import Stores, get_typestore
+    except ImportError:
+        raise TableError("reading ROS bags and MCAP needs rosbags: pip install 'vehid[ros]'") from None
+    return AnyReader, Stores, get_typestore
+
+
+def open_bag(path: str) -> Any:
+    """A ``rosbags`` ``AnyReader`` on ``path`` (not yet opened), or a one-line error."""
+    from pathlib import Path
+
+    AnyReader, Stores, get_typestore = _rosbags()
+    if not os.path.exists(path):
+        raise TableError(f"{path}: no such file or folder")
+    try:
+        return AnyReader([Path(path)], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
+    except Exception as e:  # rosbags' own error family
+        raise TableError(f"{path}: not a readable ROS bag ({_first_line(e)})") from None
+
+
+def _first_line(e: BaseException) -> str:
+    text = str(e).strip().splitlines()
+    return text[0] if text else type(e).__name__
+
+
+def _field(msg: Any, path: str) -> Any:
+    """``msg.a.b[2]``-style field ``path`` of a message."""
+    value = msg
+    for part in path.split("."):
+        name, _, index = part.partition("[")
+        value = getattr(value, name)
+        if index:
+            value = value[int(index.rstrip("]"))]
+    return value
+
+
+def _stamp(msg: Any) -> Optional[int]:
+    header = getattr(msg, "header", None)
+    stamp = getattr(header, "stamp", None)
+    if stamp is None:
+        return None
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+def _read_bag(path: str, channels: Sequence[Column], cmap: ChannelMap) -> Log:
+    reader = open_bag(path)
+    series: List[Series] = []
+    notes: List[str] = []
+    try:
+        with reader:
+            by_topic = {c.topic: c for c in reader.connections}
+            for c in channels:
+                spec = cmap.channels.get(c.name)
+                if spec is None:
+                    raise TableError(f"--columns {cmap.path}: no [{c.name}] section: {path} needs one for each of "
+                                     f"{', '.join(x.name for x in channels)} (vehid inspect {path} lists the topics)")
+                if spec.topic not in by_topic:
+                    shown = ", ".join(sorted(t for t in by_topic if t is not None)[:12])
+                    raise TableError(f"{path}: no topic {spec.topic!r} for [{c.name}] (its topics: {shown})")
+                series.append(_bag_series(reader, by_topic[spec.topic], spec, c, cmap.stamp, path, notes))
+    except TableError:
+        raise
+    except Exception as e:  # a truncated or corrupt bag: rosbags' and the storage's errors
+        raise TableError(f"{path}: cannot read the bag ({_first_line(e)}): is it truncated? "
+                         "(ros2 bag reindex can repair a bag whose recording was cut)") from None
+    return Log(path, "bag", series, True, notes)
+
+
+def _bag_series(reader: Any, conn: Any, spec: ChannelSpec, column: Column, stamp: str, path: str,
+                notes: List[str]) -> Series:
+    msgtype = conn.msgtype
+    where = f"{path}, topic {spec.topic}"
+    default = MESSAGE_FIELDS.get(msgtype)
+    fieldpath = spec.field or (default[0] if default else None)
+    if fieldpath is None:
+        known = ", ".join(k.replace("/msg/", "/") for k in MESSAGE_FIELDS)
+        raise TableError(f"{where}: a {msgtype} message: vehid reads {known} by default; give field = \"...\" "
+                         f"(the value's path in the message) in [{spec.channel}]")
+    if msgtype == "sensor_msgs/msg/JointState" and spec.field is None and spec.joint is None:
+        fieldpath = "position[0]"
+    ts: List[int] = []
+    vs: List[float] = []
+    no_header = False
+    index: Optional[int] = None
+    for _, logged, raw in reader.messages(connections=[conn]):
+        msg = reader.deserialize(raw, msgtype)
+        if spec.joint is not None:
+            if index is None:
+                names = list(getattr(msg, "name", []))
+                if spec.joint not in names:
+                    raise TableError(f"{where}: no joint {spec.joint!r} in its JointState (its joints: "
+                                     f"{', '.join(names[:12])})")
+                index = names.index(spec.joint)
+            fp = f"{spec.field or 'position'}[{index}]"
+        else:
+            fp = fieldpath
+        try:
+            value = float(_field(msg, fp))
+        except (AttributeError, IndexError, ValueError, TypeError):
+            raise TableError(f"{where}: a {msgtype} message has no number at field {fp!r} for [{spec.channel}]: "
+                             "give the right field = \"...\" (vehid inspect lists the fields)") from None
+        if msgtype == "sensor_msgs/msg/Imu" and fp.startswith("linear_acceleration"):
+            cov = getattr(msg, "linear_acceleration_covariance", None)
+            if cov is not None and len(cov) and float(cov[0]) == -1.0:  # REP 145: the field is absent
+                value = math.nan
+        t = _stamp(msg) if stamp == "header" else None
+        if t is None or t == 0:
+            no_header = no_header or stamp == "header"
+            t = int(logged)
+        ts.append(t)
+        vs.append(value)
+    if not ts:
+        raise TableError(f"{where}: no messages for [{spec.channel}]")
+    if no_header:
+        notes.append(f"topic {spec.topic}: no header.stamp in its messages: the log time is used")
+    t_ns = np.asarray(ts, dtype=np.int64)
+    order = np.argsort(t_ns, kind="stable")
+    back = np.flatnonzero(np.diff(t_ns) < 0)
+    if len(back):
+        i = int(back[0])
+        jump = (t_ns[i] - t_ns[i + 1]) * 1e-9
+        if jump > 1.0:
+            raise TableError(f"{where}: the clock jumps back {jump:.3g} s at message {i + 2} (header.stamp): "
+                             "split the bag there, or read the log time with stamp = \"log\" in the channel map")
+        t_ns = t_ns[order]  # messages that arrived out of order
+    v = np.asarray(vs, dtype=np.float64)[order] if len(back) else np.asarray(vs, dtype=np.float64)
+    d = np.diff(t_ns)
+    if len(d) and int(d.max()) > MAX_JUMP * 1e9:
+        i = int(np.argmax(d))
+        raise TableError(f"{where}: the clock jumps {d[i] * 1e-9:.6g} s forward at message {i + 2}: "
+                         "split the bag there (or read the log time with stamp = \"log\")")
+    if len(d) and (d == 0).any():
+        keep = np.concatenate([[True], d > 0])
+        t_ns, v = t_ns[keep], v[keep]
+    unit_spec = spec.unit or (default[1] if default and default[1] else None)
+    factor, unit, unit_from = _unit(spec if spec.unit else None, unit_spec, column, where)
+    if not spec.unit and unit_spec:
+        unit_from = f"{msgtype.split('/')[-1]} message (REP 103: SI)"
+    v = v * factor * spec.sign * spec.scale
+    t0 = int(t_ns[0])
+    seconds = t0 * 1e-9 + (t_ns - t0).astype(np.float64) * 1e-9
+    gravity = default[2] if default is not None and column.unit == "m/s^2" else None
+    return Series(column.name, f"topic {spec.topic} ({msgtype.split('/')[-1]}.{fp if spec.joint else fieldpath})",
+                  seconds, v, unit, unit_from, gravity=gravity)
+
+
+# --- one grid ---------------------------------------------------------------------------
+
+
+@dataclass
+class Aligned:
+    """The channels on one grid: ``y[k]`` at ``t0 + k dt`` (s), NaN missing; ``delays``: the
+    deflection's delay per axle removed (s; NaN: could not be estimated), ``notes``: what
+    was done, one line each, for the user."""
+
+    t0: float
+    dt: float
+    y: NDArray[np.float64]
+    names: List[str]
+    rates: Dict[str, float]
+    delays: Dict[str, float] = field(default_factory=dict)
+    notes: List[str] = field(default_factory=list)
+    missing: int = 0
+
+
+def grid_interval(log: Log, dt: Optional[float]) -> float:
+    """The grid's interval: ``dt`` when given; else the channels' common nominal interval
+    when they share one and it is not shorter than :data:`DEFAULT_DT`... (documented in
+    ``docs/capabilities/field-logs.md``): the monitor's calibrated 5 ms when any channel is
+    at least that fast, else the fastest channel's interval."""
+    if dt is not None:
+        return dt
+    rates = [_align.nominal_interval(s.t) for s in log.series]
+    fastest = min(r for r in rates if math.isfinite(r)) if any(math.isfinite(r) for r in rates) else math.nan
+    if not math.isfinite(fastest):
+        raise TableError(f"{log.source}: one sample cannot give the sample interval: give --dt")
+    return DEFAULT_DT if fastest <= DEFAULT_DT * 1.0001 else fastest
+
+
+def _gravity(s: Series, spec: Optional[ChannelSpec], notes: List[str]) -> None:
+    """Removes gravity from an acceleration where it is included (declared, an IMU, or a
+    mean within 20 % of +g); refuses a mean near -g (the axis points down)."""
+    declared = (spec.gravity if spec else None) or s.gravity
+    if declared == "removed":
+        return
+    finite = s.v[np.isfinite(s.v)]
+    mean = float(np.mean(finite)) if len(finite) else 0.0
+    if declared == "included" or abs(mean - STANDARD_GRAVITY) < 0.2 * STANDARD_GRAVITY:
+        s.v = s.v - STANDARD_GRAVITY
+        s.gravity_removed = True
+        if declared != "included":
+            notes.append(f"{s.channel} ({s.source}): mean {mean:.3g} m/s^2: gravity included, removed (declare "
+                         "gravity = \"included\" or \"removed\" in the channel map)")
+        return
+    if abs(mean + STANDARD_GRAVITY) < 0.2 * STANDARD_GRAVITY:
+        raise TableError(f"{s.channel} ({s.source}) reads {mean:.3g} m/s^2 on average: -g, so its axis points "
+                         "down; vehid's points up: declare sign = -1 for it in the channel map")
+
+
+def align(log: Log, dt: Optional[float], specs: Optional[Mapping[str, ChannelSpec]] = None,
+          estimate: bool = True) -> Aligned:
+    """Puts ``log``'s channels on one grid of interval :func:`grid_interval` (s), after
+    removing gravity from the accelerations, and removes the deflection's delay against the
+    accelerometers (declared ``delay`` in the map, else estimated when ``estimate``)."""
+    specs = specs or {}
+    notes = list(log.notes)
+    for s in log.series:
+        if s.channel.startswith(("a_body", "a_wheel")):
+            _gravity(s, specs.get(s.channel), notes)
+    step = grid_interval(log, dt)
+    rates = {s.channel: _align.nominal_interval(s.t) for s in log.series}
+    t0 = max(float(s.t[0]) for s in log.series)
+    t1 = min(float(s.t[-1]) for s in log.series)
+    if t1 <= t0:
+        spans = ", ".join(f"{s.channel} {s.t[0]:.6g}..{s.t[-1]:.6g} s" for s in log.series)
+        raise TableError(f"{log.source}: the channels do not overlap in time ({spans})")
+    n = int(math.floor((t1 - t0) / step + 1e-6)) + 1
+    inputs = max(len(s.t) for s in log.series)
+    if n > 20 * inputs + 1000:
+        raise TableError(f"--dt {step:g}: {n:,} samples on the grid from {inputs:,} in the log: give the log's "
+                         "sample interval (or none: the grid then follows the log)")
+    shared = all(s.t is log.series[0].t for s in log.series)
+    same = shared and abs(rates[log.series[0].channel] - step) < 1e-9 * step + 1e-12
+    y = np.empty((n, len(log.series)))
+    if same:  # one clock at the grid's rate: the samples as logged, gaps as missing rows
+        y = _placed(log, step, t0, n)
+    else:
+        for j, s in enumerate(log.series):
+            y[:, j] = _align.resample(s.t, s.v, rates[s.channel], t0, step, n)
+        if not shared or any(abs(r - step) > 1e-9 for r in rates.values()):
+            notes.append("resampled to " + f"{1 / step:g} Hz (" + ", ".join(f"{c} {1 / r:g} Hz" for c, r in
+                                                                         rates.items()) + ")")
+    out = Aligned(t0, step, y, [s.channel for s in log.series], rates, notes=notes)
+    for axle in ("", "_f", "_r"):
+        names = [f"a_body{axle}", f"a_wheel{axle}", f"deflection{axle}"]
+        if all(c in out.names for c in names):
+            _deflection(out, log, names, specs, estimate)
+    out.missing = int(np.isnan(out.y).any(axis=1).sum())
+    return out
+
+
+def _placed(log: Log, step: float, t0: float, n: int) -> NDArray[np.float64]:
+    """The samples of a one-clock table at their grid index ``round((t - t0) / dt)``; an
+    interval under half the grid's is refused naming its line."""
+    s0 = log.series[0]
+    k = np.rint((s0.t - t0) / step).astype(np.int64)
+    dk = np.diff(k)
+    if len(dk) and not (dk >= 1).all():
+        i = int(np.argmin(dk >= 1))
+        where = f"{log.source}, line {int(s0.lines[i + 1])}" if s0.lines is not None else log.source
+        raise TableError(f"{where}: the sample interval {float(s0.t[i + 1] - s0.t[i]):.6g} s is under half the "
+                         f"sample interval {step:.6g} s: the monitor needs a fixed rate (resample the log, or give "
+                         "--dt)")
+    keep = (k >= 0) & (k < n)
+    y = np.full((n, len(log.series)), math.nan)
+    for j, s in enumerate(log.series):
+        y[k[keep], j] = s.v[keep]
+    return y
+
+
+def _deflection(out: Aligned, log: Log, names: List[str], specs: Mapping[str, ChannelSpec],
+                estimate: bool) -> None:
+    """The deflection of one axle: its scale, sign and delay checked against the
+    accelerometers; the delay removed (re-read at the shifted times)."""
+    ib, iw, idf = (out.names.index(c) for c in names)
+    defl = names[2]
+    std = float(np.nanstd(out.y[:, idf])) if np.isfinite(out.y[:, idf]).any() else 0.0
+    if std > 0.25:
+        raise TableError(f"{defl} ({_source(log, defl)}): standard deviation {std:.3g} m, implausible for a "
+                         "suspension's travel: is it in mm? declare its unit (a [mm] header, or unit = \"mm\")")
+    spec = specs.get(defl)
+    est = _align.estimate_delay(out.y[:, ib], out.y[:, iw], out.y[:, idf], out.dt)
+    if est.why:
+        out.delays[defl] = math.nan
+        out.notes.append(f"{defl}: its delay against the accelerometers cannot be estimated ({est.why}): "
+                         "not removed")
+        return
+    if abs(est.corr) < 0.3:
+        out.delays[defl] = math.nan
+        out.notes.append(f"{defl}: its second derivative does not follow a_body - a_wheel (correlation "
+                         f"{est.corr:.2f}): its delay cannot be estimated, not removed; check the channel map")
+        return
+    slope = abs(est.slope)
+    if not 0.5 < slope < 2.0:
+        raise TableError(f"{defl} ({_source(log, defl)}): its second derivative is {slope:.3g} times "
+                         f"{names[0]} - {names[1]}, not about 1: the units disagree ({_unit_guess(slope)})")
+    if est.corr < 0:
+        if spec is not None and spec.sign_given:
+            raise TableError(f"{defl} ({_source(log, defl)}): sign = {spec.sign:g} in the channel map, but its "
+                             "second derivative follows a_wheel - a_body: vehid's deflection is body minus wheel "
+                             "(extension positive): use the other sign")
+        out.y[:, idf] = -out.y[:, idf]
+        for s in log.series:
+            if s.channel == defl:
+                s.v = -s.v
+        out.notes.append(f"{defl}: compression-positive (its second derivative follows a_wheel - a_body): read "
+                         "with the opposite sign (vehid's is body minus wheel, extension positive; declare sign = "
+                         "-1 to say so)")
+    delay = est.delay
+    if spec is not None and spec.delay is not None:
+        delay = spec.delay
+        out.notes.append(f"{defl}: the declared delay {1e3 * delay:.2f} ms removed (estimated: "
+                         f"{1e3 * est.delay:.2f} ms)")
+    elif not estimate:
+        out.delays[defl] = est.delay
+        out.notes.append(f"{defl}: {1e3 * est.delay:.2f} ms late against the accelerometers (estimated, not "
+                         "removed)")
+        return
+    out.delays[defl] = delay
+    if abs(delay) < DELAY_TOLERANCE:
+        return
+    s = next(x for x in log.series if x.channel == defl)
+    out.y[:, idf] = _align.resample(s.t, s.v, out.rates[defl], out.t0, out.dt, len(out.y), shift=delay)
+    if spec is None or spec.delay is None:
+        out.notes.append(f"{defl}: {1e3 * delay:.2f} ms {'late' if delay > 0 else 'early'} against the "
+                         f"accelerometers (estimated from d'' = a_body - a_wheel, correlation {abs(est.corr):.2f}): "
+                         "removed")
+
+
+def _source(log: Log, channel: str) -> str:
+    return next((s.source for s in log.series if s.channel == channel), channel)
+
+
+def _unit_guess(slope: float) -> str:
+    """The likely cause of a deflection-to-acceleration scale ``slope`` far from 1."""
+    guesses = [(1000.0, "the deflection in mm read as m? declare unit = \"mm\""),
+               (100.0, "the deflection in cm read as m? declare unit = \"cm\""),
+               (1 / STANDARD_GRAVITY, "the accelerations in g read as m/s^2? declare unit = \"g\""),
+               (STANDARD_GRAVITY, "the accelerations in m/s^2 declared as g?"),
+               (1e-3, "the deflection in m declared as mm?")]
+    best = min(guesses, key=lambda g: abs(math.log(slope / g[0])))
+    if abs(math.log(slope / best[0])) < math.log(2.0):
+        return best[1]
+    return "check each channel's unit and scale"
+
+
+def car_check(out: Aligned, k2m: float, bm: float, car: str) -> None:
+    """Refuses, in one line naming the likely cause, a quarter-car log whose body equation is
+    far from the named car's: ``k2/M`` (1/s^2) negative, or over 3 times off ``k2m`` (the
+    nominal car's ``car``, e.g. ``"--model quarter"``). ``bm`` (1/s) is shown alongside."""
+    if not all(c in out.names for c in ("a_body", "deflection")):
+        return
+    got_k, got_b = _align.body_ratios(out.y[:, out.names.index("a_body")], out.y[:, out.names.index("deflection")],
+                                      out.dt)
+    if not math.isfinite(got_k):
+        return
+    if got_k <= 0:
+        raise TableError(f"the log's body equation has k2/M = {got_k:.3g} 1/s^2 (negative): a_body or the deflection "
+                         "has the wrong sign (vehid: up positive, deflection body minus wheel): declare sign = -1 "
+                         "for one of them")
+    ratio = got_k / k2m
+    if ratio > 3.0 or ratio < 1 / 3.0:
+        factor = f"{ratio:.3g} times" if ratio > 1 else f"1/{1 / ratio:.3g} of"
+        raise TableError(f"the log's k2/M ~ {got_k:.3g} 1/s^2 (b/M ~ {got_b:.3g} 1/s) is {factor} that of {car} "
+                         f"(k2/M = {k2m:.3g}, b/M = {bm:.3g}): a different car? name yours with --model passenger "
+                         "or --car M=...,k2=...,b=...")
