@@ -3,11 +3,12 @@
 Three pieces, each documented in ``docs/capabilities/field-logs.md``:
 
 * :func:`nominal_interval`: a channel's sample interval as its nominal rate, not a float's
-  noise: the median interval, refined by the mean of the intervals within half of it (so that time
-  stamps quantized to 1 ms at 400 Hz, 2, 3, 2, 3 ms, give 2.5 ms), then rounded to whole
+  noise: the mean of the intervals that are not gaps (so that jitter and time stamps
+  quantized to 1 ms at 400 Hz, 2, 3, 2, 3 ms, average to 2.5 ms), rounded to whole
   microseconds (0.0049999999999954525 s -> 0.005 s).
 * :func:`resample`: a channel at the times ``t0 + k dt (+ shift)``: split at gaps (an interval
-  over 1.5 nominal intervals, or a missing value); where the channel is faster than the
+  over 1.5 median intervals, or over the median plus 8 times the intervals' robust spread
+  where stamps jitter; or a missing value); where the channel is faster than the
   grid, a linear-phase FIR low-pass (Kaiser window, 60 dB, pass band to 0.4 of the grid's
   rate, stop band from its Nyquist frequency) applied forwards and centred (zero phase); then
   a cubic spline through the samples at their own times (jitter included) evaluated on the
@@ -28,7 +29,7 @@ from typing import List, Optional, Tuple
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["Delay", "body_ratios", "estimate_delay", "nominal_interval", "resample", "segments"]
+__all__ = ["Delay", "body_ratios", "estimate_delay", "gap_limit", "nominal_interval", "resample", "segments"]
 
 #: An interval over this many nominal intervals is a gap.
 GAP = 1.5
@@ -42,10 +43,29 @@ DELAY_SPAN = 120.0
 DELAY_MIN_SPAN = 10.0
 
 
+def _jitter(d: NDArray[np.float64], med: float) -> float:
+    """A robust spread of the intervals ``d`` around their median ``med`` (1.4826 MAD)."""
+    return float(1.4826 * np.median(np.abs(d - med)))
+
+
+def gap_limit(t: NDArray[np.float64]) -> float:
+    """The interval (s) over which ``t`` has a gap: :data:`GAP` median intervals, or the
+    median plus 8 times the intervals' robust spread where the times jitter (message
+    stamps taken on arrival)."""
+    d = np.diff(np.asarray(t, dtype=np.float64))
+    d = d[d > 0]
+    if len(d) == 0:
+        return math.inf
+    med = float(np.median(d))
+    return max(GAP * med, med + 8.0 * _jitter(d, med))
+
+
 def nominal_interval(t: NDArray[np.float64]) -> float:
-    """The nominal sample interval (s) of increasing times ``t`` (s): the median interval,
-    refined by the mean of the intervals within half of it (gaps and bunched samples excluded), rounded to a
-    whole microsecond (to 10 ns under 100 us). NaN for fewer than two samples.
+    """The nominal sample interval (s) of increasing times ``t`` (s): the mean of the
+    intervals that are not gaps (:func:`gap_limit`), so that jitter and time stamps
+    quantized to whole ms (2, 3, 2, 3 ms at 400 Hz) average out, rounded to a whole
+    microsecond (to 10 ns under 100 us) so that a float's noise is not taken for the rate.
+    NaN for fewer than two samples.
 
     >>> nominal_interval(np.arange(1000) * 0.005 + 1e5)
     0.005
@@ -56,18 +76,18 @@ def nominal_interval(t: NDArray[np.float64]) -> float:
     d = d[d > 0]
     if len(d) == 0:
         return math.nan
-    med = float(np.median(d))
-    near = d[(d > 0.5 * med) & (d < 1.5 * med)]
-    h = float(np.mean(near)) if len(near) else med
+    near = d[d <= gap_limit(t)]
+    h = float(np.mean(near)) if len(near) else float(np.median(d))
     grid = 1e-6 if h >= 1e-4 else 1e-8
     return max(grid, round(h / grid) * grid)
 
 
 def segments(t: NDArray[np.float64], v: NDArray[np.float64], h: float) -> List[Tuple[int, int]]:
-    """``[start, stop)`` index ranges of ``t`` without a gap (an interval over :data:`GAP`
-    nominal intervals ``h``) and without a missing (NaN) value."""
+    """``[start, stop)`` index ranges of ``t`` without a gap (an interval over
+    :func:`gap_limit`, at least :data:`GAP` nominal intervals ``h``) and without a missing
+    (NaN) value."""
     ok = np.isfinite(v)
-    breaks = np.flatnonzero(np.diff(t) > GAP * h) + 1
+    breaks = np.flatnonzero(np.diff(t) > max(GAP * h, gap_limit(t))) + 1
     out: List[Tuple[int, int]] = []
     for a, b in zip(np.concatenate([[0], breaks]), np.concatenate([breaks, [len(t)]])):
         a, b = int(a), int(b)

@@ -211,13 +211,15 @@ class Series:
 
 @dataclass
 class Log:
-    """A log's channels: ``series`` in the order asked for; ``absolute``: times since 1970."""
+    """A log's channels: ``series`` in the order asked for; ``absolute``: the times are
+    seconds from ``origin`` (s since 1970; timestamps, bags), else as the log writes them."""
 
     source: str
     kind: str
     series: List[Series]
     absolute: bool
     notes: List[str] = field(default_factory=list)
+    origin: float = 0.0
 
 
 def read_log(path: str, channels: Sequence[Column], cmap: Optional[ChannelMap] = None,
@@ -300,6 +302,10 @@ def _read_table(path: str, channels: Sequence[Column], cmap: Optional[ChannelMap
             t = np.arange(len(data)) * dt
             values = data
         _increasing(t, rows, table.where)
+        origin = 0.0
+        if absolute:  # seconds from the first sample: the float's resolution stays at nanoseconds
+            origin = float(t[0])
+            t = t - origin
         series = []
         for j, c in enumerate(channels):
             factor, unit, unit_from = factors[j]
@@ -308,7 +314,7 @@ def _read_table(path: str, channels: Sequence[Column], cmap: Optional[ChannelMap
             i = match.index[c.name]
             series.append(Series(c.name, f"column {table.names[i]!r}", t, values[:, j] * factor * sign, unit,
                                  unit_from, lines=rows))
-        return Log(table.source, table.kind, series, absolute)
+        return Log(table.source, table.kind, series, absolute, origin=origin)
 
 
 def _increasing(t: NDArray[np.float64], rows: NDArray[np.int64], where: Any) -> None:
@@ -389,6 +395,7 @@ def _read_bag(path: str, channels: Sequence[Column], cmap: ChannelMap) -> Log:
     reader = open_bag(path)
     series: List[Series] = []
     notes: List[str] = []
+    origin: List[int] = []
     try:
         with reader:
             by_topic = {c.topic: c for c in reader.connections}
@@ -400,17 +407,19 @@ def _read_bag(path: str, channels: Sequence[Column], cmap: ChannelMap) -> Log:
                 if spec.topic not in by_topic:
                     shown = ", ".join(sorted(t for t in by_topic if t is not None)[:12])
                     raise TableError(f"{path}: no topic {spec.topic!r} for [{c.name}] (its topics: {shown})")
-                series.append(_bag_series(reader, by_topic[spec.topic], spec, c, cmap.stamp, path, notes))
+                series.append(_bag_series(reader, by_topic[spec.topic], spec, c, cmap.stamp, path, notes, origin))
     except TableError:
         raise
     except Exception as e:  # a truncated or corrupt bag: rosbags' and the storage's errors
         raise TableError(f"{path}: cannot read the bag ({_first_line(e)}): is it truncated? "
                          "(ros2 bag reindex can repair a bag whose recording was cut)") from None
-    return Log(path, "bag", series, True, notes)
+    return Log(path, "bag", series, True, notes, origin=origin[0] * 1e-9)
 
 
 def _bag_series(reader: Any, conn: Any, spec: ChannelSpec, column: Column, stamp: str, path: str,
-                notes: List[str]) -> Series:
+                notes: List[str], origin: List[int]) -> Series:
+    """One channel of a bag; times in s from ``origin[0]`` (ns since 1970: the first
+    channel's first stamp, set by the first call)."""
     msgtype = conn.msgtype
     where = f"{path}, topic {spec.topic}"
     default = MESSAGE_FIELDS.get(msgtype)
@@ -480,8 +489,9 @@ def _bag_series(reader: Any, conn: Any, spec: ChannelSpec, column: Column, stamp
     if not spec.unit and unit_spec:
         unit_from = f"{msgtype.split('/')[-1]} message (REP 103: SI)"
     v = v * factor * spec.sign * spec.scale
-    t0 = int(t_ns[0])
-    seconds = t0 * 1e-9 + (t_ns - t0).astype(np.float64) * 1e-9
+    if not origin:
+        origin.append(int(t_ns[0]))
+    seconds = (t_ns - origin[0]).astype(np.float64) * 1e-9
     gravity = default[2] if default is not None and column.unit == "m/s^2" else None
     return Series(column.name, f"topic {spec.topic} ({msgtype.split('/')[-1]}.{fp if spec.joint else fieldpath})",
                   seconds, v, unit, unit_from, gravity=gravity)
@@ -578,6 +588,13 @@ def align(log: Log, dt: Optional[float], specs: Optional[Mapping[str, ChannelSpe
         names = [f"a_body{axle}", f"a_wheel{axle}", f"deflection{axle}"]
         if all(c in out.names for c in names):
             _deflection(out, log, names, specs, estimate)
+    if not same or any(abs(v) >= DELAY_TOLERANCE for v in out.delays.values() if math.isfinite(v)):
+        # the grid's ends where a channel (resampled, or shifted) does not reach: not a gap
+        good = np.flatnonzero(np.isfinite(out.y).all(axis=1))
+        if len(good):
+            first, last = int(good[0]), int(good[-1])
+            out.y = out.y[first : last + 1]
+            out.t0 += first * step
     out.missing = int(np.isnan(out.y).any(axis=1).sum())
     return out
 
@@ -668,8 +685,8 @@ def _unit_guess(slope: float) -> str:
     """The likely cause of a deflection-to-acceleration scale ``slope`` far from 1."""
     guesses = [(1000.0, "the deflection in mm read as m? declare unit = \"mm\""),
                (100.0, "the deflection in cm read as m? declare unit = \"cm\""),
-               (1 / STANDARD_GRAVITY, "the accelerations in g read as m/s^2? declare unit = \"g\""),
-               (STANDARD_GRAVITY, "the accelerations in m/s^2 declared as g?"),
+               (STANDARD_GRAVITY, "the accelerations in g read as m/s^2? declare unit = \"g\""),
+               (1 / STANDARD_GRAVITY, "the accelerations in m/s^2 declared as g?"),
                (1e-3, "the deflection in m declared as mm?")]
     best = min(guesses, key=lambda g: abs(math.log(slope / g[0])))
     if abs(math.log(slope / best[0])) < math.log(2.0):

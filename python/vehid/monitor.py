@@ -491,7 +491,8 @@ def _monitor_file(args: argparse.Namespace, car: Union[QuarterCar, HalfCar], sen
         print(f"vehid: note: {note}", file=sys.stderr, flush=True)
     t0 = 0.0 if log.absolute else al.t0
     if log.absolute:
-        start = datetime.datetime.fromtimestamp(al.t0, datetime.timezone.utc).isoformat(timespec="milliseconds")
+        start = datetime.datetime.fromtimestamp(log.origin + al.t0, datetime.timezone.utc).isoformat(
+            timespec="milliseconds")
         print(f"vehid: note: times are seconds from the log's start, {start}", file=sys.stderr, flush=True)
     feeder = Feeder(mon, t0, sys.stdout, args.json)
     feeder.feed(np.ascontiguousarray(al.y))
