@@ -374,3 +374,57 @@ def test_removing_the_test_bags(tmp_path: Path) -> None:
     with pytest.raises(Exception):
         F.bag(tmp_path / "b", run)
     shutil.rmtree(tmp_path / "b")
+
+
+# --- vehid inspect ---------------------------------------------------------------------------
+
+
+def test_inspect_a_bag_lists_topics_rates_and_a_channel_map(five: Dict[str, List[str]], tmp_path: Path,
+                                                           capsys: pytest.CaptureFixture[str]) -> None:
+    # The map it proposes is one vehid monitor reads: the same event as the hand-written map's.
+    capsys.readouterr()
+    assert cli.main(["inspect", five["bag folder"][0]]) == 0
+    out = capsys.readouterr().out
+    assert "/body/imu: sensor_msgs/msg/Imu, 28,000 messages" in out and "400 Hz" in out, out
+    assert "/suspension/joint_states: sensor_msgs/msg/JointState, 7,000 messages" in out and "100 Hz" in out
+    assert "logged 2.5 ms after its stamp" in out  # the writer's lags are uniform in 1..4 ms
+    proposed = out[out.index("[a_body]"):]
+    (tmp_path / "proposed.toml").write_text(proposed)
+    evs, _ = events(capsys, [five["bag folder"][0], "--columns", str(tmp_path / "proposed.toml"),
+                             "--model", "passenger"])
+    assert [e["parameter"] for e in evs] == ["b"]
+
+
+def test_inspect_a_logger_csv_reads_its_units_and_clock(five: Dict[str, List[str]],
+                                                        capsys: pytest.CaptureFixture[str]) -> None:
+    path, _, cmap = five["logger csv"]
+    capsys.readouterr()
+    assert cli.main(["inspect", path]) == 0
+    out = capsys.readouterr().out
+    assert "column 'Time [ms]', ms (declared)" in out and "500 Hz" in out, out
+    assert "'SuspTravel [mm]': mm (declared)" in out and "can feed deflection" in out
+    assert "[deflection]\ncolumn = \"SuspTravel [mm]\"" in out
+    assert cli.main(["inspect", path, "--columns", cmap]) == 0
+    out = capsys.readouterr().out
+    ms = float(out.split("clock: deflection is ")[1].split(" ms late")[0])
+    assert abs(ms - 4.0) < 1.0, out
+
+
+def test_inspect_guesses_units_not_declared(damper: vehid.Run, tmp_path: Path,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    data = np.loadtxt(F.vehid_csv(tmp_path / "si.csv", damper), delimiter=",", skiprows=1)
+    path = tmp_path / "raw.csv"
+    np.savetxt(path, np.column_stack([data[:, 0] * 1e3, data[:, 1] / 9.80665 + 1, data[:, 2], data[:, 3] * 1e3]),
+               delimiter=",", header="time,body_acc,wheel_acc,susp_travel", comments="", fmt="%.9g")
+    capsys.readouterr()
+    assert cli.main(["inspect", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "ms? (no unit declared" in out and "'body_acc': g? (mean 1" in out and "'susp_travel': mm? (guessed)" in out, out
+
+
+def test_inspect_refuses_a_truncated_bag_in_one_line(five: Dict[str, List[str]], tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    src = Path(five["mcap"][0])
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(src.read_bytes()[: src.stat().st_size // 3])
+    assert str(cut) in error(capsys, ["inspect", str(cut)])

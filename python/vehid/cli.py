@@ -1480,6 +1480,13 @@ def build_parser() -> argparse.ArgumentParser:
     _monitor_arguments(mon, delimiter)
     mon.set_defaults(func=cmd_monitor)
 
+    from . import inspect_log
+
+    insp = sub.add_parser("inspect", help="what a log holds (CSV, Parquet, ROS 2 bag, MCAP) and which channels it "
+                          "can feed", description=inspect_log.DESCRIPTION)
+    inspect_log.add_arguments(insp, delimiter)
+    insp.set_defaults(func=inspect_log.cmd_inspect)
+
     demo = sub.add_parser("demo", help="quarter-car run vs the analytic standard deviations")
     demo.add_argument("--n", type=count(2), default=40_000, help="number of samples, at least 2 (default 40000)")
     demo.set_defaults(func=cmd_demo)
