@@ -8,9 +8,10 @@ from pathlib import Path
 from typing import Any, Dict, Optional, Sequence, Tuple
 
 import numpy as np
-import vehid
 from numpy.typing import NDArray
 from scipy import signal
+
+import vehid
 
 #: The drive's rate, s (the IMUs' rate).
 DT = 0.0025

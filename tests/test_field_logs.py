@@ -206,6 +206,33 @@ def test_resampler_agrees_with_scipys_polyphase_resampler() -> None:
     assert np.max(np.abs(ours[inner] - low[::2][inner])) < 0.01
 
 
+@pytest.mark.parametrize("h_in, dt_out", [(0.0025, 0.005), (0.002, 0.005), (0.001, 0.005), (0.0025, 0.01)])
+def test_antialias_taps_are_scipys_firwin(h_in: float, dt_out: float) -> None:
+    # The numpy design against scipy.signal.kaiserord + firwin with the same specification.
+    ours = align.antialias_taps(h_in, dt_out)
+    assert ours is not None
+    fs_in, fs_out = 1 / h_in, 1 / dt_out
+    numtaps, beta = signal.kaiserord(60.0, 0.1 * fs_out / (0.5 * fs_in))
+    ref = signal.firwin(numtaps | 1, 0.45 * fs_out, window=("kaiser", beta), fs=fs_in)
+    assert len(ours) == len(ref) and np.max(np.abs(ours - ref)) < 1e-12
+    w, resp = signal.freqz(ours, worN=4096, fs=fs_in)
+    assert np.max(np.abs(resp[w >= 0.5 * fs_out])) < 10 ** (-55 / 20)  # the grid's Nyquist and above
+    assert np.max(np.abs(np.abs(resp[w <= 0.4 * fs_out]) - 1)) < 0.01  # the pass band
+
+
+def test_hermite_interpolation_against_scipys_cubic_spline() -> None:
+    from scipy.interpolate import CubicSpline
+
+    rng = np.random.default_rng(2)
+    ts = np.arange(0, 10, 0.01) + rng.uniform(0, 2e-4, 1000)  # 100 Hz with jitter, as a JointState
+    vs = np.sin(2 * np.pi * 12 * ts) + 0.3 * np.sin(2 * np.pi * 3 * ts)
+    tk = np.arange(0.1, 9.9, 0.005) + 0.0013
+    truth = np.sin(2 * np.pi * 12 * tk) + 0.3 * np.sin(2 * np.pi * 3 * tk)
+    ours = np.max(np.abs(align.hermite(ts, vs, tk) - truth))
+    spline = np.max(np.abs(CubicSpline(ts, vs)(tk) - truth))
+    assert ours < 0.003 and ours < 3 * spline, (ours, spline)
+
+
 def test_resampler_marks_gaps_missing() -> None:
     t = np.concatenate([np.arange(0, 10, 0.0025), np.arange(12, 20, 0.0025)])
     y = align.resample(t, np.sin(t), 0.0025, 0.0, 0.005, 4000)
@@ -371,7 +398,9 @@ def test_removing_the_test_bags(tmp_path: Path) -> None:
     # rosbags refuses to overwrite: a fresh folder per bag (guards the helper itself).
     run = F.drive(2.0, seed=1)
     F.bag(tmp_path / "b", run)
-    with pytest.raises(Exception):
+    from rosbags.rosbag2 import WriterError
+
+    with pytest.raises(WriterError):
         F.bag(tmp_path / "b", run)
     shutil.rmtree(tmp_path / "b")
 
@@ -419,7 +448,8 @@ def test_inspect_guesses_units_not_declared(damper: vehid.Run, tmp_path: Path,
     capsys.readouterr()
     assert cli.main(["inspect", str(path)]) == 0
     out = capsys.readouterr().out
-    assert "ms? (no unit declared" in out and "'body_acc': g? (mean 1" in out and "'susp_travel': mm? (guessed)" in out, out
+    assert "ms? (no unit declared" in out and "'body_acc': g? (mean 1" in out, out
+    assert "'susp_travel': mm? (guessed)" in out, out
 
 
 def test_inspect_refuses_a_truncated_bag_in_one_line(five: Dict[str, List[str]], tmp_path: Path,

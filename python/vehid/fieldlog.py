@@ -19,16 +19,15 @@ from __future__ import annotations
 
 import math
 import os
-import tomllib
 from dataclasses import dataclass, field
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
+import tomllib
 from numpy.typing import NDArray
 
 from . import align as _align
-from .io import (STANDARD_GRAVITY, Column, TableError, match_columns, normalize, open_table, quantity_of,
-                 si_factor)
+from .io import STANDARD_GRAVITY, Column, TableError, match_columns, normalize, open_table, quantity_of, si_factor
 
 __all__ = ["Aligned", "ChannelMap", "ChannelSpec", "Log", "Series", "align", "is_bag", "is_channel_map",
            "load_channel_map", "read_log", "BAG_SUFFIXES"]
@@ -299,18 +298,18 @@ def _read_table(path: str, channels: Sequence[Column], cmap: Optional[ChannelMap
             values = data[:, 1:]
         else:
             assert dt is not None
-            t = np.arange(len(data)) * dt
+            t = np.arange(len(data), dtype=np.float64) * dt
             values = data
         _increasing(t, rows, table.where)
         origin = 0.0
         if absolute:  # seconds from the first sample: the float's resolution stays at nanoseconds
             origin = float(t[0])
-            t = t - origin
+            t = np.asarray(t - origin, dtype=np.float64)
         series = []
         for j, c in enumerate(channels):
             factor, unit, unit_from = factors[j]
-            spec = specs.get(c.name)
-            sign = spec.sign * spec.scale if spec else 1.0
+            cspec = specs.get(c.name)
+            sign = cspec.sign * cspec.scale if cspec else 1.0
             i = match.index[c.name]
             series.append(Series(c.name, f"column {table.names[i]!r}", t, values[:, j] * factor * sign, unit,
                                  unit_from, lines=rows))

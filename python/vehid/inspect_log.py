@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from . import align as _align
 from . import fieldlog
-from .io import STANDARD_GRAVITY, UNITS, TableError, normalize, open_table, parse_column_map
+from .io import STANDARD_GRAVITY, UNITS, TableError, normalize, open_table, parse_column_map, si_factor
 
 __all__ = ["DESCRIPTION", "add_arguments", "cmd_inspect", "guess_channel"]
 
@@ -149,7 +149,7 @@ def _inspect_table(args: argparse.Namespace, out: IO[str]) -> None:
             if table.is_timestamp(time_i) or t[0] > 1e8:
                 unit, factor = "timestamps", 1.0
             elif declared:
-                factor = fieldlog.si_factor(declared, "time", f"time column {names[time_i]!r}")
+                factor = si_factor(declared, "time", f"time column {names[time_i]!r}")
                 unit = f"{declared} (declared)"
             else:
                 h = _align.nominal_interval(t)
@@ -165,20 +165,20 @@ def _inspect_table(args: argparse.Namespace, out: IO[str]) -> None:
                 continue
             v = y[:, i]
             declared = table.declared_unit(i)
-            unit = f"{declared} (declared)" if declared else None
+            shown: Optional[str] = f"{declared} (declared)" if declared else None
             q = ""
             if declared:
                 q = UNITS.get(declared.lower().replace(" ", ""), ("", 1.0))[0]
             guess_q = q or ("length" if guess_channel(name, "length") == "deflection" else "acceleration")
             feeds = guess_channel(name, guess_q)
-            if unit is None:
-                unit = _guess_unit(v, guess_q) + " (guessed)"
+            if shown is None:
+                shown = _guess_unit(v, guess_q) + " (guessed)"
             if feeds and feeds not in proposals:
-                guessed = unit.split(" ")[0].rstrip("?")
-                proposals[feeds] = (("column", name),) + ((("unit", guessed),) if "guessed" in unit and
+                guessed = shown.split(" ")[0].rstrip("?")
+                proposals[feeds] = (("column", name),) + ((("unit", guessed),) if "guessed" in shown and
                                                           guessed in UNITS and guessed not in ("m", "m/s^2") else ())
             missing = int(np.isnan(v).sum())
-            print(f"  column {name!r}: {unit}; mean {np.nanmean(v):.4g}, std {np.nanstd(v):.4g}; "
+            print(f"  column {name!r}: {shown}; mean {np.nanmean(v):.4g}, std {np.nanstd(v):.4g}; "
                   f"{missing} missing" + (f"; can feed {feeds}" if feeds else ""), file=out)
     if not _channels_found(args, cmap, pairs, out) and cmap is None:
         _propose(proposals, out)
@@ -270,12 +270,12 @@ def _topic(reader: Any, conn: Any, out: IO[str]) -> Dict[str, Tuple[str, str, Op
             s = fieldlog._stamp(msg)
             if s:
                 stamps.append(s)
-    t_log = (np.asarray(logged, dtype=np.int64) - (logged[0] if logged else 0)) * 1e-9
+    t_log = np.asarray((np.asarray(logged, dtype=np.int64) - (logged[0] if logged else 0)) * 1e-9, dtype=np.float64)
     typ = conn.msgtype
     line = f"  {conn.topic}: {typ}, {len(logged):,} messages over {_span(t_log)}"
     if stamps:
         st = np.asarray(stamps, dtype=np.int64)
-        t_st = (st - st[0]) * 1e-9
+        t_st = np.asarray((st - st[0]) * 1e-9, dtype=np.float64)
         offset = float(np.median(np.asarray(logged[: len(st)], dtype=np.int64) - st)) * 1e-6
         line += f"; header.stamp {_rate(np.sort(t_st))}; logged {offset:.3g} ms after its stamp"
         back = np.diff(st) < 0
@@ -286,8 +286,8 @@ def _topic(reader: Any, conn: Any, out: IO[str]) -> Dict[str, Tuple[str, str, Op
     feeds: Dict[str, Tuple[str, str, Optional[str]]] = {}
     default = fieldlog.MESSAGE_FIELDS.get(typ)
     if typ == "sensor_msgs/msg/Imu":
-        ch = guess_channel(conn.topic, "acceleration") or "a_body"
-        feeds[ch] = (conn.topic, "linear_acceleration.z", None)
+        imu = guess_channel(conn.topic, "acceleration") or "a_body"
+        feeds[imu] = (conn.topic, "linear_acceleration.z", None)
         line += "; linear_acceleration (m/s^2, gravity included: REP 145) -> a_body or a_wheel"
     elif typ == "sensor_msgs/msg/JointState" and first is not None:
         names = list(first.name)
@@ -295,7 +295,7 @@ def _topic(reader: Any, conn: Any, out: IO[str]) -> Dict[str, Tuple[str, str, Op
         if names:
             feeds["deflection"] = (conn.topic, "position", names[0])
     elif default is not None:
-        ch = guess_channel(conn.topic, "length") or guess_channel(conn.topic, "acceleration")
+        ch: Optional[str] = guess_channel(conn.topic, "length") or guess_channel(conn.topic, "acceleration")
         line += f"; {default[0]}" + (f" -> {ch}?" if ch else " (a scalar: any channel, with its unit)")
         if ch:
             feeds[ch] = (conn.topic, default[0], None)

@@ -44,8 +44,8 @@ from __future__ import annotations
 import csv
 import datetime
 import importlib
-import math
 import io as _stdio
+import math
 import os
 import re
 import stat
@@ -819,7 +819,7 @@ class _CsvTable(Table):
             cells = _split(line, self.delimiter)
             if len(cells) != self.width:
                 raise self._width_error(line, int(number), len(cells))
-            for j, (col, label) in enumerate(zip(cols, labels)):
+            for j, col in enumerate(cols):
                 cell = cells[col].strip().strip('"').strip()
                 if not cell and missing:
                     out[r, j] = math.nan

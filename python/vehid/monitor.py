@@ -28,8 +28,7 @@ from typing import IO, Any, Callable, Dict, List, Literal, Optional, Sequence, T
 import numpy as np
 from numpy.typing import NDArray
 
-from . import Event, HalfCar, HealthMonitor, QuarterCar
-from . import fieldlog
+from . import Event, HalfCar, HealthMonitor, QuarterCar, fieldlog
 from .align import nominal_interval
 from .io import Column, Table, TableError, match_columns, open_table, parse_column_map
 from .reproduce import _load_pyplot
