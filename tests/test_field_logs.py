@@ -458,3 +458,25 @@ def test_inspect_refuses_a_truncated_bag_in_one_line(five: Dict[str, List[str]],
     cut = tmp_path / "cut.mcap"
     cut.write_bytes(src.read_bytes()[: src.stat().st_size // 3])
     assert str(cut) in error(capsys, ["inspect", str(cut)])
+
+
+# --- vehid identify: the wheel mass from the car the user named ---------------------------------
+
+
+def test_identify_takes_the_wheel_mass_from_truth(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # The thesis car scaled by 40 (m = 40 kg): with --truth naming m and no --m, the constants
+    # are the truth's (before: every one 1/40 of it, with tight intervals), and a note says why.
+    big = {"M": 400.0, "m": 40.0, "k1": 3600.0, "k2": 2000.0, "b": 1600.0}
+    run = vehid.Simulator(vehid.QuarterCar(**big), seed=8).run(6000)
+    path = tmp_path / "big.csv"
+    with open(path, "w") as f:
+        f.write(",".join(cli.csv_header(4, 1)[:9]) + "\n")  # t, x, dx: no true_* columns
+        np.savetxt(f, np.column_stack([run.t, run.r, run.z]), delimiter=",", fmt="%.10g")  # measured
+    truth = ",".join(f"{k}={v:g}" for k, v in big.items())
+    capsys.readouterr()
+    assert cli.main(["identify", str(path), "--model", "quarter", "--truth", truth, "--method", "ls", "--json"]) == 0
+    out, err = capsys.readouterr()
+    assert "m = 40 kg from --truth" in err, err
+    physical = json.loads(out)["physical_intervals"]
+    for k in ("M", "k2", "b"):
+        assert abs(physical[k][0] / big[k] - 1) < 0.1, (k, physical)

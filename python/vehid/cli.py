@@ -767,7 +767,7 @@ def road_options(args: argparse.Namespace, spacing: Union[float, str]) -> Dict[s
     if args.min_spacing is not None:
         kw["min_spacing"] = args.min_spacing
     if args.lift_off is not None:
-        kw["lift_off"] = (args.lift_off, args.m)
+        kw["lift_off"] = (args.lift_off, 1.0 if args.m is None else args.m)
     if args.road == "iso8608" and args.road_cutoff is not None:
         kw["road_cutoff"] = args.road_cutoff
     if args.delay is not None:
@@ -977,8 +977,25 @@ def prior_note(args: argparse.Namespace, ident: Identifier, rows: List[int]) -> 
             "entries lean on P(0), not only on the data; the exact start (--p0 exact, the default) has no prior")
 
 
-def known_masses(args: argparse.Namespace) -> Dict[str, float]:
-    return {"m": args.m} if args.model == "quarter" else {"m1": args.m1, "m2": args.m2}
+def known_masses(args: argparse.Namespace, truth: Optional[Truth] = None,
+                 notes: Optional[List[str]] = None) -> Dict[str, float]:
+    """The known wheel masses (``--m``; the half car's ``--m1``, ``--m2``), kg: as given, else
+    from ``--truth`` when it names them (with a note in ``notes``: a passenger car's 40 kg
+    wheel taken as 1 kg made every constant 1/40 of the truth), else the thesis car's 1 kg
+    (the car ``--model quarter`` names; the report says "known: m = 1 kg")."""
+    names = ("m",) if args.model == "quarter" else ("m1", "m2")
+    out: Dict[str, float] = {}
+    for name in names:
+        given = getattr(args, name, None)
+        if given is None and truth is not None and truth.constants and name in truth.constants:
+            given = float(truth.constants[name])
+            if notes is not None and given != 1.0:
+                notes.append(f"--{name} not given: {name} = {given:g} kg from {truth.source}")
+        elif given is None:
+            given = 1.0  # the car --model names: the thesis' (the report says "known: m = 1 kg")
+        setattr(args, name, given)
+        out[name] = given
+    return out
 
 
 #: Units of the physical constants, by name without the axle digit.
@@ -1077,8 +1094,9 @@ def cmd_identify(args: argparse.Namespace) -> int:
         raise CliError(str(e)) from None
     truth = parse_truth(args.truth, args.model)
     check_road_args(args)
+    mass_notes: List[str] = []
+    known = known_masses(args, truth, mass_notes)
     ident: Optional[Identifier] = make_identifier(args, model)  # option errors before any reading
-    known = known_masses(args)
     structured = None
     if coloured(args):  # built at the first chunk, when the distance per sample is known
         ident = None
@@ -1138,6 +1156,8 @@ def cmd_identify(args: argparse.Namespace) -> int:
             intervals = model.physical(structured.stats(), **known)
         except VehidError:
             intervals = None
+        for mass_note in mass_notes:  # the constants scale with the wheel mass: said with them
+            print(f"vehid: note: {mass_note}", file=sys.stderr)
     note = prior_note(args, ident, rows)
     if note is not None:
         print(f"vehid: note: {note}", file=sys.stderr)
@@ -1329,7 +1349,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     >>> args = build_parser().parse_args(["identify", "run.csv", "--model", "quarter", "--p0", "1000,8"])
     >>> args.command, args.file, args.method, args.mode, args.p0, args.m
-    ('identify', 'run.csv', 'kalman', 'rows', [1000.0, 8.0], 1.0)
+    ('identify', 'run.csv', 'kalman', 'rows', [1000.0, 8.0], None)
     >>> args = build_parser().parse_args(["simulate", "--model", "half", "--speed", "6", "-o", "-"])
     >>> args.n, args.spacing, args.road, args.seed
     (40000, 0.3, 'white', 1)
@@ -1465,9 +1485,12 @@ def build_parser() -> argparse.ArgumentParser:
                        help="--sensors realistic: the blocks of the cluster-robust intervals, s (default 2)")
     ident.add_argument("--dt", type=positive_float, default=None,
                        help="--sensors realistic: the sample interval, s, when the log has no time column")
-    ident.add_argument("--m", type=positive_float, default=1.0, help="quarter: known wheel mass m, kg (default 1)")
-    ident.add_argument("--m1", type=positive_float, default=1.0, help="half: known front wheel mass m1, kg (default 1)")
-    ident.add_argument("--m2", type=positive_float, default=1.0, help="half: known rear wheel mass m2, kg (default 1)")
+    ident.add_argument("--m", type=positive_float, default=None,
+                       help="quarter: known wheel mass m, kg (default: m of --truth, else the thesis car's 1 kg)")
+    ident.add_argument("--m1", type=positive_float, default=None,
+                       help="half: known front wheel mass m1, kg (default: as --m)")
+    ident.add_argument("--m2", type=positive_float, default=None,
+                       help="half: known rear wheel mass m2, kg (default: as --m)")
     ident.add_argument("--json", action="store_true", help="print one JSON object instead of text")
     ident.set_defaults(func=cmd_identify)
 
