@@ -121,6 +121,8 @@ def test_nominal_interval_is_the_rate_not_a_floats_noise() -> None:
     t = np.asarray([float(f"{x:.9g}") for x in t + 1000.0])
     assert np.median(np.diff(t)) != 0.005
     assert align.nominal_interval(t) == 0.005
+    quantized = np.floor(np.arange(1002) * 2.5) * 1e-3  # 400 Hz stamped in whole ms: 2, 3, 2, 3, ... ms
+    assert np.median(np.diff(quantized)) != 0.0025 and align.nominal_interval(quantized) == 0.0025
     jittered = np.arange(4000) * 0.0025 + np.random.default_rng(1).uniform(0, 2e-4, 4000)
     assert align.nominal_interval(jittered) == 0.0025
 
