@@ -60,6 +60,7 @@ from .io import (
     Column,
     Table,
     TableError,
+    column_factor,
     match_columns,
     normalize,
     open_table,
@@ -313,12 +314,16 @@ class Layout:
     true_dx: List[int] = field(default_factory=list)
     u: List[int] = field(default_factory=list)
     s: Optional[int] = None
+    #: Per read column, the factor to ``col``'s SI unit from the unit its header declares
+    #: (``SuspTravel [mm]``: 0.001).
+    scales: List[float] = field(default_factory=list)
 
     def add(self, col: Column, position: int, header: str) -> int:
         """Reads header column ``position`` as ``col``; its place in a chunk."""
         self.columns.append(position)
         self.labels.append(column_label(col, header))
         self.used[col.name] = header
+        self.scales.append(column_factor(col.unit, header, f"column {header.strip()!r} ({col.describe()})"))
         return len(self.columns) - 1
 
 
@@ -1112,8 +1117,9 @@ def cmd_identify(args: argparse.Namespace) -> int:
         fit = TruthFit(n, model.n_inputs) if layout.true_x else None
         progress = Progress(sys.stderr, source, table.size)
         recent: Tuple[NDArray[np.float64], NDArray[np.float64]] = (np.empty((0, n)), np.empty((0, n)))
+        scales = np.asarray(layout.scales) if any(f != 1.0 for f in layout.scales) else None
         for chunk in table.chunks(layout.columns, layout.labels, CHUNK):
-            data = chunk.data
+            data = chunk.data if scales is None else chunk.data * scales  # declared units to SI
             if time is not None and layout.t is not None:
                 time.add(data[:, layout.t], chunk.lines)
             x, dx = np.ascontiguousarray(data[:, layout.x]), np.ascontiguousarray(data[:, layout.dx])

@@ -73,6 +73,7 @@ __all__ = [
     "Table",
     "TableError",
     "match_columns",
+    "column_factor",
     "header_unit",
     "normalize",
     "open_table",
@@ -208,18 +209,21 @@ STANDARD_GRAVITY = 9.80665
 
 #: The units vehid converts, by the form they are written in (lower case, no spaces):
 #: ``(quantity, factor to SI)``. Quantities: ``length`` (SI m), ``velocity`` (m/s),
-#: ``acceleration`` (m/s^2).
+#: ``acceleration`` (m/s^2), ``angle`` (rad), ``angular rate`` (rad/s).
 UNITS: Dict[str, Tuple[str, float]] = {
     "m": ("length", 1.0), "mm": ("length", 1e-3), "cm": ("length", 1e-2),
     "m/s": ("velocity", 1.0), "mm/s": ("velocity", 1e-3),
     "m/s^2": ("acceleration", 1.0), "m/s2": ("acceleration", 1.0), "m/s\u00b2": ("acceleration", 1.0),
     "m/s/s": ("acceleration", 1.0), "mm/s^2": ("acceleration", 1e-3), "g": ("acceleration", STANDARD_GRAVITY),
+    "rad": ("angle", 1.0), "deg": ("angle", math.pi / 180), "rad/s": ("angular rate", 1.0),
+    "deg/s": ("angular rate", math.pi / 180),
 }
 #: The units of a time column: seconds per unit.
 TIME_UNITS: Dict[str, float] = {"s": 1.0, "sec": 1.0, "ms": 1e-3, "us": 1e-6, "\u00b5s": 1e-6, "\u03bcs": 1e-6,
                                 "ns": 1e-9}
 #: The SI unit of each quantity.
-SI_UNIT = {"length": "m", "velocity": "m/s", "acceleration": "m/s^2", "time": "s"}
+SI_UNIT = {"length": "m", "velocity": "m/s", "acceleration": "m/s^2", "time": "s", "angle": "rad",
+           "angular rate": "rad/s"}
 
 
 def header_unit(name: str) -> Optional[str]:
@@ -261,6 +265,24 @@ def si_factor(unit: str, quantity: str, where: str) -> float:
         raise TableError(f"{where}: unit {unit!r} is a {found[0]}, but this channel is a {quantity} "
                          f"({SI_UNIT.get(quantity, '?')}): is the column mapped to the right channel?")
     return found[1]
+
+
+def column_factor(unit: str, header: str, where: str) -> float:
+    """The factor that turns header column ``header`` (which may declare its unit, ``[mm]``)
+    into ``unit``, the SI unit of the quantity it is read as (``m``, ``m/s``, ``s``, ...): 1
+    when it declares none. Raises :class:`TableError` naming ``where`` for a unit vehid does
+    not know or one of another quantity.
+
+    >>> column_factor("m", "SuspTravel [mm]", "x"), column_factor("s", "Time (ms)", "t"), column_factor("m", "z", "x")
+    (0.001, 0.001, 1.0)
+    """
+    declared = header_unit(header)
+    if not declared:
+        return 1.0
+    quantity = quantity_of(unit)
+    if not quantity:
+        return 1.0  # a unit vehid does not convert: read as written
+    return si_factor(declared, quantity, where)
 
 
 def parse_timestamp(text: str) -> Optional[float]:
