@@ -482,3 +482,27 @@ def test_identify_takes_the_wheel_mass_from_truth(tmp_path: Path, capsys: pytest
     physical = json.loads(out)["physical_intervals"]
     for k in ("M", "k2", "b"):
         assert abs(physical[k][0] / big[k] - 1) < 0.1, (k, physical)
+
+
+def test_identify_reads_units_in_brackets(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # The same run with the positions in mm, the wheel velocity in mm/s and the time in ms: the
+    # same identified rows as in SI (before: constants 1000 times off with tight intervals).
+    run = vehid.Simulator(vehid.QuarterCar(), seed=3).run(3000)
+    si, mm = tmp_path / "si.csv", tmp_path / "mm.csv"
+    data = np.column_stack([run.t, run.r, run.z])
+    header = cli.csv_header(4, 1)[:9]
+    np.savetxt(si, data, delimiter=",", header=",".join(header), comments="", fmt="%.12g")
+    scale = np.array([1e3, 1e3, 1e3, 1e3, 1, 1e3, 1, 1, 1])
+    units = ["t [ms]", "x1 [mm]", "x2 [mm/s]", "x3 [mm]", "x4 [m/s]", "dx1 [mm/s]", "dx2", "dx3", "dx4"]
+    np.savetxt(mm, data * scale, delimiter=",", header=",".join(units), comments="", fmt="%.12g")
+
+    def theta(path: Path) -> np.ndarray:
+        capsys.readouterr()
+        assert cli.main(["identify", str(path), "--model", "quarter", "--json"]) == 0
+        return np.asarray(json.loads(capsys.readouterr().out)["theta"])
+
+    np.testing.assert_allclose(theta(mm), theta(si), rtol=1e-6, atol=1e-9)
+    bad = tmp_path / "bad.csv"
+    bad.write_text(si.read_text().replace("x1,", "x1 [inch],", 1))
+    msg = error(capsys, ["identify", str(bad), "--model", "quarter"])
+    assert "column 'x1 [inch]'" in msg and "'inch' is unknown" in msg, msg
