@@ -506,3 +506,23 @@ def test_identify_reads_units_in_brackets(tmp_path: Path, capsys: pytest.Capture
     bad.write_text(si.read_text().replace("x1,", "x1 [inch],", 1))
     msg = error(capsys, ["identify", str(bad), "--model", "quarter"])
     assert "column 'x1 [inch]'" in msg and "'inch' is unknown" in msg, msg
+
+
+def test_the_docs_worked_example_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                      capsys: pytest.CaptureFixture[str]) -> None:
+    # docs/capabilities/field-logs.md's Python block, run in an empty directory: it prints what
+    # the page says it prints.
+    import re
+
+    page = Path(__file__).resolve().parent.parent / "docs" / "capabilities" / "field-logs.md"
+    blocks = re.findall(r"```python\n(.*?)```", page.read_text(encoding="utf-8"), flags=re.S)
+    assert len(blocks) == 1
+    monkeypatch.chdir(tmp_path)
+    capsys.readouterr()
+    exec(compile(blocks[0], str(page), "exec"), {})
+    out, err = capsys.readouterr()
+    assert " b (damper): 1500 -> " in out, out
+    assert 40.0 < float(out.split()[0]) < 50.0
+    assert "gravity included, removed" in err and "resampled to 200 Hz" in err, err
+    ms = float(err.split("deflection: ")[1].split(" ms late")[0])
+    assert abs(ms - 5.0) < 0.25 and "removed" in err, err

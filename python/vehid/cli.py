@@ -1327,8 +1327,8 @@ class Parser(argparse.ArgumentParser):
 def columns_help() -> str:
     """The column table of ``vehid identify --help``, from :data:`vehid.io.STATES`."""
     out = [
-        "columns (matched by name; case, spaces and a unit in brackets such as 'wheel_pos [m]' do not",
-        "matter; other columns are ignored; --columns NAME=COLUMN maps any other header name):",
+        "columns (matched by name; case and spaces do not matter, a unit in brackets such as 'wheel_pos [mm]'",
+        "or 't [ms]' is converted to SI; other columns are ignored; --columns NAME=COLUMN maps any other name):",
         f"  t        time, s (also {', '.join(TIME_NAMES[1:])}): finite and strictly increasing. Irregular",
         "           sampling is fine: nothing in the identifiers' update depends on the sample interval;",
         f"           the median interval is reported, steps over {GAP_FACTOR:g}x it are warned about.",

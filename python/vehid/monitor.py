@@ -1,17 +1,20 @@
 """``vehid monitor``: the suspension health monitor (:class:`vehid.HealthMonitor`) over a
 log of a car's sensors, printing one line per change it finds.
 
-The log is read in chunks through :mod:`vehid.io` (CSV in any common dialect, or Parquet);
-its columns are the sensor channels (``a_body, a_wheel, deflection`` for the realistic
-sensors, m/s², m/s², m; the thesis' ``zw, vw, zb, vb, dzw, dvw, dzb, dvb`` for the state
-sensors) and a time column ``t`` (s). A ``nan`` cell is a missing value; a step of the time
-column over 1.5 sample intervals is a gap, fed to the monitor as missing samples: in both
-cases it reports "cannot judge" for a while, never a change. Times must increase strictly,
-at a fixed rate (``--dt``, or the median interval of the first chunk); an interval under
-half of it is refused (resample such a log first).
+A file or a ROS 2 bag is read through :mod:`vehid.fieldlog` (CSV in any common dialect,
+Parquet, ``.mcap``, ``.db3``, a bag folder; ``--columns`` pairs or a ``channels.toml``):
+its channels (``a_body, a_wheel, deflection`` for the realistic sensors; the thesis' ``zw,
+vw, zb, vb, dzw, dvw, dzb, dvb`` for the state sensors) converted to SI from their declared
+units, put on one grid (the log's rate when one clock already runs at it, else 5 ms, or
+``--dt``; resampled by :mod:`vehid.align`), the deflection's delay against the
+accelerometers estimated and removed, and checked against the named car before the
+monitor sees a sample. Standard input (``-``) is read in chunks as a CSV at one fixed rate
+(``--dt``, or the nominal interval of the first chunk). A missing value (``nan``, an empty
+cell) and a gap in the time column (over 1.5 sample intervals) are missing samples: the
+monitor reports "cannot judge" for a while, never a change, and the summary counts them.
 
-Nothing numerical happens here: the monitor runs in the Rust core; this module reads,
-checks the time column, prints and plots.
+Nothing numerical about the suspension happens here: the monitor runs in the Rust core;
+this module reads, checks, prints and plots.
 """
 
 from __future__ import annotations
@@ -651,8 +654,10 @@ DESCRIPTION = (
     "observable without a road measurement: equal relative changes of both are the body mass. With --model half "
     "(columns a_body_f, a_body_r, a_wheel_f, a_wheel_r, deflection_f, deflection_r) it names b_f, b_r, k2_f, k2_r "
     "or M (with J scaled alike). Missing values "
-    "(nan) and gaps in the time column make the monitor 'cannot judge' for a while, never report. A summary "
-    "goes to stderr."
+    "(nan, empty cells) and gaps in the time column make the monitor 'cannot judge' for a while, never report. "
+    "Units are converted to SI ([mm] headers, a channels.toml, Parquet metadata), channels at several rates "
+    "resampled, the deflection's delay estimated and removed, and the log checked against the named car first "
+    "(see vehid inspect). A summary goes to stderr."
 )
 
 
@@ -674,7 +679,8 @@ def add_arguments(p: argparse.ArgumentParser, delimiter: Callable[[str], str]) -
                    help="realistic (default): columns a_body, a_wheel (m/s^2), deflection (m); state: the thesis' "
                         "zw, vw, zb, vb, dzw, dvw, dzb, dvb")
     p.add_argument("--dt", type=float, default=None,
-                   help="sample interval, s (default: the median interval of the time column)")
+                   help="the monitor's sample interval, s (default: the log's nominal rate when one clock runs at it, "
+                        "else 0.005; channels are resampled to it); without a time column, the log's interval")
     p.add_argument("--columns", action="append", metavar="MAP",
                    help="NAME=COLUMN,...: which file column holds each channel (e.g. a_body=acc_z_body); or a "
                         "channels.toml mapping each channel to a topic (bags, MCAP) or a column, with field, unit "
