@@ -8,8 +8,7 @@ written as a data logger's CSV (``Time [ms]``, g, mm, at 500 Hz through scipy's 
 resampler) and read by ``vehid monitor`` (``vehid.fieldlog``: resampled to 200 Hz, the delay
 estimated and removed). Figures per offset: the estimate's error (max, mean absolute), how many
 seeds report the damper, and the event time's difference from the same drive without an
-offset (median, max). With ``--keep`` the delay is estimated but not removed (a ``delay = 0``
-channel map), to show what the offset costs. ``--json PATH`` writes the figures.
+offset (median, max). ``--json PATH`` writes the figures.
 
 Reproducible: ``.venv/bin/python benches/field_log_offsets.py --seed0 70000 --seeds 20``.
 """
@@ -57,7 +56,6 @@ def main(argv: List[str]) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--seed0", type=int, default=70_000)
     p.add_argument("--seeds", type=int, default=20)
-    p.add_argument("--keep", action="store_true", help="estimate, but do not remove, the delay")
     p.add_argument("--json", default=None, metavar="PATH")
     args = p.parse_args(argv)
     rows: Dict[float, Dict[str, List[float]]] = {o: {"err": [], "dt_event": [], "found": []} for o in OFFSETS_MS}
@@ -65,7 +63,7 @@ def main(argv: List[str]) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         d = Path(tmp)
         cmap = d / "logger.toml"
-        cmap.write_text(F.LOGGER_MAP + ("delay = 0.0\n" if args.keep else ""))
+        cmap.write_text(F.LOGGER_MAP)
         for seed in range(args.seed0, args.seed0 + args.seeds):
             run = F.drive(70.0, changes=[(40.0, {"b": 1350.0})], seed=seed)
             base = None

@@ -526,3 +526,13 @@ def test_the_docs_worked_example_runs(tmp_path: Path, monkeypatch: pytest.Monkey
     assert "gravity included, removed" in err and "resampled to 200 Hz" in err, err
     ms = float(err.split("deflection: ")[1].split(" ms late")[0])
     assert abs(ms - 5.0) < 0.25 and "removed" in err, err
+
+
+def test_a_declared_delay_the_data_contradict_is_named(damper: vehid.Run, tmp_path: Path,
+                                                       capsys: pytest.CaptureFixture[str]) -> None:
+    # The deflection 20 ms late but declared on time (delay = 0): refused, naming the delay the
+    # data show (fed as declared, the monitor could not judge 99 % of the time).
+    (tmp_path / "zero.toml").write_text(F.LOGGER_MAP + "delay = 0.0\n")
+    path = F.logger_csv(tmp_path / "late.csv", damper, late=0.020)
+    msg = error(capsys, ["monitor", str(path), "--columns", str(tmp_path / "zero.toml"), "--model", "passenger"])
+    assert "delay = 0 s in the channel map, but the data show 19.9" in msg or "data show 20.0" in msg, msg

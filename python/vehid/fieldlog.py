@@ -513,6 +513,8 @@ class Aligned:
     delays: Dict[str, float] = field(default_factory=dict)
     notes: List[str] = field(default_factory=list)
     missing: int = 0
+    #: The delay the data say, per deflection (s), whether removed or not.
+    estimated: Dict[str, float] = field(default_factory=dict)
 
 
 def grid_interval(log: Log, dt: Optional[float]) -> float:
@@ -656,8 +658,13 @@ def _deflection(out: Aligned, log: Log, names: List[str], specs: Mapping[str, Ch
                          "with the opposite sign (vehid's is body minus wheel, extension positive; declare sign = "
                          "-1 to say so)")
     delay = est.delay
+    out.estimated[defl] = est.delay
     if spec is not None and spec.delay is not None:
         delay = spec.delay
+        if abs(delay - est.delay) > 1e-3:
+            raise TableError(f"{defl}: delay = {delay:g} s in the channel map, but the data "
+                             f"show {1e3 * est.delay:.2f} ms (d'' against a_body - a_wheel, correlation "
+                             f"{abs(est.corr):.2f}): correct the delay, or leave it out to have it estimated")
         out.notes.append(f"{defl}: the declared delay {1e3 * delay:.2f} ms removed (estimated: "
                          f"{1e3 * est.delay:.2f} ms)")
     elif not estimate:
@@ -710,6 +717,9 @@ def car_check(out: Aligned, k2m: float, bm: float, car: str) -> None:
     ratio = got_k / k2m
     if ratio > 3.0 or ratio < 1 / 3.0:
         factor = f"{ratio:.3g} times" if ratio > 1 else f"1/{1 / ratio:.3g} of"
+        kept = out.estimated.get("deflection", 0.0) - out.delays.get("deflection", 0.0)
+        cause = (f"the deflection's {1e3 * kept:.3g} ms delay, which the data show but the channel map's delay "
+                 "keeps? or a different car? " if math.isfinite(kept) and abs(kept) > 2e-3 else "a different car? ")
         raise TableError(f"the log's k2/M ~ {got_k:.3g} 1/s^2 (b/M ~ {got_b:.3g} 1/s) is {factor} that of {car} "
-                         f"(k2/M = {k2m:.3g}, b/M = {bm:.3g}): a different car? name yours with --model passenger "
+                         f"(k2/M = {k2m:.3g}, b/M = {bm:.3g}): {cause}name yours with --model passenger "
                          "or --car M=...,k2=...,b=...")
