@@ -536,3 +536,27 @@ def test_a_declared_delay_the_data_contradict_is_named(damper: vehid.Run, tmp_pa
     path = F.logger_csv(tmp_path / "late.csv", damper, late=0.020)
     msg = error(capsys, ["monitor", str(path), "--columns", str(tmp_path / "zero.toml"), "--model", "passenger"])
     assert "delay = 0 s in the channel map, but the data show 19.9" in msg or "data show 20.0" in msg, msg
+
+
+@pytest.mark.parametrize("factor", [0.3, 3.0])
+def test_undeclared_sensor_noise(factor: float, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # Sensors 0.3 and 3 times as noisy as the defaults, not declared: the damper's event as with
+    # the noise declared (--noise), within 0.5 s. At 3 times, the deflection's noise is estimated
+    # from the data (within 15 % of the truth) and said in a note; without that the monitor
+    # could not judge 100 % of the time.
+    noise = {k: v * factor for k, v in {"a_body": 0.02, "a_wheel": 0.1, "deflection": 3e-4}.items()}
+    run = vehid.Simulator(vehid.QuarterCar.passenger(), dt=0.005, road="iso8608-C", speed=15.0,
+                          changes=[(40.0, {"b": 1350.0})], sensors="realistic", seed=5, sensor_noise=noise).run(14_000)
+    path = tmp_path / "noisy.csv"
+    np.savetxt(path, np.column_stack([run.t, run.y]), delimiter=",", header="t,a_body,a_wheel,deflection",
+               comments="", fmt="%.9g")
+    declared, _ = events(capsys, [str(path), "--model", "passenger", "--noise",
+                                  ",".join(f"{k}={v:g}" for k, v in noise.items())])
+    got, err = events(capsys, [str(path), "--model", "passenger"])
+    assert [e["parameter"] for e in got] == ["b"] == [e["parameter"] for e in declared], (got, declared, err)
+    assert abs(got[0]["t"] - declared[0]["t"]) < 0.5, (got, declared)
+    if factor > 1:
+        est = float(err.split("estimated from the data: ")[1].split(" mm")[0]) * 1e-3
+        assert abs(est / noise["deflection"] - 1) < 0.15, err
+    else:
+        assert "noise, estimated" not in err, err

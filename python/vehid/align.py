@@ -32,7 +32,8 @@ from typing import List, Optional, Tuple
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["Delay", "body_ratios", "estimate_delay", "gap_limit", "nominal_interval", "resample", "segments"]
+__all__ = ["Delay", "body_ratios", "estimate_delay", "gap_limit", "nominal_interval", "resample", "segments",
+           "white_noise"]
 
 #: An interval over this many nominal intervals is a gap.
 GAP = 1.5
@@ -290,3 +291,33 @@ def body_ratios(a_body: NDArray[np.float64], deflection: NDArray[np.float64], dt
     cols = [np.fft.irfft(x, size)[:n] for x in (acc, -d, -2j * np.pi * f * d)]
     theta, *_ = np.linalg.lstsq(np.column_stack(cols[1:]), cols[0], rcond=None)
     return float(theta[0]), float(theta[1])
+
+
+#: The band (fractions of a channel's Nyquist frequency) where a deflection's spectrum is its
+#: sensor's white noise: above the wheel hop the travel itself has fallen far below it.
+NOISE_BAND = (0.6, 0.95)
+
+
+def white_noise(t: NDArray[np.float64], v: NDArray[np.float64], h: float) -> float:
+    """The standard deviation of the white noise on a channel (its unit, per sample at its own
+    interval ``h``, s), from the level of its spectrum in :data:`NOISE_BAND` of its Nyquist
+    frequency on the longest stretch without gaps (at most :data:`DELAY_SPAN` s): the median
+    periodogram level there, divided by ln 2 (the median of an exponential variable), is
+    ``2 sigma^2 h``. Meant for the deflection, whose travel is far below its sensor's noise
+    there; an upper bound for a channel with content in that band. NaN under 1000 samples.
+
+    >>> rng = np.random.default_rng(3); t = np.arange(20_000) * 0.005
+    >>> round(white_noise(t, 0.01 * np.sin(2 * np.pi * 1.3 * t) + 3e-4 * rng.standard_normal(len(t)), 0.005), 5)
+    0.0003
+    """
+    best = max(segments(t, v, h), key=lambda ab: ab[1] - ab[0], default=(0, 0))
+    a, b = best[0], min(best[1], best[0] + int(DELAY_SPAN / h))
+    if b - a < 1000:
+        return math.nan
+    x = v[a:b] - np.mean(v[a:b])
+    n = len(x)
+    power = np.abs(np.fft.rfft(x)) ** 2 * 2 * h / n
+    f = np.fft.rfftfreq(n, h)
+    nyquist = 0.5 / h
+    band = (f > NOISE_BAND[0] * nyquist) & (f < NOISE_BAND[1] * nyquist)
+    return math.sqrt(float(np.median(power[band])) / math.log(2.0) / (2 * h))

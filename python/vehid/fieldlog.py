@@ -723,3 +723,25 @@ def car_check(out: Aligned, k2m: float, bm: float, car: str) -> None:
         raise TableError(f"the log's k2/M ~ {got_k:.3g} 1/s^2 (b/M ~ {got_b:.3g} 1/s) is {factor} that of {car} "
                          f"(k2/M = {k2m:.3g}, b/M = {bm:.3g}): {cause}name yours with --model passenger "
                          "or --car M=...,k2=...,b=...")
+
+
+#: The health monitor's default deflection noise, m per sample (``SensorNoise::default``).
+DEFAULT_DEFLECTION_NOISE = 0.3e-3
+
+
+def deflection_noise(log: Log, dt: float) -> float:
+    """The deflection sensor's white noise (m per sample at the grid's interval ``dt``, s)
+    estimated from the data (:func:`vehid.align.white_noise` on each deflection channel's own
+    samples; where the grid is slower, scaled by the anti-aliasing filter's share of the
+    band, ``sqrt(0.9 h / dt)``); the largest over the axles; NaN when too short."""
+    out = math.nan
+    for s in log.series:
+        if not s.channel.startswith("deflection"):
+            continue
+        h = _align.nominal_interval(s.t)
+        sigma = _align.white_noise(s.t, s.v, h)
+        if h < dt:
+            sigma *= math.sqrt(0.9 * h / dt)
+        if math.isfinite(sigma) and not sigma <= out:
+            out = sigma
+    return out

@@ -489,6 +489,16 @@ def _monitor_file(args: argparse.Namespace, car: Union[QuarterCar, HalfCar], sen
             fieldlog.car_check(al, p["k2"] / p["M"], p["b"] / p["M"], _car_words(args))
     except TableError as e:
         raise _cli_error(str(e)) from None
+    noise = dict(settings.get("sensor_noise") or {})
+    if sensors == "realistic" and "deflection" not in noise:  # the one noise that blinds the monitor
+        est = fieldlog.deflection_noise(log, dt)
+        if math.isfinite(est) and est > 1.25 * fieldlog.DEFAULT_DEFLECTION_NOISE:
+            noise["deflection"] = est
+            settings = dict(settings, sensor_noise=noise)
+            mon = _health_monitor(car, dt, sensors, settings, args, log.source)
+            al.notes.append(f"the deflection's noise, estimated from the data: {1e3 * est:.3g} mm per sample (the "
+                            f"default {1e3 * fieldlog.DEFAULT_DEFLECTION_NOISE:g} mm would blind the monitor): used "
+                            "(--noise deflection=M to declare it)")
     for note in al.notes:
         print(f"vehid: note: {note}", file=sys.stderr, flush=True)
     t0 = 0.0 if log.absolute else al.t0
