@@ -560,3 +560,53 @@ def test_undeclared_sensor_noise(factor: float, tmp_path: Path, capsys: pytest.C
         assert abs(est / noise["deflection"] - 1) < 0.15, err
     else:
         assert "noise, estimated" not in err, err
+
+
+# --- results back where users look ---------------------------------------------------------------
+
+
+def test_events_and_track_as_parquet_and_mcap(five: Dict[str, List[str]], tmp_path: Path,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    # On the bag's clock (since 1970), read back with pyarrow and with rosbags' reader.
+    import pyarrow.parquet as pq
+    from rosbags.highlevel import AnyReader
+
+    ev_pq, ev_mcap, track = tmp_path / "ev.parquet", tmp_path / "ev.mcap", tmp_path / "track.parquet"
+    evs, _ = events(capsys, [*five["mcap"], "--model", "passenger", "--events", str(ev_pq), "--track", str(track)])
+    table = pq.read_table(ev_pq).to_pylist()
+    assert [r["parameter"] for r in table] == ["b"] and abs(table[0]["t"] - (F.EPOCH + evs[0]["t"])) < 1e-3
+    assert table[0]["low"] <= table[0]["after"] <= table[0]["high"] and table[0]["unit"] == "N s/m"
+    tr = pq.read_table(track)
+    assert tr.num_rows == 140 and abs(tr.column("t")[0].as_py() - (F.EPOCH + 0.5)) < 0.01
+    assert abs(np.nanmedian(tr.column("k2_over_M").to_numpy()) / (22000 / 320) - 1) < 0.1
+    events(capsys, [*five["mcap"], "--model", "passenger", "--events", str(ev_mcap)])
+    with AnyReader([ev_mcap]) as reader:
+        topics = {c.topic: c for c in reader.connections}
+        assert {"/vehid/events", "/vehid/k2_over_M", "/vehid/status"} <= set(topics)
+        (conn, stamp, raw), = list(reader.messages(connections=[topics["/vehid/events"]]))
+        row = json.loads(reader.deserialize(raw, conn.msgtype).data)
+    assert row["parameter"] == "b" and abs(stamp * 1e-9 - table[0]["t"]) < 1e-6
+    msg = error(capsys, ["monitor", five["mcap"][0], "--columns", five["mcap"][2], "--model", "passenger",
+                         "--events", str(tmp_path / "ev.txt")])
+    assert ".parquet or .mcap" in msg
+
+
+def test_identify_json_gives_a_b_and_the_modes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # The modes of the identified A (least squares on a long thesis run) against the true
+    # car's poles (vehid's LinearModel.poles, an independent eigen-solver in Rust).
+    run = vehid.Simulator(vehid.QuarterCar(), seed=4).run(20_000)
+    path = tmp_path / "q.csv"
+    np.savetxt(path, np.column_stack([run.t, run.r, run.z]), delimiter=",",
+               header=",".join(cli.csv_header(4, 1)[:9]), comments="", fmt="%.12g")
+    capsys.readouterr()
+    assert cli.main(["identify", str(path), "--model", "quarter", "--method", "ls", "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    a = np.asarray(report["A"])
+    assert a.shape == (4, 4) and np.asarray(report["B"]).shape == (4, 1)
+    np.testing.assert_allclose(a[[1, 3]], np.asarray(report["theta"]).reshape(2, 4))
+    poles = vehid.QuarterCar().poles()
+    truth = sorted({(round(abs(p) / (2 * math.pi), 9), round(-p.real / abs(p), 9)) for p in poles})
+    got = [(m["frequency_hz"], m["damping_ratio"]) for m in report["modes"]]
+    assert len(got) == len(truth)
+    for (f, z), (tf, tz) in zip(got, truth):
+        assert abs(f / tf - 1) < 0.1 and abs(z - tz) < 0.1, (got, truth)

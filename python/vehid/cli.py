@@ -1003,6 +1003,43 @@ def known_masses(args: argparse.Namespace, truth: Optional[Truth] = None,
     return out
 
 
+def modes(a: NDArray[np.float64]) -> List[Dict[str, float]]:
+    """The modes of ``x' = A x``: per oscillating pair (eigenvalue with Im > 0) and per real
+    eigenvalue, the natural frequency (Hz, ``|lambda| / 2 pi``) and the damping ratio
+    (``-Re lambda / |lambda|``), by frequency.
+
+    >>> [(round(m["frequency_hz"], 3), round(m["damping_ratio"], 3)) for m in modes(np.array([[0, 1], [-4.0, -0.4]]))]
+    [(0.318, 0.1)]
+    """
+    out = []
+    for lam in np.linalg.eigvals(np.asarray(a, dtype=np.float64)):
+        if lam.imag < -1e-12 * max(1.0, abs(lam)):
+            continue
+        mag = float(abs(lam))
+        out.append({"frequency_hz": mag / (2 * math.pi), "damping_ratio": -float(lam.real) / mag if mag else 1.0,
+                    "real": float(lam.real), "imag": float(lam.imag)})
+    return sorted(out, key=lambda m: m["frequency_hz"])
+
+
+def state_space(model: LinearModel, theta: NDArray[np.float64], physical: Optional[Dict[str, float]]) -> Dict[str, Any]:
+    """``--json``'s identified model: ``A`` (the identified rows in the model's structure),
+    ``B`` (from the identified physical constants where known, else the model's), and the
+    ``modes`` of ``A`` (:func:`modes`); ``None`` entries where ``A`` is not finite."""
+    try:
+        a = np.asarray(model.a_hat(theta), dtype=np.float64)
+    except VehidError:
+        return {"A": None, "B": None, "modes": None}
+    b = np.asarray(model.b, dtype=np.float64)
+    if physical and isinstance(model, QuarterCar):
+        try:
+            b = np.asarray(QuarterCar(**physical).b, dtype=np.float64)
+        except (VehidError, TypeError):
+            pass
+    if not np.isfinite(a).all():
+        return {"A": None, "B": _json_array(b), "modes": None}
+    return {"A": _json_array(a), "B": _json_array(b), "modes": modes(a)}
+
+
 #: Units of the physical constants, by name without the axle digit.
 UNITS = {"M": "kg", "m": "kg", "k": "N/m", "b": "N s/m", "J": "kg m^2", "l": "m"}
 
@@ -1223,6 +1260,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
             "true_theta": None if truth is None else _json_array(truth.theta),
             "xi": None if xi_value is None else _finite_or_none(xi_value),
         }
+        report.update(state_space(model, theta, physical))
         print(json.dumps(report, allow_nan=False))
         return 0
     opts = ", ".join(f"{k} {v}" for k, v in method_options(args, ident).items())

@@ -393,8 +393,15 @@ def cmd_monitor(args: argparse.Namespace) -> int:
     plt = _pyplot() if args.plot else None
     half = isinstance(car, HalfCar)
     channels = (HALF_SENSOR_COLUMNS if half else SENSOR_COLUMNS)[sensors]
+    events, track = getattr(args, "events", None), getattr(args, "track", None)
+    if events and not events.lower().endswith((".parquet", ".mcap")):  # said before the run, not after
+        raise _cli_error(f"--events {events}: give a .parquet or .mcap file")
+    if track and not track.lower().endswith(".parquet"):
+        raise _cli_error(f"--track {track}: give a .parquet file (or --events FILE.mcap for both)")
     if args.file != "-":
         return _monitor_file(args, car, sensors, settings, channels, plt)
+    if events or track:
+        raise _cli_error("--events and --track need a file or a bag, not standard input")
     try:
         mapping = parse_column_map(args.columns or [])
     except TableError as e:
@@ -511,7 +518,29 @@ def _monitor_file(args: argparse.Namespace, car: Union[QuarterCar, HalfCar], sen
     summary(feeder, log.source, len(al.y), sys.stderr)
     if plt is not None:
         plot(feeder, car, args.plot, plt)
+    if getattr(args, "events", None) or getattr(args, "track", None):
+        _export(args, feeder, (log.origin + al.t0) if log.absolute else 0.0)
     return 0
+
+
+def _export(args: argparse.Namespace, feeder: Feeder, origin: float) -> None:
+    """``--events`` and ``--track``: the events and the tracked ratios, times on the log's
+    clock (since 1970 for a bag or timestamps: the raw topics' clock)."""
+    from . import export
+
+    rec = feeder.record
+    k2m, bm = np.asarray(rec.k2m, dtype=np.float64).reshape(-1, 3), np.asarray(rec.bm, dtype=np.float64).reshape(-1, 3)
+    track: Dict[str, List[Any]] = {"t": [origin + t for t in rec.t], "status": list(rec.status)}
+    for name, v in (("k2_over_M", k2m), ("b_over_M", bm)):
+        track[name], track[f"{name}_low"], track[f"{name}_high"] = v[:, 0].tolist(), v[:, 1].tolist(), v[:, 2].tolist()
+    rows = export.event_rows(feeder.events, origin + feeder.t0, PARAMETERS)
+    try:
+        if args.events:
+            export.write_events(args.events, rows, track)
+        if args.track:
+            export.write_track(args.track, track)
+    except TableError as e:
+        raise _cli_error(str(e)) from None
 
 
 def _car_words(args: argparse.Namespace) -> str:
@@ -706,6 +735,13 @@ def add_arguments(p: argparse.ArgumentParser, delimiter: Callable[[str], str]) -
     p.add_argument("--threshold", type=float, default=None, help="CUSUM threshold h (default 8, calibrated)")
     p.add_argument("--confidence", type=float, default=None, help="level of the intervals (default 0.95)")
     p.add_argument("--json", action="store_true", help="one JSON object per event instead of text")
+    p.add_argument("--events", default=None, metavar="FILE",
+                   help="also write the events to FILE.parquet, or to FILE.mcap with the tracked k2/M, b/M and the "
+                        "status (topics /vehid/...; on the bag's clock: Foxglove or PlotJuggler overlay them; "
+                        "needs vehid[parquet] or vehid[ros]); files and bags only")
+    p.add_argument("--track", default=None, metavar="FILE",
+                   help="also write the tracked k2/M and b/M with their 95 %% bands and the status every 0.5 s to "
+                        "FILE.parquet (files and bags only)")
     p.add_argument("--plot", default=None, metavar="PNG",
                    help="write the tracked ratios with their bands and the events (the half car: each "
                         "spring's and damper's change since the warm-up) (needs vehid[plot])")
