@@ -610,3 +610,20 @@ def test_identify_json_gives_a_b_and_the_modes(tmp_path: Path, capsys: pytest.Ca
     assert len(got) == len(truth)
     for (f, z), (tf, tz) in zip(got, truth):
         assert abs(f / tf - 1) < 0.1 and abs(z - tz) < 0.1, (got, truth)
+
+
+def test_identify_realistic_reads_bags_and_logger_files(five: Dict[str, List[str]],
+                                                        capsys: pytest.CaptureFixture[str]) -> None:
+    # The body equation from the MCAP bag, the logger's CSV (ms, g, mm, 500 Hz, the deflection
+    # 4 ms late) and vehid's CSV: k2 within each other's 95 % intervals, and near the truth.
+    found = {}
+    for name in ("vehid csv", "mcap", "logger csv"):
+        capsys.readouterr()
+        assert cli.main(["identify", *five[name], "--model", "quarter", "--sensors", "realistic", "--M", "320",
+                         "--json"]) == 0
+        report = json.loads(capsys.readouterr().out)
+        found[name] = report["constants"]["k2"]
+    for a in found.values():
+        assert abs(a["value"] / 22000 - 1) < 0.01
+        for b in found.values():
+            assert b["low"] <= a["value"] <= b["high"], found
