@@ -627,3 +627,17 @@ def test_identify_realistic_reads_bags_and_logger_files(five: Dict[str, List[str
         assert abs(a["value"] / 22000 - 1) < 0.01
         for b in found.values():
             assert b["low"] <= a["value"] <= b["high"], found
+
+
+def test_standard_input_reads_units_too(damper: vehid.Run, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                         capsys: pytest.CaptureFixture[str]) -> None:
+    import io as _io
+
+    si = F.vehid_csv(tmp_path / "si.csv", damper)
+    data = np.loadtxt(si, delimiter=",", skiprows=1)
+    text = "t [ms],a_body,a_wheel,deflection [mm]\n" + "".join(
+        f"{t * 1e3:.6f},{a!r},{b!r},{c * 1e3!r}\n" for t, a, b, c in data.tolist())
+    ref, _ = events(capsys, [str(si), "--model", "passenger"])
+    monkeypatch.setattr("sys.stdin", _io.StringIO(text))
+    got, err = events(capsys, ["-", "--model", "passenger"])
+    assert [e["parameter"] for e in got] == ["b"] and abs(got[0]["t"] - ref[0]["t"]) < 1e-6, err

@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 
 from . import Event, HalfCar, HealthMonitor, QuarterCar, fieldlog
 from .align import nominal_interval
-from .io import Column, Table, TableError, match_columns, open_table, parse_column_map
+from .io import Column, Table, TableError, column_factor, match_columns, open_table, parse_column_map
 from .reproduce import _load_pyplot
 
 #: Samples read per chunk.
@@ -426,8 +426,14 @@ def cmd_monitor(args: argparse.Namespace) -> int:
         prev: Optional[float] = None
         prev_line = 0
         samples = 0
+        units = [Column("t", "time", "s")] * has_t + list(channels)
+        try:  # declared units ([mm], [g], [ms]) to SI
+            factors = np.asarray([column_factor(c.unit, table.names[i], f"{table.source}, column {table.names[i]!r}")
+                                  for c, i in zip(units, cols)])
+        except TableError as e:
+            raise _cli_error(str(e)) from None
         for chunk in table.chunks(cols, labels, CHUNK, missing=True):
-            data = chunk.data
+            data = chunk.data * factors
             if has_t and np.isnan(data[:, 0]).any():
                 row = int(np.argmax(np.isnan(data[:, 0])))
                 raise _cli_error(f"{table.where(int(chunk.lines[row]))}: the time is missing (nan): every sample "
