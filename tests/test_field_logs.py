@@ -641,3 +641,17 @@ def test_standard_input_reads_units_too(damper: vehid.Run, tmp_path: Path, monke
     monkeypatch.setattr("sys.stdin", _io.StringIO(text))
     got, err = events(capsys, ["-", "--model", "passenger"])
     assert [e["parameter"] for e in got] == ["b"] and abs(got[0]["t"] - ref[0]["t"]) < 1e-6, err
+
+
+def test_a_clock_jump_in_a_table_is_one_line(damper: vehid.Run, tmp_path: Path,
+                                             capsys: pytest.CaptureFixture[str]) -> None:
+    data = np.loadtxt(F.vehid_csv(tmp_path / "si.csv", damper), delimiter=",", skiprows=1)
+    data[7000:, 0] += 86_400.0  # a day forward half-way
+    path = tmp_path / "jump.csv"
+    np.savetxt(path, data, delimiter=",", header="t,a_body,a_wheel,deflection", comments="", fmt="%.10g")
+    msg = error(capsys, ["monitor", str(path), "--model", "passenger"])
+    assert "line 7002" in msg and "jumps 86400" in msg and "split the log" in msg, msg
+    data[7000:, 0] -= 2 * 86_400.0  # and back
+    np.savetxt(path, data, delimiter=",", header="t,a_body,a_wheel,deflection", comments="", fmt="%.10g")
+    msg = error(capsys, ["monitor", str(path), "--model", "passenger"])
+    assert "line 7002" in msg and "does not increase" in msg, msg

@@ -571,6 +571,13 @@ def align(log: Log, dt: Optional[float], specs: Optional[Mapping[str, ChannelSpe
     n = int(math.floor((t1 - t0) / step + 1e-6)) + 1
     inputs = max(len(s.t) for s in log.series)
     if n > 20 * inputs + 1000:
+        s = max(log.series, key=lambda x: float(np.max(np.diff(x.t))) if len(x.t) > 1 else 0.0)
+        i = int(np.argmax(np.diff(s.t)))
+        jump = float(s.t[i + 1] - s.t[i])
+        if jump > 1000 * step:  # a clock that jumps, not a rate
+            where = f"{log.source}, line {int(s.lines[i + 1])}" if s.lines is not None else f"{s.source}"
+            raise TableError(f"{where}: the time jumps {jump:.6g} s forward ({s.channel}): a clock jump or a log "
+                             "of several drives: split the log there")
         raise TableError(f"--dt {step:g}: {n:,} samples on the grid from {inputs:,} in the log: give the log's "
                          "sample interval (or none: the grid then follows the log)")
     shared = all(s.t is log.series[0].t for s in log.series)
