@@ -46,14 +46,17 @@ def vehid_csv(path: Path, run: vehid.Run) -> Path:
     return path
 
 
-def logger_csv(path: Path, run: vehid.Run, late: float = 0.004, compression: bool = False) -> Path:
+def logger_csv(path: Path, run: vehid.Run, late: float = 0.004, compression: bool = False,
+               body_late: float = 0.0) -> Path:
     """A data logger's CSV at 500 Hz: ``Time [ms]``, accelerations in g with gravity, the
-    deflection in mm ``late`` s late (and compression-positive when asked)."""
+    deflection in mm ``late`` s late (and compression-positive when asked), the body
+    accelerometer ``body_late`` s late."""
     y = signal.resample_poly(run.y, 5, 4, axis=0)
     dt = 0.002
     d = delayed(y[:, 2], late, dt) * (-1.0 if compression else 1.0)
+    body = delayed(y[:, 0], body_late, dt) if body_late else y[:, 0]
     t_ms = np.arange(len(y)) * 2.0
-    data = np.column_stack([t_ms, y[:, 0] / G + 1.0, y[:, 1] / G + 1.0, d * 1e3])
+    data = np.column_stack([t_ms, body / G + 1.0, y[:, 1] / G + 1.0, d * 1e3])
     np.savetxt(path, data, delimiter=",", header="Time [ms],AccZ_body [g],AccZ_wheel [g],SuspTravel [mm]",
                comments="", fmt=["%.0f", "%.7f", "%.7f", "%.5f"])
     return path

@@ -596,6 +596,8 @@ def align(log: Log, dt: Optional[float], specs: Optional[Mapping[str, ChannelSpe
         names = [f"a_body{axle}", f"a_wheel{axle}", f"deflection{axle}"]
         if all(c in out.names for c in names):
             _deflection(out, log, names, specs, estimate)
+    if all(c in out.names for c in ("a_body", "deflection")) and estimate:  # the quarter car's body equation
+        _body(out, log, specs)
     if not same or any(abs(v) >= DELAY_TOLERANCE for v in out.delays.values() if math.isfinite(v)):
         # the grid's ends where a channel (resampled, or shifted) does not reach: not a gap
         good = np.flatnonzero(np.isfinite(out.y).all(axis=1))
@@ -685,9 +687,36 @@ def _deflection(out: Aligned, log: Log, names: List[str], specs: Mapping[str, Ch
     s = next(x for x in log.series if x.channel == defl)
     out.y[:, idf] = _align.resample(s.t, s.v, out.rates[defl], out.t0, out.dt, len(out.y), shift=delay)
     if spec is None or spec.delay is None:
-        out.notes.append(f"{defl}: {1e3 * delay:.2f} ms {'late' if delay > 0 else 'early'} against the "
+        out.notes.append(f"{defl}: {1e3 * abs(delay):.2f} ms {'late' if delay > 0 else 'early'} against the "
                          f"accelerometers (estimated from d'' = a_body - a_wheel, correlation {abs(est.corr):.2f}): "
                          "removed")
+
+
+def _body(out: Aligned, log: Log, specs: Mapping[str, ChannelSpec]) -> None:
+    """The body accelerometer's delay against the (aligned) deflection, from the body
+    equation (:func:`vehid.align.estimate_body_delay`): removed when over
+    :data:`DELAY_TOLERANCE` and the fit is close (correlation over 0.9); a declared ``delay``
+    is taken as given."""
+    spec = specs.get("a_body")
+    ib, idf = out.names.index("a_body"), out.names.index("deflection")
+    if spec is not None and spec.delay is not None:
+        delay = spec.delay
+    else:
+        est = _align.estimate_body_delay(out.y[:, ib], out.y[:, idf], out.dt)
+        out.estimated["a_body"] = est.delay
+        if est.why or not est.corr > 0.9:
+            return
+        delay = est.delay
+        if abs(delay) < DELAY_TOLERANCE:
+            out.delays["a_body"] = delay
+            return
+        out.notes.append(f"a_body: {1e3 * abs(delay):.2f} ms {'late' if delay > 0 else 'early'} against the deflection "
+                         f"(estimated from the body equation, correlation {est.corr:.3f}): removed")
+    out.delays["a_body"] = delay
+    if abs(delay) < DELAY_TOLERANCE:
+        return
+    s = next(x for x in log.series if x.channel == "a_body")
+    out.y[:, ib] = _align.resample(s.t, s.v, out.rates["a_body"], out.t0, out.dt, len(out.y), shift=delay)
 
 
 def _source(log: Log, channel: str) -> str:

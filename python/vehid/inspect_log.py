@@ -199,8 +199,10 @@ def _channels_found(args: argparse.Namespace, cmap: Optional[fieldlog.ChannelMap
         print(f"  note: {note}", file=out)
     for name, delay in al.delays.items():
         if math.isfinite(delay):
-            print(f"  clock: {name} is {1e3 * delay:.2f} ms {'late' if delay >= 0 else 'early'} against the "
-                  "accelerometers (estimated from d'' = a_body - a_wheel)", file=out)
+            how = ("the deflection (from the body equation)" if name.startswith("a_body") else
+                   "the accelerometers (from d'' = a_body - a_wheel)")
+            print(f"  clock: {name} is {1e3 * abs(delay):.2f} ms {'late' if delay >= 0 else 'early'} against {how}",
+                  file=out)
     print(f"  on the monitor's grid: {len(al.y):,} samples at {1 / al.dt:g} Hz, {al.missing} missing", file=out)
     return True
 
