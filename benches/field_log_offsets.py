@@ -8,7 +8,9 @@ written as a data logger's CSV (``Time [ms]``, g, mm, at 500 Hz through scipy's 
 resampler) and read by ``vehid monitor`` (``vehid.fieldlog``: resampled to 200 Hz, the delay
 estimated and removed). Figures per offset: the estimate's error (max, mean absolute), how many
 seeds report the damper, and the event time's difference from the same drive without an
-offset (median, max). ``--json PATH`` writes the figures.
+offset (median, max). With ``--body`` the offsets are the body accelerometer's instead (the
+deflection 4 ms late throughout), estimated from the body equation. ``--json PATH`` writes the
+figures.
 
 Reproducible: ``.venv/bin/python benches/field_log_offsets.py --seed0 70000 --seeds 20``.
 """
@@ -35,7 +37,7 @@ from vehid import cli  # noqa: E402
 OFFSETS_MS = (0.0, 1.0, 2.0, 4.0, 5.0, 7.3, 10.0, 15.0, 20.0)
 
 
-def monitor(path: Path, cmap: Path) -> Dict[str, Any]:
+def monitor(path: Path, cmap: Path, channel: str = "deflection") -> Dict[str, Any]:
     """``vehid monitor`` on the logger CSV: its first event and the delay it removed (ms)."""
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
@@ -46,8 +48,9 @@ def monitor(path: Path, cmap: Path) -> Dict[str, Any]:
     text = err.getvalue()
     delay = 0.0
     for marker in (" ms late against", " ms early against"):
-        if marker in text:
-            value = float(text.split("deflection: ")[1].split(marker)[0])
+        head = f"{channel}: "
+        if head in text and marker in text.split(head)[1].split("\n")[0]:
+            value = float(text.split(head)[1].split(marker)[0])
             delay = value if "late" in marker else -value
     return {"event": events[0] if events else None, "delay_ms": delay, "stderr": text}
 
@@ -56,6 +59,7 @@ def main(argv: List[str]) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--seed0", type=int, default=70_000)
     p.add_argument("--seeds", type=int, default=20)
+    p.add_argument("--body", action="store_true", help="offset the body accelerometer instead")
     p.add_argument("--json", default=None, metavar="PATH")
     args = p.parse_args(argv)
     rows: Dict[float, Dict[str, List[float]]] = {o: {"err": [], "dt_event": [], "found": []} for o in OFFSETS_MS}
@@ -68,7 +72,11 @@ def main(argv: List[str]) -> int:
             run = F.drive(70.0, changes=[(40.0, {"b": 1350.0})], seed=seed)
             base = None
             for off in OFFSETS_MS:
-                got = monitor(F.logger_csv(d / f"s{seed}_{off}.csv", run, late=off * 1e-3), cmap)
+                if args.body:
+                    log = F.logger_csv(d / f"s{seed}_{off}.csv", run, late=0.004, body_late=off * 1e-3)
+                else:
+                    log = F.logger_csv(d / f"s{seed}_{off}.csv", run, late=off * 1e-3)
+                got = monitor(log, cmap, "a_body" if args.body else "deflection")
                 ev = got["event"]
                 found = ev is not None and ev["parameter"] == "b"
                 rows[off]["found"].append(float(found))
