@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 
 from . import align as _align
 from . import fieldlog
+from .bags import MESSAGE_FIELDS, first_line, open_bag, stamp_ns
 from .io import STANDARD_GRAVITY, UNITS, TableError, normalize, open_table, parse_column_map, si_factor
 
 __all__ = ["DESCRIPTION", "add_arguments", "cmd_inspect", "guess_channel"]
@@ -209,7 +210,7 @@ def _channels_found(args: argparse.Namespace, cmap: Optional[fieldlog.ChannelMap
 
 def _inspect_bag(args: argparse.Namespace, out: IO[str]) -> None:
     cmap, _ = _cmap(args)
-    reader = fieldlog.open_bag(args.file)
+    reader = open_bag(args.file)
     proposals: Dict[str, Tuple[str, str, Optional[str]]] = {}
     try:
         with reader:
@@ -221,7 +222,7 @@ def _inspect_bag(args: argparse.Namespace, out: IO[str]) -> None:
     except TableError:
         raise
     except Exception as e:
-        raise TableError(f"{args.file}: cannot read the bag ({fieldlog._first_line(e)}): is it truncated?") from None
+        raise TableError(f"{args.file}: cannot read the bag ({first_line(e)}): is it truncated?") from None
     if cmap is not None:
         _channels_found(args, cmap, {}, out)
         return
@@ -269,7 +270,7 @@ def _topic(reader: Any, conn: Any, out: IO[str]) -> Dict[str, Tuple[str, str, Op
         if k < SAMPLE_MESSAGES:
             msg = reader.deserialize(raw, conn.msgtype)
             first = first if first is not None else msg
-            s = fieldlog._stamp(msg)
+            s = stamp_ns(msg)
             if s:
                 stamps.append(s)
     t_log = np.asarray((np.asarray(logged, dtype=np.int64) - (logged[0] if logged else 0)) * 1e-9, dtype=np.float64)
@@ -286,7 +287,7 @@ def _topic(reader: Any, conn: Any, out: IO[str]) -> Dict[str, Tuple[str, str, Op
     else:
         line += f"; no header.stamp: log time {_rate(t_log)}"
     feeds: Dict[str, Tuple[str, str, Optional[str]]] = {}
-    default = fieldlog.MESSAGE_FIELDS.get(typ)
+    default = MESSAGE_FIELDS.get(typ)
     if typ == "sensor_msgs/msg/Imu":
         imu = guess_channel(conn.topic, "acceleration") or "a_body"
         feeds[imu] = (conn.topic, "linear_acceleration.z", None)
