@@ -31,8 +31,8 @@ SAMPLE_ROWS = 400_000
 DESCRIPTION = (
     "Describes a log before it is used: columns or topics, message types, rates and jitter, units (declared or "
     "guessed), time span, gaps, clock offsets, and which vehid channels (a_body, a_wheel, deflection) each can feed; "
-    "with those channels found (by name or --columns), the deflection's delay and sign against the accelerometers. "
-    "For a bag it prints a channels.toml to start from."
+    "with those channels found (by name or --columns), the deflection's and the body accelerometer's delays and "
+    "the deflection's sign. Where they are not found, it prints a channels.toml to start from."
 )
 
 #: Name fragments that suggest a vehid channel (after :func:`vehid.io.normalize`).
