@@ -657,12 +657,12 @@ def test_a_clock_jump_in_a_table_is_one_line(damper: vehid.Run, tmp_path: Path,
     assert "line 7002" in msg and "does not increase" in msg, msg
 
 
-@pytest.mark.parametrize("body_ms", [6.0, -3.0])
+@pytest.mark.parametrize("body_ms", [6.0, -3.0, 20.0])
 def test_a_late_body_accelerometer_is_found_and_removed(body_ms: float, damper: vehid.Run, tmp_path: Path,
                                                         capsys: pytest.CaptureFixture[str]) -> None:
-    # Three clocks: the deflection 4 ms late and the body accelerometer 6 ms late (or 3 ms early)
-    # against the wheel's: both estimated within 1 ms and removed; the damper's event as in
-    # vehid's CSV of the same drive.
+    # Three clocks: the deflection 4 ms late and the body accelerometer 6 or 20 ms late (or 3 ms
+    # early) against the wheel's: both estimated and removed; the damper's event as in vehid's
+    # CSV of the same drive.
     (tmp_path / "logger.toml").write_text(F.LOGGER_MAP)
     ref, _ = events(capsys, [str(F.vehid_csv(tmp_path / "ref.csv", damper)), "--model", "passenger"])
     path = F.logger_csv(tmp_path / "three.csv", damper, body_late=body_ms * 1e-3)
@@ -670,5 +670,7 @@ def test_a_late_body_accelerometer_is_found_and_removed(body_ms: float, damper: 
     word = "late" if body_ms > 0 else "early"
     est = float(err.split("a_body: ")[1].split(f" ms {word}")[0]) * (1 if body_ms > 0 else -1)
     assert abs(est - body_ms) < 1.0, err
-    assert abs(float(err.split("deflection: ")[1].split(" ms late")[0]) - 4.0) < 1.0, err
+    # Within 0.25 ms (the first estimate of the deflection's, before both were refined in turn,
+    # was 0.75 ms short with the body 20 ms late).
+    assert abs(float(err.split("deflection: ")[1].split(" ms late")[0]) - 4.0) < 0.25, err
     assert [e["parameter"] for e in got] == ["b"] and abs(got[0]["t"] - ref[0]["t"]) < 0.1, (got, ref)
