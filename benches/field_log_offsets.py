@@ -21,6 +21,7 @@ import argparse
 import contextlib
 import io
 import json
+import re
 import sys
 import tempfile
 import time
@@ -46,12 +47,10 @@ def monitor(path: Path, cmap: Path, channel: str = "deflection") -> Dict[str, An
         raise SystemExit(f"vehid monitor failed: {err.getvalue()}")
     events = [json.loads(line) for line in out.getvalue().splitlines() if line.strip()]
     text = err.getvalue()
-    delay = 0.0
-    for marker in (" ms late against", " ms early against"):
-        head = f"{channel}: "
-        if head in text and marker in text.split(head)[1].split("\n")[0]:
-            value = float(text.split(head)[1].split(marker)[0])
-            delay = value if "late" in marker else -value
+    delay = 0.0  # under the tolerance (0.25 ms) the delay is not removed and no note is printed
+    m = re.search(rf"note: {channel}: ([0-9.]+) ms (late|early) against", text)
+    if m:
+        delay = float(m.group(1)) * (1 if m.group(2) == "late" else -1)
     return {"event": events[0] if events else None, "delay_ms": delay, "stderr": text}
 
 
