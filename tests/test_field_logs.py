@@ -674,3 +674,24 @@ def test_a_late_body_accelerometer_is_found_and_removed(body_ms: float, damper: 
     # was 0.75 ms short with the body 20 ms late).
     assert abs(float(err.split("deflection: ")[1].split(" ms late")[0]) - 4.0) < 0.25, err
     assert [e["parameter"] for e in got] == ["b"] and abs(got[0]["t"] - ref[0]["t"]) < 0.1, (got, ref)
+
+
+def test_the_half_cars_front_deflection_late(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # The half car, its front deflection 5 ms late: found per axle (d_f'' = a_body_f - a_wheel_f)
+    # and removed; the front damper's event as in the log without the delay (within 1 s).
+    sim = vehid.Simulator(vehid.HalfCar.passenger(), dt=0.005, road="iso8608-C", speed=15.0,
+                          changes=[(40.0, {"b_f": 1440.0})], sensors="realistic", seed=3)
+    run = sim.run(16_000)
+    header = "t," + ",".join(run.channels or ())
+    ok, late = tmp_path / "ok.csv", tmp_path / "late.csv"
+    np.savetxt(ok, np.column_stack([run.t, run.y]), delimiter=",", header=header, comments="")
+    y = run.y.copy()
+    j = (run.channels or ()).index("deflection_f")
+    y[:, j] = F.delayed(y[:, j], 0.005, 0.005)
+    np.savetxt(late, np.column_stack([run.t, y]), delimiter=",", header=header, comments="")
+    ref, _ = events(capsys, [str(ok), "--model", "half"])
+    got, err = events(capsys, [str(late), "--model", "half"])
+    assert abs(float(err.split("deflection_f: ")[1].split(" ms late")[0]) - 5.0) < 1.0, err
+    assert "deflection_r:" not in err
+    assert [e["parameter"] for e in got] == [e["parameter"] for e in ref] == ["b_f"], (got, ref)
+    assert abs(got[0]["t"] - ref[0]["t"]) < 1.0
