@@ -695,3 +695,13 @@ def test_the_half_cars_front_deflection_late(tmp_path: Path, capsys: pytest.Capt
     assert "deflection_r:" not in err
     assert [e["parameter"] for e in got] == [e["parameter"] for e in ref] == ["b_f"], (got, ref)
     assert abs(got[0]["t"] - ref[0]["t"]) < 1.0
+
+
+def test_inspect_reads_around_a_text_column(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "events.csv"
+    path.write_text("t [ms],a_body,Event,deflection [mm]\n0,0.1,start,1\n5,0.2,,2\n10,0.3,bump,3\n")
+    capsys.readouterr()
+    assert cli.main(["inspect", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "column 'Event': not numbers ('start' is not a number); not read" in out, out
+    assert "'deflection [mm]': mm (declared); mean 2," in out and "200 Hz" in out, out

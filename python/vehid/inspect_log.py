@@ -113,6 +113,20 @@ def _cmap(args: argparse.Namespace) -> Tuple[Optional[fieldlog.ChannelMap], Dict
     return cmap, parse_column_map(pairs)
 
 
+def _sample(table: Any, cols: List[int], time_i: Optional[int]) -> NDArray[np.float64]:
+    """The columns ``cols`` of ``table`` (its first :data:`SAMPLE_ROWS` rows), float64, empty
+    cells NaN, the time column ``time_i`` read as timestamps where it holds them."""
+    stamps = [cols.index(time_i)] if time_i in cols else []
+    data: List[NDArray[np.float64]] = []
+    read = 0
+    for chunk in table.chunks(cols, [repr(table.names[i]) for i in cols], 100_000, missing=True, stamps=stamps):
+        data.append(chunk.data)
+        read += len(chunk.data)
+        if read >= SAMPLE_ROWS:
+            break
+    return np.concatenate(data) if data else np.zeros((0, len(cols)))
+
+
 def _inspect_table(args: argparse.Namespace, out: IO[str]) -> None:
     cmap, pairs = _cmap(args)
     with open_table(args.file, delimiter=args.delimiter) as table:
@@ -123,23 +137,24 @@ def _inspect_table(args: argparse.Namespace, out: IO[str]) -> None:
                        + fieldlog.MORE_TIME_NAMES), None)
         if cmap and cmap.time_column in names:
             time_i = names.index(cmap.time_column)
-        cols = list(range(len(names)))
-        data: List[NDArray[np.float64]] = []
-        read = 0
-        stamps = [time_i] if time_i is not None else []
+        text: Dict[int, str] = {}
         try:
-            for chunk in table.chunks(cols, [repr(n) for n in names], 100_000, missing=True, stamps=stamps):
-                data.append(chunk.data)
-                read += len(chunk.data)
-                if read >= SAMPLE_ROWS:
-                    break
-        except TableError as e:
-            print(f"  cannot read every column as numbers: {e}", file=out)
-            return
-        if not data:
+            y = _sample(table, list(range(len(names))), time_i)
+        except TableError:  # a column of text (event markers, comments): read the others one by one
+            blocks = []
+            for i in range(len(names)):
+                try:
+                    with open_table(args.file, delimiter=args.delimiter) as again:
+                        blocks.append(_sample(again, [i], time_i))
+                except TableError as e:
+                    text[i] = str(e).split(": ")[-1]
+                    blocks.append(np.full((0, 1), math.nan))
+            rows = max(len(b) for b in blocks)
+            y = np.column_stack([b[:, 0] if len(b) == rows else np.full(rows, math.nan) for b in blocks])
+        read = len(y)
+        if read == 0:
             print("  no samples", file=out)
             return
-        y = np.concatenate(data)
         proposals: Dict[str, Tuple[Tuple[str, str], ...]] = {}
         if time_i is not None:
             proposals["time"] = (("column", names[time_i]),)
@@ -163,6 +178,9 @@ def _inspect_table(args: argparse.Namespace, out: IO[str]) -> None:
             print("  time: no time column (give --dt to vehid monitor)", file=out)
         for i, name in enumerate(names):
             if i == time_i:
+                continue
+            if i in text:
+                print(f"  column {name!r}: not numbers ({text[i]}); not read", file=out)
                 continue
             v = y[:, i]
             declared = table.declared_unit(i)
