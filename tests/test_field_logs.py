@@ -335,6 +335,8 @@ def test_a_bag_without_a_channel_map_names_the_fix(five: Dict[str, List[str]],
     (('unit = "m"', 'unit = "furlong"'), "'furlong' is unknown"),
     (('gravity = "included"', 'gravity = "yes"'), "gravity = 'yes'"),
     (('unit = "m"', 'unit = "m"\nspeed = 3'), "[deflection] speed: unknown key"),
+    (("[a_wheel]", "[a_wheel"), "not valid TOML"),
+    (("[a_wheel]", "[a_whee]"), "[a_whee] is not a channel here"),
 ])
 def test_a_bad_channel_map_is_one_line(five: Dict[str, List[str]], tmp_path: Path, edit: Tuple[str, str],
                                        expected: str, capsys: pytest.CaptureFixture[str]) -> None:

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import sys
 from dataclasses import dataclass, field
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
@@ -91,13 +92,19 @@ def is_bag(path: str) -> bool:
 
 def is_channel_map(path: str) -> bool:
     """Whether a ``--columns`` value is a ``channels.toml`` (a TOML file with sections of
-    keys, ``[a_body] column = ...``) rather than ``NAME=COLUMN`` pairs or a flat mapping file."""
+    keys, ``[a_body] column = ...``) rather than ``NAME=COLUMN`` pairs or a flat mapping file.
+    A ``.toml`` file with channel sections that is not valid TOML raises :class:`TableError`."""
     if "=" in path or not path.lower().endswith(".toml") or not os.path.isfile(path):
         return False
     try:
         with open(path, "rb") as f:
-            data = tomllib.load(f)
-    except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError):
+            raw = f.read(1 << 20)
+        data = tomllib.loads(raw.decode("utf-8-sig"))
+    except OSError:
+        return False
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        if re.search(rb"^\s*\[\s*(a_|deflection|time|t\b|z|v|d)", raw, flags=re.M):  # meant as a channel map
+            raise TableError(f"--columns {path}: not valid TOML ({e}): fix the channel map") from None
         return False
     return any(isinstance(v, dict) for v in data.values())
 
