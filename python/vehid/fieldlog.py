@@ -90,6 +90,12 @@ def is_bag(path: str) -> bool:
     return os.path.isdir(path) or path.lower().endswith(BAG_SUFFIXES)
 
 
+#: A line that opens a channel map's section (``[a_body]``, ``[deflection_f]``, ``[time]``, a state
+#: channel), even when broken (``[a_body`` without its bracket).
+_SECTION = (rb"^\s*\[\s*(a_body|a_wheel|deflection|time|t|zw|vw|zb|vb|dzw|dvw|dzb|dvb|z[12]|v[12]|ph|om|dz[12]|"
+            rb"dv[12]|dph|dom)(_[fr])?\s*(\]|$)")
+
+
 def is_channel_map(path: str) -> bool:
     """Whether a ``--columns`` value is a ``channels.toml`` (a TOML file with sections of
     keys, ``[a_body] column = ...``) rather than ``NAME=COLUMN`` pairs or a flat mapping file.
@@ -103,7 +109,7 @@ def is_channel_map(path: str) -> bool:
     except OSError:
         return False
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
-        if re.search(rb"^\s*\[\s*(a_|deflection|time|t\b|z|v|d)", raw, flags=re.M):  # meant as a channel map
+        if re.search(_SECTION, raw, flags=re.M):  # meant as a channel map
             raise TableError(f"--columns {path}: not valid TOML ({e}): fix the channel map") from None
         return False
     return any(isinstance(v, dict) for v in data.values())
