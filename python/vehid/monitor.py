@@ -357,7 +357,7 @@ def _health_monitor(car: Union[QuarterCar, HalfCar], dt: float, sensors: Literal
     from . import VehidError
 
     given = (f"--dt {args.dt:g}" if args.dt is not None
-             else f"the sample interval {dt:.6g} s (the median interval of {source}'s time column)")
+             else f"the sample interval {dt:.6g} s (the grid of {source}: its nominal rate, or 5 ms)")
     try:
         return HealthMonitor(car, dt=dt, sensors=sensors, **settings)
     except VehidError as e:
