@@ -1,8 +1,9 @@
 """ROS 2 bags and MCAP for :mod:`vehid.fieldlog`, through ``rosbags`` (pure Python, no ROS
-install; ``pip install 'vehid[ros]'``): ``.mcap`` and ``.db3`` files and rosbag2 folders, split
-bags included (ROS 1 ``.bag`` files go to rosbags' ROS 1 reader: not tested here). A channel is one numeric field of one topic's messages, at its
-``header.stamp`` (or the time it was logged); REP 145: an IMU's linear acceleration is specific
-force (gravity included), and covariance[0] = -1 marks it absent (read as missing).
+install; ``pip install 'vehid[ros]'``): ``.mcap`` and ``.db3`` files and rosbag2 folders,
+split bags included (ROS 1 ``.bag`` files go to rosbags' ROS 1 reader: not tested here). A
+channel is one numeric field of one topic's messages, at its ``header.stamp`` (or the time it
+was logged); REP 145: an IMU's linear acceleration is specific force (gravity included), and
+covariance[0] = -1 marks it absent (read as missing).
 """
 
 from __future__ import annotations
