@@ -65,7 +65,7 @@ venv: $(VENV)/.installed
 # independent reference of the residual diagnostics and the realistic sensors' intervals.
 $(VENV)/.installed: Makefile
 	$(PYTHON) -m venv $(VENV)
-	$(VBIN)/python -m pip install --quiet maturin numpy pytest pytest-xdist mypy ruff scipy statsmodels matplotlib pyarrow "dask[distributed]"
+	$(VBIN)/python -m pip install --quiet maturin numpy pytest pytest-xdist mypy ruff scipy statsmodels matplotlib pyarrow "dask[distributed]" rosbags
 	touch $@
 
 # A stale extension module in python/vehid/ would shadow the fresh build: remove it first.

@@ -298,7 +298,9 @@ def test_truth_from_the_file_is_the_file_s_car(other_car: Path, capsys: pytest.C
 
 def test_truth_option(other_car: Path, capsys: pytest.CaptureFixture[str]) -> None:
     given = ",".join(f"{k}={v:g}" for k, v in OTHER.items())
-    report = identify_json(capsys, str(other_car), "--model", "quarter", "--truth", given)
+    # The wheel mass comes from --truth when --m is not given, and the note says so.
+    report = identify_json(capsys, str(other_car), "--model", "quarter", "--truth", given,
+                           err=f"vehid: note: --m not given: m = 1.5 kg from --truth {given}\n")
     theta = np.array(report["theta"])
     assert report["xi"] == vehid.xi(vehid.QuarterCar(**OTHER).theta, theta)
     assert report["truth"] == {"source": f"--truth {given}", "constants": OTHER}

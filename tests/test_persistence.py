@@ -165,30 +165,27 @@ def test_corrupt_or_foreign_state_is_a_clear_error() -> None:
     kf = vehid.KalmanIdentifier(CAR, p0=1000.0, r=RV)
     kf.fit(run.r[:50], run.z[:50])
     fmt, version, payload = state_of(kf)
-    assert fmt == 2 and version.startswith("vehid ")
+    assert fmt == 3 and version.startswith("vehid ")
     blank = vehid.KalmanIdentifier(CAR, p0=1000.0, r=RV)
-    with pytest.raises(vehid.VehidError, match="format 3.*reads format 2"):
-        blank.__setstate__((3, "vehid 9.9", payload))
+    with pytest.raises(vehid.VehidError, match="format 2.*reads format 3"):
+        blank.__setstate__((2, "vehid 9.9", payload))
     with pytest.raises(vehid.VehidError, match="corrupt"):
-        blank.__setstate__((2, version, payload[:-7]))
+        blank.__setstate__((3, version, payload[:-7]))
     with pytest.raises(vehid.VehidError, match="corrupt"):
-        blank.__setstate__((2, version, b"\x00garbage"))
+        blank.__setstate__((3, version, b"\x00garbage"))
     with pytest.raises(vehid.VehidError, match="corrupt"):
         blank.__setstate__("nonsense")  # type: ignore[arg-type]
-    # Every single-byte change either fails cleanly or restores an identifier that works.
+    # Every single-byte change, and a byte appended, is refused (the payload carries a CRC-32);
+    # the target is unchanged.
+    target = vehid.KalmanIdentifier(CAR, p0=1000.0, r=RV)
     for i in range(len(payload)):
         broken = bytearray(payload)
         broken[i] ^= 0xFF
-        target = vehid.KalmanIdentifier(CAR, p0=1000.0, r=RV)
-        try:
-            target.__setstate__((2, version, bytes(broken)))
-        except vehid.VehidError:
-            assert target.samples == 0  # unchanged
-            continue
-        try:
-            target.fit(run.r[50:60], run.z[50:60])
-        except vehid.VehidError:
-            pass
+        with pytest.raises(vehid.VehidError, match="corrupt"):
+            target.__setstate__((3, version, bytes(broken)))
+    with pytest.raises(vehid.VehidError, match="corrupt"):
+        target.__setstate__((3, version, payload + b"\x00"))
+    assert target.samples == 0
     # A pickle stream cut short is an ordinary unpickling error.
     data = pickle.dumps(kf)
     with pytest.raises((pickle.UnpicklingError, EOFError)):
@@ -245,3 +242,37 @@ def test_model_equality() -> None:
     assert zero == negzero and hash(zero) == hash(negzero)
     with pytest.raises(TypeError):
         _ = CAR < CAR  # type: ignore[operator]
+
+
+def _sweep(obj: Any, fresh: Callable[[], Any]) -> int:
+    """Flips every byte of `obj`'s pickled payload in turn (and appends one): each must be refused
+    with a VehidError and leave the target as it was. Returns the number of bytes swept."""
+    fn, args, state = obj.__reduce__()[:3]
+    fmt, version, payload = state[:3]
+    extra = tuple(state[3:])
+    target = fresh()
+    before = pickle.dumps(target)
+    variants = [payload[:i] + bytes([payload[i] ^ (1 << (i % 8))]) + payload[i + 1:] for i in range(len(payload))]
+    for bad in [*variants, payload + b"\x00"]:
+        with pytest.raises(vehid.VehidError):
+            target.__setstate__((fmt, version, bad, *extra))
+    assert pickle.dumps(target) == before
+    return len(payload)
+
+
+@pytest.mark.parametrize("name,make,data", CASES, ids=[c[0] for c in CASES])
+def test_every_changed_byte_of_a_saved_identifier_is_refused(name: str, make: Callable[[], Any], data: str) -> None:
+    # The full single-byte sweep (one bit flipped per byte, a different bit at each position):
+    # before the CRC-32 some of these loaded as a different, consistent state.
+    run = RUNS[data]
+    ident = make()
+    ident.fit(run.r[:300], run.z[:300])
+    assert _sweep(ident, make) > 0
+
+
+@pytest.mark.parametrize("car", [vehid.QuarterCar.passenger(), vehid.HalfCar.passenger()], ids=["quarter", "half"])
+def test_every_changed_byte_of_a_saved_monitor_is_refused(car: Any) -> None:
+    y = vehid.Simulator(car, dt=0.005, road="iso8608-C", speed=15.0, sensors="realistic", seed=74_101).run(6000).y
+    mon = vehid.HealthMonitor(car, dt=0.005)
+    mon.fit(y)
+    assert _sweep(mon, lambda: vehid.HealthMonitor(car, dt=0.005)) > 0

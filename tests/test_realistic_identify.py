@@ -129,9 +129,10 @@ def test_a_restored_identifier_continues_bit_for_bit_and_corrupt_state_is_refuse
     assert a.stats().params.tolist() == b.stats().params.tolist() == c.stats().params.tolist()
     fn, args, (fmt, version, payload) = a.__reduce__()
     fresh = fn(*args)
-    # Trailing bytes and a cut payload are refused (a flipped byte that still decodes to a
-    # consistent state is not: the state carries no checksum).
-    for bad in (payload + b"\x00", payload[:-9]):
+    # Trailing bytes, a cut payload and any single changed byte are refused (the state carries a
+    # CRC-32).
+    flipped = [payload[:i] + bytes([payload[i] ^ 0x01]) + payload[i + 1:] for i in range(0, len(payload), 7)]
+    for bad in (payload + b"\x00", payload[:-9], *flipped):
         with pytest.raises(ValueError, match="cannot restore"):
             fresh.__setstate__((fmt, version, bad))
     with pytest.raises(ValueError, match="format"):

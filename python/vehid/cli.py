@@ -60,6 +60,7 @@ from .io import (
     Column,
     Table,
     TableError,
+    column_factor,
     match_columns,
     normalize,
     open_table,
@@ -313,12 +314,16 @@ class Layout:
     true_dx: List[int] = field(default_factory=list)
     u: List[int] = field(default_factory=list)
     s: Optional[int] = None
+    #: Per read column, the factor to ``col``'s SI unit from the unit its header declares
+    #: (``SuspTravel [mm]``: 0.001).
+    scales: List[float] = field(default_factory=list)
 
     def add(self, col: Column, position: int, header: str) -> int:
         """Reads header column ``position`` as ``col``; its place in a chunk."""
         self.columns.append(position)
         self.labels.append(column_label(col, header))
         self.used[col.name] = header
+        self.scales.append(column_factor(col.unit, header, f"column {header.strip()!r} ({col.describe()})"))
         return len(self.columns) - 1
 
 
@@ -767,7 +772,7 @@ def road_options(args: argparse.Namespace, spacing: Union[float, str]) -> Dict[s
     if args.min_spacing is not None:
         kw["min_spacing"] = args.min_spacing
     if args.lift_off is not None:
-        kw["lift_off"] = (args.lift_off, args.m)
+        kw["lift_off"] = (args.lift_off, 1.0 if args.m is None else args.m)
     if args.road == "iso8608" and args.road_cutoff is not None:
         kw["road_cutoff"] = args.road_cutoff
     if args.delay is not None:
@@ -977,8 +982,62 @@ def prior_note(args: argparse.Namespace, ident: Identifier, rows: List[int]) -> 
             "entries lean on P(0), not only on the data; the exact start (--p0 exact, the default) has no prior")
 
 
-def known_masses(args: argparse.Namespace) -> Dict[str, float]:
-    return {"m": args.m} if args.model == "quarter" else {"m1": args.m1, "m2": args.m2}
+def known_masses(args: argparse.Namespace, truth: Optional[Truth] = None,
+                 notes: Optional[List[str]] = None) -> Dict[str, float]:
+    """The known wheel masses (``--m``; the half car's ``--m1``, ``--m2``), kg: as given, else
+    from ``--truth`` when it names them (with a note in ``notes``: a passenger car's 40 kg
+    wheel taken as 1 kg made every constant 1/40 of the truth), else the thesis car's 1 kg
+    (the car ``--model quarter`` names; the report says "known: m = 1 kg")."""
+    names = ("m",) if args.model == "quarter" else ("m1", "m2")
+    out: Dict[str, float] = {}
+    for name in names:
+        given = getattr(args, name, None)
+        if given is None and truth is not None and truth.constants and name in truth.constants:
+            given = float(truth.constants[name])
+            if notes is not None and given != 1.0:
+                notes.append(f"--{name} not given: {name} = {given:g} kg from {truth.source}")
+        elif given is None:
+            given = 1.0  # the car --model names: the thesis' (the report says "known: m = 1 kg")
+        setattr(args, name, given)
+        out[name] = given
+    return out
+
+
+def modes(a: NDArray[np.float64]) -> List[Dict[str, float]]:
+    """The modes of ``x' = A x``: per oscillating pair (eigenvalue with Im > 0) and per real
+    eigenvalue, the natural frequency (Hz, ``|lambda| / 2 pi``) and the damping ratio
+    (``-Re lambda / |lambda|``), by frequency.
+
+    >>> [(round(m["frequency_hz"], 3), round(m["damping_ratio"], 3)) for m in modes(np.array([[0, 1], [-4.0, -0.4]]))]
+    [(0.318, 0.1)]
+    """
+    out = []
+    for lam in np.linalg.eigvals(np.asarray(a, dtype=np.float64)):
+        if lam.imag < -1e-12 * max(1.0, abs(lam)):
+            continue
+        mag = float(abs(lam))
+        out.append({"frequency_hz": mag / (2 * math.pi), "damping_ratio": -float(lam.real) / mag if mag else 1.0,
+                    "real": float(lam.real), "imag": float(lam.imag)})
+    return sorted(out, key=lambda m: m["frequency_hz"])
+
+
+def state_space(model: LinearModel, theta: NDArray[np.float64], physical: Optional[Dict[str, float]]) -> Dict[str, Any]:
+    """``--json``'s identified model: ``A`` (the identified rows in the model's structure),
+    ``B`` (from the identified physical constants where known, else the model's), and the
+    ``modes`` of ``A`` (:func:`modes`); ``None`` entries where ``A`` is not finite."""
+    try:
+        a = np.asarray(model.a_hat(theta), dtype=np.float64)
+    except VehidError:
+        return {"A": None, "B": None, "modes": None}
+    b = np.asarray(model.b, dtype=np.float64)
+    if physical and isinstance(model, QuarterCar):
+        try:
+            b = np.asarray(QuarterCar(**physical).b, dtype=np.float64)
+        except (VehidError, TypeError):
+            pass
+    if not np.isfinite(a).all():
+        return {"A": None, "B": _json_array(b), "modes": None}
+    return {"A": _json_array(a), "B": _json_array(b), "modes": modes(a)}
 
 
 #: Units of the physical constants, by name without the axle digit.
@@ -1077,8 +1136,9 @@ def cmd_identify(args: argparse.Namespace) -> int:
         raise CliError(str(e)) from None
     truth = parse_truth(args.truth, args.model)
     check_road_args(args)
+    mass_notes: List[str] = []
+    known = known_masses(args, truth, mass_notes)
     ident: Optional[Identifier] = make_identifier(args, model)  # option errors before any reading
-    known = known_masses(args)
     structured = None
     if coloured(args):  # built at the first chunk, when the distance per sample is known
         ident = None
@@ -1094,8 +1154,9 @@ def cmd_identify(args: argparse.Namespace) -> int:
         fit = TruthFit(n, model.n_inputs) if layout.true_x else None
         progress = Progress(sys.stderr, source, table.size)
         recent: Tuple[NDArray[np.float64], NDArray[np.float64]] = (np.empty((0, n)), np.empty((0, n)))
+        scales = np.asarray(layout.scales) if any(f != 1.0 for f in layout.scales) else None
         for chunk in table.chunks(layout.columns, layout.labels, CHUNK):
-            data = chunk.data
+            data = chunk.data if scales is None else chunk.data * scales  # declared units to SI
             if time is not None and layout.t is not None:
                 time.add(data[:, layout.t], chunk.lines)
             x, dx = np.ascontiguousarray(data[:, layout.x]), np.ascontiguousarray(data[:, layout.dx])
@@ -1138,6 +1199,8 @@ def cmd_identify(args: argparse.Namespace) -> int:
             intervals = model.physical(structured.stats(), **known)
         except VehidError:
             intervals = None
+        for mass_note in mass_notes:  # the constants scale with the wheel mass: said with them
+            print(f"vehid: note: {mass_note}", file=sys.stderr)
     note = prior_note(args, ident, rows)
     if note is not None:
         print(f"vehid: note: {note}", file=sys.stderr)
@@ -1197,6 +1260,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
             "true_theta": None if truth is None else _json_array(truth.theta),
             "xi": None if xi_value is None else _finite_or_none(xi_value),
         }
+        report.update(state_space(model, theta, physical))
         print(json.dumps(report, allow_nan=False))
         return 0
     opts = ", ".join(f"{k} {v}" for k, v in method_options(args, ident).items())
@@ -1301,8 +1365,8 @@ class Parser(argparse.ArgumentParser):
 def columns_help() -> str:
     """The column table of ``vehid identify --help``, from :data:`vehid.io.STATES`."""
     out = [
-        "columns (matched by name; case, spaces and a unit in brackets such as 'wheel_pos [m]' do not",
-        "matter; other columns are ignored; --columns NAME=COLUMN maps any other header name):",
+        "columns (matched by name; case and spaces do not matter, a unit in brackets such as 'wheel_pos [mm]'",
+        "or 't [ms]' is converted to SI; other columns are ignored; --columns NAME=COLUMN maps any other name):",
         f"  t        time, s (also {', '.join(TIME_NAMES[1:])}): finite and strictly increasing. Irregular",
         "           sampling is fine: nothing in the identifiers' update depends on the sample interval;",
         f"           the median interval is reported, steps over {GAP_FACTOR:g}x it are warned about.",
@@ -1329,7 +1393,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     >>> args = build_parser().parse_args(["identify", "run.csv", "--model", "quarter", "--p0", "1000,8"])
     >>> args.command, args.file, args.method, args.mode, args.p0, args.m
-    ('identify', 'run.csv', 'kalman', 'rows', [1000.0, 8.0], 1.0)
+    ('identify', 'run.csv', 'kalman', 'rows', [1000.0, 8.0], None)
     >>> args = build_parser().parse_args(["simulate", "--model", "half", "--speed", "6", "-o", "-"])
     >>> args.n, args.spacing, args.road, args.seed
     (40000, 0.3, 'white', 1)
@@ -1465,9 +1529,12 @@ def build_parser() -> argparse.ArgumentParser:
                        help="--sensors realistic: the blocks of the cluster-robust intervals, s (default 2)")
     ident.add_argument("--dt", type=positive_float, default=None,
                        help="--sensors realistic: the sample interval, s, when the log has no time column")
-    ident.add_argument("--m", type=positive_float, default=1.0, help="quarter: known wheel mass m, kg (default 1)")
-    ident.add_argument("--m1", type=positive_float, default=1.0, help="half: known front wheel mass m1, kg (default 1)")
-    ident.add_argument("--m2", type=positive_float, default=1.0, help="half: known rear wheel mass m2, kg (default 1)")
+    ident.add_argument("--m", type=positive_float, default=None,
+                       help="quarter: known wheel mass m, kg (default: m of --truth, else the thesis car's 1 kg)")
+    ident.add_argument("--m1", type=positive_float, default=None,
+                       help="half: known front wheel mass m1, kg (default: as --m)")
+    ident.add_argument("--m2", type=positive_float, default=None,
+                       help="half: known rear wheel mass m2, kg (default: as --m)")
     ident.add_argument("--json", action="store_true", help="print one JSON object instead of text")
     ident.set_defaults(func=cmd_identify)
 
@@ -1479,6 +1546,13 @@ def build_parser() -> argparse.ArgumentParser:
                          "body mass)", description=_monitor_description)
     _monitor_arguments(mon, delimiter)
     mon.set_defaults(func=cmd_monitor)
+
+    from . import inspect_log
+
+    insp = sub.add_parser("inspect", help="what a log holds (CSV, Parquet, ROS 2 bag, MCAP) and which channels it "
+                          "can feed", description=inspect_log.DESCRIPTION)
+    inspect_log.add_arguments(insp, delimiter)
+    insp.set_defaults(func=inspect_log.cmd_inspect)
 
     demo = sub.add_parser("demo", help="quarter-car run vs the analytic standard deviations")
     demo.add_argument("--n", type=count(2), default=40_000, help="number of samples, at least 2 (default 40000)")

@@ -16,13 +16,15 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 from typing import Any, Dict, List, Optional, Tuple
 
 import numpy as np
 from numpy.typing import NDArray
 
-from . import QuarterCar, RealisticIdentifier, VehidError
-from .io import Column, TableError, match_columns, open_table, parse_column_map
+from . import QuarterCar, RealisticIdentifier, VehidError, fieldlog
+from .align import nominal_interval
+from .io import Column, TableError, column_factor, match_columns, open_table, parse_column_map
 from .monitor import SENSOR_COLUMNS
 
 CHUNK = 65_536
@@ -56,10 +58,15 @@ def cmd_identify_realistic(args: argparse.Namespace) -> int:
     truth = _truth(args.truth)
     try:
         structure = QuarterCar.passenger().structure(known=known, sensors="realistic")
-        mapping = parse_column_map(args.columns or [])
-    except (VehidError, TableError) as e:
+    except VehidError as e:
         raise RealisticError(str(e)) from None
     channels = SENSOR_COLUMNS["realistic"]
+    if args.file != "-" and (fieldlog.is_bag(args.file) or any(fieldlog.is_channel_map(c) for c in args.columns or [])):
+        return _identify_field_log(args, structure, known, truth)
+    try:
+        mapping = parse_column_map(args.columns or [])
+    except TableError as e:
+        raise RealisticError(str(e)) from None
     ident: Optional[RealisticIdentifier] = None
     samples = gaps = missing = 0
     with open_table(args.file, delimiter=args.delimiter) as table:
@@ -75,16 +82,22 @@ def cmd_identify_realistic(args: argparse.Namespace) -> int:
             raise RealisticError(f"{table.source} has no time column t: give the sample interval with --dt SECONDS")
         cols = ([match.index["t"]] if has_t else []) + [match.index[c.name] for c in channels]
         labels = (["t"] if has_t else []) + [c.describe() for c in channels]
+        units = [Column("t", "time", "s")] * has_t + list(channels)
+        try:  # declared units ([mm], [g], [ms]) to SI
+            factors = np.asarray([column_factor(c.unit, table.names[i], f"column {table.names[i]!r}")
+                                  for c, i in zip(units, cols)])
+        except TableError as e:
+            raise RealisticError(str(e)) from None
         prev: Optional[float] = None
         for chunk in table.chunks(cols, labels, CHUNK, missing=True):
-            data = chunk.data
+            data = chunk.data * factors
             y = np.ascontiguousarray(data[:, 1:] if has_t else data)
             if ident is None:
                 dt = args.dt
                 if dt is None:
                     if len(data) < 2:
                         raise RealisticError(f"{table.source}: one sample cannot give the sample interval: give --dt")
-                    dt = float(np.median(np.diff(data[:, 0])))
+                    dt = nominal_interval(data[:, 0])  # the nominal rate, not a float's noise
                 try:
                     ident = RealisticIdentifier(structure, dt, bandwidth=args.bandwidth, block=args.block)
                 except VehidError as e:
@@ -116,6 +129,51 @@ def cmd_identify_realistic(args: argparse.Namespace) -> int:
     constants = car.physical(st) if known else {}
     needs = structure.not_identifiable
     report = _report(args, source, samples, gaps, missing, ident, st, constants, needs, truth)
+    if args.json:
+        print(json.dumps(report, allow_nan=False))
+    else:
+        _print(report)
+    return 0
+
+
+def _identify_field_log(args: argparse.Namespace, structure: Any, known: Dict[str, float],
+                        truth: Optional[Dict[str, float]]) -> int:
+    """A bag, or a table through a ``channels.toml``: the channels read, converted, aligned
+    and checked as ``vehid monitor`` reads them (:mod:`vehid.fieldlog`), then fitted; the
+    filter restarts after every missing sample."""
+    channels = SENSOR_COLUMNS["realistic"]
+    cmap: Optional[fieldlog.ChannelMap] = None
+    pairs: List[str] = []
+    try:
+        for text in args.columns or []:
+            if fieldlog.is_channel_map(text):
+                cmap = fieldlog.load_channel_map(text, [c.name for c in channels])
+            else:
+                pairs.append(text)
+        log = fieldlog.read_log(args.file, channels, cmap, parse_column_map(pairs), args.delimiter, args.dt)
+        al = fieldlog.align(log, args.dt, cmap.channels if cmap else None)
+    except TableError as e:
+        raise RealisticError(str(e)) from None
+    for note in al.notes:
+        print(f"vehid: note: {note}", file=sys.stderr)
+    try:
+        ident = RealisticIdentifier(structure, al.dt, bandwidth=args.bandwidth, block=args.block)
+    except VehidError as e:
+        raise RealisticError(f"{log.source}: {e}") from None
+    bad = ~np.isfinite(al.y).all(axis=1)
+    starts = np.flatnonzero(np.diff(np.concatenate([[True], bad]).astype(np.int8)) == -1)
+    stops = np.flatnonzero(np.diff(np.concatenate([bad, [True]]).astype(np.int8)) == 1) + 1
+    for k, (a, b) in enumerate(zip(starts.tolist(), stops.tolist())):
+        if k:
+            ident.restart()
+        ident.fit(np.ascontiguousarray(al.y[a:b]))
+    try:
+        st = ident.stats()
+    except VehidError as e:
+        raise RealisticError(f"{log.source}: {e}") from None
+    constants = QuarterCar.passenger().physical(st) if known else {}
+    report = _report(args, log.source, len(al.y), max(0, len(starts) - 1), int(bad.sum()), ident, st, constants,
+                     structure.not_identifiable, truth)
     if args.json:
         print(json.dumps(report, allow_nan=False))
     else:

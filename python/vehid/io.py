@@ -42,8 +42,10 @@ Reading a semicolon-separated table with a comment line and decimal commas:
 from __future__ import annotations
 
 import csv
+import datetime
 import importlib
 import io as _stdio
+import math
 import os
 import re
 import stat
@@ -58,7 +60,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = [
+    "SI_UNIT",
+    "STANDARD_GRAVITY",
     "STATES",
+    "TIME_UNITS",
+    "UNITS",
     "TIME_NAMES",
     "WHITESPACE",
     "Chunk",
@@ -67,8 +73,13 @@ __all__ = [
     "Table",
     "TableError",
     "match_columns",
+    "column_factor",
+    "header_unit",
     "normalize",
     "open_table",
+    "parse_timestamp",
+    "quantity_of",
+    "si_factor",
     "parse_column_map",
     "run_columns",
 ]
@@ -189,6 +200,111 @@ def normalize(name: str) -> str:
     s = name.strip().strip('"').strip()
     s = _UNIT_SUFFIX.sub("", s).strip()
     return re.sub(r"[\s\-]+", "_", s).lower()
+
+
+# --- units ----------------------------------------------------------------------------
+
+#: Standard gravity, m/s^2 (the ``g`` of accelerations declared in g).
+STANDARD_GRAVITY = 9.80665
+
+#: The units vehid converts, by the form they are written in (lower case, no spaces):
+#: ``(quantity, factor to SI)``. Quantities: ``length`` (SI m), ``velocity`` (m/s),
+#: ``acceleration`` (m/s^2), ``angle`` (rad), ``angular rate`` (rad/s).
+UNITS: Dict[str, Tuple[str, float]] = {
+    "m": ("length", 1.0), "mm": ("length", 1e-3), "cm": ("length", 1e-2),
+    "m/s": ("velocity", 1.0), "mm/s": ("velocity", 1e-3),
+    "m/s^2": ("acceleration", 1.0), "m/s2": ("acceleration", 1.0), "m/s\u00b2": ("acceleration", 1.0),
+    "m/s/s": ("acceleration", 1.0), "mm/s^2": ("acceleration", 1e-3), "g": ("acceleration", STANDARD_GRAVITY),
+    "rad": ("angle", 1.0), "deg": ("angle", math.pi / 180), "rad/s": ("angular rate", 1.0),
+    "deg/s": ("angular rate", math.pi / 180),
+}
+#: The units of a time column: seconds per unit.
+TIME_UNITS: Dict[str, float] = {"s": 1.0, "sec": 1.0, "ms": 1e-3, "us": 1e-6, "\u00b5s": 1e-6, "\u03bcs": 1e-6,
+                                "ns": 1e-9}
+#: The SI unit of each quantity.
+SI_UNIT = {"length": "m", "velocity": "m/s", "acceleration": "m/s^2", "time": "s", "angle": "rad",
+           "angular rate": "rad/s"}
+
+
+def header_unit(name: str) -> Optional[str]:
+    """The unit a header name declares in a trailing ``[...]`` or ``(...)``, else ``None``.
+
+    >>> header_unit("SuspTravel [mm]"), header_unit("Time (ms)"), header_unit("a_body")
+    ('mm', 'ms', None)
+    """
+    m = _UNIT_SUFFIX.search(name.strip().strip('"'))
+    return m.group(1)[1:-1].strip() if m else None
+
+
+def quantity_of(unit: str) -> str:
+    """The quantity of an SI unit as :class:`Column` writes it: ``"m/s^2"`` -> ``"acceleration"``;
+    ``""`` for a unit vehid does not convert (rad, ...)."""
+    return next((q for q, u in SI_UNIT.items() if u == unit), "")
+
+
+def si_factor(unit: str, quantity: str, where: str) -> float:
+    """The factor that turns values in ``unit`` into SI for ``quantity`` (``length``,
+    ``velocity``, ``acceleration`` or ``time``). Raises :class:`TableError` naming ``where``
+    (the column or topic) for a unit vehid does not know or one of another quantity.
+
+    >>> si_factor("mm", "length", "x"), si_factor("g", "acceleration", "x"), si_factor("ms", "time", "t")
+    (0.001, 9.80665, 0.001)
+    """
+    key = re.sub(r"\s+", "", unit).replace("**", "^").lower()
+    if quantity == "time":
+        if key in TIME_UNITS:
+            return TIME_UNITS[key]
+        raise TableError(f"{where}: unit {unit!r} is not a time unit vehid reads (s, ms, us, ns; or timestamps): "
+                         "declare the right one")
+    found = UNITS.get(key)
+    if found is None:
+        known = ", ".join(k for k, (q, _) in UNITS.items() if q == quantity) or "SI"
+        raise TableError(f"{where}: unit {unit!r} is unknown; for this channel vehid reads {known}: declare one "
+                         "of those (a [unit] header, unit = ... in the channel map)")
+    if found[0] != quantity:
+        raise TableError(f"{where}: unit {unit!r} is a {found[0]}, but this channel is a {quantity} "
+                         f"({SI_UNIT.get(quantity, '?')}): is the column mapped to the right channel?")
+    return found[1]
+
+
+def column_factor(unit: str, header: str, where: str) -> float:
+    """The factor that turns header column ``header`` (which may declare its unit, ``[mm]``)
+    into ``unit``, the SI unit of the quantity it is read as (``m``, ``m/s``, ``s``, ...): 1
+    when it declares none. Raises :class:`TableError` naming ``where`` for a unit vehid does
+    not know or one of another quantity.
+
+    >>> column_factor("m", "SuspTravel [mm]", "x"), column_factor("s", "Time (ms)", "t"), column_factor("m", "z", "x")
+    (0.001, 0.001, 1.0)
+    """
+    declared = header_unit(header)
+    if not declared:
+        return 1.0
+    quantity = quantity_of(unit)
+    if not quantity:
+        return 1.0  # a unit vehid does not convert: read as written
+    return si_factor(declared, quantity, where)
+
+
+def parse_timestamp(text: str) -> Optional[float]:
+    """An ISO 8601 timestamp (``2026-11-27 10:15:00.000``, ``2026-11-27T10:15:00Z``,
+    ``...+01:00``) as seconds since 1970-01-01 UTC; a timestamp without a zone is taken as
+    UTC. ``None`` when ``text`` is not one.
+
+    >>> parse_timestamp("1970-01-01 00:00:01.500"), parse_timestamp("12.5")
+    (1.5, None)
+    """
+    if len(text) < 10 or text[4:5] != "-":
+        return None
+    try:
+        stamp = datetime.datetime.fromisoformat(text.strip())
+    except ValueError:
+        return None
+    if stamp.tzinfo is None:
+        stamp = stamp.replace(tzinfo=datetime.timezone.utc)
+    return (stamp - _EPOCH).total_seconds()
+
+
+_EPOCH = datetime.datetime(1970, 1, 1, tzinfo=datetime.timezone.utc)
 
 
 # --- column mapping -------------------------------------------------------------------
@@ -364,14 +480,28 @@ class Table:
         return f"{self.source}, {self.unit} {line}"
 
     def chunks(
-        self, columns: Sequence[int], labels: Sequence[str], rows: int, missing: bool = False
+        self, columns: Sequence[int], labels: Sequence[str], rows: int, missing: bool = False,
+        stamps: Sequence[int] = (),
     ) -> Iterator[Chunk]:
         """Yields the header columns ``columns`` (positions in :attr:`names`) in blocks of at
         most ``rows`` samples. ``labels`` name them in messages (``"column 'x3' (body_pos, m)"``).
         A cell that is not a finite number raises :class:`TableError` naming its line; with
-        ``missing=True`` NaN (``nan`` in a CSV, null in Parquet) is kept as a missing value and
-        only ±inf, empty cells (CSV) and text raise."""
+        ``missing=True`` NaN (``nan`` in a CSV, null in Parquet) and an empty CSV cell (how data
+        loggers write a gap) are kept as missing values (NaN) and only ±inf and text raise.
+        ``stamps``: positions in ``columns`` whose CSV cells may be ISO 8601 timestamps
+        (``2026-11-27 10:15:00.000``; without a zone, UTC), read as seconds since 1970 (a
+        Parquet timestamp column is always read so)."""
         raise NotImplementedError
+
+    def declared_unit(self, column: int) -> Optional[str]:
+        """The unit the file declares for header column ``column``: a trailing ``[mm]`` or
+        ``(mm)`` in its name, or (Parquet) the field metadata ``unit`` / ``units``; ``None``
+        when it declares none."""
+        return header_unit(self.names[column])
+
+    def is_timestamp(self, column: int) -> bool:
+        """Whether header column ``column`` holds timestamps (a Parquet timestamp type)."""
+        return False
 
     def close(self) -> None:
         """Releases the input (standard input stays open)."""
@@ -661,7 +791,8 @@ class _CsvTable(Table):
                           f"has {self.width} columns (separated by {_show(self.delimiter)}){hint}")
 
     def chunks(
-        self, columns: Sequence[int], labels: Sequence[str], rows: int, missing: bool = False
+        self, columns: Sequence[int], labels: Sequence[str], rows: int, missing: bool = False,
+        stamps: Sequence[int] = (),
     ) -> Iterator[Chunk]:
         cols = list(columns)
         delim = None if self.delimiter == WHITESPACE else self.delimiter
@@ -686,7 +817,9 @@ class _CsvTable(Table):
                     data = np.loadtxt(lines, delimiter=delim, usecols=cols, quotechar='"', comments=None,
                                       ndmin=2, dtype=np.float64)
             except (ValueError, Warning) as e:
-                raise self._cell_error(lines, numbers, cols, labels, str(e)) from None
+                if not (missing or stamps):
+                    raise self._cell_error(lines, numbers, cols, labels, str(e)) from None
+                data = self._slow_cells(lines, numbers, cols, labels, missing, stamps, str(e))
             finite = np.isfinite(data) | np.isnan(data) if missing else np.isfinite(data)
             if not finite.all():
                 row = int(np.argmin(finite.all(axis=1)))
@@ -695,6 +828,34 @@ class _CsvTable(Table):
                 raise TableError(f"{self.where(int(numbers[row]))}, column {labels[col]}: {_show_cell(cell)} is not a "
                                  "finite number (drop or repair that sample)")
             yield Chunk(data=data, lines=numbers)
+
+    def _slow_cells(
+        self, lines: List[str], numbers: NDArray[np.int64], cols: List[int], labels: Sequence[str], missing: bool,
+        stamps: Sequence[int], fallback: str
+    ) -> NDArray[np.float64]:
+        """The cells cell by cell, where the fast reader failed: empty cells as NaN (with
+        ``missing``), timestamps in the columns ``stamps`` as seconds since 1970."""
+        out = np.empty((len(lines), len(cols)), dtype=np.float64)
+        stamp_set = set(stamps)
+        for r, (line, number) in enumerate(zip(lines, numbers)):
+            cells = _split(line, self.delimiter)
+            if len(cells) != self.width:
+                raise self._width_error(line, int(number), len(cells))
+            for j, col in enumerate(cols):
+                cell = cells[col].strip().strip('"').strip()
+                if not cell and missing:
+                    out[r, j] = math.nan
+                    continue
+                try:
+                    out[r, j] = float(cell)
+                    continue
+                except ValueError:
+                    pass
+                seconds = parse_timestamp(cell) if j in stamp_set else None
+                if seconds is None:
+                    raise self._cell_error([line], numbers[r : r + 1], cols, labels, fallback)
+                out[r, j] = seconds
+        return out
 
     def _check_widths(self, lines: List[str], numbers: NDArray[np.int64]) -> None:
         """Every line has as many cells as the header (numpy, given ``usecols``, would not
@@ -795,8 +956,19 @@ class _ParquetTable(Table):
         values = self._pc.cast(array, pa.float64(), safe=False).fill_null(float("nan"))
         return np.asarray(values.to_numpy(zero_copy_only=False), dtype=np.float64), nulls
 
+    def declared_unit(self, column: int) -> Optional[str]:
+        meta = self._file.schema_arrow.field(column).metadata or {}
+        for key in (b"unit", b"units", b"Unit"):
+            if key in meta:
+                return bytes(meta[key]).decode("utf-8", "replace").strip()
+        return header_unit(self.names[column])
+
+    def is_timestamp(self, column: int) -> bool:
+        return bool(self._pa.types.is_timestamp(self._file.schema_arrow.field(column).type))
+
     def chunks(
-        self, columns: Sequence[int], labels: Sequence[str], rows: int, missing: bool = False
+        self, columns: Sequence[int], labels: Sequence[str], rows: int, missing: bool = False,
+        stamps: Sequence[int] = (),
     ) -> Iterator[Chunk]:
         names = [self.names[c] for c in columns]
         first = 1

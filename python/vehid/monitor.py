@@ -1,22 +1,26 @@
 """``vehid monitor``: the suspension health monitor (:class:`vehid.HealthMonitor`) over a
 log of a car's sensors, printing one line per change it finds.
 
-The log is read in chunks through :mod:`vehid.io` (CSV in any common dialect, or Parquet);
-its columns are the sensor channels (``a_body, a_wheel, deflection`` for the realistic
-sensors, m/s², m/s², m; the thesis' ``zw, vw, zb, vb, dzw, dvw, dzb, dvb`` for the state
-sensors) and a time column ``t`` (s). A ``nan`` cell is a missing value; a step of the time
-column over 1.5 sample intervals is a gap, fed to the monitor as missing samples: in both
-cases it reports "cannot judge" for a while, never a change. Times must increase strictly,
-at a fixed rate (``--dt``, or the median interval of the first chunk); an interval under
-half of it is refused (resample such a log first).
+A file or a ROS 2 bag is read through :mod:`vehid.fieldlog` (CSV in any common dialect,
+Parquet, ``.mcap``, ``.db3``, a bag folder; ``--columns`` pairs or a ``channels.toml``):
+its channels (``a_body, a_wheel, deflection`` for the realistic sensors; the thesis' ``zw,
+vw, zb, vb, dzw, dvw, dzb, dvb`` for the state sensors) converted to SI from their declared
+units, put on one grid (the log's rate when one clock already runs at it, else 5 ms, or
+``--dt``; resampled by :mod:`vehid.align`), the deflection's delay against the
+accelerometers estimated and removed, and checked against the named car before the
+monitor sees a sample. Standard input (``-``) is read in chunks as a CSV at one fixed rate
+(``--dt``, or the nominal interval of the first chunk). A missing value (``nan``, an empty
+cell) and a gap in the time column (over 1.5 sample intervals) are missing samples: the
+monitor reports "cannot judge" for a while, never a change, and the summary counts them.
 
-Nothing numerical happens here: the monitor runs in the Rust core; this module reads,
-checks the time column, prints and plots.
+Nothing numerical about the suspension happens here: the monitor runs in the Rust core;
+this module reads, checks, prints and plots.
 """
 
 from __future__ import annotations
 
 import argparse
+import datetime
 import json
 import math
 import re
@@ -27,8 +31,9 @@ from typing import IO, Any, Callable, Dict, List, Literal, Optional, Sequence, T
 import numpy as np
 from numpy.typing import NDArray
 
-from . import Event, HalfCar, HealthMonitor, QuarterCar
-from .io import Column, Table, TableError, match_columns, open_table, parse_column_map
+from . import Event, HalfCar, HealthMonitor, QuarterCar, fieldlog
+from .align import nominal_interval
+from .io import Column, Table, TableError, column_factor, match_columns, open_table, parse_column_map
 from .reproduce import _load_pyplot
 
 #: Samples read per chunk.
@@ -249,6 +254,7 @@ class Feeder:
         self.ref0: Optional[Dict[str, Any]] = None
 
     def feed(self, y: NDArray[np.float64]) -> None:
+        self.missing += int(np.isnan(y).any(axis=1).sum())  # a sample with a missing channel is missing
         for i in range(0, len(y), self.block):
             self._step(y[i : i + self.block])
 
@@ -351,7 +357,7 @@ def _health_monitor(car: Union[QuarterCar, HalfCar], dt: float, sensors: Literal
     from . import VehidError
 
     given = (f"--dt {args.dt:g}" if args.dt is not None
-             else f"the sample interval {dt:.6g} s (the median interval of {source}'s time column)")
+             else f"the sample interval {dt:.6g} s (the grid of {source}: its nominal rate, or 5 ms)")
     try:
         return HealthMonitor(car, dt=dt, sensors=sensors, **settings)
     except VehidError as e:
@@ -377,18 +383,29 @@ def _health_monitor(car: Union[QuarterCar, HalfCar], dt: float, sensors: Literal
 def cmd_monitor(args: argparse.Namespace) -> int:
     if args.dt is not None and not (math.isfinite(args.dt) and args.dt > 0):
         raise _cli_error(f"--dt {args.dt:g}: the sample interval must be a finite number of seconds > 0")
-    car = nominal_car(args.model, args.car)
+    car = nominal_car(args.model or "quarter", args.car)
     sensors: Literal["realistic", "state"] = args.sensors
-    try:
-        mapping = parse_column_map(args.columns or [])
-    except TableError as e:
-        raise _cli_error(str(e)) from None
     settings = {k: getattr(args, k) for k in ("window", "warmup", "min_change", "threshold", "confidence")
                 if getattr(args, k) is not None}
+    if getattr(args, "noise", None):
+        settings["sensor_noise"] = parse_noise(args.noise)
     # matplotlib before the log: a missing plot extra is said at once, not after the whole run.
     plt = _pyplot() if args.plot else None
     half = isinstance(car, HalfCar)
     channels = (HALF_SENSOR_COLUMNS if half else SENSOR_COLUMNS)[sensors]
+    events, track = getattr(args, "events", None), getattr(args, "track", None)
+    if events and not events.lower().endswith((".parquet", ".mcap")):  # said before the run, not after
+        raise _cli_error(f"--events {events}: give a .parquet or .mcap file")
+    if track and not track.lower().endswith(".parquet"):
+        raise _cli_error(f"--track {track}: give a .parquet file (or --events FILE.mcap for both)")
+    if args.file != "-":
+        return _monitor_file(args, car, sensors, settings, channels, plt)
+    if events or track:
+        raise _cli_error("--events and --track need a file or a bag, not standard input")
+    try:
+        mapping = parse_column_map(args.columns or [])
+    except TableError as e:
+        raise _cli_error(str(e)) from None
     columns = (Column("t", "time", "s"),) + channels
     with open_table(args.file, delimiter=args.delimiter) as table:
         match = match_columns(table.names, columns, mapping, where=table.source)
@@ -409,8 +426,14 @@ def cmd_monitor(args: argparse.Namespace) -> int:
         prev: Optional[float] = None
         prev_line = 0
         samples = 0
+        units = [Column("t", "time", "s")] * has_t + list(channels)
+        try:  # declared units ([mm], [g], [ms]) to SI
+            factors = np.asarray([column_factor(c.unit, table.names[i], f"{table.source}, column {table.names[i]!r}")
+                                  for c, i in zip(units, cols)])
+        except TableError as e:
+            raise _cli_error(str(e)) from None
         for chunk in table.chunks(cols, labels, CHUNK, missing=True):
-            data = chunk.data
+            data = chunk.data * factors
             if has_t and np.isnan(data[:, 0]).any():
                 row = int(np.argmax(np.isnan(data[:, 0])))
                 raise _cli_error(f"{table.where(int(chunk.lines[row]))}: the time is missing (nan): every sample "
@@ -419,10 +442,9 @@ def cmd_monitor(args: argparse.Namespace) -> int:
             if mon is None:
                 dt = args.dt
                 if dt is None:
-                    d = np.diff(data[:, 0])
-                    if len(d) == 0:
+                    dt = nominal_interval(data[:, 0])
+                    if not math.isfinite(dt):
                         raise _cli_error(f"{table.source}: one sample cannot give the sample interval: give --dt")
-                    dt = float(np.median(d))
                 mon = _health_monitor(car, dt, sensors, settings, args, table.source)
                 feeder = Feeder(mon, float(data[0, 0]) if has_t else 0.0, sys.stdout, args.json)
             assert feeder is not None
@@ -449,6 +471,118 @@ def cmd_monitor(args: argparse.Namespace) -> int:
         if plt is not None:
             plot(feeder, car, args.plot, plt)
     return 0
+
+
+def _monitor_file(args: argparse.Namespace, car: Union[QuarterCar, HalfCar], sensors: Literal["realistic", "state"],
+                  settings: Dict[str, Any], channels: Sequence[Column], plt: Any) -> int:
+    """``vehid monitor`` on a file or a bag (:mod:`vehid.fieldlog`): the channels read in SI,
+    put on one grid (resampled where their rates differ, the deflection's delay removed),
+    checked against the named car, then fed to the monitor."""
+    names = [c.name for c in channels]
+    cmap: Optional[fieldlog.ChannelMap] = None
+    pairs: List[str] = []
+    try:
+        for text in args.columns or []:
+            if fieldlog.is_channel_map(text):
+                if cmap is not None:
+                    raise TableError(f"--columns {text}: one channel map at a time ({cmap.path} is given too)")
+                cmap = fieldlog.load_channel_map(text, names)
+            else:
+                pairs.append(text)
+        mapping = parse_column_map(pairs)
+        log = fieldlog.read_log(args.file, channels, cmap, mapping, args.delimiter, args.dt)
+        dt = fieldlog.grid_interval(log, args.dt)
+    except TableError as e:
+        raise _cli_error(str(e)) from None
+    mon = _health_monitor(car, dt, sensors, settings, args, log.source)
+    try:
+        al = fieldlog.align(log, dt, cmap.channels if cmap else None)
+        if sensors == "realistic" and not isinstance(car, HalfCar):
+            p = car.params
+            fieldlog.car_check(al, p["k2"] / p["M"], p["b"] / p["M"], _car_words(args))
+    except TableError as e:
+        raise _cli_error(str(e)) from None
+    noise = dict(settings.get("sensor_noise") or {})
+    if sensors == "realistic" and "deflection" not in noise:  # the one noise that blinds the monitor
+        est = fieldlog.deflection_noise(log, dt)
+        if math.isfinite(est) and est > 1.25 * fieldlog.DEFAULT_DEFLECTION_NOISE:
+            noise["deflection"] = est
+            settings = dict(settings, sensor_noise=noise)
+            mon = _health_monitor(car, dt, sensors, settings, args, log.source)
+            al.notes.append(f"the deflection's noise, estimated from the data: {1e3 * est:.3g} mm per sample (the "
+                            f"default {1e3 * fieldlog.DEFAULT_DEFLECTION_NOISE:g} mm would blind the monitor): used "
+                            "(--noise deflection=M to declare it)")
+    for note in al.notes:
+        print(f"vehid: note: {note}", file=sys.stderr, flush=True)
+    t0 = 0.0 if log.absolute else al.t0
+    if log.absolute:
+        start = datetime.datetime.fromtimestamp(log.origin + al.t0, datetime.timezone.utc).isoformat(
+            timespec="milliseconds")
+        print(f"vehid: note: times are seconds from the log's start, {start}", file=sys.stderr, flush=True)
+    feeder = Feeder(mon, t0, sys.stdout, args.json)
+    feeder.feed(np.ascontiguousarray(al.y))
+    summary(feeder, log.source, len(al.y), sys.stderr)
+    if plt is not None:
+        plot(feeder, car, args.plot, plt)
+    if getattr(args, "events", None) or getattr(args, "track", None):
+        _export(args, feeder, (log.origin + al.t0) if log.absolute else 0.0)
+    return 0
+
+
+def _export(args: argparse.Namespace, feeder: Feeder, origin: float) -> None:
+    """``--events`` and ``--track``: the events and the tracked ratios, times on the log's
+    clock (since 1970 for a bag or timestamps: the raw topics' clock)."""
+    from . import export
+
+    rec = feeder.record
+    k2m, bm = np.asarray(rec.k2m, dtype=np.float64).reshape(-1, 3), np.asarray(rec.bm, dtype=np.float64).reshape(-1, 3)
+    track: Dict[str, List[Any]] = {"t": [origin + t for t in rec.t], "status": list(rec.status)}
+    for name, v in (("k2_over_M", k2m), ("b_over_M", bm)):
+        track[name], track[f"{name}_low"], track[f"{name}_high"] = v[:, 0].tolist(), v[:, 1].tolist(), v[:, 2].tolist()
+    rows = export.event_rows(feeder.events, origin + feeder.t0, PARAMETERS)
+    try:
+        if args.events:
+            export.write_events(args.events, rows, track)
+        if args.track:
+            export.write_track(args.track, track)
+    except TableError as e:
+        raise _cli_error(str(e)) from None
+
+
+def _car_words(args: argparse.Namespace) -> str:
+    """How the user named the nominal car, for messages."""
+    given = f"--model {args.model}" if args.model else "--model quarter (the default: the thesis' 10 kg car)"
+    return given + (f" --car {args.car}" if args.car else "")
+
+
+#: ``--noise`` names: the sensor noise standard deviations the monitor assumes.
+NOISE_NAMES = ("a_body", "a_wheel", "deflection", "a_body_bias", "a_wheel_bias")
+
+
+def parse_noise(text: str) -> Dict[str, float]:
+    """``--noise a_body=0.06,deflection=0.0009`` (m/s^2, m: the sensors' white noise per
+    sample at the log's rate) to the monitor's ``sensor_noise``.
+
+    >>> parse_noise("a_body=0.06, deflection=9e-4")
+    {'a_body': 0.06, 'deflection': 0.0009}
+    """
+    out: Dict[str, float] = {}
+    for item in text.split(","):
+        if not item.strip():
+            continue
+        name, sep, value = item.partition("=")
+        name = name.strip()
+        if not sep or name not in NOISE_NAMES:
+            raise _cli_error(f"--noise {text}: expected NAME=VALUE with NAME in {', '.join(NOISE_NAMES)} "
+                             f"(m/s^2, m), got {item.strip()!r}")
+        try:
+            v = float(value)
+        except ValueError:
+            raise _cli_error(f"--noise {text}: {name}={value.strip()!r} is not a number") from None
+        if not (math.isfinite(v) and v > 0):
+            raise _cli_error(f"--noise {text}: {name} must be a finite number > 0")
+        out[name] = v
+    return out
 
 
 def summary(feeder: Feeder, source: str, samples: int, out: IO[str]) -> None:
@@ -565,15 +699,19 @@ DESCRIPTION = (
     "observable without a road measurement: equal relative changes of both are the body mass. With --model half "
     "(columns a_body_f, a_body_r, a_wheel_f, a_wheel_r, deflection_f, deflection_r) it names b_f, b_r, k2_f, k2_r "
     "or M (with J scaled alike). Missing values "
-    "(nan) and gaps in the time column make the monitor 'cannot judge' for a while, never report. A summary "
-    "goes to stderr."
+    "(nan, empty cells) and gaps in the time column make the monitor 'cannot judge' for a while, never report. "
+    "Units are converted to SI ([mm] headers, a channels.toml, Parquet metadata), channels at several rates "
+    "resampled, the deflection's delay estimated and removed, and the log checked against the named car first "
+    "(see vehid inspect). A summary goes to stderr."
 )
 
 
 def add_arguments(p: argparse.ArgumentParser, delimiter: Callable[[str], str]) -> None:
     """The options of ``vehid monitor`` (``delimiter``: the parser of ``--delimiter``)."""
-    p.add_argument("file", metavar="FILE", help="CSV or Parquet log, '-' for stdin (CSV)")
-    p.add_argument("--model", default="quarter", metavar="MODEL",
+    p.add_argument("file", metavar="FILE",
+                   help="CSV or Parquet log, a ROS 2 bag (.mcap, .db3, a bag folder; with --columns channels.toml) "
+                        "or '-' for stdin (CSV)")
+    p.add_argument("--model", default=None, metavar="MODEL",
                    help="the nominal car: quarter (the thesis' values, default), passenger (M=320 kg, m=40 kg, "
                         "k1=200 kN/m, k2=22 kN/m, b=1500 N s/m) or half (a passenger half car: M=640 kg, "
                         "J=1040 kg m^2, l1=1.2 m, l2=1.5 m, k12/k22=24/22 kN/m, b1/b2=1600/1400 N s/m; columns "
@@ -586,9 +724,15 @@ def add_arguments(p: argparse.ArgumentParser, delimiter: Callable[[str], str]) -
                    help="realistic (default): columns a_body, a_wheel (m/s^2), deflection (m); state: the thesis' "
                         "zw, vw, zb, vb, dzw, dvw, dzb, dvb")
     p.add_argument("--dt", type=float, default=None,
-                   help="sample interval, s (default: the median interval of the time column)")
+                   help="the monitor's sample interval, s (default: the log's nominal rate when one clock runs at it, "
+                        "else 0.005; channels are resampled to it); without a time column, the log's interval")
     p.add_argument("--columns", action="append", metavar="MAP",
-                   help="NAME=COLUMN,...: which file column holds each channel (e.g. a_body=acc_z_body)")
+                   help="NAME=COLUMN,...: which file column holds each channel (e.g. a_body=acc_z_body); or a "
+                        "channels.toml mapping each channel to a topic (bags, MCAP) or a column, with field, unit "
+                        "(m, mm, m/s, mm/s, m/s^2, g), sign, scale, gravity and delay (see docs: field logs)")
+    p.add_argument("--noise", default=None, metavar="STDS",
+                   help="the sensors' white noise per sample, e.g. a_body=0.06,a_wheel=0.3,deflection=0.0009 "
+                        "(m/s^2, m; default 0.02, 0.1, 0.0003): declare noisier sensors than the defaults")
     p.add_argument("--delimiter", type=delimiter, default=None, metavar="D", help="CSV separator (default: sniffed)")
     p.add_argument("--window", type=float, default=None, help="tracking window T_f, s (default 6)")
     p.add_argument("--warmup", type=float, default=None, help="seconds of data forming the reference (default 20)")
@@ -597,6 +741,13 @@ def add_arguments(p: argparse.ArgumentParser, delimiter: Callable[[str], str]) -
     p.add_argument("--threshold", type=float, default=None, help="CUSUM threshold h (default 8, calibrated)")
     p.add_argument("--confidence", type=float, default=None, help="level of the intervals (default 0.95)")
     p.add_argument("--json", action="store_true", help="one JSON object per event instead of text")
+    p.add_argument("--events", default=None, metavar="FILE",
+                   help="also write the events to FILE.parquet, or to FILE.mcap with the tracked k2/M, b/M and the "
+                        "status (topics /vehid/...; on the bag's clock: Foxglove or PlotJuggler overlay them; "
+                        "needs vehid[parquet] or vehid[ros]); files and bags only")
+    p.add_argument("--track", default=None, metavar="FILE",
+                   help="also write the tracked k2/M and b/M with their 95 %% bands and the status every 0.5 s to "
+                        "FILE.parquet (files and bags only)")
     p.add_argument("--plot", default=None, metavar="PNG",
                    help="write the tracked ratios with their bands and the events (the half car: each "
                         "spring's and damper's change since the warm-up) (needs vehid[plot])")

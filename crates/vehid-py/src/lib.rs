@@ -21,6 +21,7 @@ mod persist;
 mod realistic;
 mod reproduce;
 mod road;
+mod seal;
 mod sim;
 mod stats;
 mod structure;

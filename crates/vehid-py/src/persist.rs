@@ -11,7 +11,8 @@
 //!
 //! The state is the tuple `(FORMAT, "vehid <version>", payload)`: the payload is postcard
 //! (vehid-core's `serde` feature) of [`Saved`]: which concrete core type the identifier holds
-//! (the binding chose it at construction), the model, and the core's own postcard bytes.
+//! (the binding chose it at construction), the model, and the core's own postcard bytes,
+//! sealed with a CRC-32 (`seal.rs`: a changed, cut or appended byte is refused).
 //! Loading checks the format version first, then decodes (the core validates itself: a
 //! corrupt payload is an error, never a later panic), then checks that the core fits the
 //! class and the model of the object it goes into.
@@ -40,7 +41,8 @@ use vehid_core::Error;
 /// (`Core::Iv`, `Core::BiasCompensated`, `Core::JointEkf`, `Core::TwoAxleStructured`,
 /// `Core::NoiseEstimating` and `Core::IvModel` were added within format 2: new variants at the end of [`Core`]
 /// leave every older payload's encoding unchanged, so it still loads.)
-pub const FORMAT: u32 = 2;
+/// 3: the payload and the road state carry a CRC-32 (`seal.rs`).
+pub const FORMAT: u32 = 3;
 
 /// The concrete core type behind a Python identifier. Serialized by variant index: a new
 /// variant goes at the end (older payloads keep their meaning).
@@ -356,13 +358,13 @@ fn state<'py>(py: Python<'py>, base: &PyIdentifier) -> PyResult<Bound<'py, PyTup
     let Some((core, bytes)) = saved else {
         return Err(VehidError::new_err("this identifier cannot be pickled (its core type is not one vehid builds)"));
     };
-    let payload = postcard::to_allocvec(&Saved { core, model: base.model.clone(), state: bytes })
+    let payload = crate::seal::seal(&Saved { core, model: base.model.clone(), state: bytes })
         .map_err(|e| VehidError::new_err(format!("cannot pickle the identifier: {e}")))?;
     let version = concat!("vehid ", env!("CARGO_PKG_VERSION"));
     match road {
         None => (FORMAT, version, PyBytes::new(py, &payload)).into_pyobject(py),
         Some(road) => {
-            let extra = postcard::to_allocvec(road)
+            let extra = crate::seal::seal(road)
                 .map_err(|e| VehidError::new_err(format!("cannot pickle the identifier: {e}")))?;
             (FORMAT, version, PyBytes::new(py, &payload), PyBytes::new(py, &extra)).into_pyobject(py)
         }
@@ -495,8 +497,8 @@ pub fn set_state(obj: &Bound<'_, PyIdentifier>, state: &Bound<'_, PyAny>) -> PyR
             env!("CARGO_PKG_VERSION")
         )));
     }
-    let saved: Saved =
-        postcard::from_bytes(&payload).map_err(|e| corrupt(&format!("its payload does not decode ({e})")))?;
+    let saved: Saved = crate::seal::open(&payload)
+        .map_err(|e| corrupt(&format!("its payload does not decode or fails its checksum ({e})")))?;
     let model = borrow(obj)?.model.clone();
     if saved.model != model {
         return Err(VehidError::new_err(
@@ -586,8 +588,8 @@ pub fn set_state(obj: &Bound<'_, PyIdentifier>, state: &Bound<'_, PyAny>) -> PyR
     let core = match road {
         None if mine.is_none() => core,
         Some(bytes) if mine.is_some() => {
-            let st: vehid_core::identify::RoadState<f64> =
-                postcard::from_bytes(&bytes).map_err(|e| corrupt(&format!("its road state does not decode ({e})")))?;
+            let st: vehid_core::identify::RoadState<f64> = crate::seal::open(&bytes)
+                .map_err(|e| corrupt(&format!("its road state does not decode or fails its checksum ({e})")))?;
             let wrapped = crate::road::rewrap(core, st).map_err(|e| corrupt(&e.to_string()))?;
             if crate::road::of(wrapped.as_ref()) != mine {
                 return Err(corrupt("its road model or spacing differ from this object's"));

@@ -11,7 +11,7 @@ use pyo3::types::{PyBytes, PyTuple};
 use vehid_core::identify::{StateFilterFit, DEFAULT_BANDWIDTH, DEFAULT_BLOCK};
 
 /// Version of the pickled state's layout.
-const STATE_FORMAT: u32 = 1;
+const STATE_FORMAT: u32 = 2;
 
 /// Identifies the body equation of `QuarterCar.structure(known, sensors="realistic")` from the
 /// realistic channels `[a_body, a_wheel, deflection]` (m/s², m/s², m; deflection `zb - zw`,
@@ -156,11 +156,12 @@ impl PyRealisticIdentifier {
     }
 
     /// Pickling: `(RealisticIdentifier, (structure, dt, bandwidth, block), state)`, the state
-    /// `(FORMAT, "vehid <version>", postcard bytes)`; a restored one continues bit for bit.
+    /// `(FORMAT, "vehid <version>", postcard bytes and their CRC-32)`; a restored one continues bit
+    /// for bit.
     fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyTuple>> {
         let py = slf.py();
         let this = borrow(slf)?;
-        let bytes = postcard::to_allocvec(&this.core)
+        let bytes = crate::seal::seal(&this.core)
             .map_err(|e| VehidError::new_err(format!("the identifier cannot be saved: {e}")))?;
         let block = this.core.block() as f64 * this.core.dt();
         let args = (this.structure.clone_ref(py), this.core.dt(), this.core.bandwidth(), block);
@@ -185,10 +186,10 @@ impl PyRealisticIdentifier {
                 env!("CARGO_PKG_VERSION")
             )));
         }
-        let (core, rest): (StateFilterFit, &[u8]) =
-            postcard::take_from_bytes(&payload).map_err(|e| corrupt(&format!("its payload does not decode ({e})")))?;
+        let core: StateFilterFit = crate::seal::open(&payload)
+            .map_err(|e| corrupt(&format!("its payload does not decode or fails its checksum ({e})")))?;
         let mut this = borrow_mut(slf)?;
-        if !rest.is_empty() || core.structure() != this.core.structure() || !core.is_consistent() {
+        if core.structure() != this.core.structure() || !core.is_consistent() {
             return Err(corrupt("its payload does not match its structure and settings"));
         }
         this.core = core;
