@@ -5,8 +5,8 @@ use super::consistency::KinematicCheck;
 use super::event::{Event, Reason, Status};
 use super::kinematic::{DeflectionFilter, RateGain};
 use super::monitor::{
-    cusum_step, samples_of, screen, stuck_step, HealthConfig, Phase, JUMP_GATE, MAX_DELAY, OFFSET_RELEASE, OFFSET_WALK,
-    SENSOR_TOLERANCE,
+    cusum_step, samples_of, screen, stuck_step, HealthConfig, Phase, CHECK_EVERY, JUMP_GATE, MAX_DELAY, OFFSET_RELEASE,
+    OFFSET_WALK, SENSOR_TOLERANCE,
 };
 use super::pattern::{fit_kron, Fit};
 use super::rls::Rls;
@@ -398,7 +398,7 @@ impl<T: Real> HalfHealthMonitor<T> {
         self.check[0].update(y[4], y[0] - y[2], warm);
         self.check[1].update(y[5], y[1] - y[3], warm);
         let tol = self.cfg.min_change * T::of(SENSOR_TOLERANCE);
-        if !warm && (self.check[0].disagrees(tol) || self.check[1].disagrees(tol)) {
+        if !warm && k % CHECK_EVERY == 0 && (self.check[0].disagrees(tol) || self.check[1].disagrees(tol)) {
             self.fault_left = self.n_flush;
         }
         if self.reacq_left > 0 {

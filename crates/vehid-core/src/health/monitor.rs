@@ -22,6 +22,10 @@ pub const JUMP_GATE: f64 = 8.0;
 /// ratios by about `−ε`; at `0.4 δ` it stays below the CUSUM's allowance `δ/2`).
 pub const SENSOR_TOLERANCE: f64 = 0.4;
 
+/// Samples between two looks at the sensors' kinematic check (its gain moves over seconds;
+/// looking every sample would cost as much as the rest of the update).
+pub(crate) const CHECK_EVERY: u64 = 10;
+
 /// What a restart adds to the unscaled variance of the body equation's offset `c`
 /// ([`crate::health::Rls::release`]): as much as the trackers start with.
 pub(crate) const OFFSET_RELEASE: f64 = 1e6;
@@ -513,7 +517,8 @@ impl<T: Real> HealthMonitor<T> {
             return Ok(None);
         };
         self.check.update(y[2], y[0] - y[1], self.phase == Phase::Warmup);
-        if self.phase != Phase::Warmup && self.check.disagrees(self.cfg.min_change * T::of(SENSOR_TOLERANCE)) {
+        let tol = self.cfg.min_change * T::of(SENSOR_TOLERANCE);
+        if self.phase != Phase::Warmup && k % CHECK_EVERY == 0 && self.check.disagrees(tol) {
             self.fault_left = self.n_flush;
         }
         if self.reacq_left > 0 {
