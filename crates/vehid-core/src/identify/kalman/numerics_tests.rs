@@ -846,3 +846,38 @@ fn the_joseph_form_refuses_a_sample_that_would_break_positive_definiteness() {
         Err(e) => panic!("{e}"),
     }
 }
+
+#[test]
+fn an_exact_start_whose_covariance_would_underflow_is_refused_not_wrong() {
+    // The same regression scaled by s: θ̂ does not depend on s, P = r R⁻¹R⁻ᵀ scales as 1/s².
+    // At s = 1e150 P ≈ 1e-300 is still a normal float and the estimate is least squares'; at
+    // s = 1e155 it underflows, and the sample that would finish the start is refused with
+    // the scale error, the identifier unchanged (before: ξ 6 with no error), in both forms and
+    // in the lanes (mode "rows").
+    let data = regression(7, 40, [1.0, 2.0, 3.0, 0.5], 0.3);
+    for form in [CovarianceForm::Standard, CovarianceForm::Sqrt] {
+        let opts = KalmanOptions { form, ..Default::default() };
+        let (expect, _) = lstsq(&data, 1, None);
+        for (s, ok) in [(1e150, true), (1e155, false)] {
+            let mut id = KalmanRows::<f64, 4, Fixed<2>>::exact(&[1, 3], &[0.7, 2.0], opts).unwrap();
+            let mut refused = None;
+            for (k, (x, z)) in data.iter().enumerate() {
+                match id.update(&(x * s), &(z * s)) {
+                    Ok(_) => {}
+                    Err(e) => {
+                        assert_eq!(e, row::SCALE, "{form:?} s {s:e}");
+                        assert!(id.starting(), "refused while starting, and still starting");
+                        refused.get_or_insert(k);
+                    }
+                }
+            }
+            if ok {
+                assert!(refused.is_none() && !id.starting());
+                let got: Vec<f64> = id.theta_row(0).iter().copied().collect();
+                assert!(rel_diff(&got, &expect) < 1e-9, "{form:?}: {got:?} vs {expect:?}");
+            } else {
+                assert_eq!(refused, Some(3), "{form:?}: the fourth sample would finish the start");
+            }
+        }
+    }
+}

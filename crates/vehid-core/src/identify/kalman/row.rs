@@ -70,6 +70,19 @@ pub struct RowIdentifier<T: Real, const N: usize> {
     pub(super) dim: u8,
 }
 
+/// `true` for a positive normal float (`v ≥` the smallest normal, `4 / max` in IEEE binary
+/// formats) that is finite.
+fn normal<T: Real>(v: T) -> bool {
+    v >= T::of(4.0) / T::biggest() && v.finite()
+}
+
+/// The error for an exact start whose covariance would underflow: the sample is refused.
+pub(crate) const SCALE: Error = Error::InvalidArgument {
+    arg: "r_k",
+    expected: "samples whose inverse squares are representable (values near 1e154 in f64, or 1e19 in f32, \
+               make the exact start's covariance underflow): rescale the units",
+};
+
 /// Relative size below which a diagonal entry of the exact start's `R` counts as zero
 /// (`√ε · d` for `d` parameters): the start ends when every direction is identified that well.
 fn start_tol<T: Real>(d: usize) -> T {
@@ -683,6 +696,12 @@ impl<T: Real, const N: usize> RowIdentifier<T, N> {
         let tol = start_tol::<T>(d) * big;
         if big > T::zero() && (0..d).all(|j| rm[(j, j)].abs() > tol) {
             next.finish_start();
+            // `P = r R⁻¹R⁻ᵀ` scales as 1/x²: with samples near 1e154 (f64) it underflows, and
+            // the filter would go on with a covariance of zeros and subnormals (a confident
+            // wrong estimate). Its diagonal (`D` in the square-root form) must be normal.
+            if !(0..d).all(|j| normal(next.m[(j, j)])) {
+                return Err(SCALE);
+            }
         }
         *self = next;
         Ok(())
