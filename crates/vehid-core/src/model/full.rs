@@ -234,12 +234,10 @@ impl<T: Real> FullCar<T> {
         c[0] = p.m_body;
         c[1] = p.jx;
         c[2] = p.jy;
-        for i in 0..4 {
-            c[3 + i] = p.kt[i];
-            c[7 + i] = p.k[i];
-            c[11 + i] = p.b[i];
-            c[15 + i] = p.m[i];
-        }
+        c[3..7].copy_from_slice(&p.kt);
+        c[7..11].copy_from_slice(&p.k);
+        c[11..15].copy_from_slice(&p.b);
+        c[15..19].copy_from_slice(&p.m);
         c[19..25].copy_from_slice(&[p.l_f, p.l_r, p.track_f, p.track_r, p.arb_f, p.arb_r]);
         c
     }

@@ -30,7 +30,8 @@ pub use half::{HalfCar, HalfCarParams, HalfConstant};
 pub use physical::{PhysicalStructure, MAX_CONSTANTS};
 pub use quarter::{QuarterCar, QuarterKnown};
 pub use sensors::{
-    SensorNoise, SensorSet, HALF_REALISTIC_CHANNELS, HALF_STATE_CHANNELS, REALISTIC_CHANNELS, STATE_CHANNELS,
+    SensorNoise, SensorSet, FULL_REALISTIC_CHANNELS, FULL_STATE_CHANNELS, HALF_REALISTIC_CHANNELS, HALF_STATE_CHANNELS,
+    REALISTIC_CHANNELS, STATE_CHANNELS,
 };
 
 use crate::error::{check_finite, check_nonneg};
