@@ -385,6 +385,13 @@ impl<T: Real> FullCar<T> {
     }
 }
 
+#[path = "full_theta.rs"]
+mod theta;
+
 #[cfg(test)]
 #[path = "full_tests.rs"]
 mod tests;
+
+#[cfg(test)]
+#[path = "full_identify_tests.rs"]
+mod identify_tests;
