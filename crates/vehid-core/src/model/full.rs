@@ -64,6 +64,22 @@ pub const FULL_STATE_NAMES: [&str; FULL_STATES] = [
 /// Dynamics*, 2nd ed., Springer 2014, §15.5 "Full car vibrating model"). With equal left and
 /// right corners and equal roads under both sides, roll stays zero and the car is the
 /// [`super::HalfCar`] with half the body mass and pitch inertia.
+///
+/// **What data determine.** From the full state (positions, velocities and their derivatives)
+/// the seven acceleration rows are identified as for any [`LinearModel`]; the body rows see no
+/// road, and [`FullCar::from_theta`] reads every ratio from them (`k_i/M`, `b_i/M`, `Jy/M`,
+/// `Jx/M`, the bars over `M`) and the one scale `M` from the wheel rows, given the wheel
+/// masses, `B` (the tyres over the wheel masses) and the geometry. With the realistic sensors
+/// of a drive (a body accelerometer above each wheel, wheel accelerometers, the four
+/// suspension extensions `d_i`) the body equations are fully measured: `M z̈b = Σ F_i`,
+/// `Jy θ̈ = Σ x_i F_i`, `Jx φ̈ = Σ y_i F_i` with `F_i = −k_i d_i − b_i ḋ_i − F_arb,i` (the four
+/// body accelerometers give `z̈b`, `θ̈`, `φ̈` with one to spare), so they determine the same
+/// ratios `k_i/M`, `b_i/M`, `arb/M`, `Jy/M`, `Jx/M` up to the common scale `M`; the tyres
+/// `kt_i` and the wheel masses `m_i` are not determined, because the wheel equations hold the
+/// tyre force `kt_i (z_i − u_i)`, which needs the wheel's height over the road that no sensor
+/// reads (the quarter car's realistic structure says the same of `k1` and `m`). A known body
+/// mass (or one known spring) fixes the scale. No estimator for the full car's realistic
+/// sensors is built yet.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct FullCar<T> {
