@@ -116,3 +116,61 @@ impl<T: Real> FullCar<T> {
         FullCar::new(p).map_err(|_| not_positive())
     }
 }
+
+/// Number of entries of the identified rows of a [`FullCar`] (7 rows × 14 states).
+pub const FULL_THETA: usize = 7 * FULL_STATES;
+
+impl<T: Real> FullCar<T> {
+    /// [`FullCar::from_theta`] with each constant's standard error by the delta method:
+    /// `se_c² = g_cᵀ Σ g_c`, `g_c` the gradient of constant `c` with respect to the 98 row
+    /// entries (central differences, a step of `10⁻⁶` of each entry's magnitude, at least
+    /// `10⁻⁹`), `cov` the entries' covariance (`98 × 98`, row-major, entries in `theta`'s
+    /// row-major order, as an identifier's `covariance_into` gives it). First order in the
+    /// entries' errors; the known constants have standard error 0, and so has a bar estimated
+    /// at its bound 0.
+    ///
+    /// # Errors
+    /// As [`FullCar::from_theta`]; [`Error::Shape`] for a `cov` of another length,
+    /// [`Error::NonFinite`] for NaN/inf in it.
+    pub fn from_theta_se(
+        theta: &SMatrix<T, 7, FULL_STATES>,
+        cov: &[T],
+        m: [T; 4],
+        b_in: [T; 4],
+        geometry: [T; 4],
+    ) -> Result<(Self, [T; super::FULL_CONSTANTS])> {
+        if cov.len() != FULL_THETA * FULL_THETA {
+            return Err(Error::Shape { arg: "cov", expected: FULL_THETA * FULL_THETA, got: cov.len() });
+        }
+        check_finite("cov", cov)?;
+        let car = Self::from_theta(theta, m, b_in, geometry)?;
+        let mut grad = [[T::zero(); FULL_THETA]; super::FULL_CONSTANTS];
+        for j in 0..FULL_THETA {
+            let (r, c) = (j / FULL_STATES, j % FULL_STATES);
+            let h = (theta[(r, c)].abs() * T::of(1e-6)).max(T::of(1e-9));
+            let mut up = *theta;
+            up[(r, c)] += h;
+            let mut down = *theta;
+            down[(r, c)] -= h;
+            let hi = Self::from_theta(&up, m, b_in, geometry)?.constants();
+            let lo = Self::from_theta(&down, m, b_in, geometry)?.constants();
+            for (g, (a, b)) in grad.iter_mut().zip(hi.iter().zip(lo.iter())) {
+                g[j] = (*a - *b) / (h + h);
+            }
+        }
+        let mut se = [T::zero(); super::FULL_CONSTANTS];
+        for (s, g) in se.iter_mut().zip(grad.iter()) {
+            let mut v = T::zero();
+            for a in 0..FULL_THETA {
+                if g[a] == T::zero() {
+                    continue;
+                }
+                for b in 0..FULL_THETA {
+                    v += g[a] * cov[a * FULL_THETA + b] * g[b];
+                }
+            }
+            *s = v.max(T::zero()).sqrt();
+        }
+        Ok((car, se))
+    }
+}
