@@ -194,6 +194,16 @@ def test_constants_back_from_identified_rows() -> None:
     for k, v in car.params.items():
         if not k.startswith("arb"):
             assert est[k] == pytest.approx(v, rel=0.05), (k, est[k], v)
+    # With the identifier's Stats: intervals by the delta method on the rows' covariance.
+    ivals = car.physical(ls.stats(alpha=0.01), **masses)
+    for k, v in car.params.items():
+        value, low, high = ivals[k]
+        assert value == pytest.approx(est[k], rel=1e-9, abs=1e-9), k
+        if k in ("M", "Jx", "Jy") or k[:2] in ("k_", "b_"):
+            assert low < v < high, (k, low, v, high)
+            assert 0.002 < (high - low) / v < 0.2, (k, low, high)
+        elif not k.startswith("arb"):
+            assert low == value == high and value == pytest.approx(v, rel=1e-12), k  # known: masses, tyres, geometry
     with pytest.raises(vehid.VehidError, match="m_fl="):
         car.physical(theta)
     with pytest.raises(vehid.VehidError, match="no physical structure yet"):

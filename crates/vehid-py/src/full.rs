@@ -152,3 +152,61 @@ pub fn full_car_from_constants(py: Python<'_>, constants: Vec<f64>) -> PyResult<
     let car = FullCar::from_constants(c).map_err(core_err)?;
     Py::new(py, full_initializer(car)?)
 }
+
+/// `FullCar.physical(stats, m_fl=, m_fr=, m_rl=, m_rr=)`: the constants with their intervals at
+/// the Stats' level (`FullCar::from_theta_se`, the delta method on the rows' covariance; the
+/// t quantile at the smallest residual degrees of freedom); known constants as
+/// `(value, value, value)`.
+pub(crate) fn physical_full_stats<'py>(
+    py: Python<'py>,
+    car: &FullCar<f64>,
+    data: &ModelData,
+    st: &crate::stats::PyStats,
+    known: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    use vehid_core::model::FULL_STATES;
+    let n = 7 * FULL_STATES;
+    if st.s.params.len() != n || st.s.cov.len() != n * n {
+        return Err(VehidError::new_err(format!(
+            "these stats have {} parameters; FullCar.physical() reads the {n} entries of the seven identified rows \
+             (stats of an identifier on the FullCar itself)",
+            st.s.params.len()
+        )));
+    }
+    let m = wheel_masses(known)?;
+    let theta = SMatrix::<f64, 7, 14>::from_row_slice(&st.s.params);
+    let b_in = [0, 1, 2, 3].map(|i| data.b[(2 * i + 1) * data.m + i]);
+    let p = car.params();
+    let (est, se) =
+        FullCar::from_theta_se(&theta, &st.s.cov, m, b_in, [p.l_f, p.l_r, p.track_f, p.track_r]).map_err(core_err)?;
+    let df = st.s.df.iter().copied().fold(f64::INFINITY, f64::min);
+    let q = vehid_core::stats::t_ppf(1.0 - st.s.alpha / 2.0, df).map_err(core_err)?;
+    let out = PyDict::new(py);
+    for ((k, v), s) in est.params().named().iter().zip(se) {
+        out.set_item(*k, (*v, v - q * s, v + q * s))?;
+    }
+    Ok(out)
+}
+
+/// The four wheel masses from `physical()`'s keywords (each required; no other keyword).
+fn wheel_masses(known: Option<&Bound<'_, PyDict>>) -> PyResult<[f64; 4]> {
+    let mut m = [f64::NAN; 4];
+    if let Some(kw) = known {
+        for (k, v) in kw.iter() {
+            let key: String = k.extract()?;
+            let Some(i) = PHYSICAL_KEYS.iter().position(|n| *n == key) else {
+                return Err(PyTypeError::new_err(format!(
+                    "physical() got an unexpected keyword argument '{key}' (known quantities: {})",
+                    PHYSICAL_KEYS.join(", ")
+                )));
+            };
+            m[i] = v.extract().map_err(|_| VehidError::new_err(format!("`{key}` must be a number (a mass in kg)")))?;
+        }
+    }
+    if m.iter().any(|v| v.is_nan()) {
+        return Err(VehidError::new_err(
+            "FullCar.physical() needs the four wheel masses: m_fl=, m_fr=, m_rl=, m_rr= (kg)",
+        ));
+    }
+    Ok(m)
+}

@@ -324,6 +324,9 @@ impl PyLinearModel {
         theta_hat: &Bound<'py, PyAny>,
         known: Option<&Bound<'py, PyDict>>,
     ) -> PyResult<Bound<'py, PyDict>> {
+        if let (Ok(st), Kind::Full(car)) = (theta_hat.cast::<crate::stats::PyStats>(), self.kind) {
+            return crate::full::physical_full_stats(py, &car, &self.data, st.get(), known);
+        }
         if let (Ok(st), Kind::Quarter(_) | Kind::Half(_)) = (theta_hat.cast::<crate::stats::PyStats>(), self.kind) {
             let car = match self.kind {
                 Kind::Quarter(_) => crate::structure::CarKind::Quarter,
