@@ -131,7 +131,7 @@ def test_a_bad_drive_is_a_clear_error(kwargs: Dict[str, Any], match: str) -> Non
 
 def test_only_the_quarter_and_half_car_drive() -> None:
     model = vehid.LinearModel(np.array([[0.0, 1.0], [-1.0, -1.0]]), np.array([0.0, 1.0]), [1])
-    with pytest.raises(vehid.VehidError, match="simulates a vehid.QuarterCar or a vehid.HalfCar"):
+    with pytest.raises(vehid.VehidError, match="simulates a vehid.QuarterCar, a vehid.HalfCar or a vehid.FullCar"):
         vehid.Simulator(model, road="iso8608-C")
 
 

@@ -14,6 +14,7 @@ __all__ = [
     "LinearModel",
     "QuarterCar",
     "HalfCar",
+    "FullCar",
     "Simulator",
     "Run",
     "Identifier",
@@ -31,6 +32,7 @@ __all__ = [
     "Event",
     "RealisticIdentifier",
     "_physical_structure",
+    "_full_car_from_constants",
     "validate",
     "xi",
     "ljung_box",
@@ -135,6 +137,19 @@ class HalfCar(LinearModel):
         l1: float = 2.0,
         l2: float = 1.0,
     ) -> HalfCar: ...
+    @classmethod
+    def passenger(cls) -> Self: ...
+    @property
+    def params(self) -> dict[str, float]: ...
+    @property
+    def wheelbase(self) -> float: ...
+
+@final
+class FullCar(LinearModel):
+    """The full car: heave, pitch and roll of the body on four corners (14 states)."""
+
+    CONSTANTS: list[str]
+    def __new__(cls, **constants: float) -> FullCar: ...
     @classmethod
     def passenger(cls) -> Self: ...
     @property
@@ -615,6 +630,7 @@ class RealisticIdentifier:
     def __deepcopy__(self, memo: Any) -> Self: ...
 
 def _physical_structure(car: str, known: Any, sensors: str = "state") -> Structure: ...
+def _full_car_from_constants(constants: Sequence[float]) -> FullCar: ...
 def validate(
     structure: Structure,
     params: ArrayLike,

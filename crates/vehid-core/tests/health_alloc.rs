@@ -1,15 +1,17 @@
 //! The drive and the health monitor allocate nothing per sample: a whole scenario (warm-up,
 //! a damper ramp rebuilt every sample, an alarm, settling, the event, a gap of NaN rows, a
 //! stuck channel, reacquiring) runs under a counting allocator with zero allocations; the
-//! same for the half car's drive (its road history ring) and monitor.
+//! same for the half car's drive (its road history ring) and monitor, and the full car's drive
+//! (two tracks, two rings).
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
 use vehid_core::health::{HalfHealthMonitor, HealthConfig, HealthMonitor};
-use vehid_core::model::{HalfCar, QuarterCar};
+use vehid_core::model::{FullCar, HalfCar, QuarterCar};
 use vehid_core::sim::{
-    Change, DriveConfig, HalfChange, HalfDrive, HalfDriveConfig, QuarterDrive, SensorNoise, SensorSet,
+    Change, DriveConfig, FullChange, FullDrive, FullDriveConfig, HalfChange, HalfDrive, HalfDriveConfig, QuarterDrive,
+    SensorNoise, SensorSet,
 };
 
 struct Counting;
@@ -143,4 +145,31 @@ fn a_whole_half_car_state_sensor_scenario_allocates_nothing() {
     }
     assert_eq!(allocs() - before, 0);
     assert!(events >= 1, "the rear damper ramp (-20 %) was not reported");
+}
+
+#[test]
+fn a_full_car_drive_allocates_nothing() {
+    // Both sensor sets, a damper ramp rebuilt every sample, a load step, changing speed (also
+    // standing) and a road class change.
+    let car = FullCar::<f64>::passenger();
+    for sensors in [SensorSet::Realistic, SensorSet::State] {
+        let cfg = FullDriveConfig::new(DriveConfig::new(0.005).sensors(sensors))
+            .with_change(FullChange::ramp(5.0, "b_rl", 900.0, 5.0).unwrap())
+            .unwrap()
+            .with_change(FullChange::step(12.0, "M", 1600.0).unwrap())
+            .unwrap();
+        let mut drive = FullDrive::new(car, cfg, 4245).unwrap();
+        let before = allocs();
+        let mut acc = 0.0;
+        for k in 0..4000usize {
+            let v = if (1500..1600).contains(&k) { 0.0 } else { 5.0 + (k % 700) as f64 / 30.0 };
+            if k == 2000 {
+                drive.set_road(vehid_core::sim::RoadClass::D);
+            }
+            let s = drive.next_sample_at(v).unwrap();
+            acc += s.y()[0];
+        }
+        assert!(acc.is_finite());
+        assert_eq!(allocs() - before, 0, "{sensors:?}");
+    }
 }

@@ -1,6 +1,6 @@
-//! `Simulator(car, road="iso8608-C", speed=, changes=, sensors=)`: a quarter-car or half-car
-//! drive on an ISO 8608 road with parameter changes and a sensor set, the core's
-//! [`QuarterDrive`] and [`HalfDrive`]. Conversion and validation only; the core simulates.
+//! `Simulator(car, road="iso8608-C", speed=, changes=, sensors=)`: a quarter-car, half-car or
+//! full-car drive on an ISO 8608 road with parameter changes and a sensor set, the core's
+//! [`QuarterDrive`], [`HalfDrive`] and [`FullDrive`]. Conversion and validation only; the core simulates.
 
 use crate::convert::{py_str, speed_arg};
 use crate::model::{Kind, PyLinearModel};
@@ -8,8 +8,8 @@ use crate::{core_err, option, VehidError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 use vehid_core::sim::{
-    Change, DriveConfig, HalfChange, HalfDrive, HalfDriveConfig, QuarterDrive, RoadClass, SensorNoise, SensorSet,
-    MAX_CHANGES,
+    Change, DriveConfig, FullChange, FullDrive, FullDriveConfig, HalfChange, HalfDrive, HalfDriveConfig, QuarterDrive,
+    RoadClass, SensorNoise, SensorSet, MAX_CHANGES,
 };
 use vehid_core::{Error, Result};
 
@@ -38,6 +38,7 @@ pub struct DriveRun {
 pub enum AnyDrive {
     Quarter(Box<QuarterDrive<f64>>),
     Half(Box<HalfDrive<f64>>),
+    Full(Box<FullDrive<f64>>),
 }
 
 /// A drive with its speed profile.
@@ -77,10 +78,10 @@ impl DriveSim {
         seed: u64,
         unused: Unused<'_>,
     ) -> PyResult<Self> {
-        if !matches!(model.kind, Kind::Quarter(_) | Kind::Half(_)) {
+        if !matches!(model.kind, Kind::Quarter(_) | Kind::Half(_) | Kind::Full(_)) {
             return Err(VehidError::new_err(
-                "a drive (road='iso8608-A'..'iso8608-E', changes=, sensors=) simulates a vehid.QuarterCar or a \
-                 vehid.HalfCar",
+                "a drive (road='iso8608-A'..'iso8608-E', changes=, sensors=) simulates a vehid.QuarterCar, a \
+                 vehid.HalfCar or a vehid.FullCar",
             ));
         }
         for (given, name) in [
@@ -135,6 +136,13 @@ impl DriveSim {
                 }
                 AnyDrive::Half(Box::new(HalfDrive::new(car, cfg, seed).map_err(core_err)?))
             }
+            Kind::Full(car) => {
+                let mut cfg = FullDriveConfig::new(base);
+                for (t, name, v, ramp) in changes {
+                    cfg = cfg.with_change(FullChange::ramp(t, &name, v, ramp).map_err(bad)?).map_err(core_err)?;
+                }
+                AnyDrive::Full(Box::new(FullDrive::new(car, cfg, seed).map_err(core_err)?))
+            }
             Kind::Quarter(car) => {
                 let mut cfg = base;
                 for (t, name, v, ramp) in changes {
@@ -152,6 +160,7 @@ impl DriveSim {
         match &self.drive {
             AnyDrive::Quarter(d) => d.k(),
             AnyDrive::Half(d) => d.k(),
+            AnyDrive::Full(d) => d.k(),
         }
     }
 
@@ -160,6 +169,7 @@ impl DriveSim {
         match &self.drive {
             AnyDrive::Quarter(d) => d.config(),
             AnyDrive::Half(d) => &d.config().base,
+            AnyDrive::Full(d) => &d.config().base,
         }
     }
 
@@ -168,6 +178,7 @@ impl DriveSim {
         match &self.drive {
             AnyDrive::Quarter(_) => [4, 1, 5],
             AnyDrive::Half(_) => [8, 2, 12],
+            AnyDrive::Full(_) => [14, 4, 25],
         }
     }
 
@@ -176,6 +187,7 @@ impl DriveSim {
         match &self.drive {
             AnyDrive::Quarter(d) => d.channels(),
             AnyDrive::Half(d) => d.channels(),
+            AnyDrive::Full(d) => d.channels(),
         }
     }
 
@@ -255,6 +267,7 @@ impl DriveSim {
             let pushed = match &mut self.drive {
                 AnyDrive::Quarter(d) => record!(d, |s| out.u.push(s.u)),
                 AnyDrive::Half(d) => record!(d, |s| out.u.extend_from_slice(&s.u)),
+                AnyDrive::Full(d) => record!(d, |s| out.u.extend_from_slice(&s.u)),
             };
             if let Err(e) = pushed {
                 *self = start;
@@ -306,7 +319,8 @@ fn parse_changes(changes: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<(f64, Strin
     let Some(obj) = changes else { return Ok(vec![]) };
     let usage = "`changes` must be a list of (t, {name: value}) or (t, {name: value}, ramp) tuples, e.g. \
                  [(60.0, {'b': 1350.0})]: t and ramp in seconds, names 'M', 'm', 'k1', 'k2', 'b' (QuarterCar) or \
-                 'M', 'J', 'k1_f', 'k1_r', 'k2_f', 'k2_r', 'b_f', 'b_r', 'm_f', 'm_r' (HalfCar)";
+                 'M', 'J', 'k1_f', 'k1_r', 'k2_f', 'k2_r', 'b_f', 'b_r', 'm_f', 'm_r' (HalfCar) or 'M', 'Jx', 'Jy', \
+                 'kt_fl' .. 'kt_rr', 'k_fl' .. 'k_rr', 'b_fl' .. 'b_rr', 'm_fl' .. 'm_rr', 'arb_f', 'arb_r' (FullCar)";
     let mut out = Vec::new();
     for item in obj.try_iter().map_err(|_| VehidError::new_err(usage))? {
         let item = item?;

@@ -327,6 +327,12 @@ impl PyHealthMonitor {
                 settings!(cfg);
                 Mon::Half(Box::new(health::HalfHealthMonitor::new(cfg).map_err(core_err)?))
             }
+            Kind::Full(_) => {
+                return Err(VehidError::new_err(
+                    "the health monitor does not watch a vehid.FullCar yet: `car` must be a vehid.QuarterCar or a \
+                     vehid.HalfCar (one side of the full car)",
+                ))
+            }
             Kind::Generic => return Err(VehidError::new_err("`car` must be a vehid.QuarterCar or a vehid.HalfCar")),
         };
         Ok(Self { inner })

@@ -11,6 +11,7 @@ mod args;
 mod convert;
 mod dispatch;
 mod drive;
+mod full;
 mod guard;
 mod health;
 mod identify;
@@ -112,6 +113,8 @@ fn _vehid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<model::PyLinearModel>()?;
     m.add_class::<model::PyQuarterCar>()?;
     m.add_class::<model::PyHalfCar>()?;
+    m.add_class::<full::PyFullCar>()?;
+    m.add_function(wrap_pyfunction!(full::full_car_from_constants, m)?)?;
     m.add_class::<sim::PySimulator>()?;
     m.add_class::<sim::PyRun>()?;
     m.add_class::<identify::PyIdentifier>()?;

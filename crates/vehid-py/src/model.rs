@@ -1,4 +1,4 @@
-//! `LinearModel`, `QuarterCar`, `HalfCar`: the Python model classes.
+//! `LinearModel`, `QuarterCar`, `HalfCar`: the Python model classes (`FullCar`: `full.rs`).
 
 use crate::convert::{array, finite, matrix, shape_str, size, values};
 use crate::dispatch::{
@@ -12,7 +12,7 @@ use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::pyclass::CompareOp;
 use pyo3::types::{PyDict, PyTuple};
-use vehid_core::model::{HalfCar, HalfCarParams, QuarterCar, QuarterKnown};
+use vehid_core::model::{FullCar, HalfCar, HalfCarParams, QuarterCar, QuarterKnown};
 use vehid_core::nalgebra::SMatrix;
 
 /// Which vehicle a model came from: decides what `physical()` can recover.
@@ -21,6 +21,7 @@ pub enum Kind {
     Generic,
     Quarter(QuarterCar<f64>),
     Half(HalfCar<f64>),
+    Full(FullCar<f64>),
 }
 
 /// A continuous-time linear model `ẋ = A x + B u` (Eq 2.1) with 1..16 states and 1..4 inputs,
@@ -289,6 +290,13 @@ impl PyLinearModel {
         let car = match self.kind {
             Kind::Quarter(_) => CarKind::Quarter,
             Kind::Half(_) => CarKind::Half,
+            Kind::Full(_) => {
+                return Err(VehidError::new_err(
+                    "the full car has no physical structure yet (its body equations need more terms than a \
+                     vehid.Structure holds): identify its rows (model.unknown_rows) and read the constants with \
+                     FullCar.physical(theta_hat, m_fl=, m_fr=, m_rl=, m_rr=)",
+                ))
+            }
             Kind::Generic => {
                 return Err(VehidError::new_err(
                     "a generic LinearModel has no physical structure: write one with vehid.Structure(...)",
@@ -316,6 +324,9 @@ impl PyLinearModel {
         theta_hat: &Bound<'py, PyAny>,
         known: Option<&Bound<'py, PyDict>>,
     ) -> PyResult<Bound<'py, PyDict>> {
+        if let (Ok(st), Kind::Full(car)) = (theta_hat.cast::<crate::stats::PyStats>(), self.kind) {
+            return crate::full::physical_full_stats(py, &car, &self.data, st.get(), known);
+        }
         if let (Ok(st), Kind::Quarter(_) | Kind::Half(_)) = (theta_hat.cast::<crate::stats::PyStats>(), self.kind) {
             let car = match self.kind {
                 Kind::Quarter(_) => crate::structure::CarKind::Quarter,
@@ -332,6 +343,7 @@ impl PyLinearModel {
             }
             Kind::Quarter(_) => &["m", "M"],
             Kind::Half(_) => &["m1", "m2"],
+            Kind::Full(_) => &crate::full::PHYSICAL_KEYS,
         };
         let mut given: Vec<(String, f64)> = Vec::new();
         if let Some(kw) = known {
@@ -381,6 +393,7 @@ impl PyLinearModel {
                 let car = HalfCar::from_theta(&theta, m1, m2, b21, b42).map_err(core_err)?;
                 half_params_into(&out, &car.params())?;
             }
+            Kind::Full(car) => crate::full::physical_full(&car, &self.data, &th, &get, &out)?,
         }
         Ok(out)
     }
@@ -391,6 +404,11 @@ impl PyLinearModel {
         let py = slf.py();
         let m = slf.get();
         let args = match m.kind {
+            Kind::Full(c) => {
+                let f = py.import("vehid._vehid")?.getattr("_full_car_from_constants")?;
+                let list = crate::full::reduce_args(py, &c)?.to_list();
+                return (f, (list,)).into_pyobject(py);
+            }
             Kind::Quarter(c) => (c.m_body(), c.m_wheel(), c.k1(), c.k2(), c.b()).into_pyobject(py)?,
             Kind::Half(c) => {
                 let p = c.params();
@@ -452,6 +470,7 @@ impl PyLinearModel {
                 c.k2(),
                 c.b()
             ),
+            Kind::Full(c) => crate::full::repr(c),
             Kind::Half(c) => {
                 let p = c.params();
                 format!(

@@ -284,7 +284,7 @@ impl Engine {
 /// metres (irregular in time when the speed varies), the road is a white height per `spacing`
 /// metres held over distance, and `run.s` is the distance travelled.
 ///
-/// A drive (a `QuarterCar` or a `HalfCar`): `road="iso8608-A"` .. `"iso8608-E"` (or `"flat"`)
+/// A drive (a `QuarterCar`, `HalfCar` or `FullCar`): `road="iso8608-A"` .. `"iso8608-E"` (or `"flat"`)
 /// is an ISO 8608 road profile by distance, `speed` m/s (a scalar, default 15, or one value
 /// per sample), `changes=[(t, {"b": 1350.0}), (t, {"k2": 19800.0}, ramp), ...]` steps (or
 /// ramps over `ramp` seconds) of the constants 'M', 'm', 'k1', 'k2', 'b' from `t` seconds,
@@ -299,6 +299,11 @@ impl Engine {
 /// changes of 'M', 'J', 'k1_f', 'k1_r', 'k2_f', 'k2_r', 'b_f', 'b_r', 'm_f', 'm_r'; realistic
 /// channels ('a_body_f', 'a_body_r', 'a_wheel_f', 'a_wheel_r', 'deflection_f', 'deflection_r')
 /// or the 16 state channels; `run.u` (N, 2) the road under each wheel.
+/// A `FullCar` drive: a left and a right track with the isotropic-road coherence, each rear
+/// wheel on its front wheel's track a wheelbase later; changes of 'M', 'Jx', 'Jy' and the
+/// corner constants ('b_fl', 'k_rr', ...; 'arb_f', 'arb_r'); realistic channels (a body
+/// accelerometer above each wheel, four wheel accelerometers, four deflections, corners
+/// fl, fr, rl, rr) or the 28 state channels; `run.u` (N, 4).
 #[pyclass(name = "Simulator", module = "vehid._vehid")]
 pub struct PySimulator {
     inner: Engine,

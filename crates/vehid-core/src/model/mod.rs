@@ -14,20 +14,24 @@
 //! Units: SI throughout (kg, N/m, N·s/m, m, kg·m² for the pitch inertia, rad for pitch).
 //!
 //! Files: `mod.rs` ([`RowSet`], [`LinearModel`]), `discretize.rs` (the sampled system: exact
-//! zero-order hold and the RK4 map), `quarter.rs` ([`QuarterCar`]), `half.rs` ([`HalfCar`]).
+//! zero-order hold and the RK4 map), `quarter.rs` ([`QuarterCar`]), `half.rs` ([`HalfCar`]), `full.rs` ([`FullCar`]: four corners,
+//! heave, pitch and roll).
 
 mod discretize;
+mod full;
 mod half;
 mod physical;
 mod quarter;
 mod sensors;
 
 pub use discretize::{auto_substeps, rk4_map, zoh, MAX_SUBSTEPS};
+pub use full::{FullCar, FullCarParams, CORNERS, FULL_CONSTANTS, FULL_STATES, FULL_STATE_NAMES};
 pub use half::{HalfCar, HalfCarParams, HalfConstant};
 pub use physical::{PhysicalStructure, MAX_CONSTANTS};
 pub use quarter::{QuarterCar, QuarterKnown};
 pub use sensors::{
-    SensorNoise, SensorSet, HALF_REALISTIC_CHANNELS, HALF_STATE_CHANNELS, REALISTIC_CHANNELS, STATE_CHANNELS,
+    SensorNoise, SensorSet, FULL_REALISTIC_CHANNELS, FULL_STATE_CHANNELS, HALF_REALISTIC_CHANNELS, HALF_STATE_CHANNELS,
+    REALISTIC_CHANNELS, STATE_CHANNELS,
 };
 
 use crate::error::{check_finite, check_nonneg};

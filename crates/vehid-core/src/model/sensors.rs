@@ -24,6 +24,58 @@ pub const HALF_REALISTIC_CHANNELS: [&str; 6] =
 pub const HALF_STATE_CHANNELS: [&str; 16] =
     ["z1", "v1", "z2", "v2", "zb", "vb", "ph", "om", "dz1", "dv1", "dz2", "dv2", "dzb", "dvb", "dph", "dom"];
 
+/// Channel names of [`SensorSet::Realistic`] on the full car: a body accelerometer above each
+/// wheel (m/s², `z̈b + x_i θ̈ + y_i φ̈`, small angles), a wheel accelerometer per corner (m/s²)
+/// and each corner's suspension extension (m, `zb + x_i θ + y_i φ − z_i`), corners in the
+/// order `fl, fr, rl, rr`.
+pub const FULL_REALISTIC_CHANNELS: [&str; 12] = [
+    "a_body_fl",
+    "a_body_fr",
+    "a_body_rl",
+    "a_body_rr",
+    "a_wheel_fl",
+    "a_wheel_fr",
+    "a_wheel_rl",
+    "a_wheel_rr",
+    "deflection_fl",
+    "deflection_fr",
+    "deflection_rl",
+    "deflection_rr",
+];
+
+/// Channel names of [`SensorSet::State`] on the full car: the measured state `r` (the names of
+/// [`crate::model::FULL_STATE_NAMES`]) then the measured derivative `z` (each name with a `d`).
+pub const FULL_STATE_CHANNELS: [&str; 28] = [
+    "z_fl",
+    "v_fl",
+    "z_fr",
+    "v_fr",
+    "z_rl",
+    "v_rl",
+    "z_rr",
+    "v_rr",
+    "zb",
+    "vb",
+    "pitch",
+    "pitch_rate",
+    "roll",
+    "roll_rate",
+    "dz_fl",
+    "dv_fl",
+    "dz_fr",
+    "dv_fr",
+    "dz_rl",
+    "dv_rl",
+    "dz_rr",
+    "dv_rr",
+    "dzb",
+    "dvb",
+    "dpitch",
+    "dpitch_rate",
+    "droll",
+    "droll_rate",
+];
+
 /// Which sensors a vehicle has: what a drive (`sim::QuarterDrive`) reports and what the
 /// health monitor (`health::HealthMonitor`) reads.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -44,6 +96,14 @@ impl SensorSet {
         match self {
             SensorSet::State => &HALF_STATE_CHANNELS,
             SensorSet::Realistic => &HALF_REALISTIC_CHANNELS,
+        }
+    }
+
+    /// The channel names of this set on the full car.
+    pub fn full_channels(&self) -> &'static [&'static str] {
+        match self {
+            SensorSet::State => &FULL_STATE_CHANNELS,
+            SensorSet::Realistic => &FULL_REALISTIC_CHANNELS,
         }
     }
 

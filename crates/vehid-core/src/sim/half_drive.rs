@@ -194,16 +194,16 @@ impl<T: Real> HalfDriveSample<T> {
 
 /// The front road's recent heights by distance (a fixed ring; module documentation).
 #[derive(Debug, Clone)]
-struct RoadHistory {
+pub(super) struct RoadHistory {
     s: [f64; ROAD_HISTORY],
     z: [f64; ROAD_HISTORY],
     head: usize,
     len: usize,
-    spacing: f64,
+    pub(super) spacing: f64,
 }
 
 impl RoadHistory {
-    fn new(spacing: f64) -> Self {
+    pub(super) fn new(spacing: f64) -> Self {
         Self { s: [0.0; ROAD_HISTORY], z: [0.0; ROAD_HISTORY], head: 0, len: 0, spacing }
     }
 
@@ -214,7 +214,7 @@ impl RoadHistory {
 
     /// Stores the front height `z` at distance `s` if the car moved at least the spacing
     /// since the last point (always the first).
-    fn push(&mut self, s: f64, z: f64) {
+    pub(super) fn push(&mut self, s: f64, z: f64) {
         if self.len > 0 && s - self.s[self.at(self.len - 1)] < self.spacing {
             return;
         }
@@ -230,7 +230,7 @@ impl RoadHistory {
 
     /// The height at distance `q` by linear interpolation between the stored points; drops
     /// the points no later query needs (queries come in increasing `q`).
-    fn height(&mut self, q: f64) -> f64 {
+    pub(super) fn height(&mut self, q: f64) -> f64 {
         while self.len >= 2 && self.s[self.at(1)] <= q {
             self.head = (self.head + 1) % ROAD_HISTORY;
             self.len -= 1;

@@ -22,28 +22,33 @@
 //! `drive.rs` ([`QuarterDrive`]: realistic drives — an ISO 8608 road by distance,
 //! parameter changes at given times, accelerometers and a deflection sensor; `iso8608.rs`:
 //! the road by distance); `half_drive.rs` ([`HalfDrive`]: the same for the half car, the rear
-//! wheel a wheelbase behind the front on one road).
+//! wheel a wheelbase behind the front on one road); `full_drive.rs` ([`FullDrive`]: the full
+//! car on a left and a right track, `two_track.rs`: [`TwoTrackRoad`], the tracks' coherence).
 
 mod config;
 mod drive;
+mod full_drive;
 mod half_drive;
 mod iso8608;
 mod road;
 #[cfg(feature = "alloc")]
 mod run;
 mod time;
+mod two_track;
 
 pub use config::{per_component, Method, Pulse, SimConfig, SimSettings, MAX_PULSES, MAX_SIGMA};
 pub use drive::{
     Change, DriveConfig, DriveSample, QuarterConstant, QuarterDrive, SensorNoise, SensorSet, GRAVITY, MAX_CHANGES,
     MAX_CHANNELS, REALISTIC_CHANNELS, STATE_CHANNELS,
 };
+pub use full_drive::{FullChange, FullConstant, FullDrive, FullDriveConfig, FullDriveSample, FULL_MAX_CHANNELS};
 pub use half_drive::{HalfChange, HalfDrive, HalfDriveConfig, HalfDriveSample, HALF_MAX_CHANNELS, ROAD_HISTORY};
 pub use iso8608::{IsoRoad, RoadClass, DEFAULT_CUTOFF, N0};
 pub use road::{RoadConfig, RoadMode, RoadSample, RoadSimulator, SpeedProfile};
 #[cfg(feature = "alloc")]
 pub use run::Run;
 pub use time::{Sample, Simulator};
+pub use two_track::{TwoTrackRoad, HALF_COHERENCE};
 
 use crate::Real;
 use nalgebra::SVector;

@@ -1,0 +1,210 @@
+"""The full car from Python: constants, the model against an independent numpy construction and
+scipy's eigenvalues, pickling, drives (shapes, the rear delay, changes per corner, the sensors'
+geometry, the left/right coherence by scipy's cross-spectra) and the constants recovered from
+identified rows."""
+
+from __future__ import annotations
+
+import pickle
+
+import numpy as np
+import pytest
+import scipy.linalg
+import scipy.signal
+from scipy.special import k1
+
+import vehid
+
+DT = 0.005
+CORNERS = ("fl", "fr", "rl", "rr")
+
+
+def geometry(p: dict[str, float]) -> list[tuple[float, float]]:
+    """Each corner's (x, y) from the centre of mass: front +l_f, rear -l_r, left +track/2."""
+    return [
+        (p["l_f"], p["track_f"] / 2),
+        (p["l_f"], -p["track_f"] / 2),
+        (-p["l_r"], p["track_r"] / 2),
+        (-p["l_r"], -p["track_r"] / 2),
+    ]
+
+
+def a_by_hand(p: dict[str, float]) -> np.ndarray:
+    """A from Lagrange's equations written here: q = (z_fl, z_fr, z_rl, z_rr, zb, pitch, roll),
+    extensions d = G q, potential ½ qᵀ K q with K = Gᵀ diag(k) G + diag(kt) + bars, dissipation
+    ½ q̇ᵀ Gᵀ diag(b) G q̇; states interleave positions and velocities."""
+    g = np.zeros((4, 7))
+    for i, (x, y) in enumerate(geometry(p)):
+        g[i, i] = -1.0
+        g[i, 4:] = [1.0, x, y]
+    k = g.T @ np.diag([p[f"k_{c}"] for c in CORNERS]) @ g + np.diag([p[f"kt_{c}"] for c in CORNERS] + [0, 0, 0])
+    for axle, (left, right) in (("f", (0, 1)), ("r", (2, 3))):
+        diff = (g[left] - g[right]) / p[f"track_{axle}"]
+        k += p[f"arb_{axle}"] * np.outer(diff, diff)
+    c = g.T @ np.diag([p[f"b_{c}"] for c in CORNERS]) @ g
+    mass = np.array([p[f"m_{c}"] for c in CORNERS] + [p["M"], p["Jy"], p["Jx"]])
+    a = np.zeros((14, 14))
+    for r in range(7):
+        a[2 * r, 2 * r + 1] = 1.0
+        a[2 * r + 1, 0::2] = -k[r] / mass[r]
+        a[2 * r + 1, 1::2] = -c[r] / mass[r]
+    return a
+
+
+def test_constants_defaults_and_errors() -> None:
+    car = vehid.FullCar.passenger()
+    assert car.n_states == 14 and car.n_inputs == 4 and car.unknown_rows == (1, 3, 5, 7, 9, 11, 13)
+    p = car.params
+    assert list(p) == vehid.FullCar.CONSTANTS and len(p) == 25
+    assert p["M"] == 1500.0 and p["Jx"] == 460.0 and p["Jy"] == 2160.0 and p["k_rr"] == 38000.0
+    assert car.wheelbase == pytest.approx(3.1)
+    sym = vehid.FullCar()
+    assert all(sym.params[f"k_{c}"] == sym.params["k_fl"] for c in CORNERS)
+    own = vehid.FullCar(**{**p, "b_fl": 1200.0, "arb_f": 8000.0})
+    assert own.params["b_fl"] == 1200.0 and own.params["arb_f"] == 8000.0 and own != car
+    with pytest.raises(TypeError, match="unexpected keyword argument 'b_xx'"):
+        vehid.FullCar(b_xx=1.0)
+    with pytest.raises(vehid.VehidError, match="M"):
+        vehid.FullCar(M=0.0)
+    with pytest.raises(vehid.VehidError, match="arb_r"):
+        vehid.FullCar(arb_r=-1.0)
+    with pytest.raises(vehid.VehidError, match="k_fl"):
+        vehid.FullCar(k_fl="stiff")  # type: ignore[arg-type]
+    assert "FullCar(M=1500.0" in repr(car)
+
+
+def test_model_is_lagranges_and_poles_are_scipys() -> None:
+    p = {**vehid.FullCar.passenger().params, "arb_f": 15000.0, "arb_r": 6000.0, "k_fr": 33000.0, "b_rl": 1150.0}
+    car = vehid.FullCar(**p)
+    np.testing.assert_allclose(car.a, a_by_hand(p), rtol=1e-12, atol=1e-9)
+    b = car.b
+    for i, c in enumerate(CORNERS):
+        assert b[2 * i + 1, i] == pytest.approx(p[f"kt_{c}"] / p[f"m_{c}"])
+    assert np.count_nonzero(b) == 4
+    ev = scipy.linalg.eigvals(car.a)
+    got = np.sort_complex(car.poles())
+    np.testing.assert_allclose(got, np.sort_complex(ev), rtol=1e-9)
+    assert np.all(got.real < 0)
+
+
+def test_equal_sides_are_the_half_car() -> None:
+    half = vehid.HalfCar.passenger()
+    h = half.params
+    full = vehid.FullCar(
+        M=2 * h["M"], Jy=2 * h["J"], Jx=480.0, l_f=h["l1"], l_r=h["l2"], track_f=1.45, track_r=1.55,
+        arb_f=9000.0, arb_r=4000.0,
+        **{f"kt_{c}": h["k11"] if c[0] == "f" else h["k21"] for c in CORNERS},
+        **{f"k_{c}": h["k12"] if c[0] == "f" else h["k22"] for c in CORNERS},
+        **{f"b_{c}": h["b1"] if c[0] == "f" else h["b2"] for c in CORNERS},
+        **{f"m_{c}": h["m1"] if c[0] == "f" else h["m2"] for c in CORNERS},
+    )
+    e = np.zeros((14, 8))
+    for fi, hi in [(0, 0), (1, 1), (2, 0), (3, 1), (4, 2), (5, 3), (6, 2), (7, 3), (8, 4), (9, 5), (10, 6), (11, 7)]:
+        e[fi, hi] = 1.0
+    eu = np.array([[1.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.0, 1.0]])
+    np.testing.assert_allclose(full.a @ e, e @ half.a, rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(full.b @ eu, e @ half.b, rtol=1e-12, atol=1e-9)
+
+
+def test_pickles_and_compares() -> None:
+    car = vehid.FullCar(**{**vehid.FullCar.passenger().params, "arb_f": 5000.0})
+    back = pickle.loads(pickle.dumps(car))
+    assert back == car and hash(back) == hash(car) and back.params == car.params
+
+
+def drive(seconds: float, **kw: object) -> vehid.Run:
+    kw.setdefault("seed", 1)
+    sim = vehid.Simulator(vehid.FullCar.passenger(), dt=DT, road="iso8608-C", **kw)  # type: ignore[arg-type]
+    return sim.run(int(round(seconds / DT)))
+
+
+def test_the_api_drive_and_its_change() -> None:
+    sim = vehid.Simulator(
+        vehid.FullCar.passenger(), dt=0.005, road="iso8608-C", speed=15.0,
+        changes=[(60.0, {"b_fl": 1350.0})], sensors="realistic", seed=1,
+    )
+    run = sim.run(14_000)
+    n = len(run)
+    assert run.channels == tuple(
+        [f"a_body_{c}" for c in CORNERS] + [f"a_wheel_{c}" for c in CORNERS] + [f"deflection_{c}" for c in CORNERS]
+    )
+    assert run.y.shape == (n, 12) and run.x.shape == (n, 14) and run.u.shape == (n, 4)
+    assert run.constants is not None and run.constants.shape == (n, 25)
+    b_fl = run.constants[:, vehid.FullCar.CONSTANTS.index("b_fl")]
+    assert np.all(b_fl[run.t < 60.0] == 1000.0) and np.all(b_fl[run.t >= 60.0] == 1350.0)
+    # The deflection sensors read each corner's extension with 0.3 mm of noise.
+    x = run.x
+    for i, (cx, cy) in enumerate(geometry(vehid.FullCar.passenger().params)):
+        err = run.y[:, 8 + i] - (x[:, 8] + cx * x[:, 10] + cy * x[:, 12] - x[:, 2 * i])
+        assert 0.27e-3 < np.std(err) < 0.33e-3
+    # The body and wheels move, the sides differently.
+    assert np.std(x[:, 12]) > 1e-4 and np.std(run.u[:, 0] - run.u[:, 1]) > 1e-3
+
+
+def test_rear_wheels_follow_their_front_tracks() -> None:
+    # Wheelbase 3.1 m at 15.5 m/s and 200 Hz: 40 samples.
+    run = drive(20.0, speed=15.5, seed=3)
+    np.testing.assert_allclose(run.u[40:, 2], run.u[:-40, 0], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(run.u[40:, 3], run.u[:-40, 1], rtol=0, atol=1e-12)
+    state = drive(1.0, sensors="state")
+    assert len(state.channels) == 28 and state.r.shape == (200, 14)
+
+
+def test_left_right_coherence_is_the_isotropic_roads() -> None:
+    # scipy's Welch cross-spectrum of the two front tracks, 3 seeds of 16 min at 15 m/s:
+    # Re(G_lr)/sqrt(G_l G_r) against the model 1/(1 + (n/n_a)^2), n_a = 1.2572/(2π · 1.5 m),
+    # itself within 0.041 of the isotropic road's 2πnB K1(2πnB).
+    v, track = 15.0, 1.5
+    n_a = 1.257151390677 / (2 * np.pi * track)
+    nn = np.linspace(1e-3, 10.0, 20_000) * (1 / (2 * np.pi * track))
+    iso = 2 * np.pi * nn * track * k1(2 * np.pi * nn * track)
+    assert np.max(np.abs(iso - 1 / (1 + (nn / n_a) ** 2))) < 0.041
+    est = []
+    for seed in (5, 6, 7):
+        run = drive(983.0, speed=v, seed=seed)
+        f, gl = scipy.signal.welch(run.u[:, 0], fs=1 / DT, nperseg=4096)
+        _, gr = scipy.signal.welch(run.u[:, 1], fs=1 / DT, nperseg=4096)
+        _, glr = scipy.signal.csd(run.u[:, 0], run.u[:, 1], fs=1 / DT, nperseg=4096)
+        est.append(glr.real / np.sqrt(gl * gr))
+    coh = np.mean(est, axis=0)
+    n = f / v  # cycles per metre
+    for target in (0.03, 0.08, 0.13, 0.25, 0.5):
+        j = np.argmin(np.abs(n - target))
+        sl = slice(j - 2, j + 3)
+        model = 1 / (1 + (n[sl] / n_a) ** 2)
+        assert abs(np.mean(coh[sl]) - np.mean(model)) < 0.06, (target, np.mean(coh[sl]), np.mean(model))
+
+
+def test_constants_back_from_identified_rows() -> None:
+    # White road held per sample, the full state measured: batch least squares on the seven rows
+    # (checked against numpy's lstsq), then physical() with the wheel masses known.
+    car = vehid.FullCar.passenger()
+    run = vehid.Simulator(car, dt=DT, road_sigma=0.01, seed=12).run(120_000)
+    ls = vehid.BatchLeastSquares(car)
+    ls.fit(run.r, run.z)
+    theta = ls.theta
+    rows = list(car.unknown_rows)
+    by_numpy = np.linalg.lstsq(run.r, run.z[:, rows], rcond=None)[0].T
+    np.testing.assert_allclose(theta, by_numpy, rtol=1e-6, atol=1e-6)
+    masses = {f"m_{c}": car.params[f"m_{c}"] for c in CORNERS}
+    exact = car.physical(car.theta, **masses)
+    for k, v in car.params.items():
+        assert exact[k] == pytest.approx(v, rel=1e-9, abs=1e-6), k
+    est = car.physical(theta, **masses)
+    for k, v in car.params.items():
+        if not k.startswith("arb"):
+            assert est[k] == pytest.approx(v, rel=0.05), (k, est[k], v)
+    # With the identifier's Stats: intervals by the delta method on the rows' covariance.
+    ivals = car.physical(ls.stats(alpha=0.01), **masses)
+    for k, v in car.params.items():
+        value, low, high = ivals[k]
+        assert value == pytest.approx(est[k], rel=1e-9, abs=1e-9), k
+        if k in ("M", "Jx", "Jy") or k[:2] in ("k_", "b_"):
+            assert low < v < high, (k, low, v, high)
+            assert 0.002 < (high - low) / v < 0.2, (k, low, high)
+        elif not k.startswith("arb"):
+            assert low == value == high and value == pytest.approx(v, rel=1e-12), k  # known: masses, tyres, geometry
+    with pytest.raises(vehid.VehidError, match="m_fl="):
+        car.physical(theta)
+    with pytest.raises(vehid.VehidError, match="no physical structure yet"):
+        car.structure(known=masses)
