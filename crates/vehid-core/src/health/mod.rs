@@ -279,7 +279,7 @@ mod monitor;
 mod pattern;
 mod rls;
 
-pub use consistency::{KinematicCheck, CHECK_HIGH_PASS_HZ, CHECK_LOW_PASS_HZ};
+pub use consistency::{KinematicCheck, CHECK_HIGH_PASS_HZ, CHECK_LOW_PASS_HZ, CHECK_RATE_HZ};
 pub use event::{Constant, Estimate, Event, Reason, Status};
 pub use half::{HalfEstimate, HalfHealthMonitor, DECISION_INTERVAL, HALF_CHANNELS, HALF_NAMED, HALF_STATE_CHANNELS};
 pub use kinematic::{DeflectionFilter, RateGain};
