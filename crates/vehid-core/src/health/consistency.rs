@@ -37,7 +37,7 @@ pub const CHECK_HIGH_PASS_HZ: f64 = 0.8;
 pub const CHECK_LOW_PASS_HZ: f64 = 5.0;
 
 /// One first-order bilinear section `y_k = p y_{k−1} + b0 x_k + b1 x_{k−1}`.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 struct Section<T> {
     y: T,
@@ -57,7 +57,7 @@ impl<T: Real> Section<T> {
 /// The sensors' kinematic consistency check (module documentation): the gain of the
 /// filtered deflection's second derivative on the filtered relative acceleration, tracked
 /// with forgetting `λ` and compared with the warm-up's reference.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct KinematicCheck<T> {
     // Coefficients [p, b0, b1]: high-pass s/(s+ω_h), unit low-pass 1/(s+ω_h), low-pass ω_l/(s+ω_l).
@@ -84,6 +84,7 @@ pub struct KinematicCheck<T> {
     settle: u64,
     // Samples averaged into one step of the filters, and the running sums of the current group.
     every: u64,
+    inv_every: T,
     n_acc: u64,
     acc: [T; 2],
 }
@@ -132,6 +133,7 @@ impl<T: Real> KinematicCheck<T> {
             // (ω_h t)² e^(−ω_h t): below 10⁻⁴ of the signal after 15 / ω_h (3 s at 0.8 Hz).
             settle: libm::ceil(15.0 / (wh * dt.to_f64())) as u64,
             every,
+            inv_every: T::of(1.0 / every as f64),
             n_acc: 0,
             acc: [T::zero(); 2],
         }
@@ -159,8 +161,7 @@ impl<T: Real> KinematicCheck<T> {
         if self.n_acc < self.every {
             return;
         }
-        let w = T::one() / T::of(self.every as f64);
-        let (d, a) = (self.acc[0] * w, self.acc[1] * w);
+        let (d, a) = (self.acc[0] * self.inv_every, self.acc[1] * self.inv_every);
         self.n_acc = 0;
         self.acc = [T::zero(); 2];
         self.step(d, a, warmup);
@@ -273,6 +274,86 @@ impl<T: Real> KinematicCheck<T> {
             && [self.sdd, self.rdd, self.saa, self.raa, self.kappa].iter().all(|&v| fin(v) && v >= T::zero())
             && self.lambda > T::zero()
             && self.lambda < T::one()
+    }
+}
+
+/// Samples between two looks at the kinematic checks (their gains move over seconds; looking
+/// every sample would cost as much as the rest of the update).
+pub(crate) const CHECK_EVERY: u64 = 10;
+
+/// The kinematic checks of a monitor's `C` corners and the hold that follows a disagreement:
+/// what the quarter car's (`C = 1`) and the half car's (`C = 2`) monitors share. While it
+/// holds, the monitor tracks but judges nothing; it holds for one window after the last
+/// disagreement.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+)]
+pub(crate) struct SensorGuard<T: Real, const C: usize> {
+    #[cfg_attr(feature = "serde", serde(with = "crate::persist::array"))]
+    checks: [KinematicCheck<T>; C],
+    tol: T,
+    n_flush: u64,
+    hold: u64,
+}
+
+impl<T: Real, const C: usize> SensorGuard<T, C> {
+    /// Checks for samples every `dt` seconds, forgetting `lambda` per sample, relative
+    /// tolerance `tol` on each gain, a hold of `n_flush` samples.
+    pub(crate) fn new(dt: T, lambda: T, tol: T, n_flush: u64) -> Self {
+        Self { checks: [KinematicCheck::new(dt, lambda); C], tol, n_flush, hold: 0 }
+    }
+
+    /// Sample `k`: each corner's measured deflection and relative acceleration; after the
+    /// warm-up, every [`CHECK_EVERY`] samples, a disagreeing corner starts the hold.
+    #[inline]
+    pub(crate) fn observe(&mut self, k: u64, corners: [(T, T); C], warmup: bool) {
+        for (check, (d, a)) in self.checks.iter_mut().zip(corners) {
+            check.update(d, a, warmup);
+        }
+        if !warmup && k % CHECK_EVERY == 0 && self.checks.iter().any(|c| c.disagrees(self.tol)) {
+            self.hold = self.n_flush;
+        }
+    }
+
+    /// Whether this sample is held (counted down).
+    #[inline]
+    pub(crate) fn holds(&mut self) -> bool {
+        let on = self.hold > 0;
+        self.hold -= u64::from(on);
+        on
+    }
+
+    /// Before an event is reported: whether a gain has moved by more than the tolerance
+    /// ([`KinematicCheck::moved`]: a sensor's gain change on its way); if so, the hold starts.
+    pub(crate) fn vetoes(&mut self) -> bool {
+        let moved = self.checks.iter().any(|c| c.moved(self.tol));
+        if moved {
+            self.hold = self.n_flush;
+        }
+        moved
+    }
+
+    /// Restarts every corner's filters ([`KinematicCheck::restart`]).
+    pub(crate) fn restart(&mut self) {
+        self.checks.iter_mut().for_each(|c| c.restart());
+    }
+
+    /// Forgets the references (a new warm-up forms them again).
+    pub(crate) fn clear_reference(&mut self) {
+        self.checks.iter_mut().for_each(|c| c.clear_reference());
+    }
+
+    /// Whether a restored guard is valid and has the settings of `fresh` (built from the
+    /// same configuration).
+    #[cfg(feature = "serde")]
+    pub(crate) fn is_valid(&self, fresh: &Self) -> bool {
+        self.checks.iter().all(|c| c.is_valid())
+            && self.tol == fresh.tol
+            && self.n_flush == fresh.n_flush
+            && self.hold <= self.n_flush
     }
 }
 

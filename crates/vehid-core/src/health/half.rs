@@ -1,12 +1,11 @@
 //! [`HalfHealthMonitor`]: the quarter car's monitor for the half car (module documentation
 //! of [`crate::health`], section "The half car", for the derivation).
 
-use super::consistency::KinematicCheck;
+use super::consistency::SensorGuard;
 use super::event::{Event, Reason, Status};
 use super::kinematic::{DeflectionFilter, RateGain};
 use super::monitor::{
-    cusum_step, samples_of, screen, stuck_step, HealthConfig, Phase, CHECK_EVERY, JUMP_GATE, MAX_DELAY, OFFSET_RELEASE,
-    OFFSET_WALK, SENSOR_TOLERANCE,
+    cusum_step, screen, stuck_step, HealthConfig, Phase, JUMP_GATE, MAX_DELAY, OFFSET_RELEASE, OFFSET_WALK,
 };
 use super::pattern::{fit_kron, Fit};
 use super::rls::Rls;
@@ -137,9 +136,7 @@ pub struct HalfHealthMonitor<T: Real> {
     g: [[T; 2]; 5],
     zero_k: [[u64; 2]; 5],
     onset: u64,
-    check: [KinematicCheck<T>; 2],
-    n_flush: u64,
-    fault_left: u64,
+    sensors: SensorGuard<T, 2>,
     belief: [T; 12],
     events: u64,
 }
@@ -197,9 +194,7 @@ impl<T: Real> HalfHealthMonitor<T> {
             g: [[T::zero(); 2]; 5],
             zero_k: [[0; 2]; 5],
             onset: 0,
-            check: [KinematicCheck::new(cfg.dt, lambda); 2],
-            n_flush: samples_of(cfg.window, cfg.dt),
-            fault_left: 0,
+            sensors: cfg.sensor_guard(lambda),
             belief: cfg.car.constants(),
             events: 0,
             cfg,
@@ -231,7 +226,7 @@ impl<T: Real> HalfHealthMonitor<T> {
         {
             return Err(corrupt);
         }
-        if !self.check.iter().all(|c| c.is_valid()) || self.n_flush != fresh.n_flush || self.fault_left > self.n_flush {
+        if !self.sensors.is_valid(&fresh.sensors) {
             return Err(corrupt);
         }
         self.n_decide = fresh.n_decide;
@@ -394,13 +389,7 @@ impl<T: Real> HalfHealthMonitor<T> {
             self.interrupt(Reason::Jump);
             return Ok(None);
         };
-        let warm = self.phase == Phase::Warmup;
-        self.check[0].update(y[4], y[0] - y[2], warm);
-        self.check[1].update(y[5], y[1] - y[3], warm);
-        let tol = self.cfg.min_change * T::of(SENSOR_TOLERANCE);
-        if !warm && k % CHECK_EVERY == 0 && (self.check[0].disagrees(tol) || self.check[1].disagrees(tol)) {
-            self.fault_left = self.n_flush;
-        }
+        self.sensors.observe(k, [(y[4], y[0] - y[2]), (y[5], y[1] - y[3])], self.phase == Phase::Warmup);
         if self.reacq_left > 0 {
             self.reacq_left -= 1;
             self.reason = Some(Reason::Reacquiring);
@@ -429,8 +418,7 @@ impl<T: Real> HalfHealthMonitor<T> {
         self.len = 0;
         self.kf[0].reset();
         self.kf[1].reset();
-        self.check[0].restart();
-        self.check[1].restart();
+        self.sensors.restart();
         let q = T::of(OFFSET_RELEASE);
         self.reference.release(4, q);
         self.fast.release(4, q);
@@ -445,9 +433,8 @@ impl<T: Real> HalfHealthMonitor<T> {
         let phi = SVector::<T, 5>::new(-df, -vf, -dr, -vr, T::one());
         let y = SVector::<T, 2>::new(af, ar);
         self.fast.release(4, T::of(OFFSET_WALK));
-        if self.fault_left > 0 && self.phase != Phase::Warmup {
+        if self.phase != Phase::Warmup && self.sensors.holds() {
             // The sensors disagree (as in the quarter car's monitor): track, judge nothing.
-            self.fault_left -= 1;
             self.fast.update_all(&phi, &y);
             self.phase = Phase::Monitoring;
             self.g = [[T::zero(); 2]; 5];
@@ -621,11 +608,9 @@ impl<T: Real> HalfHealthMonitor<T> {
     fn finish(&mut self) -> Option<Event<T, HalfConstant>> {
         // A change that arrived with a moved sensor gain is the sensor's: the gain's tracker
         // lags the ratios' by a few seconds, so it is looked at again before reporting.
-        let tol = self.cfg.min_change * T::of(SENSOR_TOLERANCE);
-        if self.check.iter().any(|c| c.moved(tol)) {
+        if self.sensors.vetoes() {
             self.g = [[T::zero(); 2]; 5];
             self.phase = Phase::Monitoring;
-            self.fault_left = self.n_flush;
             self.reason = Some(Reason::Sensors);
             return None;
         }
@@ -673,7 +658,7 @@ impl<T: Real> HalfHealthMonitor<T> {
         self.phase = Phase::Monitoring;
         if !self.try_reference(self.sigma, th, &p) {
             self.phase = Phase::Warmup;
-            self.check.iter_mut().for_each(|c| c.clear_reference());
+            self.sensors.clear_reference();
             self.warm_n = 0;
             self.e2_sum = [[T::zero(); 2]; 2];
             self.e2_n = 0;

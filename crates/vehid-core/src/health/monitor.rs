@@ -1,7 +1,7 @@
 //! [`HealthMonitor`]: tracking of `k2/M`, `b/M` and change detection (module documentation
 //! of [`crate::health`] for the design).
 
-use super::consistency::KinematicCheck;
+use super::consistency::SensorGuard;
 use super::event::{Constant, Estimate, Event, Reason, Status};
 use super::kinematic::{DeflectionFilter, RateGain};
 use super::rls::Rls3;
@@ -21,10 +21,6 @@ pub const JUMP_GATE: f64 = 8.0;
 /// judges through, as a fraction of `min_change` (a deflection gain error `ε` moves both
 /// ratios by about `−ε`; at `0.4 δ` it stays below the CUSUM's allowance `δ/2`).
 pub const SENSOR_TOLERANCE: f64 = 0.4;
-
-/// Samples between two looks at the sensors' kinematic check (its gain moves over seconds;
-/// looking every sample would cost as much as the rest of the update).
-pub(crate) const CHECK_EVERY: u64 = 10;
 
 /// What a restart adds to the unscaled variance of the body equation's offset `c`
 /// ([`crate::health::Rls::release`]): as much as the trackers start with.
@@ -185,6 +181,13 @@ impl<T: Real, C> HealthConfig<T, C> {
         Ok((kf, z))
     }
 
+    /// The sensors' kinematic checks of `K` corners (`consistency.rs`) for a tracker with
+    /// forgetting `lambda`: tolerance [`SENSOR_TOLERANCE`]` · min_change`, a hold of one window.
+    pub(crate) fn sensor_guard<const K: usize>(&self, lambda: T) -> SensorGuard<T, K> {
+        let tol = self.min_change * T::of(SENSOR_TOLERANCE);
+        SensorGuard::new(self.dt, lambda, tol, samples_of(self.window, self.dt))
+    }
+
     /// The state sensors' kinematic filter gain with the measured deflection rate
     /// ([`RateGain`]; the rate is formed from measured velocities as the deflection from
     /// measured positions, and the state set has one noise level on every state, so its noise
@@ -217,7 +220,7 @@ impl<T: Real> HealthConfig<T> {
 }
 
 /// Samples of a duration (at least 1).
-pub(crate) fn samples_of<T: Real>(seconds: T, dt: T) -> u64 {
+fn samples_of<T: Real>(seconds: T, dt: T) -> u64 {
     let n = libm::ceil(seconds.to_f64() / dt.to_f64());
     if n >= 1.0 {
         n as u64
@@ -311,9 +314,7 @@ pub struct HealthMonitor<T: Real> {
     onset: u64,
     belief: [T; 3],
     events: u64,
-    check: KinematicCheck<T>,
-    n_flush: u64,
-    fault_left: u64,
+    sensors: SensorGuard<T, 1>,
 }
 
 impl<T: Real> HealthMonitor<T> {
@@ -369,9 +370,7 @@ impl<T: Real> HealthMonitor<T> {
             onset: 0,
             belief: [cfg.car.m_body(), cfg.car.k2(), cfg.car.b()],
             events: 0,
-            check: KinematicCheck::new(cfg.dt, lambda),
-            n_flush: samples_of(cfg.window, cfg.dt),
-            fault_left: 0,
+            sensors: cfg.sensor_guard(lambda),
             cfg,
         })
     }
@@ -397,7 +396,7 @@ impl<T: Real> HealthMonitor<T> {
         if !stats.iter().all(|&v| finite(v)) || !self.belief.iter().all(|&v| finite(v) && v > T::zero()) {
             return Err(corrupt);
         }
-        if !self.check.is_valid() || self.n_flush != fresh.n_flush || self.fault_left > self.n_flush {
+        if !self.sensors.is_valid(&fresh.sensors) {
             return Err(corrupt);
         }
         self.rate = fresh.rate;
@@ -516,11 +515,7 @@ impl<T: Real> HealthMonitor<T> {
             self.interrupt(Reason::Jump);
             return Ok(None);
         };
-        self.check.update(y[2], y[0] - y[1], self.phase == Phase::Warmup);
-        let tol = self.cfg.min_change * T::of(SENSOR_TOLERANCE);
-        if self.phase != Phase::Warmup && k % CHECK_EVERY == 0 && self.check.disagrees(tol) {
-            self.fault_left = self.n_flush;
-        }
+        self.sensors.observe(k, [(y[2], y[0] - y[1])], self.phase == Phase::Warmup);
         if self.reacq_left > 0 {
             self.reacq_left -= 1;
             self.reason = Some(Reason::Reacquiring);
@@ -550,7 +545,7 @@ impl<T: Real> HealthMonitor<T> {
     fn interrupt(&mut self, reason: Reason) {
         self.len = 0;
         self.kf.reset();
-        self.check.restart();
+        self.sensors.restart();
         let q = T::of(OFFSET_RELEASE);
         self.reference.release(2, q);
         self.fast.release(2, q);
@@ -562,10 +557,9 @@ impl<T: Real> HealthMonitor<T> {
     /// Uses one regression row `a_body = −(k2/M) d − (b/M) ḋ + c` of sample `kr`.
     fn feed(&mut self, kr: u64, d: T, v: T, a: T) -> Option<Event<T>> {
         let phi = SVector::<T, 3>::new(-d, -v, T::one());
-        if self.fault_left > 0 && self.phase != Phase::Warmup {
+        if self.phase != Phase::Warmup && self.sensors.holds() {
             // The sensors disagree: track (so that the faulty samples age out of the
             // tracker) but judge nothing, and drop an alarm being settled.
-            self.fault_left -= 1;
             self.fast.update(&phi, a);
             self.phase = Phase::Monitoring;
             self.g = [[T::zero(); 2]; 2];
@@ -686,11 +680,9 @@ impl<T: Real> HealthMonitor<T> {
     fn finish(&mut self) -> Option<Event<T>> {
         // A change that arrived with a moved sensor gain is the sensor's: the gain's tracker
         // lags the ratios' by a few seconds, so it is looked at again before reporting.
-        let tol = self.cfg.min_change * T::of(SENSOR_TOLERANCE);
-        if self.check.moved(tol) {
+        if self.sensors.vetoes() {
             self.g = [[T::zero(); 2]; 2];
             self.phase = Phase::Monitoring;
-            self.fault_left = self.n_flush;
             self.reason = Some(Reason::Sensors);
             return None;
         }
@@ -766,7 +758,7 @@ impl<T: Real> HealthMonitor<T> {
         if !self.try_reference(s2, [th[0], th[1]], var) {
             // Too uncertain to be a reference: learn it again.
             self.phase = Phase::Warmup;
-            self.check.clear_reference();
+            self.sensors.clear_reference();
             self.warm_n = 0;
             self.e2_sum = T::zero();
             self.e2_n = 0;
