@@ -290,30 +290,30 @@ mod impls {
     checked!("row set", [const N: usize] RowSet<N>, ser: [], de: []);
 
     checked!("linear model", [T: Real, const N: usize, const M: usize] LinearModel<T, N, M>,
-        ser: [T: Serialize], de: [T: Deserialize<'de>]);
+        ser: [T: Serialize], de: [T: crate::Real]);
 
     checked!("KalmanRows", [T: Real, const N: usize, S: Store<T, N>] KalmanRows<T, N, S>,
         ser: [T: Serialize, S::Group: Serialize],
-        de: [T: Deserialize<'de>, S::Group: Deserialize<'de>]);
+        de: [T: crate::Real, S::Group: Deserialize<'de>]);
 
     checked!("KalmanShared", [T: Real, const N: usize, S: Store<T, N>] KalmanShared<T, N, S>,
-        ser: [T: Serialize], de: [T: Deserialize<'de>]);
+        ser: [T: Serialize], de: [T: crate::Real]);
 
     checked!("KalmanFull", [T: Real, const N: usize, S: Store<T, N>] KalmanFull<T, N, S>,
-        ser: [T: Serialize], de: [T: Deserialize<'de>]);
+        ser: [T: Serialize], de: [T: crate::Real]);
 
     checked!("StochasticGradient", [T: Real, const N: usize, S: Store<T, N>] GradientCore<T, N, S>,
-        ser: [T: Serialize], de: [T: Deserialize<'de>]);
+        ser: [T: Serialize], de: [T: crate::Real]);
 
     checked!("LsAccumulator", [T: Real, const N: usize, S: Store<T, N>] LsAccumulator<T, N, S>,
-        ser: [T: Serialize], de: [T: Deserialize<'de>]);
+        ser: [T: Serialize], de: [T: crate::Real]);
 
     #[cfg(feature = "std")]
     checked!("BatchLeastSquares", [T: Real, const N: usize] crate::identify::BatchLeastSquares<T, N>,
-        ser: [T: Serialize], de: [T: Deserialize<'de>]);
+        ser: [T: Serialize], de: [T: crate::Real]);
 
     checked!("Structure", [T: Real] crate::structure::Structure<T>,
-        ser: [T: Serialize], de: [T: Deserialize<'de>]);
+        ser: [T: Serialize], de: [T: crate::Real]);
 
     // `Structured` keeps its filters in lanes while its fast path is live: what is written is
     // the identifier with its filters up to date (`settled`), so the format is the same.
@@ -332,8 +332,6 @@ mod impls {
 
     impl<'de, T: Real, const P: usize, F: crate::identify::Flat<crate::identify::RowIdentifier<T, P>>> Deserialize<'de>
         for crate::identify::Structured<T, P, F>
-    where
-        T: Deserialize<'de>,
     {
         fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
             let mut v = Self::deserialize(d)?;
@@ -343,57 +341,57 @@ mod impls {
     }
 
     checked!("StructuredGradient", [T: Real, const P: usize] crate::identify::StructuredGradient<T, P>,
-        ser: [T: Serialize], de: [T: Deserialize<'de>]);
+        ser: [T: Serialize], de: [T: crate::Real]);
 
     checked!("IvFilter", [T: Real, const P: usize] crate::identify::IvFilter<T, P>,
-        ser: [T: Serialize], de: [T: Deserialize<'de>]);
+        ser: [T: Serialize], de: [T: crate::Real]);
 
     checked!("IV predictor", [T: Real, const Q: usize] crate::identify::iv_predictor::Predictor<T, Q>,
-        ser: [T: Serialize], de: [T: Deserialize<'de>]);
+        ser: [T: Serialize], de: [T: crate::Real]);
 
     checked!("InstrumentalVariables",
         [T: Real, const P: usize, F: crate::identify::Flat<crate::identify::IvFilter<T, P>>, const Q: usize]
         crate::identify::InstrumentalVariables<T, P, F, Q>,
-        ser: [T: Serialize], de: [T: Deserialize<'de>]);
+        ser: [T: Serialize], de: [T: crate::Real]);
 
     checked!("ModelInstruments",
         [T: Real, const P: usize, F: crate::identify::Flat<crate::identify::IvFilter<T, P>>]
         crate::identify::ModelInstruments<T, P, F>,
-        ser: [T: Serialize], de: [T: Deserialize<'de>]);
+        ser: [T: Serialize], de: [T: crate::Real]);
 
     checked!("BiasCompensated",
         [T: Real, const P: usize, F: crate::identify::Flat<crate::identify::BcGroup<T, P>>]
         crate::identify::BiasCompensated<T, P, F>,
-        ser: [T: Serialize], de: [T: Deserialize<'de>]);
+        ser: [T: Serialize], de: [T: crate::Real]);
 
     checked!("NoiseEstimatingBcls",
         [T: Real, const P: usize, F: crate::identify::Flat<crate::identify::BcGroup<T, P>>,
          FI: crate::identify::Flat<crate::identify::IvFilter<T, P>>, const Q: usize]
         crate::identify::NoiseEstimatingBcls<T, P, F, FI, Q>,
-        ser: [T: Serialize], de: [T: Deserialize<'de>]);
+        ser: [T: Serialize], de: [T: crate::Real]);
 
     checked!("HealthMonitor", [T: Real] crate::health::HealthMonitor<T>,
-        ser: [T: Serialize], de: [T: Deserialize<'de>]);
+        ser: [T: Serialize], de: [T: crate::Real]);
 
     checked!("HalfHealthMonitor", [T: Real] crate::health::HalfHealthMonitor<T>,
-        ser: [T: Serialize], de: [T: Deserialize<'de>]);
+        ser: [T: Serialize], de: [T: crate::Real]);
 
     checked!("TwoAxle",
         [T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<T, N>>] TwoAxle<T, N, P, S, B>,
         ser: [T: Serialize, S::Group: Serialize],
-        de: [T: Deserialize<'de>, S::Group: Deserialize<'de>]);
+        de: [T: crate::Real, S::Group: Deserialize<'de>]);
 
     checked!("JointEkf", [T: Real, const N: usize, const DIM: usize] crate::identify::JointEkf<T, N, DIM>,
-        ser: [T: Serialize], de: [T: Deserialize<'de>]);
+        ser: [T: Serialize], de: [T: crate::Real]);
 
     checked!("Differenced", [T: Real, I: crate::identify::Identifier<T>] crate::identify::Differenced<T, I>,
-        ser: [T: Serialize, I: Serialize], de: [T: Deserialize<'de>, I: Deserialize<'de>]);
+        ser: [T: Serialize, I: Serialize], de: [T: crate::Real, I: Deserialize<'de>]);
 
     checked!("TwoAxleStructured",
         [T: Real, const P: usize, F: crate::identify::Flat<crate::identify::RowIdentifier<T, P>>,
          B: RingStore<crate::identify::FrontRegression<T, P>>]
         crate::identify::TwoAxleStructured<T, P, F, B>,
-        ser: [T: Serialize], de: [T: Deserialize<'de>]);
+        ser: [T: Serialize], de: [T: crate::Real]);
 }
 
 #[cfg(test)]

@@ -5,7 +5,7 @@ use nalgebra::RealField;
 /// A thin extension of [`nalgebra::RealField`] with exact conversions from and to `f64`, so
 /// that constants and seeded noise (always drawn in `f64`) are the same numbers in both
 /// precisions.
-pub trait Real: RealField + Copy + Default + core::fmt::Debug + Send + Sync + 'static {
+pub trait Real: RealField + Copy + Default + core::fmt::Debug + Send + Sync + Stored + 'static {
     /// Converts an `f64` constant (rounding to nearest for `f32`).
     fn of(x: f64) -> Self;
     /// Converts to `f64` (exact for both implementations).
@@ -47,3 +47,17 @@ impl Real for f32 {
         self as f64
     }
 }
+
+/// What a scalar needs for the serialized states (feature `serde`): serde both ways, so that
+/// every type generic over [`Real`] serializes and every identifier is `Persist` without a
+/// bound of its own; nothing without the feature. Implemented for every type that qualifies.
+#[cfg(feature = "serde")]
+pub trait Stored: serde::Serialize + serde::de::DeserializeOwned {}
+#[cfg(feature = "serde")]
+impl<X: serde::Serialize + serde::de::DeserializeOwned> Stored for X {}
+
+/// What a scalar needs for the serialized states (nothing without the `serde` feature).
+#[cfg(not(feature = "serde"))]
+pub trait Stored {}
+#[cfg(not(feature = "serde"))]
+impl<X> Stored for X {}

@@ -289,7 +289,7 @@ pub(crate) const CHECK_EVERY: u64 = 10;
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
-    serde(bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+    serde(bound(serialize = "T: serde::Serialize", deserialize = "T: crate::Real"))
 )]
 pub(crate) struct SensorGuard<T: Real, const C: usize> {
     #[cfg_attr(feature = "serde", serde(with = "crate::persist::array"))]

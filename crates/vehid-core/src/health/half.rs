@@ -82,7 +82,7 @@ pub struct HalfEstimate<T> {
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
-    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: crate::Real"))
 )]
 pub struct HalfHealthMonitor<T: Real> {
     cfg: HealthConfig<T, HalfCar<T>>,

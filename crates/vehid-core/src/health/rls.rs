@@ -29,7 +29,7 @@ use nalgebra::{SMatrix, SVector};
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
-    serde(bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+    serde(bound(serialize = "T: serde::Serialize", deserialize = "T: crate::Real"))
 )]
 pub struct Rls<T: Real, const N: usize, const O: usize = 1> {
     theta: SMatrix<T, N, O>,

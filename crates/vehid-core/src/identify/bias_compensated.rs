@@ -52,7 +52,7 @@ pub(crate) const ETA: usize = 2 * MAX_STATES;
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
-    serde(bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+    serde(bound(serialize = "T: serde::Serialize", deserialize = "T: crate::Real"))
 )]
 pub struct BcGroup<T: Real, const P: usize> {
     /// `Σ h hᵀ`, `Σ h y` (rows weighted by `√(r_g/r_i)`).
@@ -75,7 +75,7 @@ pub struct BcGroup<T: Real, const P: usize> {
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
-    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: crate::Real"))
 )]
 pub struct BiasCompensated<T: Real, const P: usize, F: Flat<BcGroup<T, P>>> {
     structure: Structure<T>,
@@ -444,6 +444,8 @@ impl<T: Real, const P: usize, F: Flat<BcGroup<T, P>>> BiasCompensated<T, P, F> {
 
 /// Local parameters a group can have (the structure's capacity).
 pub(crate) const MAX_PARAMS_LOCAL: usize = crate::structure::MAX_PARAMS;
+
+super::persist_by_serde!([T: Real, const P: usize, F: Flat<BcGroup<T, P>>] BiasCompensated<T, P, F>);
 
 impl<T: Real, const P: usize, F: Flat<BcGroup<T, P>>> Identifier<T> for BiasCompensated<T, P, F> {
     fn dims(&self) -> Dims {

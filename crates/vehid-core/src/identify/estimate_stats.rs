@@ -115,7 +115,7 @@ pub fn estimate_stats<T: Real, I: Identifier<T> + ?Sized>(id: &I, alpha: f64) ->
             }
         })
         .collect();
-    let bse: Vec<f64> = (0..np).map(|j| cov[j * np + j].max(0.0).sqrt()).collect();
+    let bse: Vec<f64> = (0..np).map(|j| libm::sqrt(cov[j * np + j].max(0.0))).collect();
     let params: Vec<f64> = theta.iter().map(|v| v.to_f64()).collect();
     let mut conf_int = Vec::with_capacity(np);
     let mut dfp = Vec::with_capacity(np);
@@ -146,7 +146,7 @@ pub fn posterior_stats<T: Real, I: Identifier<T> + ?Sized>(id: &I, alpha: f64) -
     let (np, ne) = (d.params, d.equations);
     let params: Vec<f64> = theta.iter().map(|v| v.to_f64()).collect();
     let cov: Vec<f64> = p.iter().map(|v| v.to_f64()).collect();
-    let bse: Vec<f64> = (0..np).map(|j| cov[j * np + j].max(0.0).sqrt()).collect();
+    let bse: Vec<f64> = (0..np).map(|j| libm::sqrt(cov[j * np + j].max(0.0))).collect();
     let q = crate::stats::t_ppf(1.0 - alpha / 2.0, f64::INFINITY)?;
     let conf_int = params.iter().zip(&bse).map(|(&v, &s)| (v - q * s, v + q * s)).collect();
     Ok(EstimateStats {

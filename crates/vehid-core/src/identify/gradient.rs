@@ -125,7 +125,7 @@ impl<T: Real> Gain<T> {
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
-    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: crate::Real"))
 )]
 pub struct GradientCore<T: Real, const N: usize, S: Store<T, N>> {
     #[cfg_attr(feature = "serde", serde(with = "crate::persist::flat"))]
@@ -362,6 +362,8 @@ impl<T: Real, const N: usize, const K: usize> GradientCore<T, N, Fixed<K>> {
         fixed_theta(self)
     }
 }
+
+super::persist_by_serde!([T: Real, const N: usize, S: Store<T, N>] GradientCore<T, N, S>);
 
 impl<T: Real, const N: usize, S: Store<T, N>> Identifier<T> for GradientCore<T, N, S> {
     fn dims(&self) -> Dims {

@@ -95,7 +95,7 @@ pub const RING_VALUES: usize = 512;
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
-    serde(bound(serialize = "T: serde::Serialize", deserialize = "T: crate::Real + serde::Deserialize<'de>"))
+    serde(bound(serialize = "T: serde::Serialize", deserialize = "T: crate::Real"))
 )]
 pub(crate) struct Ring<T> {
     #[cfg_attr(feature = "serde", serde(with = "crate::persist::array"))]
@@ -181,7 +181,7 @@ impl<T: Real> Ring<T> {
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
-    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: crate::Real"))
 )]
 pub struct InstrumentalVariables<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize = 0> {
     structure: Structure<T>,
@@ -744,6 +744,8 @@ fn prior_blocks<T: Real, const P: usize>(
     }
     Ok(Some(out))
 }
+
+super::persist_by_serde!([T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize] InstrumentalVariables<T, P, F, Q>);
 
 impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> Identifier<T>
     for InstrumentalVariables<T, P, F, Q>

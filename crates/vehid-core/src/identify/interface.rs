@@ -540,7 +540,7 @@ pub struct FitOptions {
 /// The boxed, run-time-chosen form of [`Identifier`] (requires `alloc`): what the Python
 /// bindings hold. Implemented for every identifier that is `Clone + Send + Sync`.
 #[cfg(feature = "alloc")]
-pub trait DynIdentifier<T: Real>: Identifier<T> + Send + Sync + core::fmt::Debug {
+pub trait DynIdentifier<T: Real>: Identifier<T> + super::Persist + Send + Sync + core::fmt::Debug {
     /// [`Identifier::fit`] with the parameters appended to `history` every
     /// `opts.record_every` samples (the space is reserved up front, fallibly) and
     /// `interrupt()` asked every `opts.check_every` samples whether to stop (it returns
@@ -569,7 +569,7 @@ pub trait DynIdentifier<T: Real>: Identifier<T> + Send + Sync + core::fmt::Debug
 impl<T, I> DynIdentifier<T> for I
 where
     T: Real,
-    I: Identifier<T> + Clone + Send + Sync + core::fmt::Debug + 'static,
+    I: Identifier<T> + super::Persist + Clone + Send + Sync + core::fmt::Debug + 'static,
 {
     fn fit_dyn(
         &mut self,

@@ -44,7 +44,7 @@ pub(crate) const SINGULAR: Error = Error::Singular {
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
-    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: crate::Real"))
 )]
 pub struct IvFilter<T: Real, const P: usize> {
     /// `θ̂`; during the exact start `Σ ζ y`.

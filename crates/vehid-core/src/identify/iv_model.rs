@@ -69,7 +69,7 @@ const SQUARINGS: usize = 40;
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
-    serde(bound(serialize = "T: serde::Serialize", deserialize = "T: crate::Real + serde::Deserialize<'de>"))
+    serde(bound(serialize = "T: serde::Serialize", deserialize = "T: crate::Real"))
 )]
 pub(crate) struct AuxModel<T> {
     /// `p̂_a` (the structure's parameter order).
@@ -101,7 +101,7 @@ pub(crate) struct AuxModel<T> {
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
-    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: crate::Real"))
 )]
 pub struct ModelInstruments<T: Real, const P: usize, F: Flat<IvFilter<T, P>>> {
     iv: InstrumentalVariables<T, P, F, 0>,
@@ -385,6 +385,8 @@ impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>> ModelInstruments<T, P, F>
         Ok(())
     }
 }
+
+super::persist_by_serde!([T: Real, const P: usize, F: Flat<IvFilter<T, P>>] ModelInstruments<T, P, F>);
 
 impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>> Identifier<T> for ModelInstruments<T, P, F> {
     fn dims(&self) -> Dims {

@@ -66,7 +66,7 @@ fn axpy<T: Real>(alpha: T, x: &[T], y: &mut [T]) {
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
-    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: crate::Real"))
 )]
 pub struct Predictor<T: Real, const Q: usize> {
     /// `(Σ q qᵀ)⁻¹`; during the exact start `Σ q qᵀ`.

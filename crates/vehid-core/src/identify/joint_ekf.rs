@@ -102,7 +102,7 @@ pub const MAX_EKF_SUBSTEPS: u32 = 1000;
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
-    serde(bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+    serde(bound(serialize = "T: serde::Serialize", deserialize = "T: crate::Real"))
 )]
 pub struct EkfNoise<T: Real, const N: usize> {
     /// `Σ_w` (diagonal): variance of the measured state's noise, per state, state units²
@@ -198,7 +198,7 @@ impl<T: Real, const N: usize> EkfNoise<T, N> {
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
-    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: crate::Real"))
 )]
 pub struct JointEkf<T: Real, const N: usize, const D: usize> {
     structure: Structure<T>,
@@ -598,6 +598,8 @@ fn evaluation_order<T: Real>(s: &Structure<T>) -> Result<[u8; MAX_EQUATIONS]> {
     }
     Ok(order)
 }
+
+super::persist_by_serde!([T: Real, const N: usize, const D: usize] JointEkf<T, N, D>);
 
 impl<T: Real, const N: usize, const D: usize> Identifier<T> for JointEkf<T, N, D> {
     fn dims(&self) -> Dims {

@@ -21,7 +21,7 @@ use nalgebra::{SMatrix, SVector};
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
-    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: crate::Real"))
 )]
 pub struct LsAccumulator<T: Real, const N: usize, S: Store<T, N> = Fixed<1>> {
     #[cfg_attr(feature = "serde", serde(with = "crate::persist::flat"))]
@@ -175,7 +175,7 @@ impl<T: Real, const N: usize, const K: usize> LsAccumulator<T, N, Fixed<K>> {
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
-    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: crate::Real"))
 )]
 pub struct BatchLeastSquares<T: Real, const N: usize> {
     rows: std::vec::Vec<usize>,
@@ -382,6 +382,8 @@ impl<T: Real, const N: usize> BatchLeastSquares<T, N> {
     }
 }
 
+super::persist_by_serde!([T: Real, const N: usize, S: Store<T, N>] LsAccumulator<T, N, S>);
+
 impl<T: Real, const N: usize, S: Store<T, N>> Identifier<T> for LsAccumulator<T, N, S> {
     fn dims(&self) -> Dims {
         let k = self.rows.flat().len();
@@ -410,6 +412,9 @@ impl<T: Real, const N: usize, S: Store<T, N>> Identifier<T> for LsAccumulator<T,
         self.samples
     }
 }
+
+#[cfg(feature = "std")]
+super::persist_by_serde!([T: Real, const N: usize] BatchLeastSquares<T, N>);
 
 #[cfg(feature = "std")]
 impl<T: Real, const N: usize> Identifier<T> for BatchLeastSquares<T, N> {

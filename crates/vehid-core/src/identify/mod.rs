@@ -52,6 +52,7 @@ mod joint_ekf;
 mod kalman;
 mod least_squares;
 mod noise_estimating;
+pub(crate) mod persist;
 mod road;
 #[cfg(feature = "alloc")]
 mod state_filter;
@@ -96,6 +97,8 @@ pub use least_squares::LsAccumulator;
 #[cfg(feature = "alloc")]
 pub use noise_estimating::NoiseEstimatingBclsVec;
 pub use noise_estimating::{NoiseEstimatingBcls, NoiseEstimatingBclsLs};
+pub(crate) use persist::persist_by_serde;
+pub use persist::Persist;
 #[cfg(feature = "alloc")]
 pub use road::BoxedIdentifier;
 pub use road::{

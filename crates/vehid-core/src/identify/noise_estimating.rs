@@ -134,7 +134,7 @@ const MAX_SWEEPS: usize = 500;
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
-    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: crate::Real"))
 )]
 pub struct NoiseEstimatingBcls<
     T: Real,
@@ -397,6 +397,8 @@ fn nnls<T: Real>(
     }
     (x, MAX_SWEEPS)
 }
+
+super::persist_by_serde!([T: Real, const P: usize, F: Flat<BcGroup<T, P>>, FI: Flat<IvFilter<T, P>>, const Q: usize] NoiseEstimatingBcls<T, P, F, FI, Q>);
 
 impl<T: Real, const P: usize, F: Flat<BcGroup<T, P>>, FI: Flat<IvFilter<T, P>>, const Q: usize> Identifier<T>
     for NoiseEstimatingBcls<T, P, F, FI, Q>

@@ -214,7 +214,7 @@ pub enum Travel<T> {
         remote = "Self",
         bound(
             serialize = "T: serde::Serialize, I: serde::Serialize",
-            deserialize = "T: serde::Deserialize<'de>, I: serde::Deserialize<'de>"
+            deserialize = "T: crate::Real, I: serde::Deserialize<'de>"
         )
     )
 )]
@@ -259,7 +259,7 @@ impl<T: Real> Gap<T> {
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
-    serde(bound(serialize = "T: serde::Serialize", deserialize = "T: Real + serde::Deserialize<'de>"))
+    serde(bound(serialize = "T: serde::Serialize", deserialize = "T: Real"))
 )]
 pub struct RoadState<T: Real> {
     road: RoadModel<T>,
@@ -438,6 +438,32 @@ impl<T: Real, I: Identifier<T>> Differenced<T, I> {
 
     fn odometer(&self) -> bool {
         matches!(self.state.travel, Travel::Odometer { .. })
+    }
+}
+
+/// The wrapper's [`RoadState`] and the inner identifier's own saved state, together; loaded
+/// only into a wrapper with the same road model, travel, least spacing and contact check.
+#[cfg(not(feature = "persist"))]
+impl<T: Real, I> super::Persist for Differenced<T, I> {}
+
+#[cfg(feature = "persist")]
+impl<T: Real, I: Identifier<T> + super::Persist + Clone> super::Persist for Differenced<T, I> {
+    fn save_state(&self) -> Result<alloc::vec::Vec<u8>> {
+        super::persist::save(&(&self.state, self.inner.save_state()?))
+    }
+
+    fn load_state(&mut self, bytes: &[u8]) -> Result<()> {
+        use super::persist::NOT_ITS_STATE;
+        let (state, inner): (RoadState<T>, alloc::vec::Vec<u8>) =
+            postcard::from_bytes(bytes).map_err(|_| NOT_ITS_STATE)?;
+        let (a, b) = (&self.state, &state);
+        if (a.road, a.travel, a.min_spacing, a.contact) != (b.road, b.travel, b.min_spacing, b.contact) {
+            return Err(NOT_ITS_STATE);
+        }
+        let mut next = Self::with_state(self.inner.clone(), state).map_err(|_| NOT_ITS_STATE)?;
+        next.inner.load_state(&inner)?;
+        *self = next;
+        Ok(())
     }
 }
 
@@ -664,6 +690,19 @@ pub struct BoxedIdentifier<T: Real>(pub alloc::boxed::Box<dyn super::DynIdentifi
 impl<T: Real> Clone for BoxedIdentifier<T> {
     fn clone(&self) -> Self {
         Self(self.0.clone_box())
+    }
+}
+
+#[cfg(feature = "alloc")]
+impl<T: Real> super::Persist for BoxedIdentifier<T> {
+    #[cfg(feature = "persist")]
+    fn save_state(&self) -> Result<alloc::vec::Vec<u8>> {
+        self.0.save_state()
+    }
+
+    #[cfg(feature = "persist")]
+    fn load_state(&mut self, bytes: &[u8]) -> Result<()> {
+        self.0.load_state(bytes)
     }
 }
 

@@ -414,7 +414,7 @@ impl StateFilterFit {
         let ssr = (total.yy - 2.0 * theta.dot(&c) + (theta.transpose() * &a * &theta)[(0, 0)]).max(0.0);
         let df = gf - 1.0;
         let q = crate::stats::t_ppf(1.0 - alpha / 2.0, df)?;
-        let bse: Vec<f64> = (0..np).map(|i| cov[(i, i)].max(0.0).sqrt()).collect();
+        let bse: Vec<f64> = (0..np).map(|i| libm::sqrt(cov[(i, i)].max(0.0))).collect();
         Ok(EstimateStats {
             params: theta.iter().copied().collect(),
             cov: (0..np * np).map(|i| cov[(i / np, i % np)]).collect(),

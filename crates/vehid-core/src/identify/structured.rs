@@ -56,7 +56,7 @@ pub enum StructuredPrior<'a, T> {
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
-    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: crate::Real"))
 )]
 pub struct Structured<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> {
     structure: Structure<T>,
@@ -395,6 +395,8 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Structured<T, P, F> 
         restore_groups(self.filters.flat_mut(), self.backup.flat(), touched);
     }
 }
+
+super::persist_by_serde!([T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>] Structured<T, P, F>);
 
 impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Identifier<T> for Structured<T, P, F> {
     fn dims(&self) -> Dims {

@@ -19,7 +19,7 @@ use crate::{Error, Real, Result};
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
-    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: crate::Real"))
 )]
 pub struct StructuredGradient<T: Real, const P: usize> {
     structure: Structure<T>,
@@ -117,6 +117,8 @@ impl<T: Real, const P: usize> StructuredGradient<T, P> {
         self.k
     }
 }
+
+super::persist_by_serde!([T: Real, const P: usize] StructuredGradient<T, P>);
 
 impl<T: Real, const P: usize> Identifier<T> for StructuredGradient<T, P> {
     fn dims(&self) -> Dims {

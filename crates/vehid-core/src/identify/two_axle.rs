@@ -89,7 +89,11 @@ impl<T: Real> TwoAxleConfig<T> {
 /// One remembered sample of the ring: its grid index, measured state `r(k)`, front-row
 /// derivative `z2(k)` and front-row innovation `e1(k)`.
 #[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(bound(deserialize = "T: crate::Real"))
+)]
 pub struct Past<T: Real, const N: usize> {
     /// Grid (road-point) index.
     pub grid: u64,
@@ -115,7 +119,7 @@ pub struct Past<T: Real, const N: usize> {
         remote = "Self",
         bound(
             serialize = "T: serde::Serialize, S::Group: serde::Serialize",
-            deserialize = "T: serde::Deserialize<'de>, S::Group: serde::Deserialize<'de>"
+            deserialize = "T: crate::Real, S::Group: serde::Deserialize<'de>"
         )
     )
 )]
@@ -578,6 +582,8 @@ impl<T: Real, const N: usize, const P: usize, const KB: usize, const C: usize>
         self.update_at(r, z, None, &mut e[..k])
     }
 }
+
+super::persist_by_serde!([T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<T, N>>] TwoAxle<T, N, P, S, B>);
 
 impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<T, N>>> Identifier<T>
     for TwoAxle<T, N, P, S, B>

@@ -110,7 +110,11 @@ impl<T: Real> TwoAxleStructuredConfig<T> {
 /// One remembered front-wheel regression of the ring: its grid index, `y_front(k)` and
 /// `h_front(k)` (in the wheel group's local parameter order, unweighted).
 #[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(bound(deserialize = "T: crate::Real"))
+)]
 pub struct FrontRegression<T: Real, const P: usize> {
     /// Grid (road-point) index.
     pub grid: u64,
@@ -129,7 +133,7 @@ pub struct FrontRegression<T: Real, const P: usize> {
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
-    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: crate::Real"))
 )]
 pub struct TwoAxleStructured<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>, B: RingStore<FrontRegression<T, P>>>
 {
@@ -614,6 +618,8 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>, B: RingStore<FrontRe
         self.filters.flat_mut()[g].update(h, y)
     }
 }
+
+super::persist_by_serde!([T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>, B: RingStore<FrontRegression<T, P>>] TwoAxleStructured<T, P, F, B>);
 
 impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>, B: RingStore<FrontRegression<T, P>>> Identifier<T>
     for TwoAxleStructured<T, P, F, B>

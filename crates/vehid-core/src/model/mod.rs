@@ -128,7 +128,7 @@ impl<const N: usize> RowSet<N> {
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
-    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: crate::Real"))
 )]
 pub struct LinearModel<T: Real, const N: usize, const M: usize> {
     a: SMatrix<T, N, N>,

@@ -111,10 +111,7 @@ struct Eq {
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
-    serde(
-        remote = "Self",
-        bound(serialize = "T: serde::Serialize", deserialize = "T: crate::Real + serde::Deserialize<'de>")
-    )
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: crate::Real"))
 )]
 pub struct Structure<T> {
     states: u8,

@@ -136,6 +136,9 @@ impl JobIdentifier for PhysicalRows {
     }
 }
 
+/// Not saved: the reproduction runs each identifier once.
+impl vehid_core::identify::Persist for PhysicalRows {}
+
 impl Identifier<f64> for PhysicalRows {
     fn dims(&self) -> Dims {
         Dims { states: 4, inputs: 0, equations: 2, params: 8 }

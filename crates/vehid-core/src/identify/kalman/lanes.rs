@@ -194,7 +194,7 @@ pub struct SqrtScratch<T: Real, const N: usize, const L: usize> {
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
-    serde(bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+    serde(bound(serialize = "T: serde::Serialize", deserialize = "T: crate::Real"))
 )]
 pub struct RowLanes<T: Real, const N: usize, const L: usize> {
     /// `theta[a][k]`: coefficient `a` of lane `k`.

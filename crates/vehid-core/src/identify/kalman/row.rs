@@ -42,7 +42,11 @@ use nalgebra::{SMatrix, SVector};
 /// `U` above the diagonal and `D` on it (square-root form), or the triangular factor `R`
 /// with `θ` holding `Qᵀz` (exact start, before the data identify every direction).
 #[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(bound(deserialize = "T: crate::Real"))
+)]
 pub struct RowIdentifier<T: Real, const N: usize> {
     pub(super) theta: SVector<T, N>,
     pub(super) m: SMatrix<T, N, N>,

@@ -23,7 +23,7 @@ use nalgebra::{SMatrix, SVector};
         remote = "Self",
         bound(
             serialize = "T: serde::Serialize, S::Group: serde::Serialize",
-            deserialize = "T: serde::Deserialize<'de>, S::Group: serde::Deserialize<'de>"
+            deserialize = "T: crate::Real, S::Group: serde::Deserialize<'de>"
         )
     )
 )]
@@ -561,6 +561,8 @@ impl<T: Real, const N: usize, const K: usize> KalmanRows<T, N, Fixed<K>> {
         fixed_theta(self)
     }
 }
+
+crate::identify::persist_by_serde!([T: Real, const N: usize, S: Store<T, N>] KalmanRows<T, N, S>);
 
 impl<T: Real, const N: usize, S: Store<T, N>> Identifier<T> for KalmanRows<T, N, S> {
     fn dims(&self) -> Dims {

@@ -19,7 +19,7 @@ use nalgebra::{SMatrix, SVector};
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
-    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: serde::Deserialize<'de>"))
+    serde(remote = "Self", bound(serialize = "T: serde::Serialize", deserialize = "T: crate::Real"))
 )]
 pub struct KalmanShared<T: Real, const N: usize, S: Store<T, N>> {
     #[cfg_attr(feature = "serde", serde(with = "crate::persist::flat"))]
@@ -524,6 +524,8 @@ impl<T: Real, const N: usize, const K: usize> KalmanShared<T, N, Fixed<K>> {
         fixed_theta(self)
     }
 }
+
+crate::identify::persist_by_serde!([T: Real, const N: usize, S: Store<T, N>] KalmanShared<T, N, S>);
 
 impl<T: Real, const N: usize, S: Store<T, N>> Identifier<T> for KalmanShared<T, N, S> {
     fn dims(&self) -> Dims {
