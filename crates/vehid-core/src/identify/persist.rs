@@ -135,6 +135,8 @@ mod tests {
         Box::new(IvIdentifierVec::<f64, 4>::new(s, 3, StructuredPrior::Exact, None, &[1e-4]).unwrap())
     }
 
+    type Build = fn() -> Box<dyn DynIdentifier<f64>>;
+
     /// What the identifier reports, as bits.
     fn state_bits(id: &dyn DynIdentifier<f64>) -> (Vec<u64>, u64) {
         let mut th = vec![0.0; id.dims().params];
@@ -154,7 +156,7 @@ mod tests {
     #[test]
     fn a_boxed_identifier_saves_and_loads_without_its_type() {
         let data = samples(600, 11);
-        let builds: [(&str, fn() -> Box<dyn DynIdentifier<f64>>); 5] = [
+        let builds: [(&str, Build); 5] = [
             ("rows, two lanes", || kalman(&[1, 3], Mode::Rows, true)),
             ("rows, four lanes", || kalman(&[0, 1, 2, 3], Mode::Rows, true)),
             ("shared", || kalman(&[1, 3], Mode::Shared, false)),
