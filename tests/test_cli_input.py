@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import vehid
-from vehid import cli
+from vehid import cli, clitools
 from vehid.io import STATES
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -199,7 +199,7 @@ def test_time_must_increase(plain: Path, tmp_path: Path, capsys: pytest.CaptureF
     expected = (f"vehid: error: {path}, line 703: time {t700!r} s is before {t701!r} s on line 702: the time column "
                 "'t' (time, s) must increase strictly (sort the file by time)")
     assert error_line(capsys, ["identify", str(path), "--model", "quarter"]) == expected
-    monkeypatch.setattr(cli, "CHUNK", 701)  # the two lines in different chunks
+    monkeypatch.setattr(clitools, "CHUNK", 701)  # the two lines in different chunks
     assert error_line(capsys, ["identify", str(path), "--model", "quarter"]) == expected
     dup = data[:]
     dup[1200] = dup[1199]
