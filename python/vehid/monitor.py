@@ -36,7 +36,7 @@ from ._vehid import Event, HalfCar, HealthMonitor, QuarterCar, Simulator, VehidE
 from .align import nominal_interval
 from .clitools import CliError, run_chunks, stdout, write_output
 from .io import Column, Table, TableError, column_factor, match_columns, open_table, parse_column_map
-from .reproduce import _load_pyplot
+from .reproduce import load_pyplot
 
 #: Samples read per chunk.
 CHUNK = 100_000
@@ -599,7 +599,7 @@ def summary(feeder: Feeder, source: str, samples: int, out: IO[str]) -> None:
 def _pyplot() -> Any:
     """matplotlib's pyplot on the Agg backend (as ``vehid reproduce`` loads it), or the error
     naming the plot extra."""
-    plt = _load_pyplot()
+    plt = load_pyplot()
     if plt is None:
         raise CliError("--plot needs matplotlib: pip install 'vehid[plot]'")
     return plt
