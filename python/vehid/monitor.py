@@ -34,6 +34,7 @@ from numpy.typing import NDArray
 from . import fieldlog
 from ._vehid import Event, HalfCar, HealthMonitor, QuarterCar, Simulator, VehidError
 from .align import nominal_interval
+from .channels import HALF_SENSOR_COLUMNS, SENSOR_COLUMNS
 from .clitools import CliError, run_chunks, stdout, write_output
 from .io import Column, Table, TableError, column_factor, match_columns, open_table, parse_column_map
 from .reproduce import load_pyplot
@@ -46,42 +47,6 @@ PROGRESS_ABOVE = 200_000
 RECORD = 0.5
 #: Most missing samples one gap of the time column may stand for (about 58 days at 200 Hz).
 MAX_GAP_SAMPLES = 1_000_000_000
-
-#: The channels of each sensor set, with an alias and the unit.
-SENSOR_COLUMNS: Dict[str, Tuple[Column, ...]] = {
-    "realistic": (
-        Column("a_body", "body_acc", "m/s^2"),
-        Column("a_wheel", "wheel_acc", "m/s^2"),
-        Column("deflection", "susp_defl", "m"),
-    ),
-    "state": tuple(
-        Column(name, None, unit)
-        for name, unit in zip(
-            ("zw", "vw", "zb", "vb", "dzw", "dvw", "dzb", "dvb"),
-            ("m", "m/s", "m", "m/s", "m/s", "m/s^2", "m/s", "m/s^2"),
-        )
-    ),
-}
-
-#: The half car's channels (``--model half``).
-HALF_SENSOR_COLUMNS: Dict[str, Tuple[Column, ...]] = {
-    "realistic": (
-        Column("a_body_f", None, "m/s^2"),
-        Column("a_body_r", None, "m/s^2"),
-        Column("a_wheel_f", None, "m/s^2"),
-        Column("a_wheel_r", None, "m/s^2"),
-        Column("deflection_f", None, "m"),
-        Column("deflection_r", None, "m"),
-    ),
-    "state": tuple(
-        Column(name, None, unit)
-        for name, unit in zip(
-            ("z1", "v1", "z2", "v2", "zb", "vb", "ph", "om", "dz1", "dv1", "dz2", "dv2", "dzb", "dvb", "dph", "dom"),
-            ("m", "m/s", "m", "m/s", "m", "m/s", "rad", "rad/s", "m/s", "m/s^2", "m/s", "m/s^2", "m/s", "m/s^2",
-             "rad/s", "rad/s^2"),
-        )
-    ),
-}
 
 #: What each named constant is, and its unit, for the printed lines.
 PARAMETERS = {"b": ("damper", "N s/m"), "k2": ("spring", "N/m"), "M": ("body mass", "kg"),
