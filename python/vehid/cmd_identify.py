@@ -33,6 +33,7 @@ from ._vehid import (
     LinearModel,
     QuarterCar,
     StochasticGradient,
+    Structure,
     TwoAxleIdentifier,
     VehidError,
     ljung_box,
@@ -288,41 +289,117 @@ class TimeCheck:
                 "median_interval": _finite_or_none(self.intervals.median()), "gaps": self.gaps}
 
 
+@dataclass
+class RowFit:
+    """One unknown row of :class:`TruthFit`: its state's index, the entries of A and the
+    inputs its parameters stand for (``a<j>``, ``b<j>``), the fit with those inputs and,
+    while they have been zero in every sample, the fit without them."""
+
+    row: int
+    entries: List[int]
+    inputs: List[int]
+    full: BatchLeastSquares
+    free: Optional[BatchLeastSquares]
+
+    def chosen(self) -> Tuple[BatchLeastSquares, int]:
+        """The fit that gives the row, and its number of parameters."""
+        if self.free is None:
+            return self.full, len(self.entries) + len(self.inputs)
+        return self.free, len(self.entries)
+
+
 class TruthFit:
     """The true unknown rows of A from a run's noise-free columns, which obey
-    ``true_dx = A true_x + B u`` exactly: least squares by a QR factor updated chunk by chunk
-    (bounded memory). :meth:`solve` returns ``None`` and why, when the columns do not
-    determine the rows or do not follow a linear model exactly."""
+    ``true_dx = A true_x + B u`` exactly, fitted by the core's least squares.
 
-    def __init__(self, n: int, m: int) -> None:
-        self.n, self.m = n, m
-        self.r: Optional[NDArray[np.float64]] = None
+    Each unknown row is one equation of a :class:`vehid.Structure` (a parameter per entry of
+    the row that the model does not hold at zero, and one per input that enters the row, its
+    value free) identified by :class:`vehid.BatchLeastSquares` (recursive, nothing stored):
+    chunk by chunk, in bounded memory. Where the row's inputs have been zero in every sample
+    (a run without road input), the row is fitted without them: they then say nothing of B
+    and change nothing in A. :meth:`solve` returns ``None`` and why, when the columns do not
+    determine the rows (the core's rank check) or do not follow a linear model exactly (the
+    residual variance of the fit, ``stats().sigma2``, against the columns' own size).
+
+    >>> from vehid import Simulator
+    >>> car = QuarterCar()
+    >>> run = Simulator(car, seed=1).run(200)
+    >>> fit = TruthFit(car)
+    >>> fit.add(run.x, run.u, run.xdot[:, list(car.unknown_rows)])
+    >>> rows, why = fit.solve()
+    >>> bool(np.allclose(rows, car.theta, rtol=1e-12, atol=0)), why
+    (True, '')
+    """
+
+    #: The largest residual, relative to the size of the true derivative, of an exact truth.
+    TOLERANCE = 1e-8
+
+    def __init__(self, model: LinearModel) -> None:
+        n, m = model.n_states, model.n_inputs
+        self.shape = (len(model.unknown_rows), n)
         self.samples = 0
+        #: Why the core refused a chunk, if it did (then there is no truth).
+        self.refused: Optional[str] = None
+        #: Per unknown row, the sum of squares of its true derivative.
+        self.sum_squares = np.zeros(len(model.unknown_rows))
+        states = [f"x{j + 1}" for j in range(n)]
+        inputs = [f"u{j + 1}" for j in range(m)]
+        self.rows: List[RowFit] = []
+        for i, row in enumerate(model.unknown_rows):
+            entries = [j for j in range(n) if not model.structural_zeros[i, j]]
+            driving = [j for j in range(m) if model.b[row, j] != 0.0]
+            terms = [f"a{j + 1} * {states[j]}" for j in entries]
+            forced = [f"b{j + 1} * {inputs[j]}" for j in driving]
+            full = BatchLeastSquares(Structure(states, inputs, {states[row]: " + ".join(terms + forced)}))
+            free = BatchLeastSquares(Structure(states, inputs, {states[row]: " + ".join(terms)})) if driving else None
+            self.rows.append(RowFit(row, entries, driving, full, free))
 
     def add(self, x: NDArray[np.float64], u: NDArray[np.float64], dx: NDArray[np.float64]) -> None:
-        block = np.column_stack([x, u, dx])
-        stacked = block if self.r is None else np.vstack([self.r, block])
-        self.r = cast(NDArray[np.float64], np.linalg.qr(stacked, mode="r"))
+        """The true states ``x``, inputs ``u`` and unknown rows' true derivatives ``dx`` of a
+        chunk of samples."""
+        if self.refused is not None:
+            return
+        x, u = np.ascontiguousarray(x), np.ascontiguousarray(u)
+        for i, fit in enumerate(self.rows):
+            z = np.zeros_like(x)  # the derivatives of the other states are not read
+            z[:, fit.row] = dx[:, i]
+            if fit.free is not None and np.any(u[:, fit.inputs] != 0.0):
+                fit.free = None
+            try:
+                fit.full.fit(x, z, u=u)
+                if fit.free is not None:
+                    fit.free.fit(x, z, u=u)
+            except VehidError as e:  # e.g. samples too large for the exact start: no truth, no failure
+                self.refused = str(e)
+                return
+        self.sum_squares += np.einsum("ij,ij->j", dx, dx)
         self.samples += len(x)
 
     def solve(self) -> Tuple[Optional[NDArray[np.float64]], str]:
-        p = self.n + self.m
-        if self.r is None or self.samples < p:
+        """The true rows (k, n), or ``None`` and why not."""
+        if self.refused is not None:
+            return None, f"the core's least squares refused them ({self.refused})"
+        if any(self.samples < fit.chosen()[1] for fit in self.rows):
             return None, "too few samples to fit the true rows"
-        r = np.zeros((max(self.r.shape[0], self.r.shape[1]), self.r.shape[1]))
-        r[: self.r.shape[0]] = self.r
-        r11, r12, r22 = r[:p, :p], r[:p, p:], r[p:, p:]
-        _, s, vt = np.linalg.svd(r11)
-        null = vt[s <= s[0] * 1e-10] if s[0] > 0 else vt
-        if len(null) and np.abs(null[:, : self.n]).max() > 1e-6:
-            return None, "the true states do not excite every direction"
-        sol = np.linalg.lstsq(r11, r12, rcond=None)[0]
-        residual = np.linalg.norm(r22, axis=0)
-        scale = np.linalg.norm(r[:, p:], axis=0)
-        rel = float(np.max(residual / np.where(scale > 0, scale, 1.0)))
-        if rel > 1e-8:
-            return None, f"they do not follow dx = A x + B u exactly (relative residual {rel:.2g})"
-        return np.ascontiguousarray(sol[: self.n].T), ""
+        theta = np.zeros(self.shape)
+        relative = 0.0
+        for i, fit in enumerate(self.rows):
+            ident, size = fit.chosen()
+            structure = ident.structure
+            assert structure is not None  # built on one
+            try:
+                values = ident.params
+                stats = ident.stats() if self.samples > size else None  # none: no residual to measure
+            except VehidError:  # the core's rank check: the samples do not determine the row
+                return None, "the true states do not excite every direction"
+            params = dict(zip(structure.parameters, values.tolist()))
+            theta[i, fit.entries] = [params[f"a{j + 1}"] for j in fit.entries]
+            squares = 0.0 if stats is None else float(stats.sigma2[0]) * (self.samples - size)
+            scale = float(self.sum_squares[i])
+            relative = max(relative, math.sqrt(squares / (scale if scale > 0 else 1.0)))
+        if relative > self.TOLERANCE:
+            return None, f"they do not follow dx = A x + B u exactly (relative residual {relative:.2g})"
+        return theta, ""
 
 
 @dataclass
@@ -817,7 +894,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
         time = None
         if layout.t is not None:
             time = TimeCheck(table, layout.used["t"], layout.labels[layout.t], sys.stderr)
-        fit = TruthFit(n, model.n_inputs) if layout.true_x else None
+        fit = TruthFit(model) if layout.true_x else None
         progress = Progress(sys.stderr, source, table.size)
         recent: Tuple[NDArray[np.float64], NDArray[np.float64]] = (np.empty((0, n)), np.empty((0, n)))
         scales = np.asarray(layout.scales) if any(f != 1.0 for f in layout.scales) else None
@@ -893,10 +970,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
         true_theta, why = fit.solve()
         if true_theta is None:
             print(f"vehid: note: {source}: no xi from the true_* columns: {why}; pass --truth for one", file=sys.stderr)
-        else:
-            # Entries the model holds at zero by its structure (left out of xi): exactly 0,
-            # not the round-off of the fit, which xi would divide by.
-            true_theta = np.where(model.structural_zeros, 0.0, true_theta)
+        else:  # entries the model holds at zero by its structure (left out of xi) are exactly 0
             try:
                 constants: Optional[Dict[str, float]] = model.physical(true_theta, **known)
             except VehidError:
