@@ -59,16 +59,29 @@ from .clitools import (
 )
 from .cmd_demo import cmd_demo
 from .cmd_identify import (
+    DIAG_ALPHA,
+    DIAG_LAGS,
+    DIAG_SAMPLES,
     GAP_FACTOR,
     GAP_WARNINGS,
+    LIFT_WARN,
+    PRIOR_WEIGHT,
+    ROADS,
+    THESIS_P0,
+    UNITS,
+    WHITE_ROAD_METHODS,
     Identifier,
     Intervals,
     Layout,
     Progress,
     TimeCheck,
     Truth,
+    TruthFit,
     check_road_args,
     cmd_identify,
+    cmd_identify_file,
+    coloured,
+    column_label,
     columns_help,
     feed,
     feed_batch_least_squares,
@@ -84,20 +97,25 @@ from .cmd_identify import (
     residual_checks,
     residual_warning,
     resolve_layout,
+    road_options,
+    road_spacing,
     state_space,
 )
 from .cmd_reproduce import cmd_reproduce
-from .cmd_simulate import cmd_simulate, csv_header, write_csv_rows
+from .cmd_simulate import cmd_simulate, cmd_simulate_file, csv_header, write_csv_rows
 from .fleet import cli as fleet_cli
 from .io import TableError
 
+#: What vehid.cli held before each command had its own module: still importable from here.
 __all__ = [
-    "CHUNK", "GAP_FACTOR", "GAP_WARNINGS", "MODELS", "MODEL_NAMES", "PROGRESS_ABOVE", "CliError", "Identifier",
-    "Intervals", "Layout", "Parser", "Progress", "TimeCheck", "Truth", "build_parser", "check_road_args",
-    "cmd_demo", "cmd_identify", "cmd_reproduce", "cmd_simulate", "columns_help", "count", "csv_header", "delimiter",
-    "feed", "feed_batch_least_squares", "kalman_p0", "known_masses", "main", "make_identifier", "method_options",
-    "model_arg", "model_columns", "modes", "parse_floats", "parse_p0", "parse_truth", "physical_identifier",
-    "positive_float", "prior_note", "quantity", "residual_checks", "residual_warning", "resolve_layout",
+    "CHUNK", "CliError", "DIAG_ALPHA", "DIAG_LAGS", "DIAG_SAMPLES", "GAP_FACTOR", "GAP_WARNINGS", "Identifier",
+    "Intervals", "LIFT_WARN", "Layout", "MODELS", "MODEL_NAMES", "PRIOR_WEIGHT", "PROGRESS_ABOVE", "Parser",
+    "Progress", "ROADS", "THESIS_P0", "TimeCheck", "Truth", "TruthFit", "UNITS", "WHITE_ROAD_METHODS", "build_parser",
+    "check_road_args", "cmd_demo", "cmd_identify", "cmd_identify_file", "cmd_reproduce", "cmd_simulate",
+    "cmd_simulate_file", "coloured", "column_label", "columns_help", "count", "csv_header", "delimiter", "feed",
+    "feed_batch_least_squares", "kalman_p0", "known_masses", "main", "make_identifier", "method_options", "model_arg",
+    "model_columns", "modes", "parse_floats", "parse_p0", "parse_truth", "physical_identifier", "positive_float",
+    "prior_note", "quantity", "residual_checks", "residual_warning", "resolve_layout", "road_options", "road_spacing",
     "run_chunks", "state_space", "stdout", "write_csv_rows", "write_output",
 ]
 
