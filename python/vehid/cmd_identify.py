@@ -770,13 +770,15 @@ def known_masses(args: argparse.Namespace, truth: Optional[Truth] = None,
 def modes(a: NDArray[np.float64]) -> List[Dict[str, float]]:
     """The modes of ``x' = A x``: per oscillating pair (eigenvalue with Im > 0) and per real
     eigenvalue, the natural frequency (Hz, ``|lambda| / 2 pi``) and the damping ratio
-    (``-Re lambda / |lambda|``), by frequency.
+    (``-Re lambda / |lambda|``), by frequency. The eigenvalues are the core's
+    (:meth:`vehid.LinearModel.poles` of a model with this ``A``).
 
     >>> [(round(m["frequency_hz"], 3), round(m["damping_ratio"], 3)) for m in modes(np.array([[0, 1], [-4.0, -0.4]]))]
     [(0.318, 0.1)]
     """
+    a = np.asarray(a, dtype=np.float64)
     out = []
-    for lam in np.linalg.eigvals(np.asarray(a, dtype=np.float64)):
+    for lam in LinearModel(a, np.zeros((len(a), 1)), list(range(len(a)))).poles().tolist():
         if lam.imag < -1e-12 * max(1.0, abs(lam)):
             continue
         mag = float(abs(lam))
