@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import vehid
-from vehid import cli
+from vehid import cli, clitools
 
 
 def test_simulate_writes_the_documented_columns(tmp_path: Path) -> None:
@@ -33,8 +33,8 @@ def test_simulate_writes_the_documented_columns(tmp_path: Path) -> None:
 
 
 def test_simulate_to_stdout_in_chunks(capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(cli, "CHUNK", 7)
-    monkeypatch.setattr(cli, "PROGRESS_ABOVE", 10)
+    monkeypatch.setattr(clitools, "CHUNK", 7)
+    monkeypatch.setattr(clitools, "PROGRESS_ABOVE", 10)
     assert cli.main(["simulate", "--model", "quarter", "--n", "20", "-o", "-"]) == 0
     captured = capsys.readouterr()
     lines = captured.out.splitlines()

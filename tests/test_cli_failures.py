@@ -20,7 +20,7 @@ import pytest
 
 import vehid
 import vehid.io as vio
-from vehid import cli
+from vehid import cli, clitools, cmd_demo, cmd_identify
 
 VEHID = [sys.executable, "-m", "vehid"]
 HAS_DEV_FULL = Path("/dev/full").exists()
@@ -83,7 +83,7 @@ def test_a_partial_file_is_removed(tmp_path: Path, capsys: pytest.CaptureFixture
         def close(self) -> None:
             self.f.close()
 
-    monkeypatch.setattr(cli, "_open_output", Full)
+    monkeypatch.setattr(clitools, "_open_output", Full)
     out = tmp_path / "run.csv"
     assert error_line(capsys, ["simulate", "--model", "quarter", "--n", "50", "-o", str(out)]) == (
         f"vehid: error: -o {out}: cannot write (No space left on device); removed the partial file")
@@ -124,7 +124,7 @@ def test_a_bug_is_still_one_line(capsys: pytest.CaptureFixture[str], monkeypatch
     def broken(args: Any) -> int:
         raise TypeError("boom")
 
-    monkeypatch.setattr(cli, "cmd_demo", broken)
+    monkeypatch.setattr(cmd_demo, "cmd_demo", broken)
     assert error_line(capsys, ["demo"]) == "vehid: internal error: TypeError: boom (a bug in vehid: please report it)"
 
 
@@ -284,14 +284,14 @@ def test_argument_errors_in_a_process_are_one_line() -> None:
 def test_batch_least_squares_is_fed_in_chunks(run_csv: Path, capsys: pytest.CaptureFixture[str],
                                               monkeypatch: pytest.MonkeyPatch) -> None:
     sizes: List[int] = []
-    real: Callable[..., None] = cli.feed_batch_least_squares
+    real: Callable[..., None] = cmd_identify.feed_batch_least_squares
 
     def spy(ls: vehid.BatchLeastSquares, r: Any, z: Any) -> None:
         sizes.append(len(r))
         real(ls, r, z)
 
-    monkeypatch.setattr(cli, "CHUNK", 64)
-    monkeypatch.setattr(cli, "feed_batch_least_squares", spy)
+    monkeypatch.setattr(clitools, "CHUNK", 64)
+    monkeypatch.setattr(cmd_identify, "feed_batch_least_squares", spy)
     assert cli.main(["identify", str(run_csv), "--model", "quarter", "--method", "ls", "--json"]) == 0
     report = json.loads(capsys.readouterr().out)
     assert sizes == [64] * 4 + [44]  # never the whole file at once

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import vehid
-from vehid import cli
+from vehid import cli, clitools
 
 
 def simulate(path: Path, model: str = "quarter", n: int = 3000, seed: int = 2) -> Path:
@@ -84,7 +84,7 @@ def test_text_report(quarter_csv: Path, capsys: pytest.CaptureFixture[str]) -> N
 def test_kalman_equals_the_library_in_any_chunking(
     quarter_csv: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, chunk: int
 ) -> None:
-    monkeypatch.setattr(cli, "CHUNK", chunk)
+    monkeypatch.setattr(clitools, "CHUNK", chunk)
     car = vehid.QuarterCar()
     report = identify_json(capsys, str(quarter_csv), "--model", "quarter", "--p0", "500", "--road-sigma", "0.2")
     run = run_of(car, 3000, 2)
@@ -214,8 +214,8 @@ def test_columns_in_any_order_and_crlf(quarter_csv: Path, tmp_path: Path, capsys
 def test_progress_on_long_inputs(
     quarter_csv: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(cli, "CHUNK", 1000)
-    monkeypatch.setattr(cli, "PROGRESS_ABOVE", 2000)
+    monkeypatch.setattr(clitools, "CHUNK", 1000)
+    monkeypatch.setattr(clitools, "PROGRESS_ABOVE", 2000)
     assert cli.main(["identify", str(quarter_csv), "--model", "quarter"]) == 0
     err = capsys.readouterr().err.splitlines()
     assert err[-1] == f"vehid: identified 3000 samples (100% of {quarter_csv})", err
@@ -223,7 +223,7 @@ def test_progress_on_long_inputs(
     monkeypatch.setattr(sys, "stdin", io.StringIO(quarter_csv.read_text()))
     assert cli.main(["identify", "-", "--model", "quarter"]) == 0
     assert capsys.readouterr().err.splitlines() == ["vehid: identified 3000 samples"]
-    monkeypatch.setattr(cli, "PROGRESS_ABOVE", 5000)
+    monkeypatch.setattr(clitools, "PROGRESS_ABOVE", 5000)
     assert cli.main(["identify", str(quarter_csv), "--model", "quarter"]) == 0
     assert capsys.readouterr().err == ""
 

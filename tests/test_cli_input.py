@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import vehid
-from vehid import cli
+from vehid import cli, clitools, cmd_identify
 from vehid.io import STATES
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -199,7 +199,7 @@ def test_time_must_increase(plain: Path, tmp_path: Path, capsys: pytest.CaptureF
     expected = (f"vehid: error: {path}, line 703: time {t700!r} s is before {t701!r} s on line 702: the time column "
                 "'t' (time, s) must increase strictly (sort the file by time)")
     assert error_line(capsys, ["identify", str(path), "--model", "quarter"]) == expected
-    monkeypatch.setattr(cli, "CHUNK", 701)  # the two lines in different chunks
+    monkeypatch.setattr(clitools, "CHUNK", 701)  # the two lines in different chunks
     assert error_line(capsys, ["identify", str(path), "--model", "quarter"]) == expected
     dup = data[:]
     dup[1200] = dup[1199]
@@ -351,6 +351,54 @@ def test_incomplete_or_inexact_truth_columns_give_no_xi(
     assert re.fullmatch(rf"vehid: note: {re.escape(str(noisy))}: no xi from the true_\* columns: they do not follow "
                         r"dx = A x \+ B u exactly \(relative residual \S+\); pass --truth for one\n", captured.err)
     assert json.loads(captured.out)["xi"] is None
+
+
+@pytest.mark.parametrize("model", [vehid.QuarterCar(), vehid.HalfCar(), vehid.HalfCar.passenger()])
+def test_true_rows_are_the_core_s_least_squares(model: vehid.LinearModel) -> None:
+    """The true rows behind ξ come from the core's least squares (one Structure per row, fed in
+    chunks): the model's rows to rounding, structural zeros exactly 0; and with no road input
+    (u = 0: the inputs say nothing of B) from the states alone."""
+    rows = list(model.unknown_rows)
+    for sim in (vehid.Simulator(model, seed=4, deriv_noise=0.01), vehid.Simulator(model, road_sigma=0.0, ic_sigma=0.1)):
+        run = sim.run(5000)
+        fit = cmd_identify.TruthFit(model)
+        for a in range(0, 5000, 1300):
+            fit.add(run.x[a:a + 1300], run.u[a:a + 1300], run.xdot[a:a + 1300, rows])
+        theta, why = fit.solve()
+        assert why == "" and theta is not None
+        np.testing.assert_allclose(theta, model.theta, rtol=1e-10, atol=1e-10 * np.abs(model.theta).max())
+        assert (theta[model.structural_zeros] == 0.0).all()
+
+
+def test_true_rows_that_do_not_determine_a() -> None:
+    """What the core's rank check, the sample count and the residual say, in the words of the
+    note: too few samples, states that do not excite every direction (a state a multiple of
+    another; the input a combination of the states, which would pass A + B c for A), truth
+    columns that are not exact."""
+    car = vehid.QuarterCar()
+    run = vehid.Simulator(car, seed=3).run(3000)
+    x, u, dx = run.x, run.u, run.xdot[:, list(car.unknown_rows)]
+
+    def solve(x: Any, u: Any, dx: Any) -> str:
+        fit = cmd_identify.TruthFit(car)
+        fit.add(x, u, dx)
+        theta, why = fit.solve()
+        assert (theta is None) == (why != "")
+        return why
+
+    assert solve(x[:4], u[:4], dx[:4]) == "too few samples to fit the true rows"
+    assert solve(x * 0.0, u * 0.0, dx * 0.0) == "the true states do not excite every direction"
+    tied = x.copy()
+    tied[:, 2] = 2.0 * x[:, 0]
+    assert solve(tied, u, dx) == "the true states do not excite every direction"
+    combination = x[:, [0]] - 0.5 * x[:, [3]]
+    forced = dx.copy()
+    forced[:, 0] = x @ car.theta[0] + car.b[1, 0] * combination[:, 0]
+    assert solve(x, combination, forced) == "the true states do not excite every direction"
+    noisy = dx + np.random.default_rng(0).normal(scale=1e-6, size=dx.shape)
+    why = solve(x, u, noisy)
+    assert re.fullmatch(r"they do not follow dx = A x \+ B u exactly \(relative residual 1\.\de-06\)", why), why
+    assert solve(x, u, dx + np.random.default_rng(0).normal(scale=1e-10, size=dx.shape)) == ""
 
 
 @pytest.mark.parametrize("truth, message", [

@@ -9,12 +9,23 @@ import pytest
 from readme_blocks import README, padded_source, python_blocks  # tests/ is on sys.path under pytest
 
 import vehid
+import vehid.channels
 import vehid.cli
+import vehid.clitools
+import vehid.cmd_demo
+import vehid.cmd_identify
+import vehid.cmd_reproduce
+import vehid.cmd_simulate
 import vehid.io
 import vehid.monitor
 
+#: The modules whose examples run: the package, the command line (its parser and main, what
+#: the commands share, one module per command), the reader, a field log's channels, the monitor.
+MODULES = [vehid, vehid.cli, vehid.clitools, vehid.cmd_simulate, vehid.cmd_identify, vehid.cmd_demo,
+           vehid.cmd_reproduce, vehid.io, vehid.channels, vehid.monitor]
 
-@pytest.mark.parametrize("module", [vehid, vehid.cli, vehid.io, vehid.monitor])
+
+@pytest.mark.parametrize("module", MODULES, ids=lambda m: m.__name__)
 def test_docstring_examples(module: Any) -> None:
     # Every module documents itself by examples, the command line too (its argument parser,
     # the argparse types, the --truth and --p0 readers, main's exit status): none may be

@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 import vehid.io as vio
-from vehid import cli
+from vehid import cli, clitools
 
 N = 2000
 
@@ -166,7 +166,7 @@ def test_a_bad_cell_deep_in_a_long_file_names_its_line(tmp_path: Path, capsys: p
 def test_line_numbers_do_not_depend_on_the_chunk(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, chunk: int
 ) -> None:
-    monkeypatch.setattr(cli, "CHUNK", chunk)
+    monkeypatch.setattr(clitools, "CHUNK", chunk)
     path = tmp_path / "t.csv"
     _synthetic(path, 500, comment_lines=1)
     lines = path.read_text().splitlines(keepends=True)
@@ -243,8 +243,8 @@ def _rss_kib(pid: int) -> int:
 
 @pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="needs /proc")
 def test_identify_on_an_endless_pipe_keeps_its_memory() -> None:
-    code = ("import sys, vehid.cli as c; c.CHUNK = 2000; c.PROGRESS_ABOVE = 0; "
-            "sys.exit(c.main(['identify', '-', '--model', 'quarter']))")
+    code = ("import sys, vehid.cli, vehid.clitools as c; c.CHUNK = 2000; c.PROGRESS_ABOVE = 0; "
+            "sys.exit(vehid.cli.main(['identify', '-', '--model', 'quarter']))")
     child = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, stderr=subprocess.PIPE,
                              stdout=subprocess.DEVNULL)
     assert child.stdin is not None and child.stderr is not None
@@ -320,7 +320,7 @@ def _columns_of(csv: Path) -> Dict[str, Any]:
 def test_parquet_gives_the_csv_theta(
     plain: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(cli, "CHUNK", 500)  # several batches across row groups
+    monkeypatch.setattr(clitools, "CHUNK", 500)  # several batches across row groups
     path = tmp_path / "run.parquet"
     cols = _columns_of(plain)
     _write_parquet(path, {"__index_level_0__": np.arange(N), **cols})  # pandas' index is skipped

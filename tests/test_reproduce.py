@@ -198,7 +198,7 @@ def test_reproduce_header_gives_the_end_to_end_time(tmp_path: Path, capsys: pyte
         draw(*args)  # type: ignore[arg-type]
 
     monkeypatch.setattr(rep, "_plot_figure", slow)
-    monkeypatch.setattr(rep, "_load_pyplot", lambda: pytest.importorskip("matplotlib.pyplot"))
+    monkeypatch.setattr(rep, "load_pyplot", lambda: pytest.importorskip("matplotlib.pyplot"))
     out = tmp_path / "t"
     assert main(["reproduce", "--quick", "--only", ONE_PER_CHAPTER, "--out", str(out), "--seeds", "2",
                  "--max-iterations", "100", "--no-tables"]) == 0

@@ -14,7 +14,7 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from .fieldlog import MAX_JUMP, ChannelMap, ChannelSpec, Log, Series, unit_of
+from .channels import MAX_JUMP, ChannelMap, ChannelSpec, Log, Series, unit_of
 from .io import Column, TableError
 
 __all__ = ["MESSAGE_FIELDS", "first_line", "open_bag", "read_bag", "stamp_ns"]

@@ -28,7 +28,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import align as _align
-from .io import STANDARD_GRAVITY, Column, TableError, match_columns, normalize, open_table, quantity_of, si_factor
+from .channels import ChannelMap, ChannelSpec, Log, Series, unit_of
+from .io import STANDARD_GRAVITY, Column, TableError, match_columns, normalize, open_table, si_factor
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -46,43 +47,8 @@ DEFAULT_DT = 0.005
 CHUNK = 200_000
 #: A deflection delay under this (s) is reported, not removed.
 DELAY_TOLERANCE = 0.25e-3
-#: A clock that jumps back, or forward by more than this (s), is refused.
-MAX_JUMP = 3600.0
 #: Keys a channel's section may hold.
 SPEC_KEYS = ("topic", "column", "field", "joint", "unit", "gravity", "sign", "scale", "delay")
-
-
-@dataclass
-class ChannelSpec:
-    """Where one vehid channel comes from (a section of ``channels.toml``)."""
-
-    channel: str
-    topic: Optional[str] = None
-    column: Optional[str] = None
-    field: Optional[str] = None
-    #: JointState: the joint's name (else ``position[0]`` or ``field = "position[i]"``).
-    joint: Optional[str] = None
-    unit: Optional[str] = None
-    #: Accelerations: ``"included"`` (specific force, REP 145) or ``"removed"``; ``None``: as
-    #: the message type says (Imu: included), else detected from the mean.
-    gravity: Optional[str] = None
-    sign: float = 1.0
-    sign_given: bool = False
-    scale: float = 1.0
-    #: A known delay of this channel against the others, s (then none is estimated).
-    delay: Optional[float] = None
-
-
-@dataclass
-class ChannelMap:
-    """A ``channels.toml``: the channels, the time column (tables) and which stamp (bags)."""
-
-    path: str
-    channels: Dict[str, ChannelSpec]
-    time_column: Optional[str] = None
-    time_unit: Optional[str] = None
-    #: Bags: ``"header"`` (``header.stamp``, default) or ``"log"`` (the time the message was logged).
-    stamp: str = "header"
 
 
 def is_bag(path: str) -> bool:
@@ -197,38 +163,6 @@ def _spec(name: str, section: Mapping[str, Any], where: str) -> ChannelSpec:
     return spec
 
 
-@dataclass
-class Series:
-    """One channel as read: times ``t`` (s; since 1970 where the log has absolute times) and
-    values ``v`` (SI; NaN missing), with where they came from and in which unit."""
-
-    channel: str
-    source: str
-    t: NDArray[np.float64]
-    v: NDArray[np.float64]
-    unit: str
-    unit_from: str
-    #: Table rows (line numbers) of the samples, for messages; ``None`` for bags.
-    lines: Optional[NDArray[np.int64]] = None
-    #: Whether gravity was removed from this channel (accelerations).
-    gravity_removed: bool = False
-    #: What the message type says of gravity (an IMU: ``"included"``, REP 145), if anything.
-    gravity: Optional[str] = None
-
-
-@dataclass
-class Log:
-    """A log's channels: ``series`` in the order asked for; ``absolute``: the times are
-    seconds from ``origin`` (s since 1970; timestamps, bags), else as the log writes them."""
-
-    source: str
-    kind: str
-    series: List[Series]
-    absolute: bool
-    notes: List[str] = field(default_factory=list)
-    origin: float = 0.0
-
-
 def read_log(path: str, channels: Sequence[Column], cmap: Optional[ChannelMap] = None,
              pairs: Optional[Mapping[str, str]] = None, delimiter: Optional[str] = None,
              dt: Optional[float] = None) -> Log:
@@ -333,23 +267,6 @@ def _increasing(t: NDArray[np.float64], rows: NDArray[np.int64], where: Any) -> 
         raise TableError(f"{where(int(rows[i + 1]))}: time {float(t[i + 1])!r} s does not increase after "
                          f"{float(t[i])!r} s: the time column must increase strictly (sort the log, drop duplicated "
                          "samples)")
-
-
-def unit_of(spec: Optional[ChannelSpec], declared: Optional[str], column: Column, where: str) -> Tuple[float, str, str]:
-    """``(factor to SI, unit, where the unit came from)`` of a channel: the map's unit, else the
-    one declared (``declared``), else SI."""
-    quantity = quantity_of(column.unit)
-    if spec is not None and spec.unit:
-        unit, source = spec.unit, "channel map"
-    elif declared:
-        unit, source = declared, "declared"
-    else:
-        return 1.0, column.unit, "none declared: SI taken"
-    if not quantity:
-        if unit.strip() != column.unit:
-            raise TableError(f"{where}: unit {unit!r}: vehid reads this channel only in {column.unit}")
-        return 1.0, unit, source
-    return si_factor(unit, quantity, where), unit, source
 
 
 # --- one grid ---------------------------------------------------------------------------

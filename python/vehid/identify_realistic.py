@@ -24,8 +24,8 @@ from numpy.typing import NDArray
 
 from . import QuarterCar, RealisticIdentifier, VehidError, fieldlog
 from .align import nominal_interval
+from .channels import SENSOR_COLUMNS
 from .io import Column, TableError, column_factor, match_columns, open_table, parse_column_map
-from .monitor import SENSOR_COLUMNS
 
 CHUNK = 65_536
 # A step between samples this many times the sample interval is a gap: the filter restarts.

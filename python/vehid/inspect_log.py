@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 from . import align as _align
 from . import fieldlog
 from .bags import MESSAGE_FIELDS, first_line, open_bag, stamp_ns
+from .channels import SENSOR_COLUMNS
 from .io import STANDARD_GRAVITY, UNITS, TableError, normalize, open_table, parse_column_map, si_factor
 
 __all__ = ["DESCRIPTION", "add_arguments", "cmd_inspect", "guess_channel"]
@@ -98,8 +99,6 @@ def cmd_inspect(args: argparse.Namespace) -> int:
 
 
 def _channels() -> Sequence[Any]:
-    from .monitor import SENSOR_COLUMNS
-
     return SENSOR_COLUMNS["realistic"]
 
 

@@ -31,10 +31,13 @@ from typing import IO, Any, Callable, Dict, List, Literal, Optional, Sequence, T
 import numpy as np
 from numpy.typing import NDArray
 
-from . import Event, HalfCar, HealthMonitor, QuarterCar, fieldlog
+from . import fieldlog
+from ._vehid import Event, HalfCar, HealthMonitor, QuarterCar, Simulator, VehidError
 from .align import nominal_interval
+from .channels import HALF_SENSOR_COLUMNS, SENSOR_COLUMNS
+from .clitools import CliError, run_chunks, stdout, write_output
 from .io import Column, Table, TableError, column_factor, match_columns, open_table, parse_column_map
-from .reproduce import _load_pyplot
+from .reproduce import load_pyplot
 
 #: Samples read per chunk.
 CHUNK = 100_000
@@ -44,42 +47,6 @@ PROGRESS_ABOVE = 200_000
 RECORD = 0.5
 #: Most missing samples one gap of the time column may stand for (about 58 days at 200 Hz).
 MAX_GAP_SAMPLES = 1_000_000_000
-
-#: The channels of each sensor set, with an alias and the unit.
-SENSOR_COLUMNS: Dict[str, Tuple[Column, ...]] = {
-    "realistic": (
-        Column("a_body", "body_acc", "m/s^2"),
-        Column("a_wheel", "wheel_acc", "m/s^2"),
-        Column("deflection", "susp_defl", "m"),
-    ),
-    "state": tuple(
-        Column(name, None, unit)
-        for name, unit in zip(
-            ("zw", "vw", "zb", "vb", "dzw", "dvw", "dzb", "dvb"),
-            ("m", "m/s", "m", "m/s", "m/s", "m/s^2", "m/s", "m/s^2"),
-        )
-    ),
-}
-
-#: The half car's channels (``--model half``).
-HALF_SENSOR_COLUMNS: Dict[str, Tuple[Column, ...]] = {
-    "realistic": (
-        Column("a_body_f", None, "m/s^2"),
-        Column("a_body_r", None, "m/s^2"),
-        Column("a_wheel_f", None, "m/s^2"),
-        Column("a_wheel_r", None, "m/s^2"),
-        Column("deflection_f", None, "m"),
-        Column("deflection_r", None, "m"),
-    ),
-    "state": tuple(
-        Column(name, None, unit)
-        for name, unit in zip(
-            ("z1", "v1", "z2", "v2", "zb", "vb", "ph", "om", "dz1", "dv1", "dz2", "dv2", "dzb", "dvb", "dph", "dom"),
-            ("m", "m/s", "m", "m/s", "m", "m/s", "rad", "rad/s", "m/s", "m/s^2", "m/s", "m/s^2", "m/s", "m/s^2",
-             "rad/s", "rad/s^2"),
-        )
-    ),
-}
 
 #: What each named constant is, and its unit, for the printed lines.
 PARAMETERS = {"b": ("damper", "N s/m"), "k2": ("spring", "N/m"), "M": ("body mass", "kg"),
@@ -99,7 +66,7 @@ def parse_change(text: str) -> Tuple[float, Dict[str, float], float]:
     parts = text.split(":")
     usage = f"--change {text}: expected T:NAME=VALUE[,NAME=VALUE][:RAMP], e.g. 60:b=1350 or 60:b=1350:10"
     if len(parts) not in (2, 3):
-        raise _cli_error(usage)
+        raise CliError(usage)
     try:
         t = float(parts[0])
         ramp = float(parts[2]) if len(parts) == 3 else 0.0
@@ -110,7 +77,7 @@ def parse_change(text: str) -> Tuple[float, Dict[str, float], float]:
                 raise ValueError
             values[name.strip()] = float(value)
     except ValueError:
-        raise _cli_error(usage) from None
+        raise CliError(usage) from None
     return t, values, ramp
 
 
@@ -145,22 +112,19 @@ def cmd_simulate_drive(args: argparse.Namespace) -> int:
     a drive of the quarter or the half car, its sensor channels, distance and true constants as
     CSV."""
     if args.model not in ("quarter", "half"):
-        raise _cli_error(f"--model {args.model}: a drive (--road iso8608-A..E, --sensors, --change) simulates the "
+        raise CliError(f"--model {args.model}: a drive (--road iso8608-A..E, --sensors, --change) simulates the "
                          "quarter car (--model quarter) or the half car (--model half), with --car passenger "
                          "(default), thesis or your constants")
     half = args.model == "half"
     if args.road in ("white", "independent"):
-        raise _cli_error("--sensors and --change apply to a drive on an ISO 8608 road: give --road iso8608-A..E")
+        raise CliError("--sensors and --change apply to a drive on an ISO 8608 road: give --road iso8608-A..E")
     for given, name in ((args.input or args.params or args.x0, "--input/--params/--x0"),
                         (args.method != "rk4", "--method"), (args.ic_sigma != 0.0, "--ic-sigma")):
         if given:
-            raise _cli_error(f"{name} does not apply to a drive (the road's roughness is its class)")
-    from . import Simulator
-    from .cli import _stdout, run_chunks, write_output
-
+            raise CliError(f"{name} does not apply to a drive (the road's roughness is its class)")
     to_stdout = args.output == "-"
     if to_stdout:
-        _stdout()  # closed: said before the work
+        stdout()  # closed: said before the work
     car = drive_car(args.car, half=half)
     sensors: Literal["realistic", "state"] = args.sensors or "realistic"
     kw: Dict[str, Any] = {}
@@ -187,12 +151,6 @@ def cmd_simulate_drive(args: argparse.Namespace) -> int:
     return 0
 
 
-def _cli_error(message: str) -> Exception:
-    from .cli import CliError
-
-    return CliError(message)
-
-
 def nominal_car(model: str, constants: Optional[str]) -> Union[QuarterCar, HalfCar]:
     """The nominal car of ``--model`` with ``--car`` overrides (``"M=320,b=1500"``; the half
     car's constants by their thesis names, ``"b1=1500,k22=21000"``).
@@ -202,9 +160,9 @@ def nominal_car(model: str, constants: Optional[str]) -> Union[QuarterCar, HalfC
     """
     if model not in CARS:
         if model.endswith(".toml"):
-            raise _cli_error(f"--model {model}: the health monitor covers the quarter car (--model quarter or "
+            raise CliError(f"--model {model}: the health monitor covers the quarter car (--model quarter or "
                              "passenger) and the half car (--model half), with --car for your car's constants")
-        raise _cli_error(f"--model {model}: choose quarter (the thesis' car), passenger (a typical passenger car) "
+        raise CliError(f"--model {model}: choose quarter (the thesis' car), passenger (a typical passenger car) "
                          "or half (a typical passenger half car)")
     return with_constants(CARS[model](), constants)
 
@@ -218,12 +176,12 @@ def with_constants(car: Union[QuarterCar, HalfCar], constants: Optional[str]) ->
         name, sep, value = item.partition("=")
         name = name.strip()
         if not sep or name not in params:
-            raise _cli_error(f"--car {constants}: expected NAME=VALUE pairs with NAME in {', '.join(params)} "
+            raise CliError(f"--car {constants}: expected NAME=VALUE pairs with NAME in {', '.join(params)} "
                              f"(e.g. --car M=320,b=1500), got {item.strip()!r}")
         try:
             params[name] = float(value)
         except ValueError:
-            raise _cli_error(f"--car {constants}: {name}={value.strip()!r} is not a number") from None
+            raise CliError(f"--car {constants}: {name}={value.strip()!r} is not a number") from None
     return HalfCar(**params) if isinstance(car, HalfCar) else QuarterCar(**params)
 
 
@@ -333,14 +291,14 @@ def _time_steps(t: NDArray[np.float64], prev: Optional[float], dt: float, table:
         i = int(np.argmin(d >= 0.5 * dt))
         where = table.where(int(ll[i + 1]))
         if d[i] <= 0:
-            raise _cli_error(f"{where}: time {float(tt[i + 1])!r} s does not increase after {float(tt[i])!r} s: "
+            raise CliError(f"{where}: time {float(tt[i + 1])!r} s does not increase after {float(tt[i])!r} s: "
                              "the time column must increase strictly (sort the log, drop duplicated samples)")
-        raise _cli_error(f"{where}: the sample interval {float(d[i]):.6g} s is under half the sample interval "
+        raise CliError(f"{where}: the sample interval {float(d[i]):.6g} s is under half the sample interval "
                          f"{dt:.6g} s: the monitor needs a fixed rate (resample the log, or give --dt)")
     steps = np.rint(d / dt).astype(np.int64) - 1
     if len(steps) and int(steps.max()) > MAX_GAP_SAMPLES:
         i = int(np.argmax(steps))
-        raise _cli_error(f"{table.where(int(ll[i + 1]))}: a gap of {float(d[i]):.6g} s in the time column: "
+        raise CliError(f"{table.where(int(ll[i + 1]))}: a gap of {float(d[i]):.6g} s in the time column: "
                          "split the log at it")
     return steps if prev is not None else np.concatenate([[0], steps]).astype(np.int64)
 
@@ -354,8 +312,6 @@ def _health_monitor(car: Union[QuarterCar, HalfCar], dt: float, sensors: Literal
     """The monitor at the sample interval ``dt``; an error the core finds in a setting the
     user never gave is said as what it is: a sample interval (``--dt`` or the time column's)
     that does not fit it."""
-    from . import VehidError
-
     given = (f"--dt {args.dt:g}" if args.dt is not None
              else f"the sample interval {dt:.6g} s (the grid of {source}: its nominal rate, or 5 ms)")
     try:
@@ -366,23 +322,23 @@ def _health_monitor(car: Union[QuarterCar, HalfCar], dt: float, sensors: Literal
         if name == "window":
             least = f"{10 * dt:.6g}"
             if args.window is None:
-                raise _cli_error(f"{given}: the tracking window (--window, default {DEFAULT_WINDOW:g} s) must span at "
+                raise CliError(f"{given}: the tracking window (--window, default {DEFAULT_WINDOW:g} s) must span at "
                                  f"least 10 sample intervals: give a shorter --dt, or --window {least} or more") \
                     from None
-            raise _cli_error(f"--window {args.window:g}: expected at least 10 sample intervals ({given}): give "
+            raise CliError(f"--window {args.window:g}: expected at least 10 sample intervals ({given}): give "
                              f"--window {least} or more, or a shorter --dt") from None
         if name == "bias_walk":
-            raise _cli_error(f"{given}: too short a sample interval for the monitor's filters (the deflection "
+            raise CliError(f"{given}: too short a sample interval for the monitor's filters (the deflection "
                              "filter's gain does not settle): give the log's sample interval in seconds, e.g. "
                              "--dt 0.005 for 200 Hz") from None
         if name == "dt":
-            raise _cli_error(f"{given}: the sample interval must be a finite number of seconds > 0") from None
+            raise CliError(f"{given}: the sample interval must be a finite number of seconds > 0") from None
         raise
 
 
 def cmd_monitor(args: argparse.Namespace) -> int:
     if args.dt is not None and not (math.isfinite(args.dt) and args.dt > 0):
-        raise _cli_error(f"--dt {args.dt:g}: the sample interval must be a finite number of seconds > 0")
+        raise CliError(f"--dt {args.dt:g}: the sample interval must be a finite number of seconds > 0")
     car = nominal_car(args.model or "quarter", args.car)
     sensors: Literal["realistic", "state"] = args.sensors
     settings = {k: getattr(args, k) for k in ("window", "warmup", "min_change", "threshold", "confidence")
@@ -395,30 +351,30 @@ def cmd_monitor(args: argparse.Namespace) -> int:
     channels = (HALF_SENSOR_COLUMNS if half else SENSOR_COLUMNS)[sensors]
     events, track = getattr(args, "events", None), getattr(args, "track", None)
     if events and not events.lower().endswith((".parquet", ".mcap")):  # said before the run, not after
-        raise _cli_error(f"--events {events}: give a .parquet or .mcap file")
+        raise CliError(f"--events {events}: give a .parquet or .mcap file")
     if track and not track.lower().endswith(".parquet"):
-        raise _cli_error(f"--track {track}: give a .parquet file (or --events FILE.mcap for both)")
+        raise CliError(f"--track {track}: give a .parquet file (or --events FILE.mcap for both)")
     if args.file != "-":
         return _monitor_file(args, car, sensors, settings, channels, plt)
     if events or track:
-        raise _cli_error("--events and --track need a file or a bag, not standard input")
+        raise CliError("--events and --track need a file or a bag, not standard input")
     try:
         mapping = parse_column_map(args.columns or [])
     except TableError as e:
-        raise _cli_error(str(e)) from None
+        raise CliError(str(e)) from None
     columns = (Column("t", "time", "s"),) + channels
     with open_table(args.file, delimiter=args.delimiter) as table:
         match = match_columns(table.names, columns, mapping, where=table.source)
         absent = [c for c in channels if c.name not in match.index]
         if absent:
             shown = ", ".join(repr(h) for h in table.names[:12]) + (", ..." if len(table.names) > 12 else "")
-            raise _cli_error(
+            raise CliError(
                 f"{table.source} has no column {', '.join(c.describe() for c in absent)} for "
                 f"--sensors {sensors} (its columns: {shown}); map yours with --columns "
                 f"{absent[0].name}=NAME")
         has_t = "t" in match.index
         if not has_t and args.dt is None:
-            raise _cli_error(f"{table.source} has no time column t: give the sample interval with --dt SECONDS")
+            raise CliError(f"{table.source} has no time column t: give the sample interval with --dt SECONDS")
         cols = ([match.index["t"]] if has_t else []) + [match.index[c.name] for c in channels]
         labels = (["t"] if has_t else []) + [c.describe() for c in channels]
         mon: Optional[HealthMonitor] = None
@@ -431,12 +387,12 @@ def cmd_monitor(args: argparse.Namespace) -> int:
             factors = np.asarray([column_factor(c.unit, table.names[i], f"{table.source}, column {table.names[i]!r}")
                                   for c, i in zip(units, cols)])
         except TableError as e:
-            raise _cli_error(str(e)) from None
+            raise CliError(str(e)) from None
         for chunk in table.chunks(cols, labels, CHUNK, missing=True):
             data = chunk.data * factors
             if has_t and np.isnan(data[:, 0]).any():
                 row = int(np.argmax(np.isnan(data[:, 0])))
-                raise _cli_error(f"{table.where(int(chunk.lines[row]))}: the time is missing (nan): every sample "
+                raise CliError(f"{table.where(int(chunk.lines[row]))}: the time is missing (nan): every sample "
                                  "needs its time (drop the sample: the gap is then seen in the time column)")
             y = np.ascontiguousarray(data[:, 1:] if has_t else data)
             if mon is None:
@@ -444,7 +400,7 @@ def cmd_monitor(args: argparse.Namespace) -> int:
                 if dt is None:
                     dt = nominal_interval(data[:, 0])
                     if not math.isfinite(dt):
-                        raise _cli_error(f"{table.source}: one sample cannot give the sample interval: give --dt")
+                        raise CliError(f"{table.source}: one sample cannot give the sample interval: give --dt")
                 mon = _health_monitor(car, dt, sensors, settings, args, table.source)
                 feeder = Feeder(mon, float(data[0, 0]) if has_t else 0.0, sys.stdout, args.json)
             assert feeder is not None
@@ -466,7 +422,7 @@ def cmd_monitor(args: argparse.Namespace) -> int:
             elif samples > PROGRESS_ABOVE:
                 print(f"vehid: monitored {samples} samples", file=sys.stderr, flush=True)
         if mon is None or feeder is None:
-            raise _cli_error(f"{table.source} has no samples")
+            raise CliError(f"{table.source} has no samples")
         summary(feeder, table.source, samples, sys.stderr)
         if plt is not None:
             plot(feeder, car, args.plot, plt)
@@ -493,7 +449,7 @@ def _monitor_file(args: argparse.Namespace, car: Union[QuarterCar, HalfCar], sen
         log = fieldlog.read_log(args.file, channels, cmap, mapping, args.delimiter, args.dt)
         dt = fieldlog.grid_interval(log, args.dt)
     except TableError as e:
-        raise _cli_error(str(e)) from None
+        raise CliError(str(e)) from None
     mon = _health_monitor(car, dt, sensors, settings, args, log.source)
     try:
         al = fieldlog.align(log, dt, cmap.channels if cmap else None)
@@ -501,7 +457,7 @@ def _monitor_file(args: argparse.Namespace, car: Union[QuarterCar, HalfCar], sen
             p = car.params
             fieldlog.car_check(al, p["k2"] / p["M"], p["b"] / p["M"], _car_words(args))
     except TableError as e:
-        raise _cli_error(str(e)) from None
+        raise CliError(str(e)) from None
     noise = dict(settings.get("sensor_noise") or {})
     if sensors == "realistic" and "deflection" not in noise:  # the one noise that blinds the monitor
         est = fieldlog.deflection_noise(log, dt)
@@ -546,7 +502,7 @@ def _export(args: argparse.Namespace, feeder: Feeder, origin: float) -> None:
         if args.track:
             export.write_track(args.track, track)
     except TableError as e:
-        raise _cli_error(str(e)) from None
+        raise CliError(str(e)) from None
 
 
 def _car_words(args: argparse.Namespace) -> str:
@@ -573,14 +529,14 @@ def parse_noise(text: str) -> Dict[str, float]:
         name, sep, value = item.partition("=")
         name = name.strip()
         if not sep or name not in NOISE_NAMES:
-            raise _cli_error(f"--noise {text}: expected NAME=VALUE with NAME in {', '.join(NOISE_NAMES)} "
+            raise CliError(f"--noise {text}: expected NAME=VALUE with NAME in {', '.join(NOISE_NAMES)} "
                              f"(m/s^2, m), got {item.strip()!r}")
         try:
             v = float(value)
         except ValueError:
-            raise _cli_error(f"--noise {text}: {name}={value.strip()!r} is not a number") from None
+            raise CliError(f"--noise {text}: {name}={value.strip()!r} is not a number") from None
         if not (math.isfinite(v) and v > 0):
-            raise _cli_error(f"--noise {text}: {name} must be a finite number > 0")
+            raise CliError(f"--noise {text}: {name} must be a finite number > 0")
         out[name] = v
     return out
 
@@ -608,9 +564,9 @@ def summary(feeder: Feeder, source: str, samples: int, out: IO[str]) -> None:
 def _pyplot() -> Any:
     """matplotlib's pyplot on the Agg backend (as ``vehid reproduce`` loads it), or the error
     naming the plot extra."""
-    plt = _load_pyplot()
+    plt = load_pyplot()
     if plt is None:
-        raise _cli_error("--plot needs matplotlib: pip install 'vehid[plot]'")
+        raise CliError("--plot needs matplotlib: pip install 'vehid[plot]'")
     return plt
 
 
@@ -649,7 +605,7 @@ def _save(plt: Any, fig: Any, path: str) -> None:
     try:
         fig.savefig(path, dpi=100)
     except OSError as e:
-        raise _cli_error(f"--plot {path}: cannot write ({e.strerror or e})") from None
+        raise CliError(f"--plot {path}: cannot write ({e.strerror or e})") from None
     finally:
         plt.close(fig)
 

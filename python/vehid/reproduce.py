@@ -164,7 +164,8 @@ def _is_analytic(fig: Json) -> bool:
     return fig["skipped"] is None and not fig["curves"]
 
 
-def _load_pyplot() -> Any:
+def load_pyplot() -> Any:
+    """matplotlib's pyplot on the Agg backend (no display needed), or ``None`` without matplotlib."""
     try:
         mpl = importlib.import_module("matplotlib")
         mpl.use("Agg")
@@ -763,7 +764,7 @@ def write_report(data: Json, out: Path, command: str = "vehid reproduce", starte
     runner's own.
     """
     out.mkdir(parents=True, exist_ok=True)
-    plt = _load_pyplot()
+    plt = load_pyplot()
     images: Dict[str, str] = {}
     if plt is not None:
         for fig in data["figures"]:

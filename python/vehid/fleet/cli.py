@@ -8,6 +8,8 @@ import sys
 import time
 from typing import IO, Any, Callable, Optional
 
+from ..clitools import CliError
+
 DESCRIPTION = ("The suspension health monitor over a fleet's logs (DIR/vehicle=<id>/day=<YYYY-MM-DD>/*.parquet "
                "and DIR/fleet.toml), day after day, into a store (Parquet: state, events, problems); locally or on "
                "a Dask cluster; and its report.")
@@ -40,23 +42,17 @@ class ProgressBar:
         self.out.flush()
 
 
-def _error(message: str) -> Exception:
-    from ..cli import CliError
-
-    return CliError(message)
-
-
 def _client(address: str) -> Any:
     import importlib
 
     try:
         client_class = importlib.import_module("distributed").Client
     except ImportError:
-        raise _error("--scheduler needs dask.distributed: pip install 'vehid[fleet]'") from None
+        raise CliError("--scheduler needs dask.distributed: pip install 'vehid[fleet]'") from None
     try:
         return client_class(address, timeout=10)
     except (OSError, TimeoutError, ValueError) as e:
-        raise _error(f"--scheduler {address}: cannot connect ({str(e).splitlines()[0] if str(e) else e!r}); give "
+        raise CliError(f"--scheduler {address}: cannot connect ({str(e).splitlines()[0] if str(e) else e!r}); give "
                      "the scheduler's address, e.g. tcp://10.0.0.5:8786") from None
 
 
@@ -68,7 +64,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         truth = simulate(args.dir, args.vehicles, args.days, args.hours, args.faults, args.seed,
                          progress=ProgressBar("fleet simulate: vehicles"))
     except ValueError as e:
-        raise _error(str(e)) from None
+        raise CliError(str(e)) from None
     print(f"vehid: wrote {args.vehicles} vehicles × {args.days} days × {args.hours:g} h and {truth.num_rows} "
           f"injected faults to {args.dir} (fleet.toml, truth.parquet)", file=sys.stderr)
     return 0
@@ -83,7 +79,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         res = run(args.dir, args.store, client=client, workers=args.workers, since=getattr(args, "from"),
                   batch=args.batch, progress=ProgressBar("fleet run: vehicle-days"))
     except ValueError as e:
-        raise _error(str(e)) from None
+        raise CliError(str(e)) from None
     finally:
         if client is not None:
             client.close()
@@ -104,9 +100,9 @@ def cmd_report(args: argparse.Namespace) -> int:
     try:
         n = report(args.store, args.output)
     except ValueError as e:
-        raise _error(str(e)) from None
+        raise CliError(str(e)) from None
     except OSError as e:
-        raise _error(f"-o {args.output}: cannot write ({e.strerror or e})") from None
+        raise CliError(f"-o {args.output}: cannot write ({e.strerror or e})") from None
     print(f"vehid: wrote the report of {n} vehicles to {args.output}", file=sys.stderr)
     return 0
 

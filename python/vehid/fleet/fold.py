@@ -31,8 +31,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._vehid import HealthMonitor, VehidError
+from ..channels import HALF_SENSOR_COLUMNS, SENSOR_COLUMNS
 from ..io import Column, TableError, match_columns
-from ..monitor import HALF_SENSOR_COLUMNS, SENSOR_COLUMNS
 from ._deps import module
 from .config import VehicleConfig
 
