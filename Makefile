@@ -124,12 +124,14 @@ lint-fast: venv
 	$(CARGO) fmt --all --check
 	$(VBIN)/ruff check python tests benches
 
-# vehid-py is left out: it has no Rust tests (pytest tests it), clippy checks it and `develop`
-# builds it; its 16 x 4 dispatch would only be compiled once more, for an empty harness.
+# vehid-py and vehid-runtime are left out: pytest tests them through the extension, clippy
+# checks them and `develop` builds them; the runtime's 16 x 4 size table would only be compiled
+# once more, unoptimized, for a test harness.
 test-rust:
-	$(CARGO) test --workspace --exclude vehid-py --tests --benches --examples
-	$(CARGO) test --workspace --exclude vehid-py --doc
+	$(CARGO) test --workspace --exclude vehid-py --exclude vehid-runtime --tests --benches --examples
+	$(CARGO) test --workspace --exclude vehid-py --exclude vehid-runtime --doc
 	$(CARGO) check -p vehid-core --no-default-features
+	$(CARGO) check -p vehid-core --no-default-features --features persist
 
 # The AVX2 and portable updates must agree to the bit where it matters: optimized code. Built
 # with vehid-py in the same selection, so that the dependencies resolve to the features of

@@ -165,14 +165,15 @@ def test_corrupt_or_foreign_state_is_a_clear_error() -> None:
     kf = vehid.KalmanIdentifier(CAR, p0=1000.0, r=RV)
     kf.fit(run.r[:50], run.z[:50])
     fmt, version, payload = state_of(kf)
-    assert fmt == 3 and version.startswith("vehid ")
+    assert fmt == 4 and version.startswith("vehid ")
     blank = vehid.KalmanIdentifier(CAR, p0=1000.0, r=RV)
-    with pytest.raises(vehid.VehidError, match="format 2.*reads format 3"):
-        blank.__setstate__((2, "vehid 9.9", payload))
+    # A state of the previous format (3: the binding named the core's type) is refused, naming both.
+    with pytest.raises(vehid.VehidError, match="vehid 9.9 in state format 3.*reads format 4"):
+        blank.__setstate__((3, "vehid 9.9", payload))
     with pytest.raises(vehid.VehidError, match="corrupt"):
-        blank.__setstate__((3, version, payload[:-7]))
+        blank.__setstate__((fmt, version, payload[:-7]))
     with pytest.raises(vehid.VehidError, match="corrupt"):
-        blank.__setstate__((3, version, b"\x00garbage"))
+        blank.__setstate__((fmt, version, b"\x00garbage"))
     with pytest.raises(vehid.VehidError, match="corrupt"):
         blank.__setstate__("nonsense")  # type: ignore[arg-type]
     # Every single-byte change, and a byte appended, is refused (the payload carries a CRC-32);
@@ -182,9 +183,9 @@ def test_corrupt_or_foreign_state_is_a_clear_error() -> None:
         broken = bytearray(payload)
         broken[i] ^= 0xFF
         with pytest.raises(vehid.VehidError, match="corrupt"):
-            target.__setstate__((3, version, bytes(broken)))
+            target.__setstate__((fmt, version, bytes(broken)))
     with pytest.raises(vehid.VehidError, match="corrupt"):
-        target.__setstate__((3, version, payload + b"\x00"))
+        target.__setstate__((fmt, version, payload + b"\x00"))
     assert target.samples == 0
     # A pickle stream cut short is an ordinary unpickling error.
     data = pickle.dumps(kf)

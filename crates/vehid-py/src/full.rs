@@ -1,7 +1,6 @@
 //! `FullCar`: the Python class of the core's `model::FullCar` (the 7-DOF full car), and the
 //! full car's arms of the `LinearModel` methods (`physical`, pickling, `repr`).
 
-use crate::dispatch::ModelData;
 use crate::model::{Kind, PyLinearModel};
 use crate::{core_err, VehidError};
 use pyo3::exceptions::PyTypeError;
@@ -9,6 +8,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 use vehid_core::model::{FullCar, FULL_CONSTANTS};
 use vehid_core::nalgebra::SMatrix;
+use vehid_runtime::ModelData;
 
 /// The full car (heave, pitch, roll of the body; four wheel hops): 14 states
 /// `[z_fl, v_fl, z_fr, v_fr, z_rl, v_rl, z_rr, v_rr, zb, vb, pitch, pitch_rate, roll,

@@ -521,14 +521,14 @@ impl PyHealthMonitor {
             Mon::Quarter(m) => {
                 let c = m.config().car;
                 let car = module.getattr("QuarterCar")?.call1((c.m_body(), c.m_wheel(), c.k1(), c.k2(), c.b()))?;
-                (car, crate::seal::seal(m))
+                (car, vehid_runtime::seal::seal(m))
             }
             Mon::Half(m) => {
                 let kwargs = PyDict::new(py);
                 for (k, v) in m.config().car.params().named() {
                     kwargs.set_item(k, v)?;
                 }
-                (module.getattr("HalfCar")?.call((), Some(&kwargs))?, crate::seal::seal(m))
+                (module.getattr("HalfCar")?.call((), Some(&kwargs))?, vehid_runtime::seal::seal(m))
             }
         };
         let bytes = bytes.map_err(|e| VehidError::new_err(format!("the monitor cannot be saved: {e}")))?;
@@ -555,10 +555,12 @@ impl PyHealthMonitor {
             )));
         }
         let mut this = borrow_mut(slf)?;
-        let decode = |e: postcard::Error| corrupt(&format!("its payload does not decode or fails its checksum ({e})"));
+        let decode = |e: vehid_runtime::seal::Error| {
+            corrupt(&format!("its payload does not decode or fails its checksum ({e})"))
+        };
         this.inner = match this.inner {
-            Mon::Quarter(_) => Mon::Quarter(Box::new(crate::seal::open(&payload).map_err(decode)?)),
-            Mon::Half(_) => Mon::Half(Box::new(crate::seal::open(&payload).map_err(decode)?)),
+            Mon::Quarter(_) => Mon::Quarter(Box::new(vehid_runtime::seal::open(&payload).map_err(decode)?)),
+            Mon::Half(_) => Mon::Half(Box::new(vehid_runtime::seal::open(&payload).map_err(decode)?)),
         };
         Ok(())
     }

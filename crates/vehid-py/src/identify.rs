@@ -12,7 +12,6 @@
 //! fitting raises a `VehidError` saying so.
 
 use crate::convert::{array, finite, shape_str, size, values, Table};
-use crate::dispatch::{a_hat_n, dispatch_n, ModelData};
 use crate::guard::{borrow, borrow_mut, check_every, Interrupts};
 use crate::model::{to_array2, PyLinearModel};
 use crate::structure::{kalman_on_structure, refuse_for_structure, PyStructure};
@@ -23,10 +22,11 @@ use pyo3::exceptions::PyMemoryError;
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 use vehid_core::identify::{
-    boxed_kalman, BatchLeastSquares, CovarianceForm, DynIdentifier, FitError, FitOptions, Gain, GainKind,
-    KalmanOptions, KalmanSpec, Mode, Prior, Samples, StochasticGradientVec,
+    CovarianceForm, DynIdentifier, FitError, FitOptions, Gain, GainKind, KalmanOptions, KalmanSpec, Mode, Prior,
+    Samples,
 };
 use vehid_core::Error;
+use vehid_runtime::{build, ModelData};
 
 /// The outlier gate of `KalmanIdentifier` unless `gate=` says otherwise (every mode): a sample
 /// whose recursive residual exceeds 6 estimated standard deviations is left out (for
@@ -330,7 +330,7 @@ impl PyIdentifier {
         }
         let th = this.params_vec(py)?;
         let d = &this.model;
-        let a = dispatch_n!(d.n, a_hat_n(d, &th)).map_err(core_err)?;
+        let a = d.a_hat(&th).map_err(core_err)?;
         to_array2(py, d.n, d.n, a)
     }
 
@@ -353,6 +353,15 @@ impl PyIdentifier {
         let mut out = vec![0u64; this.inner.dims().equations];
         this.inner.gated_into(&mut out).map_err(raise)?;
         Ok(out.into_pyarray(py))
+    }
+
+    /// What builds a fresh object of this class: only vehid's identifier classes say (each
+    /// overrides this; pickling and copying use it).
+    fn __getnewargs_ex__<'py>(slf: &Bound<'py, Self>) -> PyResult<crate::persist::NewArgs<'py>> {
+        Err(VehidError::new_err(format!(
+            "{} cannot be pickled or copied: only vehid's identifier classes can",
+            slf.get_type().name()?
+        )))
     }
 
     /// Pickling (every protocol): the class with its settings, and the core's state
@@ -570,10 +579,6 @@ fn r_arg(
     }
 }
 
-fn kalman_n<const N: usize>(spec: &KalmanSpec<f64>) -> vehid_core::Result<Box<dyn DynIdentifier<f64>>> {
-    boxed_kalman::<f64, N>(spec)
-}
-
 #[pymethods]
 impl PyKalmanIdentifier {
     #[new]
@@ -646,7 +651,7 @@ impl PyKalmanIdentifier {
         let theta0 = theta0_arg(theta0, k, n)?;
         let r = r_arg(m, mode, p0 == Prior::Exact, r, road_sigma, deriv_noise)?;
         let spec = KalmanSpec { rows: m.data.rows.clone(), p0, theta0, r, mode, opts };
-        let inner = dispatch_n!(n, kalman_n(&spec)).map_err(core_err)?;
+        let inner = build::kalman(n, &spec).map_err(core_err)?;
         Ok(PyClassInitializer::from(PyIdentifier::new(inner, m.data.clone())).add_subclass(Self { mode, form }))
     }
 
@@ -722,6 +727,20 @@ impl PyKalmanIdentifier {
         Ok(borrow(slf)?.mode.as_str())
     }
 
+    /// What builds a fresh object of this class and settings (pickling and copying, `persist.rs`).
+    fn __getnewargs_ex__<'py>(slf: &Bound<'py, Self>) -> PyResult<crate::persist::NewArgs<'py>> {
+        let py = slf.py();
+        let kw = pyo3::types::PyDict::new(py);
+        let this = borrow(slf)?;
+        kw.set_item("p0", 1.0)?;
+        if this.as_super().structure.is_none() {
+            kw.set_item("r", 1.0)?;
+        }
+        kw.set_item("mode", this.mode.as_str())?;
+        kw.set_item("form", this.form.as_str())?;
+        crate::persist::new_args(py, this.as_super(), kw)
+    }
+
     fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
         let slf = borrow(slf)?;
         let base = slf.as_super();
@@ -746,16 +765,6 @@ impl PyKalmanIdentifier {
 #[pyclass(name = "StochasticGradient", module = "vehid._vehid", extends = PyIdentifier)]
 pub struct PyStochasticGradient {
     gain: GainKind,
-}
-
-fn gradient_n<const N: usize>(
-    rows: &[usize],
-    gain: Gain<f64>,
-    h: &[f64],
-    snv: &[f64],
-    spacing: u32,
-) -> vehid_core::Result<Box<dyn DynIdentifier<f64>>> {
-    Ok(Box::new(StochasticGradientVec::<f64, N>::from_slices(rows, gain, h, snv, spacing)?))
 }
 
 #[pymethods]
@@ -808,7 +817,7 @@ impl PyStochasticGradient {
         let spacing = u32::try_from(spacing)
             .map_err(|_| VehidError::new_err(format!("`spacing` must be an integer >= 1, got {spacing}")))?;
         let g = Gain::of_kind(kind, p, lambda0, lambda_init);
-        let inner = dispatch_n!(m.data.n, gradient_n(&m.data.rows, g, &h, &snv, spacing)).map_err(core_err)?;
+        let inner = build::gradient(m.data.n, &m.data.rows, g, &h, &snv, spacing).map_err(core_err)?;
         Ok(PyClassInitializer::from(PyIdentifier::new(inner, m.data.clone())).add_subclass(Self { gain: kind }))
     }
 
@@ -816,6 +825,15 @@ impl PyStochasticGradient {
     #[getter]
     fn gain(slf: &Bound<'_, Self>) -> PyResult<&'static str> {
         Ok(borrow(slf)?.gain.as_str())
+    }
+
+    /// What builds a fresh object of this class and settings (pickling and copying, `persist.rs`).
+    fn __getnewargs_ex__<'py>(slf: &Bound<'py, Self>) -> PyResult<crate::persist::NewArgs<'py>> {
+        let py = slf.py();
+        let kw = pyo3::types::PyDict::new(py);
+        let this = borrow(slf)?;
+        kw.set_item("gain", this.gain.as_str())?;
+        crate::persist::new_args(py, this.as_super(), kw)
     }
 
     fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
@@ -845,10 +863,6 @@ pub struct PyBatchLeastSquares {
     keep_samples: bool,
 }
 
-fn batch_n<const N: usize>(rows: &[usize]) -> vehid_core::Result<Box<dyn DynIdentifier<f64>>> {
-    Ok(Box::new(BatchLeastSquares::<f64, N>::new(rows)?))
-}
-
 /// The memory-bounded least squares of `BatchLeastSquares(model, keep_samples=False)` for a
 /// linear model's unknown `rows`: the exact-start rows filter (`P = (XᵀX)⁻¹` with `r = 1`, the
 /// stored form's unit-noise convention), no gate.
@@ -861,41 +875,7 @@ fn streaming_ls(m: &ModelData) -> PyResult<Box<dyn DynIdentifier<f64>>> {
         mode: Mode::Rows,
         opts: KalmanOptions::default(),
     };
-    dispatch_n!(m.n, kalman_n(&spec)).map_err(core_err)
-}
-
-impl PyBatchLeastSquares {
-    /// Whether the samples are stored (see the `keep_samples` getter).
-    pub(crate) fn keeps_samples(&self) -> bool {
-        self.keep_samples
-    }
-
-    fn batch<const N: usize>(id: &dyn DynIdentifier<f64>) -> Option<&BatchLeastSquares<f64, N>> {
-        id.as_any().downcast_ref::<BatchLeastSquares<f64, N>>()
-    }
-}
-
-/// `storage_bytes` and `clear` of the stored batch, for any state count.
-fn batch_storage<const N: usize>(id: &mut Box<dyn DynIdentifier<f64>>, clear: bool) -> vehid_core::Result<usize> {
-    if clear {
-        let rows = id.rows().to_vec();
-        *id = Box::new(BatchLeastSquares::<f64, N>::new(&rows)?);
-        return Ok(0);
-    }
-    Ok(PyBatchLeastSquares::batch::<N>(id.as_ref()).map_or(0, |b| b.storage_bytes()))
-}
-
-/// `remove(index)` of the stored batch, for any state count: on a copy, which replaces the
-/// original only when it succeeded (the binding holds the batch as a `DynIdentifier`, which
-/// gives no mutable access to the concrete type).
-fn batch_remove<const N: usize>(id: &mut Box<dyn DynIdentifier<f64>>, index: usize) -> vehid_core::Result<()> {
-    let Some(batch) = PyBatchLeastSquares::batch::<N>(id.as_ref()) else {
-        return Err(Error::InvalidArgument { arg: "self", expected: "a BatchLeastSquares" });
-    };
-    let mut copy = batch.clone();
-    copy.remove(index)?;
-    *id = Box::new(copy);
-    Ok(())
+    build::kalman(m.n, &spec).map_err(core_err)
 }
 
 #[pymethods]
@@ -915,11 +895,8 @@ impl PyBatchLeastSquares {
         }
         let model = linear_model(model)?;
         let m = model.get();
-        let inner = if keep_samples {
-            dispatch_n!(m.data.n, batch_n(&m.data.rows)).map_err(core_err)?
-        } else {
-            streaming_ls(&m.data)?
-        };
+        let inner =
+            if keep_samples { build::batch(m.data.n, &m.data.rows).map_err(core_err)? } else { streaming_ls(&m.data)? };
         Ok(PyClassInitializer::from(PyIdentifier::new(inner, m.data.clone())).add_subclass(Self { keep_samples }))
     }
 
@@ -940,8 +917,7 @@ impl PyBatchLeastSquares {
         if base.structure.is_some() || !keep {
             return Ok(0);
         }
-        let n = base.model.n;
-        dispatch_n!(n, batch_storage(&mut base.inner, false)).map_err(core_err)
+        build::batch_storage_bytes(base.inner.as_ref()).map_err(core_err)
     }
 
     /// Drops the stored samples (the memory-bounded form: starts its recursive solution anew).
@@ -958,8 +934,8 @@ impl PyBatchLeastSquares {
             base.inner = streaming_ls(&base.model)?;
             return Ok(());
         }
-        let n = base.model.n;
-        dispatch_n!(n, batch_storage(&mut base.inner, true)).map(|_| ()).map_err(core_err)
+        base.inner = build::batch(base.model.n, &base.model.rows).map_err(core_err)?;
+        Ok(())
     }
 
     /// Drops stored sample `index` (0-based, in the order the samples were given), e.g. the
@@ -975,7 +951,6 @@ impl PyBatchLeastSquares {
             ));
         }
         let base = slf.as_super();
-        let n = base.model.n;
         let samples = base.inner.samples();
         let index = usize::try_from(index).ok().filter(|&i| (i as u64) < samples).ok_or_else(|| {
             VehidError::new_err(format!(
@@ -983,7 +958,16 @@ impl PyBatchLeastSquares {
                 samples.saturating_sub(1)
             ))
         })?;
-        dispatch_n!(n, batch_remove(&mut base.inner, index)).map_err(raise)
+        build::batch_remove(&mut base.inner, index).map_err(raise)
+    }
+
+    /// What builds a fresh object of this class and settings (pickling and copying, `persist.rs`).
+    fn __getnewargs_ex__<'py>(slf: &Bound<'py, Self>) -> PyResult<crate::persist::NewArgs<'py>> {
+        let py = slf.py();
+        let kw = pyo3::types::PyDict::new(py);
+        let this = borrow(slf)?;
+        kw.set_item("keep_samples", this.keep_samples)?;
+        crate::persist::new_args(py, this.as_super(), kw)
     }
 
     fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {

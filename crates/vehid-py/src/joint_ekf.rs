@@ -12,7 +12,6 @@
 //! (two correlated road inputs) is not a case for it.
 
 use crate::convert::{array, finite, shape_str};
-use crate::dispatch::ModelData;
 use crate::guard::borrow;
 use crate::identify::PyIdentifier;
 use crate::model::{to_array2, PyLinearModel};
@@ -24,6 +23,7 @@ use vehid_core::identify::{DynIdentifier, EkfNoise, JointEkf, MAX_EKF_SUBSTEPS};
 use vehid_core::model::{auto_substeps, LinearModel};
 use vehid_core::nalgebra::{SMatrix, SVector};
 use vehid_core::structure::{Basis, Structure, Term, Var};
+use vehid_runtime::ModelData;
 
 /// The states of the filters the binding builds.
 pub const EKF_STATES: usize = 4;
@@ -337,6 +337,21 @@ impl PyJointEKF {
     fn stats(slf: &Bound<'_, Self>, py: Python<'_>, alpha: f64) -> PyResult<crate::stats::PyStats> {
         let this = borrow(slf)?;
         crate::stats::posterior_stats_of(py, this.as_super(), alpha)
+    }
+
+    /// What builds a fresh object of this class and settings (pickling and copying, `persist.rs`).
+    /// (Any valid filter of the same sizes: the saved core replaces it.)
+    fn __getnewargs_ex__<'py>(slf: &Bound<'py, Self>) -> PyResult<crate::persist::NewArgs<'py>> {
+        let py = slf.py();
+        let kw = pyo3::types::PyDict::new(py);
+        let this = borrow(slf)?;
+        let (n, np) = (this.as_super().model.n, this.as_super().inner.dims().params);
+        kw.set_item("theta0", vec![0.0; np])?;
+        kw.set_item("p0", 1.0)?;
+        kw.set_item("state_noise", 1.0)?;
+        kw.set_item("road_gain", vec![0.0; n])?;
+        kw.set_item("substeps", 1)?;
+        crate::persist::new_args(py, this.as_super(), kw)
     }
 
     fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {

@@ -9,7 +9,6 @@ use pyo3::prelude::*;
 
 mod args;
 mod convert;
-mod dispatch;
 mod drive;
 mod full;
 mod guard;
@@ -22,7 +21,6 @@ mod persist;
 mod realistic;
 mod reproduce;
 mod road;
-mod seal;
 mod sim;
 mod stats;
 mod structure;

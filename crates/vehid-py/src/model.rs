@@ -1,10 +1,6 @@
 //! `LinearModel`, `QuarterCar`, `HalfCar`: the Python model classes (`FullCar`: `full.rs`).
 
 use crate::convert::{array, finite, matrix, shape_str, size, values};
-use crate::dispatch::{
-    a_hat_n, dispatch_n, dispatch_nm, new_model, output_std_nm, poles_n, row_noise_var_nm, sampled_cov_nm, theta_n,
-    ModelData, MAX_INPUTS, MAX_STATES,
-};
 use crate::{core_err, option, VehidError};
 use numpy::ndarray::Array2;
 use numpy::{Complex64, IntoPyArray, PyArray1, PyArray2};
@@ -14,6 +10,8 @@ use pyo3::pyclass::CompareOp;
 use pyo3::types::{PyDict, PyTuple};
 use vehid_core::model::{FullCar, HalfCar, HalfCarParams, QuarterCar, QuarterKnown};
 use vehid_core::nalgebra::SMatrix;
+use vehid_runtime::sizes::{MAX_INPUTS, MAX_STATES};
+use vehid_runtime::ModelData;
 
 /// Which vehicle a model came from: decides what `physical()` can recover.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -68,7 +66,7 @@ impl PyLinearModel {
     /// Eq 4.7 per-row variances for already converted noise levels.
     pub(crate) fn row_noise_var_vec(&self, road: &[f64], deriv: &[f64]) -> PyResult<Vec<f64>> {
         let d = &self.data;
-        dispatch_nm!(d.n, d.m, row_noise_var_nm(d, road, deriv)).map_err(core_err)
+        d.row_noise_var(road, deriv).map_err(core_err)
     }
 
     fn theta_hat_arg(&self, theta_hat: &Bound<'_, PyAny>) -> PyResult<Vec<f64>> {
@@ -90,7 +88,7 @@ impl PyLinearModel {
         let method: vehid_core::sim::Method = option(method)?;
         let substeps = substeps.map(|s| size(s, "substeps")).transpose()?;
         let d = &self.data;
-        py.detach(|| dispatch_nm!(d.n, d.m, sampled_cov_nm(d, &road, dt, method, substeps))).map_err(core_err)
+        py.detach(|| d.sampled_cov(&road, dt, method, substeps)).map_err(core_err)
     }
 }
 
@@ -133,7 +131,7 @@ impl PyLinearModel {
                     .collect::<PyResult<Vec<_>>>()
             })
             .transpose()?;
-        let data = dispatch_nm!(n, m, new_model(&am.data, &bm.data, &rows, zeros.as_deref())).map_err(core_err)?;
+        let data = ModelData::new(n, m, &am.data, &bm.data, &rows, zeros.as_deref()).map_err(core_err)?;
         Ok(Self::new_core(data, Kind::Generic))
     }
 
@@ -171,7 +169,7 @@ impl PyLinearModel {
     #[getter]
     fn theta<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let d = &self.data;
-        let v = dispatch_n!(d.n, theta_n(d)).map_err(core_err)?;
+        let v = d.theta().map_err(core_err)?;
         to_array2(py, d.rows.len(), d.n, v)
     }
 
@@ -188,8 +186,8 @@ impl PyLinearModel {
     /// The poles (eigenvalues of A), (n,) complex128, sorted by real then imaginary part.
     fn poles<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<Complex64>>> {
         let d = &self.data;
-        let v = py.detach(|| dispatch_n!(d.n, poles_n(d))).map_err(core_err)?;
-        Ok(to_array1(py, v))
+        let v = py.detach(|| d.poles()).map_err(core_err)?;
+        Ok(to_array1(py, v.into_iter().map(|(re, im)| Complex64::new(re, im)).collect()))
     }
 
     /// Eq 4.27: standard deviation of each state (continuous time, every instant alike) under
@@ -205,7 +203,7 @@ impl PyLinearModel {
         let road = values(road_sigma, "road_sigma", 1.0)?;
         let d = &self.data;
         // A long hold on a large model takes seconds: GIL released.
-        let v = py.detach(|| dispatch_nm!(d.n, d.m, output_std_nm(d, &road, hold))).map_err(core_err)?;
+        let v = py.detach(|| d.output_std(&road, hold)).map_err(core_err)?;
         Ok(to_array1(py, v))
     }
 
@@ -224,7 +222,7 @@ impl PyLinearModel {
         let road = values(road_sigma, "road_sigma", 0.1)?;
         let deriv = values(deriv_noise, "deriv_noise", 0.005)?;
         let d = &self.data;
-        let v = py.detach(|| dispatch_nm!(d.n, d.m, row_noise_var_nm(d, &road, &deriv))).map_err(core_err)?;
+        let v = py.detach(|| d.row_noise_var(&road, &deriv)).map_err(core_err)?;
         Ok(to_array1(py, v))
     }
 
@@ -270,7 +268,7 @@ impl PyLinearModel {
     fn a_hat<'py>(&self, py: Python<'py>, theta_hat: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let th = self.theta_hat_arg(theta_hat)?;
         let d = &self.data;
-        let v = dispatch_n!(d.n, a_hat_n(d, &th)).map_err(core_err)?;
+        let v = d.a_hat(&th).map_err(core_err)?;
         to_array2(py, d.n, d.n, v)
     }
 

@@ -437,6 +437,23 @@ impl PyIVIdentifier {
         Self::__copy__(slf)
     }
 
+    /// What builds a fresh object of this class and settings (pickling and copying, `persist.rs`).
+    fn __getnewargs_ex__<'py>(slf: &Bound<'py, Self>) -> PyResult<crate::persist::NewArgs<'py>> {
+        let py = slf.py();
+        let kw = pyo3::types::PyDict::new(py);
+        for key in ["delay", "lags", "road", "road_cutoff", "spacing", "min_spacing", "lift_off"] {
+            kw.set_item(key, slf.getattr(key)?)?;
+        }
+        if slf.getattr("instruments")?.extract::<String>()? == "model" {
+            // Any valid auxiliary model's settings: the saved core (and its settings) replace it.
+            kw.set_item("instruments", "model")?;
+            for key in ["dt", "refresh", "substeps"] {
+                kw.set_item(key, slf.getattr(key)?)?;
+            }
+        }
+        crate::persist::new_args(py, crate::guard::borrow(slf)?.as_super(), kw)
+    }
+
     fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
         let slf = crate::guard::borrow(slf)?;
         let base = slf.as_super();
@@ -635,6 +652,21 @@ impl PyBiasCompensated {
     /// The same as `__copy__`: the core shares nothing.
     fn __deepcopy__(slf: &Bound<'_, Self>, _memo: &Bound<'_, PyAny>) -> PyResult<Py<Self>> {
         Self::__copy__(slf)
+    }
+
+    /// What builds a fresh object of this class and settings (pickling and copying, `persist.rs`).
+    fn __getnewargs_ex__<'py>(slf: &Bound<'py, Self>) -> PyResult<crate::persist::NewArgs<'py>> {
+        let py = slf.py();
+        let kw = pyo3::types::PyDict::new(py);
+        match slf.getattr("instruments")?.extract::<Option<(usize, usize)>>()? {
+            Some((delay, lags)) => {
+                kw.set_item("state_noise_var", "estimate")?;
+                kw.set_item("delay", delay)?;
+                kw.set_item("lags", lags)?;
+            }
+            None => kw.set_item("state_noise_var", 0.0)?,
+        }
+        crate::persist::new_args(py, crate::guard::borrow(slf)?.as_super(), kw)
     }
 
     fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {

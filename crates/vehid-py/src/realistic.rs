@@ -161,7 +161,7 @@ impl PyRealisticIdentifier {
     fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyTuple>> {
         let py = slf.py();
         let this = borrow(slf)?;
-        let bytes = crate::seal::seal(&this.core)
+        let bytes = vehid_runtime::seal::seal(&this.core)
             .map_err(|e| VehidError::new_err(format!("the identifier cannot be saved: {e}")))?;
         let block = this.core.block() as f64 * this.core.dt();
         let args = (this.structure.clone_ref(py), this.core.dt(), this.core.bandwidth(), block);
@@ -186,7 +186,7 @@ impl PyRealisticIdentifier {
                 env!("CARGO_PKG_VERSION")
             )));
         }
-        let core: StateFilterFit = crate::seal::open(&payload)
+        let core: StateFilterFit = vehid_runtime::seal::open(&payload)
             .map_err(|e| corrupt(&format!("its payload does not decode or fails its checksum ({e})")))?;
         let mut this = borrow_mut(slf)?;
         if core.structure() != this.core.structure() || !core.is_consistent() {

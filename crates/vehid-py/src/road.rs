@@ -1,10 +1,10 @@
-//! The `road=` setting of the identifiers that take one (`IVIdentifier`): argument parsing,
-//! wrapping the core identifier in `identify::Differenced`, and what pickling needs (the
-//! inner identifier is saved as usual, the wrapper's `RoadState` beside it).
+//! The `road=` setting of the identifiers that take one (`IVIdentifier`): argument parsing and
+//! wrapping the core identifier in `identify::Differenced` (which saves its road state with
+//! the inner identifier's: `Persist`).
 
 use crate::{core_err, VehidError};
 use pyo3::prelude::*;
-use vehid_core::identify::{BoxedIdentifier, Contact, Differenced, DynIdentifier, RoadModel, RoadState, Travel};
+use vehid_core::identify::{BoxedIdentifier, Contact, Differenced, DynIdentifier, RoadModel, Travel};
 use vehid_core::structure::Structure;
 
 /// The cutoff of `road="iso8608"` unless `road_cutoff=` says otherwise: vehid's ISO 8608
@@ -157,33 +157,6 @@ pub fn wrap(
 }
 
 type Wrapped = Differenced<f64, BoxedIdentifier<f64>>;
-
-/// The identifier behind a coloured-road wrapper and the wrapper's state (the identifier
-/// itself and None when it has none).
-pub fn split(inner: &dyn DynIdentifier<f64>) -> (&dyn DynIdentifier<f64>, Option<&RoadState<f64>>) {
-    match inner.as_any().downcast_ref::<Wrapped>() {
-        Some(d) => (d.inner().0.as_ref(), Some(d.state())),
-        None => (inner, None),
-    }
-}
-
-/// `core` wrapped again with a saved state.
-pub fn rewrap(
-    core: Box<dyn DynIdentifier<f64>>,
-    state: RoadState<f64>,
-) -> vehid_core::Result<Box<dyn DynIdentifier<f64>>> {
-    Ok(Box::new(Wrapped::with_state(BoxedIdentifier(core), state)?))
-}
-
-/// The setting a wrapper was built with (None: no wrapper).
-pub fn of(inner: &dyn DynIdentifier<f64>) -> Option<Road> {
-    inner.as_any().downcast_ref::<Wrapped>().map(|d| Road {
-        model: d.road(),
-        travel: d.travel(),
-        min_spacing: d.min_spacing(),
-        lift_off: d.contact().map(|c| (c.m_body, c.m_wheel)),
-    })
-}
 
 /// Samples a coloured-road wrapper found lifted off (None: no wrapper).
 pub fn lifted(inner: &dyn DynIdentifier<f64>) -> Option<u64> {

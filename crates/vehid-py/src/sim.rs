@@ -1,7 +1,6 @@
 //! `Simulator` and `Run`.
 
 use crate::convert::{size, speed_arg, uint, values};
-use crate::dispatch::{dispatch_nm, reserve_run, sim_chunk, simulator_nm, SimDyn, SimParams};
 use crate::drive::{DriveRun, DriveSim, Unused};
 use crate::guard::{borrow, borrow_mut, Interrupts};
 use crate::identify::raise;
@@ -13,6 +12,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 use vehid_core::sim::{Method, Pulse, RoadConfig, RoadMode, RoadSimulator, Run, SimConfig, SpeedProfile};
 use vehid_core::Result;
+use vehid_runtime::sim::{reserve_run, sim_chunk, simulator, SimDyn, SimParams};
 
 /// Road memory of the Python road simulator, in road points per wheelbase (+2).
 pub const ROAD_CELLS: usize = 4096;
@@ -420,7 +420,7 @@ impl PySimulator {
             (Box::new(road_simulator(model.get(), &p, speed, spacing, road)?), Some((spacing, road)))
         } else {
             // Discretizing can take a while (explicit `substeps` are not capped): GIL released.
-            (model.py().detach(|| dispatch_nm!(d.n, d.m, simulator_nm(d, &p))).map_err(core_err)?, None)
+            (model.py().detach(|| simulator(d, &p)).map_err(core_err)?, None)
         };
         Ok(Self {
             inner: Engine::Linear(inner),

@@ -2,7 +2,6 @@
 //! rows, or `TwoAxleStructured` on a Structure) and `AxleSampler` (Ch. VI.D). Thin wrappers
 //! of the core.
 
-use crate::dispatch::ModelData;
 use crate::guard::borrow;
 use crate::identify::PyIdentifier;
 use crate::model::{to_array2, Kind, PyLinearModel};
@@ -17,6 +16,7 @@ use vehid_core::identify::{
 use vehid_core::model::LinearModel;
 use vehid_core::sampler::{axle_delay, AxleSampler, Trigger};
 use vehid_core::structure::Structure;
+use vehid_runtime::ModelData;
 
 /// Ring capacity of the Python `AxleSampler`.
 pub const SAMPLER_SLOTS: usize = 4096;
@@ -388,6 +388,26 @@ impl PyTwoAxleIdentifier {
                 PyIdentifier::a_hat(slf.as_super(), py)
             }
         }
+    }
+
+    /// What builds a fresh object of this class and settings (pickling and copying, `persist.rs`).
+    fn __getnewargs_ex__<'py>(slf: &Bound<'py, Self>) -> PyResult<crate::persist::NewArgs<'py>> {
+        let py = slf.py();
+        let kw = pyo3::types::PyDict::new(py);
+        for key in ["spacing", "method", "wheelbase"] {
+            kw.set_item(key, slf.getattr(key)?)?;
+        }
+        let this = borrow(slf)?;
+        let model = match &this.as_super().structure {
+            // On a Structure: the car gives B; `compensate` decides what the structure may hold.
+            Some(st) => {
+                kw.set_item("car", this.model.clone_ref(py))?;
+                kw.set_item("compensate", slf.getattr("compensate")?)?;
+                st.bind(py).clone().into_any()
+            }
+            None => this.model.bind(py).clone().into_any(),
+        };
+        Ok((pyo3::types::PyTuple::new(py, [model])?, kw))
     }
 
     fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {

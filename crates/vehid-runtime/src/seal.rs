@@ -7,6 +7,9 @@
 
 use serde::{Deserialize, Serialize};
 
+/// Why sealed bytes were not opened (or a value not sealed): postcard's error.
+pub use postcard::Error;
+
 static CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISCSI);
 
 /// `value` as postcard bytes with their CRC-32 appended.
