@@ -72,7 +72,8 @@ $(VENV)/.installed: Makefile
 # Cargo's progress is shown (the first build takes minutes); pip stays quiet (PIP_QUIET).
 develop: venv
 	rm -f python/vehid/*.so python/vehid/*.pyd
-	@echo "develop: building the extension (release; the first build compiles the dependencies)"
+	@echo "develop: building the extension (release, linted; the first build compiles the dependencies, then"
+	@echo "develop: vehid-runtime and vehid-py, each several minutes on two cores with no output while they compile)"
 	env -u CONDA_PREFIX VIRTUAL_ENV="$(abspath $(VENV))" PIP_QUIET=1 $(VBIN)/maturin develop --release
 
 # The plot extra (vehid[plot] = matplotlib) into the same venv, then the quick reproduction.
@@ -97,8 +98,10 @@ docs: develop
 # library, tests, bins, benches and examples in test-rust, the no_std build, and vehid-py in the
 # extension's release build. A separate `cargo clippy` would check the whole dependency tree a
 # third time (about 2 minutes of a clean `make test` here). `make lint` still runs it on its own.
-# The wrapper is part of cargo's fingerprint of the workspace crates: a `make demo` after
-# `make test` recompiles vehid-core and vehid-py once (not the dependencies).
+# The wrapper is part of cargo's fingerprint of the workspace crates, so `develop` (and with it
+# `make demo`) compiles the extension the same way when clippy is installed: `make demo` then
+# `make test` (or the other way round) builds the extension once. Without clippy-driver,
+# `develop` uses rustc alone (`make test` then needs clippy, and rebuilds the workspace crates).
 #
 # The two builds run side by side: the Rust tests' (test profile, target/debug) and the
 # extension's (release, target/release), each followed by what uses it. Cargo locks each
@@ -109,8 +112,11 @@ docs: develop
 # it has two crates to compile, and the extension's build did not start until the Rust tests'
 # build was nearly done.) The output lines of the two interleave; each failure is reported by
 # its own command.
+CLIPPY_ARGS_DENY := -D__CLIPPY_HACKERY__warnings__CLIPPY_HACKERY__
 test: export RUSTC_WORKSPACE_WRAPPER := clippy-driver
-test: export CLIPPY_ARGS := -D__CLIPPY_HACKERY__warnings__CLIPPY_HACKERY__
+test: export CLIPPY_ARGS := $(CLIPPY_ARGS_DENY)
+develop: export RUSTC_WORKSPACE_WRAPPER := $(shell command -v clippy-driver >/dev/null 2>&1 && echo clippy-driver)
+develop: export CLIPPY_ARGS := $(CLIPPY_ARGS_DENY)
 test:
 	@$(MAKE) --no-print-directory -j2 lint-fast test-rust test-python
 

@@ -11,7 +11,11 @@ initial σ 0.1, seed 1), prints ns per sample of
   identifier as the Rust side, whose ``KalmanOptions::default()`` has no outlier gate (Python's
   default gate of 6 would run the general update against the Rust plain one);
 
-and the ratio python / rust fixed (the budget: ≤ 1.25×). Best of ``--repeats`` passes each;
+and the ratio python / rust fixed (the budget: ≤ 1.25×). Then the health monitor of the
+passenger quarter and half car (``vehid.HealthMonitor(car)``: dt 5 ms, realistic sensors) on one
+seeded drive (ISO 8608 class C at 15 m/s, seed 42, ``--monitor-seconds`` long): ``rust``, its
+``update`` per sample (the same samples, written to a file for ``time_updates``), against
+``python fit``, ``HealthMonitor.fit(y)``, and the same budget. Best of ``--repeats`` passes each;
 the Rust and Python passes are interleaved so that a slow spell of the machine hits both.
 
 Run: ``make bench-fit`` (builds the release binary first) or
@@ -23,6 +27,7 @@ from __future__ import annotations
 import argparse
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 from typing import Dict, List
@@ -35,7 +40,7 @@ ROOT = Path(__file__).resolve().parents[2]
 BUDGET = 1.25
 
 
-def rust(model: str, n: int, repeats: int, binary: Path) -> Dict[str, float]:
+def rust(model: str, n: object, repeats: int, binary: Path) -> Dict[str, float]:
     out = subprocess.run([str(binary), model, str(n), str(repeats)], capture_output=True, text=True, check=True)
     return {line.split()[0]: float(line.split()[1]) for line in out.stdout.splitlines() if line.strip()}
 
@@ -52,11 +57,28 @@ def python_fit(car: vehid.LinearModel, n: int, repeats: int) -> float:
     return best
 
 
+def monitor_drive(car: vehid.LinearModel, seconds: float) -> np.ndarray:
+    sim = vehid.Simulator(car, dt=0.005, road="iso8608-C", speed=15.0, sensors="realistic", seed=42)
+    return np.ascontiguousarray(sim.run(int(round(seconds / 0.005))).y)
+
+
+def python_monitor(car: vehid.LinearModel, y: np.ndarray, repeats: int) -> float:
+    best = float("inf")
+    for _ in range(repeats):
+        mon = vehid.HealthMonitor(car)
+        t0 = time.perf_counter()
+        mon.fit(y)
+        best = min(best, (time.perf_counter() - t0) * 1e9 / len(y))
+    return best
+
+
 def main(argv: List[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=1_000_000, help="samples (default 1000000)")
     parser.add_argument("--repeats", type=int, default=7, help="passes per measurement; best kept (default 7)")
     parser.add_argument("--rounds", type=int, default=3, help="interleaved Rust/Python rounds (default 3)")
+    parser.add_argument("--monitor-seconds", type=float, default=600.0,
+                        help="seconds of drive for the health monitor (default 600)")
     parser.add_argument("--binary", type=Path, default=ROOT / "target" / "release" / "time_updates")
     args = parser.parse_args(argv)
     if not args.binary.exists():
@@ -75,6 +97,20 @@ def main(argv: List[str] | None = None) -> int:
         ratio = py / fixed
         worst = max(worst, ratio)
         print(f"{name:8} {fixed:11.1f} {heap:14.1f} {py:11.1f} {ratio:12.2f}x")
+    print(f"health monitor, {args.monitor_seconds:g} s of drive at 200 Hz")
+    print(f"{'car':8} {'rust update':>11} {'python fit':>11} {'python/rust':>12}")
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, car in (("quarter", vehid.QuarterCar.passenger()), ("half", vehid.HalfCar.passenger())):
+            y = monitor_drive(car, args.monitor_seconds)
+            path = Path(tmp) / f"{name}.f64"
+            y.astype("<f8").tofile(path)
+            rust_ns = py = float("inf")
+            for _ in range(args.rounds):
+                rust_ns = min(rust_ns, rust(f"monitor-{name}", str(path), args.repeats, args.binary)["monitor"])
+                py = min(py, python_monitor(car, y, args.repeats))
+            ratio = py / rust_ns
+            worst = max(worst, ratio)
+            print(f"{name:8} {rust_ns:11.1f} {py:11.1f} {ratio:11.2f}x")
     verdict = "ok" if worst <= BUDGET else "OVER BUDGET"
     print(f"budget: python fit within {BUDGET}x of the Rust update: {verdict} (worst {worst:.2f}x)")
     return 0

@@ -9,6 +9,12 @@
 //!   whole batch through `DynIdentifier::fit_dyn` on the row-major arrays, exactly the call
 //!   Python's `fit` makes with the GIL released.
 //!
+//! `time_updates monitor-quarter|monitor-half FILE REPEATS`: the health monitor's update
+//! (`HealthMonitor` / `HalfHealthMonitor` of the passenger car, dt 5 ms, realistic sensors with
+//! their default noise: what `vehid.HealthMonitor(car)` builds) over the samples in `FILE`
+//! (little-endian f64, 3 or 6 channels per sample, written by `fit_vs_rust.py` from the same
+//! drive its Python `fit()` reads), one fresh monitor per pass: prints `monitor ns_per_sample`.
+//!
 //! The data: `Simulator` with dt 0.05 s, road σ 0.1, initial σ 0.1, derivative noise 0.005,
 //! seed 1 (exactly what the Python script simulates), the identifier with p0 = 1000 and R
 //! from the same noise levels (Eq 4.7).
@@ -16,11 +22,12 @@
 use std::hint::black_box;
 use std::process::ExitCode;
 use std::time::Instant;
+use vehid_core::health::{HalfHealthMonitor, HealthConfig, HealthMonitor};
 use vehid_core::identify::{
     boxed_kalman, FitOptions, KalmanIdentifier, KalmanOptions, KalmanSpec, Mode, Prior, Samples,
 };
 use vehid_core::model::{HalfCar, LinearModel, QuarterCar};
-use vehid_core::sim::{SimConfig, Simulator};
+use vehid_core::sim::{SensorNoise, SensorSet, SimConfig, Simulator};
 
 fn data<const N: usize, const M: usize>(
     model: LinearModel<f64, N, M>,
@@ -85,14 +92,66 @@ fn run<const N: usize, const M: usize, const K: usize>(
     Ok(())
 }
 
+/// The samples of a file of little-endian f64 values.
+fn read_f64(path: &str) -> Result<Vec<f64>, String> {
+    let bytes = std::fs::read(path).map_err(|e| format!("{path}: {e}"))?;
+    if bytes.len() % 8 != 0 {
+        return Err(format!("{path}: not a whole number of f64 values"));
+    }
+    Ok(bytes.chunks_exact(8).map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes"))).collect())
+}
+
+/// `HealthMonitor::update` (quarter, 3 channels) or `HalfHealthMonitor::update` (half, 6) per
+/// sample of `y`, a fresh monitor per pass.
+fn monitor(half: bool, y: &[f64], repeats: usize) -> vehid_core::Result<()> {
+    let noise = SensorNoise::<f64>::default();
+    let ns = if half {
+        let cfg = HealthConfig::new(0.005, HalfCar::<f64>::passenger()).with_sensors(SensorSet::Realistic, &noise);
+        HalfHealthMonitor::new(cfg)?;
+        best(repeats, y.len() / 6, || {
+            let mut mon = HalfHealthMonitor::new(cfg).expect("valid settings");
+            for row in y.chunks_exact(6) {
+                let _ = black_box(mon.update(black_box(row)));
+            }
+            black_box(mon.samples());
+        })
+    } else {
+        let cfg = HealthConfig::new(0.005, QuarterCar::<f64>::passenger()).with_sensors(SensorSet::Realistic, &noise);
+        HealthMonitor::new(cfg)?;
+        best(repeats, y.len() / 3, || {
+            let mut mon = HealthMonitor::new(cfg).expect("valid settings");
+            for row in y.chunks_exact(3) {
+                let _ = black_box(mon.update(black_box(row)));
+            }
+            black_box(mon.samples());
+        })
+    };
+    println!("monitor {ns:.2}");
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let parsed = match args.as_slice() {
         [m, n, r] => n.parse::<usize>().ok().zip(r.parse::<usize>().ok()).map(|(n, r)| (m.as_str(), n, r)),
         _ => None,
     };
+    if let [m @ ("monitor-quarter" | "monitor-half"), file, r] = args.iter().map(String::as_str).collect::<Vec<_>>()[..]
+    {
+        let (Ok(y), Ok(repeats)) = (read_f64(file), r.parse::<usize>()) else {
+            eprintln!("usage: time_updates monitor-quarter|monitor-half FILE REPEATS (FILE: little-endian f64)");
+            return ExitCode::from(2);
+        };
+        return match monitor(m == "monitor-half", &y, repeats) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("time_updates: {e}");
+                ExitCode::FAILURE
+            }
+        };
+    }
     let Some((model, n, repeats)) = parsed else {
-        eprintln!("usage: time_updates quarter|half N REPEATS");
+        eprintln!("usage: time_updates quarter|half N REPEATS, or monitor-quarter|monitor-half FILE REPEATS");
         return ExitCode::from(2);
     };
     let res = match model {
