@@ -19,17 +19,13 @@ use crate::structure::PyStructure;
 use crate::{core_err, VehidError};
 use numpy::{IntoPyArray, PyArray1, PyArray2};
 use pyo3::prelude::*;
-use vehid_core::identify::{DynIdentifier, EkfNoise, JointEkf, MAX_EKF_SUBSTEPS};
+use vehid_core::identify::{EkfNoise, JointEkf, MAX_EKF_SUBSTEPS};
 use vehid_core::model::{auto_substeps, LinearModel};
 use vehid_core::nalgebra::{SMatrix, SVector};
 use vehid_core::structure::{Basis, Structure, Term, Var};
 use vehid_runtime::ModelData;
 
-/// The states of the filters the binding builds.
-pub const EKF_STATES: usize = 4;
-
-/// The sizes `D` (= 4 + params + 1) the binding builds.
-pub const EKF_SIZES: [usize; 3] = [8, 9, 13];
+use vehid_runtime::build::{EKF_SIZES, EKF_STATES};
 
 /// A linear model's complete structure: its unknown rows with every entry a parameter
 /// (`Structure::full_rows`, named row-major as θ), then its known rows as parameter-free
@@ -100,19 +96,6 @@ fn scalar(v: f64, arg: &str, positive: bool) -> PyResult<f64> {
         return Err(VehidError::new_err(format!("`{arg}` must be {want}, got {v}")));
     }
     Ok(v)
-}
-
-#[allow(clippy::too_many_arguments)]
-fn build<const D: usize>(
-    s: Structure<f64>,
-    theta0: &[f64],
-    p0: &[f64],
-    x0_var: f64,
-    noise: EkfNoise<f64, EKF_STATES>,
-    dt: f64,
-    substeps: u32,
-) -> vehid_core::Result<Box<dyn DynIdentifier<f64>>> {
-    Ok(Box::new(JointEkf::<f64, EKF_STATES, D>::new(s, theta0, p0, x0_var, noise, dt, substeps)?))
 }
 
 /// Reads a `JointEkf` of any built size: `$id` bound to it in `$body`.
@@ -277,12 +260,7 @@ impl PyJointEKF {
             road_var: road_sigma * road_sigma,
             param_walk_var: drift,
         };
-        let inner = match d {
-            8 => build::<8>(s, &theta0, &p0, x0_var, noise, dt, substeps),
-            9 => build::<9>(s, &theta0, &p0, x0_var, noise, dt, substeps),
-            _ => build::<13>(s, &theta0, &p0, x0_var, noise, dt, substeps),
-        }
-        .map_err(core_err)?;
+        let inner = vehid_runtime::build::joint_ekf(s, &theta0, &p0, x0_var, noise, dt, substeps).map_err(core_err)?;
         let base = match (st, data) {
             (Some(st), _) => PyIdentifier::on_structure(inner, &st),
             (None, Some(d)) => PyIdentifier::new(inner, d),

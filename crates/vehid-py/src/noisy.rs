@@ -12,14 +12,11 @@ use crate::structure::PyStructure;
 use crate::{core_err, VehidError};
 use numpy::{IntoPyArray, PyArray1};
 use pyo3::prelude::*;
-use vehid_core::identify::{
-    BiasCompensatedVec, DynIdentifier, IvIdentifierVec, NoiseEstimatingBclsVec, StructuredPrior, RING_VALUES,
-};
+use vehid_core::identify::{DynIdentifier, NoiseEstimatingBclsVec, StructuredPrior, RING_VALUES};
 use vehid_core::structure::Structure;
 
-/// Capacity of the refined instruments' predictor in the Python classes:
-/// `lags × (2n + m) + 1 ≤ PREDICTOR` (the predictor keeps a matrix of this size squared).
-pub const PREDICTOR: usize = 64;
+use vehid_runtime::build::PREDICTOR;
+use vehid_runtime::build::{self, ModelInstrumentSettings as ModelArgs};
 
 /// The default `lags`: 6 past samples (what the quarter car's full rows need at 8 % state
 /// noise), fewer when the samples are wide.
@@ -58,17 +55,6 @@ impl<'py> Target<'py> {
             Target::Structure(s) => PyIdentifier::on_structure(inner, s),
             Target::Model(m) => PyIdentifier::new(inner, m.get().data.clone()),
         }
-    }
-}
-
-/// The largest parameter group's filter size bucket.
-fn bucket(s: &Structure<f64>) -> usize {
-    match s.partition().largest() {
-        0..=2 => 2,
-        3..=4 => 4,
-        5..=8 => 8,
-        9..=16 => 16,
-        _ => 32,
     }
 }
 
@@ -154,46 +140,6 @@ fn instrument_args(s: &Structure<f64>, delay: i128, lags: Option<i128>) -> PyRes
         )));
     }
     Ok((delay, lags))
-}
-
-/// The IV identifier with filters of `P` parameters and a predictor of capacity `Q`.
-fn iv_pq<const P: usize, const Q: usize>(
-    s: Structure<f64>,
-    delay: usize,
-    lags: usize,
-    p0: StructuredPrior<'_, f64>,
-    theta0: Option<&[f64]>,
-    r: &[f64],
-) -> vehid_core::Result<Box<dyn DynIdentifier<f64>>> {
-    Ok(Box::new(IvIdentifierVec::<f64, P, Q>::new(s, delay, p0, theta0, r)?.with_lags(lags)?))
-}
-
-/// The auxiliary model's settings of `instruments="model"`: `(dt, substeps, refresh)`.
-#[derive(Debug, Clone, Copy)]
-struct ModelArgs {
-    dt: f64,
-    substeps: u32,
-    refresh: usize,
-}
-
-fn iv_p<const P: usize>(
-    s: Structure<f64>,
-    delay: usize,
-    lags: usize,
-    p0: StructuredPrior<'_, f64>,
-    theta0: Option<&[f64]>,
-    r: &[f64],
-    model: Option<ModelArgs>,
-) -> vehid_core::Result<Box<dyn DynIdentifier<f64>>> {
-    if let Some(a) = model {
-        let iv = IvIdentifierVec::<f64, P, 0>::new(s, delay, p0, theta0, r)?;
-        return Ok(Box::new(iv.with_model_instruments(a.dt, a.substeps, a.refresh, None)?));
-    }
-    if lags == 0 {
-        iv_pq::<P, 0>(s, delay, lags, p0, theta0, r)
-    } else {
-        iv_pq::<P, PREDICTOR>(s, delay, lags, p0, theta0, r)
-    }
 }
 
 /// Recursive instrumental variables: consistent when the measured state is noisy (white
@@ -312,14 +258,7 @@ impl PyIVIdentifier {
         let p0 = prior(kind, &p0_data);
         let th = theta0.as_deref();
         let ma = model_args;
-        let inner = match bucket(&s) {
-            2 => iv_p::<2>(s, delay, lags, p0, th, &r, ma),
-            4 => iv_p::<4>(s, delay, lags, p0, th, &r, ma),
-            8 => iv_p::<8>(s, delay, lags, p0, th, &r, ma),
-            16 => iv_p::<16>(s, delay, lags, p0, th, &r, ma),
-            _ => iv_p::<32>(s, delay, lags, p0, th, &r, ma),
-        }
-        .map_err(core_err)?;
+        let inner = build::iv(s, delay, lags, p0, th, &r, ma).map_err(core_err)?;
         let inner = match road {
             Some(road) => crate::road::wrap(inner, &s, road)?,
             None => inner,
@@ -478,15 +417,6 @@ fn copy_base(base: &Bound<'_, PyIdentifier>) -> PyResult<PyIdentifier> {
     })
 }
 
-fn bc_p<const P: usize>(
-    s: Structure<f64>,
-    sw: &[f64],
-    sv: &[f64],
-    r: &[f64],
-) -> vehid_core::Result<Box<dyn DynIdentifier<f64>>> {
-    Ok(Box::new(BiasCompensatedVec::<f64, P>::new(s, sw, sv, r)?))
-}
-
 /// A noise covariance argument: a scalar (every component), one per state (n,), or (n, n).
 fn noise_arg(v: Option<&Bound<'_, PyAny>>, arg: &str, n: usize) -> PyResult<Vec<f64>> {
     let Some(v) = v else { return Ok(vec![]) };
@@ -583,13 +513,7 @@ impl PyBiasCompensated {
         };
         let inner = if estimate {
             let (delay, lags) = instrument_args(&s, delay.unwrap_or(1), lags)?;
-            match bucket(&s) {
-                2 => ne_p::<2>(s, delay, lags, &sv, &r),
-                4 => ne_p::<4>(s, delay, lags, &sv, &r),
-                8 => ne_p::<8>(s, delay, lags, &sv, &r),
-                16 => ne_p::<16>(s, delay, lags, &sv, &r),
-                _ => ne_p::<32>(s, delay, lags, &sv, &r),
-            }
+            build::noise_estimating(s, delay, lags, &sv, &r)
         } else {
             if delay.is_some() || lags.is_some() {
                 return Err(VehidError::new_err(
@@ -598,13 +522,7 @@ impl PyBiasCompensated {
                 ));
             }
             let sw = noise_arg(Some(state_noise_var), "state_noise_var", n)?;
-            match bucket(&s) {
-                2 => bc_p::<2>(s, &sw, &sv, &r),
-                4 => bc_p::<4>(s, &sw, &sv, &r),
-                8 => bc_p::<8>(s, &sw, &sv, &r),
-                16 => bc_p::<16>(s, &sw, &sv, &r),
-                _ => bc_p::<32>(s, &sw, &sv, &r),
-            }
+            build::bias_compensated(s, &sw, &sv, &r)
         }
         .map_err(core_err)?;
         Ok(PyClassInitializer::from(target.wrap(inner)).add_subclass(Self))
@@ -681,31 +599,5 @@ impl PyBiasCompensated {
             crate::convert::py_tuple(base.inner.rows()),
             base.inner.samples()
         ))
-    }
-}
-
-/// Bias-compensated least squares with Σ_w estimated beside an IV identifier of `delay`,
-/// `lags` (exact start, weights `r`), filters of `P` parameters.
-fn ne_p<const P: usize>(
-    s: Structure<f64>,
-    delay: usize,
-    lags: usize,
-    sv: &[f64],
-    r: &[f64],
-) -> vehid_core::Result<Box<dyn DynIdentifier<f64>>> {
-    fn pq<const P: usize, const Q: usize>(
-        s: Structure<f64>,
-        delay: usize,
-        lags: usize,
-        sv: &[f64],
-        r: &[f64],
-    ) -> vehid_core::Result<Box<dyn DynIdentifier<f64>>> {
-        let iv = IvIdentifierVec::<f64, P, Q>::new(s, delay, StructuredPrior::Exact, None, r)?.with_lags(lags)?;
-        Ok(Box::new(NoiseEstimatingBclsVec::<f64, P, Q>::new(iv, sv)?))
-    }
-    if lags == 0 {
-        pq::<P, 0>(s, delay, lags, sv, r)
-    } else {
-        pq::<P, PREDICTOR>(s, delay, lags, sv, r)
     }
 }

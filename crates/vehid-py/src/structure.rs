@@ -7,9 +7,7 @@ use crate::{core_err, VehidError};
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
-use vehid_core::identify::{
-    DynIdentifier, Gain, KalmanOptions, StructuredGradient, StructuredKalmanVec, StructuredPrior,
-};
+use vehid_core::identify::{DynIdentifier, Gain, KalmanOptions, StructuredPrior};
 use vehid_core::model::{HalfCar, PhysicalStructure, QuarterCar};
 use vehid_core::structure::{Structure, StructureBuilder};
 
@@ -494,17 +492,6 @@ pub(crate) fn vec_arg(obj: &Bound<'_, PyAny>, arg: &str, len: usize) -> PyResult
     Ok(a.data)
 }
 
-/// The structured identifier for groups of at most `P` parameters.
-fn structured_p<const P: usize>(
-    s: Structure<f64>,
-    p0: StructuredPrior<'_, f64>,
-    theta0: Option<&[f64]>,
-    r: &[f64],
-    opts: KalmanOptions<f64>,
-) -> vehid_core::Result<Box<dyn DynIdentifier<f64>>> {
-    Ok(Box::new(StructuredKalmanVec::<f64, P>::new(s, p0, theta0, r, opts)?))
-}
-
 /// The recursive least-squares identifier of a structure: parses `p0`, `theta0` and `r` for
 /// it and picks the filter size from the largest parameter group.
 pub(crate) fn kalman_on_structure(
@@ -562,16 +549,7 @@ pub(crate) fn kalman_on_structure(
             a.data
         }
     };
-    let largest = s.core.partition().largest();
-    let (core, th) = (s.core, theta0.as_deref());
-    match largest {
-        0..=2 => structured_p::<2>(core, p0, th, &r, opts),
-        3..=4 => structured_p::<4>(core, p0, th, &r, opts),
-        5..=8 => structured_p::<8>(core, p0, th, &r, opts),
-        9..=16 => structured_p::<16>(core, p0, th, &r, opts),
-        _ => structured_p::<32>(core, p0, th, &r, opts),
-    }
-    .map_err(core_err)
+    vehid_runtime::build::structured_kalman(s.core, p0, theta0.as_deref(), &r, opts).map_err(core_err)
 }
 
 /// The known constants of a car, one per [`CarKind::constants`], from a dict mapping constant
@@ -648,15 +626,6 @@ pub(crate) fn validate<'py>(
     Ok(out)
 }
 
-fn gradient_p<const P: usize>(
-    s: Structure<f64>,
-    gain: Gain<f64>,
-    h: &[f64],
-    spacing: u32,
-) -> vehid_core::Result<Box<dyn DynIdentifier<f64>>> {
-    Ok(Box::new(StructuredGradient::<f64, P>::new(s, gain, h, None, spacing)?))
-}
-
 /// The stochastic-gradient identifier of a structure (weights `h`: one, or one per parameter).
 pub(crate) fn gradient_on_structure(
     s: &PyStructure,
@@ -664,11 +633,5 @@ pub(crate) fn gradient_on_structure(
     h: &[f64],
     spacing: u32,
 ) -> PyResult<Box<dyn DynIdentifier<f64>>> {
-    match s.core.params() {
-        0..=4 => gradient_p::<4>(s.core, gain, h, spacing),
-        5..=8 => gradient_p::<8>(s.core, gain, h, spacing),
-        9..=16 => gradient_p::<16>(s.core, gain, h, spacing),
-        _ => gradient_p::<32>(s.core, gain, h, spacing),
-    }
-    .map_err(core_err)
+    vehid_runtime::build::structured_gradient(s.core, gain, h, spacing).map_err(core_err)
 }

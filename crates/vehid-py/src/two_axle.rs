@@ -11,11 +11,9 @@ use numpy::PyArray2;
 use pyo3::exceptions::PyMemoryError;
 use pyo3::prelude::*;
 use vehid_core::identify::{
-    DynIdentifier, TwoAxleConfig, TwoAxleIdentifierVec, TwoAxleStructuredConfig, TwoAxleStructuredVec, WheelMethod,
+    TwoAxleConfig, TwoAxleIdentifierVec, TwoAxleStructuredConfig, TwoAxleStructuredVec, WheelMethod,
 };
-use vehid_core::model::LinearModel;
 use vehid_core::sampler::{axle_delay, AxleSampler, Trigger};
-use vehid_core::structure::Structure;
 use vehid_runtime::ModelData;
 
 /// Ring capacity of the Python `AxleSampler`.
@@ -46,19 +44,7 @@ pub(crate) fn half_dims(d: &ModelData, what: &str) -> PyResult<()> {
 
 type Id = TwoAxleIdentifierVec<f64, 8, 16>;
 
-/// The group sizes `P` of the road cancellation on a Structure that the binding builds (the
-/// largest group with the two wheel equations' merged: 4 for the half car's physical
-/// structure with m1, m2, l1, l2 known, 16 for its full rows).
-pub const STRUCTURED_SIZES: [usize; 3] = [4, 8, 16];
-
-fn structured<const P: usize>(
-    s: Structure<f64>,
-    car: &LinearModel<f64, 8, 2>,
-    d: usize,
-    cfg: TwoAxleStructuredConfig<f64>,
-) -> vehid_core::Result<Box<dyn DynIdentifier<f64>>> {
-    Ok(Box::new(TwoAxleStructuredVec::<f64, P>::new(s, car, d, cfg)?))
-}
+use vehid_runtime::build::TWO_AXLE_SIZES as STRUCTURED_SIZES;
 
 /// Reads the core of a `TwoAxleIdentifier` on a Structure (any built size): `$id` bound to it
 /// in `$body`; `None` for the rows identifier.
@@ -254,19 +240,7 @@ impl PyTwoAxleIdentifier {
             };
             cfg.direct_front = direct_front;
             cfg.compensate = compensate;
-            // The smallest built size that holds the largest group once the core has merged the
-            // two wheel equations' groups (it says so with a capacity error).
-            let mut built = Err(vehid_core::Error::Capacity { arg: "P", needed: 0, capacity: 0 });
-            for p in STRUCTURED_SIZES {
-                built = match p {
-                    4 => structured::<4>(s, &core, d, cfg),
-                    8 => structured::<8>(s, &core, d, cfg),
-                    _ => structured::<16>(s, &core, d, cfg),
-                };
-                if !matches!(built, Err(vehid_core::Error::Capacity { arg: "P", .. })) {
-                    break;
-                }
-            }
+            let built = vehid_runtime::build::two_axle_structured(s, &core, d, cfg);
             let inner = match built {
                 Err(vehid_core::Error::Capacity { arg: "P", needed, .. }) => {
                     return Err(VehidError::new_err(format!(
