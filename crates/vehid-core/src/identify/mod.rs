@@ -119,7 +119,7 @@ pub use two_axle_structured::TwoAxleStructuredVec;
 pub use two_axle_structured::{FrontRegression, TwoAxleStructured, TwoAxleStructuredConfig, TwoAxleStructuredKalman};
 
 pub(crate) use interface::{check_lengths, vector};
-pub(crate) use store::{array_from_items, per_row, rows_buffer, rows_into};
+pub(crate) use store::{per_row, rows_buffer, rows_into};
 
 use crate::{Error, Real, Result};
 use nalgebra::{SMatrix, SVector};
