@@ -77,7 +77,7 @@
 
 mod shared;
 
-use super::interface::check_lengths;
+use super::checks::check_lengths;
 use super::iv_filter::IvFilter;
 use super::iv_predictor::{Predictor, SAMPLE_VALUES};
 use super::{Dims, Flat, Identifier, StructuredPrior, OVERFLOW};
@@ -751,7 +751,7 @@ impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> Identifie
     for InstrumentalVariables<T, P, F, Q>
 {
     fn dims(&self) -> Dims {
-        super::interface::structure_dims(&self.structure)
+        super::buffers::structure_dims(&self.structure)
     }
 
     fn rows(&self) -> &[usize] {
@@ -840,17 +840,17 @@ impl<T: Real, const P: usize, F: Flat<IvFilter<T, P>>, const Q: usize> Identifie
     }
 
     fn noise_into(&self, out: &mut [T]) -> Result<()> {
-        super::interface::diagonal_noise_into(&self.r[..self.structure.equations()], out)
+        super::buffers::diagonal_noise_into(&self.r[..self.structure.equations()], out)
     }
 
     /// Each equation's sum of squared a-posteriori residuals `y − hᵀθ̂(k)` (own units) over the
     /// samples filtered after the start, and their number.
     fn residuals_into(&self, ssr: &mut [T], nobs: &mut [T]) -> Result<()> {
-        super::interface::copy_residuals(self.structure.equations(), &self.eq_ssr, &self.eq_nobs, ssr, nobs)
+        super::buffers::copy_residuals(self.structure.equations(), &self.eq_ssr, &self.eq_nobs, ssr, nobs)
     }
 
     fn groups_into(&self, group_of_param: &mut [usize], group_of_eq: &mut [usize]) -> Result<()> {
         let (np, ne) = (self.structure.params(), self.structure.equations());
-        super::interface::partition_groups_into(&self.part, np, ne, group_of_param, group_of_eq)
+        super::buffers::partition_groups_into(&self.part, np, ne, group_of_param, group_of_eq)
     }
 }

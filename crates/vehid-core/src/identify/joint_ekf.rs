@@ -86,7 +86,7 @@
 //! a nearly measured state (the gain on `x` is set by `Σ_w`, not by `p`) the effect is small
 //! here: see `tests/joint_ekf.rs` for the measured figures.
 
-use super::interface::check_slices;
+use super::checks::check_slices;
 use super::{Dims, Identifier, OVERFLOW};
 use crate::error::{check_finite, check_nonneg, check_positive};
 use crate::structure::{Basis, Structure, Var, MAX_EQUATIONS};
@@ -603,7 +603,7 @@ super::persist_by_serde!([T: Real, const N: usize, const D: usize] JointEkf<T, N
 
 impl<T: Real, const N: usize, const D: usize> Identifier<T> for JointEkf<T, N, D> {
     fn dims(&self) -> Dims {
-        super::interface::structure_dims(&self.structure)
+        super::buffers::structure_dims(&self.structure)
     }
 
     fn rows(&self) -> &[usize] {

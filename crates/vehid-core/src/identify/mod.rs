@@ -39,6 +39,9 @@
 //! path computes the same bits. Measured figures and how to reproduce them: `benches/README.md`.
 
 mod bias_compensated;
+mod buffers;
+mod checks;
+mod cost;
 mod deriv_noise;
 #[cfg(feature = "alloc")]
 mod estimate_stats;
@@ -54,6 +57,7 @@ mod least_squares;
 mod noise_estimating;
 pub(crate) mod persist;
 mod road;
+mod samples;
 #[cfg(feature = "alloc")]
 mod state_filter;
 mod store;
@@ -66,6 +70,7 @@ mod two_axle_structured;
 #[cfg(feature = "alloc")]
 pub use bias_compensated::BiasCompensatedVec;
 pub use bias_compensated::{BcGroup, BiasCompensated, BiasCompensatedLs};
+pub use cost::Cost;
 #[cfg(feature = "alloc")]
 pub use estimate_stats::{estimate_stats, posterior_stats, EstimateStats};
 #[cfg(feature = "alloc")]
@@ -74,7 +79,7 @@ pub use gradient::{Gain, GainKind, GradientCore, StochasticGradient};
 #[cfg(feature = "alloc")]
 pub use instrumental::IvIdentifierVec;
 pub use instrumental::{InstrumentalVariables, IvIdentifier, RING_VALUES};
-pub use interface::{Dims, FitError, Identifier, SampleIter, Samples, FIT_STACK_EQUATIONS};
+pub use interface::{Dims, FitError, Identifier, FIT_STACK_EQUATIONS};
 #[cfg(feature = "alloc")]
 pub use interface::{DynIdentifier, FitOptions};
 pub use iv_filter::IvFilter;
@@ -104,6 +109,7 @@ pub use road::BoxedIdentifier;
 pub use road::{
     Contact, Differenced, RoadModel, RoadState, Travel, DEFAULT_MIN_SPACING, LIFT_OFF_LOAD, MAX_ROAD_WEIGHT,
 };
+pub use samples::{SampleIter, Samples};
 #[cfg(feature = "alloc")]
 pub use state_filter::{StateFilterFit, DEFAULT_BANDWIDTH, DEFAULT_BLOCK};
 pub use store::{Dynamic, Fixed, Flat, NoScratch, Store, DYNAMIC_LANES};
@@ -118,69 +124,6 @@ pub use two_axle::{Past, TwoAxle, TwoAxleConfig, TwoAxleIdentifier, WheelMethod}
 pub use two_axle_structured::TwoAxleStructuredVec;
 pub use two_axle_structured::{FrontRegression, TwoAxleStructured, TwoAxleStructuredConfig, TwoAxleStructuredKalman};
 
-pub(crate) use interface::{check_lengths, vector};
+pub(crate) use buffers::{fixed_theta, vector};
+pub(crate) use checks::{check_lengths, check_sample, OVERFLOW, OVERFLOW_Z};
 pub(crate) use store::{per_row, rows_buffer, rows_into};
-
-use crate::{Error, Real, Result};
-use nalgebra::{SMatrix, SVector};
-
-/// The arithmetic of one sample update and the identifier's size, for comparison with the
-/// thesis' Table I (4-state identifier: 3.6 ms on a 1986 microprocessor, 352 bytes; 8-state
-/// decoupled: 14.5 ms, 2800 bytes). Counts are of the estimator's formulas, not of the
-/// input checks; an addition counts subtractions too.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct Cost {
-    /// Multiplications per update.
-    pub multiplications: usize,
-    /// Additions and subtractions per update.
-    pub additions: usize,
-    /// Divisions per update.
-    pub divisions: usize,
-    /// Square roots per update.
-    pub square_roots: usize,
-    /// Size of the identifier's state, bytes (`size_of_val`; for the `Vec` forms the heap
-    /// buffers are added).
-    pub bytes: usize,
-}
-
-impl Cost {
-    /// All floating-point operations.
-    pub fn flops(&self) -> usize {
-        self.multiplications + self.additions + self.divisions + self.square_roots
-    }
-}
-
-/// Checks a sample: `x` and `z` finite.
-#[inline]
-pub(crate) fn check_sample<T: Real, const N: usize>(x: &SVector<T, N>, z: &SVector<T, N>) -> Result<()> {
-    if let Some(index) = x.iter().position(|v| !v.finite()) {
-        return Err(Error::NonFinite { arg: "r_k", index });
-    }
-    if let Some(index) = z.iter().position(|v| !v.finite()) {
-        return Err(Error::NonFinite { arg: "z_k", index });
-    }
-    Ok(())
-}
-
-/// The error for an update whose arithmetic would overflow: the identifier is left unchanged.
-pub(crate) const OVERFLOW: Error = Error::InvalidArgument {
-    arg: "r_k",
-    expected: "sample values small enough that the update stays finite (rescale the units)",
-};
-
-/// The error for an update that would overflow through the innovation (a derivative far from
-/// the prediction), when the state itself is in range: names `z_k`.
-pub(crate) const OVERFLOW_Z: Error = Error::InvalidArgument {
-    arg: "z_k",
-    expected: "a measured derivative small enough that the update stays finite (rescale the units, or turn the \
-               outlier gate on)",
-};
-
-/// `θ̂` of a fixed-size identifier as a `K × N` matrix (the estimate of every unknown row).
-pub(crate) fn fixed_theta<T: Real, const N: usize, const K: usize>(id: &impl Identifier<T>) -> SMatrix<T, K, N> {
-    // Row-major K × N is the column-major storage of its N × K transpose.
-    let mut t = SMatrix::<T, N, K>::zeros();
-    // The buffer has exactly K·N entries, the identifier's parameter count.
-    let _ = id.params_into(t.as_mut_slice());
-    t.transpose()
-}

@@ -71,7 +71,8 @@
 //! **Not covered.** A road with another spectrum (its increments not white after the
 //! filter) and sensor noise that is not white.
 
-use super::interface::{check_lengths, Dims, Identifier};
+use super::checks::check_lengths;
+use super::interface::{Dims, Identifier};
 use crate::error::{check_finite, check_nonneg, check_positive};
 use crate::structure::{Basis, Structure, MAX_INPUTS, MAX_STATES};
 use crate::{Error, Real, Result};

@@ -26,7 +26,7 @@
 //! check) goes through the general path. The full-row structure steps bit for bit as
 //! `KalmanRows`; other structures as the general path, to rounding.
 
-use super::interface::{check_lengths, check_slices};
+use super::checks::{check_lengths, check_slices};
 use super::kalman::RowIdentifier;
 use super::structured_fast::Fast;
 use super::{CovarianceForm, Dims, Flat, Identifier, KalmanOptions, OVERFLOW};
@@ -400,7 +400,7 @@ super::persist_by_serde!([T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>]
 
 impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Identifier<T> for Structured<T, P, F> {
     fn dims(&self) -> Dims {
-        super::interface::structure_dims(&self.structure)
+        super::buffers::structure_dims(&self.structure)
     }
 
     fn rows(&self) -> &[usize] {
@@ -457,12 +457,12 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Identifier<T> for St
     fn residuals_into(&self, ssr: &mut [T], nobs: &mut [T]) -> Result<()> {
         let (mut s, mut n) = (self.eq_ssr, self.eq_nobs);
         self.fast.equations_into(&mut s, &mut n);
-        super::interface::copy_residuals(self.structure.equations(), &s, &n, ssr, nobs)
+        super::buffers::copy_residuals(self.structure.equations(), &s, &n, ssr, nobs)
     }
 
     fn groups_into(&self, group_of_param: &mut [usize], group_of_eq: &mut [usize]) -> Result<()> {
         let (np, ne) = (self.structure.params(), self.structure.equations());
-        super::interface::partition_groups_into(&self.part, np, ne, group_of_param, group_of_eq)
+        super::buffers::partition_groups_into(&self.part, np, ne, group_of_param, group_of_eq)
     }
 
     fn covariance_into(&self, out: &mut [T]) -> Result<()> {
@@ -479,7 +479,7 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>> Identifier<T> for St
     }
 
     fn noise_into(&self, out: &mut [T]) -> Result<()> {
-        super::interface::diagonal_noise_into(&self.r[..self.structure.equations()], out)
+        super::buffers::diagonal_noise_into(&self.r[..self.structure.equations()], out)
     }
 
     fn trace(&self) -> Option<T> {

@@ -62,8 +62,9 @@
 //! regressions (a fixed array or a `Vec`, sized at construction) holds what the pairing
 //! needs. An update allocates nothing and is transactional.
 
+use super::buffers::{partition_groups_into, structure_dims};
+use super::checks::check_slices;
 use super::deriv_noise::{add_deriv_noise, compensated, nonlinear_deriv, reads_noisy_deriv};
-use super::interface::{check_slices, partition_groups_into, structure_dims};
 use super::two_axle::wheel_rows;
 use super::{Flat, Identifier, RowIdentifier, OVERFLOW};
 use crate::error::{check_nonneg, check_positive};
@@ -674,7 +675,7 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>, B: RingStore<FrontRe
     }
 
     fn noise_into(&self, out: &mut [T]) -> Result<()> {
-        super::interface::diagonal_noise_into(&self.r[..self.structure.equations()], out)
+        super::buffers::diagonal_noise_into(&self.r[..self.structure.equations()], out)
     }
 
     fn groups_into(&self, group_of_param: &mut [usize], group_of_eq: &mut [usize]) -> Result<()> {
