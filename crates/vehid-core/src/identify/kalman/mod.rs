@@ -68,11 +68,14 @@ macro_rules! avx2_step {
 #[cfg(feature = "alloc")]
 mod build;
 mod full;
+mod guards;
 pub(crate) mod lanes;
 mod options;
 mod row;
 mod rows;
 mod shared;
+mod sums;
+mod ud;
 mod xlanes;
 
 #[cfg(feature = "alloc")]
@@ -80,8 +83,8 @@ pub use build::{boxed_kalman, KalmanSpec, Prior};
 #[cfg(feature = "alloc")]
 pub use full::FullKalmanIdentifierVec;
 pub use full::{FullKalmanIdentifier, KalmanFull};
+pub(crate) use guards::check_reset;
 pub use options::{CovarianceForm, KalmanOptions, Mode};
-pub(crate) use row::check_reset;
 pub use row::RowIdentifier;
 pub use rows::{KalmanIdentifier, KalmanRows};
 #[cfg(feature = "alloc")]
