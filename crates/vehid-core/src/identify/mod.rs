@@ -5,24 +5,28 @@
 //! | [`BatchLeastSquares`] (std), [`LsAccumulator`] | Eq 2.14, 3.4 | `least_squares.rs` |
 //! | [`KalmanIdentifier`] (decoupled rows), [`SharedKalmanIdentifier`], [`FullKalmanIdentifier`] | Eq 4.3–4.7, 4.35–4.36, 6.16–6.18 | `kalman/` |
 //! | [`StochasticGradient`] | Eq 2.56, 5.2–5.18 | `gradient.rs` |
-//! | [`Structured`] (any [`crate::structure::Structure`]: grey-box models linear in their parameters) | Eq 2.2–2.4, 6.16–6.18 | `structured.rs` |
-//! | [`InstrumentalVariables`] (noisy measured states: instruments = regressors `delay` samples earlier) | Söderström & Stoica §8 | `instrumental.rs`, `iv_filter.rs` |
+//! | [`Structured`] (any [`crate::structure::Structure`]: grey-box models linear in their parameters) | Eq 2.2–2.4, 6.16–6.18 | `structured.rs`, `structured_fast.rs` |
+//! | [`InstrumentalVariables`] (noisy measured states: instruments = regressors `delay` samples earlier) | Söderström & Stoica §8 | `instrumental.rs` (`instrumental/`: the ring of past samples, the prior's blocks, the shared-parameter regressor), `iv_filter.rs` |
 //! | [`BiasCompensated`] (noisy measured states, known noise covariance: `(XᵀX − N Σ_w)⁻¹ Xᵀz`) | Söderström 2007 §4.3 | `bias_compensated.rs` |
 //! | [`NoiseEstimatingBcls`] (noisy measured states, `Σ_w` estimated from the least-squares residual at an instrumental estimate, then compensated) | Zheng 1998, 2002; Söderström 2018 Ch. 7 | `noise_estimating.rs` |
-//! | [`JointEkf`] (noisy measured states: states, parameters and road estimated together by an extended Kalman filter; the thesis' Ch. VII proposal) | Ljung 1979 | `joint_ekf.rs` |
+//! | [`JointEkf`] (noisy measured states: states, parameters and road estimated together by an extended Kalman filter; the thesis' Ch. VII proposal) | Ljung 1979 | `joint_ekf.rs` (`joint_ekf/noise.rs`: [`EkfNoise`]) |
 //! | [`TwoAxleIdentifier`] (two axles on one road: plain, Eq 6.14, road cancellation) | Eq 6.9, 6.12–6.14 | `two_axle.rs` |
-//! | [`TwoAxleStructured`] (road cancellation on a physical [`crate::structure::Structure`]: the half car's 12 parameters) | Eq 6.1–6.9 | `two_axle_structured.rs` |
-//! | [`Differenced`] (any identifier on a road that is not white: the samples quasi-differenced by the road's ISO 8608 shaping filter in distance; with [`InstrumentalVariables`] inside, consistent) | Anderson & Hsiao 1981; Cochrane & Orcutt 1949 | `road.rs` |
+//! | [`TwoAxleStructured`] (road cancellation on a physical [`crate::structure::Structure`]: the half car's 12 parameters) | Eq 6.1–6.9 | `two_axle_structured.rs` (`two_axle_structured/config.rs`: [`TwoAxleStructuredConfig`]) |
+//! | [`Differenced`] (any identifier on a road that is not white: the samples quasi-differenced by the road's ISO 8608 shaping filter in distance; with [`InstrumentalVariables`] inside, consistent) | Anderson & Hsiao 1981; Cochrane & Orcutt 1949 | `road.rs` (`road/boxed.rs`: [`BoxedIdentifier`]) |
 //! | [`StateFilterFit`] (the body equation from a body accelerometer and a deflection sensor: a state-variable filter on both sides, cluster-robust intervals for its coloured residuals) | Young 1981; Garnier et al. 2003; Cameron & Miller 2015 | `state_filter.rs` |
 //!
 //! All of them but [`JointEkf`] (which estimates the state too) regress the measured
 //! derivative of each unknown row on the measured state: `z_i(k) = r(k)ᵀ θ_i + ε_i(k)`
 //! (Eq 2.2–2.4 with `H = I ⊗ xᵀ`), and all of them implement
-//! one interface, [`Identifier`] (`interface.rs`): samples in through
+//! one interface, [`Identifier`] (`interface.rs`; an identifier's implementation of it, and
+//! its persistence, in `<its file>/identifier.rs`): samples in through
 //! [`Identifier::update_into`], which allocates nothing and is transactional (a rejected
 //! sample — NaN, inf, a numerically singular step — returns an error and leaves the
 //! identifier exactly as it was), estimates out through caller buffers, and a transactional
-//! batch [`Identifier::fit`]. [`DynIdentifier`] (alloc) is its boxed form.
+//! batch [`Identifier::fit`]. [`DynIdentifier`] (alloc) is its boxed form. What the
+//! identifiers share: [`Samples`] (`samples.rs`), the sample checks and overflow errors
+//! (`checks.rs`), conversions between their fixed-size state and the interface's slices
+//! (`buffers.rs`), [`Cost`] (`cost.rs`).
 //!
 //! # Storage
 //! Each identifier is generic over a [`Store`] (`store.rs`): [`Fixed<K>`] keeps the `K`

@@ -11,8 +11,10 @@
 //! `z_i`, equation `i` is the scalar regression `y_i = z_i − known_i(x, u) = h_i(x, u)ᵀ p + ε_i`
 //! (Eq 2.2–2.4 generalized: for the full unknown rows of `A`, `h_i = x` on row `i`'s block).
 //!
-//! [`Structure`] is plain data of fixed capacity (no allocation; `no_std`); `parse.rs` (std)
-//! reads the text form (`"a*tau - b*v - c*sign(v) - d"`). Known equations (parameter-free,
+//! [`Structure`] is plain data of fixed capacity (no allocation; `no_std`); `eval.rs` evaluates
+//! it (bases, regressors, derivative, simulation), `identifiability.rs` checks its parameters
+//! and groups them ([`Partition`]); `parse.rs` (std) reads the text form (its grammar in
+//! `parse/grammar.rs`) (`"a*tau - b*v - c*sign(v) - d"`). Known equations (parameter-free,
 //! e.g. `q̇ = v`) are kept for simulation.
 
 #[cfg(feature = "std")]
