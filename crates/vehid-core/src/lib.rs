@@ -84,6 +84,7 @@ macro_rules! option_names {
 }
 
 pub mod analysis;
+mod array;
 mod error;
 pub mod health;
 pub mod identify;

@@ -70,7 +70,7 @@ impl<X: Copy + core::fmt::Debug, const C: usize> RingStore<X> for [X; C] {
         self
     }
     fn from_items<E>(items: impl Iterator<Item = core::result::Result<X, E>>) -> core::result::Result<Option<Self>, E> {
-        crate::identify::array_from_items(items)
+        crate::array::array_from_items(items)
     }
 }
 

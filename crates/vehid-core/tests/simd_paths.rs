@@ -6,7 +6,7 @@
 //! not build it), because the promise matters for optimized code. By hand in the test profile:
 //! `cargo test -p vehid-core --test simd_paths`.
 //!
-//! Which updates have an AVX2 copy (`avx2_step!` in `identify/kalman/mod.rs`): the decoupled
+//! Which updates have an AVX2 copy (`avx2_step!` in `identify/kalman/avx2.rs`): the decoupled
 //! rows ([`KalmanRows`]) when a group of lanes fills a 256-bit register (`LANES ×
 //! size_of::<T>() ≥ 32`: `Fixed<K ≥ 4>` and `Dynamic<4>` in `f64`, `Fixed<K ≥ 8>` and
 //! `Dynamic<8>` in `f32`), and the shared form ([`KalmanShared`]) for more than 32 bytes of

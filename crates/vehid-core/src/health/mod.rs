@@ -268,7 +268,8 @@
 //! kinematic filters' noise in the regressors, before their `s_u` grows).
 //!
 //! Files: `kinematic.rs` ([`DeflectionFilter`], [`RateGain`]), `rls.rs` ([`Rls`], [`Rls3`]), `monitor.rs`
-//! ([`HealthMonitor`], [`HealthConfig`]), `half.rs` ([`HalfHealthMonitor`]), `pattern.rs`
+//! ([`HealthMonitor`]; `monitor/config.rs`: [`HealthConfig`]; `monitor/detect.rs`: its
+//! decisions), `half.rs` ([`HalfHealthMonitor`]; `half/detect.rs`: its decisions), `pattern.rs`
 //! (the fits to the patterns), `event.rs` ([`Event`], [`Status`], [`Estimate`]).
 
 mod consistency;

@@ -35,8 +35,8 @@
 //! errors-in-variables sandwich needs fourth moments of the regressors): use
 //! [`super::InstrumentalVariables`] for standard errors.
 
+use super::checks::check_slices;
 use super::instrumental::{equation_weights, local_regression};
-use super::interface::check_slices;
 use super::{Dims, Flat, Identifier, OVERFLOW};
 use crate::linalg::{cholesky_in_place, cholesky_solve};
 use crate::structure::{Basis, Partition, Structure, Var, MAX_EQUATIONS, MAX_STATES};
@@ -449,7 +449,7 @@ super::persist_by_serde!([T: Real, const P: usize, F: Flat<BcGroup<T, P>>] BiasC
 
 impl<T: Real, const P: usize, F: Flat<BcGroup<T, P>>> Identifier<T> for BiasCompensated<T, P, F> {
     fn dims(&self) -> Dims {
-        super::interface::structure_dims(&self.structure)
+        super::buffers::structure_dims(&self.structure)
     }
 
     fn rows(&self) -> &[usize] {
@@ -510,7 +510,7 @@ impl<T: Real, const P: usize, F: Flat<BcGroup<T, P>>> Identifier<T> for BiasComp
     }
 
     fn noise_into(&self, out: &mut [T]) -> Result<()> {
-        super::interface::diagonal_noise_into(&self.r[..self.structure.equations()], out)
+        super::buffers::diagonal_noise_into(&self.r[..self.structure.equations()], out)
     }
 
     fn covariance_into(&self, out: &mut [T]) -> Result<()> {
@@ -523,6 +523,6 @@ impl<T: Real, const P: usize, F: Flat<BcGroup<T, P>>> Identifier<T> for BiasComp
 
     fn groups_into(&self, group_of_param: &mut [usize], group_of_eq: &mut [usize]) -> Result<()> {
         let (np, ne) = (self.structure.params(), self.structure.equations());
-        super::interface::partition_groups_into(&self.part, np, ne, group_of_param, group_of_eq)
+        super::buffers::partition_groups_into(&self.part, np, ne, group_of_param, group_of_eq)
     }
 }

@@ -86,73 +86,20 @@
 //! a nearly measured state (the gain on `x` is set by `Σ_w`, not by `p`) the effect is small
 //! here: see `tests/joint_ekf.rs` for the measured figures.
 
-use super::interface::check_slices;
+use super::checks::check_slices;
 use super::{Dims, Identifier, OVERFLOW};
 use crate::error::{check_finite, check_nonneg, check_positive};
 use crate::structure::{Basis, Structure, Var, MAX_EQUATIONS};
 use crate::{Error, Real, Result};
 use nalgebra::{SMatrix, SVector};
 
+mod identifier;
+mod noise;
+
+pub use noise::EkfNoise;
+
 /// Most RK4 sub-steps per sample the filter accepts.
 pub const MAX_EKF_SUBSTEPS: u32 = 1000;
-
-/// The noise model of [`JointEkf`] (see the module docs for where each enters). Variances,
-/// not standard deviations.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(
-    feature = "serde",
-    derive(serde::Serialize, serde::Deserialize),
-    serde(bound(serialize = "T: serde::Serialize", deserialize = "T: crate::Real"))
-)]
-pub struct EkfNoise<T: Real, const N: usize> {
-    /// `Σ_w` (diagonal): variance of the measured state's noise, per state, state units²
-    /// (m², (m/s)²). Must be > 0 (give a small value for an exact sensor).
-    pub state_var: SVector<T, N>,
-    /// `Σ_v` (diagonal): variance of the measured derivative's noise, per state, (state
-    /// units / s)². Must be > 0.
-    pub deriv_var: SVector<T, N>,
-    /// `g`: the road's input column of `ẋ` (the `B` of `ẋ = A x + B u`), state units / s per
-    /// road unit (quarter car: `[0, k1/m, 0, 0]`).
-    pub road_gain: SVector<T, N>,
-    /// `σ_u²`: variance of the road input of one sample, road units² (m²); ≥ 0.
-    pub road_var: T,
-    /// `q`: variance of the parameters' random walk per sample, parameter units²; 0 for
-    /// constant parameters, > 0 to track slow changes.
-    pub param_walk_var: T,
-}
-
-impl<T: Real, const N: usize> EkfNoise<T, N> {
-    /// The same standard deviations on every component: `σ_w` on the measured state, `σ_v`
-    /// on the measured derivative, `σ_u` on the road (entering through `road_gain`), no
-    /// parameter walk.
-    pub fn from_sigmas(sigma_w: T, sigma_v: T, road_gain: SVector<T, N>, sigma_u: T) -> Self {
-        Self {
-            state_var: SVector::repeat(sigma_w * sigma_w),
-            deriv_var: SVector::repeat(sigma_v * sigma_v),
-            road_gain,
-            road_var: sigma_u * sigma_u,
-            param_walk_var: T::zero(),
-        }
-    }
-
-    /// Sets the parameters' random-walk variance per sample `q`.
-    pub fn with_param_walk(mut self, q: T) -> Self {
-        self.param_walk_var = q;
-        self
-    }
-
-    fn check(&self) -> Result<()> {
-        for &v in self.state_var.iter() {
-            check_positive("state_var", v)?;
-        }
-        for &v in self.deriv_var.iter() {
-            check_positive("deriv_var", v)?;
-        }
-        check_finite("road_gain", self.road_gain.as_slice())?;
-        check_nonneg("road_var", self.road_var)?;
-        check_nonneg("param_walk_var", self.param_walk_var)
-    }
-}
 
 /// The joint extended Kalman filter on `s = [x; p; u]` (module docs): `N` states, `D =
 /// N + params + 1` (checked at construction: Rust cannot yet compute it from the others).
@@ -599,174 +546,5 @@ fn evaluation_order<T: Real>(s: &Structure<T>) -> Result<[u8; MAX_EQUATIONS]> {
     Ok(order)
 }
 
-super::persist_by_serde!([T: Real, const N: usize, const D: usize] JointEkf<T, N, D>);
-
-impl<T: Real, const N: usize, const D: usize> Identifier<T> for JointEkf<T, N, D> {
-    fn dims(&self) -> Dims {
-        super::interface::structure_dims(&self.structure)
-    }
-
-    fn rows(&self) -> &[usize] {
-        &self.rows[..self.structure.equations()]
-    }
-
-    /// One sample: the update with `r_k` (`x`) and `z_k`, then the prediction to `k + 1`
-    /// (module docs). `e`: each identified equation's `z_i − f_i(x̂, p̂)` at the prior.
-    ///
-    /// # Errors
-    /// [`Error::Shape`], [`Error::NonFinite`] naming `r_k`, `z_k` or `u_k`;
-    /// [`Error::Singular`] when the covariance lost definiteness; an overflow error. The
-    /// filter is unchanged after any error.
-    fn update_into(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
-        check_slices(self.dims(), x, z, u, e)?;
-        let (s, p, innov) = self.step(x, z, u)?;
-        self.s = s;
-        self.p = p;
-        e.copy_from_slice(&innov[..e.len()]);
-        self.samples += 1;
-        Ok(())
-    }
-
-    fn params_into(&self, out: &mut [T]) -> Result<()> {
-        let np = self.structure.params();
-        if out.len() != np {
-            return Err(Error::Shape { arg: "out", expected: np, got: out.len() });
-        }
-        out.copy_from_slice(&self.s.as_slice()[N..N + np]);
-        Ok(())
-    }
-
-    fn samples(&self) -> u64 {
-        self.samples
-    }
-
-    /// The parameters' block of `P` (posterior given the samples so far, under the filter's
-    /// linearization and noise model).
-    fn covariance_into(&self, out: &mut [T]) -> Result<()> {
-        let np = self.structure.params();
-        if out.len() != np * np {
-            return Err(Error::Shape { arg: "out", expected: np * np, got: out.len() });
-        }
-        for a in 0..np {
-            for b in 0..np {
-                out[a * np + b] = self.p[(N + a, N + b)];
-            }
-        }
-        Ok(())
-    }
-
-    /// The identified equations' noise covariance: `Σ_v,ii δ_ij + g_i g_j σ_u²` (their
-    /// measured derivatives' noise, road included).
-    fn noise_into(&self, out: &mut [T]) -> Result<()> {
-        let ne = self.structure.equations();
-        if out.len() != ne * ne {
-            return Err(Error::Shape { arg: "out", expected: ne * ne, got: out.len() });
-        }
-        let g = &self.noise.road_gain;
-        for (a, &ra) in self.rows[..ne].iter().enumerate() {
-            for (b, &rb) in self.rows[..ne].iter().enumerate() {
-                let v = if a == b { self.noise.deriv_var[ra] } else { T::zero() };
-                out[a * ne + b] = v + g[ra] * g[rb] * self.noise.road_var;
-            }
-        }
-        Ok(())
-    }
-
-    /// One group: the filter couples every parameter and equation.
-    fn groups_into(&self, group_of_param: &mut [usize], group_of_eq: &mut [usize]) -> Result<()> {
-        let d = self.dims();
-        if group_of_param.len() != d.params {
-            return Err(Error::Shape { arg: "group_of_param", expected: d.params, got: group_of_param.len() });
-        }
-        if group_of_eq.len() != d.equations {
-            return Err(Error::Shape { arg: "group_of_eq", expected: d.equations, got: group_of_eq.len() });
-        }
-        group_of_param.fill(0);
-        group_of_eq.fill(0);
-        Ok(())
-    }
-
-    /// `tr P` of the parameters' block.
-    fn trace(&self) -> Option<T> {
-        Some((N..D - 1).fold(T::zero(), |a, i| a + self.p[(i, i)]))
-    }
-
-    /// `P_pp ← p0 I` and the state–parameter covariance to 0 (the state's own block is kept).
-    fn reset_covariance(&mut self, p0: T) -> Result<()> {
-        check_positive("p0", p0)?;
-        for a in N..D - 1 {
-            for b in 0..D - 1 {
-                let v = if a == b { p0 } else { T::zero() };
-                self.p[(a, b)] = v;
-                self.p[(b, a)] = v;
-            }
-        }
-        Ok(())
-    }
-}
-
 #[cfg(test)]
-mod tangent_tests {
-    use super::*;
-    use crate::model::QuarterCar;
-
-    /// `reset_covariance` (its docs): the parameters' block `p0 I`, the state–parameter
-    /// covariance 0, the state's own block and the road slot (neither a state nor a
-    /// parameter; restarted uncorrelated at every step) kept; after a sample.
-    #[test]
-    fn reset_covariance_touches_the_parameters_block_only() {
-        let st = *QuarterCar::<f64>::structure([None, Some(1.0), None, None, None]).unwrap().structure();
-        let g = SVector::<f64, 4>::from_column_slice(QuarterCar::<f64>::thesis().model().b().as_slice());
-        let noise = EkfNoise::from_sigmas(0.008, 0.1, g, 0.1);
-        let mut ekf = JointEkf::<f64, 4, 9>::new(st, &[5.0, 4.0, 10.0, 90.0], &[1.0; 4], 1.0, noise, 0.05, 5).unwrap();
-        let mut e = [0.0; 2];
-        ekf.update_into(&[0.01, -0.2, 0.03, 0.5], &[-0.2, 1.0, 0.5, -3.0], &[], &mut e).unwrap();
-        let before = ekf.p;
-        ekf.reset_covariance(2.5).unwrap();
-        for a in 0..9 {
-            for b in 0..9 {
-                let (pa, pb) = ((4..8).contains(&a), (4..8).contains(&b));
-                let want = match (pa, pb) {
-                    (true, true) => {
-                        if a == b {
-                            2.5
-                        } else {
-                            0.0
-                        }
-                    }
-                    (true, false) | (false, true) => 0.0,
-                    (false, false) => before[(a, b)],
-                };
-                assert_eq!(ekf.p[(a, b)], want, "P[{a},{b}]");
-            }
-        }
-    }
-
-    /// `predict`'s tangent `∂x_{k+1}/∂s` (`D × N`) is the derivative of its own map: central
-    /// differences of `predict` in every component of `s` (the states, the parameters, the
-    /// road), on the quarter car's physical structure.
-    #[test]
-    fn predict_tangent_is_the_derivative_of_the_map() {
-        let st = *QuarterCar::<f64>::structure([None, Some(1.0), None, None, None]).unwrap().structure();
-        let g = SVector::<f64, 4>::from_column_slice(QuarterCar::<f64>::thesis().model().b().as_slice());
-        let noise = EkfNoise::from_sigmas(0.008, 0.1, g, 0.1);
-        let ekf = JointEkf::<f64, 4, 9>::new(st, &[5.0, 4.0, 10.0, 90.0], &[1.0; 4], 1.0, noise, 0.05, 5).unwrap();
-        let s = SVector::<f64, 9>::from_column_slice(&[0.01, -0.2, 0.03, 0.5, 5.0, 4.0, 10.0, 90.0, 0.02]);
-        let (_, tx) = ekf.predict(&s, &[]);
-        for j in 0..9 {
-            let h = 1e-6 * s[j].abs().max(1.0);
-            let (mut a, mut b) = (s, s);
-            a[j] += h;
-            b[j] -= h;
-            let d = (ekf.predict(&a, &[]).0 - ekf.predict(&b, &[]).0) / (2.0 * h);
-            for i in 0..4 {
-                assert!(
-                    (tx[(j, i)] - d[i]).abs() <= 1e-6 * (1.0 + d[i].abs()),
-                    "∂x_{i}/∂s_{j}: tangent {} against the difference {}",
-                    tx[(j, i)],
-                    d[i]
-                );
-            }
-        }
-    }
-}
+mod tangent_tests;

@@ -5,24 +5,28 @@
 //! | [`BatchLeastSquares`] (std), [`LsAccumulator`] | Eq 2.14, 3.4 | `least_squares.rs` |
 //! | [`KalmanIdentifier`] (decoupled rows), [`SharedKalmanIdentifier`], [`FullKalmanIdentifier`] | Eq 4.3–4.7, 4.35–4.36, 6.16–6.18 | `kalman/` |
 //! | [`StochasticGradient`] | Eq 2.56, 5.2–5.18 | `gradient.rs` |
-//! | [`Structured`] (any [`crate::structure::Structure`]: grey-box models linear in their parameters) | Eq 2.2–2.4, 6.16–6.18 | `structured.rs` |
-//! | [`InstrumentalVariables`] (noisy measured states: instruments = regressors `delay` samples earlier) | Söderström & Stoica §8 | `instrumental.rs`, `iv_filter.rs` |
+//! | [`Structured`] (any [`crate::structure::Structure`]: grey-box models linear in their parameters) | Eq 2.2–2.4, 6.16–6.18 | `structured.rs`, `structured_fast.rs` |
+//! | [`InstrumentalVariables`] (noisy measured states: instruments = regressors `delay` samples earlier) | Söderström & Stoica §8 | `instrumental.rs` (`instrumental/`: the ring of past samples, the prior's blocks, the shared-parameter regressor), `iv_filter.rs` |
 //! | [`BiasCompensated`] (noisy measured states, known noise covariance: `(XᵀX − N Σ_w)⁻¹ Xᵀz`) | Söderström 2007 §4.3 | `bias_compensated.rs` |
 //! | [`NoiseEstimatingBcls`] (noisy measured states, `Σ_w` estimated from the least-squares residual at an instrumental estimate, then compensated) | Zheng 1998, 2002; Söderström 2018 Ch. 7 | `noise_estimating.rs` |
-//! | [`JointEkf`] (noisy measured states: states, parameters and road estimated together by an extended Kalman filter; the thesis' Ch. VII proposal) | Ljung 1979 | `joint_ekf.rs` |
+//! | [`JointEkf`] (noisy measured states: states, parameters and road estimated together by an extended Kalman filter; the thesis' Ch. VII proposal) | Ljung 1979 | `joint_ekf.rs` (`joint_ekf/noise.rs`: [`EkfNoise`]) |
 //! | [`TwoAxleIdentifier`] (two axles on one road: plain, Eq 6.14, road cancellation) | Eq 6.9, 6.12–6.14 | `two_axle.rs` |
-//! | [`TwoAxleStructured`] (road cancellation on a physical [`crate::structure::Structure`]: the half car's 12 parameters) | Eq 6.1–6.9 | `two_axle_structured.rs` |
-//! | [`Differenced`] (any identifier on a road that is not white: the samples quasi-differenced by the road's ISO 8608 shaping filter in distance; with [`InstrumentalVariables`] inside, consistent) | Anderson & Hsiao 1981; Cochrane & Orcutt 1949 | `road.rs` |
+//! | [`TwoAxleStructured`] (road cancellation on a physical [`crate::structure::Structure`]: the half car's 12 parameters) | Eq 6.1–6.9 | `two_axle_structured.rs` (`two_axle_structured/config.rs`: [`TwoAxleStructuredConfig`]) |
+//! | [`Differenced`] (any identifier on a road that is not white: the samples quasi-differenced by the road's ISO 8608 shaping filter in distance; with [`InstrumentalVariables`] inside, consistent) | Anderson & Hsiao 1981; Cochrane & Orcutt 1949 | `road.rs` (`road/boxed.rs`: [`BoxedIdentifier`]) |
 //! | [`StateFilterFit`] (the body equation from a body accelerometer and a deflection sensor: a state-variable filter on both sides, cluster-robust intervals for its coloured residuals) | Young 1981; Garnier et al. 2003; Cameron & Miller 2015 | `state_filter.rs` |
 //!
 //! All of them but [`JointEkf`] (which estimates the state too) regress the measured
 //! derivative of each unknown row on the measured state: `z_i(k) = r(k)ᵀ θ_i + ε_i(k)`
 //! (Eq 2.2–2.4 with `H = I ⊗ xᵀ`), and all of them implement
-//! one interface, [`Identifier`] (`interface.rs`): samples in through
+//! one interface, [`Identifier`] (`interface.rs`; an identifier's implementation of it, and
+//! its persistence, in `<its file>/identifier.rs`): samples in through
 //! [`Identifier::update_into`], which allocates nothing and is transactional (a rejected
 //! sample — NaN, inf, a numerically singular step — returns an error and leaves the
 //! identifier exactly as it was), estimates out through caller buffers, and a transactional
-//! batch [`Identifier::fit`]. [`DynIdentifier`] (alloc) is its boxed form.
+//! batch [`Identifier::fit`]. [`DynIdentifier`] (alloc) is its boxed form. What the
+//! identifiers share: [`Samples`] (`samples.rs`), the sample checks and overflow errors
+//! (`checks.rs`), conversions between their fixed-size state and the interface's slices
+//! (`buffers.rs`), [`Cost`] (`cost.rs`).
 //!
 //! # Storage
 //! Each identifier is generic over a [`Store`] (`store.rs`): [`Fixed<K>`] keeps the `K`
@@ -39,6 +43,9 @@
 //! path computes the same bits. Measured figures and how to reproduce them: `benches/README.md`.
 
 mod bias_compensated;
+mod buffers;
+mod checks;
+mod cost;
 mod deriv_noise;
 #[cfg(feature = "alloc")]
 mod estimate_stats;
@@ -54,6 +61,7 @@ mod least_squares;
 mod noise_estimating;
 pub(crate) mod persist;
 mod road;
+mod samples;
 #[cfg(feature = "alloc")]
 mod state_filter;
 mod store;
@@ -66,6 +74,7 @@ mod two_axle_structured;
 #[cfg(feature = "alloc")]
 pub use bias_compensated::BiasCompensatedVec;
 pub use bias_compensated::{BcGroup, BiasCompensated, BiasCompensatedLs};
+pub use cost::Cost;
 #[cfg(feature = "alloc")]
 pub use estimate_stats::{estimate_stats, posterior_stats, EstimateStats};
 #[cfg(feature = "alloc")]
@@ -74,7 +83,7 @@ pub use gradient::{Gain, GainKind, GradientCore, StochasticGradient};
 #[cfg(feature = "alloc")]
 pub use instrumental::IvIdentifierVec;
 pub use instrumental::{InstrumentalVariables, IvIdentifier, RING_VALUES};
-pub use interface::{Dims, FitError, Identifier, SampleIter, Samples, FIT_STACK_EQUATIONS};
+pub use interface::{Dims, FitError, Identifier, FIT_STACK_EQUATIONS};
 #[cfg(feature = "alloc")]
 pub use interface::{DynIdentifier, FitOptions};
 pub use iv_filter::IvFilter;
@@ -104,6 +113,7 @@ pub use road::BoxedIdentifier;
 pub use road::{
     Contact, Differenced, RoadModel, RoadState, Travel, DEFAULT_MIN_SPACING, LIFT_OFF_LOAD, MAX_ROAD_WEIGHT,
 };
+pub use samples::{SampleIter, Samples};
 #[cfg(feature = "alloc")]
 pub use state_filter::{StateFilterFit, DEFAULT_BANDWIDTH, DEFAULT_BLOCK};
 pub use store::{Dynamic, Fixed, Flat, NoScratch, Store, DYNAMIC_LANES};
@@ -118,69 +128,6 @@ pub use two_axle::{Past, TwoAxle, TwoAxleConfig, TwoAxleIdentifier, WheelMethod}
 pub use two_axle_structured::TwoAxleStructuredVec;
 pub use two_axle_structured::{FrontRegression, TwoAxleStructured, TwoAxleStructuredConfig, TwoAxleStructuredKalman};
 
-pub(crate) use interface::{check_lengths, vector};
-pub(crate) use store::{array_from_items, per_row, rows_buffer, rows_into};
-
-use crate::{Error, Real, Result};
-use nalgebra::{SMatrix, SVector};
-
-/// The arithmetic of one sample update and the identifier's size, for comparison with the
-/// thesis' Table I (4-state identifier: 3.6 ms on a 1986 microprocessor, 352 bytes; 8-state
-/// decoupled: 14.5 ms, 2800 bytes). Counts are of the estimator's formulas, not of the
-/// input checks; an addition counts subtractions too.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct Cost {
-    /// Multiplications per update.
-    pub multiplications: usize,
-    /// Additions and subtractions per update.
-    pub additions: usize,
-    /// Divisions per update.
-    pub divisions: usize,
-    /// Square roots per update.
-    pub square_roots: usize,
-    /// Size of the identifier's state, bytes (`size_of_val`; for the `Vec` forms the heap
-    /// buffers are added).
-    pub bytes: usize,
-}
-
-impl Cost {
-    /// All floating-point operations.
-    pub fn flops(&self) -> usize {
-        self.multiplications + self.additions + self.divisions + self.square_roots
-    }
-}
-
-/// Checks a sample: `x` and `z` finite.
-#[inline]
-pub(crate) fn check_sample<T: Real, const N: usize>(x: &SVector<T, N>, z: &SVector<T, N>) -> Result<()> {
-    if let Some(index) = x.iter().position(|v| !v.finite()) {
-        return Err(Error::NonFinite { arg: "r_k", index });
-    }
-    if let Some(index) = z.iter().position(|v| !v.finite()) {
-        return Err(Error::NonFinite { arg: "z_k", index });
-    }
-    Ok(())
-}
-
-/// The error for an update whose arithmetic would overflow: the identifier is left unchanged.
-pub(crate) const OVERFLOW: Error = Error::InvalidArgument {
-    arg: "r_k",
-    expected: "sample values small enough that the update stays finite (rescale the units)",
-};
-
-/// The error for an update that would overflow through the innovation (a derivative far from
-/// the prediction), when the state itself is in range: names `z_k`.
-pub(crate) const OVERFLOW_Z: Error = Error::InvalidArgument {
-    arg: "z_k",
-    expected: "a measured derivative small enough that the update stays finite (rescale the units, or turn the \
-               outlier gate on)",
-};
-
-/// `θ̂` of a fixed-size identifier as a `K × N` matrix (the estimate of every unknown row).
-pub(crate) fn fixed_theta<T: Real, const N: usize, const K: usize>(id: &impl Identifier<T>) -> SMatrix<T, K, N> {
-    // Row-major K × N is the column-major storage of its N × K transpose.
-    let mut t = SMatrix::<T, N, K>::zeros();
-    // The buffer has exactly K·N entries, the identifier's parameter count.
-    let _ = id.params_into(t.as_mut_slice());
-    t.transpose()
-}
+pub(crate) use buffers::{fixed_theta, vector};
+pub(crate) use checks::{check_lengths, check_sample, OVERFLOW, OVERFLOW_Z};
+pub(crate) use store::{per_row, rows_buffer, rows_into};

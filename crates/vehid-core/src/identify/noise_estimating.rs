@@ -91,7 +91,7 @@
 //! `O(n² + Σ terms · n)` for the variances).
 
 use super::bias_compensated::{noise_sensitivity, BcGroup, MAX_PARAMS_LOCAL};
-use super::interface::check_lengths;
+use super::checks::check_lengths;
 use super::{BiasCompensated, Dims, Flat, Identifier, InstrumentalVariables, IvFilter, StructuredPrior};
 use crate::structure::{Structure, MAX_EQUATIONS, MAX_PARAMS, MAX_STATES};
 use crate::{Error, Real, Result};

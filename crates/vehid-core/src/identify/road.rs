@@ -71,10 +71,18 @@
 //! **Not covered.** A road with another spectrum (its increments not white after the
 //! filter) and sensor noise that is not white.
 
-use super::interface::{check_lengths, Dims, Identifier};
+use super::checks::check_lengths;
+use super::interface::{Dims, Identifier};
 use crate::error::{check_finite, check_nonneg, check_positive};
 use crate::structure::{Basis, Structure, MAX_INPUTS, MAX_STATES};
 use crate::{Error, Real, Result};
+
+#[cfg(feature = "alloc")]
+mod boxed;
+mod identifier;
+
+#[cfg(feature = "alloc")]
+pub use boxed::BoxedIdentifier;
 
 /// Values of one stored sample: `x` and `z` (`n` each), the inputs `u` and the odometer.
 const SAMPLE_VALUES: usize = 2 * MAX_STATES + MAX_INPUTS + 1;
@@ -441,97 +449,6 @@ impl<T: Real, I: Identifier<T>> Differenced<T, I> {
     }
 }
 
-/// The wrapper's [`RoadState`] and the inner identifier's own saved state, together; loaded
-/// only into a wrapper with the same road model, travel, least spacing and contact check.
-#[cfg(not(feature = "persist"))]
-impl<T: Real, I> super::Persist for Differenced<T, I> {}
-
-#[cfg(feature = "persist")]
-impl<T: Real, I: Identifier<T> + super::Persist + Clone> super::Persist for Differenced<T, I> {
-    fn save_state(&self) -> Result<alloc::vec::Vec<u8>> {
-        super::persist::save(&(&self.state, self.inner.save_state()?))
-    }
-
-    fn load_state(&mut self, bytes: &[u8]) -> Result<()> {
-        use super::persist::NOT_ITS_STATE;
-        let (state, inner): (RoadState<T>, alloc::vec::Vec<u8>) =
-            postcard::from_bytes(bytes).map_err(|_| NOT_ITS_STATE)?;
-        let (a, b) = (&self.state, &state);
-        if (a.road, a.travel, a.min_spacing, a.contact) != (b.road, b.travel, b.min_spacing, b.contact) {
-            return Err(NOT_ITS_STATE);
-        }
-        let mut next = Self::with_state(self.inner.clone(), state).map_err(|_| NOT_ITS_STATE)?;
-        next.inner.load_state(&inner)?;
-        *self = next;
-        Ok(())
-    }
-}
-
-impl<T: Real, I: Identifier<T>> Identifier<T> for Differenced<T, I> {
-    fn dims(&self) -> Dims {
-        let mut d = self.inner.dims();
-        d.inputs += self.odometer() as usize;
-        d
-    }
-
-    fn rows(&self) -> &[usize] {
-        self.inner.rows()
-    }
-
-    fn update_into(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
-        let dims = self.dims();
-        check_lengths(dims, x, z, u, e)?;
-        let lifted = self.state.contact.is_some_and(|c| {
-            let (aw, ab) = (z[c.wheel as usize], z[c.body as usize]);
-            c.m_wheel * aw + c.m_body * ab < -(c.m_wheel + c.m_body) * T::of(G * (1.0 - LIFT_OFF_LOAD))
-        });
-        self.step(dims, x, z, u, e)?;
-        // Counted once the sample is taken, so that a refused one changes nothing.
-        self.state.lifted += u64::from(lifted);
-        Ok(())
-    }
-
-    fn params_into(&self, out: &mut [T]) -> Result<()> {
-        self.inner.params_into(out)
-    }
-
-    fn samples(&self) -> u64 {
-        self.state.seen
-    }
-
-    fn covariance_into(&self, out: &mut [T]) -> Result<()> {
-        self.inner.covariance_into(out)
-    }
-
-    fn noise_into(&self, out: &mut [T]) -> Result<()> {
-        self.inner.noise_into(out)
-    }
-
-    fn residuals_into(&self, ssr: &mut [T], nobs: &mut [T]) -> Result<()> {
-        self.inner.residuals_into(ssr, nobs)
-    }
-
-    fn groups_into(&self, group_of_param: &mut [usize], group_of_eq: &mut [usize]) -> Result<()> {
-        self.inner.groups_into(group_of_param, group_of_eq)
-    }
-
-    fn trace(&self) -> Option<T> {
-        self.inner.trace()
-    }
-
-    fn reinit_count(&self) -> u32 {
-        self.inner.reinit_count()
-    }
-
-    fn reset_covariance(&mut self, p0: T) -> Result<()> {
-        self.inner.reset_covariance(p0)
-    }
-
-    fn gated_into(&self, out: &mut [u64]) -> Result<()> {
-        self.inner.gated_into(out)
-    }
-}
-
 impl<T: Real, I: Identifier<T>> Differenced<T, I> {
     /// One sample of checked lengths: stored to start a difference, skipped (closer than
     /// `min_spacing`), or differenced and given to the inner identifier.
@@ -678,85 +595,4 @@ fn check_sample<T: Real>(x: &[T], z: &[T], u: &[T]) -> Result<()> {
     check_finite("r_k", x)?;
     check_finite("z_k", z)?;
     check_finite("u_k", u)
-}
-
-/// A boxed identifier as an [`Identifier`] (requires `alloc`): what [`Differenced`] wraps
-/// when the identifier is chosen at run time (the Python bindings).
-#[cfg(feature = "alloc")]
-#[derive(Debug)]
-pub struct BoxedIdentifier<T: Real>(pub alloc::boxed::Box<dyn super::DynIdentifier<T>>);
-
-#[cfg(feature = "alloc")]
-impl<T: Real> Clone for BoxedIdentifier<T> {
-    fn clone(&self) -> Self {
-        Self(self.0.clone_box())
-    }
-}
-
-#[cfg(feature = "alloc")]
-impl<T: Real> super::Persist for BoxedIdentifier<T> {
-    #[cfg(feature = "persist")]
-    fn save_state(&self) -> Result<alloc::vec::Vec<u8>> {
-        self.0.save_state()
-    }
-
-    #[cfg(feature = "persist")]
-    fn load_state(&mut self, bytes: &[u8]) -> Result<()> {
-        self.0.load_state(bytes)
-    }
-}
-
-#[cfg(feature = "alloc")]
-impl<T: Real> Identifier<T> for BoxedIdentifier<T> {
-    fn dims(&self) -> Dims {
-        self.0.dims()
-    }
-
-    fn rows(&self) -> &[usize] {
-        self.0.rows()
-    }
-
-    fn update_into(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
-        self.0.update_into(x, z, u, e)
-    }
-
-    fn params_into(&self, out: &mut [T]) -> Result<()> {
-        self.0.params_into(out)
-    }
-
-    fn samples(&self) -> u64 {
-        self.0.samples()
-    }
-
-    fn covariance_into(&self, out: &mut [T]) -> Result<()> {
-        self.0.covariance_into(out)
-    }
-
-    fn noise_into(&self, out: &mut [T]) -> Result<()> {
-        self.0.noise_into(out)
-    }
-
-    fn residuals_into(&self, ssr: &mut [T], nobs: &mut [T]) -> Result<()> {
-        self.0.residuals_into(ssr, nobs)
-    }
-
-    fn groups_into(&self, group_of_param: &mut [usize], group_of_eq: &mut [usize]) -> Result<()> {
-        self.0.groups_into(group_of_param, group_of_eq)
-    }
-
-    fn trace(&self) -> Option<T> {
-        self.0.trace()
-    }
-
-    fn reinit_count(&self) -> u32 {
-        self.0.reinit_count()
-    }
-
-    fn reset_covariance(&mut self, p0: T) -> Result<()> {
-        self.0.reset_covariance(p0)
-    }
-
-    fn gated_into(&self, out: &mut [u64]) -> Result<()> {
-        self.0.gated_into(out)
-    }
 }

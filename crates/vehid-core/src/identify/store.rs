@@ -3,6 +3,7 @@
 use super::kalman::lanes::{self, RowGroup};
 #[cfg(doc)]
 use super::KalmanRows;
+use crate::array::array_from_items;
 use crate::{Error, Real, Result};
 use nalgebra::{SMatrix, SVector};
 
@@ -29,23 +30,6 @@ pub trait Flat<X>: Clone + core::fmt::Debug {
     /// # Errors
     /// The first `Err` that `items` yields.
     fn from_items<E>(items: impl Iterator<Item = core::result::Result<X, E>>) -> core::result::Result<Option<Self>, E>;
-}
-
-/// `[x; K]` filled from `items` (exactly `K` of them; `K ≥ 1`), without allocating.
-pub(crate) fn array_from_items<X: Copy, E, const K: usize>(
-    items: impl Iterator<Item = core::result::Result<X, E>>,
-) -> core::result::Result<Option<[X; K]>, E> {
-    let mut out: Option<[X; K]> = None;
-    let mut len = 0;
-    for item in items {
-        let x = item?;
-        if len == K {
-            return Ok(None);
-        }
-        out.get_or_insert([x; K])[len] = x;
-        len += 1;
-    }
-    Ok(out.filter(|_| len == K))
 }
 
 impl<X: Copy + core::fmt::Debug, const K: usize> Flat<X> for [X; K] {

@@ -9,7 +9,7 @@
 //! [`super::StochasticGradient`] without the state-noise correction. No allocation; the
 //! parameter count is at most the const generic `P`.
 
-use super::interface::check_slices;
+use super::checks::check_slices;
 use super::{Dims, Gain, Identifier, OVERFLOW};
 use crate::structure::{Structure, MAX_EQUATIONS};
 use crate::{Error, Real, Result};
@@ -122,7 +122,7 @@ super::persist_by_serde!([T: Real, const P: usize] StructuredGradient<T, P>);
 
 impl<T: Real, const P: usize> Identifier<T> for StructuredGradient<T, P> {
     fn dims(&self) -> Dims {
-        super::interface::structure_dims(&self.structure)
+        super::buffers::structure_dims(&self.structure)
     }
 
     fn rows(&self) -> &[usize] {

@@ -38,6 +38,8 @@ use nalgebra::{SMatrix, SVector};
 use super::Dynamic;
 use super::Fixed;
 
+mod identifier;
+
 /// How the wheel rows are identified.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -580,34 +582,5 @@ impl<T: Real, const N: usize, const P: usize, const KB: usize, const C: usize>
         let mut e = [T::zero(); N];
         let k = self.rows.len();
         self.update_at(r, z, None, &mut e[..k])
-    }
-}
-
-super::persist_by_serde!([T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<T, N>>] TwoAxle<T, N, P, S, B>);
-
-impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<T, N>>> Identifier<T>
-    for TwoAxle<T, N, P, S, B>
-{
-    fn dims(&self) -> Dims {
-        let k = self.rows.len();
-        Dims { states: N, inputs: 0, equations: k, params: k * N }
-    }
-
-    fn rows(&self) -> &[usize] {
-        self.rows.as_slice()
-    }
-
-    /// The sample on the road point after the previous one ([`TwoAxle::update_next`]).
-    fn update_into(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
-        check_lengths(self.dims(), x, z, u, e)?;
-        self.update_at(&vector(x), &vector(z), None, e).map(|_| ())
-    }
-
-    fn params_into(&self, out: &mut [T]) -> Result<()> {
-        self.theta_into(out)
-    }
-
-    fn samples(&self) -> u64 {
-        self.samples
     }
 }

@@ -62,8 +62,9 @@
 //! regressions (a fixed array or a `Vec`, sized at construction) holds what the pairing
 //! needs. An update allocates nothing and is transactional.
 
+use super::buffers::{partition_groups_into, structure_dims};
+use super::checks::check_slices;
 use super::deriv_noise::{add_deriv_noise, compensated, nonlinear_deriv, reads_noisy_deriv};
-use super::interface::{check_slices, partition_groups_into, structure_dims};
 use super::two_axle::wheel_rows;
 use super::{Flat, Identifier, RowIdentifier, OVERFLOW};
 use crate::error::{check_nonneg, check_positive};
@@ -73,39 +74,10 @@ use crate::structure::{Partition, Structure, MAX_EQUATIONS, MAX_PARAMS};
 use crate::{Error, Real, Result};
 use nalgebra::{SMatrix, SVector};
 
-/// Settings of a [`TwoAxleStructured`] identifier: prior and noise levels (each equation's
-/// variance is derived from them and the model's `B`).
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-pub struct TwoAxleStructuredConfig<T> {
-    /// `None`: the exact start (no prior; least squares on all samples once identified);
-    /// `Some(p0)`: `P(0) = p0 I` on every parameter.
-    pub p0: Option<T>,
-    /// Road standard deviation σ_u, m.
-    pub road_sigma: T,
-    /// Derivative measurement noise σ_v (every component), state units per second.
-    pub deriv_noise: T,
-    /// Also use the direct front wheel equation, weighted by its variance `σ_v² + b21² σ_u²`.
-    pub direct_front: bool,
-    /// Remove the attenuation bias of the derivative noise in `der(·)` regressors (see
-    /// [`TwoAxleStructured`]'s "Derivative noise"); `false`: plain least squares.
-    pub compensate: bool,
-}
+mod config;
+mod identifier;
 
-impl<T: Real> TwoAxleStructuredConfig<T> {
-    /// The exact start, the direct front equation on, the derivative noise compensated.
-    pub fn new(road_sigma: T, deriv_noise: T) -> Self {
-        Self { p0: None, road_sigma, deriv_noise, direct_front: true, compensate: true }
-    }
-
-    fn validate(&self) -> Result<()> {
-        if let Some(p0) = self.p0 {
-            check_positive("p0", p0)?;
-        }
-        check_nonneg("road_sigma", self.road_sigma)?;
-        check_nonneg("deriv_noise", self.deriv_noise)
-    }
-}
+pub use config::TwoAxleStructuredConfig;
 
 /// One remembered front-wheel regression of the ring: its grid index, `y_front(k)` and
 /// `h_front(k)` (in the wheel group's local parameter order, unweighted).
@@ -616,73 +588,5 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>, B: RingStore<FrontRe
             return Err(OVERFLOW);
         }
         self.filters.flat_mut()[g].update(h, y)
-    }
-}
-
-super::persist_by_serde!([T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>, B: RingStore<FrontRegression<T, P>>] TwoAxleStructured<T, P, F, B>);
-
-impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>, B: RingStore<FrontRegression<T, P>>> Identifier<T>
-    for TwoAxleStructured<T, P, F, B>
-{
-    fn dims(&self) -> super::Dims {
-        structure_dims(&self.structure)
-    }
-
-    fn rows(&self) -> &[usize] {
-        &self.rows[..self.structure.equations()]
-    }
-
-    /// The sample on the road point after the previous one ([`TwoAxleStructured::update_at`]
-    /// with `grid = None`).
-    fn update_into(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
-        self.update_at(x, z, u, None, e).map(|_| ())
-    }
-
-    /// The structure's parameters, in its order.
-    fn params_into(&self, out: &mut [T]) -> Result<()> {
-        let np = self.structure.params();
-        if out.len() != np {
-            return Err(Error::Shape { arg: "out", expected: np, got: out.len() });
-        }
-        if self.starting() {
-            let rank = self.filters.flat().iter().map(|f| f.start_rank()).sum();
-            return Err(Error::RankDeficient { rank, needed: np });
-        }
-        let mut theta = [SVector::<T, P>::zeros(); MAX_PARAMS];
-        for (g, t) in theta.iter_mut().enumerate().take(self.part.groups as usize) {
-            *t = self.group_estimate(g)?;
-        }
-        for (j, o) in out.iter_mut().enumerate() {
-            *o = theta[self.part.group_of_param[j] as usize][self.part.local[j] as usize];
-        }
-        Ok(())
-    }
-
-    fn samples(&self) -> u64 {
-        self.samples
-    }
-
-    /// The recursive least-squares covariance; [`Error::Unsupported`] when the estimate is
-    /// bias-compensated (its covariance needs fourth moments of the regressors).
-    fn covariance_into(&self, out: &mut [T]) -> Result<()> {
-        if self.compensating() {
-            return Err(Error::Unsupported {
-                what: "a covariance of the bias-compensated estimate (set compensate = false for least squares' P)",
-            });
-        }
-        super::structured::group_covariance_into(&self.part, self.structure.params(), self.filters.flat(), out)
-    }
-
-    fn noise_into(&self, out: &mut [T]) -> Result<()> {
-        super::interface::diagonal_noise_into(&self.r[..self.structure.equations()], out)
-    }
-
-    fn groups_into(&self, group_of_param: &mut [usize], group_of_eq: &mut [usize]) -> Result<()> {
-        let (np, ne) = (self.structure.params(), self.structure.equations());
-        partition_groups_into(&self.part, np, ne, group_of_param, group_of_eq)
-    }
-
-    fn trace(&self) -> Option<T> {
-        Some(self.filters.flat().iter().fold(T::zero(), |a, f| a + f.trace()))
     }
 }

@@ -1,7 +1,7 @@
 //! The stacked (`full`) form with a general `R`.
 
-use super::lanes::overflow_culprit;
-use super::row::{risky, LOST_DEFINITENESS_JOINT, SCREEN_WARMUP};
+use super::guards::overflow_culprit;
+use super::guards::{risky, LOST_DEFINITENESS_JOINT, SCREEN_WARMUP};
 use super::{CovarianceForm, KalmanOptions};
 use crate::error::{check_finite, check_nonneg, check_positive};
 #[cfg(feature = "alloc")]
@@ -13,6 +13,11 @@ use crate::identify::{
 use crate::linalg::{cholesky_in_place, cholesky_solve, symmetrize};
 use crate::{Error, Real, Result};
 use nalgebra::{SMatrix, SVector};
+
+mod blocks;
+mod identifier;
+
+use blocks::{blocks_positive_definite, culprit, downdate_blocks, gate_out};
 /// The stacked (`full`) Kalman identifier over a [`Store`], general `R`; see
 /// [`FullKalmanIdentifier`].
 #[derive(Debug, Clone)]
@@ -362,7 +367,7 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
         // P_lm x = 0 for every l: column m of every C_l is zero, S is block diagonal.)
         for m in 0..k {
             if r[m * k + m] == T::zero() {
-                let floor = super::row::collapse_floor::<T, N>(x.abs().sum(), c[m * k + m].abs().sum());
+                let floor = super::guards::collapse_floor::<T, N>(x.abs().sum(), c[m * k + m].abs().sum());
                 if s[m * k + m] <= floor {
                     for l in 0..k {
                         c[l * k + m] = SVector::zeros();
@@ -455,149 +460,6 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
     }
 }
 
-/// Block `(i, j)` of the covariance after the update, `P_ij − Σ_l W_il C_jlᵀ`.
-#[inline(always)]
-/// `P ← P − W Cᵀ` in place on `K × K` blocks: each upper block from [`downdated_block`] (which
-/// reads only that block of `P`), the diagonal blocks symmetrized, the lower ones mirrored.
-fn downdate_blocks<T: Real, const N: usize>(
-    p: &mut [SMatrix<T, N, N>],
-    w: &[SVector<T, N>],
-    c: &[SVector<T, N>],
-    k: usize,
-) {
-    for i in 0..k {
-        for j in i..k {
-            p[i * k + j] = downdated_block(p, w, c, k, i, j);
-            if i == j {
-                symmetrize(&mut p[i * k + i]);
-            } else {
-                p[j * k + i] = p[i * k + j].transpose();
-            }
-        }
-    }
-}
-
-fn downdated_block<T: Real, const N: usize>(
-    p: &[SMatrix<T, N, N>],
-    w: &[SVector<T, N>],
-    c: &[SVector<T, N>],
-    k: usize,
-    i: usize,
-    j: usize,
-) -> SMatrix<T, N, N> {
-    let mut d = SMatrix::<T, N, N>::zeros();
-    for l in 0..k {
-        d += w[i * k + l] * c[j * k + l].transpose();
-    }
-    p[i * k + j] - d
-}
-
-/// `true` when the symmetric `(K·N) × (K·N)` matrix held as `K × K` blocks of `N × N`
-/// (row-major) is numerically positive definite: its Cholesky factorization exists. Factors
-/// in place (the lower triangle is overwritten).
-fn blocks_positive_definite<T: Real, const N: usize>(b: &mut [SMatrix<T, N, N>], k: usize) -> bool {
-    let n = k * N;
-    let at = |i: usize, j: usize| (i / N * k + j / N, i % N, j % N);
-    let get = |b: &[SMatrix<T, N, N>], i: usize, j: usize| {
-        let (blk, a, c) = at(i, j);
-        b[blk][(a, c)]
-    };
-    for j in 0..n {
-        let mut d = get(b, j, j);
-        for q in 0..j {
-            let v = get(b, j, q);
-            d -= v * v;
-        }
-        if !(d > T::zero()) || !d.finite() {
-            return false;
-        }
-        let d = d.sqrt();
-        let (blk, a, c) = at(j, j);
-        b[blk][(a, c)] = d;
-        for i in (j + 1)..n {
-            let mut v = get(b, i, j);
-            for q in 0..j {
-                v -= get(b, i, q) * get(b, j, q);
-            }
-            let (blk, a, c) = at(i, j);
-            b[blk][(a, c)] = v / d;
-        }
-    }
-    true
-}
-
-/// The overflow error of an update that overflowed through its step: names `z_k` when the
-/// largest innovation is far beyond its prediction, `r_k` otherwise.
-#[cold]
-fn culprit<T: Real, const N: usize>(theta: &[SVector<T, N>], x: &SVector<T, N>, e: &[T]) -> Error {
-    let i = (0..e.len()).fold(0, |b, i| if !(e[i].abs() <= e[b].abs()) { i } else { b });
-    match (e.get(i), theta.get(i)) {
-        (Some(&ei), Some(th)) => overflow_culprit(ei, th.dot(x)),
-        _ => OVERFLOW,
-    }
-}
-
-/// The outlier gate of mode `full` ([`KalmanOptions::gate`] `κ`), from `S = H P Hᵀ + R` (`s`,
-/// before it is factored) and `R`: once `N + 50` samples are behind the scale, the sample is
-/// left out when any row's recursive residual `w_i = e_i √(R_ii / S_ii)` exceeds `κ σ̂_i`
-/// (`σ̂_i² = Σ w_i² / (n − N)`), as in mode `rows`; the rows are filtered jointly, so every row
-/// leaves it out. A gated sample informs the scale: each row's `w_i²` enters Winsorized at
-/// `κ² σ̂_i²` (see [`super::row::gated_scale`]). `true` when gated (the caller counts it).
-fn gate_out<T: Real, const N: usize>(gate: T, nobs: &mut T, ssr: &mut [T], e: &[T], s: &[T], r: &[T]) -> bool {
-    let k = e.len();
-    let params = T::of(N as f64);
-    if *nobs < params + T::of(SCREEN_WARMUP) {
-        return false;
-    }
-    let n = *nobs - params;
-    // S_ii = 0 (a noise-free row with nothing new along x) carries no residual.
-    let w2 = |i: usize| {
-        let sii = s[i * k + i];
-        if sii > T::zero() {
-            e[i] * e[i] * r[i * k + i] / sii
-        } else {
-            T::zero()
-        }
-    };
-    let out = (0..k).any(|i| {
-        let sigma2 = ssr[i] / n;
-        sigma2 > T::zero() && !(w2(i) <= gate * gate * sigma2)
-    });
-    if out {
-        for i in 0..k {
-            let cap = gate * gate * ssr[i] / n;
-            let v = w2(i);
-            ssr[i] += if v <= cap { v } else { cap };
-        }
-        *nobs += T::one();
-    }
-    out
-}
-
-#[cfg(feature = "serde")]
-impl<T: Real, const N: usize, S: Store<T, N>> KalmanFull<T, N, S> {
-    /// Checks a deserialized identifier: valid rows and options, every buffer sized for
-    /// its rows (`θ`: `K`; `P`, `R` and the scratch: `K²`).
-    pub(crate) fn restored(&mut self) -> Result<()> {
-        self.opts.validate()?;
-        let k = crate::model::RowSet::<N>::new(self.rows.flat())?.len();
-        let lens = [
-            ("theta", self.theta.flat().len(), k),
-            ("ssr", self.ssr.flat().len(), k),
-            ("pn", self.pn.flat().len(), k * k),
-            ("p", self.p.flat().len(), k * k),
-            ("r", self.r.flat().len(), k * k),
-            ("c", self.c.flat().len(), k * k),
-            ("w", self.w.flat().len(), k * k),
-            ("s", self.s.flat().len(), k * k),
-        ];
-        match lens.into_iter().find(|(_, got, expected)| got != expected) {
-            Some((arg, got, expected)) => Err(Error::Shape { arg, expected, got }),
-            None => Ok(()),
-        }
-    }
-}
-
 impl<T: Real, const N: usize, const K: usize> KalmanFull<T, N, Fixed<K>> {
     /// The stacked filter with `P(0) = p0 I` and a full `R` (`K × K`).
     ///
@@ -624,84 +486,5 @@ impl<T: Real, const N: usize, const K: usize> KalmanFull<T, N, Fixed<K>> {
     /// The estimate θ̂ of the unknown rows (`K × N`).
     pub fn theta(&self) -> SMatrix<T, K, N> {
         fixed_theta(self)
-    }
-}
-
-crate::identify::persist_by_serde!([T: Real, const N: usize, S: Store<T, N>] KalmanFull<T, N, S>);
-
-impl<T: Real, const N: usize, S: Store<T, N>> Identifier<T> for KalmanFull<T, N, S> {
-    fn dims(&self) -> Dims {
-        let k = self.rows.flat().len();
-        Dims { states: N, inputs: 0, equations: k, params: k * N }
-    }
-
-    fn rows(&self) -> &[usize] {
-        self.rows.flat()
-    }
-
-    #[inline]
-    fn update_into(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
-        check_lengths(self.dims(), x, z, u, e)?;
-        self.update_vec(&vector(x), &vector(z), e)
-    }
-
-    fn params_into(&self, out: &mut [T]) -> Result<()> {
-        self.theta_into(out)
-    }
-
-    fn samples(&self) -> u64 {
-        self.samples
-    }
-
-    /// The whole `(K·N) × (K·N)` matrix.
-    fn covariance_into(&self, out: &mut [T]) -> Result<()> {
-        let k = self.rows.flat().len();
-        let kn = k * N;
-        if out.len() != kn * kn {
-            return Err(Error::Shape { arg: "out", expected: kn * kn, got: out.len() });
-        }
-        for (idx, o) in out.iter_mut().enumerate() {
-            let (i, j) = (idx / kn, idx % kn);
-            *o = self.p_block(i / N, j / N)[(i % N, j % N)];
-        }
-        Ok(())
-    }
-
-    fn noise_into(&self, out: &mut [T]) -> Result<()> {
-        let k = self.rows.flat().len();
-        if out.len() != k * k {
-            return Err(Error::Shape { arg: "out", expected: k * k, got: out.len() });
-        }
-        out.copy_from_slice(self.r.flat());
-        Ok(())
-    }
-
-    fn trace(&self) -> Option<T> {
-        Some(KalmanFull::trace(self))
-    }
-
-    fn reinit_count(&self) -> u32 {
-        self.reinit_count
-    }
-
-    /// `P ← p0 I` (every diagonal block `p0 I`, the others 0).
-    fn reset_covariance(&mut self, p0: T) -> Result<()> {
-        super::row::check_reset(p0, false)?;
-        let k = self.rows.flat().len();
-        for (ij, block) in self.p.flat_mut().iter_mut().enumerate() {
-            *block = if ij / k == ij % k { SMatrix::identity() * p0 } else { SMatrix::zeros() };
-        }
-        Ok(())
-    }
-
-    /// The samples the gate left out, the same count for every row (see
-    /// [`KalmanFull::gated`]).
-    fn gated_into(&self, out: &mut [u64]) -> Result<()> {
-        let k = self.rows.flat().len();
-        if out.len() != k {
-            return Err(Error::Shape { arg: "out", expected: k, got: out.len() });
-        }
-        out.fill(self.gated);
-        Ok(())
     }
 }

@@ -36,43 +36,35 @@
 //! [`KalmanOptions::forgetting`] / [`KalmanOptions::drift`] track parameters that change,
 //! bounded by [`KalmanOptions::max_trace`] against wind-up. Every row accumulates its squared
 //! recursive residuals (see [`RowIdentifier`]) for the statistics.
+//!
+//! # Files
+//! The forms: `rows.rs`, `shared.rs`, `full.rs` (each with its `Identifier` impl and
+//! persistence in `rows/`, `shared/`, `full/identifier.rs`; `full/blocks.rs`: the stacked
+//! covariance's block arithmetic). One row: `row.rs` ([`RowIdentifier`]; `row/step.rs`: its
+//! update in each form, `row/exact.rs`: the exact start). The rows side by side: `lanes.rs`
+//! (`lanes/group.rs`: the group interface, `lanes/standard.rs`: the standard and Joseph
+//! downdates, `lanes/sqrt.rs`: the square-root form), `xlanes.rs` (a regressor per lane).
+//! What all forms share: `guards.rs` (the outlier screen, definiteness checks, the errors of a
+//! refused update), `sums.rs` (fixed-order lane sums, finiteness probes), `ud.rs` (Bierman's
+//! `U D Uᵀ` arithmetic), `avx2.rs` (the AVX2 copy of an update), `options.rs`, `build.rs`
+//! (run-time construction). Dependencies go one way: the shared files do not use the forms,
+//! and `lanes` uses `row` (a lane is read and written as a [`RowIdentifier`]), never the
+//! reverse.
 
-/// Gives an identifier with an `#[inline(always)] fn step(&mut self, x, z, e) -> Result<()>`
-/// its AVX2 copy `step_avx2` and `dispatch`, which runs that copy when `$wide` (a constant
-/// expression of the identifier's parameters: where it measured faster) and the CPU has AVX2
-/// (x86-64 with `std`), else the portable `step`. Both copies compute the same bits (no FMA,
-/// fixed summation order; tested). `$wide` is tested in a `const` block, so that the AVX2
-/// copy is not even compiled for the identifiers that never take it.
-macro_rules! avx2_step {
-    ($wide:expr) => {
-        /// [`Self::step`] compiled for AVX2 (same arithmetic, wider registers).
-        #[cfg(all(feature = "std", target_arch = "x86_64"))]
-        #[target_feature(enable = "avx2")]
-        fn step_avx2(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
-            self.step(x, z, e)
-        }
-
-        /// Runs [`Self::step`] in its AVX2 copy when wide and the CPU has AVX2, else portable.
-        #[inline(always)]
-        fn dispatch(&mut self, x: &SVector<T, N>, z: &SVector<T, N>, e: &mut [T]) -> Result<()> {
-            #[cfg(all(feature = "std", target_arch = "x86_64"))]
-            if const { $wide } && crate::simd::avx2() {
-                // SAFETY: the CPU supports AVX2 (checked at run time by `simd::avx2`).
-                return unsafe { self.step_avx2(x, z, e) };
-            }
-            self.step(x, z, e)
-        }
-    };
-}
+#[macro_use]
+mod avx2;
 
 #[cfg(feature = "alloc")]
 mod build;
 mod full;
+mod guards;
 pub(crate) mod lanes;
 mod options;
 mod row;
 mod rows;
 mod shared;
+mod sums;
+mod ud;
 mod xlanes;
 
 #[cfg(feature = "alloc")]
@@ -80,8 +72,8 @@ pub use build::{boxed_kalman, KalmanSpec, Prior};
 #[cfg(feature = "alloc")]
 pub use full::FullKalmanIdentifierVec;
 pub use full::{FullKalmanIdentifier, KalmanFull};
+pub(crate) use guards::check_reset;
 pub use options::{CovarianceForm, KalmanOptions, Mode};
-pub(crate) use row::check_reset;
 pub use row::RowIdentifier;
 pub use rows::{KalmanIdentifier, KalmanRows};
 #[cfg(feature = "alloc")]

@@ -256,7 +256,7 @@ fn forgetting_tracks_a_step_and_does_not_wind_up_without_excitation() {
 #[test]
 fn the_outlier_gate_does_not_stop_tracking_a_lasting_change() {
     // The same 20 % step with the gate on (κ = 6, Python's default): the residuals after the
-    // step are all beyond the gate; without the Winsorized scale (row::gated_scale) they
+    // step are all beyond the gate; without the Winsorized scale (guards::gated_scale) they
     // stayed gated and the step took 1356 (lanes) / 844 (row) samples, with it 432 / 418.
     // Lanes and the reference row filter alike.
     for form in [CovarianceForm::Standard, CovarianceForm::Sqrt] {
@@ -317,14 +317,14 @@ fn rejected_samples_change_nothing_in_the_new_forms() {
 #[test]
 fn ud_factors_round_trip() {
     let a = SMatrix::<f64, 4, 4>::new(4.0, 1.0, 0.5, 0.2, 1.0, 3.0, 0.1, 0.3, 0.5, 0.1, 2.0, 0.4, 0.2, 0.3, 0.4, 1.5);
-    let ud = super::row::ud_factor(&a, 4).unwrap();
-    let back = super::row::ud_product(&ud);
+    let ud = super::ud::ud_factor(&a, 4).unwrap();
+    let back = super::ud::ud_product(&ud);
     assert!((back - a).abs().max() < 1e-14);
-    assert!((super::row::ud_trace(&ud) - a.trace()).abs() < 1e-14);
+    assert!((super::ud::ud_trace(&ud) - a.trace()).abs() < 1e-14);
     let mut up = ud;
     let v = SVector::<f64, 4>::new(0.3, -1.0, 2.0, 0.5);
-    super::row::ud_rank_one(&mut up, 0.7, v);
-    assert!((super::row::ud_product(&up) - (a + v * v.transpose() * 0.7)).abs().max() < 1e-13);
+    super::ud::ud_rank_one(&mut up, 0.7, v);
+    assert!((super::ud::ud_product(&up) - (a + v * v.transpose() * 0.7)).abs().max() < 1e-13);
     let _ = <super::lanes::RowLanes<f64, 4, 2> as RowGroup<f64, 4>>::LANES;
 }
 
@@ -427,13 +427,13 @@ fn the_standard_form_refuses_a_sample_that_would_break_positive_definiteness() {
         Ok(_) => {
             // Accepted only if the result stayed positive definite.
             for i in 0..2 {
-                assert!(super::row::positive_definite(&std_form.filter(i).p(), 4));
+                assert!(super::guards::positive_definite(&std_form.filter(i).p(), 4));
             }
         }
         Err(e) => panic!("{e}"),
     }
     if std_form.filter(0) != before.0 {
-        assert!(super::row::positive_definite(&std_form.filter(0).p(), 4));
+        assert!(super::guards::positive_definite(&std_form.filter(0).p(), 4));
     }
     sqrt_form.update(&x, &z).unwrap();
     for i in 0..2 {
@@ -842,7 +842,7 @@ fn the_joseph_form_refuses_a_sample_that_would_break_positive_definiteness() {
             assert!(what.contains("form='sqrt'"), "{what}");
             assert_eq!(row, before, "a refused sample changed the filter");
         }
-        Ok(_) => assert!(super::row::positive_definite(&row.p(), 4), "taken, and P is not positive definite"),
+        Ok(_) => assert!(super::guards::positive_definite(&row.p(), 4), "taken, and P is not positive definite"),
         Err(e) => panic!("{e}"),
     }
 }
@@ -865,7 +865,7 @@ fn an_exact_start_whose_covariance_would_underflow_is_refused_not_wrong() {
                 match id.update(&(x * s), &(z * s)) {
                     Ok(_) => {}
                     Err(e) => {
-                        assert_eq!(e, row::SCALE, "{form:?} s {s:e}");
+                        assert_eq!(e, row::exact::SCALE, "{form:?} s {s:e}");
                         assert!(id.starting(), "refused while starting, and still starting");
                         refused.get_or_insert(k);
                     }

@@ -1,6 +1,7 @@
 //! The decoupled (`rows`) form.
 
-use super::lanes::{finite_probe, RowGroup, FORGET, GENERAL, PLAIN};
+use super::lanes::{RowGroup, FORGET, GENERAL, PLAIN};
+use super::sums::finite_probe;
 use super::{CovarianceForm, KalmanOptions, RowIdentifier};
 #[cfg(feature = "alloc")]
 use crate::identify::Dynamic;
@@ -10,6 +11,8 @@ use crate::identify::{
 };
 use crate::{Error, Real, Result};
 use nalgebra::{SMatrix, SVector};
+
+mod identifier;
 /// The decoupled (`rows`) Kalman-filter identifier over a [`Store`]; see [`KalmanIdentifier`]
 /// for the allocation-free form.
 ///
@@ -504,34 +507,6 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
     }
 }
 
-#[cfg(feature = "serde")]
-impl<T: Real, const N: usize, S: Store<T, N>> KalmanRows<T, N, S> {
-    /// Checks a deserialized identifier (valid rows and options, one group of lanes per
-    /// `LANES` rows holding exactly those rows, one phase) and sizes its scratch again.
-    pub(crate) fn restored(&mut self) -> Result<()> {
-        self.opts.validate()?;
-        let rows = self.rows.flat();
-        crate::model::RowSet::<N>::new(rows)?;
-        let lanes = <S::Group as RowGroup<T, N>>::LANES;
-        let groups = self.groups.flat();
-        if groups.len() != rows.len().div_ceil(lanes) {
-            return Err(Error::Shape { arg: "groups", expected: rows.len().div_ceil(lanes), got: groups.len() });
-        }
-        let start = self.starting();
-        if groups.iter().zip(rows.chunks(lanes)).any(|(g, chunk)| !g.lanes_are(chunk) || g.starting() != start) {
-            return Err(Error::InvalidArgument { arg: "groups", expected: "lanes holding the unknown rows, in order" });
-        }
-        for g in self.groups.flat_mut() {
-            g.refresh();
-        }
-        let groups = self.groups.flat();
-        self.scratch = S::Scratches::filled("unknown_rows", groups.len(), S::Group::scratch())?;
-        let sqrt_groups = if self.opts.form == CovarianceForm::Sqrt { groups.len() } else { 0 };
-        self.sqrt_scratch = S::SqrtScratches::filled("unknown_rows", sqrt_groups, S::Group::sqrt_scratch())?;
-        Ok(())
-    }
-}
-
 impl<T: Real, const N: usize, const K: usize> KalmanRows<T, N, Fixed<K>> {
     /// The thesis' identifier: rows, `P(0) = p0 I` on every row, one `r` per row (Eq 4.7;
     /// see [`crate::model::LinearModel::row_noise_var`]).
@@ -559,102 +534,5 @@ impl<T: Real, const N: usize, const K: usize> KalmanRows<T, N, Fixed<K>> {
     /// The estimate θ̂ of the unknown rows (`K × N`).
     pub fn theta(&self) -> SMatrix<T, K, N> {
         fixed_theta(self)
-    }
-}
-
-crate::identify::persist_by_serde!([T: Real, const N: usize, S: Store<T, N>] KalmanRows<T, N, S>);
-
-impl<T: Real, const N: usize, S: Store<T, N>> Identifier<T> for KalmanRows<T, N, S> {
-    fn dims(&self) -> Dims {
-        let k = self.rows.flat().len();
-        Dims { states: N, inputs: 0, equations: k, params: k * N }
-    }
-
-    fn rows(&self) -> &[usize] {
-        self.rows.flat()
-    }
-
-    #[inline]
-    fn update_into(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
-        check_lengths(self.dims(), x, z, u, e)?;
-        self.update_vec(&vector(x), &vector(z), e)
-    }
-
-    fn params_into(&self, out: &mut [T]) -> Result<()> {
-        self.theta_into(out)
-    }
-
-    fn samples(&self) -> u64 {
-        self.samples
-    }
-
-    /// Block diagonal: one `N × N` block `P_i` per row.
-    fn covariance_into(&self, out: &mut [T]) -> Result<()> {
-        let k = self.rows.flat().len();
-        let kn = k * N;
-        if out.len() != kn * kn {
-            return Err(Error::Shape { arg: "out", expected: kn * kn, got: out.len() });
-        }
-        out.fill(T::zero());
-        for i in 0..k {
-            let p = self.filter(i).p();
-            for a in 0..N {
-                for b in 0..N {
-                    out[(i * N + a) * kn + i * N + b] = p[(a, b)];
-                }
-            }
-        }
-        Ok(())
-    }
-
-    fn residuals_into(&self, ssr: &mut [T], nobs: &mut [T]) -> Result<()> {
-        let k = self.rows.flat().len();
-        if ssr.len() != k || nobs.len() != k {
-            return Err(Error::Shape { arg: "ssr", expected: k, got: ssr.len().min(nobs.len()) });
-        }
-        for i in 0..k {
-            let f = self.filter(i);
-            (ssr[i], nobs[i]) = (f.ssr(), f.nobs());
-        }
-        Ok(())
-    }
-
-    fn noise_into(&self, out: &mut [T]) -> Result<()> {
-        let k = self.rows.flat().len();
-        if out.len() != k * k {
-            return Err(Error::Shape { arg: "out", expected: k * k, got: out.len() });
-        }
-        out.fill(T::zero());
-        for i in 0..k {
-            out[i * k + i] = self.filter(i).r();
-        }
-        Ok(())
-    }
-
-    fn trace(&self) -> Option<T> {
-        Some(KalmanRows::trace(self))
-    }
-
-    fn reinit_count(&self) -> u32 {
-        self.reinit_count
-    }
-
-    fn reset_covariance(&mut self, p0: T) -> Result<()> {
-        super::row::check_reset(p0, self.starting())?;
-        for g in self.groups.flat_mut() {
-            g.reset_covariance(p0);
-        }
-        Ok(())
-    }
-
-    fn gated_into(&self, out: &mut [u64]) -> Result<()> {
-        let k = self.rows.flat().len();
-        if out.len() != k {
-            return Err(Error::Shape { arg: "out", expected: k, got: out.len() });
-        }
-        for (i, o) in out.iter_mut().enumerate() {
-            *o = self.filter(i).gated();
-        }
-        Ok(())
     }
 }

@@ -1,7 +1,8 @@
 //! The shared-covariance (`shared`) form.
 
-use super::lanes::{finite_probe, is_fin, lane_sum, overflow_culprit, tree_sum};
-use super::row::{positive_definite, risky, SCREEN_WARMUP};
+use super::guards::overflow_culprit;
+use super::guards::{positive_definite, risky, SCREEN_WARMUP};
+use super::sums::{finite_probe, is_fin, lane_sum, tree_sum};
 use super::{CovarianceForm, KalmanOptions};
 use crate::error::{check_finite, check_positive};
 #[cfg(feature = "alloc")]
@@ -13,6 +14,8 @@ use crate::identify::{
 use crate::linalg::symmetrize;
 use crate::{Error, Real, Result};
 use nalgebra::{SMatrix, SVector};
+
+mod identifier;
 /// Shared-covariance Kalman identifier over a [`Store`] (`P_i = r_i Q`); see
 /// [`SharedKalmanIdentifier`].
 #[derive(Debug, Clone)]
@@ -374,7 +377,7 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
     /// the error it is rejected with; else whether the gate leaves it out (then counted, its
     /// residuals entering the gate's scale Winsorized at the gate) or it is accepted. The
     /// risky downdate must leave `Q` positive definite (checked by Cholesky), else the sample
-    /// is refused ([`super::row::LOST_DEFINITENESS_JOINT`]). Changes nothing unless gated.
+    /// is refused ([`super::guards::LOST_DEFINITENESS_JOINT`]). Changes nothing unless gated.
     ///
     /// # Errors
     /// [`Error::NonFinite`], an overflow error naming `r_k` or `z_k`, [`Error::Singular`].
@@ -412,7 +415,7 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
             return Err(overflow_culprit(e[i], xth));
         }
         if T::one() < risky::<T>() * s && !positive_definite(&self.downdated(x, qx, g), N) {
-            return Err(super::row::LOST_DEFINITENESS_JOINT);
+            return Err(super::guards::LOST_DEFINITENESS_JOINT);
         }
         Ok(Screened::Accepted)
     }
@@ -422,7 +425,7 @@ impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
     /// `w_i = e_i / √s` exceeds `κ σ̂_i` (`σ̂_i² = Σ w_i² / (n − N)`), as in mode `rows`; the
     /// rows share one covariance, so every row leaves it out. Then counts it and lets it
     /// inform the scale: each row's `w_i²` enters Winsorized at `κ² σ̂_i²` (see
-    /// [`super::row::gated_scale`]). `true` when gated.
+    /// [`super::guards::gated_scale`]). `true` when gated.
     fn gate_out(&mut self, e: &[T], s: T) -> bool {
         let gate = self.opts.gate;
         let params = T::of(N as f64);
@@ -477,24 +480,6 @@ enum Screened {
     Accepted,
 }
 
-#[cfg(feature = "serde")]
-impl<T: Real, const N: usize, S: Store<T, N>> KalmanShared<T, N, S> {
-    /// Checks a deserialized identifier: valid rows and options, one `θ_i`, `r_i` and gate
-    /// statistic per row.
-    pub(crate) fn restored(&mut self) -> Result<()> {
-        self.opts.validate()?;
-        let k = crate::model::RowSet::<N>::new(self.rows.flat())?.len();
-        for (arg, len) in
-            [("theta", self.theta.flat().len()), ("r", self.r.flat().len()), ("ssr", self.ssr.flat().len())]
-        {
-            if len != k {
-                return Err(Error::Shape { arg, expected: k, got: len });
-            }
-        }
-        Ok(())
-    }
-}
-
 impl<T: Real, const N: usize, const K: usize> KalmanShared<T, N, Fixed<K>> {
     /// The shared form with `P(0) = p0 I` on every row and one `r` per row (all `r_i / p0`
     /// equal, i.e. all `r_i` equal here).
@@ -522,98 +507,5 @@ impl<T: Real, const N: usize, const K: usize> KalmanShared<T, N, Fixed<K>> {
     /// The estimate θ̂ of the unknown rows (`K × N`).
     pub fn theta(&self) -> SMatrix<T, K, N> {
         fixed_theta(self)
-    }
-}
-
-crate::identify::persist_by_serde!([T: Real, const N: usize, S: Store<T, N>] KalmanShared<T, N, S>);
-
-impl<T: Real, const N: usize, S: Store<T, N>> Identifier<T> for KalmanShared<T, N, S> {
-    fn dims(&self) -> Dims {
-        let k = self.rows.flat().len();
-        Dims { states: N, inputs: 0, equations: k, params: k * N }
-    }
-
-    fn rows(&self) -> &[usize] {
-        self.rows.flat()
-    }
-
-    #[inline]
-    fn update_into(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
-        check_lengths(self.dims(), x, z, u, e)?;
-        self.update_vec(&vector(x), &vector(z), e)
-    }
-
-    fn params_into(&self, out: &mut [T]) -> Result<()> {
-        self.theta_into(out)
-    }
-
-    fn samples(&self) -> u64 {
-        self.samples
-    }
-
-    /// Block diagonal: `P_i = r_i Q` per row.
-    fn covariance_into(&self, out: &mut [T]) -> Result<()> {
-        let k = self.rows.flat().len();
-        let kn = k * N;
-        if out.len() != kn * kn {
-            return Err(Error::Shape { arg: "out", expected: kn * kn, got: out.len() });
-        }
-        out.fill(T::zero());
-        for i in 0..k {
-            let p = self.p(i);
-            for a in 0..N {
-                for b in 0..N {
-                    out[(i * N + a) * kn + i * N + b] = p[(a, b)];
-                }
-            }
-        }
-        Ok(())
-    }
-
-    fn noise_into(&self, out: &mut [T]) -> Result<()> {
-        let k = self.rows.flat().len();
-        if out.len() != k * k {
-            return Err(Error::Shape { arg: "out", expected: k * k, got: out.len() });
-        }
-        out.fill(T::zero());
-        for i in 0..k {
-            out[i * k + i] = self.r.flat()[i];
-        }
-        Ok(())
-    }
-
-    fn trace(&self) -> Option<T> {
-        Some(KalmanShared::trace(self))
-    }
-
-    fn reinit_count(&self) -> u32 {
-        self.reinit_count
-    }
-
-    /// `Q ← (p0 / r_1) I`: the first row's `P_1 = p0 I`, every row `P_i = p0 (r_i / r_1) I`
-    /// (the shared form keeps one ratio `r/p0` for all rows; with equal `r`, `P_i = p0 I`).
-    fn reset_covariance(&mut self, p0: T) -> Result<()> {
-        super::row::check_reset(p0, false)?;
-        let r1 = self.r.flat().first().copied().unwrap_or(T::one());
-        let scale = p0 / r1;
-        if !(scale > T::zero() && scale.finite()) {
-            return Err(Error::InvalidArgument {
-                arg: "p0",
-                expected: "a covariance whose ratio to r is finite and > 0",
-            });
-        }
-        self.q = SMatrix::identity() * scale;
-        Ok(())
-    }
-
-    /// The samples the gate left out, the same count for every row (see
-    /// [`KalmanShared::gated`]).
-    fn gated_into(&self, out: &mut [u64]) -> Result<()> {
-        let k = self.rows.flat().len();
-        if out.len() != k {
-            return Err(Error::Shape { arg: "out", expected: k, got: out.len() });
-        }
-        out.fill(self.gated);
-        Ok(())
     }
 }

@@ -17,7 +17,7 @@
 //! entries never move. A lane that holds no filter (padding) has `x = 0`, `y = 0`, `P = 0`,
 //! `r = 1`: `e = 0`, `s = 1`, no step and no failure.
 
-use super::lanes::{is_fin, lane_sum};
+use super::sums::{is_fin, lane_sum};
 use super::RowIdentifier;
 use crate::Real;
 
@@ -73,7 +73,7 @@ impl<T: Real, const N: usize, const L: usize> XPlan<T, N, L> {
 }
 
 /// `Σ_b v[b] x[b]` lane by lane (each lane its own `x`), summed pairwise in the fixed order of
-/// [`lane_sum`] (that of [`super::lanes::lane_dot`]).
+/// [`lane_sum`] (that of [`super::sums::lane_dot`]).
 #[inline(always)]
 fn lane_dot_x<T: Real, const L: usize, const N: usize>(v: &[[T; L]; N], x: &[[T; L]; N]) -> [T; L] {
     let mut t = [[T::zero(); L]; N];
@@ -150,7 +150,7 @@ impl<T: Real, const N: usize, const L: usize> XLanes<T, N, L> {
         for k in 0..L {
             s[k] += self.r[k];
         }
-        let rk = super::row::risky::<T>();
+        let rk = super::guards::risky::<T>();
         let (mut w, mut c, mut flag) = ([T::zero(); L], [T::zero(); L], [T::zero(); L]);
         for k in 0..L {
             let inv = T::one() / s[k];

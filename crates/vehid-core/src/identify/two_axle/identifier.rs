@@ -1,0 +1,32 @@
+//! [`TwoAxle`] behind the [`Identifier`] interface, and its persistence (`Persist`).
+
+use super::*;
+
+crate::identify::persist_by_serde!([T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<T, N>>] TwoAxle<T, N, P, S, B>);
+
+impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<T, N>>> Identifier<T>
+    for TwoAxle<T, N, P, S, B>
+{
+    fn dims(&self) -> Dims {
+        let k = self.rows.len();
+        Dims { states: N, inputs: 0, equations: k, params: k * N }
+    }
+
+    fn rows(&self) -> &[usize] {
+        self.rows.as_slice()
+    }
+
+    /// The sample on the road point after the previous one ([`TwoAxle::update_next`]).
+    fn update_into(&mut self, x: &[T], z: &[T], u: &[T], e: &mut [T]) -> Result<()> {
+        check_lengths(self.dims(), x, z, u, e)?;
+        self.update_at(&vector(x), &vector(z), None, e).map(|_| ())
+    }
+
+    fn params_into(&self, out: &mut [T]) -> Result<()> {
+        self.theta_into(out)
+    }
+
+    fn samples(&self) -> u64 {
+        self.samples
+    }
+}
