@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import shutil
 from pathlib import Path
 from typing import Dict, List, Tuple
@@ -20,6 +21,7 @@ from scipy import signal
 
 import vehid
 from vehid import align, cli, fieldlog
+from vehid import monitor as monitor_cmd
 from vehid.io import TableError
 
 pytest.importorskip("rosbags")
@@ -707,3 +709,102 @@ def test_inspect_reads_around_a_text_column(tmp_path: Path, capsys: pytest.Captu
     out = capsys.readouterr().out
     assert "column 'Event': not numbers ('start' is not a number); not read" in out, out
     assert "'deflection [mm]': mm (declared); mean 2," in out and "200 Hz" in out, out
+
+
+# --- the accelerometers' noise from the data -------------------------------------------------------
+
+#: The simulated sensors' default white noise (``SensorNoise::default``), m/s^2, m/s^2, m.
+NOISE_DEFAULTS = {"a_body": 0.02, "a_wheel": 0.1, "deflection": 3e-4}
+
+
+def noisy_drive(path: Path, half: bool, factor: float, seed: int, seconds: float = 300.0,
+                changes: List[Tuple[float, Dict[str, float]]] = ()) -> Dict[str, float]:  # type: ignore[assignment]
+    """A passenger car's drive at 200 Hz, every sensor's noise ``factor`` times the defaults,
+    written as vehid's CSV to ``path``; returns the noise (the truth)."""
+    noise = {k: v * factor for k, v in NOISE_DEFAULTS.items()}
+    car = vehid.HalfCar.passenger() if half else vehid.QuarterCar.passenger()
+    sim = vehid.Simulator(car, dt=0.005, road="iso8608-C", speed=15.0, changes=list(changes), sensors="realistic",
+                          seed=seed, sensor_noise=noise)
+    run = sim.run(int(round(seconds / 0.005)))
+    np.savetxt(path, np.column_stack([run.t, run.y]), delimiter=",", header="t," + ",".join(sim.channels or ()),
+               comments="", fmt="%.9g")
+    return noise
+
+
+def summary_noise(err: str) -> Dict[str, Tuple[float, str]]:
+    """The summary's ``noise per sample: NAME VALUE UNIT (ORIGIN), ...`` (SI, origin)."""
+    line = next(x for x in err.splitlines() if "noise per sample: " in x)
+    out = {}
+    for name, value, unit, origin in re.findall(r"(a_body|a_wheel|deflection) ([0-9.e+-]+) (m/s\^2|mm) \(([^)]*)\)",
+                                                line.split("noise per sample: ")[1]):
+        out[name] = (float(value) * (1e-3 if unit == "mm" else 1.0), origin)
+    return out
+
+
+@pytest.mark.parametrize("half,factor,seed", [(False, 0.3, 7301), (False, 1.0, 7302), (False, 3.0, 7303),
+                                              (True, 0.3, 7304), (True, 1.0, 7305), (True, 3.0, 7306)])
+def test_the_accelerometers_noise_is_estimated_from_the_data(half: bool, factor: float, seed: int, tmp_path: Path,
+                                                             capsys: pytest.CaptureFixture[str],
+                                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    # 300 s of the passenger car (quarter and half), every sensor 0.3-3 times as noisy as the
+    # defaults, undeclared: the summary gives the body's and the wheel's noise from the data within
+    # 20 % of the simulation's (seeds not used to build the estimator); the monitor is given them
+    # when over 1.25 times the defaults (else it keeps the defaults: a log at them is monitored
+    # as before).
+    path = tmp_path / "drive.csv"
+    truth = noisy_drive(path, half, factor, seed)
+    given: List[Dict[str, float]] = []
+    real = monitor_cmd.HealthMonitor
+
+    def recording(*args: object, **kw: object) -> vehid.HealthMonitor:
+        given.append(dict(kw.get("sensor_noise") or {}))  # type: ignore[call-overload]
+        return real(*args, **kw)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(monitor_cmd, "HealthMonitor", recording)
+    _, err = events(capsys, [str(path), "--model", "half" if half else "passenger"])
+    got = summary_noise(err)
+    for name in ("a_body", "a_wheel"):
+        value, origin = got[name]
+        if factor > 1.25:
+            assert origin == "from the data", err
+            assert abs(given[-1][name] / value - 1) < 5e-3, (given, got)  # the monitor runs with it
+        else:
+            assert value == NOISE_DEFAULTS[name] and name not in given[-1], (given, err)
+            value = float(re.fullmatch(r"the default; the data: ([0-9.e+-]+) m/s\^2", origin).group(1))  # type: ignore[union-attr]
+        assert abs(value / truth[name] - 1) < 0.2, (name, value, truth[name], err)
+    assert got["deflection"][1] == "from the data" if factor > 1.25 else got["deflection"][1].startswith("the default")
+
+
+def test_the_accelerometers_noise_against_scipys_welch_where_it_is_the_only_signal() -> None:
+    # Independent check of the estimator's scale (the periodogram's normalization, the Whittle
+    # level): with the car at rest (zero deflection), the body equation's residual is the body
+    # accelerometer's noise alone and the kinematic one the wheel's: scipy's Welch spectrum of
+    # each raw channel gives its variance per sample.
+    rng = np.random.default_rng(11)
+    n, dt = 60_000, 0.005
+    d = 3e-4 * rng.standard_normal(n)
+    ab, aw = 0.05 * rng.standard_normal(n), 0.2 * rng.standard_normal(n)
+    s = align.sensor_noise(ab, aw, d, dt, [3e-4])
+    for est, x in ((s.a_body, ab), (s.a_wheel, aw)):
+        f, pxx = signal.welch(x, fs=1 / dt, nperseg=4096)
+        welch = math.sqrt(float(np.mean(pxx[(f > 0.2) & (f < 2.0)])) / (2 * dt))
+        assert abs(est / welch - 1) < 0.1, (est, welch)
+
+
+def test_declared_noise_wins_and_is_said(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "drive.csv"
+    noisy_drive(path, False, 2.0, 7311, seconds=80.0)
+    _, err = events(capsys, [str(path), "--model", "passenger", "--noise", "a_body=0.05"])
+    got = summary_noise(err)
+    assert got["a_body"] == (0.05, "declared"), err
+    assert got["a_wheel"][1] == "from the data", err
+
+
+def test_a_change_of_the_car_does_not_spoil_the_body_noise(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # The damper -10 % at 100 s and the spring -10 % at 200 s: the body equation changes twice;
+    # fitted window by window, the body's noise stays within 20 % of the truth.
+    path = tmp_path / "drive.csv"
+    truth = noisy_drive(path, False, 2.0, 7312, changes=[(100.0, {"b": 1350.0}), (200.0, {"k2": 19800.0})])
+    _, err = events(capsys, [str(path), "--model", "passenger"])
+    got = summary_noise(err)
+    assert abs(got["a_body"][0] / truth["a_body"] - 1) < 0.2, err

@@ -36,7 +36,8 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python < 3.11
     import tomli as tomllib
 
-__all__ = ["Aligned", "ChannelMap", "ChannelSpec", "Log", "Series", "align", "car_check", "deflection_noise",
+__all__ = ["Aligned", "ChannelMap", "ChannelSpec", "Log", "Series", "accelerometer_noise", "align", "car_check",
+           "deflection_noise",
            "grid_interval", "is_bag", "is_channel_map", "load_channel_map", "read_log", "unit_of", "BAG_SUFFIXES"]
 
 #: File suffixes read as ROS bags (a folder is read as a rosbag2 bag too).
@@ -591,4 +592,36 @@ def deflection_noise(log: Log, dt: float) -> float:
             sigma *= math.sqrt(0.9 * h / dt)
         if math.isfinite(sigma) and not sigma <= out:
             out = sigma
+    return out
+
+
+def accelerometer_noise(al: Aligned, log: Log) -> Dict[str, float]:
+    """The body and wheel accelerometers' white noise (m/s^2 per sample at the grid's
+    interval) estimated from the aligned channels ``al`` (:func:`vehid.align.sensor_noise`, per
+    axle, the largest over the axles; NaN when it cannot be estimated). Each axle's deflection
+    noise enters as :func:`vehid.align.kinematic_deflection_noise` finds it on the grid when
+    the deflection is sampled at least as fast as the grid, else as :func:`deflection_noise`
+    finds it on its own samples. Not for an axle whose deflection's delay could not be estimated
+    (its deflection does not follow ``a_body - a_wheel``: the relations do not hold)."""
+    out = {"a_body": math.nan, "a_wheel": math.nan}
+    # an axle whose deflection does not follow a_body - a_wheel (its delay could not be estimated) has
+    # no relation to take the signal out with
+    axles = [a for a in ("", "_f", "_r") if all(f"{c}{a}" in al.names for c in ("a_body", "a_wheel", "deflection"))
+             and math.isfinite(al.delays.get(f"deflection{a}", 0.0))]
+    col = {name: al.y[:, al.names.index(name)] for name in al.names}
+    sd: Dict[str, float] = {}
+    for a in axles:
+        name = f"deflection{a}"
+        if al.rates.get(name, math.inf) <= al.dt * 1.0001:
+            sd[a] = _align.kinematic_deflection_noise(col[f"a_body{a}"], col[f"a_wheel{a}"], col[name], al.dt)
+        else:
+            sd[a] = deflection_noise(Log(log.source, log.kind, [s for s in log.series if s.channel == name],
+                                         log.absolute), al.dt)
+    for a in axles:
+        rest = [b for b in axles if b != a]
+        est = _align.sensor_noise(col[f"a_body{a}"], col[f"a_wheel{a}"], col[f"deflection{a}"], al.dt,
+                                  [sd[a], *(sd[b] for b in rest)], [col[f"deflection{b}"] for b in rest])
+        for k, v in (("a_body", est.a_body), ("a_wheel", est.a_wheel)):
+            if math.isfinite(v) and not v <= out[k]:
+                out[k] = v
     return out
