@@ -325,15 +325,18 @@ def white_noise(t: NDArray[np.float64], v: NDArray[np.float64], h: float) -> flo
 
 
 def estimate_body_delay(a_body: NDArray[np.float64], deflection: NDArray[np.float64], dt: float,
-                        max_lag: float = 0.05, rounds: int = 10) -> Delay:
+                        max_lag: float = 0.05, rounds: int = 10,
+                        others: Sequence[NDArray[np.float64]] = ()) -> Delay:
     """The body accelerometer's delay against the deflection (s, positive: late), from the
     body equation ``a_body = -(k2/M) d - (b/M) d'`` on the longest stretch without gaps: the
     ratios fitted by least squares, ``a_body`` cross-correlated with their prediction from
     ``d`` (band-limited, 16-fold interpolated, parabola), ``a_body`` advanced by the lag found
     and the two steps repeated until the lag changes by under 10 us (a fit at the wrong lag
     absorbs part of it into ``b/M``). ``slope`` is the fitted k2/M (1/s^2). The three on one
-    grid of interval ``dt`` (s)."""
-    y = np.column_stack([a_body, deflection])
+    grid of interval ``dt`` (s). ``others``: the other axles' deflections (the half car: a
+    body corner's acceleration is linear in both axles' deflections and rates, through ``1/M``
+    and ``l^2/J``), regressors too."""
+    y = np.column_stack([a_body, deflection, *others])
     a, b = _longest_finite(y)
     b = min(b, a + int(DELAY_SPAN / dt))
     span = (b - a) * dt
@@ -342,18 +345,18 @@ def estimate_body_delay(a_body: NDArray[np.float64], deflection: NDArray[np.floa
                      f"{span:.1f} s without gaps, under the {DELAY_MIN_SPAN:g} s the estimate needs")
     n = b - a
     acc, f, size = _spectra(y[a:b, 0], dt)
-    d, _, _ = _spectra(y[a:b, 1], dt)
+    ds = [_spectra(y[a:b, j], dt)[0] for j in range(1, y.shape[1])]
     w = 2j * np.pi * f
     tau, peak = 0.0, math.nan
-    theta: NDArray[np.float64] = np.zeros(2)
+    theta: NDArray[np.float64] = np.zeros(2 * len(ds))
     reach = int(max_lag / dt * UPSAMPLE)
     lags = np.concatenate([np.arange(-reach, 0), np.arange(0, reach + 1)])
     for _ in range(rounds):
         advanced = acc * np.exp(w * tau)
-        cols = [np.fft.irfft(x, size)[:n] for x in (advanced, -d, -w * d)]
+        cols = [np.fft.irfft(x, size)[:n] for x in [advanced] + [c for d in ds for c in (-d, -w * d)]]
         fit, *_ = np.linalg.lstsq(np.column_stack(cols[1:]), cols[0], rcond=None)
         theta = np.asarray(fit, dtype=np.float64)
-        pred = -(theta[0] + theta[1] * w) * d
+        pred = -sum((theta[2 * i] + theta[2 * i + 1] * w) * d for i, d in enumerate(ds))
         sxx = float(np.fft.irfft(np.abs(pred) ** 2, size)[0])
         syy = float(np.fft.irfft(np.abs(advanced) ** 2, size)[0])
         if not (sxx > 0 and syy > 0):

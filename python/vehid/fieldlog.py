@@ -370,9 +370,13 @@ def align(log: Log, dt: Optional[float], specs: Optional[Mapping[str, ChannelSpe
         names = [f"a_body{axle}", f"a_wheel{axle}", f"deflection{axle}"]
         if all(c in out.names for c in names):
             _deflection(out, log, names, specs, estimate)
-    if all(c in out.names for c in ("a_body", "deflection")) and estimate:  # the quarter car's body equation
-        _body(out, log, specs)
-        _refine(out, log, specs)
+    if estimate:  # each body accelerometer's delay, from the body equation
+        axles = [a for a in ("", "_f", "_r") if all(f"{c}{a}" in out.names for c in ("a_body", "deflection"))]
+        for axle in axles:
+            _body(out, log, specs, axle, [b for b in axles if b != axle])
+        for axle in axles:
+            if f"a_wheel{axle}" in out.names:
+                _refine(out, log, specs, axle, [b for b in axles if b != axle])
     if not same or any(abs(v) >= DELAY_TOLERANCE for v in out.delays.values() if math.isfinite(v)):
         # the grid's ends where a channel (resampled, or shifted) does not reach: not a gap
         good = np.flatnonzero(np.isfinite(out.y).all(axis=1))
@@ -467,66 +471,72 @@ def _deflection(out: Aligned, log: Log, names: List[str], specs: Mapping[str, Ch
                          "removed")
 
 
-def _body(out: Aligned, log: Log, specs: Mapping[str, ChannelSpec]) -> None:
-    """The body accelerometer's delay against the (aligned) deflection, from the body
-    equation (:func:`vehid.align.estimate_body_delay`): removed when over
+def _body(out: Aligned, log: Log, specs: Mapping[str, ChannelSpec], axle: str = "", others: Sequence[str] = ()) -> None:
+    """The body accelerometer's delay (``a_body`` + ``axle``) against the (aligned)
+    deflection, from the body equation (:func:`vehid.align.estimate_body_delay`; the half car:
+    the other axles ``others``' deflections are regressors too): removed when over
     :data:`DELAY_TOLERANCE` and the fit is close (correlation over 0.9); a declared ``delay``
     is taken as given."""
-    spec = specs.get("a_body")
-    ib, idf = out.names.index("a_body"), out.names.index("deflection")
+    body, defl = f"a_body{axle}", f"deflection{axle}"
+    spec = specs.get(body)
+    ib, idf = out.names.index(body), out.names.index(defl)
     if spec is not None and spec.delay is not None:
         delay = spec.delay
     else:
-        est = _align.estimate_body_delay(out.y[:, ib], out.y[:, idf], out.dt)
-        out.estimated["a_body"] = est.delay
+        more = [out.y[:, out.names.index(f"deflection{b}")] for b in others]
+        est = _align.estimate_body_delay(out.y[:, ib], out.y[:, idf], out.dt, others=more)
+        out.estimated[body] = est.delay
         if est.why or not est.corr > 0.9:
             return
         delay = est.delay
         if abs(delay) < DELAY_TOLERANCE:
-            out.delays["a_body"] = delay
+            out.delays[body] = delay
             return
-        out.notes.append(f"a_body: {1e3 * abs(delay):.2f} ms {'late' if delay > 0 else 'early'} against the deflection "
-                         f"(estimated from the body equation, correlation {est.corr:.3f}): removed")
-    out.delays["a_body"] = delay
+        out.notes.append(f"{body}: {1e3 * abs(delay):.2f} ms {'late' if delay > 0 else 'early'} against the "
+                         f"deflection (estimated from the body equation, correlation {est.corr:.3f}): removed")
+    out.delays[body] = delay
     if abs(delay) < DELAY_TOLERANCE:
         return
-    s = next(x for x in log.series if x.channel == "a_body")
-    out.y[:, ib] = _align.resample(s.t, s.v, out.rates["a_body"], out.t0, out.dt, len(out.y), shift=delay)
+    s = next(x for x in log.series if x.channel == body)
+    out.y[:, ib] = _align.resample(s.t, s.v, out.rates[body], out.t0, out.dt, len(out.y), shift=delay)
 
 
-def _refine(out: Aligned, log: Log, specs: Mapping[str, ChannelSpec], rounds: int = 4) -> None:
-    """Both delays again, in turn, while they move by over 20 us: a late body accelerometer
-    biases the deflection's first estimate (``a_body`` is in ``d''``'s side of the equation:
-    3.25 ms found of 4 with the body 20 ms late), and the body's is measured against that
-    deflection. Each channel is re-read from its own samples at its total delay; the notes
-    give the final figures. Not where a delay is declared or was not removed."""
-    if any(specs.get(c) is not None and specs[c].delay is not None for c in ("a_body", "deflection")):
+def _refine(out: Aligned, log: Log, specs: Mapping[str, ChannelSpec], axle: str = "", others: Sequence[str] = (),
+            rounds: int = 4) -> None:
+    """Both delays of an axle again, in turn, while they move by over 20 us: a late body
+    accelerometer biases the deflection's first estimate (``a_body`` is in ``d''``'s side of
+    the equation: 3.25 ms found of 4 with the body 20 ms late), and the body's is measured
+    against that deflection. Each channel is re-read from its own samples at its total delay;
+    the notes give the final figures. Not where a delay is declared or was not removed."""
+    body, wheel, defl = (f"{c}{axle}" for c in ("a_body", "a_wheel", "deflection"))
+    if any(specs.get(c) is not None and specs[c].delay is not None for c in (body, defl)):
         return
-    td, tb = out.delays.get("deflection", math.nan), out.delays.get("a_body", math.nan)
+    td, tb = out.delays.get(defl, math.nan), out.delays.get(body, math.nan)
     if not (math.isfinite(td) and math.isfinite(tb)) or abs(tb) < DELAY_TOLERANCE:
         return
-    ib, iw, idf = (out.names.index(c) for c in ("a_body", "a_wheel", "deflection"))
+    ib, iw, idf = (out.names.index(c) for c in (body, wheel, defl))
     series = {s.channel: s for s in log.series}
     for _ in range(rounds):
         r = _align.estimate_delay(out.y[:, ib], out.y[:, iw], out.y[:, idf], out.dt).delay
         if not math.isfinite(r) or abs(r) < 2e-5:
             break
         td += r
-        s = series["deflection"]
-        out.y[:, idf] = _align.resample(s.t, s.v, out.rates["deflection"], out.t0, out.dt, len(out.y), shift=td)
-        rb = _align.estimate_body_delay(out.y[:, ib], out.y[:, idf], out.dt).delay
+        s = series[defl]
+        out.y[:, idf] = _align.resample(s.t, s.v, out.rates[defl], out.t0, out.dt, len(out.y), shift=td)
+        more = [out.y[:, out.names.index(f"deflection{b}")] for b in others]
+        rb = _align.estimate_body_delay(out.y[:, ib], out.y[:, idf], out.dt, others=more).delay
         if math.isfinite(rb):
             tb += rb
-            s = series["a_body"]
-            out.y[:, ib] = _align.resample(s.t, s.v, out.rates["a_body"], out.t0, out.dt, len(out.y), shift=tb)
-    out.delays["deflection"], out.delays["a_body"] = td, tb
+            s = series[body]
+            out.y[:, ib] = _align.resample(s.t, s.v, out.rates[body], out.t0, out.dt, len(out.y), shift=tb)
+    out.delays[defl], out.delays[body] = td, tb
     for i, note in enumerate(out.notes):
-        if note.startswith("deflection: ") and "against the accelerometers" in note and "removed" in note:
-            out.notes[i] = (f"deflection: {1e3 * abs(td):.2f} ms {'late' if td > 0 else 'early'} against the "
+        if note.startswith(f"{defl}: ") and "against the accelerometers" in note and "removed" in note:
+            out.notes[i] = (f"{defl}: {1e3 * abs(td):.2f} ms {'late' if td > 0 else 'early'} against the "
                             "accelerometers (estimated from d'' = a_body - a_wheel, with the body accelerometer's "
                             "delay): removed")
-        if note.startswith("a_body: ") and "removed" in note:
-            out.notes[i] = (f"a_body: {1e3 * abs(tb):.2f} ms {'late' if tb > 0 else 'early'} against the wheel "
+        if note.startswith(f"{body}: ") and "removed" in note:
+            out.notes[i] = (f"{body}: {1e3 * abs(tb):.2f} ms {'late' if tb > 0 else 'early'} against the wheel "
                             f"accelerometer ({1e3 * abs(tb - td):.2f} ms {'late' if tb > td else 'early'} against the "
                             "deflection; estimated from the body equation): removed")
 
