@@ -858,3 +858,30 @@ def test_a_half_car_body_corner_follows_both_axles() -> None:
                                          others=[y[:, names.index(f"deflection{other}")]])
         assert 1 - both.corr < (2 / 3) * (1 - alone.corr), (axle, alone, both)
         assert abs(both.delay - 0.012) < 2.5e-4, (axle, both)
+
+
+def test_events_and_track_from_standard_input(damper: vehid.Run, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    # `--events` and `--track` on a log read from standard input: the same rows as from the file
+    # (times on the log's clock, its time column's), read back with pyarrow; and the MCAP form.
+    import io as _io
+
+    import pyarrow.parquet as pq
+
+    path = F.vehid_csv(tmp_path / "drive.csv", damper)
+    out = {kind: (tmp_path / f"{kind}_events.parquet", tmp_path / f"{kind}_track.parquet")
+           for kind in ("file", "stdin")}
+    events(capsys, [str(path), "--model", "passenger", "--events", str(out["file"][0]), "--track", str(out["file"][1])])
+    monkeypatch.setattr("sys.stdin", _io.StringIO(path.read_text()))
+    got, _ = events(capsys, ["-", "--model", "passenger", "--events", str(out["stdin"][0]), "--track",
+                             str(out["stdin"][1])])
+    rows = {kind: pq.read_table(ev).to_pylist() for kind, (ev, _) in out.items()}
+    assert [r["parameter"] for r in rows["stdin"]] == ["b"] and rows["stdin"] == rows["file"], rows
+    assert abs(rows["stdin"][0]["t"] - got[0]["t"]) < 1e-9
+    tracks = {kind: pq.read_table(tr).to_pydict() for kind, (_, tr) in out.items()}
+    assert tracks["stdin"]["t"] == tracks["file"]["t"] and len(tracks["stdin"]["t"]) == 140
+    np.testing.assert_allclose(tracks["stdin"]["k2_over_M"], tracks["file"]["k2_over_M"], equal_nan=True)
+    mcap = tmp_path / "ev.mcap"
+    monkeypatch.setattr("sys.stdin", _io.StringIO(path.read_text()))
+    events(capsys, ["-", "--model", "passenger", "--events", str(mcap)])
+    assert mcap.stat().st_size > 0

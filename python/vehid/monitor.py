@@ -356,8 +356,6 @@ def cmd_monitor(args: argparse.Namespace) -> int:
         raise CliError(f"--track {track}: give a .parquet file (or --events FILE.mcap for both)")
     if args.file != "-":
         return _monitor_file(args, car, sensors, settings, channels, plt)
-    if events or track:
-        raise CliError("--events and --track need a file or a bag, not standard input")
     try:
         mapping = parse_column_map(args.columns or [])
     except TableError as e:
@@ -426,6 +424,8 @@ def cmd_monitor(args: argparse.Namespace) -> int:
         summary(feeder, table.source, samples, sys.stderr)
         if plt is not None:
             plot(feeder, car, args.plot, plt)
+        if events or track:  # times on the log's clock: its time column's (or 0 at the first sample)
+            _export(args, feeder, 0.0)
     return 0
 
 
@@ -739,10 +739,10 @@ def add_arguments(p: argparse.ArgumentParser, delimiter: Callable[[str], str]) -
     p.add_argument("--events", default=None, metavar="FILE",
                    help="also write the events to FILE.parquet, or to FILE.mcap with the tracked k2/M, b/M and the "
                         "status (topics /vehid/...; on the bag's clock: Foxglove or PlotJuggler overlay them; "
-                        "needs vehid[parquet] or vehid[ros]); files and bags only")
+                        "needs vehid[parquet] or vehid[ros])")
     p.add_argument("--track", default=None, metavar="FILE",
                    help="also write the tracked k2/M and b/M with their 95 %% bands and the status every 0.5 s to "
-                        "FILE.parquet (files and bags only)")
+                        "FILE.parquet")
     p.add_argument("--plot", default=None, metavar="PNG",
                    help="write the tracked ratios with their bands and the events (the half car: each "
                         "spring's and damper's change since the warm-up) (needs vehid[plot])")
