@@ -885,3 +885,28 @@ def test_events_and_track_from_standard_input(damper: vehid.Run, tmp_path: Path,
     monkeypatch.setattr("sys.stdin", _io.StringIO(path.read_text()))
     events(capsys, ["-", "--model", "passenger", "--events", str(mcap)])
     assert mcap.stat().st_size > 0
+
+
+def test_a_ros1_bag_and_a_split_bag_read_as_the_mcap(five: Dict[str, List[str]], damper: vehid.Run, tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    # The same drive as a ROS 1 .bag (rosbags' ROS 1 writer) and as a rosbag2 folder split into
+    # two MCAP files: the same event as the single MCAP file's, to the digit; one file of the
+    # split bag alone is refused in one line naming the folder to give.
+    bag_map = five["mcap"][2]
+    ros1 = F.bag(tmp_path / "drive.bag", damper, storage="ros1")
+    split = F.split_bag(tmp_path / "split", damper)
+    assert sorted(p.name for p in split.glob("*.mcap")) == ["split_0.mcap", "split_1.mcap"]
+    ref, err = events(capsys, [*five["mcap"], "--model", "passenger"])
+    for path in (ros1, split):
+        got, _ = events(capsys, [str(path), "--columns", bag_map, "--model", "passenger"])
+        assert [(e["parameter"], e["t"], e["after"]) for e in got] == [(e["parameter"], e["t"], e["after"])
+                                                                      for e in ref], (path, got, ref)
+    msg = error(capsys, ["monitor", str(split / "split_1.mcap"), "--columns", bag_map, "--model", "passenger"])
+    assert "part 2 of 2 of a split bag" in msg and f"give the bag's folder, {split}," in msg, msg
+    # The bag's JointState (100 Hz) is slower than the 200 Hz grid: the body's noise is not
+    # estimated; the wheel's, an upper bound sqrt(s_body^2 + s_wheel^2), is per grid sample (the
+    # 400 Hz IMU's 0.1 m/s^2 averaged to 200 Hz: 0.1 / sqrt(2)).
+    got_noise = summary_noise(err)
+    assert got_noise["a_body"] == (0.02, "the default"), err
+    wheel = float(got_noise["a_wheel"][1].split("the data: ")[1].split(" m/s^2")[0])
+    assert abs(wheel / (math.hypot(0.02, 0.1) / math.sqrt(2)) - 1) < 0.1, err

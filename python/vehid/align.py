@@ -430,7 +430,9 @@ def sensor_noise(a_body: NDArray[np.float64], a_wheel: NDArray[np.float64], defl
     grid's interval ``dt``, s; m/s^2) from two relations the signals obey whatever the road,
     on the longest stretch without gaps (at most :data:`NOISE_SPAN` s), the channels on one
     grid with their delays removed; ``sigma_d``: the deflections' noise (m; ``deflection``'s,
-    then ``others``', e.g. from :func:`kinematic_deflection_noise`).
+    then ``others``', e.g. from :func:`kinematic_deflection_noise`; NaN: unknown, and then the
+    body's noise is not estimated and the wheel's is an upper bound, ``sqrt(s_body^2 +
+    s_wheel^2)``).
 
     1. The body equation: ``a_body`` is linear in the deflections and their rates (the quarter
        car: ``-(k2/M) d - (b/M) d'``; the half car: both axles', through ``1/M`` and
@@ -480,20 +482,26 @@ def sensor_noise(a_body: NDArray[np.float64], a_wheel: NDArray[np.float64], defl
     y = y[a:b]
     sd2 = [float(v) ** 2 for v in sigma_d]
     # (2) the body equation's residual, window by window: the body accelerometer's noise
-    step = int(round(NOISE_WINDOW / dt))
-    starts = range(0, len(y) - step + 1, step // 2) if len(y) >= 2 * step else range(1)
-    levels = [_body_level(y[k : k + step] if len(y) >= 2 * step else y, dt, sd2) for k in starts]
-    levels = [v for v in levels if math.isfinite(v)]
-    if not levels:
-        return SensorNoise(nan, nan, span, "too short for the noise's spectrum")
-    typical = float(np.median(levels))
-    sb2 = float(np.mean([v for v in levels if v <= 5.0 * typical]))  # a window a change spoils left out
+    body = all(math.isfinite(v) for v in sd2)
+    sb2 = 0.0
+    if body:
+        step = int(round(NOISE_WINDOW / dt))
+        starts = range(0, len(y) - step + 1, step // 2) if len(y) >= 2 * step else range(1)
+        levels = [_body_level(y[k : k + step] if len(y) >= 2 * step else y, dt, sd2) for k in starts]
+        levels = [v for v in levels if math.isfinite(v)]
+        if not levels:
+            return SensorNoise(nan, nan, span, "too short for the noise's spectrum")
+        typical = float(np.median(levels))
+        sb2 = float(np.mean([v for v in levels if v <= 5.0 * typical]))  # a window a change spoils left out
     # (1) the kinematic residual: the wheel accelerometer's
     spec, w, scale, taps = _kinematic(y[:, 0], y[:, 1], y[:, 2], dt, KINEMATIC_BAND)
     p = np.abs(spec[0] - np.column_stack(spec[1:]) @ taps) ** 2 * scale
     hx = 1.0 - taps[0] * (2.0 - 2.0 * np.cos(w * dt))      # the accelerations' weighting [-a, 1 + 2 a, -a]
     fw = (2.0 - 2.0 * np.cos(w * dt)) / dt**2              # the deflection's second difference
-    sw2 = _level(p, sd2[0] * fw**2 + sb2 * hx**2, (hx - taps[1]) ** 2)
+    sw2 = _level(p, (sd2[0] if math.isfinite(sd2[0]) else 0.0) * fw**2 + sb2 * hx**2, (hx - taps[1]) ** 2)
+    if not body:
+        return SensorNoise(nan, math.sqrt(sw2) if sw2 > 0 else nan, span,
+                           "the deflection's noise unknown: the body's not estimated, the wheel's an upper bound")
     return SensorNoise(math.sqrt(sb2) if sb2 > 0 else nan, math.sqrt(sw2) if sw2 > 0 else nan, span,
                        "" if sb2 > 0 and sw2 > 0 else "the residuals leave no accelerometer noise")
 

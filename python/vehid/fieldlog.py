@@ -610,9 +610,16 @@ def accelerometer_noise(al: Aligned, log: Log) -> Dict[str, float]:
     interval) estimated from the aligned channels ``al`` (:func:`vehid.align.sensor_noise`, per
     axle, the largest over the axles; NaN when it cannot be estimated). Each axle's deflection
     noise enters as :func:`vehid.align.kinematic_deflection_noise` finds it on the grid when
-    the deflection is sampled at least as fast as the grid, else as :func:`deflection_noise`
-    finds it on its own samples. Not for an axle whose deflection's delay could not be estimated
-    (its deflection does not follow ``a_body - a_wheel``: the relations do not hold)."""
+    the deflection is sampled at least as fast as the grid; a slower deflection (a 100 Hz
+    JointState on a 200 Hz grid) leaves its noise on the grid unknown to the few per cent the
+    body's estimate needs (there the deflection's share of the body equation's residual is
+    several times the body's noise): the body's is then NaN and the wheel's an upper bound
+    (``sqrt(s_body^2 + s_wheel^2)``, a few per cent over for the default sensors). For channels
+    resampled to the grid the figures are per grid sample as the monitor takes them: the same
+    spectral level (a 400 Hz accelerometer's noise averaged to 200 Hz is ``1/sqrt(2)`` of its
+    own). Not for an axle
+    whose deflection's delay could not be estimated (its deflection does not follow ``a_body -
+    a_wheel``: the relations do not hold)."""
     out = {"a_body": math.nan, "a_wheel": math.nan}
     # an axle whose deflection does not follow a_body - a_wheel (its delay could not be estimated) has
     # no relation to take the signal out with
@@ -624,9 +631,8 @@ def accelerometer_noise(al: Aligned, log: Log) -> Dict[str, float]:
         name = f"deflection{a}"
         if al.rates.get(name, math.inf) <= al.dt * 1.0001:
             sd[a] = _align.kinematic_deflection_noise(col[f"a_body{a}"], col[f"a_wheel{a}"], col[name], al.dt)
-        else:
-            sd[a] = deflection_noise(Log(log.source, log.kind, [s for s in log.series if s.channel == name],
-                                         log.absolute), al.dt)
+        else:  # slower than the grid: not known well enough on it (its spectrum floor holds road there)
+            sd[a] = math.nan
     for a in axles:
         rest = [b for b in axles if b != a]
         est = _align.sensor_noise(col[f"a_body{a}"], col[f"a_wheel{a}"], col[f"deflection{a}"], al.dt,
