@@ -78,12 +78,14 @@ column = "SuspTravel [mm]"
 
 
 def bag(path: Path, run: vehid.Run, storage: str = "mcap", joint_every: int = 4,
-        imu_type: str = "sensor_msgs/msg/Imu", samples: Optional[slice] = None) -> Path:
+        imu_type: str = "sensor_msgs/msg/Imu", samples: Optional[slice] = None, antialias: bool = False) -> Path:
     """A ROS 2 bag (``storage`` "mcap" or "sqlite3"; "ros1": a ROS 1 ``.bag`` file at
     ``path``, rosbags' ROS 1 writer): ``/body/imu`` and ``/wheel/imu`` (Imu at 400 Hz, z up,
     gravity included, header stamps; logged 1-4 ms later), ``/suspension/joint_states``
     (JointState at 400/``joint_every`` Hz, joint ``susp_fl``: the deflection, m); of the drive's
-    ``samples`` (default all)."""
+    ``samples`` (default all). The JointState samples the 400 Hz deflection as a publisher
+    does, without a filter; ``antialias``: low-passed first (scipy's ``firwin``, 201 taps, cut-off
+    0.4 of the JointState's rate, applied forward and back: zero phase)."""
     from rosbags.rosbag1 import Writer as Writer1
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
@@ -113,6 +115,9 @@ def bag(path: Path, run: vehid.Run, storage: str = "mcap", joint_every: int = 4,
             angular_velocity_covariance=zero9, linear_acceleration=v3(x=0.0, y=0.0, z=a + G),
             linear_acceleration_covariance=zero9)
 
+    deflection = np.asarray(run.y[:, 2], dtype=np.float64)
+    if antialias and joint_every > 1:
+        deflection = signal.filtfilt(signal.firwin(201, 0.4 / (joint_every * DT), fs=1 / DT), [1.0], deflection)
     writer = Writer1(path) if ros1 else Writer(path, version=9, storage_plugin=plugin)
     with writer as w:
         body = w.add_connection("/body/imu", imu_type, typestore=ts)
@@ -126,7 +131,7 @@ def bag(path: Path, run: vehid.Run, storage: str = "mcap", joint_every: int = 4,
             w.write(wheel, logged, serialize(imu(t, float(run.y[k, 1])), imu_type))
             if k % joint_every == 0:
                 msg = T["sensor_msgs/msg/JointState"](header=header(t), name=["susp_fl"],
-                                                      position=np.array([run.y[k, 2]]), velocity=np.zeros(0),
+                                                      position=np.array([deflection[k]]), velocity=np.zeros(0),
                                                       effort=np.zeros(0))
                 w.write(joints, logged, serialize(msg, "sensor_msgs/msg/JointState"))
     return path
