@@ -5,7 +5,9 @@ and Parquet with timestamps. Prints each form's first event and how far apart th
 
 The drive: the passenger quarter car, class C, 15 m/s, the damper 1500 -> 1350 N s/m at 40 s,
 70 s at 400 Hz (``tests/field_logs.py`` writes the forms). Reproducible:
-``.venv/bin/python benches/field_log_five_ways.py --seed 2`` (the test's drive).
+``.venv/bin/python benches/field_log_five_ways.py --seed 2`` (the test's drive); ``--joint-rates``
+adds the bag with its JointState at 400 Hz and at 100 Hz low-passed before it is sampled (the
+cause of the bags' 10-75 ms: docs/capabilities/field-logs.md, "One drive, five ways").
 """
 
 from __future__ import annotations
@@ -28,6 +30,8 @@ from vehid import cli  # noqa: E402
 def main(argv: List[str]) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--seed", type=int, default=2)
+    p.add_argument("--joint-rates", action="store_true",
+                   help="also the bag with its JointState at 400 Hz, and at 100 Hz low-passed before sampling")
     args = p.parse_args(argv)
     run = F.drive(70.0, changes=[(40.0, {"b": 1350.0})], seed=args.seed)
     with tempfile.TemporaryDirectory() as tmp:
@@ -44,6 +48,11 @@ def main(argv: List[str]) -> int:
                                                           str(d / "logger.toml")],
             "Parquet, timestamps": [str(F.parquet(d / "drive.parquet", run))],
         }
+        if args.joint_rates:  # why the bags differ: the JointState's sampling of the deflection
+            forms["MCAP, JointState at 400 Hz"] = [str(F.bag(d / "j400", run, joint_every=1)), "--columns",
+                                                   str(d / "bag.toml")]
+            forms["MCAP, JointState at 100 Hz anti-aliased"] = [str(F.bag(d / "j100aa", run, antialias=True)),
+                                                                "--columns", str(d / "bag.toml")]
         times = []
         for name, form in forms.items():
             out, err = io.StringIO(), io.StringIO()

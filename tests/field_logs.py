@@ -78,24 +78,32 @@ column = "SuspTravel [mm]"
 
 
 def bag(path: Path, run: vehid.Run, storage: str = "mcap", joint_every: int = 4,
-        imu_type: str = "sensor_msgs/msg/Imu") -> Path:
-    """A ROS 2 bag: ``/body/imu`` and ``/wheel/imu`` (Imu at 400 Hz, z up, gravity included,
-    header stamps; logged 1-4 ms later), ``/suspension/joint_states`` (JointState at
-    400/``joint_every`` Hz, joint ``susp_fl``: the deflection, m)."""
+        imu_type: str = "sensor_msgs/msg/Imu", samples: Optional[slice] = None, antialias: bool = False) -> Path:
+    """A ROS 2 bag (``storage`` "mcap" or "sqlite3"; "ros1": a ROS 1 ``.bag`` file at
+    ``path``, rosbags' ROS 1 writer): ``/body/imu`` and ``/wheel/imu`` (Imu at 400 Hz, z up,
+    gravity included, header stamps; logged 1-4 ms later), ``/suspension/joint_states``
+    (JointState at 400/``joint_every`` Hz, joint ``susp_fl``: the deflection, m); of the drive's
+    ``samples`` (default all). The JointState samples the 400 Hz deflection as a publisher
+    does, without a filter; ``antialias``: low-passed first (scipy's ``firwin``, 201 taps, cut-off
+    0.4 of the JointState's rate, applied forward and back: zero phase)."""
+    from rosbags.rosbag1 import Writer as Writer1
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
 
-    ts = get_typestore(Stores.ROS2_HUMBLE)
+    ros1 = storage == "ros1"
+    ts = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
     T = ts.types
     plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
     rng = np.random.default_rng(5)
     zero9 = np.zeros(9)
+    serialize = ts.serialize_ros1 if ros1 else ts.serialize_cdr
+    extra: Dict[str, Any] = {"seq": 0} if ros1 else {}
 
     def header(t: float) -> Any:
         ns = int(round(t * 1e9))
         return T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=ns // 10**9,
                                                                                 nanosec=ns % 10**9),
-                                        frame_id="imu")
+                                        frame_id="imu", **extra)
 
     def imu(t: float, a: float) -> Any:
         v3 = T["geometry_msgs/msg/Vector3"]
@@ -107,21 +115,55 @@ def bag(path: Path, run: vehid.Run, storage: str = "mcap", joint_every: int = 4,
             angular_velocity_covariance=zero9, linear_acceleration=v3(x=0.0, y=0.0, z=a + G),
             linear_acceleration_covariance=zero9)
 
-    with Writer(path, version=9, storage_plugin=plugin) as w:
+    deflection = np.asarray(run.y[:, 2], dtype=np.float64)
+    if antialias and joint_every > 1:
+        deflection = signal.filtfilt(signal.firwin(201, 0.4 / (joint_every * DT), fs=1 / DT), [1.0], deflection)
+    writer = Writer1(path) if ros1 else Writer(path, version=9, storage_plugin=plugin)
+    with writer as w:
         body = w.add_connection("/body/imu", imu_type, typestore=ts)
         wheel = w.add_connection("/wheel/imu", imu_type, typestore=ts)
         joints = w.add_connection("/suspension/joint_states", "sensor_msgs/msg/JointState", typestore=ts)
-        for k in range(len(run)):
+        for k in range(len(run))[samples or slice(None)]:
             t = EPOCH + k * DT
             lag = int(rng.integers(1_000_000, 4_000_000))
             logged = int(round(t * 1e9)) + lag
-            w.write(body, logged, ts.serialize_cdr(imu(t, float(run.y[k, 0])), imu_type))
-            w.write(wheel, logged, ts.serialize_cdr(imu(t, float(run.y[k, 1])), imu_type))
+            w.write(body, logged, serialize(imu(t, float(run.y[k, 0])), imu_type))
+            w.write(wheel, logged, serialize(imu(t, float(run.y[k, 1])), imu_type))
             if k % joint_every == 0:
                 msg = T["sensor_msgs/msg/JointState"](header=header(t), name=["susp_fl"],
-                                                      position=np.array([run.y[k, 2]]), velocity=np.zeros(0),
+                                                      position=np.array([deflection[k]]), velocity=np.zeros(0),
                                                       effort=np.zeros(0))
-                w.write(joints, logged, ts.serialize_cdr(msg, "sensor_msgs/msg/JointState"))
+                w.write(joints, logged, serialize(msg, "sensor_msgs/msg/JointState"))
+    return path
+
+
+def split_bag(path: Path, run: vehid.Run, parts: int = 2) -> Path:
+    """A rosbag2 MCAP bag split into ``parts`` storage files, as ``ros2 bag record
+    --max-bag-duration`` leaves it: the folder ``path`` with ``path_0.mcap``, ``path_1.mcap``,
+    ... and one ``metadata.yaml`` listing them in order (each part written by rosbags' writer,
+    the metadata merged here)."""
+    import shutil
+
+    import yaml
+
+    path.mkdir()
+    edges = np.linspace(0, len(run), parts + 1).astype(int)
+    metas = []
+    for i in range(parts):
+        part = bag(path.parent / f"{path.name}.part{i}", run, samples=slice(int(edges[i]), int(edges[i + 1])))
+        shutil.move(str(next(part.glob("*.mcap"))), str(path / f"{path.name}_{i}.mcap"))
+        metas.append(yaml.safe_load((part / "metadata.yaml").read_text())["rosbag2_bagfile_information"])
+        shutil.rmtree(part)
+    info = metas[0]
+    info["relative_file_paths"] = [f"{path.name}_{i}.mcap" for i in range(parts)]
+    info["files"] = [dict(m["files"][0], path=f"{path.name}_{i}.mcap") for i, m in enumerate(metas)]
+    start = info["starting_time"]["nanoseconds_since_epoch"]
+    end = max(m["starting_time"]["nanoseconds_since_epoch"] + m["duration"]["nanoseconds"] for m in metas)
+    info["duration"]["nanoseconds"] = end - start
+    info["message_count"] = sum(m["message_count"] for m in metas)
+    for j, topic in enumerate(info["topics_with_message_count"]):
+        topic["message_count"] = sum(m["topics_with_message_count"][j]["message_count"] for m in metas)
+    (path / "metadata.yaml").write_text(yaml.safe_dump({"rosbag2_bagfile_information": info}, sort_keys=False))
     return path
 
 

@@ -9,6 +9,7 @@ import pytest
 from readme_blocks import README, padded_source, python_blocks  # tests/ is on sys.path under pytest
 
 import vehid
+import vehid.align
 import vehid.channels
 import vehid.cli
 import vehid.clitools
@@ -22,7 +23,7 @@ import vehid.monitor
 #: The modules whose examples run: the package, the command line (its parser and main, what
 #: the commands share, one module per command), the reader, a field log's channels, the monitor.
 MODULES = [vehid, vehid.cli, vehid.clitools, vehid.cmd_simulate, vehid.cmd_identify, vehid.cmd_demo,
-           vehid.cmd_reproduce, vehid.io, vehid.channels, vehid.monitor]
+           vehid.cmd_reproduce, vehid.io, vehid.channels, vehid.monitor, vehid.align]
 
 
 @pytest.mark.parametrize("module", MODULES, ids=lambda m: m.__name__)

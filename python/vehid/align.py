@@ -27,12 +27,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import List, Optional, Tuple
+from typing import Any, List, Optional, Sequence, Tuple
 
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["Delay", "body_ratios", "estimate_body_delay", "estimate_delay", "gap_limit", "nominal_interval",
+__all__ = ["Delay", "SensorNoise", "body_ratios", "estimate_body_delay", "estimate_delay", "gap_limit",
+           "kinematic_deflection_noise", "nominal_interval", "sensor_noise",
            "resample", "segments", "white_noise"]
 
 #: An interval over this many nominal intervals is a gap.
@@ -324,15 +325,18 @@ def white_noise(t: NDArray[np.float64], v: NDArray[np.float64], h: float) -> flo
 
 
 def estimate_body_delay(a_body: NDArray[np.float64], deflection: NDArray[np.float64], dt: float,
-                        max_lag: float = 0.05, rounds: int = 10) -> Delay:
+                        max_lag: float = 0.05, rounds: int = 10,
+                        others: Sequence[NDArray[np.float64]] = ()) -> Delay:
     """The body accelerometer's delay against the deflection (s, positive: late), from the
     body equation ``a_body = -(k2/M) d - (b/M) d'`` on the longest stretch without gaps: the
     ratios fitted by least squares, ``a_body`` cross-correlated with their prediction from
     ``d`` (band-limited, 16-fold interpolated, parabola), ``a_body`` advanced by the lag found
     and the two steps repeated until the lag changes by under 10 us (a fit at the wrong lag
     absorbs part of it into ``b/M``). ``slope`` is the fitted k2/M (1/s^2). The three on one
-    grid of interval ``dt`` (s)."""
-    y = np.column_stack([a_body, deflection])
+    grid of interval ``dt`` (s). ``others``: the other axles' deflections (the half car: a
+    body corner's acceleration is linear in both axles' deflections and rates, through ``1/M``
+    and ``l^2/J``), regressors too."""
+    y = np.column_stack([a_body, deflection, *others])
     a, b = _longest_finite(y)
     b = min(b, a + int(DELAY_SPAN / dt))
     span = (b - a) * dt
@@ -341,18 +345,18 @@ def estimate_body_delay(a_body: NDArray[np.float64], deflection: NDArray[np.floa
                      f"{span:.1f} s without gaps, under the {DELAY_MIN_SPAN:g} s the estimate needs")
     n = b - a
     acc, f, size = _spectra(y[a:b, 0], dt)
-    d, _, _ = _spectra(y[a:b, 1], dt)
+    ds = [_spectra(y[a:b, j], dt)[0] for j in range(1, y.shape[1])]
     w = 2j * np.pi * f
     tau, peak = 0.0, math.nan
-    theta: NDArray[np.float64] = np.zeros(2)
+    theta: NDArray[np.float64] = np.zeros(2 * len(ds))
     reach = int(max_lag / dt * UPSAMPLE)
     lags = np.concatenate([np.arange(-reach, 0), np.arange(0, reach + 1)])
     for _ in range(rounds):
         advanced = acc * np.exp(w * tau)
-        cols = [np.fft.irfft(x, size)[:n] for x in (advanced, -d, -w * d)]
+        cols = [np.fft.irfft(x, size)[:n] for x in [advanced] + [c for d in ds for c in (-d, -w * d)]]
         fit, *_ = np.linalg.lstsq(np.column_stack(cols[1:]), cols[0], rcond=None)
         theta = np.asarray(fit, dtype=np.float64)
-        pred = -(theta[0] + theta[1] * w) * d
+        pred = -sum((theta[2 * i] + theta[2 * i + 1] * w) * d for i, d in enumerate(ds))
         sxx = float(np.fft.irfft(np.abs(pred) ** 2, size)[0])
         syy = float(np.fft.irfft(np.abs(advanced) ** 2, size)[0])
         if not (sxx > 0 and syy > 0):
@@ -369,3 +373,214 @@ def estimate_body_delay(a_body: NDArray[np.float64], deflection: NDArray[np.floa
         if abs(step) < 1e-5:
             break
     return Delay(float(tau), peak, float(theta[0]), span)
+
+
+#: Accelerometer noise: the band (Hz) of the kinematic residual's fit (the deflection's noise,
+#: twice differentiated, dominates above a few Hz; the relation is checked to 10 Hz).
+KINEMATIC_BAND = (0.2, 1.0)
+#: Accelerometer noise: the band (Hz) in which the sampled kinematic relation's two small
+#: corrections are fitted.
+KINEMATIC_FIT = (0.2, 20.0)
+#: Accelerometer noise: the band (Hz) of the body equation's residual (its own noise is
+#: comparable to the deflection noise's share only at low frequency).
+BODY_BAND = (0.2, 2.0)
+#: The deflection's noise: the band (fractions of the grid's Nyquist frequency) of the
+#: kinematic residual where it dominates (within the resampler's pass band, 0.8).
+DEFLECTION_BAND = (0.3, 0.7)
+#: The body equation is fitted in windows this long (s), overlapping by half, and the body
+#: accelerometer's noise is the mean of theirs, leaving out those over 5 times their median: a
+#: change of the car (the monitor's events) spoils a window or two, not the estimate.
+NOISE_WINDOW = 20.0
+#: At most this much data (s) enters the noise estimate.
+NOISE_SPAN = 600.0
+
+
+@dataclass
+class SensorNoise:
+    """The accelerometers' white noise estimated from the data (:func:`sensor_noise`):
+    standard deviations per sample at the grid's interval (m/s^2); NaN where it cannot be
+    estimated (``why`` says why); ``span``: the seconds of data used."""
+
+    a_body: float
+    a_wheel: float
+    span: float
+    why: str = ""
+
+
+def _numerov(x: NDArray[np.float64]) -> NDArray[np.float64]:
+    return np.asarray((x[2:] + 10.0 * x[1:-1] + x[:-2]) / 12.0, dtype=np.float64)
+
+
+def _hann_spectra(cols: List[NDArray[np.float64]], dt: float,
+                  band: Tuple[float, float]) -> Tuple[List[NDArray[np.complex128]], NDArray[np.float64], float]:
+    """Hann-windowed spectra of ``cols`` (means removed) in ``band`` (Hz, at least 5 bins
+    above 0), their angular frequencies, and the factor that makes ``|X|^2`` a one-sided
+    periodogram over ``2 dt`` (a white noise of variance ``s^2`` has expectation ``s^2``)."""
+    n = len(cols[0])
+    w = np.hanning(n)
+    f = np.fft.rfftfreq(n, dt)
+    keep = (f >= max(band[0], 5.0 / (n * dt))) & (f <= band[1])
+    out = [np.fft.rfft((c - np.mean(c)) * w)[keep] for c in cols]
+    return out, np.asarray(2 * np.pi * f[keep], dtype=np.float64), 1.0 / float(np.sum(w * w))
+
+
+def sensor_noise(a_body: NDArray[np.float64], a_wheel: NDArray[np.float64], deflection: NDArray[np.float64],
+                 dt: float, sigma_d: Sequence[float], others: Sequence[NDArray[np.float64]] = ()) -> SensorNoise:
+    """The body and wheel accelerometers' white noise (standard deviations per sample at the
+    grid's interval ``dt``, s; m/s^2) from two relations the signals obey whatever the road,
+    on the longest stretch without gaps (at most :data:`NOISE_SPAN` s), the channels on one
+    grid with their delays removed; ``sigma_d``: the deflections' noise (m; ``deflection``'s,
+    then ``others``', e.g. from :func:`kinematic_deflection_noise`; NaN: unknown, and then the
+    body's noise is not estimated and the wheel's is an upper bound, ``sqrt(s_body^2 +
+    s_wheel^2)``).
+
+    1. The body equation: ``a_body`` is linear in the deflections and their rates (the quarter
+       car: ``-(k2/M) d - (b/M) d'``; the half car: both axles', through ``1/M`` and
+       ``l^2/J``; ``others`` are the other axles' deflections). Fitted by least squares in
+       :data:`BODY_BAND` (rates by central differences), its residual is the sensors' noise,
+       of spectrum ``s_body^2 + sum_i s_d,i^2 |t_i1 + i t_i2 sin(w dt) / dt|^2`` (per sample);
+       ``s_body^2`` is the level that makes the periodogram's values, each exponential about
+       that spectrum, most likely (the Whittle likelihood; P. Whittle, "The analysis of
+       multiple stationary time series", J. R. Stat. Soc. B 15, 1953; D. B. Percival and A. T.
+       Walden, *Spectral Analysis for Physical Applications*, 1993, sec. 6.6).
+    2. The kinematics, ``d'' = a_body - a_wheel`` (``d = z_body - z_wheel``; any suspension).
+       Sampled, ``(d[k+1] - 2 d[k] + d[k-1]) / dt^2 = x[k] + a (x[k+1] - 2 x[k] + x[k-1]) + c
+       a_wheel[k]`` with ``x = a_body - a_wheel``: ``a`` is the interpolation between samples
+       (1/12 for smooth signals, Numerov's; 1/6 for a road input linear between samples) and
+       ``c`` the ``dt^2/12`` term of the wheel's own stiffness (``-(k1/m) dt^2 / 12``), both fitted
+       by least squares in :data:`KINEMATIC_FIT`. Its residual's spectrum in
+       :data:`KINEMATIC_BAND` (below 1 Hz the twice-differentiated deflection noise is small)
+       is ``s_body^2 h^2 + s_wheel^2 (h - c)^2 + s_d^2 F^2``, ``h = 1 - a (2 - 2 cos w dt)``,
+       ``F = (2 - 2 cos w dt) / dt^2``: ``s_wheel^2`` by the same likelihood.
+
+    Assumptions: white noise, independent between sensors; the relations exact up to it (a
+    linear spring and damper for the body equation: a nonlinear damper leaves part of the
+    signal in the residual and over-estimates ``s_body``); the channels aligned (a residual
+    delay ``tau`` leaves ``w tau`` of the signal); the body's and the wheel's noise at the
+    grid's rate (a channel slower than the grid has none above its own Nyquist frequency, but
+    the bands here are far below). NaN (and ``why``) under :data:`DELAY_MIN_SPAN` s of data.
+    Within 20 % of the simulated sensors' noise, 0.3-3 times the defaults, on 300 s drives of the
+    quarter and the half car (tests/test_field_logs.py).
+
+    >>> dt = 0.005; n = 40_000; rng = np.random.default_rng(2)
+    >>> d = np.convolve(rng.standard_normal(n), np.hanning(41), "same") * 2e-4   # the travel
+    >>> acc = np.gradient(np.gradient(d, dt), dt)                                # its d''
+    >>> ab = -70 * d - 5 * np.gradient(d, dt)                                    # the body equation
+    >>> s = sensor_noise(ab + 0.02 * rng.standard_normal(n), ab - acc + 0.1 * rng.standard_normal(n),
+    ...                  d + 3e-4 * rng.standard_normal(n), dt, [3e-4])
+    >>> round(s.a_body / 0.02, 1), round(s.a_wheel / 0.1, 1)
+    (1.0, 1.0)
+    """
+    y = np.column_stack([a_body, a_wheel, deflection, *others])
+    a, b = _longest_finite(y)
+    b = min(b, a + int(NOISE_SPAN / dt))
+    span = (b - a) * dt
+    nan = math.nan
+    if span < DELAY_MIN_SPAN:
+        return SensorNoise(nan, nan, span, f"{span:.1f} s without gaps, under the {DELAY_MIN_SPAN:g} s the "
+                           "estimate needs")
+    y = y[a:b]
+    sd2 = [float(v) ** 2 for v in sigma_d]
+    # (2) the body equation's residual, window by window: the body accelerometer's noise
+    body = all(math.isfinite(v) for v in sd2)
+    sb2 = 0.0
+    if body:
+        step = int(round(NOISE_WINDOW / dt))
+        starts = range(0, len(y) - step + 1, step // 2) if len(y) >= 2 * step else range(1)
+        levels = [_body_level(y[k : k + step] if len(y) >= 2 * step else y, dt, sd2) for k in starts]
+        levels = [v for v in levels if math.isfinite(v)]
+        if not levels:
+            return SensorNoise(nan, nan, span, "too short for the noise's spectrum")
+        typical = float(np.median(levels))
+        sb2 = float(np.mean([v for v in levels if v <= 5.0 * typical]))  # a window a change spoils left out
+    # (1) the kinematic residual: the wheel accelerometer's
+    spec, w, scale, taps = _kinematic(y[:, 0], y[:, 1], y[:, 2], dt, KINEMATIC_BAND)
+    p = np.abs(spec[0] - np.column_stack(spec[1:]) @ taps) ** 2 * scale
+    hx = 1.0 - taps[0] * (2.0 - 2.0 * np.cos(w * dt))      # the accelerations' weighting [-a, 1 + 2 a, -a]
+    fw = (2.0 - 2.0 * np.cos(w * dt)) / dt**2              # the deflection's second difference
+    sw2 = _level(p, (sd2[0] if math.isfinite(sd2[0]) else 0.0) * fw**2 + sb2 * hx**2, (hx - taps[1]) ** 2)
+    if not body:
+        return SensorNoise(nan, math.sqrt(sw2) if sw2 > 0 else nan, span,
+                           "the deflection's noise unknown: the body's not estimated, the wheel's an upper bound")
+    return SensorNoise(math.sqrt(sb2) if sb2 > 0 else nan, math.sqrt(sw2) if sw2 > 0 else nan, span,
+                       "" if sb2 > 0 and sw2 > 0 else "the residuals leave no accelerometer noise")
+
+
+def _body_level(y: NDArray[np.float64], dt: float, sd2: Sequence[float]) -> float:
+    """The body accelerometer's noise variance from the body equation's residual on ``y``
+    (columns ``a_body, a_wheel, deflection, other deflections``; :func:`sensor_noise`, step 1)."""
+    defl = [y[:, j] for j in range(2, y.shape[1])]
+    cols = [y[1:-1, 0]] + [c for v in defl for c in (v[1:-1], (v[2:] - v[:-2]) / (2 * dt))]
+    spec, w, scale = _hann_spectra(cols, dt, BODY_BAND)
+    if len(w) < 4 * len(defl):
+        return math.nan
+    reg = np.column_stack(spec[1:])
+    theta = np.linalg.lstsq(np.vstack([reg.real, reg.imag]), -np.concatenate([spec[0].real, spec[0].imag]),
+                            rcond=None)[0]
+    # the fit takes len(theta) of the 2 len(w) real degrees of freedom: the residual's expectation
+    p = np.abs(spec[0] + reg @ theta) ** 2 * scale * (2 * len(w)) / (2 * len(w) - len(theta))
+    known = sum(s2 * (theta[2 * i] ** 2 + (theta[2 * i + 1] * np.sin(w * dt) / dt) ** 2) for i, s2 in enumerate(sd2))
+    return _level(p, known)
+
+
+def _kinematic(a_body: NDArray[np.float64], a_wheel: NDArray[np.float64], d: NDArray[np.float64], dt: float,
+               band: Tuple[float, float]) -> Tuple[List[NDArray[np.complex128]], NDArray[np.float64], float,
+                                                   NDArray[np.float64]]:
+    """The sampled kinematic relation's spectra in ``band`` (Hz; :func:`_hann_spectra`):
+    ``[target, regressors]`` with ``target = (d[k+1] - 2 d[k] + d[k-1]) / dt^2 - x[k]``,
+    ``x = a_body - a_wheel``, the regressors ``x[k+1] - 2 x[k] + x[k-1]`` and ``a_wheel[k]``,
+    and their two coefficients fitted by least squares in :data:`KINEMATIC_FIT` (within the
+    grid's 0.4 of its rate)."""
+    x = a_body - a_wheel
+    target = (d[2:] - 2.0 * d[1:-1] + d[:-2]) / dt**2 - x[1:-1]
+    regs = [x[2:] - 2.0 * x[1:-1] + x[:-2], a_wheel[1:-1]]
+    spec, _, _ = _hann_spectra([target, *regs], dt, (KINEMATIC_FIT[0], min(KINEMATIC_FIT[1], 0.2 / dt)))
+    reg = np.column_stack(spec[1:])
+    taps = np.linalg.lstsq(np.vstack([reg.real, reg.imag]), np.concatenate([spec[0].real, spec[0].imag]),
+                           rcond=None)[0]
+    out, w, scale = _hann_spectra([target, *regs], dt, band)
+    return out, w, scale, np.asarray(taps, dtype=np.float64)
+
+
+def kinematic_deflection_noise(a_body: NDArray[np.float64], a_wheel: NDArray[np.float64],
+                               deflection: NDArray[np.float64], dt: float) -> float:
+    """The deflection sensor's white noise (m per sample at the grid's interval ``dt``, s)
+    from the residual of the sampled kinematic relation (:func:`sensor_noise`, step 1) in
+    :data:`DEFLECTION_BAND` of the grid's Nyquist frequency, where the deflection's noise,
+    differentiated twice, is thousands of times the accelerometers' and the relation's own
+    error: unlike the deflection's spectrum floor (:func:`white_noise`), the road's travel
+    there does not count. On the longest stretch without gaps (at most :data:`NOISE_SPAN` s);
+    NaN under :data:`DELAY_MIN_SPAN` s. For channels at least as fast as the grid (a slower
+    one has no noise above its own Nyquist frequency on the grid)."""
+    y = np.column_stack([a_body, a_wheel, deflection])
+    a, b = _longest_finite(y)
+    b = min(b, a + int(NOISE_SPAN / dt))
+    if (b - a) * dt < DELAY_MIN_SPAN:
+        return math.nan
+    y = y[a:b]
+    nyquist = 0.5 / dt
+    spec, w, scale, taps = _kinematic(y[:, 0], y[:, 1], y[:, 2], dt,
+                                      (DEFLECTION_BAND[0] * nyquist, DEFLECTION_BAND[1] * nyquist))
+    p = np.abs(spec[0] - np.column_stack(spec[1:]) @ taps) ** 2 * scale
+    fw = (2.0 - 2.0 * np.cos(w * dt)) / dt**2
+    return math.sqrt(_level(p, 0.0, fw**2))
+
+
+def _level(p: NDArray[np.float64], known: Any, g: Any = 1.0) -> float:
+    """The constant ``c >= 0`` with ``E[p] = c g + known`` (periodogram levels ``p``, each
+    exponential about its mean): the Whittle likelihood's root, by bisection."""
+    def score(c: float) -> float:
+        m = c * g + known
+        return float(np.sum(g * (p - m) / (m * m)))
+
+    if not np.any(known):
+        return float(np.mean(p / g))                        # the likelihood's root in closed form
+    lo, hi = 0.0, max(float(np.mean(p)), 1e-300)
+    if score(lo) <= 0:
+        return 0.0
+    while score(hi) > 0:
+        hi *= 2.0
+    for _ in range(100):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if score(mid) > 0 else (lo, mid)
+    return 0.5 * (lo + hi)

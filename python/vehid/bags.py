@@ -1,6 +1,7 @@
 """ROS 2 bags and MCAP for :mod:`vehid.fieldlog`, through ``rosbags`` (pure Python, no ROS
 install; ``pip install 'vehid[ros]'``): ``.mcap`` and ``.db3`` files and rosbag2 folders,
-split bags included (ROS 1 ``.bag`` files go to rosbags' ROS 1 reader: not tested here). A
+split bags included (a folder of several storage files, read in order; one of its files alone
+is refused, naming the folder), and ROS 1 ``.bag`` files (rosbags' ROS 1 reader). A
 channel is one numeric field of one topic's messages, at its ``header.stamp`` (or the time it
 was logged); REP 145: an IMU's linear acceleration is specific force (gravity included), and
 covariance[0] = -1 marks it absent (read as missing).
@@ -47,10 +48,35 @@ def open_bag(path: str) -> Any:
     AnyReader, Stores, get_typestore = _rosbags()
     if not os.path.exists(path):
         raise TableError(f"{path}: no such file or folder")
+    _whole_bag(path)
     try:
         return AnyReader([Path(path)], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
     except Exception as e:  # rosbags' own error family
         raise TableError(f"{path}: not a readable ROS bag ({first_line(e)})") from None
+
+
+def _whole_bag(path: str) -> None:
+    """Refuses one storage file of a split rosbag2 bag (its folder's ``metadata.yaml`` lists
+    more than one): read alone, it would be part of the drive, silently."""
+    folder, name = os.path.split(os.path.abspath(path))
+    meta = os.path.join(folder, "metadata.yaml")
+    if os.path.isdir(path) or not os.path.isfile(meta):
+        return
+    try:
+        with open(meta, encoding="utf-8") as f:
+            text = f.read(1 << 20)
+    except (OSError, UnicodeDecodeError):
+        return
+    block = text.split("relative_file_paths:", 1)[1] if "relative_file_paths:" in text else ""
+    files = []
+    for line in block.splitlines()[1:]:
+        item = line.strip()
+        if not item.startswith("- "):
+            break
+        files.append(item[2:].strip().strip("'\""))
+    if len(files) > 1 and name in files:
+        raise TableError(f"{path}: part {files.index(name) + 1} of {len(files)} of a split bag (its metadata.yaml "
+                         f"lists {', '.join(files)}): give the bag's folder, {folder}, to read all of it")
 
 
 def first_line(e: BaseException) -> str:

@@ -36,7 +36,8 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python < 3.11
     import tomli as tomllib
 
-__all__ = ["Aligned", "ChannelMap", "ChannelSpec", "Log", "Series", "align", "car_check", "deflection_noise",
+__all__ = ["Aligned", "ChannelMap", "ChannelSpec", "Log", "Series", "accelerometer_noise", "align", "car_check",
+           "deflection_noise",
            "grid_interval", "is_bag", "is_channel_map", "load_channel_map", "read_log", "unit_of", "BAG_SUFFIXES"]
 
 #: File suffixes read as ROS bags (a folder is read as a rosbag2 bag too).
@@ -369,9 +370,13 @@ def align(log: Log, dt: Optional[float], specs: Optional[Mapping[str, ChannelSpe
         names = [f"a_body{axle}", f"a_wheel{axle}", f"deflection{axle}"]
         if all(c in out.names for c in names):
             _deflection(out, log, names, specs, estimate)
-    if all(c in out.names for c in ("a_body", "deflection")) and estimate:  # the quarter car's body equation
-        _body(out, log, specs)
-        _refine(out, log, specs)
+    if estimate:  # each body accelerometer's delay, from the body equation
+        axles = [a for a in ("", "_f", "_r") if all(f"{c}{a}" in out.names for c in ("a_body", "deflection"))]
+        for axle in axles:
+            _body(out, log, specs, axle, [b for b in axles if b != axle])
+        for axle in axles:
+            if f"a_wheel{axle}" in out.names:
+                _refine(out, log, specs, axle, [b for b in axles if b != axle])
     if not same or any(abs(v) >= DELAY_TOLERANCE for v in out.delays.values() if math.isfinite(v)):
         # the grid's ends where a channel (resampled, or shifted) does not reach: not a gap
         good = np.flatnonzero(np.isfinite(out.y).all(axis=1))
@@ -466,66 +471,72 @@ def _deflection(out: Aligned, log: Log, names: List[str], specs: Mapping[str, Ch
                          "removed")
 
 
-def _body(out: Aligned, log: Log, specs: Mapping[str, ChannelSpec]) -> None:
-    """The body accelerometer's delay against the (aligned) deflection, from the body
-    equation (:func:`vehid.align.estimate_body_delay`): removed when over
+def _body(out: Aligned, log: Log, specs: Mapping[str, ChannelSpec], axle: str = "", others: Sequence[str] = ()) -> None:
+    """The body accelerometer's delay (``a_body`` + ``axle``) against the (aligned)
+    deflection, from the body equation (:func:`vehid.align.estimate_body_delay`; the half car:
+    the other axles ``others``' deflections are regressors too): removed when over
     :data:`DELAY_TOLERANCE` and the fit is close (correlation over 0.9); a declared ``delay``
     is taken as given."""
-    spec = specs.get("a_body")
-    ib, idf = out.names.index("a_body"), out.names.index("deflection")
+    body, defl = f"a_body{axle}", f"deflection{axle}"
+    spec = specs.get(body)
+    ib, idf = out.names.index(body), out.names.index(defl)
     if spec is not None and spec.delay is not None:
         delay = spec.delay
     else:
-        est = _align.estimate_body_delay(out.y[:, ib], out.y[:, idf], out.dt)
-        out.estimated["a_body"] = est.delay
+        more = [out.y[:, out.names.index(f"deflection{b}")] for b in others]
+        est = _align.estimate_body_delay(out.y[:, ib], out.y[:, idf], out.dt, others=more)
+        out.estimated[body] = est.delay
         if est.why or not est.corr > 0.9:
             return
         delay = est.delay
         if abs(delay) < DELAY_TOLERANCE:
-            out.delays["a_body"] = delay
+            out.delays[body] = delay
             return
-        out.notes.append(f"a_body: {1e3 * abs(delay):.2f} ms {'late' if delay > 0 else 'early'} against the deflection "
-                         f"(estimated from the body equation, correlation {est.corr:.3f}): removed")
-    out.delays["a_body"] = delay
+        out.notes.append(f"{body}: {1e3 * abs(delay):.2f} ms {'late' if delay > 0 else 'early'} against the "
+                         f"deflection (estimated from the body equation, correlation {est.corr:.3f}): removed")
+    out.delays[body] = delay
     if abs(delay) < DELAY_TOLERANCE:
         return
-    s = next(x for x in log.series if x.channel == "a_body")
-    out.y[:, ib] = _align.resample(s.t, s.v, out.rates["a_body"], out.t0, out.dt, len(out.y), shift=delay)
+    s = next(x for x in log.series if x.channel == body)
+    out.y[:, ib] = _align.resample(s.t, s.v, out.rates[body], out.t0, out.dt, len(out.y), shift=delay)
 
 
-def _refine(out: Aligned, log: Log, specs: Mapping[str, ChannelSpec], rounds: int = 4) -> None:
-    """Both delays again, in turn, while they move by over 20 us: a late body accelerometer
-    biases the deflection's first estimate (``a_body`` is in ``d''``'s side of the equation:
-    3.25 ms found of 4 with the body 20 ms late), and the body's is measured against that
-    deflection. Each channel is re-read from its own samples at its total delay; the notes
-    give the final figures. Not where a delay is declared or was not removed."""
-    if any(specs.get(c) is not None and specs[c].delay is not None for c in ("a_body", "deflection")):
+def _refine(out: Aligned, log: Log, specs: Mapping[str, ChannelSpec], axle: str = "", others: Sequence[str] = (),
+            rounds: int = 4) -> None:
+    """Both delays of an axle again, in turn, while they move by over 20 us: a late body
+    accelerometer biases the deflection's first estimate (``a_body`` is in ``d''``'s side of
+    the equation: 3.25 ms found of 4 with the body 20 ms late), and the body's is measured
+    against that deflection. Each channel is re-read from its own samples at its total delay;
+    the notes give the final figures. Not where a delay is declared or was not removed."""
+    body, wheel, defl = (f"{c}{axle}" for c in ("a_body", "a_wheel", "deflection"))
+    if any(specs.get(c) is not None and specs[c].delay is not None for c in (body, defl)):
         return
-    td, tb = out.delays.get("deflection", math.nan), out.delays.get("a_body", math.nan)
+    td, tb = out.delays.get(defl, math.nan), out.delays.get(body, math.nan)
     if not (math.isfinite(td) and math.isfinite(tb)) or abs(tb) < DELAY_TOLERANCE:
         return
-    ib, iw, idf = (out.names.index(c) for c in ("a_body", "a_wheel", "deflection"))
+    ib, iw, idf = (out.names.index(c) for c in (body, wheel, defl))
     series = {s.channel: s for s in log.series}
     for _ in range(rounds):
         r = _align.estimate_delay(out.y[:, ib], out.y[:, iw], out.y[:, idf], out.dt).delay
         if not math.isfinite(r) or abs(r) < 2e-5:
             break
         td += r
-        s = series["deflection"]
-        out.y[:, idf] = _align.resample(s.t, s.v, out.rates["deflection"], out.t0, out.dt, len(out.y), shift=td)
-        rb = _align.estimate_body_delay(out.y[:, ib], out.y[:, idf], out.dt).delay
+        s = series[defl]
+        out.y[:, idf] = _align.resample(s.t, s.v, out.rates[defl], out.t0, out.dt, len(out.y), shift=td)
+        more = [out.y[:, out.names.index(f"deflection{b}")] for b in others]
+        rb = _align.estimate_body_delay(out.y[:, ib], out.y[:, idf], out.dt, others=more).delay
         if math.isfinite(rb):
             tb += rb
-            s = series["a_body"]
-            out.y[:, ib] = _align.resample(s.t, s.v, out.rates["a_body"], out.t0, out.dt, len(out.y), shift=tb)
-    out.delays["deflection"], out.delays["a_body"] = td, tb
+            s = series[body]
+            out.y[:, ib] = _align.resample(s.t, s.v, out.rates[body], out.t0, out.dt, len(out.y), shift=tb)
+    out.delays[defl], out.delays[body] = td, tb
     for i, note in enumerate(out.notes):
-        if note.startswith("deflection: ") and "against the accelerometers" in note and "removed" in note:
-            out.notes[i] = (f"deflection: {1e3 * abs(td):.2f} ms {'late' if td > 0 else 'early'} against the "
+        if note.startswith(f"{defl}: ") and "against the accelerometers" in note and "removed" in note:
+            out.notes[i] = (f"{defl}: {1e3 * abs(td):.2f} ms {'late' if td > 0 else 'early'} against the "
                             "accelerometers (estimated from d'' = a_body - a_wheel, with the body accelerometer's "
                             "delay): removed")
-        if note.startswith("a_body: ") and "removed" in note:
-            out.notes[i] = (f"a_body: {1e3 * abs(tb):.2f} ms {'late' if tb > 0 else 'early'} against the wheel "
+        if note.startswith(f"{body}: ") and "removed" in note:
+            out.notes[i] = (f"{body}: {1e3 * abs(tb):.2f} ms {'late' if tb > 0 else 'early'} against the wheel "
                             f"accelerometer ({1e3 * abs(tb - td):.2f} ms {'late' if tb > td else 'early'} against the "
                             "deflection; estimated from the body equation): removed")
 
@@ -591,4 +602,42 @@ def deflection_noise(log: Log, dt: float) -> float:
             sigma *= math.sqrt(0.9 * h / dt)
         if math.isfinite(sigma) and not sigma <= out:
             out = sigma
+    return out
+
+
+def accelerometer_noise(al: Aligned, log: Log) -> Dict[str, float]:
+    """The body and wheel accelerometers' white noise (m/s^2 per sample at the grid's
+    interval) estimated from the aligned channels ``al`` (:func:`vehid.align.sensor_noise`, per
+    axle, the largest over the axles; NaN when it cannot be estimated). Each axle's deflection
+    noise enters as :func:`vehid.align.kinematic_deflection_noise` finds it on the grid when
+    the deflection is sampled at least as fast as the grid; a slower deflection (a 100 Hz
+    JointState on a 200 Hz grid) leaves its noise on the grid unknown to the few per cent the
+    body's estimate needs (there the deflection's share of the body equation's residual is
+    several times the body's noise): the body's is then NaN and the wheel's an upper bound
+    (``sqrt(s_body^2 + s_wheel^2)``, a few per cent over for the default sensors). For channels
+    resampled to the grid the figures are per grid sample as the monitor takes them: the same
+    spectral level (a 400 Hz accelerometer's noise averaged to 200 Hz is ``1/sqrt(2)`` of its
+    own). Not for an axle
+    whose deflection's delay could not be estimated (its deflection does not follow ``a_body -
+    a_wheel``: the relations do not hold)."""
+    out = {"a_body": math.nan, "a_wheel": math.nan}
+    # an axle whose deflection does not follow a_body - a_wheel (its delay could not be estimated) has
+    # no relation to take the signal out with
+    axles = [a for a in ("", "_f", "_r") if all(f"{c}{a}" in al.names for c in ("a_body", "a_wheel", "deflection"))
+             and math.isfinite(al.delays.get(f"deflection{a}", 0.0))]
+    col = {name: al.y[:, al.names.index(name)] for name in al.names}
+    sd: Dict[str, float] = {}
+    for a in axles:
+        name = f"deflection{a}"
+        if al.rates.get(name, math.inf) <= al.dt * 1.0001:
+            sd[a] = _align.kinematic_deflection_noise(col[f"a_body{a}"], col[f"a_wheel{a}"], col[name], al.dt)
+        else:  # slower than the grid: not known well enough on it (its spectrum floor holds road there)
+            sd[a] = math.nan
+    for a in axles:
+        rest = [b for b in axles if b != a]
+        est = _align.sensor_noise(col[f"a_body{a}"], col[f"a_wheel{a}"], col[f"deflection{a}"], al.dt,
+                                  [sd[a], *(sd[b] for b in rest)], [col[f"deflection{b}"] for b in rest])
+        for k, v in (("a_body", est.a_body), ("a_wheel", est.a_wheel)):
+            if math.isfinite(v) and not v <= out[k]:
+                out[k] = v
     return out

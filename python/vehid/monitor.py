@@ -356,8 +356,6 @@ def cmd_monitor(args: argparse.Namespace) -> int:
         raise CliError(f"--track {track}: give a .parquet file (or --events FILE.mcap for both)")
     if args.file != "-":
         return _monitor_file(args, car, sensors, settings, channels, plt)
-    if events or track:
-        raise CliError("--events and --track need a file or a bag, not standard input")
     try:
         mapping = parse_column_map(args.columns or [])
     except TableError as e:
@@ -426,6 +424,8 @@ def cmd_monitor(args: argparse.Namespace) -> int:
         summary(feeder, table.source, samples, sys.stderr)
         if plt is not None:
             plot(feeder, car, args.plot, plt)
+        if events or track:  # times on the log's clock: its time column's (or 0 at the first sample)
+            _export(args, feeder, 0.0)
     return 0
 
 
@@ -459,15 +459,27 @@ def _monitor_file(args: argparse.Namespace, car: Union[QuarterCar, HalfCar], sen
     except TableError as e:
         raise CliError(str(e)) from None
     noise = dict(settings.get("sensor_noise") or {})
+    origin: Dict[str, str] = {k: "declared" for k in noise}
+    if sensors == "realistic":
+        found = fieldlog.accelerometer_noise(al, log)
+        for name, value in found.items():  # the accelerometers' noise: the data's where over the default's
+            if name in noise or not math.isfinite(value):
+                continue
+            if value > NOISE_USED_ABOVE * DEFAULT_NOISE[name]:
+                noise[name], origin[name] = value, "from the data"
+            else:
+                origin[name] = f"the default; the data: {value:.3g} m/s^2"
     if sensors == "realistic" and "deflection" not in noise:  # the one noise that blinds the monitor
         est = fieldlog.deflection_noise(log, dt)
-        if math.isfinite(est) and est > 1.25 * fieldlog.DEFAULT_DEFLECTION_NOISE:
-            noise["deflection"] = est
-            settings = dict(settings, sensor_noise=noise)
-            mon = _health_monitor(car, dt, sensors, settings, args, log.source)
+        origin["deflection"] = f"the default; the data: {1e3 * est:.3g} mm" if math.isfinite(est) else "the default"
+        if math.isfinite(est) and est > NOISE_USED_ABOVE * fieldlog.DEFAULT_DEFLECTION_NOISE:
+            noise["deflection"], origin["deflection"] = est, "from the data"
             al.notes.append(f"the deflection's noise, estimated from the data: {1e3 * est:.3g} mm per sample (the "
                             f"default {1e3 * fieldlog.DEFAULT_DEFLECTION_NOISE:g} mm would blind the monitor): used "
                             "(--noise deflection=M to declare it)")
+    if noise != (settings.get("sensor_noise") or {}):
+        settings = dict(settings, sensor_noise=noise)
+        mon = _health_monitor(car, dt, sensors, settings, args, log.source)
     for note in al.notes:
         print(f"vehid: note: {note}", file=sys.stderr, flush=True)
     t0 = 0.0 if log.absolute else al.t0
@@ -477,7 +489,7 @@ def _monitor_file(args: argparse.Namespace, car: Union[QuarterCar, HalfCar], sen
         print(f"vehid: note: times are seconds from the log's start, {start}", file=sys.stderr, flush=True)
     feeder = Feeder(mon, t0, sys.stdout, args.json)
     feeder.feed(np.ascontiguousarray(al.y))
-    summary(feeder, log.source, len(al.y), sys.stderr)
+    summary(feeder, log.source, len(al.y), sys.stderr, noise_words(noise, origin) if sensors == "realistic" else "")
     if plt is not None:
         plot(feeder, car, args.plot, plt)
     if getattr(args, "events", None) or getattr(args, "track", None):
@@ -541,9 +553,34 @@ def parse_noise(text: str) -> Dict[str, float]:
     return out
 
 
-def summary(feeder: Feeder, source: str, samples: int, out: IO[str]) -> None:
-    """One line on stderr: what was monitored, the events, and how much of the time the
-    monitor could not judge."""
+#: The monitor's default sensor noise per sample (``SensorNoise::default``): m/s^2, m/s^2, m.
+DEFAULT_NOISE = {"a_body": 0.02, "a_wheel": 0.1, "deflection": 0.3e-3}
+#: An undeclared sensor's noise estimated from the log is given to the monitor when over this
+#: many times the default: a sensor noisier than assumed misleads the monitor, a quieter one
+#: costs a little sensitivity (and a log at the defaults is monitored as before).
+NOISE_USED_ABOVE = 1.25
+
+
+def noise_words(noise: Dict[str, float], origin: Dict[str, str]) -> str:
+    """The sensor noise the monitor assumed, for the summary: each sensor's standard deviation
+    per sample and where it came from (declared, from the data, the default).
+
+    >>> noise_words({"a_body": 0.0213, "deflection": 9e-4}, {"a_body": "from the data", "deflection": "declared"})
+    ... # doctest: +NORMALIZE_WHITESPACE
+    'noise per sample: a_body 0.0213 m/s^2 (from the data), a_wheel 0.1 m/s^2 (the default),
+     deflection 0.9 mm (declared)'
+    """
+    parts = []
+    for name in ("a_body", "a_wheel", "deflection"):
+        value = noise.get(name, DEFAULT_NOISE[name])
+        shown = f"{1e3 * value:.3g} mm" if name == "deflection" else f"{value:.3g} m/s^2"
+        parts.append(f"{name} {shown} ({origin.get(name, 'the default')})")
+    return "noise per sample: " + ", ".join(parts)
+
+
+def summary(feeder: Feeder, source: str, samples: int, out: IO[str], noise: str = "") -> None:
+    """One line on stderr: what was monitored, the events, how much of the time the monitor
+    could not judge, and (``noise``) the sensor noise it assumed."""
     st = feeder.record.status
     judged = sum(s in ("monitoring", "settling") for s in st)
     warmup = sum(s == "warmup" for s in st)
@@ -558,7 +595,7 @@ def summary(feeder: Feeder, source: str, samples: int, out: IO[str]) -> None:
           f"{n} event{'s' if n != 1 else ''}; warm-up {100 * warmup / max(1, len(st)):.0f} %, judged "
           f"{100 * judged / max(1, len(st)):.0f} % of the time"
           + (f", cannot judge {100 * len(cannot) / len(st):.0f} % ({why})" if cannot else "")
-          + f"; now {mon.status}", file=out, flush=True)
+          + f"; now {mon.status}" + (f"; {noise}" if noise else ""), file=out, flush=True)
 
 
 def _pyplot() -> Any:
@@ -688,7 +725,9 @@ def add_arguments(p: argparse.ArgumentParser, delimiter: Callable[[str], str]) -
                         "(m, mm, m/s, mm/s, m/s^2, g), sign, scale, gravity and delay (see docs: field logs)")
     p.add_argument("--noise", default=None, metavar="STDS",
                    help="the sensors' white noise per sample, e.g. a_body=0.06,a_wheel=0.3,deflection=0.0009 "
-                        "(m/s^2, m; default 0.02, 0.1, 0.0003): declare noisier sensors than the defaults")
+                        "(m/s^2, m; undeclared: the accelerometers' estimated from the log, the deflection's the "
+                        "default 0.0003 unless the log shows over 1.25 times that; the summary says which; standard "
+                        "input: the defaults 0.02, 0.1, 0.0003)")
     p.add_argument("--delimiter", type=delimiter, default=None, metavar="D", help="CSV separator (default: sniffed)")
     p.add_argument("--window", type=float, default=None, help="tracking window T_f, s (default 6)")
     p.add_argument("--warmup", type=float, default=None, help="seconds of data forming the reference (default 20)")
@@ -700,10 +739,10 @@ def add_arguments(p: argparse.ArgumentParser, delimiter: Callable[[str], str]) -
     p.add_argument("--events", default=None, metavar="FILE",
                    help="also write the events to FILE.parquet, or to FILE.mcap with the tracked k2/M, b/M and the "
                         "status (topics /vehid/...; on the bag's clock: Foxglove or PlotJuggler overlay them; "
-                        "needs vehid[parquet] or vehid[ros]); files and bags only")
+                        "needs vehid[parquet] or vehid[ros])")
     p.add_argument("--track", default=None, metavar="FILE",
                    help="also write the tracked k2/M and b/M with their 95 %% bands and the status every 0.5 s to "
-                        "FILE.parquet (files and bags only)")
+                        "FILE.parquet")
     p.add_argument("--plot", default=None, metavar="PNG",
                    help="write the tracked ratios with their bands and the events (the half car: each "
                         "spring's and damper's change since the warm-up) (needs vehid[plot])")
