@@ -28,11 +28,6 @@ use vehid_core::identify::{
 use vehid_core::Error;
 use vehid_runtime::{build, ModelData};
 
-/// The outlier gate of `KalmanIdentifier` unless `gate=` says otherwise (every mode): a sample
-/// whose recursive residual exceeds 6 estimated standard deviations is left out (for
-/// Gaussian noise: one sample in 5·10⁸).
-pub const DEFAULT_GATE: f64 = 6.0;
-
 /// `model` as a linear model, or an error naming the two kinds of model an identifier takes.
 fn linear_model<'a, 'py>(model: &'a Bound<'py, PyAny>) -> PyResult<&'a Bound<'py, PyLinearModel>> {
     model.cast::<PyLinearModel>().map_err(|_| {
@@ -627,7 +622,7 @@ impl PyKalmanIdentifier {
             drift,
             max_trace: max_trace.unwrap_or(0.0),
             // On by default for online use, in every mode.
-            gate: gate.unwrap_or(DEFAULT_GATE),
+            gate: gate.unwrap_or(vehid_runtime::defaults::GATE),
             huber,
         };
         if let Ok(st) = model.cast::<PyStructure>() {

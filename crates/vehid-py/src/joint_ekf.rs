@@ -207,7 +207,7 @@ impl PyJointEKF {
         let sw = per_component(state_noise, "state_noise", n, "state")?;
         let sv = match deriv_noise {
             Some(v) => per_component(v, "deriv_noise", n, "state")?,
-            None => vec![0.005; n],
+            None => vec![vehid_runtime::defaults::DERIV_NOISE; n],
         };
         let road_sigma = scalar(road_sigma, "road_sigma", false)?;
         let dt = scalar(dt, "dt", true)?;

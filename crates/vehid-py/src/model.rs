@@ -84,7 +84,7 @@ impl PyLinearModel {
         method: &str,
         substeps: Option<i128>,
     ) -> PyResult<Vec<f64>> {
-        let road = values(road_sigma, "road_sigma", 0.1)?;
+        let road = values(road_sigma, "road_sigma", vehid_runtime::defaults::ROAD_SIGMA)?;
         let method: vehid_core::sim::Method = option(method)?;
         let substeps = substeps.map(|s| size(s, "substeps")).transpose()?;
         let d = &self.data;
@@ -219,8 +219,8 @@ impl PyLinearModel {
         road_sigma: Option<&Bound<'py, PyAny>>,
         deriv_noise: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let road = values(road_sigma, "road_sigma", 0.1)?;
-        let deriv = values(deriv_noise, "deriv_noise", 0.005)?;
+        let road = values(road_sigma, "road_sigma", vehid_runtime::defaults::ROAD_SIGMA)?;
+        let deriv = values(deriv_noise, "deriv_noise", vehid_runtime::defaults::DERIV_NOISE)?;
         let d = &self.data;
         let v = py.detach(|| d.row_noise_var(&road, &deriv)).map_err(core_err)?;
         Ok(to_array1(py, v))

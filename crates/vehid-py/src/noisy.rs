@@ -18,12 +18,6 @@ use vehid_core::structure::Structure;
 use vehid_runtime::build::PREDICTOR;
 use vehid_runtime::build::{self, ModelInstrumentSettings as ModelArgs};
 
-/// The default `lags`: 6 past samples (what the quarter car's full rows need at 8 % state
-/// noise), fewer when the samples are wide.
-fn default_lags(width: usize) -> usize {
-    ((PREDICTOR - 1) / width.max(1)).clamp(1, 6)
-}
-
 /// The model's structure and, for a linear model, its data (for `theta`/`a_hat`).
 enum Target<'py> {
     Model(Bound<'py, PyLinearModel>),
@@ -108,7 +102,7 @@ fn r_arg(r: Option<&Bound<'_, PyAny>>, ne: usize) -> PyResult<Vec<f64>> {
     Ok(a.data)
 }
 
-/// `delay` (≥ 1) and `lags` (default [`default_lags`]) of the instruments on `s`, checked
+/// `delay` (≥ 1) and `lags` (default `vehid_runtime::defaults::iv_lags`) of the instruments on `s`, checked
 /// against the predictor's and the ring's capacities.
 fn instrument_args(s: &Structure<f64>, delay: i128, lags: Option<i128>) -> PyResult<(usize, usize)> {
     let delay = usize::try_from(delay)
@@ -117,7 +111,7 @@ fn instrument_args(s: &Structure<f64>, delay: i128, lags: Option<i128>) -> PyRes
         .ok_or_else(|| VehidError::new_err(format!("`delay` must be an integer >= 1 (samples), got {delay}")))?;
     let width = 2 * s.states() + s.inputs();
     let lags = match lags {
-        None => default_lags(width),
+        None => vehid_runtime::defaults::iv_lags(width),
         Some(l) => {
             usize::try_from(l).map_err(|_| VehidError::new_err(format!("`lags` must be an integer >= 0, got {l}")))?
         }

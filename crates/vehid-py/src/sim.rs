@@ -400,10 +400,10 @@ impl PySimulator {
         }
         let p = SimParams {
             dt,
-            road_sigma: values(road_sigma, "road_sigma", 0.1)?,
+            road_sigma: values(road_sigma, "road_sigma", vehid_runtime::defaults::ROAD_SIGMA)?,
             ic_sigma,
             state_noise: values(state_noise, "state_noise", 0.0)?,
-            deriv_noise: values(deriv_noise, "deriv_noise", 0.005)?,
+            deriv_noise: values(deriv_noise, "deriv_noise", vehid_runtime::defaults::DERIV_NOISE)?,
             substeps: substeps.map(|s| size(s, "substeps")).transpose()?,
             method: option(&method)?,
             pulses: pulses

@@ -7,11 +7,13 @@
 //! - [`sizes`]: the size table (`N` states in 1..=16, `M` inputs in 1..=4), the only one;
 //! - [`model`]: linear models as plain data and their one-off algebra;
 //! - [`sim`]: simulators of any size behind one interface;
-//! - [`build`]: identifiers of linear models;
+//! - [`build`]: every identifier, of a linear model or on a structure;
+//! - [`defaults`]: what a run-time caller gets when it does not say;
 //! - [`saved`] and [`seal`]: saved identifiers (the core's `Persist` state in a checked
 //!   envelope) and the CRC-32 seal of every saved state.
 
 pub mod build;
+pub mod defaults;
 pub mod model;
 pub mod saved;
 pub mod seal;

@@ -1,0 +1,25 @@
+//! What a run-time caller gets when it does not say, in one place (the Python classes' and the
+//! command line's defaults). The core's own defaults are for Rust users, who state what they
+//! want (e.g. `KalmanOptions::default()` has no outlier gate).
+
+use crate::build::PREDICTOR;
+
+/// The outlier gate of the Kalman identifiers (every mode): a sample whose recursive residual
+/// exceeds 6 estimated standard deviations is left out (for Gaussian noise: one sample in
+/// 5·10⁸).
+pub const GATE: f64 = 6.0;
+
+/// Standard deviation of the white road noise of the thesis' simulation study (Ch. III.C,
+/// Eq 4.25), in the model's input units.
+pub const ROAD_SIGMA: f64 = 0.1;
+
+/// Standard deviation of the noise on each measured derivative in the thesis' simulation study
+/// (Ch. III.C), in the state's units per second.
+pub const DERIV_NOISE: f64 = 0.005;
+
+/// The refined instruments' past samples (`lags`) of the instrumental-variable identifiers
+/// for samples of `width` values: 6 (what the quarter car's full rows need at 8 % state
+/// noise), fewer when the samples are wide, so that the predictor fits in [`PREDICTOR`].
+pub fn iv_lags(width: usize) -> usize {
+    ((PREDICTOR - 1) / width.max(1)).clamp(1, 6)
+}
