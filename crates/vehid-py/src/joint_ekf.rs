@@ -19,7 +19,7 @@ use crate::structure::PyStructure;
 use crate::{core_err, VehidError};
 use numpy::{IntoPyArray, PyArray1, PyArray2};
 use pyo3::prelude::*;
-use vehid_core::identify::{EkfNoise, JointEkf, MAX_EKF_SUBSTEPS};
+use vehid_core::identify::{EkfNoise, MAX_EKF_SUBSTEPS};
 use vehid_core::model::{auto_substeps, LinearModel};
 use vehid_core::nalgebra::{SMatrix, SVector};
 use vehid_core::structure::{Basis, Structure, Term, Var};
@@ -98,21 +98,7 @@ fn scalar(v: f64, arg: &str, positive: bool) -> PyResult<f64> {
     Ok(v)
 }
 
-/// Reads a `JointEkf` of any built size: `$id` bound to it in `$body`.
-macro_rules! with_ekf {
-    ($inner:expr, |$id:ident| $body:expr) => {{
-        let any = $inner.as_any();
-        if let Some($id) = any.downcast_ref::<JointEkf<f64, EKF_STATES, 8>>() {
-            Some($body)
-        } else if let Some($id) = any.downcast_ref::<JointEkf<f64, EKF_STATES, 9>>() {
-            Some($body)
-        } else if let Some($id) = any.downcast_ref::<JointEkf<f64, EKF_STATES, 13>>() {
-            Some($body)
-        } else {
-            None
-        }
-    }};
-}
+use vehid_runtime::with_joint_ekf as with_ekf;
 
 /// Joint state and parameter estimation: an extended Kalman filter on the states, the
 /// parameters and each sample's road input together (the thesis' Ch. VII proposal; Ljung

@@ -12,7 +12,7 @@ use crate::structure::PyStructure;
 use crate::{core_err, VehidError};
 use numpy::{IntoPyArray, PyArray1};
 use pyo3::prelude::*;
-use vehid_core::identify::{DynIdentifier, NoiseEstimatingBclsVec, StructuredPrior, RING_VALUES};
+use vehid_core::identify::{DynIdentifier, StructuredPrior, RING_VALUES};
 use vehid_core::structure::Structure;
 
 use vehid_runtime::build::PREDICTOR;
@@ -454,28 +454,7 @@ pub struct PyBiasCompensated;
 /// The instruments `(delay, lags)` of a noise-estimating core, after writing its variances
 /// into `var` when given (`None`: the core is the plain bias-compensated one).
 fn estimating(inner: &dyn DynIdentifier<f64>, var: Option<&mut [f64]>) -> Option<vehid_core::Result<(usize, usize)>> {
-    fn read<const P: usize, const Q: usize>(
-        id: &NoiseEstimatingBclsVec<f64, P, Q>,
-        var: Option<&mut [f64]>,
-    ) -> vehid_core::Result<(usize, usize)> {
-        if let Some(v) = var {
-            id.state_noise_var_into(v)?;
-        }
-        Ok((id.instrumental().delay(), id.instrumental().lags()))
-    }
-    let any = inner.as_any();
-    macro_rules! try_p {
-        ($($p:literal),*) => {$(
-            if let Some(id) = any.downcast_ref::<NoiseEstimatingBclsVec<f64, $p, 0>>() {
-                return Some(read(id, var));
-            }
-            if let Some(id) = any.downcast_ref::<NoiseEstimatingBclsVec<f64, $p, PREDICTOR>>() {
-                return Some(read(id, var));
-            }
-        )*};
-    }
-    try_p!(2, 4, 8, 16, 32);
-    None
+    vehid_runtime::build::noise_estimating_instruments(inner, var)
 }
 
 #[pymethods]

@@ -10,9 +10,7 @@ use crate::{core_err, option, VehidError};
 use numpy::PyArray2;
 use pyo3::exceptions::PyMemoryError;
 use pyo3::prelude::*;
-use vehid_core::identify::{
-    TwoAxleConfig, TwoAxleIdentifierVec, TwoAxleStructuredConfig, TwoAxleStructuredVec, WheelMethod,
-};
+use vehid_core::identify::{TwoAxleConfig, TwoAxleIdentifierVec, TwoAxleStructuredConfig, WheelMethod};
 use vehid_core::sampler::{axle_delay, AxleSampler, Trigger};
 use vehid_runtime::ModelData;
 
@@ -46,22 +44,7 @@ type Id = TwoAxleIdentifierVec<f64, 8, 16>;
 
 use vehid_runtime::build::TWO_AXLE_SIZES as STRUCTURED_SIZES;
 
-/// Reads the core of a `TwoAxleIdentifier` on a Structure (any built size): `$id` bound to it
-/// in `$body`; `None` for the rows identifier.
-macro_rules! with_structured {
-    ($inner:expr, |$id:ident| $body:expr) => {{
-        let any = $inner.as_any();
-        if let Some($id) = any.downcast_ref::<TwoAxleStructuredVec<f64, 4>>() {
-            Some($body)
-        } else if let Some($id) = any.downcast_ref::<TwoAxleStructuredVec<f64, 8>>() {
-            Some($body)
-        } else if let Some($id) = any.downcast_ref::<TwoAxleStructuredVec<f64, 16>>() {
-            Some($body)
-        } else {
-            None
-        }
-    }};
-}
+use vehid_runtime::with_two_axle_structured as with_structured;
 
 /// What the getters report, from either core: method, delay, wheel variances, paired.
 struct Info {

@@ -345,9 +345,87 @@ pub fn joint_ekf(
     substeps: u32,
 ) -> Result<Boxed> {
     match s.states() + s.params() + 1 {
+        _ if s.states() != EKF_STATES => Err(Error::Shape { arg: "states", expected: EKF_STATES, got: s.states() }),
         8 => joint_ekf_d::<8>(s, theta0, p0, x0_var, noise, dt, substeps),
         9 => joint_ekf_d::<9>(s, theta0, p0, x0_var, noise, dt, substeps),
-        13 if s.states() == EKF_STATES => joint_ekf_d::<13>(s, theta0, p0, x0_var, noise, dt, substeps),
+        13 => joint_ekf_d::<13>(s, theta0, p0, x0_var, noise, dt, substeps),
         d => Err(Error::Capacity { arg: "D", needed: d, capacity: 13 }),
     }
+}
+
+// ---- Reading a built identifier of a kind whose sizes are listed above, for the settings
+// only that kind has (the binding's getters): each enumerates the built sizes here, so that
+// no other crate lists them.
+
+/// A road-cancelling identifier on a structure, as built by [`two_axle_structured`].
+pub type TwoAxleStructuredCore<const P: usize> = TwoAxleStructuredVec<f64, P>;
+
+/// A joint extended Kalman filter, as built by [`joint_ekf`].
+pub type JointEkfCore<const D: usize> = JointEkf<f64, EKF_STATES, D>;
+
+/// `Some($body)` with `$id` bound to the [`two_axle_structured`] core behind the
+/// `&dyn DynIdentifier` `$inner` (any of [`TWO_AXLE_SIZES`]); `None` for another identifier.
+#[macro_export]
+macro_rules! with_two_axle_structured {
+    ($inner:expr, |$id:ident| $body:expr) => {{
+        let any = $inner.as_any();
+        if let Some($id) = any.downcast_ref::<$crate::build::TwoAxleStructuredCore<4>>() {
+            Some($body)
+        } else if let Some($id) = any.downcast_ref::<$crate::build::TwoAxleStructuredCore<8>>() {
+            Some($body)
+        } else if let Some($id) = any.downcast_ref::<$crate::build::TwoAxleStructuredCore<16>>() {
+            Some($body)
+        } else {
+            None
+        }
+    }};
+}
+
+/// `Some($body)` with `$id` bound to the [`joint_ekf`] core behind the `&dyn DynIdentifier`
+/// `$inner` (any of [`EKF_SIZES`]); `None` for another identifier.
+#[macro_export]
+macro_rules! with_joint_ekf {
+    ($inner:expr, |$id:ident| $body:expr) => {{
+        let any = $inner.as_any();
+        if let Some($id) = any.downcast_ref::<$crate::build::JointEkfCore<8>>() {
+            Some($body)
+        } else if let Some($id) = any.downcast_ref::<$crate::build::JointEkfCore<9>>() {
+            Some($body)
+        } else if let Some($id) = any.downcast_ref::<$crate::build::JointEkfCore<13>>() {
+            Some($body)
+        } else {
+            None
+        }
+    }};
+}
+
+/// The instruments `(delay, lags)` of a [`noise_estimating`] core, after writing its estimated
+/// state-noise variances into `var` when given; `None` for another identifier (e.g. the plain
+/// [`bias_compensated`] one).
+pub fn noise_estimating_instruments(
+    inner: &dyn DynIdentifier<f64>,
+    var: Option<&mut [f64]>,
+) -> Option<Result<(usize, usize)>> {
+    fn read<const P: usize, const Q: usize>(
+        id: &NoiseEstimatingBclsVec<f64, P, Q>,
+        var: Option<&mut [f64]>,
+    ) -> Result<(usize, usize)> {
+        if let Some(v) = var {
+            id.state_noise_var_into(v)?;
+        }
+        Ok((id.instrumental().delay(), id.instrumental().lags()))
+    }
+    let any = inner.as_any();
+    macro_rules! try_p {
+        ($($p:literal),*) => {$(
+            if let Some(id) = any.downcast_ref::<NoiseEstimatingBclsVec<f64, $p, 0>>() {
+                return Some(read(id, var));
+            }
+            if let Some(id) = any.downcast_ref::<NoiseEstimatingBclsVec<f64, $p, PREDICTOR>>() {
+                return Some(read(id, var));
+            }
+        )*};
+    }
+    try_p!(2, 4, 8, 16, 32);
+    None
 }
