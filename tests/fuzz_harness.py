@@ -1,8 +1,11 @@
 """A seeded fuzzer of vehid's whole public Python API: models and their methods,
 ``Simulator``, every identifier (``KalmanIdentifier`` with all its options,
-``StochasticGradient``, ``BatchLeastSquares``, ``TwoAxleIdentifier``), ``AxleSampler``, ``xi``
-and ``snr_db``, called with random shapes, dtypes, NaN/inf, huge and subnormal values,
-``None``, strings, bytes, non-contiguous, Fortran-ordered and read-only arrays.
+``StochasticGradient``, ``BatchLeastSquares``, ``TwoAxleIdentifier``, and, in
+``tests/fuzz_surfaces.py``, ``IVIdentifier``, ``BiasCompensated``, ``JointEKF``, structures
+from a grammar-aware generator of equation texts, the ``HealthMonitor`` and the command
+line), ``AxleSampler``, ``xi`` and ``snr_db``, called with random shapes, dtypes, NaN/inf,
+huge and subnormal values, ``None``, strings, bytes, non-contiguous, Fortran-ordered and
+read-only arrays.
 
 Two properties are checked on every call:
 
@@ -36,15 +39,10 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, List, Optional, Tuple
 
 import numpy as np
+from fuzz_common import ALLOWED, OBSERVED, Failure, attempt, describe, describe_kw, describe_one, observable, summary  # noqa: F401
+from fuzz_surfaces import SurfaceEpisodes
 
 import vehid
-
-#: What a call may raise. numpy's ComplexWarning appears when warnings are errors (as under
-#: pytest, and in this script): a complex scalar passed as a float option goes through its
-#: ``__float__``, which warns; under the error filter the call is refused before anything
-#: happens.
-ALLOWED: Tuple[type, ...] = (vehid.VehidError, ValueError, TypeError, OverflowError, MemoryError,
-                             np.exceptions.ComplexWarning)
 
 CAR = vehid.QuarterCar()
 HALF = vehid.HalfCar()
@@ -69,71 +67,6 @@ SPECIAL = [np.nan, np.inf, -np.inf, 1e308, -1e308, 1e200, 1e-320, 5e-324, -0.0, 
 #: large count that would really be simulated).
 RUN_LENGTHS: List[Any] = [0, 1, 2, 7, 50, 300, -1, 2**70, 10**13, 2**62, 1.5, "10", None, np.int64(5),
                           np.uint8(3), True]
-
-
-class Failure(AssertionError):
-    """A property violated: a panic, a foreign exception, or a rejected call that changed
-    state."""
-
-
-def attempt(func: Callable[..., Any], *args: Any, **kwargs: Any) -> Tuple[bool, Any]:
-    """``(True, result)`` or ``(False, exception)``; raises :class:`Failure` on a panic or an
-    exception outside :data:`ALLOWED`."""
-    try:
-        return True, func(*args, **kwargs)
-    except BaseException as e:  # noqa: B036 - PanicException derives from BaseException
-        if isinstance(e, (KeyboardInterrupt, SystemExit)):
-            raise
-        if type(e).__name__ == "PanicException" or not isinstance(e, ALLOWED):
-            raise Failure(f"{type(e).__name__} from {getattr(func, '__qualname__', func)!r} "
-                          f"({describe(args)}; {describe_kw(kwargs)}): {e}") from e
-        return False, e
-
-
-def describe_one(a: Any) -> str:
-    if isinstance(a, np.ndarray):
-        if a.dtype.kind in "fc" and a.size:
-            with np.errstate(all="ignore"):
-                return f"{a.dtype}{a.shape} max|.|={np.max(np.abs(a)):.3g}"
-        return f"{a.dtype}{a.shape}"
-    return repr(a)[:60]
-
-
-def describe(args: Tuple[Any, ...]) -> str:
-    """Short text for arguments (arrays by dtype and shape, with their largest magnitude)."""
-    return ", ".join(describe_one(a) for a in args)
-
-
-def describe_kw(kw: Dict[str, Any]) -> str:
-    return ", ".join(f"{k}={describe_one(v)}" for k, v in kw.items())
-
-
-#: The observable state (``storage_bytes`` is not part of it: it is the capacity of a batch's
-#: storage, which a rejected ``fit`` may have grown, and a copy trims).
-OBSERVED = ("theta", "samples", "covariance", "r", "trace", "gated", "reinit_count", "paired")
-
-
-def observable(ident: Any) -> Tuple[Any, ...]:
-    """Everything a rejected call must leave bit for bit: θ̂ (or the error reading it), the
-    sample count, and P, R, tr P, the gated and reinitialization counts and the paired samples
-    where the identifier has them. Arrays by dtype, shape and bytes (NaN compares equal to
-    itself, -0.0 differs from 0.0)."""
-    out: List[Any] = []
-    for name in OBSERVED:
-        if not hasattr(type(ident), name):
-            continue
-        try:
-            v = getattr(ident, name)
-        except ValueError as e:
-            out.append((name, type(e).__name__, str(e)))
-            continue
-        if isinstance(v, np.ndarray):
-            out.append((name, v.dtype.str, v.shape, v.tobytes()))
-        elif isinstance(v, float):
-            out.append((name, np.float64(v).tobytes()))
-        else:
-            out.append((name, repr(v)))
-    return tuple(out)
 
 
 class Garbage:
@@ -213,7 +146,7 @@ class Stats:
     slowest: List[Tuple[float, str]] = field(default_factory=list)
 
 
-class Episode:
+class Episode(SurfaceEpisodes):
     """One object built and exercised; every call goes through :meth:`call`."""
 
     def __init__(self, rng: np.random.Generator, stats: Stats, runs: Dict[int, vehid.Run]) -> None:
@@ -532,9 +465,6 @@ def check_run(run: vehid.Run, n: Any, sim: vehid.Simulator) -> None:
             raise Failure(f"Simulator.run({n!r}) returned non-finite `{name}` (no error)")
 
 
-def summary(obs: Tuple[Any, ...]) -> str:
-    return "; ".join(f"{o[0]}={o[-1][:40]!r}" if isinstance(o[-1], (bytes, str)) else repr(o)[:60] for o in obs)
-
 
 KINDS: List[Tuple[str, Callable[[Episode], None]]] = [
     ("identifier", Episode.identifier_episode),
@@ -545,6 +475,13 @@ KINDS: List[Tuple[str, Callable[[Episode], None]]] = [
     ("model", Episode.model_episode),
     ("simulator", Episode.simulator_episode),
     ("function", Episode.function_episode),
+    ("structure", Episode.structure_episode),
+    ("structure", Episode.structure_episode),
+    ("noisy", lambda ep: ep.noisy_episode(MODELS)),
+    ("noisy", lambda ep: ep.noisy_episode(MODELS)),
+    ("monitor", Episode.monitor_episode),
+    ("monitor", Episode.monitor_episode),
+    ("cli", Episode.cli_episode),
 ]
 
 

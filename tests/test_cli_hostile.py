@@ -228,3 +228,23 @@ def test_monitor_window_given_keeps_its_name(drive: Path, capsys: pytest.Capture
     assert error_line(capsys, ["monitor", str(drive), "--dt", "1", "--window", "5"]) == (
         "vehid: error: --window 5: expected at least 10 sample intervals (--dt 1): give --window 10 or more, "
         "or a shorter --dt")
+
+
+@pytest.mark.parametrize("option", ["--dt", "--speed", "--bandwidth", "--block", "--m"])
+def test_a_positive_number_option_names_itself_not_a_mass(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                                           option: str) -> None:
+    # Found by the fuzz harness's command-line episodes: `--dt -1` said "expected a positive
+    # mass in kg" (the options share one argparse type).
+    log = tmp_path / "run.csv"
+    log.write_text("t,x1,x2,x3,x4,dx1,dx2,dx3,dx4,u1\n")
+    line = error_line(capsys, ["identify", str(log), "--model", "quarter", option, "-1"])
+    assert f"argument {option}: expected a finite number > 0, got '-1'" in line
+    assert "mass" not in line
+
+
+def test_inspect_of_a_time_column_with_an_infinite_value_prints_no_numpy_warning(tmp_path: Path) -> None:
+    # Found by the fuzz harness (warnings as errors): the jitter of an empty selection warned.
+    log = tmp_path / "log.csv"
+    log.write_text("time [ms],SuspTravel [mm],a_body [g]\n0.0,0.1,0.2\ninf,0.3,0.4\n10,0.5,0.2\n")
+    r = vehid_sh(f"vehid inspect {log}")
+    assert r.returncode == 0 and "Warning" not in r.stderr, r.stderr

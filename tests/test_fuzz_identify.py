@@ -1,6 +1,8 @@
 """Randomized garbage against the whole public API, through ``tests/fuzz_harness.py`` (the
-harness ``make fuzz`` runs for 10⁵ calls): constructors, update, fit, copies and pickles,
-models' methods, ``Simulator``, ``TwoAxleIdentifier``, ``AxleSampler``, ``xi``, ``snr_db``.
+harness ``make fuzz`` runs for 10⁶ calls): constructors, update, fit, copies and pickles,
+models' methods, ``Simulator``, ``TwoAxleIdentifier``, ``AxleSampler``, ``xi``, ``snr_db``, and
+(``tests/fuzz_surfaces.py``) structures from the equation grammar, the noise-robust
+identifiers, the health monitor with corrupted saved states, and the command line.
 
 Each call must either succeed or raise VehidError / ValueError / TypeError / OverflowError /
 MemoryError; anything else fails, above all pyo3's ``PanicException`` (a ``BaseException``,
@@ -13,11 +15,16 @@ reproduce it (``python tests/fuzz_harness.py --seed S --episode K``).
 
 from __future__ import annotations
 
+import copy
+import sys
 import time
+from typing import Any, Dict, List, Tuple
 
 import numpy as np
 import pytest
-from fuzz_harness import CAR, fuzz, observable  # tests/ is on sys.path under pytest
+from fuzz_common import Failure
+from fuzz_harness import CAR, Episode, Garbage, Stats, fuzz, observable  # tests/ is on sys.path under pytest
+from fuzz_surfaces import Grammar, SurfaceEpisodes, hostile
 
 import vehid
 
@@ -38,10 +45,95 @@ def test_public_api_survives_garbage(seed: int) -> None:
     assert time.perf_counter() - t0 < 20, "2,500 calls should take a few seconds"
 
 
-@pytest.mark.parametrize("kind", ["identifier", "two_axle", "sampler", "model", "simulator", "function"])
+@pytest.mark.parametrize("kind", ["identifier", "two_axle", "sampler", "model", "simulator", "function",
+                                  "structure", "noisy", "monitor", "cli"])
 def test_every_kind_of_object_is_fuzzed(kind: str) -> None:
     stats = fuzz(150, 1000, kinds=[kind])
     assert stats.calls >= 150
+    assert stats.accepted > 0, f"no {kind} call was accepted: the episode exercises nothing but its refusals"
+
+
+# --- the newer surfaces' own checks can fail (tests/fuzz_surfaces.py) ---------------------------
+
+
+class _Episode(SurfaceEpisodes):
+    """An episode of the surfaces alone, with the harness's ``call``."""
+
+    def __init__(self, seed: int) -> None:
+        self.g = Garbage(np.random.default_rng(seed))
+        self.runs: Dict[Any, Any] = {}
+        self.stats = Stats()
+
+    def call(self, what: str, func: Any, *args: Any, **kwargs: Any) -> Tuple[bool, Any]:
+        return Episode.call(self, what, func, *args, **kwargs)  # type: ignore[arg-type]
+
+
+class _OffBySign:
+    """A structure whose derivative drops a unary minus (what `parse.rs` would do with the
+    sign of a factor ignored): the evaluator check must see it."""
+
+    def __init__(self, real: Any) -> None:
+        self.real = real
+        self.parameters, self.states = real.parameters, real.states
+
+    def derivative(self, p: Any, x: Any, u: Any = None) -> List[float]:
+        return [-v for v in self.real.derivative(p, x, u)]
+
+
+def test_the_grammar_check_catches_a_structure_that_evaluates_otherwise() -> None:
+    ep = _Episode(3)
+    s = vehid.Structure(["x", "v"], ["u"], {"x": "a*v", "v": "-k*x - b*sign(v - 2*u) + g*u"})
+    terms = {"x": ["+(a*v)"], "v": ["-(k*x)", "-(b*sign(v - 2*u))", "+(g*u)"]}
+    ep.check_evaluation(s, ["x", "v"], ["u"], terms)  # the real one agrees with Python
+    with pytest.raises(Failure, match="the text"):
+        ep.check_evaluation(_OffBySign(s), ["x", "v"], ["u"], terms)
+
+
+def test_the_grammar_generates_texts_that_build_and_texts_that_break() -> None:
+    rng = np.random.default_rng(5)
+    grammar = Grammar(rng, ["x", "v"], ["u"], ["a", "b", "k"])
+    built = 0
+    for _ in range(200):
+        text, terms = grammar.equation()
+        try:
+            vehid.Structure(["x", "v"], ["u"], {"x": "a*v", "v": text})
+            built += 1
+        except vehid.VehidError:
+            pass
+        assert len(terms) >= 1
+    assert built > 100, built
+    broken = [hostile(rng, "a*x") for _ in range(200)]
+    assert len({len(t) for t in broken}) > 20  # deep nesting, long minus chains, blown-up products...
+
+
+def test_the_monitor_check_sees_a_refused_call_that_changed_the_monitor(monkeypatch: pytest.MonkeyPatch) -> None:
+    # A saved monitor with a changed byte that loads must fail the episode.
+    ep = _Episode(4)
+    mon = vehid.HealthMonitor(vehid.QuarterCar.passenger(), dt=0.005)
+
+    class Accepting:
+        def __reduce__(self) -> Any:
+            return mon.__reduce__()
+
+        def __setstate__(self, state: Any) -> None:  # accepts anything: the defect the check is for
+            pass
+
+    monkeypatch.setattr(copy, "copy", lambda obj: Accepting())
+    with pytest.raises(Failure, match="was accepted"):
+        ep.check_saved(mon)
+
+
+def test_the_cli_check_sees_an_internal_error(monkeypatch: pytest.MonkeyPatch) -> None:
+    import fuzz_surfaces
+
+    def broken_main(argv: Any) -> int:
+        print("vehid: internal error: ZeroDivisionError: division by zero (a bug in vehid: please report it)",
+              file=sys.stderr)
+        return 2
+
+    monkeypatch.setattr(fuzz_surfaces.cli, "main", broken_main)
+    with pytest.raises(Failure, match="internal error"):
+        _Episode(1).cli_episode()
 
 
 @pytest.mark.parametrize("mode", ["rows", "shared", "full"])

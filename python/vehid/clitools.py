@@ -141,21 +141,22 @@ def parse_floats(text: str) -> Union[float, List[float]]:
 
 
 def positive_float(text: str) -> float:
-    """An argparse type: a mass in kg, finite and positive (``--m``, ``--m1``, ``--m2``).
+    """An argparse type: a finite number > 0 (masses, ``--dt``, ``--speed``, ``--bandwidth``, ...;
+    argparse names the option in its message).
 
     >>> positive_float("1.5")
     1.5
     >>> positive_float("0")
     Traceback (most recent call last):
     ...
-    argparse.ArgumentTypeError: expected a positive mass in kg, got '0'
+    argparse.ArgumentTypeError: expected a finite number > 0, got '0'
     """
     try:
         v = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
     if not (math.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"expected a positive mass in kg, got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text!r}")
     return v
 
 

@@ -63,7 +63,8 @@ def _rate(t: NDArray[np.float64]) -> str:
         return "one sample"
     h = _align.nominal_interval(t)
     d = np.diff(t)
-    jitter = float(np.std(d[d <= _align.gap_limit(t)] - h)) if len(d) else 0.0
+    steady = d[d <= _align.gap_limit(t)]  # none when the times are not finite
+    jitter = float(np.std(steady - h)) if len(steady) else 0.0
     jitter = 0.0 if jitter < 1e-9 else jitter  # a float's noise, not the clock's
     gaps = int((d > _align.gap_limit(t)).sum())
     return (f"{1 / h:.6g} Hz (interval {1e3 * h:.6g} ms, jitter {1e6 * jitter:.3g} us), "
