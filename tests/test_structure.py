@@ -502,3 +502,13 @@ def test_cli_simulate_a_model_file_over_measured_inputs(tmp_path: Path) -> None:
     np.testing.assert_array_equal(data[:, 1:3], s.simulate([40, 3, 2], [0.1, 0.0], u[:, None], dt=0.01))
     bad = run_cli("simulate", "--model", str(model), "--input", str(tmp_path / "u.csv"), "--params", "k=40", "-o", "-")
     assert bad.returncode == 2 and "no value for c, g" in bad.stderr
+
+
+@pytest.mark.parametrize("text", ["a*sign(x) + b*sign(3*x)", "a*sign(x) + b*sign(x)", "a*pos(x - v) + b*neg(v - x)",
+                                  "a*x + b*pos(x) + c*neg(x)"])
+def test_parameters_that_are_not_separately_identifiable_are_refused_by_name(text: str) -> None:
+    # Issue 33 item 6: with a prior, `a*sign(x) + b*sign(3*x)` gave an arbitrary split of a
+    # and b with small standard errors. sign(3x) is sign(x): only a + b is identifiable.
+    with pytest.raises(vehid.VehidError, match=r"parameters: .*'a'.*'b'") as e:
+        vehid.Structure(["x", "v"], [], {"x": text, "v": "k*v"})
+    assert "identifiable" in str(e.value)

@@ -13,6 +13,16 @@
 //! basis (a state, an input, `der(state)`, or `sign`/`pos`/`neg` of a linear combination of
 //! states, inputs and derivatives): the model stays linear in its parameters.
 //!
+//! ## Identifiability
+//! A function of a combination is kept in one form however it is written (its entries in the
+//! order of their variables, scaled so that the first coefficient is 1, the scale moved
+//! outside: `sign(3*x)` is `sign(x)`, `neg(v - x)` is `-pos(x - v)`), and each combination is
+//! stored once. Then two parameters whose terms are proportional (`a*sign(x) + b*sign(3*x)`)
+//! are refused by name, and so is any set whose terms are linearly dependent as functions
+//! (`a*x + b*pos(x) + c*neg(x)`: `pos(x) + neg(x) = x`), found by the rank of the regressors at
+//! 64 pseudo-random points: such parameters cannot be told apart by any data, and with a prior
+//! an identifier would return an arbitrary split of them.
+//!
 //! ## Limits
 //! Every limit is checked before the work it bounds, so that no text, however written, can
 //! exhaust the stack, the memory or the time of the process that parses it:
@@ -199,6 +209,9 @@ impl StructureBuilder {
                 format!("at most {} states and {} inputs are supported", super::MAX_STATES, super::MAX_INPUTS),
             )
         })?;
+        // Each combination is stored once, so that equal function terms have equal bases
+        // (the confounded-parameter check compares bases).
+        let mut stored: Vec<(&[Entry], (u8, u8))> = Vec::new();
         for (si, poly, item) in &parsed {
             let mut terms: Vec<Term<T>> = Vec::new();
             for m in poly {
@@ -206,13 +219,22 @@ impl StructureBuilder {
                     None => Basis::One,
                     Some(B::Var(v)) => Basis::Var(*v),
                     Some(B::Fun(f, comb)) => {
-                        let entries: Vec<(Var, T)> = comb.iter().map(|&(v, c)| (v, T::of(c))).collect();
-                        let (start, len) = s.push_combination(&entries).or_else(|_| {
-                            err(
-                                item,
-                                format!("too many entries in sign/pos/neg combinations (at most {MAX_COMBINATION})"),
-                            )
-                        })?;
+                        let (start, len) = match stored.iter().find(|(c, _)| *c == comb.as_slice()) {
+                            Some(&(_, at)) => at,
+                            None => {
+                                let entries: Vec<(Var, T)> = comb.iter().map(|&(v, c)| (v, T::of(c))).collect();
+                                let at = s.push_combination(&entries).or_else(|_| {
+                                    err(
+                                        item,
+                                        format!(
+                                            "too many entries in sign/pos/neg combinations (at most {MAX_COMBINATION})"
+                                        ),
+                                    )
+                                })?;
+                                stored.push((comb.as_slice(), at));
+                                at
+                            }
+                        };
                         match f {
                             Fun::Sign => Basis::Sign { start, len },
                             Fun::Pos => Basis::Pos { start, len },
@@ -243,8 +265,84 @@ impl StructureBuilder {
                 ),
             );
         }
+        if let Some(set) = dependent_params(&s) {
+            let names: Vec<String> = set.iter().map(|&j| format!("'{}'", ctx.params[j])).collect();
+            return err(
+                "parameters",
+                format!(
+                    "{} are not separately identifiable: their terms are linearly dependent for every value of the \
+                     states and inputs (e.g. pos(e) + neg(e) = e, or one function of a combination written twice), \
+                     so only combinations of them have an effect: drop a term or merge the parameters",
+                    names.join(", ")
+                ),
+            );
+        }
         Ok((s, Names { states: self.states.clone(), inputs: self.inputs.clone(), params: ctx.params }))
     }
+}
+
+/// One entry of a `sign`/`pos`/`neg` combination while parsing: a variable and its coefficient.
+type Entry = (Var, f64);
+
+/// Points at which [`dependent_params`] evaluates the regressors.
+const RANK_POINTS: usize = 64;
+
+/// The parameters of a set whose regressors are linearly dependent as functions of the
+/// states, derivatives and inputs (`None`: every parameter is separately identifiable from
+/// rich enough data). The regressors of every identified equation are evaluated at
+/// [`RANK_POINTS`] pseudo-random points in `(−1, 1)`, stacked (one row per point and
+/// equation), their columns scaled to unit length, and the smallest singular value compared
+/// with the largest: below `10⁻⁹` of it (`10⁴ ε` in `f32`) the columns are dependent, and the parameters with
+/// a weight over `10⁻³` in its singular vector are the set. Pairs with proportional terms
+/// are found earlier, by name ([`Structure::confounded_pair`]); this finds the rest
+/// (`a*x + b*pos(x) + c*neg(x)`, since `pos(x) + neg(x) = x`).
+fn dependent_params<T: Real>(s: &Structure<T>) -> Option<Vec<usize>> {
+    let (np, ne) = (s.params(), s.equations());
+    if np == 0 || ne == 0 {
+        return None;
+    }
+    let rows = RANK_POINTS * ne;
+    let mut h = nalgebra::DMatrix::<f64>::zeros(rows, np);
+    let mut seed = 0x9E37_79B9_7F4A_7C15_u64;
+    let mut draw = || {
+        seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+        T::of(((seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0)
+    };
+    let (mut x, mut z, mut u) = (vec![T::zero(); s.states()], vec![T::zero(); s.states()], vec![T::zero(); s.inputs()]);
+    let mut row = vec![T::zero(); np];
+    for k in 0..RANK_POINTS {
+        x.iter_mut().chain(z.iter_mut()).chain(u.iter_mut()).for_each(|v| *v = draw());
+        for i in 0..ne {
+            s.regression(i, &x, &z, &u, &mut row);
+            for (j, v) in row.iter().enumerate() {
+                h[(k * ne + i, j)] = v.to_f64();
+            }
+        }
+    }
+    for mut c in h.column_iter_mut() {
+        let norm = c.norm();
+        if norm > 0.0 {
+            c /= norm;
+        }
+    }
+    let svd = h.svd(false, true);
+    let v_t = svd.v_t.as_ref()?;
+    let (mut lo, mut hi) = (0, 0);
+    for (k, &sv) in svd.singular_values.iter().enumerate() {
+        if sv < svd.singular_values[lo] {
+            lo = k;
+        }
+        if sv > svd.singular_values[hi] {
+            hi = k;
+        }
+    }
+    // 10⁻⁹ in f64; in f32 the regressors' own rounding (10⁴ ε) sets the floor.
+    let tol = 1e-9_f64.max(1e4 * T::default_epsilon().to_f64());
+    if svd.singular_values[lo] >= tol * svd.singular_values[hi] {
+        return None;
+    }
+    let set: Vec<usize> = (0..np).filter(|&j| v_t[(lo, j)].abs() > 1e-3).collect();
+    (set.len() >= 2).then_some(set)
 }
 
 /// `count` names or equations, at most `max`.

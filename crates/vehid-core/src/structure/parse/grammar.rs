@@ -184,7 +184,8 @@ impl Ctx<'_> {
                     if comb.is_empty() {
                         return Err(format!("{n}(·) of zero").into());
                     }
-                    return Ok(vec![Mono { coef: 1.0, param: None, basis: Some(B::Fun(f, comb)) }]);
+                    let (coef, f, comb) = canonical(f, comb);
+                    return Ok(vec![Mono { coef, param: None, basis: Some(B::Fun(f, comb)) }]);
                 }
                 if let Some(i) = self.states.iter().position(|x| *x == n) {
                     return Ok(vec![Mono { coef: 1.0, param: None, basis: Some(B::Var(Var::State(i as u8))) }]);
@@ -304,6 +305,34 @@ fn multiply(a: &Poly, b: &Poly, ctx: &Ctx<'_>) -> Result<Poly, String> {
         }
     }
     Ok(out)
+}
+
+/// A function of a combination in one form for every way of writing it, so that equal terms
+/// are seen to be equal (merged, and confounded parameters found): the entries in the order of
+/// their variables (states, inputs, derivatives), scaled so that the first coefficient is 1,
+/// the scale `c` moved outside: `sign(c e) = sign(c) sign(e)`, `pos(c e) = c pos(e)` and
+/// `neg(c e) = c neg(e)` for `c > 0`, `pos(c e) = c neg(e)` and `neg(c e) = c pos(e)` for
+/// `c < 0`. Returns the factor outside, the function and the combination.
+/// (`sign(3*x)` is `sign(x)`; `neg(v - x)` is `-pos(x - v)`.)
+fn canonical(f: Fun, mut comb: Vec<(Var, f64)>) -> (f64, Fun, Vec<(Var, f64)>) {
+    fn key(v: Var) -> (u8, u8) {
+        match v {
+            Var::State(i) => (0, i),
+            Var::Input(j) => (1, j),
+            Var::Deriv(i) => (2, i),
+        }
+    }
+    comb.sort_by_key(|&(v, _)| key(v));
+    let c = comb[0].1;
+    for e in &mut comb {
+        e.1 /= c;
+    }
+    comb[0].1 = 1.0; // exactly, whatever the rounding of c / c
+    match (f, c > 0.0) {
+        (Fun::Sign, _) => (c.signum(), Fun::Sign, comb),
+        (Fun::Pos, true) | (Fun::Neg, false) => (c, Fun::Pos, comb),
+        (Fun::Neg, true) | (Fun::Pos, false) => (c, Fun::Neg, comb),
+    }
 }
 
 /// Merges monomials with the same parameter and basis, drops zeros, keeps first-appearance order.

@@ -211,3 +211,79 @@ fn counts_are_checked_before_names_are_compared() {
     let r = StructureBuilder::new(&["x"], &["u"]).parameters(&["a", "u"]).equation("x", "a*x").build::<f64>();
     assert_limit(r, "parameters", "'u' is also a state or input name");
 }
+
+/// Issue 33 item 6: two parameters on the same function of a combination, however the
+/// combination is written, are confounded (before: each function term had a combination of its
+/// own, so even `a*sign(v) + b*sign(v)` was taken, and a prior made up a split of the two).
+#[test]
+fn parameters_on_one_function_written_two_ways_are_confounded() {
+    for text in [
+        "a*sign(v) + b*sign(v)",
+        "a*sign(v) + b*sign(3*v)",
+        "a*sign(v - w) - b*sign(2*w - 2*v)",
+        "a*sign(v + w) + b*sign(w + v)",
+        "a*pos(v - w) + b*neg(w - v)",
+        "a*neg(2*v) + b*neg(v)",
+        "a*pos(-v) + b*neg(v)",
+    ] {
+        let e = build(&[("v", text)]).unwrap_err();
+        assert!(e.message.contains("'a' and 'b' multiply the same terms"), "{text}: {e}");
+    }
+    // Different functions of one combination, or one function of different ones, are not.
+    for text in ["a*pos(v) + b*neg(v)", "a*sign(v) + b*sign(v - w)", "a*pos(v - w) + b*pos(w - v)"] {
+        assert!(build(&[("v", text)]).is_ok(), "{text}");
+    }
+}
+
+/// The canonical form (`canonical`) evaluates as the text: `sign(c e) = sign(c) sign(e)`,
+/// `pos(c e)` / `neg(c e)` with the scale outside and, for `c < 0`, the function swapped.
+#[test]
+fn a_function_of_a_scaled_or_reordered_combination_evaluates_as_written() {
+    type Truth = fn(f64, f64, f64) -> f64;
+    let cases: [(&str, Truth); 6] = [
+        ("a*sign(-3*v + w)", |_, v, w| (-3.0 * v + w).signum() * f64::from(-3.0 * v + w != 0.0)),
+        ("a*pos(-2*v + w)", |_, v, w| (-2.0 * v + w).max(0.0)),
+        ("a*neg(-2*v + w)", |_, v, w| (-2.0 * v + w).min(0.0)),
+        ("a*pos(w - 0.5*v)", |_, v, w| (w - 0.5 * v).max(0.0)),
+        ("a*neg(4*w + 2*q)", |q, _, w| (4.0 * w + 2.0 * q).min(0.0)),
+        ("a*sign(w - v - q)", |q, v, w| (w - v - q).signum() * f64::from(w - v - q != 0.0)),
+    ];
+    let mut seed = 7u64;
+    let mut next = || {
+        seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((seed >> 11) as f64 / (1u64 << 53) as f64) * 4.0 - 2.0
+    };
+    for (text, f) in cases {
+        let (s, _) = build(&[("v", text)]).unwrap();
+        for _ in 0..200 {
+            let x = [next(), next(), next()];
+            let mut h = [0.0; 1];
+            s.regression(0, &x, &[0.0; 3], &[0.0], &mut h);
+            let want = f(x[0], x[1], x[2]);
+            assert!((h[0] - want).abs() <= 1e-12 * (1.0 + want.abs()), "{text} at {x:?}: {} for {want}", h[0]);
+        }
+    }
+}
+
+/// Terms that are linearly dependent as functions (not proportional pairs): refused, naming
+/// the parameters involved; independent ones that look alike are taken.
+#[test]
+fn linearly_dependent_terms_are_refused_naming_their_parameters() {
+    for (text, named) in [
+        ("a*v + b*pos(v) + c*neg(v)", &["'a'", "'b'", "'c'"][..]),
+        ("a*(v - w) + b*v + c*w", &["'a'", "'b'", "'c'"][..]),
+        ("d*q + a*pos(v - w) + b*neg(v - w) + c*(w - v)", &["'a'", "'b'", "'c'"][..]),
+    ] {
+        let e = build(&[("v", text)]).unwrap_err();
+        assert!(e.message.contains("not separately identifiable"), "{text}: {e}");
+        for n in named {
+            assert!(e.message.contains(n), "{text}: {e} should name {n}");
+        }
+        assert!(!e.message.contains("'d'"), "{text}: {e}");
+    }
+    for text in ["a*v + b*pos(v)", "a*pos(v) + b*neg(v)", "a*sign(v) + b*v + c*pos(v - w)", "a*v + b*w + c*q"] {
+        assert!(build(&[("v", text)]).is_ok(), "{text}");
+    }
+    // Across equations: the same parameter pair in two equations, dependent only jointly, is fine.
+    assert!(build(&[("v", "a*v + b*w"), ("w", "a*w + b*v")]).is_ok());
+}
