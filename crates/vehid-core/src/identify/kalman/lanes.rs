@@ -182,13 +182,14 @@ fn ones<T: Real, const L: usize>() -> [T; L] {
     [T::one(); L]
 }
 
-/// [`RowGroup::mode`]: the standard form after the start, no tracking, no outlier screen, no
-/// lane with `r = 0`.
+/// [`RowGroup::mode`]: the standard form after the start, no tracking, no Huber weighting,
+/// no lane with `r = 0`; the outlier gate tested in the plan (a sample beyond it goes to the
+/// general mode).
 pub const PLAIN: u8 = 1;
 /// [`RowGroup::mode`]: as [`PLAIN`] with exponential forgetting (no drift, not directional).
 pub const FORGET: u8 = 2;
-/// [`RowGroup::mode`]: anything else (the other forms, the exact start, the outlier screen,
-/// lanes with `r = 0`, drift and directional forgetting). Each special mode is one more
+/// [`RowGroup::mode`]: anything else (the other forms, the exact start, Huber weighting,
+/// forgetting under the outlier gate, lanes with `r = 0`, drift and directional forgetting). Each special mode is one more
 /// compiled copy of the update per identifier type, so only the common cases have one.
 pub const GENERAL: u8 = 0;
 
@@ -401,6 +402,23 @@ impl<T: Real, const N: usize, const L: usize> RowLanes<T, N, L> {
             }
         }
         (gated, reff)
+    }
+
+    /// The lanes whose sample the outlier gate leaves out: [`super::guards::screen`]'s test
+    /// without the Huber weighting (the plain mode has none), as whole-lane arithmetic. The
+    /// same operations on the same values as the screen, so that a sample the plain mode takes
+    /// is one the general mode would take.
+    #[inline(always)]
+    fn beyond_gate(&self, e: [T; L], s: [T; L]) -> [bool; L] {
+        let warm = T::of(N as f64 + super::guards::SCREEN_WARMUP);
+        let gate2 = self.gate * self.gate;
+        let mut out = [false; L];
+        for k in 0..L {
+            let sigma2 = self.ssr[k] / (self.nobs[k] - T::of(N as f64));
+            let z2 = e[k] * e[k] * self.r[k] / s[k] / sigma2;
+            out[k] = (self.nobs[k] >= warm) & (sigma2 > T::zero()) & !(z2 <= gate2);
+        }
+        out
     }
 
     /// The statistics after a step with innovations `e`, `c = e / s` and variances `s` in the

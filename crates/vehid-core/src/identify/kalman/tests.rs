@@ -893,3 +893,37 @@ fn a_run_time_prior_per_row_is_checked_alike_with_and_without_a_prior_mean() {
         assert_eq!(ea.as_slice(), e.as_slice());
     }
 }
+
+/// Mode rows under the outlier gate (Python's default) runs the plain update and sends a
+/// sample beyond the gate to the general one (`lanes::PLAIN`, `RowLanes::beyond_gate`): it
+/// takes and leaves out exactly the samples the general mode does, bit for bit. The general
+/// mode is forced by a Huber constant no residual reaches (`huber = 1e150`: it then weights
+/// nothing down, and its gate decisions are the same test on the same values).
+#[test]
+fn the_gate_in_the_plain_mode_equals_the_general_mode_bit_for_bit() {
+    let (data, _) = three_rows_with_outliers(91, 3000);
+    for rows in [vec![1usize], vec![1, 3], vec![0, 1, 3]] {
+        let k = rows.len();
+        let spec = |huber: f64| KalmanSpec {
+            rows: rows.clone(),
+            p0: Prior::PerRow(vec![10.0; k]),
+            theta0: None,
+            r: vec![0.04; k],
+            mode: Mode::Rows,
+            opts: KalmanOptions { gate: 4.0, huber, ..Default::default() },
+        };
+        let mut plain = boxed_kalman::<f64, 4>(&spec(0.0)).unwrap();
+        let mut general = boxed_kalman::<f64, 4>(&spec(1e150)).unwrap();
+        let (mut e0, mut e1) = (vec![0.0; k], vec![0.0; k]);
+        for (n, (x, z)) in data.iter().enumerate() {
+            plain.update_into(x.as_slice(), z.as_slice(), &[], &mut e0).unwrap();
+            general.update_into(x.as_slice(), z.as_slice(), &[], &mut e1).unwrap();
+            let same = e0.iter().zip(&e1).all(|(a, b)| a.to_bits() == b.to_bits());
+            assert!(same, "rows {rows:?}, sample {n}: innovations {e0:?} against {e1:?}");
+        }
+        assert_same_identifier(plain.as_ref(), general.as_ref(), 0.0, &format!("rows {rows:?}"));
+        let mut gated = vec![0u64; k];
+        plain.gated_into(&mut gated).unwrap();
+        assert!(gated.iter().any(|&g| g >= 40), "rows {rows:?}: the outliers are gated ({gated:?})");
+    }
+}

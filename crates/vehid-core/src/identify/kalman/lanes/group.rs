@@ -89,15 +89,14 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
     }
 
     fn refresh(&mut self) {
-        let standard = self.form == CovarianceForm::Standard
-            && !self.start
-            && !self.any_r_zero
-            && self.gate == T::zero()
-            && self.huber == T::zero();
+        // The outlier gate alone keeps the plain mode: its plan tests the gate and sends a
+        // sample beyond it to the general path (`plan`, `beyond_gate`).
+        let standard =
+            self.form == CovarianceForm::Standard && !self.start && !self.any_r_zero && self.huber == T::zero();
         let exponential = !self.directional && self.drift == T::zero();
         self.mode = match (standard, self.tracks(), exponential) {
             (true, false, _) => PLAIN,
-            (true, true, true) => FORGET,
+            (true, true, true) if self.gate == T::zero() => FORGET,
             _ => GENERAL,
         };
         let inv = T::one() / self.lambda;
@@ -256,6 +255,11 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
         // that steps needs 0 < s < inf; r/s below √ε makes its downdate risky. Either marks
         // the lane's step check with a NaN, so that one test of the steps refuses the plan:
         // `check` then names the cause, or finds only risky downdates that stay definite.
+        // The plain mode under the outlier gate: a lane beyond it marks the plan like a risky
+        // step, so that `settle` plans the sample again in the general mode, which leaves it
+        // out (the same test, `guards::screen`, on the same values).
+        let beyond =
+            if const { MODE == PLAIN } && self.gate > T::zero() { self.beyond_gate(ek, s) } else { [false; L] };
         let rk = super::super::guards::risky::<T>();
         let mut w = [T::zero(); L];
         let mut c = [T::zero(); L];
@@ -265,7 +269,7 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
             let step = go[k] != T::zero();
             let fine = (s[k] > T::zero()) & (s[k] <= T::biggest());
             let risky = (reff[k] > T::zero()) & (reff[k] < rk * s[k]);
-            flag[k] = if step & (risky | !fine) { T::of(f64::NAN) } else { T::zero() };
+            flag[k] = if step & (risky | !fine | beyond[k]) { T::of(f64::NAN) } else { T::zero() };
             w[k] = if step { inv } else { T::zero() };
             c[k] = if step { ek[k] * inv } else { T::zero() };
         }
