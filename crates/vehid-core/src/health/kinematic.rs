@@ -141,8 +141,9 @@ impl<T: Real> DeflectionFilter<T> {
 /// variance.
 ///
 /// # Errors
-/// [`Error::InvalidArgument`] (`bias_walk`) when the recursion does not settle or its gain is
-/// not finite.
+/// [`Error::InvalidArgument`] (`dt`) when the recursion does not settle or its gain is not
+/// finite: with positive noise levels that happens only for sample intervals far below any
+/// logger's (under about 10⁻⁷ s), so the interval is what the message names.
 fn settle<const C: usize>(
     p0: SMatrix<f64, 3, 3>,
     step: impl Fn(&SMatrix<f64, 3, 3>) -> Option<(SMatrix<f64, 3, 3>, SMatrix<f64, 3, C>, f64)>,
@@ -160,8 +161,9 @@ fn settle<const C: usize>(
         }
     }
     Err(Error::InvalidArgument {
-        arg: "bias_walk",
-        expected: "noise levels for which the deflection filter's gain settles (a positive bias_walk)",
+        arg: "dt",
+        expected: "a sample interval for which the deflection filter's gain settles with these noise levels (in \
+                   seconds: 0.005 for 200 Hz; intervals under about 1e-7 s do not settle)",
     })
 }
 

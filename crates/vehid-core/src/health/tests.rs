@@ -501,3 +501,21 @@ fn a_monitor_saved_during_a_long_stuck_channel_restores() {
     }
     assert_eq!(back, mon);
 }
+
+/// A sample interval too small for the kinematic filter's gain to settle is refused naming
+/// `dt` (the user's option), not `bias_walk` (a constant the user never set; issue 33 item 8,
+/// `vehid monitor --dt 1e-9`); 10⁻⁷ s still works.
+#[test]
+fn a_sample_interval_the_filter_cannot_settle_at_is_named_as_dt() {
+    let car = QuarterCar::<f64>::passenger();
+    for dt in [1e-9, 1e-12, 1e-300] {
+        match HealthMonitor::new(HealthConfig::new(dt, car)) {
+            Err(Error::InvalidArgument { arg, expected }) => {
+                assert_eq!(arg, "dt", "dt {dt}: {expected}");
+                assert!(expected.contains("sample interval"), "{expected}");
+            }
+            other => panic!("dt {dt}: {other:?}"),
+        }
+    }
+    assert!(HealthMonitor::new(HealthConfig::new(1e-7, car)).is_ok());
+}
