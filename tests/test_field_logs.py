@@ -775,6 +775,36 @@ def test_the_accelerometers_noise_is_estimated_from_the_data(half: bool, factor:
     assert got["deflection"][1] == "from the data" if factor > 1.25 else got["deflection"][1].startswith("the default")
 
 
+@pytest.mark.parametrize("factor,seed", [(0.3, 7321), (3.0, 7322)])
+def test_inspect_shows_the_sensor_noise_estimated_from_the_data(factor: float, seed: int, tmp_path: Path,
+                                                                capsys: pytest.CaptureFixture[str]) -> None:
+    # vehid inspect gives each sensor's noise from the data beside the monitor's default, marked
+    # "used" where the monitor takes it (over 1.25 times the default): the figures the monitor's
+    # summary gives, the accelerometers' within 20 % of the simulation's (the deflection's too at
+    # 3 times the defaults; at 0.3 times its spectrum's floor is the road's, not the sensor's).
+    path = tmp_path / "drive.csv"
+    truth = noisy_drive(path, False, factor, seed, seconds=150.0)
+    capsys.readouterr()
+    assert cli.main(["inspect", str(path)]) == 0
+    out = capsys.readouterr().out
+    line = next(x for x in out.splitlines() if "sensor noise per sample, estimated from the data" in x)
+    got = {name: (value, unit, default, used) for name, value, unit, default, used in
+           re.findall(r"(a_body|a_wheel|deflection) ([0-9.e+-]+) (m/s\^2|mm) \(default ([0-9.e+-]+)(?: mm)?(: used)?\)",
+                      line)}
+    assert set(got) == {"a_body", "a_wheel", "deflection"}, line
+    _, err = events(capsys, [str(path), "--model", "passenger"])
+    summary = summary_noise(err)
+    for name, (value, unit, default, used) in got.items():
+        si = 1e-3 if unit == "mm" else 1.0
+        assert float(default) * si == NOISE_DEFAULTS[name], line
+        assert bool(used) == (factor > 1.25), line
+        if name != "deflection" or factor > 1.25:
+            assert abs(float(value) * si / truth[name] - 1) < 0.2, (name, line)
+        monitor_value, origin = summary[name]
+        shown = f"{monitor_value / si:.3g}" if origin == "from the data" else origin.split("the data: ")[1].split()[0]
+        assert shown == value, (name, line, err)  # the monitor's own figure
+
+
 def test_the_accelerometers_noise_against_scipys_welch_where_it_is_the_only_signal() -> None:
     # Independent check of the estimator's scale (the periodogram's normalization, the Whittle
     # level): with the car at rest (zero deflection), the body equation's residual is the body

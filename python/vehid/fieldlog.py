@@ -36,8 +36,8 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python < 3.11
     import tomli as tomllib
 
-__all__ = ["Aligned", "ChannelMap", "ChannelSpec", "Log", "Series", "accelerometer_noise", "align", "car_check",
-           "deflection_noise",
+__all__ = ["Aligned", "ChannelMap", "ChannelSpec", "Log", "Series", "accelerometer_noise", "accelerometer_noises",
+           "align", "car_check", "deflection_noise", "deflection_noises",
            "grid_interval", "is_bag", "is_channel_map", "load_channel_map", "read_log", "unit_of", "BAG_SUFFIXES"]
 
 #: File suffixes read as ROS bags (a folder is read as a rosbag2 bag too).
@@ -583,8 +583,15 @@ def car_check(out: Aligned, k2m: float, bm: float, car: str) -> None:
                          "or --car M=...,k2=...,b=...")
 
 
-#: The health monitor's default deflection noise, m per sample (``SensorNoise::default``).
-DEFAULT_DEFLECTION_NOISE = 0.3e-3
+#: The health monitor's default sensor noise per sample (``SensorNoise::default``): m/s^2,
+#: m/s^2, m.
+DEFAULT_NOISE = {"a_body": 0.02, "a_wheel": 0.1, "deflection": 0.3e-3}
+#: The health monitor's default deflection noise, m per sample.
+DEFAULT_DEFLECTION_NOISE = DEFAULT_NOISE["deflection"]
+#: An undeclared sensor's noise estimated from the log is given to the monitor when over this
+#: many times the default: a sensor noisier than assumed misleads the monitor, a quieter one
+#: costs a little sensitivity (and a log at the defaults is monitored as before).
+NOISE_USED_ABOVE = 1.25
 
 
 def deflection_noise(log: Log, dt: float) -> float:
@@ -593,6 +600,16 @@ def deflection_noise(log: Log, dt: float) -> float:
     samples; where the grid is slower, scaled by the anti-aliasing filter's share of the
     band, ``sqrt(0.9 h / dt)``); the largest over the axles; NaN when too short."""
     out = math.nan
+    for sigma in deflection_noises(log, dt).values():
+        if math.isfinite(sigma) and not sigma <= out:
+            out = sigma
+    return out
+
+
+def deflection_noises(log: Log, dt: float) -> Dict[str, float]:
+    """Each deflection channel's white noise, as :func:`deflection_noise` finds it:
+    ``{"deflection": m}`` (the half car: ``deflection_f``, ``deflection_r``); NaN when too short."""
+    out: Dict[str, float] = {}
     for s in log.series:
         if not s.channel.startswith("deflection"):
             continue
@@ -600,8 +617,7 @@ def deflection_noise(log: Log, dt: float) -> float:
         sigma = _align.white_noise(s.t, s.v, h)
         if h < dt:
             sigma *= math.sqrt(0.9 * h / dt)
-        if math.isfinite(sigma) and not sigma <= out:
-            out = sigma
+        out[s.channel] = sigma
     return out
 
 
@@ -621,6 +637,19 @@ def accelerometer_noise(al: Aligned, log: Log) -> Dict[str, float]:
     whose deflection's delay could not be estimated (its deflection does not follow ``a_body -
     a_wheel``: the relations do not hold)."""
     out = {"a_body": math.nan, "a_wheel": math.nan}
+    for name, v in accelerometer_noises(al).items():
+        k = name[:-2] if name.endswith(("_f", "_r")) else name  # a_body_f -> a_body
+        if math.isfinite(v) and not v <= out[k]:
+            out[k] = v
+    return out
+
+
+def accelerometer_noises(al: Aligned) -> Dict[str, float]:
+    """Each accelerometer's white noise, as :func:`accelerometer_noise` finds it, by channel:
+    ``{"a_body": ..., "a_wheel": ...}`` (the half car: ``a_body_f``, ``a_wheel_f``, ``a_body_r``,
+    ``a_wheel_r``); NaN where it cannot be estimated; no entry for an axle whose deflection does
+    not follow ``a_body - a_wheel``."""
+    out: Dict[str, float] = {}
     # an axle whose deflection does not follow a_body - a_wheel (its delay could not be estimated) has
     # no relation to take the signal out with
     axles = [a for a in ("", "_f", "_r") if all(f"{c}{a}" in al.names for c in ("a_body", "a_wheel", "deflection"))
@@ -637,7 +666,5 @@ def accelerometer_noise(al: Aligned, log: Log) -> Dict[str, float]:
         rest = [b for b in axles if b != a]
         est = _align.sensor_noise(col[f"a_body{a}"], col[f"a_wheel{a}"], col[f"deflection{a}"], al.dt,
                                   [sd[a], *(sd[b] for b in rest)], [col[f"deflection{b}"] for b in rest])
-        for k, v in (("a_body", est.a_body), ("a_wheel", est.a_wheel)):
-            if math.isfinite(v) and not v <= out[k]:
-                out[k] = v
+        out[f"a_body{a}"], out[f"a_wheel{a}"] = est.a_body, est.a_wheel
     return out

@@ -222,7 +222,33 @@ def _channels_found(args: argparse.Namespace, cmap: Optional[fieldlog.ChannelMap
             print(f"  clock: {name} is {1e3 * abs(delay):.2f} ms {'late' if delay >= 0 else 'early'} against {how}",
                   file=out)
     print(f"  on the monitor's grid: {len(al.y):,} samples at {1 / al.dt:g} Hz, {al.missing} missing", file=out)
+    print(f"  {noise_line({**fieldlog.accelerometer_noises(al), **fieldlog.deflection_noises(log, al.dt)})}", file=out)
     return True
+
+
+def noise_line(found: Dict[str, float]) -> str:
+    """The sensors' white noise per grid sample estimated from the data (``{channel: SI}``,
+    NaN: not estimated), each beside the monitor's default, as ``vehid monitor`` would take it.
+
+    >>> noise_line({"a_body": 0.0613, "a_wheel": 0.0964, "deflection": float("nan")})
+    ... # doctest: +NORMALIZE_WHITESPACE
+    'sensor noise per sample, estimated from the data (vehid monitor uses an estimate over 1.25 times its default
+     unless --noise declares it): a_body 0.0613 m/s^2 (default 0.02: used), a_wheel 0.0964 m/s^2 (default 0.1),
+     deflection not estimated (default 0.3 mm)'
+    """
+    parts = []
+    kinds = ("a_body", "a_wheel", "deflection")
+    base = {name: name[:-2] if name.endswith(("_f", "_r")) else name for name in found}  # a_body_f -> a_body
+    for name in sorted(found, key=lambda c: (c[len(base[c]):], kinds.index(base[c]))):
+        value, default = found[name], fieldlog.DEFAULT_NOISE[base[name]]
+        mm = base[name] == "deflection"
+        shown = f"{1e3 * value:.3g} mm" if mm else f"{value:.3g} m/s^2"
+        shown_default = f"{1e3 * default:g} mm" if mm else f"{default:g}"
+        used = ": used" if value > fieldlog.NOISE_USED_ABOVE * default else ""
+        parts.append(f"{name} {shown} (default {shown_default}{used})" if math.isfinite(value)
+                     else f"{name} not estimated (default {shown_default})")
+    return (f"sensor noise per sample, estimated from the data (vehid monitor uses an estimate over "
+            f"{fieldlog.NOISE_USED_ABOVE:g} times its default unless --noise declares it): " + ", ".join(parts))
 
 
 def _inspect_bag(args: argparse.Namespace, out: IO[str]) -> None:

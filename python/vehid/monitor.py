@@ -553,12 +553,10 @@ def parse_noise(text: str) -> Dict[str, float]:
     return out
 
 
-#: The monitor's default sensor noise per sample (``SensorNoise::default``): m/s^2, m/s^2, m.
-DEFAULT_NOISE = {"a_body": 0.02, "a_wheel": 0.1, "deflection": 0.3e-3}
-#: An undeclared sensor's noise estimated from the log is given to the monitor when over this
-#: many times the default: a sensor noisier than assumed misleads the monitor, a quieter one
-#: costs a little sensitivity (and a log at the defaults is monitored as before).
-NOISE_USED_ABOVE = 1.25
+#: The monitor's default sensor noise per sample, and the factor over it from which an
+#: estimate is used (kept in :mod:`vehid.fieldlog`, which ``vehid inspect`` shares).
+DEFAULT_NOISE = fieldlog.DEFAULT_NOISE
+NOISE_USED_ABOVE = fieldlog.NOISE_USED_ABOVE
 
 
 def noise_words(noise: Dict[str, float], origin: Dict[str, str]) -> str:
