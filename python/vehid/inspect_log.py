@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from . import align as _align
 from . import fieldlog
 from .bags import MESSAGE_FIELDS, first_line, open_bag, stamp_ns
-from .channels import SENSOR_COLUMNS
+from .channels import HALF_SENSOR_COLUMNS, SENSOR_COLUMNS
 from .io import STANDARD_GRAVITY, UNITS, TableError, normalize, open_table, parse_column_map, si_factor
 
 __all__ = ["DESCRIPTION", "add_arguments", "cmd_inspect", "guess_channel"]
@@ -98,15 +98,15 @@ def cmd_inspect(args: argparse.Namespace) -> int:
     return 0
 
 
-def _channels() -> Sequence[Any]:
-    return SENSOR_COLUMNS["realistic"]
+def _channels(half: bool = False) -> Sequence[Any]:
+    return (HALF_SENSOR_COLUMNS if half else SENSOR_COLUMNS)["realistic"]
 
 
 def _cmap(args: argparse.Namespace) -> Tuple[Optional[fieldlog.ChannelMap], Dict[str, str]]:
     cmap, pairs = None, []
     for text in args.columns or []:
         if fieldlog.is_channel_map(text):
-            cmap = fieldlog.load_channel_map(text, [c.name for c in _channels()])
+            cmap = fieldlog.load_channel_map(text, [c.name for c in (*_channels(), *_channels(True))])
         else:
             pairs.append(text)
     return cmap, parse_column_map(pairs)
@@ -204,9 +204,19 @@ def _inspect_table(args: argparse.Namespace, out: IO[str]) -> None:
 
 def _channels_found(args: argparse.Namespace, cmap: Optional[fieldlog.ChannelMap], pairs: Dict[str, str],
                     out: IO[str]) -> bool:
-    """With the three channels found: the grid, the deflection's delay and sign (True)."""
+    """With the quarter car's three channels found (or the half car's six): the grid, the
+    deflections' delays and signs, the sensors' noise (True)."""
+    half = cmap is not None and any(c.endswith(("_f", "_r")) for c in cmap.channels)
     try:
-        log = fieldlog.read_log(args.file, _channels(), cmap, pairs, args.delimiter, None)
+        try:
+            log = fieldlog.read_log(args.file, _channels(half), cmap, pairs, args.delimiter, None)
+        except TableError:
+            if half or cmap is not None:
+                raise
+            try:  # a half car's log (a_body_f, ..., deflection_r)?
+                log = fieldlog.read_log(args.file, _channels(True), cmap, pairs, args.delimiter, None)
+            except TableError:
+                log = fieldlog.read_log(args.file, _channels(), cmap, pairs, args.delimiter, None)  # its message
         al = fieldlog.align(log, None, cmap.channels if cmap else None, estimate=True)
     except TableError as e:
         print(f"  vehid channels: not all found or not usable ({e})", file=out)
