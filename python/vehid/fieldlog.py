@@ -37,7 +37,7 @@ else:  # pragma: no cover - Python < 3.11
     import tomli as tomllib
 
 __all__ = ["Aligned", "ChannelMap", "ChannelSpec", "Log", "Series", "accelerometer_noise", "accelerometer_noises",
-           "align", "car_check", "deflection_noise", "deflection_noises",
+           "align", "car_check", "deflection_noise", "deflection_noises", "long_gap_words", "shorten_gaps",
            "grid_interval", "is_bag", "is_channel_map", "load_channel_map", "read_log", "unit_of", "BAG_SUFFIXES"]
 
 #: File suffixes read as ROS bags (a folder is read as a rosbag2 bag too).
@@ -289,6 +289,62 @@ class Aligned:
     missing: int = 0
     #: The delay the data say, per deflection (s), whether removed or not.
     estimated: Dict[str, float] = field(default_factory=dict)
+    #: Long gaps shortened to :data:`GAP_CAP` (:func:`shorten_gaps`): (the grid's time where the
+    #: samples resume, s; the seconds taken out there).
+    skips: List[Tuple[float, float]] = field(default_factory=list)
+
+
+#: Longest gap of the log (no channel has a sample) put on the grid as missing samples, s (as
+#: ``vehid.fleet``'s ``GAP_CAP``); a longer gap (a parked car, a log of several drives) is
+#: shortened to this: the monitor has long restarted its filters by then (it keeps its
+#: reference and its CUSUMs), and the grid, so memory and time, stays bounded by the samples
+#: logged, not by the gaps' length.
+GAP_CAP = 60.0
+
+
+def long_gap_words(seconds: float) -> str:
+    """What a gap over :data:`GAP_CAP` becomes, for the note that names its place.
+
+    >>> long_gap_words(5011200.0)  # doctest: +NORMALIZE_WHITESPACE
+    "a gap of 5.0112e+06 s (58 days) in the time column: fed to the monitor as 60 s of missing
+     samples (it restarts its filters after them and keeps its reference; the times after the gap
+     stay on the log's clock)"
+    """
+    span = (f" ({seconds / 86400:.3g} days)" if seconds >= 86400 else
+            f" ({seconds / 3600:.3g} h)" if seconds >= 3600 else f" ({seconds / 60:.3g} min)")
+    return (f"a gap of {seconds:.6g} s{span} in the time column: fed to the monitor as {GAP_CAP:g} s of missing "
+            "samples (it restarts its filters after them and keeps its reference; the times after the gap stay on "
+            "the log's clock)")
+
+
+def shorten_gaps(log: Log, step: float) -> List[Tuple[float, float, str]]:
+    """Shortens each gap of ``log`` that every channel shares, over :data:`GAP_CAP` s, to
+    ``round(GAP_CAP / step) + 1`` grid intervals (the stretch ``vehid monitor`` feeds a long gap
+    of a streamed table as): the times after it move back by the rest (in place; channels that
+    share one clock keep sharing it). Returns, per gap: the time where the samples resume (on
+    the shortened clock), the seconds taken out, and where it is (the line, for tables)."""
+    merged = np.unique(np.concatenate([s.t for s in log.series]))
+    cap = int(round(GAP_CAP / step))
+    d = np.diff(merged)
+    long = np.flatnonzero(np.rint(np.minimum(d / step, 2.0**52)) > cap + 1)
+    if not len(long):
+        return []
+    ends = merged[long + 1]
+    cut = d[long] - (cap + 1) * step
+    before = np.concatenate([[0.0], np.cumsum(cut)])
+    out = []
+    s0 = log.series[0]
+    for b, c, done in zip(ends.tolist(), cut.tolist(), before[:-1].tolist()):
+        i = int(np.searchsorted(s0.t, b))
+        where = (f"{log.source}, line {int(s0.lines[i])}" if s0.lines is not None and i < len(s0.lines)
+                 and s0.t[i] == b else f"{log.source}, at {b:.6g} s")
+        out.append((b - done - c, c, where))
+    shifted: Dict[int, NDArray[np.float64]] = {}
+    for s in log.series:
+        if id(s.t) not in shifted:
+            shifted[id(s.t)] = np.asarray(s.t - before[np.searchsorted(ends, s.t, side="right")], dtype=np.float64)
+        s.t = shifted[id(s.t)]
+    return out
 
 
 def grid_interval(log: Log, dt: Optional[float]) -> float:
@@ -337,6 +393,9 @@ def align(log: Log, dt: Optional[float], specs: Optional[Mapping[str, ChannelSpe
             _gravity(s, specs.get(s.channel), notes)
     step = grid_interval(log, dt)
     rates = {s.channel: _align.nominal_interval(s.t) for s in log.series}
+    skips = shorten_gaps(log, step)
+    for _, cut, where in skips:
+        notes.append(f"{where}: {long_gap_words(cut + (round(GAP_CAP / step) + 1) * step)}")
     t0 = max(float(s.t[0]) for s in log.series)
     t1 = min(float(s.t[-1]) for s in log.series)
     if t1 <= t0:
@@ -345,6 +404,10 @@ def align(log: Log, dt: Optional[float], specs: Optional[Mapping[str, ChannelSpe
     n = int(math.floor((t1 - t0) / step + 1e-6)) + 1
     inputs = max(len(s.t) for s in log.series)
     if n > 20 * inputs + 1000:
+        if skips:  # so many long gaps that even shortened they outweigh the samples
+            raise TableError(f"{log.source}: {len(skips):,} gaps over {GAP_CAP:g} s (the first at {skips[0][2]}), "
+                             f"each put on the grid as {GAP_CAP:g} s of missing samples, give {n:,} samples on the "
+                             f"grid from {inputs:,} in the log: split the log at its gaps")
         s = max(log.series, key=lambda x: float(np.max(np.diff(x.t))) if len(x.t) > 1 else 0.0)
         i = int(np.argmax(np.diff(s.t)))
         jump = float(s.t[i + 1] - s.t[i])
@@ -365,7 +428,8 @@ def align(log: Log, dt: Optional[float], specs: Optional[Mapping[str, ChannelSpe
         if not shared or any(abs(r - step) > 1e-9 for r in rates.values()):
             notes.append("resampled to " + f"{1 / step:g} Hz (" + ", ".join(f"{c} {1 / r:g} Hz" for c, r in
                                                                          rates.items()) + ")")
-    out = Aligned(t0, step, y, [s.channel for s in log.series], rates, notes=notes)
+    out = Aligned(t0, step, y, [s.channel for s in log.series], rates, notes=notes,
+                  skips=[(at, cut) for at, cut, _ in skips])
     for axle in ("", "_f", "_r"):
         names = [f"a_body{axle}", f"a_wheel{axle}", f"deflection{axle}"]
         if all(c in out.names for c in names):
