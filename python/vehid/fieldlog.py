@@ -302,6 +302,12 @@ class Aligned:
 GAP_CAP = 60.0
 
 
+def _line(log: Log, number: int) -> str:
+    """A sample's place in a table: ``"drive.csv, line 12"`` (a CSV's line) or ``"drive.parquet,
+    row 11"`` (a Parquet file's 1-based row), as :meth:`vehid.io.Table.where` words it."""
+    return f"{log.source}, {'row' if log.kind == 'parquet' else 'line'} {number}"
+
+
 def long_gap_words(seconds: float) -> str:
     """What a gap over :data:`GAP_CAP` becomes, for the note that names its place.
 
@@ -336,8 +342,8 @@ def shorten_gaps(log: Log, step: float) -> List[Tuple[float, float, str]]:
     s0 = log.series[0]
     for b, c, done in zip(ends.tolist(), cut.tolist(), before[:-1].tolist()):
         i = int(np.searchsorted(s0.t, b))
-        where = (f"{log.source}, line {int(s0.lines[i])}" if s0.lines is not None and i < len(s0.lines)
-                 and s0.t[i] == b else f"{log.source}, at {b:.6g} s")
+        where = (_line(log, int(s0.lines[i])) if s0.lines is not None and i < len(s0.lines) and s0.t[i] == b
+                 else f"{log.source}, at {b:.6g} s")
         out.append((b - done - c, c, where))
     shifted: Dict[int, NDArray[np.float64]] = {}
     for s in log.series:
@@ -412,7 +418,7 @@ def align(log: Log, dt: Optional[float], specs: Optional[Mapping[str, ChannelSpe
         i = int(np.argmax(np.diff(s.t)))
         jump = float(s.t[i + 1] - s.t[i])
         if jump > 1000 * step:  # a clock that jumps, not a rate
-            where = f"{log.source}, line {int(s.lines[i + 1])}" if s.lines is not None else f"{s.source}"
+            where = _line(log, int(s.lines[i + 1])) if s.lines is not None else f"{s.source}"
             raise TableError(f"{where}: the time jumps {jump:.6g} s forward ({s.channel}): a clock jump or a log "
                              "of several drives: split the log there")
         raise TableError(f"--dt {step:g}: {n:,} samples on the grid from {inputs:,} in the log: give the log's "
@@ -460,7 +466,7 @@ def _placed(log: Log, step: float, t0: float, n: int) -> NDArray[np.float64]:
     dk = np.diff(k)
     if len(dk) and not (dk >= 1).all():
         i = int(np.argmin(dk >= 1))
-        where = f"{log.source}, line {int(s0.lines[i + 1])}" if s0.lines is not None else log.source
+        where = _line(log, int(s0.lines[i + 1])) if s0.lines is not None else log.source
         raise TableError(f"{where}: the sample interval {float(s0.t[i + 1] - s0.t[i]):.6g} s is under half the "
                          f"sample interval {step:.6g} s: the monitor needs a fixed rate (resample the log, or give "
                          "--dt)")

@@ -445,6 +445,10 @@ def match_columns(
 # --- reading --------------------------------------------------------------------------
 
 
+#: How the core words the refusal of one sample of those handed over (its index among them).
+_REJECTED = re.compile(r"sample (\d+) was rejected \((.*)\); the (identifier|monitor) is unchanged", re.S)
+
+
 @dataclass
 class Chunk:
     """Consecutive samples: ``data`` (samples, columns) float64, all finite, and ``lines``
@@ -478,6 +482,21 @@ class Table:
     def where(self, line: int) -> str:
         """``"run.csv, line 12"``."""
         return f"{self.source}, {self.unit} {line}"
+
+    def rejected(self, message: str, lines: NDArray[np.int64]) -> str:
+        """The core's refusal of one sample of a chunk whose samples are on ``lines`` (as
+        :class:`Chunk` gives them), with the sample's place in the file instead of its index
+        in the chunk; any other ``message`` as it is.
+
+        >>> t = Table(); t.source = "run.csv"
+        >>> t.rejected("sample 2 was rejected (too large); the identifier is unchanged (none of the 4 "
+        ...            "samples were applied)", np.array([5, 6, 9, 10]))
+        'run.csv, line 9: the identifier rejected this sample (too large)'
+        """
+        m = _REJECTED.match(message)
+        if m is None or int(m.group(1)) >= len(lines):
+            return message
+        return f"{self.where(int(lines[int(m.group(1))]))}: the {m.group(3)} rejected this sample ({m.group(2)})"
 
     def chunks(
         self, columns: Sequence[int], labels: Sequence[str], rows: int, missing: bool = False,
