@@ -394,6 +394,37 @@ def test_a_clock_jump_is_one_line(jump: float, said: str, tmp_path: Path, capsys
     assert "topic /h" in msg and said in msg and "stamp = \"log\"" in msg, msg
 
 
+def test_a_revolute_joint_is_read_with_its_travel_per_radian(five: Dict[str, List[str]], damper: vehid.Run,
+                                                              tmp_path: Path,
+                                                              capsys: pytest.CaptureFixture[str]) -> None:
+    # The suspension's JointState from a revolute joint: its position is the arm's angle, the
+    # travel / 0.35 m per rad. Declared (unit = "rad", scale = 0.35) it gives the prismatic bag's
+    # event (the same sample, the same new value); in degrees too. Declared without its scale,
+    # refused in one line naming the fix; undeclared (the angle read as m: 2.9 times the travel),
+    # the kinematic check refuses it naming the revolute joint.
+    R = 0.35
+    path = F.bag(tmp_path / "revolute", damper, joint_scale=R)
+    ref, _ = events(capsys, [*five["mcap"], "--model", "passenger"])
+    for unit in ("rad", "deg"):  # scale: m of travel per rad either way
+        cmap = tmp_path / f"{unit}.toml"
+        cmap.write_text(F.BAG_MAP.replace('unit = "m"', f'unit = "{unit}"\nscale = {R!r}'))
+        if unit == "deg":  # the bag's angle in degrees
+            path = F.bag(tmp_path / "revolute_deg", damper, joint_scale=R * math.pi / 180)
+        got, err = events(capsys, [str(path), "--columns", str(cmap), "--model", "passenger"])
+        assert [e["parameter"] for e in got] == [e["parameter"] for e in ref] == ["b"], err
+        assert got[0]["t"] == pytest.approx(ref[0]["t"], abs=1e-9), (got, ref)
+        assert got[0]["after"] == pytest.approx(ref[0]["after"], rel=1e-6), (got, ref)
+    cmap = tmp_path / "noscale.toml"
+    cmap.write_text(F.BAG_MAP.replace('unit = "m"', 'unit = "rad"'))
+    msg = error(capsys, ["monitor", str(path), "--columns", str(cmap), "--model", "passenger"])
+    assert "topic /suspension/joint_states" in msg and "is an angle (a revolute joint?)" in msg, msg
+    assert "give scale = R in its channel map section, the wheel's travel per radian of the joint in m" in msg, msg
+    cmap.write_text(F.BAG_MAP.replace('unit = "m"\n', ""))
+    msg = error(capsys, ["monitor", str(tmp_path / "revolute"), "--columns", str(cmap), "--model", "passenger"])
+    assert "not about 1: the units disagree" in msg and "a revolute joint's angle read as m? declare unit = " \
+           "\"rad\" and scale = the travel per rad" in msg, msg
+
+
 def test_a_channel_map_is_checked_on_its_own() -> None:
     with pytest.raises(TableError, match=r"\[a_body\] needs one of topic"):
         fieldlog._spec("a_body", {"field": "x"}, "m")
@@ -425,6 +456,7 @@ def test_inspect_a_bag_lists_topics_rates_and_a_channel_map(five: Dict[str, List
     assert "/body/imu: sensor_msgs/msg/Imu, 28,000 messages" in out and "400 Hz" in out, out
     assert "/suspension/joint_states: sensor_msgs/msg/JointState, 7,000 messages" in out and "100 Hz" in out
     assert "logged 2.5 ms after its stamp" in out  # the writer's lags are uniform in 1..4 ms
+    assert "a revolute joint's angle: unit = \"rad\" and scale = its travel in m per rad" in out, out
     proposed = out[out.index("[a_body]"):]
     (tmp_path / "proposed.toml").write_text(proposed)
     evs, _ = events(capsys, [five["bag folder"][0], "--columns", str(tmp_path / "proposed.toml"),

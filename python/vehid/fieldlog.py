@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import align as _align
-from .channels import ChannelMap, ChannelSpec, Log, Series, unit_of
+from .channels import ANGLE_UNITS, ChannelMap, ChannelSpec, Log, Series, unit_of
 from .io import STANDARD_GRAVITY, Column, TableError, match_columns, normalize, open_table, si_factor
 
 if sys.version_info >= (3, 11):
@@ -159,7 +159,7 @@ def _spec(name: str, section: Mapping[str, Any], where: str) -> ChannelSpec:
     if scale is not None:
         if scale == 0:
             raise TableError(f"{where}: [{name}] scale = 0: expected a non-zero factor")
-        spec.scale = scale
+        spec.scale, spec.scale_given = scale, True
     spec.delay = _number(section, "delay", where, name)
     return spec
 
@@ -501,8 +501,12 @@ def _deflection(out: Aligned, log: Log, names: List[str], specs: Mapping[str, Ch
         return
     slope = abs(est.slope)
     if not 0.5 < slope < 2.0:
+        joint = "JointState" in _source(log, defl) and not any(s.unit.startswith(tuple(ANGLE_UNITS))
+                                                                for s in log.series if s.channel == defl)
+        revolute = ("; or a revolute joint's angle read as m? declare unit = \"rad\" and scale = the travel per "
+                    "rad" if joint else "")
         raise TableError(f"{defl} ({_source(log, defl)}): its second derivative is {slope:.3g} times "
-                         f"{names[0]} - {names[1]}, not about 1: the units disagree ({_unit_guess(slope)})")
+                         f"{names[0]} - {names[1]}, not about 1: the units disagree ({_unit_guess(slope)}{revolute})")
     if est.corr < 0:
         if spec is not None and spec.sign_given:
             raise TableError(f"{defl} ({_source(log, defl)}): sign = {spec.sign:g} in the channel map, but its "

@@ -347,7 +347,8 @@ def _topic(reader: Any, conn: Any, out: IO[str]) -> Dict[str, Tuple[str, str, Op
         line += "; linear_acceleration (m/s^2, gravity included: REP 145) -> a_body or a_wheel"
     elif typ == "sensor_msgs/msg/JointState" and first is not None:
         names = list(first.name)
-        line += f"; joints {', '.join(names[:8])}: position -> deflection (m for a prismatic joint)"
+        line += (f"; joints {', '.join(names[:8])}: position -> deflection (m for a prismatic joint; a revolute "
+                 "joint's angle: unit = \"rad\" and scale = its travel in m per rad)")
         if names:
             feeds["deflection"] = (conn.topic, "position", names[0])
     elif default is not None:
