@@ -20,6 +20,7 @@ this module reads, checks, prints and plots.
 from __future__ import annotations
 
 import argparse
+import bisect
 import datetime
 import json
 import math
@@ -217,15 +218,24 @@ class Feeder:
         #: Long gaps: (the monitor's time at which the samples resume, s; the seconds of the gap
         #: not fed, over :data:`GAP_CAP`).
         self.skipped: List[Tuple[float, float]] = []
+        #: The monitor's times where the samples resume after a long gap, and the seconds not
+        #: fed up to each (for :meth:`clock`, in order).
+        self._at: List[float] = []
+        self._not_fed: List[float] = []
 
     def clock(self, t: float) -> float:
         """The log's time of the monitor's time ``t`` (s): ``t0 + t``, plus the seconds of the
         long gaps not fed before it."""
-        return self.t0 + t + sum(s for at, s in self.skipped if t >= at - 1e-9)
+        i = bisect.bisect_right(self._at, t + 1e-9)
+        return self.t0 + t + (self._not_fed[i - 1] if i else 0.0)
 
-    def skip(self, seconds: float) -> None:
-        """A gap's ``seconds`` not fed (beyond :data:`GAP_CAP`): the times after it move on."""
-        self.skipped.append((self.mon.samples * self.mon.dt, seconds))
+    def skip(self, seconds: float, at: Optional[float] = None) -> None:
+        """A gap's ``seconds`` not fed (beyond :data:`GAP_CAP`), the samples resuming at the
+        monitor's time ``at`` (default: now): the times after it move on."""
+        at = self.mon.samples * self.mon.dt if at is None else at
+        self.skipped.append((at, seconds))
+        self._at.append(at)
+        self._not_fed.append((self._not_fed[-1] if self._not_fed else 0.0) + seconds)
 
     def feed(self, y: NDArray[np.float64]) -> None:
         self.missing += int(np.isnan(y).any(axis=1).sum())  # a sample with a missing channel is missing
@@ -509,7 +519,8 @@ def _monitor_file(args: argparse.Namespace, car: Union[QuarterCar, HalfCar], sen
             timespec="milliseconds")
         print(f"vehid: note: times are seconds from the log's start, {start}", file=sys.stderr, flush=True)
     feeder = Feeder(mon, t0, sys.stdout, args.json)
-    feeder.skipped = [(at - al.t0, cut) for at, cut in al.skips]  # the long gaps shortened on the grid
+    for at, cut in al.skips:  # the long gaps shortened on the grid
+        feeder.skip(cut, at - al.t0)
     feeder.feed(np.ascontiguousarray(al.y))
     summary(feeder, log.source, len(al.y), sys.stderr, noise_words(noise, origin) if sensors == "realistic" else "")
     if plt is not None:
