@@ -1,7 +1,8 @@
 """Every message about one sample of a file names its place in the file, never its index in
 the chunk the command read it in (issue 33 item 8): for a CSV the line number (1-based,
 counting the header and comment lines: the line an editor shows), for Parquet the 1-based
-data row. Each case puts the bad cell beyond the first chunk (the chunk made small)."""
+data row (a fleet day's row in its own file, though the day's files are read joined). Each
+case puts the bad cell beyond the first chunk (the chunk made small) or the first file."""
 
 from __future__ import annotations
 
@@ -147,3 +148,25 @@ def test_the_monitor_names_a_parquet_row_not_a_line(tmp_path: Path, capsys: pyte
     pq.write_table(pa.table(columns), path)
     msg = one_line_error(capsys, ["monitor", str(path), "--model", "passenger"])
     assert f"{path}, row {BAD + 1}: time" in msg and "does not increase" in msg, msg
+
+
+def test_a_fleet_days_bad_row_is_named_in_its_own_file(tmp_path: Path) -> None:
+    # A vehicle-day of two Parquet files is joined into one table; a time that goes back in the
+    # second file is named by that file and its own row, not the joined table's.
+    pa = pytest.importorskip("pyarrow")
+    pq = pytest.importorskip("pyarrow.parquet")
+    from vehid import fleet
+    from vehid.fleet.fold import DayError, fold
+    from vehid.fleet.layout import read_day
+
+    rng = np.random.default_rng(3)
+    t = np.arange(3000) * 0.005
+    t[BAD] = t[BAD - 2]  # back, at row BAD + 1 of the day: row BAD + 1 - 1000 of the second file
+    y = rng.normal(size=(3000, 3)) * [0.5, 2.0, 0.003]
+    files = []
+    for k, (a, b) in enumerate(((0, 1000), (1000, 3000))):
+        files.append(str(tmp_path / f"part{k}.parquet"))
+        pq.write_table(pa.table({"t": t[a:b], "a_body": y[a:b, 0], "a_wheel": y[a:b, 1], "deflection": y[a:b, 2]}),
+                       files[-1])
+    with pytest.raises(DayError, match=rf"^part1\.parquet, row {BAD + 1 - 1000}: time .* does not increase"):
+        fold(None, read_day(files), fleet.VehicleConfig())
