@@ -18,6 +18,7 @@ import pytest
 
 import vehid
 from vehid import cli, fieldlog
+from vehid import monitor as monitor_cmd
 
 DT = 0.005
 DAY = 86400.0
@@ -52,8 +53,10 @@ def test_a_58_day_gap_is_fed_as_60_s_in_bounded_time_and_memory(stdin: bool, tmp
                                                                   capsys: pytest.CaptureFixture[str],
                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
     # The case: 20,000 rows at 200 Hz, one 58-day jump of the time column after row
-    # 10,000. The monitor finishes in seconds, well under 100 MB of Python and numpy memory,
-    # says where the gap is and what it did, and counts 60 s of missing samples.
+    # 10,000 (piped: between two chunks of 10,000). The monitor finishes in seconds, well under
+    # 100 MB of Python and numpy memory, says where the gap is and what it did, and counts 60 s
+    # of missing samples.
+    monkeypatch.setattr(monitor_cmd, "CHUNK", 10_000)
     run = drive(100.0, [], seed=3)
     t = run.t.copy()
     t[10_000:] += 58 * DAY
