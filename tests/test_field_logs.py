@@ -394,6 +394,27 @@ def test_a_clock_jump_is_one_line(jump: float, said: str, tmp_path: Path, capsys
     assert "topic /h" in msg and said in msg and "stamp = \"log\"" in msg, msg
 
 
+def test_a_bag_value_that_overflows_in_si_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # 1e308 g is finite in the message and infinite in m/s^2: refused naming the topic and the
+    # message, not handed on to fail as an infinite sample at an index of the grid.
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    path = tmp_path / "big"
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as w:
+        c = w.add_connection("/acc", "std_msgs/msg/Float64", typestore=ts)
+        for k in range(100):
+            value = 1e308 if k == 60 else 0.001 * k
+            w.write(c, int(F.EPOCH * 1e9) + k * 10**7, ts.serialize_cdr(ts.types["std_msgs/msg/Float64"](data=value),
+                                                                        "std_msgs/msg/Float64"))
+    (tmp_path / "m.toml").write_text('[a_body]\ntopic = "/acc"\nunit = "g"\n[a_wheel]\ntopic = "/acc"\n'
+                                     'unit = "m/s^2"\n[deflection]\ntopic = "/acc"\nunit = "m"\n')
+    msg = error(capsys, ["monitor", str(path), "--columns", str(tmp_path / "m.toml"), "--model", "passenger"])
+    assert "topic /acc" in msg and "message 61 (in stamp order): 1e+308 times 9.80665" in msg, msg
+    assert "beyond a float's range" in msg, msg
+
+
 def test_a_revolute_joint_is_read_with_its_travel_per_radian(five: Dict[str, List[str]], damper: vehid.Run,
                                                               tmp_path: Path,
                                                               capsys: pytest.CaptureFixture[str]) -> None:

@@ -170,3 +170,41 @@ def test_a_fleet_days_bad_row_is_named_in_its_own_file(tmp_path: Path) -> None:
                        files[-1])
     with pytest.raises(DayError, match=rf"^part1\.parquet, row {BAD + 1 - 1000}: time .* does not increase"):
         fold(None, read_day(files), fleet.VehicleConfig())
+
+
+@pytest.mark.parametrize("stdin", [False, True])
+def test_a_cell_that_overflows_in_si_is_named_by_its_line(stdin: bool, tmp_path: Path,
+                                                          capsys: pytest.CaptureFixture[str],
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    # 1e308 in a column declared in g is finite in the file and infinite in m/s^2: it was handed
+    # on and refused by the monitor as "`y[0, 0]` is infinite" (its index in a 0.5 s block, with
+    # numpy's overflow warning on stderr). Now refused naming its line and column.
+    monkeypatch.setattr(fieldlog, "CHUNK", 1000)
+    monkeypatch.setattr(monitor_cmd, "CHUNK", 1000)
+    sim = vehid.Simulator(vehid.QuarterCar.passenger(), dt=0.005, road="iso8608-C", sensors="realistic", seed=2)
+    run = sim.run(3000)
+    y = run.y.copy()
+    y[:, 0] /= 9.80665
+    y[BAD, 0] = 1e308
+    path = tmp_path / "g.csv"
+    np.savetxt(path, np.column_stack([run.t, y]), delimiter=",", header="t,a_body [g],a_wheel,deflection",
+               comments="", fmt="%.9g")
+    if stdin:
+        import io
+        monkeypatch.setattr("sys.stdin", io.StringIO(path.read_text()))
+    msg = one_line_error(capsys, ["monitor", "-" if stdin else str(path), "--model", "passenger"])
+    assert (f"{'<stdin>' if stdin else path}, line {BAD + 2}, column a_body (body_acc, m/s^2): 1e+308 times 9.80665 "
+            "(its unit to SI) is beyond a float's range: drop or repair that sample") in msg, msg
+
+
+def test_identify_names_the_line_of_a_cell_that_overflows_in_si(quarter_csv: Path, tmp_path: Path,
+                                                                capsys: pytest.CaptureFixture[str],
+                                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(clitools, "CHUNK", 1000)
+    lines = quarter_csv.read_text().splitlines()
+    lines[0] = lines[0].replace("dx2,", "dx2 [g],", 1)
+    src = tmp_path / "g.csv"
+    src.write_text("\n".join(lines) + "\n")
+    path = with_cell(src, tmp_path / "big.csv", "dx2 [g]", "1e308")
+    msg = one_line_error(capsys, ["identify", str(path), "--model", "quarter"])
+    assert f"{path}, line {BAD + 2}, column " in msg and "1e+308 times 9.80665 (its unit to SI)" in msg, msg

@@ -904,7 +904,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
         recent: Tuple[NDArray[np.float64], NDArray[np.float64]] = (np.empty((0, n)), np.empty((0, n)))
         scales = np.asarray(layout.scales) if any(f != 1.0 for f in layout.scales) else None
         for chunk in table.chunks(layout.columns, layout.labels, clitools.CHUNK):
-            data = chunk.data if scales is None else chunk.data * scales  # declared units to SI
+            data = chunk.data if scales is None else table.to_si(chunk.data, scales, chunk.lines, layout.labels)
             if time is not None and layout.t is not None:
                 time.add(data[:, layout.t], chunk.lines)
             x, dx = np.ascontiguousarray(data[:, layout.x]), np.ascontiguousarray(data[:, layout.dx])

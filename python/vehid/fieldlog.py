@@ -256,8 +256,8 @@ def _read_table(path: str, channels: Sequence[Column], cmap: Optional[ChannelMap
             cspec = specs.get(c.name)
             sign = cspec.sign * cspec.scale if cspec else 1.0
             i = match.index[c.name]
-            series.append(Series(c.name, f"column {table.names[i]!r}", t, values[:, j] * factor * sign, unit,
-                                 unit_from, lines=rows))
+            v = table.to_si(values[:, j : j + 1], factor * sign, rows, [labels[j + has_t]])[:, 0]
+            series.append(Series(c.name, f"column {table.names[i]!r}", t, v, unit, unit_from, lines=rows))
         return Log(table.source, table.kind, series, absolute, origin=origin)
 
 

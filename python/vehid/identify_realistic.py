@@ -90,7 +90,7 @@ def cmd_identify_realistic(args: argparse.Namespace) -> int:
             raise RealisticError(str(e)) from None
         prev: Optional[float] = None
         for chunk in table.chunks(cols, labels, CHUNK, missing=True):
-            data = chunk.data * factors
+            data = table.to_si(chunk.data, factors, chunk.lines, labels)
             y = np.ascontiguousarray(data[:, 1:] if has_t else data)
             if ident is None:
                 dt = args.dt

@@ -414,7 +414,7 @@ def cmd_monitor(args: argparse.Namespace) -> int:
         except TableError as e:
             raise CliError(str(e)) from None
         for chunk in table.chunks(cols, labels, CHUNK, missing=True):
-            data = chunk.data * factors
+            data = table.to_si(chunk.data, factors, chunk.lines, labels)
             if has_t and np.isnan(data[:, 0]).any():
                 row = int(np.argmax(np.isnan(data[:, 0])))
                 raise CliError(f"{table.where(int(chunk.lines[row]))}: the time is missing (nan): every sample "
