@@ -208,3 +208,23 @@ def test_identify_names_the_line_of_a_cell_that_overflows_in_si(quarter_csv: Pat
     path = with_cell(src, tmp_path / "big.csv", "dx2 [g]", "1e308")
     msg = one_line_error(capsys, ["identify", str(path), "--model", "quarter"])
     assert f"{path}, line {BAD + 2}, column " in msg and "1e+308 times 9.80665 (its unit to SI)" in msg, msg
+
+
+@pytest.mark.parametrize("cell, said", [("", "the time is missing"), ("back", "does not increase after")])
+def test_identify_realistic_names_the_line_of_a_bad_time(cell: str, said: str, tmp_path: Path,
+                                                         capsys: pytest.CaptureFixture[str],
+                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    # vehid identify --sensors realistic said "the time column must increase from sample to
+    # sample" with no place; now the line of a missing time or of one that goes back.
+    from vehid import identify_realistic
+
+    monkeypatch.setattr(identify_realistic, "CHUNK", 1000)
+    sim = vehid.Simulator(vehid.QuarterCar.passenger(), dt=0.005, road="iso8608-C", sensors="realistic", seed=2)
+    run = sim.run(3000)
+    src = tmp_path / "drive.csv"
+    np.savetxt(src, np.column_stack([run.t, run.y]), delimiter=",", header="t,a_body,a_wheel,deflection",
+               comments="", fmt="%.9g")
+    value = "" if cell == "" else f"{float(run.t[BAD - 3]):.9g}"
+    path = with_cell(src, tmp_path / "bad.csv", "t", value)
+    msg = one_line_error(capsys, ["identify", str(path), "--model", "quarter", "--sensors", "realistic"])
+    assert f"{path}, line {BAD + 2}: " in msg and said in msg, msg
