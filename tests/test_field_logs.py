@@ -422,7 +422,7 @@ def test_a_revolute_joint_is_read_with_its_travel_per_radian(five: Dict[str, Lis
     # travel / 0.35 m per rad. Declared (unit = "rad", scale = 0.35) it gives the prismatic bag's
     # event (the same sample, the same new value); in degrees too. Declared without its scale,
     # refused in one line naming the fix; undeclared (the angle read as m: 2.9 times the travel),
-    # the kinematic check refuses it naming the revolute joint.
+    # the kinematic check refuses it naming the revolute joint (with R = 0.8 m it cannot tell).
     R = 0.35
     path = F.bag(tmp_path / "revolute", damper, joint_scale=R)
     ref, _ = events(capsys, [*five["mcap"], "--model", "passenger"])
@@ -444,6 +444,10 @@ def test_a_revolute_joint_is_read_with_its_travel_per_radian(five: Dict[str, Lis
     msg = error(capsys, ["monitor", str(tmp_path / "revolute"), "--columns", str(cmap), "--model", "passenger"])
     assert "not about 1: the units disagree" in msg and "a revolute joint's angle read as m? declare unit = " \
            "\"rad\" and scale = the travel per rad" in msg, msg
+    # The limit the docs state: with R = 0.8 m (the angle 1.25 times the travel) the check
+    # cannot tell, and the undeclared angle is read as a travel.
+    events(capsys, [str(F.bag(tmp_path / "revolute_08", damper, joint_scale=0.8)), "--columns", str(cmap),
+                    "--model", "passenger"])
 
 
 def test_a_channel_map_is_checked_on_its_own() -> None:
