@@ -78,14 +78,17 @@ column = "SuspTravel [mm]"
 
 
 def bag(path: Path, run: vehid.Run, storage: str = "mcap", joint_every: int = 4,
-        imu_type: str = "sensor_msgs/msg/Imu", samples: Optional[slice] = None, antialias: bool = False) -> Path:
+        imu_type: str = "sensor_msgs/msg/Imu", samples: Optional[slice] = None, antialias: bool = False,
+        joint_scale: float = 1.0) -> Path:
     """A ROS 2 bag (``storage`` "mcap" or "sqlite3"; "ros1": a ROS 1 ``.bag`` file at
     ``path``, rosbags' ROS 1 writer): ``/body/imu`` and ``/wheel/imu`` (Imu at 400 Hz, z up,
     gravity included, header stamps; logged 1-4 ms later), ``/suspension/joint_states``
     (JointState at 400/``joint_every`` Hz, joint ``susp_fl``: the deflection, m); of the drive's
     ``samples`` (default all). The JointState samples the 400 Hz deflection as a publisher
     does, without a filter; ``antialias``: low-passed first (scipy's ``firwin``, 201 taps, cut-off
-    0.4 of the JointState's rate, applied forward and back: zero phase)."""
+    0.4 of the JointState's rate, applied forward and back: zero phase); ``joint_scale``: the
+    joint is revolute, its position the angle ``deflection / joint_scale`` (rad; the travel is
+    ``joint_scale`` m per rad)."""
     from rosbags.rosbag1 import Writer as Writer1
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
@@ -131,7 +134,8 @@ def bag(path: Path, run: vehid.Run, storage: str = "mcap", joint_every: int = 4,
             w.write(wheel, logged, serialize(imu(t, float(run.y[k, 1])), imu_type))
             if k % joint_every == 0:
                 msg = T["sensor_msgs/msg/JointState"](header=header(t), name=["susp_fl"],
-                                                      position=np.array([deflection[k]]), velocity=np.zeros(0),
+                                                      position=np.array([deflection[k] / joint_scale]),
+                                                      velocity=np.zeros(0),
                                                       effort=np.zeros(0))
                 w.write(joints, logged, serialize(msg, "sensor_msgs/msg/JointState"))
     return path

@@ -17,13 +17,17 @@ import vehid.cmd_demo
 import vehid.cmd_identify
 import vehid.cmd_reproduce
 import vehid.cmd_simulate
+import vehid.fieldlog
+import vehid.inspect_log
 import vehid.io
 import vehid.monitor
 
 #: The modules whose examples run: the package, the command line (its parser and main, what
-#: the commands share, one module per command), the reader, a field log's channels, the monitor.
+#: the commands share, one module per command), the reader, a field log's channels, its reading
+#: (fieldlog), vehid inspect, the monitor.
 MODULES = [vehid, vehid.cli, vehid.clitools, vehid.cmd_simulate, vehid.cmd_identify, vehid.cmd_demo,
-           vehid.cmd_reproduce, vehid.io, vehid.channels, vehid.monitor, vehid.align]
+           vehid.cmd_reproduce, vehid.io, vehid.channels, vehid.monitor, vehid.align, vehid.fieldlog,
+           vehid.inspect_log]
 
 
 @pytest.mark.parametrize("module", MODULES, ids=lambda m: m.__name__)

@@ -202,7 +202,13 @@ def _bag_series(reader: Any, conn: Any, spec: ChannelSpec, column: Column, stamp
     factor, unit, unit_from = unit_of(spec if spec.unit else None, unit_spec, column, where)
     if not spec.unit and unit_spec:
         unit_from = f"{msgtype.split('/')[-1]} message (REP 103: SI)"
-    v = v * factor * spec.sign * spec.scale
+    with np.errstate(over="ignore", invalid="ignore"):
+        si = v * factor * spec.sign * spec.scale
+    over = np.flatnonzero(np.isinf(si) & np.isfinite(v))
+    if len(over):
+        raise TableError(f"{where}: message {int(over[0]) + 1} (in stamp order): {float(v[over[0]])!r} times "
+                         f"{factor * spec.scale:g} (its unit and scale to SI) is beyond a float's range")
+    v = si
     if not origin:
         origin.append(int(t_ns[0]))
     seconds = (t_ns - origin[0]).astype(np.float64) * 1e-9

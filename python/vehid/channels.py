@@ -11,6 +11,7 @@ build, and the channel lists ``vehid monitor``, ``vehid inspect`` and ``vehid id
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Tuple
 
@@ -76,6 +77,7 @@ class ChannelSpec:
     sign: float = 1.0
     sign_given: bool = False
     scale: float = 1.0
+    scale_given: bool = False
     #: A known delay of this channel against the others, s (then none is estimated).
     delay: Optional[float] = None
 
@@ -138,4 +140,16 @@ def unit_of(spec: Optional[ChannelSpec], declared: Optional[str], column: Column
         if unit.strip() != column.unit:
             raise TableError(f"{where}: unit {unit!r}: vehid reads this channel only in {column.unit}")
         return 1.0, unit, source
+    angle = ANGLE_UNITS.get(unit.strip().lower())
+    if angle is not None and quantity == "length":  # a revolute joint's angle for a travel
+        if spec is None or not spec.scale_given:
+            raise TableError(f"{where}: unit {unit!r} is an angle (a revolute joint?), but {column.name} is the "
+                             "suspension's travel (m): give scale = R in its channel map section, the wheel's travel "
+                             "per radian of the joint in m (the arm's length times its motion ratio: read as R x the "
+                             "angle, linear), or log the travel itself (a prismatic joint, m)")
+        return angle, f"{unit} x {spec.scale:g} m/rad", source
     return si_factor(unit, quantity, where), unit, source
+
+
+#: The angles a deflection may be given in (with ``scale``, m of travel per rad): rad per unit.
+ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180}

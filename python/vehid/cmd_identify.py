@@ -15,12 +15,13 @@ is :mod:`vehid.identify_realistic`, a model file (``--model NAME.toml``)
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import math
 import re
 import sys
 from dataclasses import dataclass, field
-from typing import IO, Any, Dict, List, Optional, Tuple, Union, cast
+from typing import IO, Any, Callable, Dict, List, Optional, Tuple, Union, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -354,9 +355,11 @@ class TruthFit:
             free = BatchLeastSquares(Structure(states, inputs, {states[row]: " + ".join(terms)})) if driving else None
             self.rows.append(RowFit(row, entries, driving, full, free))
 
-    def add(self, x: NDArray[np.float64], u: NDArray[np.float64], dx: NDArray[np.float64]) -> None:
+    def add(self, x: NDArray[np.float64], u: NDArray[np.float64], dx: NDArray[np.float64],
+            placed: Callable[[str], str] = str) -> None:
         """The true states ``x``, inputs ``u`` and unknown rows' true derivatives ``dx`` of a
-        chunk of samples."""
+        chunk of samples; ``placed`` words a refusal with its place in the file
+        (:meth:`vehid.io.Table.rejected`)."""
         if self.refused is not None:
             return
         x, u = np.ascontiguousarray(x), np.ascontiguousarray(u)
@@ -370,7 +373,7 @@ class TruthFit:
                 if fit.free is not None:
                     fit.free.fit(x, z, u=u)
             except VehidError as e:  # e.g. samples too large for the exact start: no truth, no failure
-                self.refused = str(e)
+                self.refused = placed(str(e))
                 return
         self.sum_squares += np.einsum("ij,ij->j", dx, dx)
         self.samples += len(x)
@@ -901,7 +904,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
         recent: Tuple[NDArray[np.float64], NDArray[np.float64]] = (np.empty((0, n)), np.empty((0, n)))
         scales = np.asarray(layout.scales) if any(f != 1.0 for f in layout.scales) else None
         for chunk in table.chunks(layout.columns, layout.labels, clitools.CHUNK):
-            data = chunk.data if scales is None else chunk.data * scales  # declared units to SI
+            data = chunk.data if scales is None else table.to_si(chunk.data, scales, chunk.lines, layout.labels)
             if time is not None and layout.t is not None:
                 time.add(data[:, layout.t], chunk.lines)
             x, dx = np.ascontiguousarray(data[:, layout.x]), np.ascontiguousarray(data[:, layout.dx])
@@ -910,14 +913,18 @@ def cmd_identify(args: argparse.Namespace) -> int:
                 spacing = road_spacing(args, source, layout, data)
                 ident = make_identifier(args, model, spacing)
                 structured = physical_identifier(args, model, known, spacing)
-            feed(ident, x, dx, odometer)
-            if structured is not None:
-                feed(structured, x, dx, odometer)
+            try:
+                feed(ident, x, dx, odometer)
+                if structured is not None:
+                    feed(structured, x, dx, odometer)
+            except VehidError as e:  # a refused sample: named by its line, not its index in the chunk
+                raise CliError(table.rejected(str(e), chunk.lines)) from None
             if args.method in WHITE_ROAD_METHODS:  # the residuals' whiteness is checked on the last samples
                 recent = (np.concatenate([recent[0], x])[-DIAG_SAMPLES:],
                           np.concatenate([recent[1], dx])[-DIAG_SAMPLES:])
             if fit is not None:
-                fit.add(data[:, layout.true_x], data[:, layout.u], data[:, layout.true_dx])
+                fit.add(data[:, layout.true_x], data[:, layout.u], data[:, layout.true_dx],
+                        functools.partial(table.rejected, lines=chunk.lines))
             progress.step(len(data), table.consumed)
     if time is not None:
         time.finish()

@@ -17,20 +17,20 @@ import os
 import shutil
 import tempfile
 from pathlib import Path
-from typing import Any, Dict, List, Sequence
+from typing import Any, Callable, Dict, List, Sequence
 
 from .io import TableError
 
 __all__ = ["event_rows", "write_events", "write_track"]
 
 
-def event_rows(events: Sequence[Any], origin: float, names: Dict[str, Any]) -> List[Dict[str, Any]]:
-    """The events as rows: ``t`` and ``t_change`` (s, on the log's clock: ``origin`` + the
+def event_rows(events: Sequence[Any], clock: Callable[[float], float], names: Dict[str, Any]) -> List[Dict[str, Any]]:
+    """The events as rows: ``t`` and ``t_change`` (s, on the log's clock: ``clock`` of the
     monitor's time), the constant, its name and unit, before, after, the interval and the change."""
     rows = []
     for ev in events:
         name, unit = names.get(ev.parameter, (ev.parameter, ""))
-        rows.append({"t": origin + ev.t, "t_change": origin + ev.t_change, "parameter": ev.parameter, "name": name,
+        rows.append({"t": clock(ev.t), "t_change": clock(ev.t_change), "parameter": ev.parameter, "name": name,
                      "unit": unit, "before": ev.before, "after": ev.after, "low": ev.low, "high": ev.high,
                      "change": ev.change})
     return rows

@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import align as _align
-from .channels import ChannelMap, ChannelSpec, Log, Series, unit_of
+from .channels import ANGLE_UNITS, ChannelMap, ChannelSpec, Log, Series, unit_of
 from .io import STANDARD_GRAVITY, Column, TableError, match_columns, normalize, open_table, si_factor
 
 if sys.version_info >= (3, 11):
@@ -36,8 +36,8 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python < 3.11
     import tomli as tomllib
 
-__all__ = ["Aligned", "ChannelMap", "ChannelSpec", "Log", "Series", "accelerometer_noise", "align", "car_check",
-           "deflection_noise",
+__all__ = ["Aligned", "ChannelMap", "ChannelSpec", "Log", "Series", "accelerometer_noise", "accelerometer_noises",
+           "align", "car_check", "deflection_noise", "deflection_noises", "long_gap_words", "shorten_gaps",
            "grid_interval", "is_bag", "is_channel_map", "load_channel_map", "read_log", "unit_of", "BAG_SUFFIXES"]
 
 #: File suffixes read as ROS bags (a folder is read as a rosbag2 bag too).
@@ -159,7 +159,7 @@ def _spec(name: str, section: Mapping[str, Any], where: str) -> ChannelSpec:
     if scale is not None:
         if scale == 0:
             raise TableError(f"{where}: [{name}] scale = 0: expected a non-zero factor")
-        spec.scale = scale
+        spec.scale, spec.scale_given = scale, True
     spec.delay = _number(section, "delay", where, name)
     return spec
 
@@ -256,8 +256,8 @@ def _read_table(path: str, channels: Sequence[Column], cmap: Optional[ChannelMap
             cspec = specs.get(c.name)
             sign = cspec.sign * cspec.scale if cspec else 1.0
             i = match.index[c.name]
-            series.append(Series(c.name, f"column {table.names[i]!r}", t, values[:, j] * factor * sign, unit,
-                                 unit_from, lines=rows))
+            v = table.to_si(values[:, j : j + 1], factor * sign, rows, [labels[j + has_t]])[:, 0]
+            series.append(Series(c.name, f"column {table.names[i]!r}", t, v, unit, unit_from, lines=rows))
         return Log(table.source, table.kind, series, absolute, origin=origin)
 
 
@@ -289,6 +289,68 @@ class Aligned:
     missing: int = 0
     #: The delay the data say, per deflection (s), whether removed or not.
     estimated: Dict[str, float] = field(default_factory=dict)
+    #: Long gaps shortened to :data:`GAP_CAP` (:func:`shorten_gaps`): (the grid's time where the
+    #: samples resume, s; the seconds taken out there).
+    skips: List[Tuple[float, float]] = field(default_factory=list)
+
+
+#: Longest gap of the log (no channel has a sample) put on the grid as missing samples, s (as
+#: ``vehid.fleet``'s ``GAP_CAP``); a longer gap (a parked car, a log of several drives) is
+#: shortened to this: the monitor has long restarted its filters by then (it keeps its
+#: reference and its CUSUMs), and the grid, so memory and time, stays bounded by the samples
+#: logged, not by the gaps' length.
+GAP_CAP = 60.0
+
+
+def _line(log: Log, number: int) -> str:
+    """A sample's place in a table: ``"drive.csv, line 12"`` (a CSV's line) or ``"drive.parquet,
+    row 11"`` (a Parquet file's 1-based row), as :meth:`vehid.io.Table.where` words it."""
+    return f"{log.source}, {'row' if log.kind == 'parquet' else 'line'} {number}"
+
+
+def long_gap_words(seconds: float) -> str:
+    """What a gap over :data:`GAP_CAP` becomes, for the note that names its place.
+
+    >>> long_gap_words(5011200.0)  # doctest: +NORMALIZE_WHITESPACE
+    "a gap of 5.0112e+06 s (58 days) in the time column: fed to the monitor as 60 s of missing
+     samples (it restarts its filters after them and keeps its reference; the times after the gap
+     stay on the log's clock)"
+    """
+    span = (f" ({seconds / 86400:.3g} days)" if seconds >= 86400 else
+            f" ({seconds / 3600:.3g} h)" if seconds >= 3600 else f" ({seconds / 60:.3g} min)")
+    return (f"a gap of {seconds:.6g} s{span} in the time column: fed to the monitor as {GAP_CAP:g} s of missing "
+            "samples (it restarts its filters after them and keeps its reference; the times after the gap stay on "
+            "the log's clock)")
+
+
+def shorten_gaps(log: Log, step: float) -> List[Tuple[float, float, str]]:
+    """Shortens each gap of ``log`` that every channel shares, over :data:`GAP_CAP` s, to
+    ``round(GAP_CAP / step) + 1`` grid intervals (the stretch ``vehid monitor`` feeds a long gap
+    of a streamed table as): the times after it move back by the rest (in place; channels that
+    share one clock keep sharing it). Returns, per gap: the time where the samples resume (on
+    the shortened clock), the seconds taken out, and where it is (the line, for tables)."""
+    merged = np.unique(np.concatenate([s.t for s in log.series]))
+    cap = int(round(GAP_CAP / step))
+    d = np.diff(merged)
+    long = np.flatnonzero(np.rint(np.minimum(d / step, 2.0**52)) > cap + 1)
+    if not len(long):
+        return []
+    ends = merged[long + 1]
+    cut = d[long] - (cap + 1) * step
+    before = np.concatenate([[0.0], np.cumsum(cut)])
+    out = []
+    s0 = log.series[0]
+    for b, c, done in zip(ends.tolist(), cut.tolist(), before[:-1].tolist()):
+        i = int(np.searchsorted(s0.t, b))
+        where = (_line(log, int(s0.lines[i])) if s0.lines is not None and i < len(s0.lines) and s0.t[i] == b
+                 else f"{log.source}, at {b:.6g} s")
+        out.append((b - done - c, c, where))
+    shifted: Dict[int, NDArray[np.float64]] = {}
+    for s in log.series:
+        if id(s.t) not in shifted:
+            shifted[id(s.t)] = np.asarray(s.t - before[np.searchsorted(ends, s.t, side="right")], dtype=np.float64)
+        s.t = shifted[id(s.t)]
+    return out
 
 
 def grid_interval(log: Log, dt: Optional[float]) -> float:
@@ -337,6 +399,9 @@ def align(log: Log, dt: Optional[float], specs: Optional[Mapping[str, ChannelSpe
             _gravity(s, specs.get(s.channel), notes)
     step = grid_interval(log, dt)
     rates = {s.channel: _align.nominal_interval(s.t) for s in log.series}
+    skips = shorten_gaps(log, step)
+    for _, cut, where in skips:
+        notes.append(f"{where}: {long_gap_words(cut + (round(GAP_CAP / step) + 1) * step)}")
     t0 = max(float(s.t[0]) for s in log.series)
     t1 = min(float(s.t[-1]) for s in log.series)
     if t1 <= t0:
@@ -345,11 +410,15 @@ def align(log: Log, dt: Optional[float], specs: Optional[Mapping[str, ChannelSpe
     n = int(math.floor((t1 - t0) / step + 1e-6)) + 1
     inputs = max(len(s.t) for s in log.series)
     if n > 20 * inputs + 1000:
+        if skips:  # so many long gaps that even shortened they outweigh the samples
+            raise TableError(f"{log.source}: {len(skips):,} gaps over {GAP_CAP:g} s (the first at {skips[0][2]}), "
+                             f"each put on the grid as {GAP_CAP:g} s of missing samples, give {n:,} samples on the "
+                             f"grid from {inputs:,} in the log: split the log at its gaps")
         s = max(log.series, key=lambda x: float(np.max(np.diff(x.t))) if len(x.t) > 1 else 0.0)
         i = int(np.argmax(np.diff(s.t)))
         jump = float(s.t[i + 1] - s.t[i])
         if jump > 1000 * step:  # a clock that jumps, not a rate
-            where = f"{log.source}, line {int(s.lines[i + 1])}" if s.lines is not None else f"{s.source}"
+            where = _line(log, int(s.lines[i + 1])) if s.lines is not None else f"{s.source}"
             raise TableError(f"{where}: the time jumps {jump:.6g} s forward ({s.channel}): a clock jump or a log "
                              "of several drives: split the log there")
         raise TableError(f"--dt {step:g}: {n:,} samples on the grid from {inputs:,} in the log: give the log's "
@@ -365,7 +434,8 @@ def align(log: Log, dt: Optional[float], specs: Optional[Mapping[str, ChannelSpe
         if not shared or any(abs(r - step) > 1e-9 for r in rates.values()):
             notes.append("resampled to " + f"{1 / step:g} Hz (" + ", ".join(f"{c} {1 / r:g} Hz" for c, r in
                                                                          rates.items()) + ")")
-    out = Aligned(t0, step, y, [s.channel for s in log.series], rates, notes=notes)
+    out = Aligned(t0, step, y, [s.channel for s in log.series], rates, notes=notes,
+                  skips=[(at, cut) for at, cut, _ in skips])
     for axle in ("", "_f", "_r"):
         names = [f"a_body{axle}", f"a_wheel{axle}", f"deflection{axle}"]
         if all(c in out.names for c in names):
@@ -396,7 +466,7 @@ def _placed(log: Log, step: float, t0: float, n: int) -> NDArray[np.float64]:
     dk = np.diff(k)
     if len(dk) and not (dk >= 1).all():
         i = int(np.argmin(dk >= 1))
-        where = f"{log.source}, line {int(s0.lines[i + 1])}" if s0.lines is not None else log.source
+        where = _line(log, int(s0.lines[i + 1])) if s0.lines is not None else log.source
         raise TableError(f"{where}: the sample interval {float(s0.t[i + 1] - s0.t[i]):.6g} s is under half the "
                          f"sample interval {step:.6g} s: the monitor needs a fixed rate (resample the log, or give "
                          "--dt)")
@@ -431,8 +501,12 @@ def _deflection(out: Aligned, log: Log, names: List[str], specs: Mapping[str, Ch
         return
     slope = abs(est.slope)
     if not 0.5 < slope < 2.0:
+        joint = "JointState" in _source(log, defl) and not any(s.unit.startswith(tuple(ANGLE_UNITS))
+                                                                for s in log.series if s.channel == defl)
+        revolute = ("; or a revolute joint's angle read as m? declare unit = \"rad\" and scale = the travel per "
+                    "rad" if joint else "")
         raise TableError(f"{defl} ({_source(log, defl)}): its second derivative is {slope:.3g} times "
-                         f"{names[0]} - {names[1]}, not about 1: the units disagree ({_unit_guess(slope)})")
+                         f"{names[0]} - {names[1]}, not about 1: the units disagree ({_unit_guess(slope)}{revolute})")
     if est.corr < 0:
         if spec is not None and spec.sign_given:
             raise TableError(f"{defl} ({_source(log, defl)}): sign = {spec.sign:g} in the channel map, but its "
@@ -583,8 +657,15 @@ def car_check(out: Aligned, k2m: float, bm: float, car: str) -> None:
                          "or --car M=...,k2=...,b=...")
 
 
-#: The health monitor's default deflection noise, m per sample (``SensorNoise::default``).
-DEFAULT_DEFLECTION_NOISE = 0.3e-3
+#: The health monitor's default sensor noise per sample (``SensorNoise::default``): m/s^2,
+#: m/s^2, m.
+DEFAULT_NOISE = {"a_body": 0.02, "a_wheel": 0.1, "deflection": 0.3e-3}
+#: The health monitor's default deflection noise, m per sample.
+DEFAULT_DEFLECTION_NOISE = DEFAULT_NOISE["deflection"]
+#: An undeclared sensor's noise estimated from the log is given to the monitor when over this
+#: many times the default: a sensor noisier than assumed misleads the monitor, a quieter one
+#: costs a little sensitivity (and a log at the defaults is monitored as before).
+NOISE_USED_ABOVE = 1.25
 
 
 def deflection_noise(log: Log, dt: float) -> float:
@@ -593,6 +674,16 @@ def deflection_noise(log: Log, dt: float) -> float:
     samples; where the grid is slower, scaled by the anti-aliasing filter's share of the
     band, ``sqrt(0.9 h / dt)``); the largest over the axles; NaN when too short."""
     out = math.nan
+    for sigma in deflection_noises(log, dt).values():
+        if math.isfinite(sigma) and not sigma <= out:
+            out = sigma
+    return out
+
+
+def deflection_noises(log: Log, dt: float) -> Dict[str, float]:
+    """Each deflection channel's white noise, as :func:`deflection_noise` finds it:
+    ``{"deflection": m}`` (the half car: ``deflection_f``, ``deflection_r``); NaN when too short."""
+    out: Dict[str, float] = {}
     for s in log.series:
         if not s.channel.startswith("deflection"):
             continue
@@ -600,8 +691,7 @@ def deflection_noise(log: Log, dt: float) -> float:
         sigma = _align.white_noise(s.t, s.v, h)
         if h < dt:
             sigma *= math.sqrt(0.9 * h / dt)
-        if math.isfinite(sigma) and not sigma <= out:
-            out = sigma
+        out[s.channel] = sigma
     return out
 
 
@@ -621,6 +711,19 @@ def accelerometer_noise(al: Aligned, log: Log) -> Dict[str, float]:
     whose deflection's delay could not be estimated (its deflection does not follow ``a_body -
     a_wheel``: the relations do not hold)."""
     out = {"a_body": math.nan, "a_wheel": math.nan}
+    for name, v in accelerometer_noises(al).items():
+        k = name[:-2] if name.endswith(("_f", "_r")) else name  # a_body_f -> a_body
+        if math.isfinite(v) and not v <= out[k]:
+            out[k] = v
+    return out
+
+
+def accelerometer_noises(al: Aligned) -> Dict[str, float]:
+    """Each accelerometer's white noise, as :func:`accelerometer_noise` finds it, by channel:
+    ``{"a_body": ..., "a_wheel": ...}`` (the half car: ``a_body_f``, ``a_wheel_f``, ``a_body_r``,
+    ``a_wheel_r``); NaN where it cannot be estimated; no entry for an axle whose deflection does
+    not follow ``a_body - a_wheel``."""
+    out: Dict[str, float] = {}
     # an axle whose deflection does not follow a_body - a_wheel (its delay could not be estimated) has
     # no relation to take the signal out with
     axles = [a for a in ("", "_f", "_r") if all(f"{c}{a}" in al.names for c in ("a_body", "a_wheel", "deflection"))
@@ -637,7 +740,5 @@ def accelerometer_noise(al: Aligned, log: Log) -> Dict[str, float]:
         rest = [b for b in axles if b != a]
         est = _align.sensor_noise(col[f"a_body{a}"], col[f"a_wheel{a}"], col[f"deflection{a}"], al.dt,
                                   [sd[a], *(sd[b] for b in rest)], [col[f"deflection{b}"] for b in rest])
-        for k, v in (("a_body", est.a_body), ("a_wheel", est.a_wheel)):
-            if math.isfinite(v) and not v <= out[k]:
-                out[k] = v
+        out[f"a_body{a}"], out[f"a_wheel{a}"] = est.a_body, est.a_wheel
     return out

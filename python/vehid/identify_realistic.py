@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 from . import QuarterCar, RealisticIdentifier, VehidError, fieldlog
 from .align import nominal_interval
 from .channels import SENSOR_COLUMNS
-from .io import Column, TableError, column_factor, match_columns, open_table, parse_column_map
+from .io import Column, Table, TableError, column_factor, match_columns, open_table, parse_column_map
 
 CHUNK = 65_536
 # A step between samples this many times the sample interval is a gap: the filter restarts.
@@ -38,12 +38,24 @@ class RealisticError(Exception):
     """A user error, reported in one line (exit status 2)."""
 
 
-def _gaps(t: NDArray[np.float64], prev: Optional[float], dt: float, where: str) -> NDArray[np.bool_]:
-    """Whether each sample follows a gap (a step longer than GAP_FACTOR sample intervals)."""
+def _gaps(t: NDArray[np.float64], prev: Optional[float], dt: float, table: Table, lines: NDArray[np.int64],
+          prev_line: int) -> NDArray[np.bool_]:
+    """Whether each sample follows a gap (a step longer than GAP_FACTOR sample intervals); a
+    missing time, or one that does not increase, is refused naming its line (``lines``: the
+    samples' places in ``table``; ``prev_line``: the previous chunk's last sample's)."""
     full = t if prev is None else np.concatenate([[prev], t])
+    ll = lines if prev is None else np.concatenate([[prev_line], lines])
+    missing = ~np.isfinite(full)
+    if missing.any():
+        j = int(np.argmax(missing))
+        raise RealisticError(f"{table.where(int(ll[j]))}: the time is missing: every sample needs its time (drop "
+                             "the sample: the gap is then seen in the time column)")
     step = np.diff(full)
-    if (step <= 0).any() or not np.isfinite(step).all():
-        raise RealisticError(f"{where}: the time column must increase from sample to sample")
+    if (step <= 0).any():
+        i = int(np.argmax(step <= 0))
+        raise RealisticError(f"{table.where(int(ll[i + 1]))}: time {float(full[i + 1])!r} s does not increase after "
+                             f"{float(full[i])!r} s: the time column must increase strictly (sort the log, drop "
+                             "duplicated samples)")
     gap = step > GAP_FACTOR * dt
     return gap if prev is not None else np.concatenate([[False], gap])
 
@@ -89,8 +101,9 @@ def cmd_identify_realistic(args: argparse.Namespace) -> int:
         except TableError as e:
             raise RealisticError(str(e)) from None
         prev: Optional[float] = None
+        prev_line = 0
         for chunk in table.chunks(cols, labels, CHUNK, missing=True):
-            data = chunk.data * factors
+            data = table.to_si(chunk.data, factors, chunk.lines, labels)
             y = np.ascontiguousarray(data[:, 1:] if has_t else data)
             if ident is None:
                 dt = args.dt
@@ -104,8 +117,8 @@ def cmd_identify_realistic(args: argparse.Namespace) -> int:
                     raise RealisticError(f"{table.source}: {e}") from None
             restart = np.zeros(len(y), dtype=bool)
             if has_t:
-                restart = _gaps(data[:, 0], prev, ident.dt, table.source)
-                prev = float(data[-1, 0])
+                restart = _gaps(data[:, 0], prev, ident.dt, table, chunk.lines, prev_line)
+                prev, prev_line = float(data[-1, 0]), int(chunk.lines[-1])
             # A missing value: the sample is left out and the filter restarts.
             bad = np.asarray(~np.isfinite(y).all(axis=1), dtype=bool)
             missing += int(bad.sum())

@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from . import align as _align
 from . import fieldlog
 from .bags import MESSAGE_FIELDS, first_line, open_bag, stamp_ns
-from .channels import SENSOR_COLUMNS
+from .channels import HALF_SENSOR_COLUMNS, SENSOR_COLUMNS
 from .io import STANDARD_GRAVITY, UNITS, TableError, normalize, open_table, parse_column_map, si_factor
 
 __all__ = ["DESCRIPTION", "add_arguments", "cmd_inspect", "guess_channel"]
@@ -99,15 +99,15 @@ def cmd_inspect(args: argparse.Namespace) -> int:
     return 0
 
 
-def _channels() -> Sequence[Any]:
-    return SENSOR_COLUMNS["realistic"]
+def _channels(half: bool = False) -> Sequence[Any]:
+    return (HALF_SENSOR_COLUMNS if half else SENSOR_COLUMNS)["realistic"]
 
 
 def _cmap(args: argparse.Namespace) -> Tuple[Optional[fieldlog.ChannelMap], Dict[str, str]]:
     cmap, pairs = None, []
     for text in args.columns or []:
         if fieldlog.is_channel_map(text):
-            cmap = fieldlog.load_channel_map(text, [c.name for c in _channels()])
+            cmap = fieldlog.load_channel_map(text, [c.name for c in (*_channels(), *_channels(True))])
         else:
             pairs.append(text)
     return cmap, parse_column_map(pairs)
@@ -205,9 +205,19 @@ def _inspect_table(args: argparse.Namespace, out: IO[str]) -> None:
 
 def _channels_found(args: argparse.Namespace, cmap: Optional[fieldlog.ChannelMap], pairs: Dict[str, str],
                     out: IO[str]) -> bool:
-    """With the three channels found: the grid, the deflection's delay and sign (True)."""
+    """With the quarter car's three channels found (or the half car's six): the grid, the
+    deflections' delays and signs, the sensors' noise (True)."""
+    half = cmap is not None and any(c.endswith(("_f", "_r")) for c in cmap.channels)
     try:
-        log = fieldlog.read_log(args.file, _channels(), cmap, pairs, args.delimiter, None)
+        try:
+            log = fieldlog.read_log(args.file, _channels(half), cmap, pairs, args.delimiter, None)
+        except TableError:
+            if half or cmap is not None:
+                raise
+            try:  # a half car's log (a_body_f, ..., deflection_r)?
+                log = fieldlog.read_log(args.file, _channels(True), cmap, pairs, args.delimiter, None)
+            except TableError:
+                log = fieldlog.read_log(args.file, _channels(), cmap, pairs, args.delimiter, None)  # its message
         al = fieldlog.align(log, None, cmap.channels if cmap else None, estimate=True)
     except TableError as e:
         print(f"  vehid channels: not all found or not usable ({e})", file=out)
@@ -223,7 +233,33 @@ def _channels_found(args: argparse.Namespace, cmap: Optional[fieldlog.ChannelMap
             print(f"  clock: {name} is {1e3 * abs(delay):.2f} ms {'late' if delay >= 0 else 'early'} against {how}",
                   file=out)
     print(f"  on the monitor's grid: {len(al.y):,} samples at {1 / al.dt:g} Hz, {al.missing} missing", file=out)
+    print(f"  {noise_line({**fieldlog.accelerometer_noises(al), **fieldlog.deflection_noises(log, al.dt)})}", file=out)
     return True
+
+
+def noise_line(found: Dict[str, float]) -> str:
+    """The sensors' white noise per grid sample estimated from the data (``{channel: SI}``,
+    NaN: not estimated), each beside the monitor's default, as ``vehid monitor`` would take it.
+
+    >>> noise_line({"a_body": 0.0613, "a_wheel": 0.0964, "deflection": float("nan")})
+    ... # doctest: +NORMALIZE_WHITESPACE
+    'sensor noise per sample, estimated from the data (vehid monitor uses an estimate over 1.25 times its default
+     unless --noise declares it): a_body 0.0613 m/s^2 (default 0.02: used), a_wheel 0.0964 m/s^2 (default 0.1),
+     deflection not estimated (default 0.3 mm)'
+    """
+    parts = []
+    kinds = ("a_body", "a_wheel", "deflection")
+    base = {name: name[:-2] if name.endswith(("_f", "_r")) else name for name in found}  # a_body_f -> a_body
+    for name in sorted(found, key=lambda c: (c[len(base[c]):], kinds.index(base[c]))):
+        value, default = found[name], fieldlog.DEFAULT_NOISE[base[name]]
+        mm = base[name] == "deflection"
+        shown = f"{1e3 * value:.3g} mm" if mm else f"{value:.3g} m/s^2"
+        shown_default = f"{1e3 * default:g} mm" if mm else f"{default:g}"
+        used = ": used" if value > fieldlog.NOISE_USED_ABOVE * default else ""
+        parts.append(f"{name} {shown} (default {shown_default}{used})" if math.isfinite(value)
+                     else f"{name} not estimated (default {shown_default})")
+    return (f"sensor noise per sample, estimated from the data (vehid monitor uses an estimate over "
+            f"{fieldlog.NOISE_USED_ABOVE:g} times its default unless --noise declares it): " + ", ".join(parts))
 
 
 def _inspect_bag(args: argparse.Namespace, out: IO[str]) -> None:
@@ -312,7 +348,8 @@ def _topic(reader: Any, conn: Any, out: IO[str]) -> Dict[str, Tuple[str, str, Op
         line += "; linear_acceleration (m/s^2, gravity included: REP 145) -> a_body or a_wheel"
     elif typ == "sensor_msgs/msg/JointState" and first is not None:
         names = list(first.name)
-        line += f"; joints {', '.join(names[:8])}: position -> deflection (m for a prismatic joint)"
+        line += (f"; joints {', '.join(names[:8])}: position -> deflection (m for a prismatic joint; a revolute "
+                 "joint's angle: unit = \"rad\" and scale = its travel in m per rad)")
         if names:
             feeds["deflection"] = (conn.topic, "position", names[0])
     elif default is not None:

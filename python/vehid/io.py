@@ -445,6 +445,10 @@ def match_columns(
 # --- reading --------------------------------------------------------------------------
 
 
+#: How the core words the refusal of one sample of those handed over (its index among them).
+_REJECTED = re.compile(r"sample (\d+) was rejected \((.*)\); the (identifier|monitor) is unchanged", re.S)
+
+
 @dataclass
 class Chunk:
     """Consecutive samples: ``data`` (samples, columns) float64, all finite, and ``lines``
@@ -478,6 +482,43 @@ class Table:
     def where(self, line: int) -> str:
         """``"run.csv, line 12"``."""
         return f"{self.source}, {self.unit} {line}"
+
+    def to_si(self, data: NDArray[np.float64], factors: Any, lines: NDArray[np.int64],
+              labels: Sequence[str]) -> NDArray[np.float64]:
+        """``data * factors``: a chunk's columns (``labels``) times their factors to SI; a
+        finite cell that the factor takes beyond a float's range is refused naming its place.
+
+        >>> t = Table(); t.source = "run.csv"
+        >>> t.to_si(np.array([[1.0, 2.0], [1e308, 3.0]]), np.array([9.80665, 1.0]), np.array([7, 8]),
+        ...         ["'a [g]'", "'b'"])
+        Traceback (most recent call last):
+        vehid.io.TableError: run.csv, line 8, column 'a [g]': 1e+308 times 9.80665 (its unit to SI) is beyond ...
+        """
+        with np.errstate(over="ignore", invalid="ignore"):
+            out = np.asarray(data * factors, dtype=np.float64)
+        bad = np.isinf(out) & np.isfinite(data)
+        if bad.any():
+            r = int(np.argmax(bad.any(axis=1)))
+            c = int(np.argmax(bad[r]))
+            f = float(np.broadcast_to(np.asarray(factors, dtype=np.float64), data.shape)[r, c])
+            raise TableError(f"{self.where(int(lines[r]))}, column {labels[c]}: {float(data[r, c])!r} times {f:g} (its "
+                             "unit to SI) is beyond a float's range: drop or repair that sample")
+        return out
+
+    def rejected(self, message: str, lines: NDArray[np.int64]) -> str:
+        """The core's refusal of one sample of a chunk whose samples are on ``lines`` (as
+        :class:`Chunk` gives them), with the sample's place in the file instead of its index
+        in the chunk; any other ``message`` as it is.
+
+        >>> t = Table(); t.source = "run.csv"
+        >>> t.rejected("sample 2 was rejected (too large); the identifier is unchanged (none of the 4 "
+        ...            "samples were applied)", np.array([5, 6, 9, 10]))
+        'run.csv, line 9: the identifier rejected this sample (too large)'
+        """
+        m = _REJECTED.match(message)
+        if m is None or int(m.group(1)) >= len(lines):
+            return message
+        return f"{self.where(int(lines[int(m.group(1))]))}: the {m.group(3)} rejected this sample ({m.group(2)})"
 
     def chunks(
         self, columns: Sequence[int], labels: Sequence[str], rows: int, missing: bool = False,

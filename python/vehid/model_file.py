@@ -191,7 +191,10 @@ def identify(
         if check is not None:
             check.add(np.ascontiguousarray(data[:, -1]), ch.lines)
         u = np.ascontiguousarray(data[:, n + nd : n + nd + len(inputs)]) if inputs else None
-        ident.fit(x, z, u=u)
+        try:
+            ident.fit(x, z, u=u)
+        except VehidError as e:  # a refused sample: named by its line, not its index in the chunk
+            raise ModelFileError(table.rejected(str(e), ch.lines)) from None
         samples += len(data)
     stats = ident.stats(alpha=alpha)
     return {

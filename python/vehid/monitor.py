@@ -20,6 +20,7 @@ this module reads, checks, prints and plots.
 from __future__ import annotations
 
 import argparse
+import bisect
 import datetime
 import json
 import math
@@ -45,8 +46,12 @@ CHUNK = 100_000
 PROGRESS_ABOVE = 200_000
 #: Seconds between two records of the tracked ratios and the status (plot and summary).
 RECORD = 0.5
-#: Most missing samples one gap of the time column may stand for (about 58 days at 200 Hz).
-MAX_GAP_SAMPLES = 1_000_000_000
+#: Longest gap fed to the monitor as missing samples, s (:data:`vehid.fieldlog.GAP_CAP`, as
+#: ``vehid.fleet``'s): a longer gap (a parked car, a log of several drives) is fed as this many
+#: seconds of missing samples, by which time the monitor has long restarted its filters (it
+#: keeps its reference and its CUSUMs); the times after it stay on the log's clock. Memory and
+#: time are then bounded by the samples logged, not by the gaps' length.
+GAP_CAP = fieldlog.GAP_CAP
 
 #: What each named constant is, and its unit, for the printed lines.
 PARAMETERS = {"b": ("damper", "N s/m"), "k2": ("spring", "N/m"), "M": ("body mass", "kg"),
@@ -210,6 +215,27 @@ class Feeder:
         self.missing = 0
         #: The monitor's first reference (the car as the warm-up found it; half car).
         self.ref0: Optional[Dict[str, Any]] = None
+        #: Long gaps: (the monitor's time at which the samples resume, s; the seconds of the gap
+        #: not fed, over :data:`GAP_CAP`).
+        self.skipped: List[Tuple[float, float]] = []
+        #: The monitor's times where the samples resume after a long gap, and the seconds not
+        #: fed up to each (for :meth:`clock`, in order).
+        self._at: List[float] = []
+        self._not_fed: List[float] = []
+
+    def clock(self, t: float) -> float:
+        """The log's time of the monitor's time ``t`` (s): ``t0 + t``, plus the seconds of the
+        long gaps not fed before it."""
+        i = bisect.bisect_right(self._at, t + 1e-9)
+        return self.t0 + t + (self._not_fed[i - 1] if i else 0.0)
+
+    def skip(self, seconds: float, at: Optional[float] = None) -> None:
+        """A gap's ``seconds`` not fed (beyond :data:`GAP_CAP`), the samples resuming at the
+        monitor's time ``at`` (default: now): the times after it move on."""
+        at = self.mon.samples * self.mon.dt if at is None else at
+        self.skipped.append((at, seconds))
+        self._at.append(at)
+        self._not_fed.append((self._not_fed[-1] if self._not_fed else 0.0) + seconds)
 
     def feed(self, y: NDArray[np.float64]) -> None:
         self.missing += int(np.isnan(y).any(axis=1).sum())  # a sample with a missing channel is missing
@@ -230,7 +256,7 @@ class Feeder:
             self.events.append(ev)
             self.print_event(ev)
         est = self.mon.estimate
-        self.record.t.append(self.t0 + self.mon.samples * self.mon.dt)
+        self.record.t.append(self.clock(self.mon.samples * self.mon.dt))
         none = (math.nan, math.nan, math.nan)
         self.record.k2m.append(est.get("k2/M", none))  # the quarter car's ratios (the plot)
         self.record.bm.append(est.get("b/M", none))
@@ -244,16 +270,16 @@ class Feeder:
     def print_event(self, ev: Event) -> None:
         if self.as_json:
             d: Dict[str, Any] = ev.to_dict()
-            d["t"] = round(self.t0 + ev.t, 9)
-            d["t_change"] = round(self.t0 + ev.t_change, 9)
+            d["t"] = round(self.clock(ev.t), 9)
+            d["t_change"] = round(self.clock(ev.t_change), 9)
             d["name"] = PARAMETERS[ev.parameter][0]
             d["unit"] = PARAMETERS[ev.parameter][1]
             print(json.dumps(d), file=self.out, flush=True)
             return
         name, unit = PARAMETERS[ev.parameter]
-        print(f"{self.t0 + ev.t:.3f} s  {ev.parameter} ({name}): {ev.before:.6g} -> {ev.after:.6g} {unit} "
+        print(f"{self.clock(ev.t):.3f} s  {ev.parameter} ({name}): {ev.before:.6g} -> {ev.after:.6g} {unit} "
               f"({100 * ev.change:+.1f} %; 95 % interval {ev.low:.6g} .. {ev.high:.6g}; "
-              f"onset {self.t0 + ev.t_change:.2f} s)", file=self.out, flush=True)
+              f"onset {self.clock(ev.t_change):.2f} s)", file=self.out, flush=True)
 
 
 #: The half car's suspension constants in the order of its coefficients
@@ -281,9 +307,10 @@ def half_changes(est: Dict[str, Any], ref: Optional[Dict[str, Any]]) -> NDArray[
 
 
 def _time_steps(t: NDArray[np.float64], prev: Optional[float], dt: float, table: Table,
-                lines: NDArray[np.int64], prev_line: int) -> NDArray[np.int64]:
-    """Missing samples before each sample: ``round(Δt/dt) − 1``; refuses a time that does
-    not increase, or an interval under half of ``dt``."""
+                lines: NDArray[np.int64], prev_line: int) -> Tuple[NDArray[np.int64], Dict[int, Tuple[float, str]]]:
+    """Missing samples before each sample: ``round(Δt/dt) − 1``, at most :data:`GAP_CAP`
+    seconds of them, and for each longer gap (by the sample's index) its length (s) and its
+    line; refuses a time that does not increase, or an interval under half of ``dt``."""
     tt = t if prev is None else np.concatenate([[prev], t])
     ll = lines if prev is None else np.concatenate([[prev_line], lines])
     d = np.diff(tt)
@@ -295,12 +322,12 @@ def _time_steps(t: NDArray[np.float64], prev: Optional[float], dt: float, table:
                              "the time column must increase strictly (sort the log, drop duplicated samples)")
         raise CliError(f"{where}: the sample interval {float(d[i]):.6g} s is under half the sample interval "
                          f"{dt:.6g} s: the monitor needs a fixed rate (resample the log, or give --dt)")
-    steps = np.rint(d / dt).astype(np.int64) - 1
-    if len(steps) and int(steps.max()) > MAX_GAP_SAMPLES:
-        i = int(np.argmax(steps))
-        raise CliError(f"{table.where(int(ll[i + 1]))}: a gap of {float(d[i]):.6g} s in the time column: "
-                         "split the log at it")
-    return steps if prev is not None else np.concatenate([[0], steps]).astype(np.int64)
+    cap = int(round(GAP_CAP / dt))
+    grid = np.rint(np.minimum(d / dt, 2.0**52))  # grid intervals from each sample to the next
+    steps = (np.minimum(grid, cap + 1) - 1).astype(np.int64)
+    first = 0 if prev is not None else 1  # steps[i] is before sample i + first
+    long = {i + first: (float(d[i]), table.where(int(ll[i + 1]))) for i in np.flatnonzero(grid > cap + 1).tolist()}
+    return (steps if prev is not None else np.concatenate([[0], steps]).astype(np.int64)), long
 
 
 #: The monitor's default tracking window, s (``--window``).
@@ -387,7 +414,7 @@ def cmd_monitor(args: argparse.Namespace) -> int:
         except TableError as e:
             raise CliError(str(e)) from None
         for chunk in table.chunks(cols, labels, CHUNK, missing=True):
-            data = chunk.data * factors
+            data = table.to_si(chunk.data, factors, chunk.lines, labels)
             if has_t and np.isnan(data[:, 0]).any():
                 row = int(np.argmax(np.isnan(data[:, 0])))
                 raise CliError(f"{table.where(int(chunk.lines[row]))}: the time is missing (nan): every sample "
@@ -403,12 +430,16 @@ def cmd_monitor(args: argparse.Namespace) -> int:
                 feeder = Feeder(mon, float(data[0, 0]) if has_t else 0.0, sys.stdout, args.json)
             assert feeder is not None
             if has_t:
-                steps = _time_steps(data[:, 0], prev, mon.dt, table, chunk.lines, prev_line)
+                steps, long = _time_steps(data[:, 0], prev, mon.dt, table, chunk.lines, prev_line)
                 prev, prev_line = float(data[-1, 0]), int(chunk.lines[-1])
                 start = 0
                 for g in np.flatnonzero(steps).tolist():
                     feeder.feed(y[start:g])
                     feeder.gap(int(steps[g]))
+                    if g in long:
+                        seconds, where = long[g]
+                        feeder.skip(seconds - (int(steps[g]) + 1) * mon.dt)
+                        print(f"vehid: note: {where}: {fieldlog.long_gap_words(seconds)}", file=sys.stderr, flush=True)
                     start = g
                 feeder.feed(y[start:])
             else:
@@ -488,6 +519,8 @@ def _monitor_file(args: argparse.Namespace, car: Union[QuarterCar, HalfCar], sen
             timespec="milliseconds")
         print(f"vehid: note: times are seconds from the log's start, {start}", file=sys.stderr, flush=True)
     feeder = Feeder(mon, t0, sys.stdout, args.json)
+    for at, cut in al.skips:  # the long gaps shortened on the grid
+        feeder.skip(cut, at - al.t0)
     feeder.feed(np.ascontiguousarray(al.y))
     summary(feeder, log.source, len(al.y), sys.stderr, noise_words(noise, origin) if sensors == "realistic" else "")
     if plt is not None:
@@ -507,7 +540,7 @@ def _export(args: argparse.Namespace, feeder: Feeder, origin: float) -> None:
     track: Dict[str, List[Any]] = {"t": [origin + t for t in rec.t], "status": list(rec.status)}
     for name, v in (("k2_over_M", k2m), ("b_over_M", bm)):
         track[name], track[f"{name}_low"], track[f"{name}_high"] = v[:, 0].tolist(), v[:, 1].tolist(), v[:, 2].tolist()
-    rows = export.event_rows(feeder.events, origin + feeder.t0, PARAMETERS)
+    rows = export.event_rows(feeder.events, lambda t: origin + feeder.clock(t), PARAMETERS)
     try:
         if args.events:
             export.write_events(args.events, rows, track)
@@ -553,12 +586,10 @@ def parse_noise(text: str) -> Dict[str, float]:
     return out
 
 
-#: The monitor's default sensor noise per sample (``SensorNoise::default``): m/s^2, m/s^2, m.
-DEFAULT_NOISE = {"a_body": 0.02, "a_wheel": 0.1, "deflection": 0.3e-3}
-#: An undeclared sensor's noise estimated from the log is given to the monitor when over this
-#: many times the default: a sensor noisier than assumed misleads the monitor, a quieter one
-#: costs a little sensitivity (and a log at the defaults is monitored as before).
-NOISE_USED_ABOVE = 1.25
+#: The monitor's default sensor noise per sample, and the factor over it from which an
+#: estimate is used (kept in :mod:`vehid.fieldlog`, which ``vehid inspect`` shares).
+DEFAULT_NOISE = fieldlog.DEFAULT_NOISE
+NOISE_USED_ABOVE = fieldlog.NOISE_USED_ABOVE
 
 
 def noise_words(noise: Dict[str, float], origin: Dict[str, str]) -> str:
@@ -591,7 +622,12 @@ def summary(feeder: Feeder, source: str, samples: int, out: IO[str], noise: str 
     why = ", ".join(f"{k} {100 * v / len(st):.0f} %" for k, v in sorted(reasons.items(), key=lambda kv: -kv[1]))
     mon = feeder.mon
     n = len(feeder.events)
-    print(f"vehid: {source}: {samples} samples ({mon.samples * mon.dt:.1f} s, {feeder.missing} missing), "
+    long = ""
+    if feeder.skipped:
+        k, total = len(feeder.skipped), sum(sec for _, sec in feeder.skipped)
+        long = (f", {k} gap{'s' if k != 1 else ''} over {GAP_CAP:g} s fed as {GAP_CAP:g} s of missing samples "
+                f"({total:.6g} s not fed)")
+    print(f"vehid: {source}: {samples} samples ({mon.samples * mon.dt:.1f} s, {feeder.missing} missing{long}), "
           f"{n} event{'s' if n != 1 else ''}; warm-up {100 * warmup / max(1, len(st)):.0f} %, judged "
           f"{100 * judged / max(1, len(st)):.0f} % of the time"
           + (f", cannot judge {100 * len(cannot) / len(st):.0f} % ({why})" if cannot else "")
@@ -692,7 +728,8 @@ DESCRIPTION = (
     "observable without a road measurement: equal relative changes of both are the body mass. With --model half "
     "(columns a_body_f, a_body_r, a_wheel_f, a_wheel_r, deflection_f, deflection_r) it names b_f, b_r, k2_f, k2_r "
     "or M (with J scaled alike). Missing values "
-    "(nan, empty cells) and gaps in the time column make the monitor 'cannot judge' for a while, never report. "
+    "(nan, empty cells) and gaps in the time column make the monitor 'cannot judge' for a while, never report "
+    "(a gap over 60 s, a parked car, is fed as 60 s of missing samples; times stay on the log's clock). "
     "Units are converted to SI ([mm] headers, a channels.toml, Parquet metadata), channels at several rates "
     "resampled, the deflection's delay estimated and removed, and the log checked against the named car first "
     "(see vehid inspect). A summary goes to stderr."

@@ -45,6 +45,25 @@ TREND = 60.0
 _MAGIC = b"VHFS"
 
 
+#: The schema metadata key under which :func:`vehid.fleet.layout.read_day` records the day's
+#: files and their rows (JSON ``[[name, rows], ...]``), so that a message names a row in its file.
+FILES_KEY = b"vehid.files"
+
+
+def row_place(table: Any, i: int) -> str:
+    """Row ``i`` (0-based) of a day's ``table`` as messages name it: ``"b.parquet, row 12"``
+    (1-based, in its own file) when the table records its files (``FILES_KEY``), else
+    ``"row 13"`` (1-based, in the table)."""
+    meta = (table.schema.metadata or {}).get(FILES_KEY)
+    if meta:
+        start = 0
+        for name, rows in json.loads(meta):
+            if i < start + rows:
+                return f"{name}, row {i - start + 1}"
+            start += rows
+    return f"row {i + 1}"
+
+
 class DayError(ValueError):
     """A vehicle-day the fold cannot use (missing column, time not increasing, ...): the
     message is the reason recorded in the store."""
@@ -155,7 +174,7 @@ def fold(state: Optional[bytes], table: Any, config: VehicleConfig) -> DayResult
         raise DayError("no samples")
     if np.isnan(t).any():
         i = int(np.argmax(np.isnan(t)))
-        raise DayError(f"row {i + 1}: the time t is missing")
+        raise DayError(f"{row_place(table, i)}: the time t is missing")
     mon = config.monitor_new() if state is None else unpack_state(state, config)
     dt = mon.dt
     d = np.diff(t)
@@ -163,9 +182,9 @@ def fold(state: Optional[bytes], table: Any, config: VehicleConfig) -> DayResult
     if bad.any():
         i = int(np.argmax(bad))
         if d[i] <= 0:
-            raise DayError(f"row {i + 2}: time {t[i + 1]!r} s does not increase after {t[i]!r} s (rows out of "
-                           "order or repeated: sort the day's files, drop duplicated samples)")
-        raise DayError(f"row {i + 2}: the sample interval {d[i]:.6g} s is under half of dt = {dt:g} s "
+            raise DayError(f"{row_place(table, i + 1)}: time {t[i + 1]!r} s does not increase after {t[i]!r} s "
+                           "(rows out of order or repeated: sort the day's files, drop duplicated samples)")
+        raise DayError(f"{row_place(table, i + 1)}: the sample interval {d[i]:.6g} s is under half of dt = {dt:g} s "
                        "(fleet.toml's dt, or resample the log)")
     cap = int(round(GAP_CAP / dt))
     # Segments of rows between gaps; before each, its missing samples (one before the first

@@ -14,12 +14,13 @@ encoding (pyarrow: ``use_dictionary=False``), with LZ4 or Snappy compression.
 from __future__ import annotations
 
 import datetime
+import json
 import os
 from dataclasses import dataclass, field
 from typing import Any, Dict, List, Tuple
 
 from ._deps import module
-from .fold import DayError
+from .fold import FILES_KEY, DayError
 
 CONFIG = "fleet.toml"
 
@@ -90,14 +91,19 @@ def read_day(files: List[str]) -> Any:
         except Exception as e:  # pyarrow's ArrowInvalid / OSError family
             raise DayError(f"{os.path.basename(path)}: not a readable Parquet file "
                            f"({str(e).splitlines()[0] if str(e) else type(e).__name__})") from None
+    files_meta = json.dumps([[os.path.basename(p), tb.num_rows] for p, tb in zip(files, tables)]).encode()
+
+    def recorded(tb: Any) -> Any:  # the files and their rows, for messages (fold.row_place)
+        return tb.replace_schema_metadata({**(tb.schema.metadata or {}), FILES_KEY: files_meta})
+
     if len(tables) == 1:
-        return tables[0]
+        return recorded(tables[0])
     names = tables[0].column_names
     for path, tb in zip(files[1:], tables[1:]):
         if set(tb.column_names) != set(names):
             raise DayError(f"{os.path.basename(path)}: its columns ({', '.join(tb.column_names[:12])}) differ from "
                            f"{os.path.basename(files[0])}'s ({', '.join(names[:12])})")
     try:
-        return pa.concat_tables([tb.select(names) for tb in tables], promote_options="permissive")
+        return recorded(pa.concat_tables([tb.select(names) for tb in tables], promote_options="permissive"))
     except Exception as e:
         raise DayError(f"the day's files do not join ({str(e).splitlines()[0]})") from None
