@@ -354,7 +354,7 @@ def _health_monitor(car: Union[QuarterCar, HalfCar], dt: float, sensors: Literal
                     from None
             raise CliError(f"--window {args.window:g}: expected at least 10 sample intervals ({given}): give "
                              f"--window {least} or more, or a shorter --dt") from None
-        if name == "bias_walk":
+        if name == "dt" and "settles" in str(e):
             raise CliError(f"{given}: too short a sample interval for the monitor's filters (the deflection "
                              "filter's gain does not settle): give the log's sample interval in seconds, e.g. "
                              "--dt 0.005 for 200 Hz") from None
