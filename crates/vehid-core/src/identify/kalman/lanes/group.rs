@@ -255,11 +255,6 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
         // that steps needs 0 < s < inf; r/s below √ε makes its downdate risky. Either marks
         // the lane's step check with a NaN, so that one test of the steps refuses the plan:
         // `check` then names the cause, or finds only risky downdates that stay definite.
-        // The plain mode under the outlier gate: a lane beyond it marks the plan like a risky
-        // step, so that `settle` plans the sample again in the general mode, which leaves it
-        // out (the same test, `guards::screen`, on the same values).
-        let beyond =
-            if const { MODE == PLAIN } && self.gate > T::zero() { self.beyond_gate(ek, s) } else { [false; L] };
         let rk = super::super::guards::risky::<T>();
         let mut w = [T::zero(); L];
         let mut c = [T::zero(); L];
@@ -269,9 +264,19 @@ impl<T: Real, const N: usize, const L: usize> RowGroup<T, N> for RowLanes<T, N, 
             let step = go[k] != T::zero();
             let fine = (s[k] > T::zero()) & (s[k] <= T::biggest());
             let risky = (reff[k] > T::zero()) & (reff[k] < rk * s[k]);
-            flag[k] = if step & (risky | !fine | beyond[k]) { T::of(f64::NAN) } else { T::zero() };
+            flag[k] = if step & (risky | !fine) { T::of(f64::NAN) } else { T::zero() };
             w[k] = if step { inv } else { T::zero() };
             c[k] = if step { ek[k] * inv } else { T::zero() };
+        }
+        // The plain mode under the outlier gate: a lane beyond it marks the plan like a risky
+        // step, so that `settle` plans the sample again in the general mode, which leaves it
+        // out (the same test, `guards::screen`, on the same values). Apart from the loop
+        // above, so that without a gate that loop is what it was.
+        if const { MODE == PLAIN } && self.gate > T::zero() {
+            let beyond = self.beyond_gate(ek, s);
+            for k in 0..L {
+                flag[k] = if beyond[k] & (go[k] != T::zero()) { T::of(f64::NAN) } else { flag[k] };
+            }
         }
         let mut st = [[T::zero(); L]; N];
         for a in 0..N {
