@@ -274,6 +274,7 @@
 
 mod consistency;
 mod event;
+mod full;
 mod half;
 mod kinematic;
 mod monitor;
@@ -282,6 +283,10 @@ mod rls;
 
 pub use consistency::{KinematicCheck, CHECK_HIGH_PASS_HZ, CHECK_LOW_PASS_HZ, CHECK_RATE_HZ};
 pub use event::{Constant, Estimate, Event, Reason, Status};
+pub use full::{
+    full_alpha, full_coefficients, full_relative_patterns, full_stiffness, FullEstimate, FullHealthMonitor,
+    FULL_CHANNELS, FULL_NAMED, FULL_NAMED_COUNT,
+};
 pub use half::{HalfEstimate, HalfHealthMonitor, DECISION_INTERVAL, HALF_CHANNELS, HALF_NAMED, HALF_STATE_CHANNELS};
 pub use kinematic::{DeflectionFilter, RateGain};
 pub use monitor::{
@@ -290,6 +295,8 @@ pub use monitor::{
 };
 pub use rls::{Rls, Rls3};
 
+#[cfg(test)]
+mod full_tests;
 #[cfg(test)]
 mod half_tests;
 #[cfg(test)]
