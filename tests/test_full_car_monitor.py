@@ -1,13 +1,16 @@
 """The full car's health monitor from Python (`vehid.HealthMonitor(FullCar)`, Rust
 `vehid_core::health::FullHealthMonitor`): the api.md example, naming by corner, a load,
-pickling, bad input."""
+pickling, bad input, `vehid monitor --model full`."""
 
+import json
 import pickle
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 import vehid
+from vehid import cli
 
 DT = 0.005
 FULL = vehid.FullCar.passenger()
@@ -63,3 +66,18 @@ def test_a_load_and_bad_input() -> None:
     assert pickle.dumps(mon) == before
     with pytest.raises(vehid.VehidError, match="sensors"):
         vehid.HealthMonitor(FULL, dt=DT, sensors="state")
+
+
+def test_vehid_monitor_model_full(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    run = drive(100.0, changes=[(40.0, {"b_rl": 900.0})], seed=54)
+    log = tmp_path / "full.csv"
+    header = "t," + ",".join(run.channels)
+    np.savetxt(log, np.column_stack([run.t, run.y]), delimiter=",", header=header, comments="")
+    assert cli.main(["monitor", str(log), "--model", "full", "--json"]) == 0
+    out = capsys.readouterr().out.strip().splitlines()
+    assert len(out) == 1, out
+    ev = json.loads(out[0])
+    assert ev["parameter"] == "b_rl" and ev["name"] == "rear left damper" and ev["before"] == 1000.0
+    assert abs(ev["change"] + 0.10) < 0.03
+    assert cli.main(["monitor", str(log), "--model", "full", "--sensors", "state"]) == 2
+    assert "realistic sensors only" in capsys.readouterr().err
