@@ -428,7 +428,7 @@ impl<T: Real> FullHealthMonitor<T> {
             return None;
         }
         let gate = if self.reacq_left > 0 { T::biggest() } else { T::of(JUMP_GATE) };
-        // Every corner's filter is gated before any is updated, so that a jump changes nothing.
+        // A jump on any corner restarts every corner's filter (`interrupt`).
         let rel: [T; 4] = core::array::from_fn(|i| y[i] - y[4 + i]);
         let mut kf = self.kf;
         let mut dv = [(T::zero(), T::zero()); 4];
