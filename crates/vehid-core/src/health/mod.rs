@@ -171,8 +171,8 @@
 //! Figures: `crates/vehid-core/tests/sensor_faults.rs` (bias steps of 1, 5 and 100
 //! standard deviations, a drift of one standard deviation per 10 s, gain ×0.9 and ×1.1, an
 //! inverted deflection, swapped accelerometers, a stuck wheel accelerometer, a body
-//! accelerometer's bias step of 0.5 m/s², each from 60 s on a 120 s drive; quarter and half
-//! car: no event; "cannot judge" after each fault the data show), and over 100 drives per
+//! accelerometer's bias step of 0.5 m/s², each from 60 s on a 120 s drive; quarter, half and
+//! full car (the full car's front left and rear right corners): no event; "cannot judge" after each fault the data show), and over 100 drives per
 //! kind and car `cargo test --release -p vehid-core --test integration
 //! sensor_faults::hundred -- --ignored --nocapture`.
 //! During the warm-up there is no reference yet ([`Status::Warmup`]).
