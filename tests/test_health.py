@@ -221,7 +221,7 @@ def test_missing_samples_cannot_be_judged_and_raise_nothing(damper_run: vehid.Ru
 
 @pytest.mark.parametrize("kwargs, match", [
     (dict(car=vehid.LinearModel(np.array([[0.0, 1.0], [-1.0, -1.0]]), np.array([0.0, 1.0]), [1])),
-     "must be a vehid.QuarterCar or a vehid.HalfCar"),
+     "must be a vehid.QuarterCar, a vehid.HalfCar or a vehid.FullCar"),
     (dict(dt=0.0), "dt"),
     (dict(sensors="gps"), "sensors"),
     (dict(window=0.01), "window"),

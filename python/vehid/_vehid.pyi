@@ -642,7 +642,11 @@ def validate(
     substeps: int = 10,
 ) -> Dict[str, NDArray[np.float64]]: ...
 
-_Parameter = Literal["M", "k2", "b"]
+_Parameter = Literal[
+    "M", "k2", "b",  # quarter car
+    "k2_f", "b_f", "k2_r", "b_r",  # half car
+    "k_fl", "k_fr", "k_rl", "k_rr", "b_fl", "b_fr", "b_rl", "b_rr",  # full car
+]
 
 @final
 class Event:
@@ -674,11 +678,11 @@ class Event:
 
 @final
 class HealthMonitor:
-    """The suspension health monitor of a quarter or half car: which constant changed, when, to what."""
+    """The suspension health monitor of a quarter, half or full car: which constant changed, when, to what."""
 
     def __new__(
         cls,
-        car: Union[QuarterCar, HalfCar],
+        car: Union[QuarterCar, HalfCar, FullCar],
         dt: float = 0.005,
         sensors: _Sensors = "realistic",
         sensor_noise: Optional[Dict[str, float]] = None,

@@ -59,6 +59,16 @@ HALF_SENSOR_COLUMNS: Dict[str, Tuple[Column, ...]] = {
     ),
 }
 
+#: The full car's channels (``--model full``; realistic sensors only): a body accelerometer
+#: above each wheel, the wheel accelerometers, the suspension extensions, corners fl, fr, rl, rr.
+FULL_SENSOR_COLUMNS: Dict[str, Tuple[Column, ...]] = {
+    "realistic": tuple(
+        [Column(f"a_body_{c}", None, "m/s^2") for c in ("fl", "fr", "rl", "rr")]
+        + [Column(f"a_wheel_{c}", None, "m/s^2") for c in ("fl", "fr", "rl", "rr")]
+        + [Column(f"deflection_{c}", None, "m") for c in ("fl", "fr", "rl", "rr")]
+    ),
+}
+
 
 @dataclass
 class ChannelSpec:

@@ -33,9 +33,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import fieldlog
-from ._vehid import Event, HalfCar, HealthMonitor, QuarterCar, Simulator, VehidError
+from ._vehid import Event, FullCar, HalfCar, HealthMonitor, QuarterCar, Simulator, VehidError
 from .align import nominal_interval
-from .channels import HALF_SENSOR_COLUMNS, SENSOR_COLUMNS
+from .channels import FULL_SENSOR_COLUMNS, HALF_SENSOR_COLUMNS, SENSOR_COLUMNS
 from .clitools import CliError, run_chunks, stdout, write_output
 from .io import Column, Table, TableError, column_factor, match_columns, open_table, parse_column_map
 from .reproduce import load_pyplot
@@ -56,10 +56,14 @@ GAP_CAP = fieldlog.GAP_CAP
 #: What each named constant is, and its unit, for the printed lines.
 PARAMETERS = {"b": ("damper", "N s/m"), "k2": ("spring", "N/m"), "M": ("body mass", "kg"),
               "b_f": ("front damper", "N s/m"), "b_r": ("rear damper", "N s/m"),
-              "k2_f": ("front spring", "N/m"), "k2_r": ("rear spring", "N/m")}
+              "k2_f": ("front spring", "N/m"), "k2_r": ("rear spring", "N/m"),
+              **{f"b_{c}": (f"{w} damper", "N s/m") for c, w in
+                 (("fl", "front left"), ("fr", "front right"), ("rl", "rear left"), ("rr", "rear right"))},
+              **{f"k_{c}": (f"{w} spring", "N/m") for c, w in
+                 (("fl", "front left"), ("fr", "front right"), ("rl", "rear left"), ("rr", "rear right"))}}
 
-CARS: Dict[str, Callable[[], Union[QuarterCar, HalfCar]]] = {
-    "quarter": QuarterCar, "passenger": QuarterCar.passenger, "half": HalfCar.passenger}
+CARS: Dict[str, Callable[[], Union[QuarterCar, HalfCar, FullCar]]] = {
+    "quarter": QuarterCar, "passenger": QuarterCar.passenger, "half": HalfCar.passenger, "full": FullCar.passenger}
 
 
 def parse_change(text: str) -> Tuple[float, Dict[str, float], float]:
@@ -100,9 +104,10 @@ def drive_car(text: Optional[str], half: bool = False) -> Union[QuarterCar, Half
     if tokens and tokens[0] in ("passenger", "thesis"):
         base = tokens.pop(0)
     overrides = ",".join(tokens) or None
-    if half:
-        return with_constants(HalfCar.passenger() if base == "passenger" else HalfCar(), overrides)
-    return nominal_car("quarter" if base == "thesis" else "passenger", overrides)
+    car = with_constants(HalfCar.passenger() if base == "passenger" else HalfCar(), overrides) if half \
+        else nominal_car("quarter" if base == "thesis" else "passenger", overrides)
+    assert not isinstance(car, FullCar)  # the drives of vehid simulate: quarter and half car
+    return car
 
 
 #: The columns of a drive's true constants (``Run.constants``), per car.
@@ -156,7 +161,7 @@ def cmd_simulate_drive(args: argparse.Namespace) -> int:
     return 0
 
 
-def nominal_car(model: str, constants: Optional[str]) -> Union[QuarterCar, HalfCar]:
+def nominal_car(model: str, constants: Optional[str]) -> Union[QuarterCar, HalfCar, FullCar]:
     """The nominal car of ``--model`` with ``--car`` overrides (``"M=320,b=1500"``; the half
     car's constants by their thesis names, ``"b1=1500,k22=21000"``).
 
@@ -166,13 +171,15 @@ def nominal_car(model: str, constants: Optional[str]) -> Union[QuarterCar, HalfC
     if model not in CARS:
         if model.endswith(".toml"):
             raise CliError(f"--model {model}: the health monitor covers the quarter car (--model quarter or "
-                             "passenger) and the half car (--model half), with --car for your car's constants")
-        raise CliError(f"--model {model}: choose quarter (the thesis' car), passenger (a typical passenger car) "
-                         "or half (a typical passenger half car)")
+                             "passenger), the half car (--model half) and the full car (--model full), with --car "
+                             "for your car's constants")
+        raise CliError(f"--model {model}: choose quarter (the thesis' car), passenger (a typical passenger car), "
+                         "half (a typical passenger half car) or full (a passenger full car)")
     return with_constants(CARS[model](), constants)
 
 
-def with_constants(car: Union[QuarterCar, HalfCar], constants: Optional[str]) -> Union[QuarterCar, HalfCar]:
+def with_constants(car: Union[QuarterCar, HalfCar, FullCar],
+                   constants: Optional[str]) -> Union[QuarterCar, HalfCar, FullCar]:
     """``car`` with ``--car`` overrides ``"NAME=VALUE,..."`` (its own constants' names)."""
     params = dict(car.params)
     for item in (constants or "").split(","):
@@ -187,7 +194,11 @@ def with_constants(car: Union[QuarterCar, HalfCar], constants: Optional[str]) ->
             params[name] = float(value)
         except ValueError:
             raise CliError(f"--car {constants}: {name}={value.strip()!r} is not a number") from None
-    return HalfCar(**params) if isinstance(car, HalfCar) else QuarterCar(**params)
+    if isinstance(car, FullCar):
+        return FullCar(**params)
+    if isinstance(car, HalfCar):
+        return HalfCar(**params)
+    return QuarterCar(**params)
 
 
 @dataclass
@@ -334,7 +345,7 @@ def _time_steps(t: NDArray[np.float64], prev: Optional[float], dt: float, table:
 DEFAULT_WINDOW = 6.0
 
 
-def _health_monitor(car: Union[QuarterCar, HalfCar], dt: float, sensors: Literal["realistic", "state"],
+def _health_monitor(car: Union[QuarterCar, HalfCar, FullCar], dt: float, sensors: Literal["realistic", "state"],
                     settings: Dict[str, Any], args: argparse.Namespace, source: str) -> HealthMonitor:
     """The monitor at the sample interval ``dt``; an error the core finds in a setting the
     user never gave is said as what it is: a sample interval (``--dt`` or the time column's)
@@ -375,7 +386,16 @@ def cmd_monitor(args: argparse.Namespace) -> int:
     # matplotlib before the log: a missing plot extra is said at once, not after the whole run.
     plt = _pyplot() if args.plot else None
     half = isinstance(car, HalfCar)
-    channels = (HALF_SENSOR_COLUMNS if half else SENSOR_COLUMNS)[sensors]
+    if isinstance(car, FullCar):
+        if sensors != "realistic":
+            raise CliError("--model full: the full car's monitor reads the realistic sensors only (--sensors "
+                             "realistic: a_body_fl .. a_body_rr, a_wheel_fl .. a_wheel_rr, deflection_fl .. "
+                             "deflection_rr)")
+        if plt is not None:
+            raise CliError("--plot: not drawn for the full car yet (--model full); the events and --track are")
+        channels = FULL_SENSOR_COLUMNS[sensors]
+    else:
+        channels = (HALF_SENSOR_COLUMNS if half else SENSOR_COLUMNS)[sensors]
     events, track = getattr(args, "events", None), getattr(args, "track", None)
     if events and not events.lower().endswith((".parquet", ".mcap")):  # said before the run, not after
         raise CliError(f"--events {events}: give a .parquet or .mcap file")
@@ -460,8 +480,9 @@ def cmd_monitor(args: argparse.Namespace) -> int:
     return 0
 
 
-def _monitor_file(args: argparse.Namespace, car: Union[QuarterCar, HalfCar], sensors: Literal["realistic", "state"],
-                  settings: Dict[str, Any], channels: Sequence[Column], plt: Any) -> int:
+def _monitor_file(args: argparse.Namespace, car: Union[QuarterCar, HalfCar, FullCar],
+                  sensors: Literal["realistic", "state"], settings: Dict[str, Any], channels: Sequence[Column],
+                  plt: Any) -> int:
     """``vehid monitor`` on a file or a bag (:mod:`vehid.fieldlog`): the channels read in SI,
     put on one grid (resampled where their rates differ, the deflection's delay removed),
     checked against the named car, then fed to the monitor."""
@@ -484,7 +505,7 @@ def _monitor_file(args: argparse.Namespace, car: Union[QuarterCar, HalfCar], sen
     mon = _health_monitor(car, dt, sensors, settings, args, log.source)
     try:
         al = fieldlog.align(log, dt, cmap.channels if cmap else None)
-        if sensors == "realistic" and not isinstance(car, HalfCar):
+        if sensors == "realistic" and isinstance(car, QuarterCar):
             p = car.params
             fieldlog.car_check(al, p["k2"] / p["M"], p["b"] / p["M"], _car_words(args))
     except TableError as e:
@@ -643,7 +664,7 @@ def _pyplot() -> Any:
     return plt
 
 
-def plot(feeder: Feeder, car: Union[QuarterCar, HalfCar], path: str, plt: Any) -> None:
+def plot(feeder: Feeder, car: Union[QuarterCar, HalfCar, FullCar], path: str, plt: Any) -> None:
     """The tracked ratios with their 95 % bands, the times the monitor could not judge
     (grey) and the events (vertical lines), into ``path`` (PNG, drawn with ``plt``, pyplot)."""
     if isinstance(car, HalfCar):
@@ -727,7 +748,8 @@ DESCRIPTION = (
     "(b damper, k2 spring, M body mass), when, from what to what, with a 95 % interval. Only k2/M and b/M are "
     "observable without a road measurement: equal relative changes of both are the body mass. With --model half "
     "(columns a_body_f, a_body_r, a_wheel_f, a_wheel_r, deflection_f, deflection_r) it names b_f, b_r, k2_f, k2_r "
-    "or M (with J scaled alike). Missing values "
+    "or M (with J scaled alike); with --model full (columns a_body_fl .. a_body_rr, a_wheel_fl .. a_wheel_rr, "
+    "deflection_fl .. deflection_rr) b_fl .. b_rr, k_fl .. k_rr or M (with Jx, Jy scaled alike). Missing values "
     "(nan, empty cells) and gaps in the time column make the monitor 'cannot judge' for a while, never report "
     "(a gap over 60 s, a parked car, is fed as 60 s of missing samples; times stay on the log's clock). "
     "Units are converted to SI ([mm] headers, a channels.toml, Parquet metadata), channels at several rates "
@@ -745,8 +767,9 @@ def add_arguments(p: argparse.ArgumentParser, delimiter: Callable[[str], str]) -
                    help="the nominal car: quarter (the thesis' values, default), passenger (M=320 kg, m=40 kg, "
                         "k1=200 kN/m, k2=22 kN/m, b=1500 N s/m) or half (a passenger half car: M=640 kg, "
                         "J=1040 kg m^2, l1=1.2 m, l2=1.5 m, k12/k22=24/22 kN/m, b1/b2=1600/1400 N s/m; columns "
-                        "a_body_f, a_body_r, a_wheel_f, a_wheel_r, deflection_f, deflection_r); --car overrides "
-                        "its constants")
+                        "a_body_f, a_body_r, a_wheel_f, a_wheel_r, deflection_f, deflection_r) or full (the "
+                        "passenger full car of vehid.FullCar.passenger(); columns a_body_fl .. a_body_rr, "
+                        "a_wheel_fl .. a_wheel_rr, deflection_fl .. deflection_rr); --car overrides its constants")
     p.add_argument("--car", default=None, metavar="CONSTANTS",
                    help="your car's nominal constants, e.g. M=320,k2=22000,b=1500 (kg, N/m, N s/m): the 'before' "
                         "of the first events")

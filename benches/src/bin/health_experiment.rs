@@ -37,13 +37,20 @@
 //!   −10 %, rear spring −10 %, body mass +20 % (with the pitch inertia +20 %), and body mass
 //!   +20 % with `J` unchanged (outside the monitor's assumption that `J` scales with `M`).
 //!
-//! Usage: `health_experiment [--car quarter|half] [--seed0 N] [--seeds N] [--hours H] [--threshold h] [--window s] [--warmup s] [--calibrate] [--vary] [--state-noise F]`.
+//! - `--car full`: the full car instead (`FullCar::passenger`, `FullDrive` with its two ISO
+//!   8608 tracks, `FullHealthMonitor`; realistic sensors at the four corners): each corner's
+//!   damper −10 % and spring −10 %, body mass +20 % (with `Jx`, `Jy` +20 %), and body mass
+//!   +20 % with the inertias unchanged (outside the monitor's assumption). Realistic sensors
+//!   only (no `--state-noise`).
+//!
+//! Usage: `health_experiment [--car quarter|half|full] [--seed0 N] [--seeds N] [--hours H] [--threshold h] [--window s] [--warmup s] [--calibrate] [--vary] [--state-noise F]`.
 
 use std::time::Instant;
-use vehid_core::health::{HalfHealthMonitor, HealthConfig, HealthMonitor, Status};
-use vehid_core::model::{HalfCar, QuarterCar};
+use vehid_core::health::{FullHealthMonitor, HalfHealthMonitor, HealthConfig, HealthMonitor, Status};
+use vehid_core::model::{FullCar, HalfCar, QuarterCar};
 use vehid_core::sim::{
-    Change, DriveConfig, HalfChange, HalfDrive, HalfDriveConfig, QuarterDrive, RoadClass, SensorNoise, SensorSet,
+    Change, DriveConfig, FullChange, FullDrive, FullDriveConfig, HalfChange, HalfDrive, HalfDriveConfig, QuarterDrive,
+    RoadClass, SensorNoise, SensorSet,
 };
 
 const DT: f64 = 0.005;
@@ -60,6 +67,7 @@ struct Args {
     vary: bool,
     state_noise: Option<f64>,
     half: bool,
+    full: bool,
 }
 
 fn parse() -> Args {
@@ -73,6 +81,7 @@ fn parse() -> Args {
         vary: false,
         state_noise: None,
         half: false,
+        full: false,
     };
     let argv: Vec<String> = std::env::args().skip(1).collect();
     let mut i = 0;
@@ -87,10 +96,11 @@ fn parse() -> Args {
             "--warmup" => WARMUP.set(val().parse().expect("--warmup: seconds")).expect("--warmup once"),
             "--state-noise" => a.state_noise = Some(val().parse().expect("--state-noise: a fraction")),
             "--car" => {
-                a.half = match val().as_str() {
-                    "quarter" => false,
-                    "half" => true,
-                    other => panic!("--car: quarter or half, not {other}"),
+                (a.half, a.full) = match val().as_str() {
+                    "quarter" => (false, false),
+                    "half" => (true, false),
+                    "full" => (false, true),
+                    other => panic!("--car: quarter, half or full, not {other}"),
                 }
             }
             "--calibrate" => {
@@ -152,6 +162,7 @@ fn state_noise(car: Car, f: f64, seed: u64) -> SensorNoise<f64> {
                 [y[4], y[13], y[4] + l1 * y[6] - y[0]]
             })
         }
+        Car::Full(_) => panic!("--state-noise: the full car's monitor reads the realistic sensors only"),
     };
     let n = (600.0 / DT) as usize;
     let (mut s, mut s2) = ([0.0f64; 3], [0.0f64; 3]);
@@ -168,6 +179,7 @@ fn state_noise(car: Car, f: f64, seed: u64) -> SensorNoise<f64> {
     let (name, gain) = match car {
         Car::Quarter(_) => ("zb - zw", 2f64.sqrt()),
         Car::Half(c) => ("zb + l1 ph - z1", (2.0 + c.params().l1.powi(2)).sqrt()),
+        Car::Full(_) => unreachable!(),
     };
     println!(
         "state sensors: std(zb) {:.4} m, std(dvb) {:.3} m/s^2, std({name}) {:.4} m; noise sigma_w {:.3e} m, \
@@ -208,12 +220,14 @@ fn pct(sorted: &[f64], p: f64) -> f64 {
 enum Car {
     Quarter(QuarterCar<f64>),
     Half(HalfCar<f64>),
+    Full(FullCar<f64>),
 }
 
 /// A drive and a monitor of either car.
 enum Rig {
     Quarter(Box<QuarterDrive<f64>>, Box<HealthMonitor<f64>>),
     Half(Box<HalfDrive<f64>>, Box<HalfHealthMonitor<f64>>),
+    Full(Box<FullDrive<f64>>, Box<FullHealthMonitor<f64>>),
 }
 
 /// An event: when, the constant's name, the relative change.
@@ -248,6 +262,16 @@ impl Rig {
                     Box::new(HalfHealthMonitor::new(config(c, tune)).unwrap()),
                 )
             }
+            Car::Full(c) => {
+                let mut cfg = FullDriveConfig::new(drive_config());
+                for (name, v) in changes {
+                    cfg = cfg.with_change(FullChange::step(T_CHANGE, name, *v).unwrap()).unwrap();
+                }
+                Rig::Full(
+                    Box::new(FullDrive::new(c, cfg, seed).unwrap()),
+                    Box::new(FullHealthMonitor::new(config(c, tune)).unwrap()),
+                )
+            }
         }
     }
 
@@ -268,6 +292,13 @@ impl Rig {
                 };
                 m.update(s.y()).unwrap().map(|e| Ev { t: e.t, name: e.parameter.as_str(), change: e.change })
             }
+            Rig::Full(d, m) => {
+                let s = match speed {
+                    Some(v) => d.next_sample_at(v).unwrap(),
+                    None => d.next_sample(),
+                };
+                m.update(s.y()).unwrap().map(|e| Ev { t: e.t, name: e.parameter.as_str(), change: e.change })
+            }
         }
     }
 
@@ -275,6 +306,7 @@ impl Rig {
         match self {
             Rig::Quarter(d, _) => d.set_road(road),
             Rig::Half(d, _) => d.set_road(road),
+            Rig::Full(d, _) => d.set_road(road),
         }
     }
 
@@ -282,6 +314,7 @@ impl Rig {
         match self {
             Rig::Quarter(_, m) => m.status(),
             Rig::Half(_, m) => m.status(),
+            Rig::Full(_, m) => m.status(),
         }
     }
 
@@ -290,6 +323,7 @@ impl Rig {
         match self {
             Rig::Quarter(_, m) => m.cusum().iter().flatten().fold(0.0f64, |a, v| a.max(*v)),
             Rig::Half(_, m) => m.cusum().iter().flatten().fold(0.0f64, |a, v| a.max(*v)),
+            Rig::Full(_, m) => m.cusum().iter().flatten().fold(0.0f64, |a, v| a.max(*v)),
         }
     }
 }
@@ -382,14 +416,23 @@ fn calibrate(car: Car, a: &Args) {
 fn main() {
     let a = parse();
     let quarter = QuarterCar::<f64>::passenger();
-    let car = if a.half { Car::Half(HalfCar::passenger()) } else { Car::Quarter(quarter) };
+    let car = if a.full {
+        Car::Full(FullCar::passenger())
+    } else if a.half {
+        Car::Half(HalfCar::passenger())
+    } else {
+        Car::Quarter(quarter)
+    };
     if let Some(f) = a.state_noise {
         let noise = state_noise(car, f, a.seed0 + 2_000_000);
         SENSORS.set((SensorSet::State, noise)).expect("set once");
     }
     let cfg = config(quarter, (a.threshold, a.window));
     let (h, window) = (cfg.threshold, cfg.window);
-    let what = if a.half {
+    let what = if a.full {
+        "passenger full car (Ikenaga et al. 2000: M 1500 kg, Jx 460, Jy 2160 kg m^2, l_f 1.4 m, l_r 1.7 m, \
+         tracks 1.5 m, k 35/38 kN/m, b 1.0 kN s/m, m 59 kg, kt 190 kN/m, no anti-roll bars; two tracks)"
+    } else if a.half {
         "passenger half car (M 640 kg, J 1040 kg m^2, l1 1.2 m, l2 1.5 m, k2 24/22 kN/m, b 1.6/1.4 kN s/m, \
          m 40/35 kg, k1 200 kN/m)"
     } else {
@@ -407,7 +450,21 @@ fn main() {
         return;
     }
     type Scenario = (&'static str, Vec<(&'static str, f64)>, &'static str, f64, f64);
-    let scenarios: Vec<Scenario> = if a.half {
+    let scenarios: Vec<Scenario> = if a.full {
+        vec![
+            ("damper fl -10 %", vec![("b_fl", 900.0)], "b_fl", 900.0, 1000.0),
+            ("damper fr -10 %", vec![("b_fr", 900.0)], "b_fr", 900.0, 1000.0),
+            ("damper rl -10 %", vec![("b_rl", 900.0)], "b_rl", 900.0, 1000.0),
+            ("damper rr -10 %", vec![("b_rr", 900.0)], "b_rr", 900.0, 1000.0),
+            ("spring fl -10 %", vec![("k_fl", 31_500.0)], "k_fl", 31_500.0, 35_000.0),
+            ("spring fr -10 %", vec![("k_fr", 31_500.0)], "k_fr", 31_500.0, 35_000.0),
+            ("spring rl -10 %", vec![("k_rl", 34_200.0)], "k_rl", 34_200.0, 38_000.0),
+            ("spring rr -10 %", vec![("k_rr", 34_200.0)], "k_rr", 34_200.0, 38_000.0),
+            ("body mass +20 % (Jx, Jy +20 %)", vec![("M", 1800.0), ("Jx", 552.0), ("Jy", 2592.0)], "M", 1800.0, 1500.0),
+            // Outside the monitor's assumption (the inertias scale with M).
+            ("body mass +20 %, Jx, Jy unchanged", vec![("M", 1800.0)], "M", 1800.0, 1500.0),
+        ]
+    } else if a.half {
         vec![
             ("front damper -10 %", vec![("b_f", 1440.0)], "b_f", 1440.0, 1600.0),
             ("rear damper -10 %", vec![("b_r", 1260.0)], "b_r", 1260.0, 1400.0),

@@ -376,6 +376,9 @@ mod impls {
     checked!("HalfHealthMonitor", [T: Real] crate::health::HalfHealthMonitor<T>,
         ser: [T: Serialize], de: [T: crate::Real]);
 
+    checked!("FullHealthMonitor", [T: Real] crate::health::FullHealthMonitor<T>,
+        ser: [T: Serialize], de: [T: crate::Real]);
+
     checked!("TwoAxle",
         [T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<T, N>>] TwoAxle<T, N, P, S, B>,
         ser: [T: Serialize, S::Group: Serialize],

@@ -2,12 +2,12 @@
 //! a damper ramp rebuilt every sample, an alarm, settling, the event, a gap of NaN rows, a
 //! stuck channel, reacquiring) runs under a counting allocator with zero allocations; the
 //! same for the half car's drive (its road history ring) and monitor, and the full car's drive
-//! (two tracks, two rings).
+//! (two tracks, two rings) and monitor.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
-use vehid_core::health::{HalfHealthMonitor, HealthConfig, HealthMonitor};
+use vehid_core::health::{FullHealthMonitor, HalfHealthMonitor, HealthConfig, HealthMonitor};
 use vehid_core::model::{FullCar, HalfCar, QuarterCar};
 use vehid_core::sim::{
     Change, DriveConfig, FullChange, FullDrive, FullDriveConfig, HalfChange, HalfDrive, HalfDriveConfig, QuarterDrive,
@@ -172,4 +172,33 @@ fn a_full_car_drive_allocates_nothing() {
         assert!(acc.is_finite());
         assert_eq!(allocs() - before, 0, "{sensors:?}");
     }
+}
+
+#[test]
+fn a_whole_full_car_scenario_allocates_nothing() {
+    // Warm-up, a damper ramp, the alarm, settling, the event (its fits and the reference
+    // moved), a gap of NaN rows, a jump, reacquiring.
+    let car = FullCar::<f64>::passenger();
+    let cfg = FullDriveConfig::new(DriveConfig::new(0.005))
+        .with_change(FullChange::ramp(30.0, "b_rl", 800.0, 5.0).unwrap())
+        .unwrap();
+    let mut drive = FullDrive::new(car, cfg, 4245).unwrap();
+    let mut mon = FullHealthMonitor::new(HealthConfig::new(0.005, car)).unwrap();
+    let before = allocs();
+    let mut events = 0;
+    for k in 0..(80.0 / 0.005) as usize {
+        let s = drive.next_sample();
+        let mut y = [0.0; 12];
+        y.copy_from_slice(s.y());
+        if (12_000..12_400).contains(&k) {
+            y = [f64::NAN; 12];
+        } else if (13_000..13_100).contains(&k) {
+            y[9] = 0.01;
+        }
+        if mon.update(&y).unwrap().is_some() {
+            events += 1;
+        }
+    }
+    assert_eq!(allocs() - before, 0);
+    assert!(events >= 1, "the rear left damper ramp (-20 %) was not reported");
 }

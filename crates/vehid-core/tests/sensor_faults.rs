@@ -7,11 +7,14 @@
 //! `consistency.rs`). A real change is still found with the check in place
 //! (`health_behaviour.rs`, `health::tests`).
 //!
+//! The half car and the full car likewise (their front (left) corner's channels; the full car
+//! also its rear right corner's).
+//!
 //! Seeds 61_000 onwards, not used while the check's constants were chosen (58_000–58_099).
 
-use vehid_core::health::{HalfHealthMonitor, HealthConfig, HealthMonitor, Reason, Status};
-use vehid_core::model::{HalfCar, QuarterCar};
-use vehid_core::sim::{DriveConfig, HalfDrive, HalfDriveConfig, QuarterDrive};
+use vehid_core::health::{FullHealthMonitor, HalfHealthMonitor, HealthConfig, HealthMonitor, Reason, Status};
+use vehid_core::model::{FullCar, HalfCar, QuarterCar};
+use vehid_core::sim::{DriveConfig, FullDrive, FullDriveConfig, HalfDrive, HalfDriveConfig, QuarterDrive};
 
 const DT: f64 = 0.005;
 const FAULT_AT: f64 = 60.0;
@@ -84,6 +87,15 @@ impl Monitor for HalfHealthMonitor<f64> {
     }
 }
 
+impl Monitor for FullHealthMonitor<f64> {
+    fn feed(&mut self, y: &[f64]) -> bool {
+        self.update(y).unwrap().is_some()
+    }
+    fn status(&self) -> Status {
+        FullHealthMonitor::status(self)
+    }
+}
+
 /// One drive with `fault` on the channels `at` (`[a_body, a_wheel, deflection]`; the half
 /// car's front corner): (events, whether the status was "cannot judge" for a reason other
 /// than low excitation at some sample after the fault).
@@ -128,9 +140,29 @@ pub fn run_half(seed: u64, fault: Fault) -> (usize, bool) {
     run_with(|| drive.next_sample().y().to_vec(), &mut mon, fault, [0, 2, 4])
 }
 
+/// The passenger full car with `fault` on its front left corner (channels `a_body_fl`,
+/// `a_wheel_fl`, `deflection_fl` at 0, 4, 8).
+pub fn run_full(seed: u64, fault: Fault) -> (usize, bool) {
+    run_full_at(seed, fault, [0, 4, 8])
+}
+
+/// The same on the rear right corner (channels 3, 7, 11).
+pub fn run_full_rr(seed: u64, fault: Fault) -> (usize, bool) {
+    run_full_at(seed, fault, [3, 7, 11])
+}
+
+fn run_full_at(seed: u64, fault: Fault, at: [usize; 3]) -> (usize, bool) {
+    let car = FullCar::<f64>::passenger();
+    let mut drive = FullDrive::new(car, FullDriveConfig::new(DriveConfig::new(DT)), seed).unwrap();
+    let mut mon = FullHealthMonitor::new(HealthConfig::new(DT, car)).unwrap();
+    run_with(|| drive.next_sample().y().to_vec(), &mut mon, fault, at)
+}
+
 fn check(fault: Fault, seeds: core::ops::Range<u64>) {
     check_with(run, fault, seeds.clone());
     check_with(run_half, fault, seeds.start..seeds.start + HALF_SEEDS);
+    check_with(run_full, fault, seeds.start..seeds.start + FULL_SEEDS);
+    check_with(run_full_rr, fault, seeds.start + FULL_SEEDS..seeds.start + 2 * FULL_SEEDS);
 }
 
 fn check_with(run: fn(u64, Fault) -> (usize, bool), fault: Fault, seeds: core::ops::Range<u64>) {
@@ -152,6 +184,8 @@ fn check_with(run: fn(u64, Fault) -> (usize, bool), fault: Fault, seeds: core::o
 const SEEDS: core::ops::Range<u64> = 61_000..61_012;
 /// The half car's drives per fault (each costs about three quarter-car drives).
 const HALF_SEEDS: u64 = 4;
+/// The full car's drives per fault and corner.
+const FULL_SEEDS: u64 = 2;
 
 #[test]
 fn a_bias_step_of_the_deflection_is_no_event() {
@@ -203,7 +237,12 @@ fn hundred_drives_per_fault_kind() {
     ];
     let mut bad = Vec::new();
     for fault in kinds {
-        for (name, run) in [("quarter", run as fn(u64, Fault) -> (usize, bool)), ("half", run_half)] {
+        for (name, run) in [
+            ("quarter", run as fn(u64, Fault) -> (usize, bool)),
+            ("half", run_half),
+            ("full, front left", run_full),
+            ("full, rear right", run_full_rr),
+        ] {
             let (mut ev, mut flagged) = (Vec::new(), 0);
             for seed in 65_000..65_100 {
                 let (e, f) = run(seed, fault);

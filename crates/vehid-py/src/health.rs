@@ -1,5 +1,6 @@
 //! `HealthMonitor` and `Event`: the core's [`health::HealthMonitor`] for the
-//! quarter car and [`health::HalfHealthMonitor`] for the half car. Conversion and validation
+//! quarter car, [`health::HalfHealthMonitor`] for the half car and
+//! [`health::FullHealthMonitor`] for the full car. Conversion and validation
 //! only; the core does every computation.
 
 use crate::convert::{array, py_str, shape_str, Table};
@@ -9,7 +10,8 @@ use crate::{core_err, option, VehidError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyTuple};
 use vehid_core::health::{self, HealthConfig, Reason, Status};
-use vehid_core::model::HalfConstant;
+use vehid_core::model::{FullCar, HalfConstant, CORNERS};
+use vehid_core::sim::FullConstant;
 use vehid_core::sim::SensorSet;
 
 /// Samples between two looks at pending signals in `fit` (some 100 ns each).
@@ -35,7 +37,7 @@ pub struct PyEvent {
     #[pyo3(get)]
     t_change: f64,
     /// The constant: 'b', 'k2' or 'M' (quarter car); 'b_f', 'b_r', 'k2_f', 'k2_r' or 'M'
-    /// (half car).
+    /// (half car); 'k_fl' .. 'k_rr', 'b_fl' .. 'b_rr' or 'M' (full car).
     #[pyo3(get)]
     parameter: &'static str,
     /// Its value before, in its unit (N s/m, N/m, kg).
@@ -57,6 +59,21 @@ pub struct PyEvent {
 
 impl From<health::Event<f64, HalfConstant>> for PyEvent {
     fn from(e: health::Event<f64, HalfConstant>) -> Self {
+        Self {
+            t: e.t,
+            t_change: e.t_change,
+            parameter: e.parameter.as_str(),
+            before: e.before,
+            after: e.after,
+            low: e.low,
+            high: e.high,
+            change: e.change,
+        }
+    }
+}
+
+impl From<health::Event<f64, FullConstant>> for PyEvent {
+    fn from(e: health::Event<f64, FullConstant>) -> Self {
         Self {
             t: e.t,
             t_change: e.t_change,
@@ -105,12 +122,13 @@ impl PyEvent {
             "M" => "M",
             "k2" => "k2",
             "b" => "b",
-            other => match other.parse::<HalfConstant>() {
-                Ok(c) if health::HALF_NAMED.contains(&c) => c.as_str(),
+            other => match (other.parse::<HalfConstant>(), other.parse::<FullConstant>()) {
+                (Ok(c), _) if health::HALF_NAMED.contains(&c) => c.as_str(),
+                (_, Ok(c)) if health::FULL_NAMED.contains(&c) => c.as_str(),
                 _ => {
                     return Err(VehidError::new_err(format!(
-                        "`parameter` must be 'M', 'k2' or 'b' (quarter car) or 'k2_f', 'b_f', 'k2_r', 'b_r' (half \
-                         car), got {}",
+                        "`parameter` must be 'M', 'k2' or 'b' (quarter car), 'k2_f', 'b_f', 'k2_r', 'b_r' (half \
+                         car) or 'k_fl' .. 'k_rr', 'b_fl' .. 'b_rr' (full car), got {}",
                         py_str(other)
                     )))
                 }
@@ -177,6 +195,12 @@ impl PyEvent {
 /// a_wheel_r, deflection_f, deflection_r]` (body accelerometers above each axle, wheel
 /// accelerometers, suspension extensions) or the 16 state channels; events name 'k2_f',
 /// 'b_f', 'k2_r', 'b_r' or 'M' (a body-mass event assumes J scales with M and moves both).
+///
+/// With a `FullCar` (Rust `FullHealthMonitor`, realistic sensors only): `y` rows the 12
+/// channels `[a_body_fl, a_body_fr, a_body_rl, a_body_rr, a_wheel_fl, .., a_wheel_rr,
+/// deflection_fl, .., deflection_rr]` (a body accelerometer above each wheel, wheel
+/// accelerometers, suspension extensions); events name the corner, 'k_fl' .. 'k_rr',
+/// 'b_fl' .. 'b_rr', or 'M' (a load: Jx and Jy scale with M).
 #[pyclass(name = "HealthMonitor", module = "vehid._vehid")]
 pub struct PyHealthMonitor {
     inner: Mon,
@@ -187,6 +211,7 @@ pub struct PyHealthMonitor {
 enum Mon {
     Quarter(Box<health::HealthMonitor<f64>>),
     Half(Box<health::HalfHealthMonitor<f64>>),
+    Full(Box<health::FullHealthMonitor<f64>>),
 }
 
 impl Mon {
@@ -194,6 +219,7 @@ impl Mon {
         match self {
             Mon::Quarter(m) => m.config().channels(),
             Mon::Half(m) => m.config().channels(),
+            Mon::Full(m) => m.config().channels(),
         }
     }
 
@@ -201,6 +227,7 @@ impl Mon {
         match self {
             Mon::Quarter(m) => m.config().sensors,
             Mon::Half(m) => m.config().sensors,
+            Mon::Full(m) => m.config().sensors,
         }
     }
 
@@ -208,6 +235,7 @@ impl Mon {
         match self {
             Mon::Quarter(m) => m.config().dt,
             Mon::Half(m) => m.config().dt,
+            Mon::Full(m) => m.config().dt,
         }
     }
 
@@ -215,6 +243,7 @@ impl Mon {
         match self {
             Mon::Quarter(m) => m.status(),
             Mon::Half(m) => m.status(),
+            Mon::Full(m) => m.status(),
         }
     }
 
@@ -222,6 +251,7 @@ impl Mon {
         match self {
             Mon::Quarter(m) => m.samples(),
             Mon::Half(m) => m.samples(),
+            Mon::Full(m) => m.samples(),
         }
     }
 
@@ -229,6 +259,7 @@ impl Mon {
         match self {
             Mon::Quarter(m) => m.events(),
             Mon::Half(m) => m.events(),
+            Mon::Full(m) => m.events(),
         }
     }
 
@@ -236,6 +267,7 @@ impl Mon {
         Ok(match self {
             Mon::Quarter(m) => m.update(y)?.map(PyEvent::from),
             Mon::Half(m) => m.update(y)?.map(PyEvent::from),
+            Mon::Full(m) => m.update(y)?.map(PyEvent::from),
         })
     }
 
@@ -243,6 +275,7 @@ impl Mon {
         match self {
             Mon::Quarter(_) => self.sensors().channels(),
             Mon::Half(_) => self.sensors().half_channels(),
+            Mon::Full(_) => self.sensors().full_channels(),
         }
     }
 }
@@ -327,13 +360,14 @@ impl PyHealthMonitor {
                 settings!(cfg);
                 Mon::Half(Box::new(health::HalfHealthMonitor::new(cfg).map_err(core_err)?))
             }
-            Kind::Full(_) => {
-                return Err(VehidError::new_err(
-                    "the health monitor does not watch a vehid.FullCar yet: `car` must be a vehid.QuarterCar or a \
-                     vehid.HalfCar (one side of the full car)",
-                ))
+            Kind::Full(c) => {
+                let mut cfg = HealthConfig::new(dt, c).with_sensors(set, &noise);
+                settings!(cfg);
+                Mon::Full(Box::new(health::FullHealthMonitor::new(cfg).map_err(core_err)?))
             }
-            Kind::Generic => return Err(VehidError::new_err("`car` must be a vehid.QuarterCar or a vehid.HalfCar")),
+            Kind::Generic => {
+                return Err(VehidError::new_err("`car` must be a vehid.QuarterCar, a vehid.HalfCar or a vehid.FullCar"))
+            }
         };
         Ok(Self { inner })
     }
@@ -426,7 +460,8 @@ impl PyHealthMonitor {
 
     /// The current belief {"M": kg, "k2": N/m, "b": N s/m}: the nominal car's, moved by every
     /// event. Half car: {"M", "J", "k1_f", "k1_r", "k2_f", "k2_r", "b_f", "b_r", "m_f", "m_r",
-    /// "l1", "l2"} (kg, kg m², N/m, N s/m, m).
+    /// "l1", "l2"} (kg, kg m², N/m, N s/m, m). Full car: the 25 constants of
+    /// `FullCar.CONSTANTS` (a body-mass event moves M, Jx and Jy).
     #[getter]
     fn constants<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(slf.py());
@@ -442,6 +477,11 @@ impl PyHealthMonitor {
                     d.set_item(*k, v)?;
                 }
             }
+            Mon::Full(m) => {
+                for (k, v) in FullCar::<f64>::CONSTANTS.iter().zip(m.constants()) {
+                    d.set_item(*k, v)?;
+                }
+            }
         }
         Ok(d)
     }
@@ -449,7 +489,10 @@ impl PyHealthMonitor {
     /// The tracked ratios {"k2/M": (value, low, high) 1/s², "b/M": (...) 1/s, "c": (...) m/s²}
     /// with the `confidence` intervals. Half car: {"front": [...], "rear": [...]}, each the
     /// five coefficients of that body-corner equation `[α k2_f, α b_f, α k2_r, α b_r, c]` as
-    /// (value, low, high) (the α of that corner: module docs of `vehid_core::health`).
+    /// (value, low, high) (the α of that corner: module docs of `vehid_core::health`). Full
+    /// car: {"fl": [...], "fr": [...], "rl": [...], "rr": [...]}, each the nine coefficients
+    /// of that corner's equation (the extension's and the rate's of fl, fr, rl, rr, then the
+    /// offset c) as (value, low, high).
     #[getter]
     fn estimate<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(slf.py());
@@ -468,12 +511,21 @@ impl PyHealthMonitor {
                     d.set_item(name, row)?;
                 }
             }
+            Mon::Full(m) => {
+                let e = m.estimate();
+                for (o, name) in CORNERS.into_iter().enumerate() {
+                    let row: Vec<(f64, f64, f64)> =
+                        (0..9).map(|j| (e.value[o][j], e.low[o][j], e.high[o][j])).collect();
+                    d.set_item(name, row)?;
+                }
+            }
         }
         Ok(d)
     }
 
     /// The reference ratios {"k2/M": 1/s², "b/M": 1/s} the tracked ones are compared with
-    /// (None during the warm-up). Half car: {"front": [5 coefficients], "rear": [...]}.
+    /// (None during the warm-up). Half car: {"front": [5 coefficients], "rear": [...]}. Full
+    /// car: {"fl": [9 coefficients], "fr", "rl", "rr"}.
     #[getter]
     fn reference<'py>(slf: &Bound<'py, Self>) -> PyResult<Option<Bound<'py, PyDict>>> {
         let d = PyDict::new(slf.py());
@@ -487,6 +539,12 @@ impl PyHealthMonitor {
                 let Some([f, r]) = m.reference() else { return Ok(None) };
                 d.set_item("front", f.to_vec())?;
                 d.set_item("rear", r.to_vec())?;
+            }
+            Mon::Full(m) => {
+                let Some(rows) = m.reference() else { return Ok(None) };
+                for (name, row) in CORNERS.into_iter().zip(rows) {
+                    d.set_item(name, row.to_vec())?;
+                }
             }
         }
         Ok(Some(d))
@@ -530,6 +588,13 @@ impl PyHealthMonitor {
                 }
                 (module.getattr("HalfCar")?.call((), Some(&kwargs))?, vehid_runtime::seal::seal(m))
             }
+            Mon::Full(m) => {
+                let kwargs = PyDict::new(py);
+                for (k, v) in m.config().car.params().named() {
+                    kwargs.set_item(k, v)?;
+                }
+                (module.getattr("FullCar")?.call((), Some(&kwargs))?, vehid_runtime::seal::seal(m))
+            }
         };
         let bytes = bytes.map_err(|e| VehidError::new_err(format!("the monitor cannot be saved: {e}")))?;
         let state = (STATE_FORMAT, format!("vehid {}", env!("CARGO_PKG_VERSION")), PyBytes::new(py, &bytes));
@@ -561,6 +626,7 @@ impl PyHealthMonitor {
         this.inner = match this.inner {
             Mon::Quarter(_) => Mon::Quarter(Box::new(vehid_runtime::seal::open(&payload).map_err(decode)?)),
             Mon::Half(_) => Mon::Half(Box::new(vehid_runtime::seal::open(&payload).map_err(decode)?)),
+            Mon::Full(_) => Mon::Full(Box::new(vehid_runtime::seal::open(&payload).map_err(decode)?)),
         };
         Ok(())
     }

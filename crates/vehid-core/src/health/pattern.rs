@@ -144,3 +144,87 @@ pub(crate) fn fit_kron<T: Real>(
     out[4] = fit(r.dot(&zx), r.dot(&zr));
     Some(out)
 }
+
+/// `Q⁻¹` of a symmetric positive definite `q` through its Cholesky factor (`None` when `q` is
+/// not positive definite).
+pub(crate) fn spd_inverse<T: Real, const K: usize>(q: &SMatrix<T, K, K>) -> Option<SMatrix<T, K, K>> {
+    let mut l = *q;
+    if !cholesky(&mut l) {
+        return None;
+    }
+    // L⁻¹ (lower), then Q⁻¹ = L⁻ᵀ L⁻¹.
+    let mut li = SMatrix::<T, K, K>::zeros();
+    for j in 0..K {
+        li[(j, j)] = T::one() / l[(j, j)];
+        for i in j + 1..K {
+            let mut v = T::zero();
+            for k in j..i {
+                v -= l[(i, k)] * li[(k, j)];
+            }
+            li[(i, j)] = v / l[(i, i)];
+        }
+    }
+    let mut qi = SMatrix::<T, K, K>::zeros();
+    for a in 0..K {
+        for b in a..K {
+            let mut v = T::zero();
+            for k in b..K {
+                v += li[(k, a)] * li[(k, b)];
+            }
+            qi[(a, b)] = v;
+            qi[(b, a)] = v;
+        }
+    }
+    Some(qi)
+}
+
+/// A constant's pattern in the coefficients' own units, `Ũ = ∂Θ/∂ ln c` (`N × O`: a row per
+/// regressor, a column per equation), for [`fit_kron_patterns`]; `row` is its only non-zero
+/// row when it has one (a spring or a damper without anti-roll bars: the fit then needs one
+/// entry of `Q⁻¹`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Pattern<T: Real, const N: usize, const O: usize> {
+    pub u: SMatrix<T, N, O>,
+    pub row: Option<usize>,
+}
+
+impl<T: Real, const N: usize, const O: usize> Pattern<T, N, O> {
+    /// The pattern `u`, its single non-zero row found.
+    pub(crate) fn new(u: SMatrix<T, N, O>) -> Self {
+        let mut rows = (0..N).filter(|&r| (0..O).any(|o| u[(r, o)] != T::zero()));
+        let row = match (rows.next(), rows.next()) {
+            (Some(r), None) => Some(r),
+            _ => None,
+        };
+        Self { u, row }
+    }
+}
+
+/// The fits of `P` patterns to the deviations `X̃ = Θ − Θ_ref` (`N × O`) of `O` equations that
+/// share their `N` regressors: [`fit_kron`] for any size (the full car's monitor: `N = 8`,
+/// `O = 4`). The relative deviations' covariance is `C = D (Σ ⊗ Q) D`, so with `Z = Q⁻¹ A Σ⁻¹`
+/// `uᵀC⁻¹x = Σ Ũ ⊙ Z(X̃)` and `uᵀC⁻¹u = Σ Ũ ⊙ Z(Ũ)`; for a pattern with one non-zero row `r`
+/// the latter is `Q⁻¹_rr ũ_r Σ⁻¹ ũ_rᵀ`. `None` when `Q` is not positive definite.
+pub(crate) fn fit_kron_patterns<T: Real, const N: usize, const O: usize, const P: usize>(
+    dtheta: &SMatrix<T, N, O>,
+    patterns: &[Pattern<T, N, O>; P],
+    sigma_inv: &SMatrix<T, O, O>,
+    q: &SMatrix<T, N, N>,
+) -> Option<[Fit<T>; P]> {
+    let qi = spd_inverse(q)?;
+    let zx = (qi * dtheta) * sigma_inv;
+    let xx = dtheta.dot(&zx);
+    let mut out = [Fit { value: T::zero(), var: T::zero(), ssr: T::zero() }; P];
+    for (o, p) in out.iter_mut().zip(patterns) {
+        let ux = p.u.dot(&zx);
+        let uu = match p.row {
+            Some(r) => {
+                let ur = p.u.row(r);
+                qi[(r, r)] * (ur * sigma_inv).dot(&ur)
+            }
+            None => p.u.dot(&((qi * p.u) * sigma_inv)),
+        };
+        *o = Fit { value: ux / uu, var: T::one() / uu, ssr: xx - ux * ux / uu };
+    }
+    Some(out)
+}

@@ -61,6 +61,13 @@ const AUG: usize = FULL_STATES + 9;
 pub struct FullConstant(u8);
 
 impl FullConstant {
+    /// The constant at position `i` of [`FullCar::CONSTANTS`] (`i < 25`; the callers are
+    /// this crate's tables, e.g. `health::FULL_NAMED`).
+    pub(crate) const fn at(i: u8) -> Self {
+        assert!((i as usize) < FULL_CONSTANTS);
+        Self(i)
+    }
+
     /// The constant's position in [`FullCar::constants`].
     pub fn index(&self) -> usize {
         self.0 as usize
@@ -74,6 +81,38 @@ impl FullConstant {
     /// Whether constant `i` of [`FullCar::CONSTANTS`] can change during a drive.
     fn changeable(i: usize) -> bool {
         !(19..23).contains(&i)
+    }
+}
+
+impl core::fmt::Display for FullConstant {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// Saved by name (`"b_fl"`), read back through [`core::str::FromStr`] (an unknown name is an
+/// error, never a later panic).
+#[cfg(feature = "serde")]
+impl serde::Serialize for FullConstant {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> core::result::Result<S::Ok, S::Error> {
+        s.serialize_str(self.as_str())
+    }
+}
+
+#[cfg(feature = "serde")]
+impl<'de> serde::Deserialize<'de> for FullConstant {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> core::result::Result<Self, D::Error> {
+        struct Name;
+        impl serde::de::Visitor<'_> for Name {
+            type Value = FullConstant;
+            fn expecting(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+                f.write_str("a full-car constant's name")
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> core::result::Result<FullConstant, E> {
+                v.parse().map_err(|_| E::custom("an unknown full-car constant"))
+            }
+        }
+        d.deserialize_str(Name)
     }
 }
 

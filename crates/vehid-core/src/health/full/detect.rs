@@ -1,0 +1,166 @@
+//! The decisions of [`FullHealthMonitor`]: the reference, the fits to the constants'
+//! patterns, the CUSUM tests every decision interval, a change finished into an event.
+
+use super::*;
+
+impl<T: Real> FullHealthMonitor<T> {
+    /// Adopts `theta` (covariance factor `p`, residual covariance `sigma`) as the reference
+    /// when `Σ` is positive definite and every named constant's relative change is known to
+    /// `min_change / 6`; sets the tracker's wind-up cap so that forgetting pauses when a
+    /// spring's or damper's relative change, from its own regressor's four coefficients alone,
+    /// has a standard error above `judge_error` (as the half car's monitor).
+    pub(super) fn try_reference(
+        &mut self,
+        sigma: SMatrix<T, 4, 4>,
+        theta: SMatrix<T, 9, 4>,
+        p: &SMatrix<T, 9, 9>,
+    ) -> bool {
+        let Some(sigma_inv) = spd_inverse(&sigma) else { return false };
+        if !theta.iter().all(|v| v.finite()) {
+            return false;
+        }
+        let (old_sigma, old_theta, old_q) = (self.sigma, self.theta_ref, self.q_ref);
+        self.sigma = sigma;
+        self.theta_ref = theta;
+        self.q_ref = p.fixed_view::<8, 8>(0, 0).into_owned();
+        self.derive();
+        let lim = self.cfg.min_change / T::of(6.0);
+        let ok = fit_kron_patterns(&SMatrix::zeros(), &self.patterns, &self.sigma_inv, &self.q_ref)
+            .is_some_and(|fits| fits.iter().all(|f| f.var > T::zero() && f.var.sqrt() < lim));
+        if !ok {
+            self.sigma = old_sigma;
+            self.theta_ref = old_theta;
+            self.q_ref = old_q;
+            self.derive();
+            return false;
+        }
+        let judge = self.cfg.judge_error;
+        let onep = T::one() + self.fast.lambda();
+        // Regressor j alone: the pattern "all four coefficients of regressor j" (v = row j of
+        // Θ_ref), tracked covariance P_jj/(1+λ) D Σ D, has the variance P_jj / ((1+λ) vᵀΣ⁻¹v);
+        // the cap is where that reaches judge_error².
+        let mut cap = [T::biggest(); 9];
+        for (j, cj) in cap.iter_mut().take(8).enumerate() {
+            let v = theta.fixed_view::<1, 4>(j, 0).into_owned();
+            let q = (v * sigma_inv).dot(&v);
+            *cj = judge * judge * q * onep;
+        }
+        self.fast.set_cap(cap);
+        self.cap = cap;
+        self.g = [[T::zero(); 2]; FULL_NAMED_COUNT];
+        self.phase = Phase::Monitoring;
+        true
+    }
+
+    /// The fits of the named constants to the tracked (`post = false`) or the settling
+    /// (`post = true`) estimate's deviations from the reference.
+    pub(super) fn fits(&self, post: bool) -> Option<Fits<T>> {
+        let (rls, scale) =
+            if post { (&self.post, T::one()) } else { (&self.fast, T::one() / (T::one() + self.fast.lambda())) };
+        let (th, p, r) = (rls.theta(), rls.p(), &self.theta_ref);
+        let dtheta = SMatrix::<T, 8, 4>::from_fn(|j, o| th[(j, o)] - r[(j, o)]);
+        let q = SMatrix::<T, 8, 8>::from_fn(|j, k| p[(j, k)] * scale + self.q_ref[(j, k)]);
+        fit_kron_patterns(&dtheta, &self.patterns, &self.sigma_inv, &q)
+    }
+
+    /// The CUSUM step on each named constant's relative deviation, for the `n_decide`
+    /// samples since the last.
+    pub(super) fn detect(&mut self, kr: u64) {
+        let lim = self.cfg.judge_error;
+        // Judged only while every spring's and damper's change, from its own four
+        // coefficients alone, is known to judge_error/√2 (the half car's rule).
+        let p = self.fast.p();
+        let faded = (0..8).any(|j| !(p[(j, j)] <= self.cap[j] * T::of(0.5)));
+        let fits = match self.fits(false) {
+            Some(f) if !faded && f.iter().all(|f| f.var <= lim * lim) => f,
+            _ => {
+                self.reason = Some(Reason::LowExcitation);
+                return;
+            }
+        };
+        self.reason = None;
+        let delta = self.cfg.min_change;
+        let half = delta * T::of(0.5);
+        let w = T::of(self.n_decide as f64) * (T::one() - self.fast.lambda()) * delta;
+        let mut best = (T::zero(), 0usize, 0usize);
+        for (u, f) in fits.iter().enumerate() {
+            let (g, side) = cusum_step(&mut self.g[u], &mut self.zero_k[u], f.value, w / f.var, half, kr);
+            if g > best.0 {
+                best = (g, u, side);
+            }
+        }
+        if best.0 > self.cfg.threshold {
+            self.onset = self.zero_k[best.1][best.2];
+            let mut p0 = *self.fast.p() * T::of(1e3);
+            p0[(8, 8)] = p0[(8, 8)].max(T::one());
+            self.post = Rls::new(*self.fast.theta(), p0, T::one());
+            self.post_n = 0;
+            self.phase = Phase::Settling;
+        }
+    }
+
+    /// Ends the settling: names the constant whose pattern fits best, reports it, moves the
+    /// reference (`None` for a settled change below `min_change / 2`: the alarm is dropped).
+    pub(super) fn finish(&mut self) -> Option<Event<T, FullConstant>> {
+        if self.sensors.vetoes() {
+            self.g = [[T::zero(); 2]; FULL_NAMED_COUNT];
+            self.phase = Phase::Monitoring;
+            self.reason = Some(Reason::Sensors);
+            return None;
+        }
+        let one = T::one();
+        let best = self.fits(true).and_then(|fits| {
+            (0..FULL_NAMED_COUNT)
+                .min_by(|&a, &b| fits[a].ssr.partial_cmp(&fits[b].ssr).unwrap_or(core::cmp::Ordering::Equal))
+                .map(|u| (u, fits[u]))
+        });
+        let Some((u, fit)) = best.filter(|(_, f)| f.value.abs() >= self.cfg.min_change * T::of(0.5)) else {
+            self.g = [[T::zero(); 2]; FULL_NAMED_COUNT];
+            self.phase = Phase::Monitoring;
+            return None;
+        };
+        let parameter = FULL_NAMED[u];
+        let dx = fit.value;
+        let idx = parameter.index();
+        let before = self.belief[idx];
+        let sd = (self.inflate * fit.var + self.cfg.systematic * self.cfg.systematic).sqrt();
+        let (after, low, high) = if u == BODY_MASS {
+            let hi_den = (one + dx - self.z * sd).max(T::of(1e-9));
+            (before / (one + dx), before / (one + dx + self.z * sd), before / hi_den)
+        } else {
+            (before * (one + dx), before * (one + dx - self.z * sd), before * (one + dx + self.z * sd))
+        };
+        self.belief[idx] = after;
+        if u == BODY_MASS {
+            // Jx and Jy scale with M (the load is assumed spread like the body's own mass).
+            self.belief[1] /= one + dx;
+            self.belief[2] /= one + dx;
+        }
+        let dt = self.cfg.dt.to_f64();
+        let ev = Event {
+            t: T::of((self.k - 1) as f64 * dt),
+            t_change: T::of(self.onset as f64 * dt),
+            parameter,
+            before,
+            after,
+            low,
+            high,
+            change: after / before - one,
+        };
+        let (th, p) = (*self.post.theta(), *self.post.p());
+        self.fast = Rls::new(th, p, self.fast.lambda());
+        self.phase = Phase::Monitoring;
+        if !self.try_reference(self.sigma, th, &p) {
+            self.phase = Phase::Warmup;
+            self.sensors.clear_reference();
+            self.warm_n = 0;
+            self.e2_sum = SMatrix::zeros();
+            self.e2_n = 0;
+            self.e1_sum = [T::zero(); 4];
+            self.e_prev = None;
+            self.reference = Rls::new(th, p * T::of(1e3), T::one());
+        }
+        self.events += 1;
+        Some(ev)
+    }
+}

@@ -1,0 +1,83 @@
+"""The full car's health monitor from Python (`vehid.HealthMonitor(FullCar)`, Rust
+`vehid_core::health::FullHealthMonitor`): the api.md example, naming by corner, a load,
+pickling, bad input, `vehid monitor --model full`."""
+
+import json
+import pickle
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import vehid
+from vehid import cli
+
+DT = 0.005
+FULL = vehid.FullCar.passenger()
+
+
+def drive(seconds: float, changes: object = None, seed: int = 1) -> vehid.Run:
+    sim = vehid.Simulator(FULL, dt=DT, road="iso8608-C", speed=15.0, changes=changes,  # type: ignore[arg-type]
+                          sensors="realistic", seed=seed)
+    return sim.run(int(round(seconds / DT)))
+
+
+def test_the_api_example_names_the_front_left_damper() -> None:
+    # api.md, Wave 3: the damper of the front left corner from 1000 to 1350 N s/m at 60 s.
+    full = vehid.FullCar.passenger()
+    sim = vehid.Simulator(full, dt=0.005, road="iso8608-C", speed=15.0,
+                          changes=[(60.0, {"b_fl": 1350.0})], sensors="realistic", seed=1)
+    mon = vehid.HealthMonitor(full, dt=0.005, sensors="realistic")
+    events = mon.fit(sim.run(20_000).y)
+    assert len(events) == 1, events
+    ev = events[0]
+    assert ev.parameter == "b_fl"
+    assert 60.0 < ev.t < 75.0 and abs(ev.change - 0.35) < 0.05, ev
+    assert ev.low < 1350.0 < ev.high
+    assert mon.constants["b_fl"] == ev.after and mon.constants["M"] == 1500.0
+
+
+def test_a_rear_right_spring_pickles_and_continues_bit_for_bit() -> None:
+    run = drive(100.0, changes=[(40.0, {"k_rr": 34_200.0})], seed=52)
+    mon = vehid.HealthMonitor(FULL, dt=DT)
+    assert mon.channels == run.channels and len(mon.channels) == 12
+    assert mon.fit(run.y[:6000]) == [] and mon.status == "monitoring"
+    ref = mon.reference
+    assert ref is not None and sorted(ref) == ["fl", "fr", "rl", "rr"] and len(ref["fl"]) == 9
+    assert len(mon.estimate["rr"]) == 9
+    twin = pickle.loads(pickle.dumps(mon))
+    events = mon.fit(run.y[6000:])
+    assert [e.parameter for e in events] == ["k_rr"] and abs(events[0].change + 0.10) < 0.03
+    assert twin.fit(run.y[6000:]) == events
+    assert pickle.loads(pickle.dumps(events[0])) == events[0]
+
+
+def test_a_load_and_bad_input() -> None:
+    run = drive(100.0, changes=[(40.0, {"M": 1800.0, "Jx": 552.0, "Jy": 2592.0})], seed=53)
+    mon = vehid.HealthMonitor(FULL, dt=DT)
+    events = mon.fit(run.y)
+    assert [e.parameter for e in events] == ["M"] and abs(events[0].change - 0.20) < 0.03
+    assert abs(mon.constants["Jy"] / 2160.0 - mon.constants["M"] / 1500.0) < 1e-12
+    with pytest.raises(vehid.VehidError, match=r"shape \(12,\)"):
+        mon.update(np.zeros(6))
+    before = pickle.dumps(mon)
+    with pytest.raises(vehid.VehidError, match="infinite"):
+        mon.fit(np.full((3, 12), np.inf))
+    assert pickle.dumps(mon) == before
+    with pytest.raises(vehid.VehidError, match="sensors"):
+        vehid.HealthMonitor(FULL, dt=DT, sensors="state")
+
+
+def test_vehid_monitor_model_full(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    run = drive(100.0, changes=[(40.0, {"b_rl": 900.0})], seed=54)
+    log = tmp_path / "full.csv"
+    header = "t," + ",".join(run.channels)
+    np.savetxt(log, np.column_stack([run.t, run.y]), delimiter=",", header=header, comments="")
+    assert cli.main(["monitor", str(log), "--model", "full", "--json"]) == 0
+    out = capsys.readouterr().out.strip().splitlines()
+    assert len(out) == 1, out
+    ev = json.loads(out[0])
+    assert ev["parameter"] == "b_rl" and ev["name"] == "rear left damper" and ev["before"] == 1000.0
+    assert abs(ev["change"] + 0.10) < 0.03
+    assert cli.main(["monitor", str(log), "--model", "full", "--sensors", "state"]) == 2
+    assert "realistic sensors only" in capsys.readouterr().err
