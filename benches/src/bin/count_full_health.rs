@@ -1,8 +1,8 @@
 //! A fixed number of the full car's health-monitor updates on a seeded drive, for instruction
 //! counting under callgrind (as `count_health`, in a binary of its own so that its code does not
-//! change how `count_health`'s benches are compiled; not yet in `callgrind_check.py`'s gate).
+//! change how `count_health`'s benches are compiled; `full_health` in `callgrind_check.py`'s gate).
 //!
-//! Run: `valgrind --tool=callgrind target/release/count_full_health N` for `N = 0` and `N`
+//! Run: `valgrind --tool=callgrind target/release/count_full_health full_health N` for `N = 0` and `N`
 //! updates; the difference over `N` is the instructions per update. The passenger full car on
 //! ISO 8608 class C at 15 m/s, realistic sensors at 200 Hz (as the criterion bench
 //! `health/full_monitor_update_f64`), the monitor past its warm-up (30 s) before the counted
@@ -39,9 +39,12 @@ fn run(n: usize) -> vehid_core::Result<String> {
 }
 
 fn main() -> ExitCode {
+    // `full_health N` as callgrind_check.py calls every counting binary (`BENCH N`).
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let Some(Ok(n)) = args.first().map(|s| s.parse::<usize>()) else {
-        eprintln!("usage: count_full_health N");
+    let (Some("full_health"), Some(Ok(n))) =
+        (args.first().map(String::as_str), args.get(1).map(|s| s.parse::<usize>()))
+    else {
+        eprintln!("usage: count_full_health full_health N");
         return ExitCode::from(2);
     };
     match run(n) {
