@@ -363,16 +363,19 @@ class SurfaceEpisodes:
     def monitor_run(self, car: Any, sensors: str) -> Any:
         key = ("monitor", repr(car), sensors)
         if key not in self.runs:
+            params = car.params
+            change = ({"b": 0.7 * params["b"]} if "b" in params else {"b_fl": 0.7 * params["b_fl"]}
+                      if "b_fl" in params else {"b_f": 0.7 * params["b1"]})
             sim = vehid.Simulator(car, dt=0.005, road="iso8608-C", speed=15.0, sensors=sensors, seed=5,
-                                  changes=[(24.0, {"b": 0.7 * car.params["b"]} if "b" in car.params else
-                                            {"b_f": 0.7 * car.params["b1"]})])
+                                  changes=[(24.0, change)])
             self.runs[key] = sim.run(6000).y
         return self.runs[key]
 
     def monitor_episode(self) -> None:
         g = self.g
-        car = g.pick([vehid.QuarterCar.passenger(), vehid.HalfCar.passenger(), vehid.QuarterCar()])
-        sensors = g.pick(["realistic", "realistic", "state"])
+        car = g.pick([vehid.QuarterCar.passenger(), vehid.HalfCar.passenger(), vehid.QuarterCar(),
+                      vehid.FullCar.passenger()])
+        sensors = g.pick(["realistic", "realistic", "state"]) if not isinstance(car, vehid.FullCar) else "realistic"
         good = self.monitor_run(car, sensors)
         args: List[Any] = [car if g.chance(0.9) else g.value(4, 1, car)]
         kw: Dict[str, Any] = {"dt": g.value(1, 1, 0.005) if g.chance(0.1) else 0.005,
