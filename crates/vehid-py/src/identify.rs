@@ -656,7 +656,7 @@ impl PyKalmanIdentifier {
         let r = r_arg(m, mode, p0 == Prior::Exact, r, road_sigma, deriv_noise)?;
         let spec = KalmanSpec { rows: m.data.rows.clone(), p0, theta0, r, mode, opts };
         let inner = build::kalman(n, &spec).map_err(core_err)?;
-        let inner = build::screened(inner, &full_rows(&m.data)?, opts.gate, Refresh::Never).map_err(core_err)?;
+        let inner = screen_rows(inner, &m.data, opts.gate, Refresh::Never)?;
         Ok(PyClassInitializer::from(PyIdentifier::new(inner, m.data.clone())).add_subclass(Self {
             mode,
             form,
@@ -842,7 +842,7 @@ impl PyStochasticGradient {
         // Magnitude test and held start only (`Refresh::Never`): the gradient's estimate converges
         // slowly (ξ about 5 after 10⁴ samples on the thesis car), its prediction errors are the
         // estimate's, not the noise's, and a residual screen would keep a wrong estimate.
-        let inner = build::screened(inner, &full_rows(&m.data)?, gate, Refresh::Never).map_err(core_err)?;
+        let inner = screen_rows(inner, &m.data, gate, Refresh::Never)?;
         Ok(PyClassInitializer::from(PyIdentifier::new(inner, m.data.clone())).add_subclass(Self { gain: kind, gate }))
     }
 
@@ -899,16 +899,31 @@ pub struct PyBatchLeastSquares {
 
 /// The structure whose residuals screen a linear model's identifier: its unknown rows' full
 /// rows (`Structure::full_rows`).
-fn full_rows(m: &ModelData) -> PyResult<vehid_core::structure::Structure<f64>> {
-    vehid_core::structure::Structure::full_rows(m.n, &m.rows).map_err(core_err)
+fn full_rows(m: &ModelData) -> Option<vehid_core::structure::Structure<f64>> {
+    vehid_core::structure::Structure::full_rows(m.n, &m.rows).ok()
+}
+
+/// A linear model's identifier behind the screen at `gate` (`build::screened`), its residuals
+/// those of the model's full rows; when those rows exceed a structure's capacity (more than 96
+/// terms: e.g. 16 states with 6 or more unknown rows) the identifier as it is (the Kalman
+/// identifiers keep their own gate; the others then have none: a known gap).
+fn screen_rows(
+    inner: Box<dyn DynIdentifier<f64>>,
+    m: &ModelData,
+    gate: f64,
+    refresh: Refresh,
+) -> PyResult<Box<dyn DynIdentifier<f64>>> {
+    match full_rows(m) {
+        Some(s) => build::screened(inner, &s, gate, refresh).map_err(core_err),
+        None => Ok(inner),
+    }
 }
 
 /// Batch least squares for `m` in its form (`keep`: stored samples; else the memory-bounded
 /// recursive one), behind the screen at `gate`.
 fn batch_core(m: &ModelData, keep: bool, gate: f64) -> PyResult<Box<dyn DynIdentifier<f64>>> {
     let inner = if keep { build::batch(m.n, &m.rows).map_err(core_err)? } else { streaming_ls(m)? };
-    build::screened(inner, &full_rows(m)?, gate, if keep { Refresh::Geometric } else { Refresh::Every })
-        .map_err(core_err)
+    screen_rows(inner, m, gate, if keep { Refresh::Geometric } else { Refresh::Every })
 }
 
 /// Batch least squares on a Structure (the recursive form, exact start, no prior), behind the
