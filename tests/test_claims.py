@@ -270,5 +270,6 @@ def test_stochastic_gradient_refuses_a_step_that_overflows_after_multiplication(
     z = np.full(4, np.finfo(float).max * 0.5)
     for gain in ("venter", "ljung"):
         refuses_and_continues(
-            lambda g=gain: vehid.StochasticGradient(CAR, gain=g, h=0.4, state_noise_var=1e-4), [(x, z)], run
+            # gate=0: the gradient's own refusal (the default screen would screen this sample)
+            lambda g=gain: vehid.StochasticGradient(CAR, gain=g, h=0.4, state_noise_var=1e-4, gate=0), [(x, z)], run
         )

@@ -165,10 +165,10 @@ def test_corrupt_or_foreign_state_is_a_clear_error() -> None:
     kf = vehid.KalmanIdentifier(CAR, p0=1000.0, r=RV)
     kf.fit(run.r[:50], run.z[:50])
     fmt, version, payload = state_of(kf)
-    assert fmt == 4 and version.startswith("vehid ")
+    assert fmt == 5 and version.startswith("vehid ")
     blank = vehid.KalmanIdentifier(CAR, p0=1000.0, r=RV)
     # A state of the previous format (3: the binding named the core's type) is refused, naming both.
-    with pytest.raises(vehid.VehidError, match="vehid 9.9 in state format 3.*reads format 4"):
+    with pytest.raises(vehid.VehidError, match="vehid 9.9 in state format 3.*reads format 5"):
         blank.__setstate__((3, "vehid 9.9", payload))
     with pytest.raises(vehid.VehidError, match="corrupt"):
         blank.__setstate__((fmt, version, payload[:-7]))

@@ -334,6 +334,7 @@ class StochasticGradient(Identifier):
         state_noise_var: Optional[_Floats] = None,
         lambda0: float = 0.99,
         lambda_init: float = 0.95,
+        gate: Optional[float] = None,
     ) -> StochasticGradient: ...
     @property
     def gain(self) -> _Gain: ...
@@ -343,7 +344,9 @@ class BatchLeastSquares(Identifier):
     """Batch least squares (Eq 2.14) by column-pivoted QR over stored samples, or
     memory-bounded (``keep_samples=False``: recursive, nothing stored)."""
 
-    def __new__(cls, model: Union[LinearModel, Structure], keep_samples: bool = True) -> BatchLeastSquares: ...
+    def __new__(
+        cls, model: Union[LinearModel, Structure], keep_samples: bool = True, *, gate: Optional[float] = None
+    ) -> BatchLeastSquares: ...
     @property
     def keep_samples(self) -> bool: ...
     @property
@@ -373,6 +376,7 @@ class IVIdentifier(Identifier):
         spacing: Optional[Union[float, Literal["odometer"]]] = None,
         min_spacing: Optional[float] = None,
         lift_off: Optional[Tuple[float, float]] = None,
+        gate: Optional[float] = None,
     ) -> IVIdentifier: ...
     @property
     def road(self) -> Literal["white", "random-walk", "iso8608"]: ...
@@ -412,6 +416,7 @@ class BiasCompensated(Identifier):
         *,
         delay: Optional[int] = None,
         lags: Optional[int] = None,
+        gate: Optional[float] = None,
     ) -> BiasCompensated: ...
     @property
     def estimates_noise(self) -> bool: ...
@@ -480,6 +485,7 @@ class TwoAxleIdentifier(Identifier):
         direct_front: bool = True,
         car: Optional[LinearModel] = None,
         compensate: bool = True,
+        gate: Optional[float] = None,
     ) -> TwoAxleIdentifier: ...
     @property
     def method(self) -> _WheelMethod: ...

@@ -23,7 +23,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 use vehid_core::identify::{
     CovarianceForm, DynIdentifier, FitError, FitOptions, Gain, GainKind, KalmanOptions, KalmanSpec, Mode, Prior,
-    Samples,
+    Refresh, Samples,
 };
 use vehid_core::Error;
 use vehid_runtime::{build, ModelData};
@@ -474,8 +474,12 @@ impl PyIdentifier {
 /// κ (default 6 in every mode; 0 turns it off, as exact least-squares equivalence needs)
 /// leaves out a sample whose recursive residual exceeds κ estimated standard deviations
 /// (counted in `gated`; in modes "shared" and "full" a sample beyond the gate on one row is
-/// left out by every row); `huber` c (e.g. 1.345, mode "rows") weights large residuals down
-/// (Huber).
+/// left out by every row); the same κ screens every value of a sample against κ² times its
+/// root mean square so far (a state far beyond the others, which the recursive residual cannot
+/// judge) and keeps the first 16 samples to judge them together against their median, restarting
+/// without an outlier found there (an outlier at sample 0 no longer spoils the exact start; the
+/// screen of `vehid_core::identify::Screened`, residual test off); `huber` c (e.g. 1.345,
+/// mode "rows") weights large residuals down (Huber).
 /// `reinit=True` applies Eq 4.36 (a sample the gate left out reinitializes nothing). `mode`: "rows" (decoupled filters, Eq 6.16–6.18), "shared" (one covariance
 /// for all rows; needs the same r/p0 on every row), "full" (the stacked filter, general R).
 /// With a prior the estimate depends on r/p0 only (see the README on prior regimes).
@@ -483,6 +487,7 @@ impl PyIdentifier {
 pub struct PyKalmanIdentifier {
     mode: Mode,
     form: CovarianceForm,
+    gate: f64,
 }
 
 /// Parses `p0` for a model with `k` unknown rows and `n` states (`None` or "exact": the
@@ -635,9 +640,13 @@ impl PyKalmanIdentifier {
                 ));
             }
             let inner = kalman_on_structure(st.get(), p0, r, theta0, opts)?;
-            return Ok(
-                PyClassInitializer::from(PyIdentifier::on_structure(inner, st)).add_subclass(Self { mode, form })
-            );
+            // Its own gate tests the residual; the screen adds the magnitude test and the held start.
+            let inner = build::screened(inner, &st.get().core, opts.gate, Refresh::Never).map_err(core_err)?;
+            return Ok(PyClassInitializer::from(PyIdentifier::on_structure(inner, st)).add_subclass(Self {
+                mode,
+                form,
+                gate: opts.gate,
+            }));
         }
         let model = linear_model(model)?;
         let m = model.get();
@@ -647,7 +656,12 @@ impl PyKalmanIdentifier {
         let r = r_arg(m, mode, p0 == Prior::Exact, r, road_sigma, deriv_noise)?;
         let spec = KalmanSpec { rows: m.data.rows.clone(), p0, theta0, r, mode, opts };
         let inner = build::kalman(n, &spec).map_err(core_err)?;
-        Ok(PyClassInitializer::from(PyIdentifier::new(inner, m.data.clone())).add_subclass(Self { mode, form }))
+        let inner = screen_rows(inner, &m.data, opts.gate, Refresh::Never)?;
+        Ok(PyClassInitializer::from(PyIdentifier::new(inner, m.data.clone())).add_subclass(Self {
+            mode,
+            form,
+            gate: opts.gate,
+        }))
     }
 
     /// "standard", "joseph" or "sqrt".
@@ -733,6 +747,7 @@ impl PyKalmanIdentifier {
         }
         kw.set_item("mode", this.mode.as_str())?;
         kw.set_item("form", this.form.as_str())?;
+        kw.set_item("gate", this.gate)?;
         crate::persist::new_args(py, this.as_super(), kw)
     }
 
@@ -756,18 +771,25 @@ impl PyKalmanIdentifier {
 /// `h`: the per-parameter weights: a scalar, one per unknown row (k,), or one per parameter
 /// (k·n,) / (k, n); the thesis makes the wheel-row weights a tenth of the body-row ones
 /// (Eq 5.10). `spacing`: use every l-th sample. `state_noise_var`: the diagonal of Σ_w (a
-/// scalar or one per state) for the `[I + R Σ_N]` bias elimination.
+/// scalar or one per state) for the `[I + R Σ_N]` bias elimination. Outliers: `gate` κ (default 6; 0: off, the identifier alone)
+/// screens a sample — accepted, counted in `gated`, otherwise left out — whose prediction error on
+/// an equation exceeds κ times its standard deviation estimated from the samples accepted so far
+/// (active after N + 50 samples), or any of whose values (a state, a derivative, an input)
+/// exceeds κ² times its root mean square so far; the first 16 samples are kept and judged
+/// together against their median, the identifier restarted without an outlier found there, so
+/// that an outlier at sample 0 does not spoil the start (`vehid_core::identify::Screened`).
 #[pyclass(name = "StochasticGradient", module = "vehid._vehid", extends = PyIdentifier)]
 pub struct PyStochasticGradient {
     gain: GainKind,
+    gate: f64,
 }
 
 #[pymethods]
 impl PyStochasticGradient {
     #[new]
-    #[pyo3(signature = (model, gain = "venter".into(), h = None, p = 0.51, *, spacing = 1, state_noise_var = None, lambda0 = 0.99, lambda_init = 0.95),
+    #[pyo3(signature = (model, gain = "venter".into(), h = None, p = 0.51, *, spacing = 1, state_noise_var = None, lambda0 = 0.99, lambda_init = 0.95, gate = None),
            text_signature = "(model, gain='venter', h=None, p=0.51, *, spacing=1, state_noise_var=None, lambda0=0.99, \
-                             lambda_init=0.95)")]
+                             lambda_init=0.95, gate=None)")]
     #[allow(clippy::too_many_arguments)]
     fn py_new(
         model: &Bound<'_, PyAny>,
@@ -778,8 +800,10 @@ impl PyStochasticGradient {
         state_noise_var: Option<&Bound<'_, PyAny>>,
         #[pyo3(from_py_with = crate::args::lambda0)] lambda0: f64,
         #[pyo3(from_py_with = crate::args::lambda_init)] lambda_init: f64,
+        #[pyo3(from_py_with = crate::args::gate)] gate: Option<f64>,
     ) -> PyResult<PyClassInitializer<Self>> {
         let kind: GainKind = option(&gain)?;
+        let gate = gate.unwrap_or(vehid_runtime::defaults::GATE);
         if let Ok(st) = model.cast::<PyStructure>() {
             refuse_for_structure("state_noise_var", state_noise_var.is_some())?;
             let h = match h {
@@ -794,8 +818,10 @@ impl PyStochasticGradient {
                 .map_err(|_| VehidError::new_err(format!("`spacing` must be an integer >= 1, got {spacing}")))?;
             let g = Gain::of_kind(kind, p, lambda0, lambda_init);
             let inner = crate::structure::gradient_on_structure(st.get(), g, &h, spacing)?;
+            // Magnitude test and held start only (`Refresh::Never`): see below.
+            let inner = build::screened(inner, &st.get().core, gate, Refresh::Never).map_err(core_err)?;
             return Ok(
-                PyClassInitializer::from(PyIdentifier::on_structure(inner, st)).add_subclass(Self { gain: kind })
+                PyClassInitializer::from(PyIdentifier::on_structure(inner, st)).add_subclass(Self { gain: kind, gate })
             );
         }
         let model = linear_model(model)?;
@@ -813,7 +839,11 @@ impl PyStochasticGradient {
             .map_err(|_| VehidError::new_err(format!("`spacing` must be an integer >= 1, got {spacing}")))?;
         let g = Gain::of_kind(kind, p, lambda0, lambda_init);
         let inner = build::gradient(m.data.n, &m.data.rows, g, &h, &snv, spacing).map_err(core_err)?;
-        Ok(PyClassInitializer::from(PyIdentifier::new(inner, m.data.clone())).add_subclass(Self { gain: kind }))
+        // Magnitude test and held start only (`Refresh::Never`): the gradient's estimate converges
+        // slowly (ξ about 5 after 10⁴ samples on the thesis car), its prediction errors are the
+        // estimate's, not the noise's, and a residual screen would keep a wrong estimate.
+        let inner = screen_rows(inner, &m.data, gate, Refresh::Never)?;
+        Ok(PyClassInitializer::from(PyIdentifier::new(inner, m.data.clone())).add_subclass(Self { gain: kind, gate }))
     }
 
     /// The gain name.
@@ -828,6 +858,7 @@ impl PyStochasticGradient {
         let kw = pyo3::types::PyDict::new(py);
         let this = borrow(slf)?;
         kw.set_item("gain", this.gain.as_str())?;
+        kw.set_item("gate", this.gate)?;
         crate::persist::new_args(py, this.as_super(), kw)
     }
 
@@ -852,10 +883,54 @@ impl PyStochasticGradient {
 /// Structure: always the recursive form, storing nothing. Missing excitation raises VehidError (rank
 /// deficiency), never NaN; so does (stored form) one sample that dominates the regression,
 /// named with the `remove()` that drops it. `fit` stores the samples (all or nothing) and
-/// returns the history like the recursive identifiers (θ̂ over every prefix, solved at each record).
+/// returns the history like the recursive identifiers (θ̂ over every prefix, solved at each record). Outliers: `gate` κ (default 6; 0: off, the identifier alone)
+/// screens a sample — accepted, counted in `gated`, otherwise left out — whose prediction error on
+/// an equation exceeds κ times its standard deviation estimated from the samples accepted so far
+/// (active after N + 50 samples), or any of whose values (a state, a derivative, an input)
+/// exceeds κ² times its root mean square so far; the first 16 samples are kept and judged
+/// together against their median, the identifier restarted without an outlier found there, so
+/// that an outlier at sample 0 does not spoil the start (`vehid_core::identify::Screened`).
+/// Screened samples are not stored (`remove()` indexes the stored ones).
 #[pyclass(name = "BatchLeastSquares", module = "vehid._vehid", extends = PyIdentifier)]
 pub struct PyBatchLeastSquares {
     keep_samples: bool,
+    gate: f64,
+}
+
+/// The structure whose residuals screen a linear model's identifier: its unknown rows' full
+/// rows (`Structure::full_rows`).
+fn full_rows(m: &ModelData) -> Option<vehid_core::structure::Structure<f64>> {
+    vehid_core::structure::Structure::full_rows(m.n, &m.rows).ok()
+}
+
+/// A linear model's identifier behind the screen at `gate` (`build::screened`), its residuals
+/// those of the model's full rows; when those rows exceed a structure's capacity (more than 96
+/// terms: e.g. 16 states with 6 or more unknown rows) the identifier as it is (the Kalman
+/// identifiers keep their own gate; the others then have none: a known gap).
+fn screen_rows(
+    inner: Box<dyn DynIdentifier<f64>>,
+    m: &ModelData,
+    gate: f64,
+    refresh: Refresh,
+) -> PyResult<Box<dyn DynIdentifier<f64>>> {
+    match full_rows(m) {
+        Some(s) => build::screened(inner, &s, gate, refresh).map_err(core_err),
+        None => Ok(inner),
+    }
+}
+
+/// Batch least squares for `m` in its form (`keep`: stored samples; else the memory-bounded
+/// recursive one), behind the screen at `gate`.
+fn batch_core(m: &ModelData, keep: bool, gate: f64) -> PyResult<Box<dyn DynIdentifier<f64>>> {
+    let inner = if keep { build::batch(m.n, &m.rows).map_err(core_err)? } else { streaming_ls(m)? };
+    screen_rows(inner, m, gate, if keep { Refresh::Geometric } else { Refresh::Every })
+}
+
+/// Batch least squares on a Structure (the recursive form, exact start, no prior), behind the
+/// screen at `gate`.
+fn batch_on_structure(st: &PyStructure, gate: f64) -> PyResult<Box<dyn DynIdentifier<f64>>> {
+    let inner = kalman_on_structure(st, None, None, None, KalmanOptions::default())?;
+    build::screened(inner, &st.core, gate, Refresh::Every).map_err(core_err)
 }
 
 /// The memory-bounded least squares of `BatchLeastSquares(model, keep_samples=False)` for a
@@ -876,23 +951,25 @@ fn streaming_ls(m: &ModelData) -> PyResult<Box<dyn DynIdentifier<f64>>> {
 #[pymethods]
 impl PyBatchLeastSquares {
     #[new]
-    #[pyo3(signature = (model, keep_samples = true))]
+    #[pyo3(signature = (model, keep_samples = true, *, gate = None))]
     fn py_new(
         model: &Bound<'_, PyAny>,
         #[pyo3(from_py_with = crate::args::keep_samples)] keep_samples: bool,
+        #[pyo3(from_py_with = crate::args::gate)] gate: Option<f64>,
     ) -> PyResult<PyClassInitializer<Self>> {
+        let gate = gate.unwrap_or(vehid_runtime::defaults::GATE);
         if let Ok(st) = model.cast::<PyStructure>() {
             // Least squares on all samples, solved recursively (exact start, no prior, no
-            // gate): the same estimate as the normal equations, without storing samples.
-            let inner = kalman_on_structure(st.get(), None, None, None, KalmanOptions::default())?;
+            // Kalman gate: the screen's): the same estimate as the normal equations, without
+            // storing samples.
+            let inner = batch_on_structure(st.get(), gate)?;
             return Ok(PyClassInitializer::from(PyIdentifier::on_structure(inner, st))
-                .add_subclass(Self { keep_samples: false }));
+                .add_subclass(Self { keep_samples: false, gate }));
         }
         let model = linear_model(model)?;
         let m = model.get();
-        let inner =
-            if keep_samples { build::batch(m.data.n, &m.data.rows).map_err(core_err)? } else { streaming_ls(&m.data)? };
-        Ok(PyClassInitializer::from(PyIdentifier::new(inner, m.data.clone())).add_subclass(Self { keep_samples }))
+        let inner = batch_core(&m.data, keep_samples, gate)?;
+        Ok(PyClassInitializer::from(PyIdentifier::new(inner, m.data.clone())).add_subclass(Self { keep_samples, gate }))
     }
 
     /// Whether the samples are stored (QR solve, `remove()`), or none (the memory-bounded
@@ -915,21 +992,16 @@ impl PyBatchLeastSquares {
         build::batch_storage_bytes(base.inner.as_ref()).map_err(core_err)
     }
 
-    /// Drops the stored samples (the memory-bounded form: starts its recursive solution anew).
+    /// Drops the stored samples (the memory-bounded form: starts its recursive solution anew)
+    /// and starts the outlier screen anew (its held samples, scales and counts).
     fn clear(slf: &Bound<'_, Self>) -> PyResult<()> {
         let mut slf = borrow_mut(slf)?;
-        let keep = slf.keep_samples;
+        let (keep, gate) = (slf.keep_samples, slf.gate);
         let base = slf.as_super();
-        if let Some(st) = &base.structure {
-            let inner = kalman_on_structure(st.get(), None, None, None, KalmanOptions::default())?;
-            base.inner = inner;
-            return Ok(());
-        }
-        if !keep {
-            base.inner = streaming_ls(&base.model)?;
-            return Ok(());
-        }
-        base.inner = build::batch(base.model.n, &base.model.rows).map_err(core_err)?;
+        base.inner = match &base.structure {
+            Some(st) => batch_on_structure(st.get(), gate)?,
+            None => batch_core(&base.model, keep, gate)?,
+        };
         Ok(())
     }
 
@@ -962,6 +1034,7 @@ impl PyBatchLeastSquares {
         let kw = pyo3::types::PyDict::new(py);
         let this = borrow(slf)?;
         kw.set_item("keep_samples", this.keep_samples)?;
+        kw.set_item("gate", this.gate)?;
         crate::persist::new_args(py, this.as_super(), kw)
     }
 

@@ -12,7 +12,7 @@ use crate::structure::PyStructure;
 use crate::{core_err, VehidError};
 use numpy::{IntoPyArray, PyArray1};
 use pyo3::prelude::*;
-use vehid_core::identify::{DynIdentifier, StructuredPrior, RING_VALUES};
+use vehid_core::identify::{DynIdentifier, Refresh, StructuredPrior, RING_VALUES};
 use vehid_core::structure::Structure;
 
 use vehid_runtime::build::PREDICTOR;
@@ -159,12 +159,20 @@ fn instrument_args(s: &Structure<f64>, delay: i128, lags: Option<i128>) -> PyRes
 /// unchanged. `stats()` gives the IV sandwich covariance. Pickles (every protocol), copies
 /// and deep-copies: a restored one continues bit for bit (the ring of past samples and the
 /// predictor included).
+/// Outliers: `gate` κ (default 6; 0: off, the identifier alone)
+/// screens a sample — accepted, counted in `gated`, otherwise left out — whose prediction error on
+/// an equation exceeds κ times its standard deviation estimated from the samples accepted so far
+/// (active after N + 50 samples), or any of whose values (a state, a derivative, an input)
+/// exceeds κ² times its root mean square so far; the first 16 samples are kept and judged
+/// together against their median, the identifier restarted without an outlier found there, so
+/// that an outlier at sample 0 does not spoil the start (`vehid_core::identify::Screened`).
 #[pyclass(name = "IVIdentifier", module = "vehid._vehid", extends = PyIdentifier)]
 pub struct PyIVIdentifier {
     delay: usize,
     lags: usize,
     model: Option<ModelArgs>,
     road: Option<crate::road::Road>,
+    gate: f64,
 }
 
 #[pymethods]
@@ -172,7 +180,7 @@ impl PyIVIdentifier {
     #[new]
     #[pyo3(signature = (model, delay = 1, lags = None, p0 = None, r = None, *, theta0 = None,
                         instruments = "delayed", dt = None, refresh = 100, substeps = 1, road = "white",
-                        road_cutoff = None, spacing = None, min_spacing = None, lift_off = None))]
+                        road_cutoff = None, spacing = None, min_spacing = None, lift_off = None, gate = None))]
     #[allow(clippy::too_many_arguments)]
     fn py_new(
         model: &Bound<'_, PyAny>,
@@ -190,7 +198,9 @@ impl PyIVIdentifier {
         spacing: Option<&Bound<'_, PyAny>>,
         min_spacing: Option<f64>,
         lift_off: Option<(f64, f64)>,
+        #[pyo3(from_py_with = crate::args::gate)] gate: Option<f64>,
     ) -> PyResult<PyClassInitializer<Self>> {
+        let gate = gate.unwrap_or(vehid_runtime::defaults::GATE);
         let target = Target::of(model)?;
         let s = target.structure()?;
         let road = crate::road::road_args(road, road_cutoff, spacing, min_spacing, lift_off)?;
@@ -253,11 +263,21 @@ impl PyIVIdentifier {
         let th = theta0.as_deref();
         let ma = model_args;
         let inner = build::iv(s, delay, lags, p0, th, &r, ma).map_err(core_err)?;
+        // The screen judges the samples the IV step takes (on a coloured road: the differenced ones).
+        // Magnitude test and held start only: a residual test would select samples by the
+        // equation error the instruments must be uncorrelated with (`Refresh::Never`).
+        let inner = build::screened(inner, &s, gate, Refresh::Never).map_err(core_err)?;
         let inner = match road {
             Some(road) => crate::road::wrap(inner, &s, road)?,
             None => inner,
         };
-        Ok(PyClassInitializer::from(target.wrap(inner)).add_subclass(Self { delay, lags, model: model_args, road }))
+        Ok(PyClassInitializer::from(target.wrap(inner)).add_subclass(Self {
+            delay,
+            lags,
+            model: model_args,
+            road,
+            gate,
+        }))
     }
 
     /// The road model: "white" (the thesis' road noise: samples identified as they are),
@@ -357,12 +377,12 @@ impl PyIVIdentifier {
     /// A copy with its own core.
     fn __copy__(slf: &Bound<'_, Self>) -> PyResult<Py<Self>> {
         let py = slf.py();
-        let (delay, lags, model, road) = {
+        let (delay, lags, model, road, gate) = {
             let b = crate::guard::borrow(slf)?;
-            (b.delay, b.lags, b.model, b.road)
+            (b.delay, b.lags, b.model, b.road, b.gate)
         };
         let base = copy_base(slf.as_super())?;
-        Py::new(py, PyClassInitializer::from(base).add_subclass(Self { delay, lags, model, road }))
+        Py::new(py, PyClassInitializer::from(base).add_subclass(Self { delay, lags, model, road, gate }))
     }
 
     /// The same as `__copy__`: the core shares nothing.
@@ -384,6 +404,7 @@ impl PyIVIdentifier {
                 kw.set_item(key, slf.getattr(key)?)?;
             }
         }
+        kw.set_item("gate", crate::guard::borrow(slf)?.gate)?;
         crate::persist::new_args(py, crate::guard::borrow(slf)?.as_super(), kw)
     }
 
@@ -448,8 +469,17 @@ fn noise_arg(v: Option<&Bound<'_, PyAny>>, arg: &str, n: usize) -> PyResult<Vec<
 /// NaN innovations, as BatchLeastSquares. `stats()` is not available (use IVIdentifier for
 /// standard errors). Pickles (every protocol), copies and deep-copies: a restored one
 /// continues bit for bit.
+/// Outliers: `gate` κ (default 6; 0: off, the identifier alone)
+/// screens a sample — accepted, counted in `gated`, otherwise left out — whose prediction error on
+/// an equation exceeds κ times its standard deviation estimated from the samples accepted so far
+/// (active after N + 50 samples), or any of whose values (a state, a derivative, an input)
+/// exceeds κ² times its root mean square so far; the first 16 samples are kept and judged
+/// together against their median, the identifier restarted without an outlier found there, so
+/// that an outlier at sample 0 does not spoil the start (`vehid_core::identify::Screened`).
 #[pyclass(name = "BiasCompensated", module = "vehid._vehid", extends = PyIdentifier)]
-pub struct PyBiasCompensated;
+pub struct PyBiasCompensated {
+    gate: f64,
+}
 
 /// The instruments `(delay, lags)` of a noise-estimating core, after writing its variances
 /// into `var` when given (`None`: the core is the plain bias-compensated one).
@@ -460,7 +490,8 @@ fn estimating(inner: &dyn DynIdentifier<f64>, var: Option<&mut [f64]>) -> Option
 #[pymethods]
 impl PyBiasCompensated {
     #[new]
-    #[pyo3(signature = (model, state_noise_var, deriv_noise_var = None, r = None, *, delay = None, lags = None))]
+    #[pyo3(signature = (model, state_noise_var, deriv_noise_var = None, r = None, *, delay = None, lags = None, gate = None))]
+    #[allow(clippy::too_many_arguments)]
     fn py_new(
         model: &Bound<'_, PyAny>,
         state_noise_var: &Bound<'_, PyAny>,
@@ -468,7 +499,9 @@ impl PyBiasCompensated {
         r: Option<&Bound<'_, PyAny>>,
         delay: Option<i128>,
         lags: Option<i128>,
+        #[pyo3(from_py_with = crate::args::gate)] gate: Option<f64>,
     ) -> PyResult<PyClassInitializer<Self>> {
+        let gate = gate.unwrap_or(vehid_runtime::defaults::GATE);
         let target = Target::of(model)?;
         let s = target.structure()?;
         let n = s.states();
@@ -497,8 +530,9 @@ impl PyBiasCompensated {
             let sw = noise_arg(Some(state_noise_var), "state_noise_var", n)?;
             build::bias_compensated(s, &sw, &sv, &r)
         }
+        .and_then(|inner| build::screened(inner, &s, gate, Refresh::Geometric))
         .map_err(core_err)?;
-        Ok(PyClassInitializer::from(target.wrap(inner)).add_subclass(Self))
+        Ok(PyClassInitializer::from(target.wrap(inner)).add_subclass(Self { gate }))
     }
 
     /// True when Σ_w is estimated from the data (`state_noise_var="estimate"`).
@@ -537,7 +571,8 @@ impl PyBiasCompensated {
     /// A copy with its own core.
     fn __copy__(slf: &Bound<'_, Self>) -> PyResult<Py<Self>> {
         let base = copy_base(slf.as_super())?;
-        Py::new(slf.py(), PyClassInitializer::from(base).add_subclass(Self))
+        let gate = crate::guard::borrow(slf)?.gate;
+        Py::new(slf.py(), PyClassInitializer::from(base).add_subclass(Self { gate }))
     }
 
     /// The same as `__copy__`: the core shares nothing.
@@ -557,6 +592,7 @@ impl PyBiasCompensated {
             }
             None => kw.set_item("state_noise_var", 0.0)?,
         }
+        kw.set_item("gate", crate::guard::borrow(slf)?.gate)?;
         crate::persist::new_args(py, crate::guard::borrow(slf)?.as_super(), kw)
     }
 

@@ -10,7 +10,7 @@ use crate::{core_err, option, VehidError};
 use numpy::PyArray2;
 use pyo3::exceptions::PyMemoryError;
 use pyo3::prelude::*;
-use vehid_core::identify::{TwoAxleConfig, TwoAxleIdentifierVec, TwoAxleStructuredConfig, WheelMethod};
+use vehid_core::identify::{Refresh, TwoAxleConfig, TwoAxleIdentifierVec, TwoAxleStructuredConfig, WheelMethod};
 use vehid_core::sampler::{axle_delay, AxleSampler, Trigger};
 use vehid_runtime::ModelData;
 
@@ -98,18 +98,28 @@ fn p0_arg(p0: Option<&Bound<'_, PyAny>>) -> PyResult<P0> {
 /// (k, n) the unknown rows of A they give (in the order of `unknown_rows`, the structure's
 /// equations), `a_hat` the car's A with those rows; `fit`'s history holds `params`. No
 /// `stats()` (no residual statistics are kept).
+/// Outliers: `gate` κ (default 6; 0: off, the identifier alone)
+/// screens a sample — accepted, counted in `gated`, otherwise left out — whose prediction error on
+/// an equation exceeds κ times its standard deviation estimated from the samples accepted so far
+/// (active after N + 50 samples), or any of whose values (a state, a derivative, an input)
+/// exceeds κ² times its root mean square so far; the first 16 samples are kept and judged
+/// together against their median, the identifier restarted without an outlier found there, so
+/// that an outlier at sample 0 does not spoil the start (`vehid_core::identify::Screened`).
+/// A screened sample's road point passes: the rear axle stays paired with the front axle's
+/// sample one wheelbase earlier.
 #[pyclass(name = "TwoAxleIdentifier", module = "vehid._vehid", extends = PyIdentifier)]
 pub struct PyTwoAxleIdentifier {
     model: Py<PyLinearModel>,
     spacing: f64,
     wheelbase: f64,
+    gate: f64,
 }
 
 impl PyTwoAxleIdentifier {
     /// The settings the getters report, from whichever core the base holds.
     fn info(slf: &PyRef<'_, Self>) -> PyResult<Info> {
         let base: &PyIdentifier = slf.as_super();
-        if let Some(id) = base.inner.as_any().downcast_ref::<Id>() {
+        if let Some(id) = vehid_runtime::build::unscreened(base.inner.as_ref()).as_any().downcast_ref::<Id>() {
             return Ok(Info {
                 method: id.config().method.as_str(),
                 delay: id.delay(),
@@ -143,7 +153,8 @@ impl PyTwoAxleIdentifier {
 impl PyTwoAxleIdentifier {
     #[new]
     #[pyo3(signature = (model, spacing = 0.3, method = "cancel", p0 = None, road_sigma = 0.1, deriv_noise = 0.005,
-                        *, p0_body = None, wheelbase = None, direct_front = true, car = None, compensate = true))]
+                        *, p0_body = None, wheelbase = None, direct_front = true, car = None, compensate = true,
+                        gate = None))]
     #[allow(clippy::too_many_arguments)]
     fn py_new(
         model: &Bound<'_, PyAny>,
@@ -157,7 +168,9 @@ impl PyTwoAxleIdentifier {
         direct_front: bool,
         car: Option<Bound<'_, PyLinearModel>>,
         compensate: bool,
+        #[pyo3(from_py_with = crate::args::gate)] gate: Option<f64>,
     ) -> PyResult<PyClassInitializer<Self>> {
+        let gate = gate.unwrap_or(vehid_runtime::defaults::GATE);
         let p0 = p0_arg(p0)?;
         let structure = model.cast::<PyStructure>().ok();
         let car =
@@ -235,6 +248,8 @@ impl PyTwoAxleIdentifier {
                 other => other,
             }
             .map_err(memory)?;
+            // The estimate is bias-compensated on read: re-read as the samples grow.
+            let inner = vehid_runtime::build::screened(inner, &s, gate, Refresh::Geometric).map_err(core_err)?;
             PyIdentifier::on_structure(inner, st)
         } else {
             let p0 = match p0 {
@@ -255,9 +270,12 @@ impl PyTwoAxleIdentifier {
             cfg.p0_body = p0_body.unwrap_or(p0);
             cfg.direct_front = direct_front;
             let inner = Id::new(&core, d, cfg).map_err(memory)?;
-            PyIdentifier::new(Box::new(inner), m.data.clone())
+            let rows = vehid_core::structure::Structure::full_rows(8, inner.rows()).map_err(core_err)?;
+            let inner =
+                vehid_runtime::build::screened(Box::new(inner), &rows, gate, Refresh::Every).map_err(core_err)?;
+            PyIdentifier::new(inner, m.data.clone())
         };
-        Ok(PyClassInitializer::from(base).add_subclass(Self { model: car.unbind(), spacing, wheelbase }))
+        Ok(PyClassInitializer::from(base).add_subclass(Self { model: car.unbind(), spacing, wheelbase, gate }))
     }
 
     /// "none", "thesis" or "cancel".
@@ -355,6 +373,7 @@ impl PyTwoAxleIdentifier {
             kw.set_item(key, slf.getattr(key)?)?;
         }
         let this = borrow(slf)?;
+        kw.set_item("gate", this.gate)?;
         let model = match &this.as_super().structure {
             // On a Structure: the car gives B; `compensate` decides what the structure may hold.
             Some(st) => {

@@ -4,9 +4,10 @@
 
 use crate::sizes::dispatch_n;
 use vehid_core::identify::{
-    boxed_kalman, BatchLeastSquares, BiasCompensatedVec, DynIdentifier, EkfNoise, Gain, IvIdentifierVec, JointEkf,
-    KalmanOptions, KalmanSpec, NoiseEstimatingBclsVec, StochasticGradientVec, StructuredGradient, StructuredKalmanVec,
-    StructuredPrior, TwoAxleStructuredConfig, TwoAxleStructuredVec,
+    boxed_kalman, BatchLeastSquares, BiasCompensatedVec, BoxedIdentifier, DynIdentifier, EkfNoise, Gain,
+    IvIdentifierVec, JointEkf, KalmanOptions, KalmanSpec, NoiseEstimatingBclsVec, Refresh, Screened,
+    StochasticGradientVec, StructuredGradient, StructuredKalmanVec, StructuredPrior, TwoAxleStructuredConfig,
+    TwoAxleStructuredVec,
 };
 use vehid_core::model::LinearModel;
 use vehid_core::structure::Structure;
@@ -55,7 +56,39 @@ pub fn batch(n: usize, rows: &[usize]) -> Result<Boxed> {
 }
 
 fn stored<const N: usize>(id: &dyn DynIdentifier<f64>) -> Option<&BatchLeastSquares<f64, N>> {
-    id.as_any().downcast_ref::<BatchLeastSquares<f64, N>>()
+    unscreened(id).as_any().downcast_ref::<BatchLeastSquares<f64, N>>()
+}
+
+/// An identifier behind the outlier screen (`vehid_core::identify::Screened`), as built here.
+pub type ScreenedCore = Screened<f64, BoxedIdentifier<f64>>;
+
+/// `inner` behind the outlier screen at `gate` κ (`Screened`: residual and magnitude tests,
+/// the first samples held and judged together), its residuals those of `s` (the identifier's
+/// structure, or the full rows of a linear model's unknown rows), the estimate re-read after
+/// every sample (`Refresh::Every`: a recursive identifier), as the samples grow by a quarter
+/// (`Refresh::Geometric`: identifiers that solve on read) or never (`Refresh::Never`: the
+/// Kalman identifiers, whose own gate tests the residual); `gate = 0`: `inner` as it is.
+///
+/// # Errors
+/// The core's (a `gate` not finite and ≥ 0).
+pub fn screened(inner: Boxed, s: &Structure<f64>, gate: f64, refresh: Refresh) -> Result<Boxed> {
+    if gate == 0.0 {
+        return Ok(inner);
+    }
+    Ok(Box::new(ScreenedCore::new(BoxedIdentifier(inner), *s, gate, refresh)?))
+}
+
+/// The identifier behind the screen when `id` is screened ([`screened`]), else `id`.
+pub fn unscreened(id: &dyn DynIdentifier<f64>) -> &dyn DynIdentifier<f64> {
+    match id.as_any().downcast_ref::<ScreenedCore>() {
+        Some(s) => s.inner().0.as_ref(),
+        None => id,
+    }
+}
+
+/// The screen's gate κ of `id` (0 when it is not screened).
+pub fn screen_gate(id: &dyn DynIdentifier<f64>) -> f64 {
+    id.as_any().downcast_ref::<ScreenedCore>().map_or(0.0, |s| s.gate())
 }
 
 fn batch_bytes_n<const N: usize>(id: &dyn DynIdentifier<f64>) -> Result<usize> {
@@ -74,10 +107,18 @@ fn batch_remove_n<const N: usize>(id: &mut Boxed, index: usize) -> Result<()> {
     let Some(batch) = stored::<N>(id.as_ref()) else {
         return Err(Error::InvalidArgument { arg: "self", expected: "a BatchLeastSquares" });
     };
-    // On a copy, which replaces the original only when it succeeded.
+    // On a copy, which replaces the original only when it succeeded (behind its screen, if any:
+    // the screen keeps its scales and counts).
     let mut copy = batch.clone();
     copy.remove(index)?;
-    *id = Box::new(copy);
+    *id = match id.as_any().downcast_ref::<ScreenedCore>() {
+        Some(s) => {
+            let mut s = s.clone();
+            *s.inner_mut() = BoxedIdentifier(Box::new(copy));
+            Box::new(s)
+        }
+        None => Box::new(copy),
+    };
     Ok(())
 }
 
@@ -368,7 +409,8 @@ pub type JointEkfCore<const D: usize> = JointEkf<f64, EKF_STATES, D>;
 #[macro_export]
 macro_rules! with_two_axle_structured {
     ($inner:expr, |$id:ident| $body:expr) => {{
-        let any = $inner.as_any();
+        let boxed: &$crate::build::Boxed = &$inner;
+        let any = $crate::build::unscreened(boxed.as_ref()).as_any();
         if let Some($id) = any.downcast_ref::<$crate::build::TwoAxleStructuredCore<4>>() {
             Some($body)
         } else if let Some($id) = any.downcast_ref::<$crate::build::TwoAxleStructuredCore<8>>() {
@@ -415,7 +457,7 @@ pub fn noise_estimating_instruments(
         }
         Ok((id.instrumental().delay(), id.instrumental().lags()))
     }
-    let any = inner.as_any();
+    let any = unscreened(inner).as_any();
     macro_rules! try_p {
         ($($p:literal),*) => {$(
             if let Some(id) = any.downcast_ref::<NoiseEstimatingBclsVec<f64, $p, 0>>() {

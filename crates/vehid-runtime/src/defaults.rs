@@ -4,9 +4,13 @@
 
 use crate::build::PREDICTOR;
 
-/// The outlier gate of the Kalman identifiers (every mode): a sample whose recursive residual
-/// exceeds 6 estimated standard deviations is left out (for Gaussian noise: one sample in
-/// 5·10⁸).
+/// The outlier gate of every identifier: of the Kalman identifiers (every mode), a sample whose
+/// recursive residual exceeds 6 estimated standard deviations is left out (for Gaussian noise:
+/// one sample in 5·10⁸); of the others, the screen (`vehid_core::identify::Screened`) at the
+/// same κ: a prediction error beyond 6 standard deviations, or a value beyond 36 times its root
+/// mean square (at most one good sample in 1300 whatever the distribution, by Chebyshev; none
+/// for a Gaussian signal); the Kalman identifiers run behind that value test and its held start
+/// too. `gate=0` is the identifier alone.
 pub const GATE: f64 = 6.0;
 
 /// Standard deviation of the white road noise of the thesis' simulation study (Ch. III.C,

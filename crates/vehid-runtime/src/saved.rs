@@ -17,8 +17,10 @@ use vehid_core::identify::DynIdentifier;
 /// Version of the saved layout. Raise it when the envelope or any core type's serialized
 /// form changes in a way older readers (or this reader, for older states) cannot follow.
 /// 3: the core's type named by the binding, a CRC-32. 4: the core's type implied by the
-/// class and its settings (`Persist`), the envelope below.
-pub const FORMAT: u32 = 4;
+/// class and its settings (`Persist`), the envelope below. 5: the outlier screen of the
+/// identifiers without one of their own (its state saved with the core's, its gate among the
+/// settings).
+pub const FORMAT: u32 = 5;
 
 /// What a saved identifier holds.
 #[derive(Debug, Serialize, Deserialize)]

@@ -218,6 +218,14 @@ pub trait Identifier<T: Real> {
         Err(Error::Unsupported { what: "reset_covariance (this identifier keeps no covariance to reset)" })
     }
 
+    /// Keeps the identifier's time when a wrapper leaves the current sample out (the outlier
+    /// screen, [`super::Screened`]): the next sample is the one after it. Only identifiers that
+    /// pair samples by their place in time act on it: the two-axle identifiers advance their
+    /// road-point index, so that the rear axle stays paired with the front axle's sample one
+    /// wheelbase earlier (the skipped point pairs with nothing). The default: nothing. No
+    /// allocation; it changes no estimate.
+    fn skip_sample(&mut self) {}
+
     /// Samples each equation gated as outliers (see `KalmanOptions::gate`), one count per
     /// equation into `out`; zeros for an identifier without a gate.
     ///

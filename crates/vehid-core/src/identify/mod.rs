@@ -62,6 +62,7 @@ mod noise_estimating;
 pub(crate) mod persist;
 mod road;
 mod samples;
+mod screen;
 #[cfg(feature = "alloc")]
 mod state_filter;
 mod store;
@@ -114,6 +115,7 @@ pub use road::{
     Contact, Differenced, RoadModel, RoadState, Travel, DEFAULT_MIN_SPACING, LIFT_OFF_LOAD, MAX_ROAD_WEIGHT,
 };
 pub use samples::{SampleIter, Samples};
+pub use screen::{Refresh, ScreenState, Screened, START_SAMPLES, START_VALUES};
 #[cfg(feature = "alloc")]
 pub use state_filter::{StateFilterFit, DEFAULT_BANDWIDTH, DEFAULT_BLOCK};
 pub use store::{Dynamic, Fixed, Flat, NoScratch, Store, DYNAMIC_LANES};

@@ -82,4 +82,8 @@ impl<T: Real> Identifier<T> for BoxedIdentifier<T> {
     fn gated_into(&self, out: &mut [u64]) -> Result<()> {
         self.0.gated_into(out)
     }
+
+    fn skip_sample(&mut self) {
+        self.0.skip_sample()
+    }
 }

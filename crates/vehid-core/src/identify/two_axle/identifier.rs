@@ -29,4 +29,9 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
     fn samples(&self) -> u64 {
         self.samples
     }
+
+    /// The road point of the sample left out passes: the next sample is on the point after it.
+    fn skip_sample(&mut self) {
+        self.last_grid = Some(self.last_grid.map_or(0, |g| g.saturating_add(1)));
+    }
 }

@@ -45,6 +45,11 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>, B: RingStore<FrontRe
         self.samples
     }
 
+    /// The road point of the sample left out passes: the next sample is on the point after it.
+    fn skip_sample(&mut self) {
+        self.last_grid = Some(self.last_grid.map_or(0, |g| g.saturating_add(1)));
+    }
+
     /// The recursive least-squares covariance; [`Error::Unsupported`] when the estimate is
     /// bias-compensated (its covariance needs fourth moments of the regressors).
     fn covariance_into(&self, out: &mut [T]) -> Result<()> {
