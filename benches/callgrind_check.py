@@ -76,6 +76,7 @@ BENCHES = [
     "quarter_iv_rows",              # update_f64/quarter/iv_rows (recursive IV, noisy state sensors)
     "quarter_iv_physical",          # update_f64/quarter/iv_physical
     "quarter_bcls_rows",            # update_f64/quarter/bcls_rows
+    "quarter_bcls_screened",        # update_f64/quarter/bcls_screened (Python's default screen in front)
     "quarter_ekf_physical",         # update_f64/quarter/ekf_physical (the joint EKF's cost)
     "quarter_nebcls_rows",          # update_f64/quarter/nebcls_rows (Sigma_w estimated)
     "half_two_axle_physical",       # update_f64/half/two_axle_physical (road cancellation, physical)

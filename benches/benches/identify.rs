@@ -331,6 +331,16 @@ fn noisy_states(c: &mut Criterion) {
         let _ = black_box(bc.update_into(x.as_slice(), z.as_slice(), &[], &mut e));
     };
     bench_updates(c, "update_f64", &data, &mut update, "quarter/bcls_rows");
+    // The same behind Python's default outlier screen (`Screened`, gate 6, residual and
+    // magnitude tests, refreshed as the samples grow by a quarter: count_updates' quarter_bcls_screened).
+    let inner = BiasCompensatedLs::<f64, 4, 2>::full_rows(4, &q.unknown_rows(), &[6.4e-5]).unwrap();
+    let full = vehid_core::structure::Structure::<f64>::full_rows(4, &q.unknown_rows()).unwrap();
+    let mut sc =
+        vehid_core::identify::Screened::new(inner, full, 6.0, vehid_core::identify::Refresh::Geometric).unwrap();
+    let mut update = |x: &SVector<f64, 4>, z: &SVector<f64, 4>| {
+        let _ = black_box(sc.update_into(x.as_slice(), z.as_slice(), &[], &mut e));
+    };
+    bench_updates(c, "update_f64", &data, &mut update, "quarter/bcls_screened");
     // Instruments from the auxiliary model (SRIVC/RIVC) on a structure with a measured input:
     // the mass-spring-damper rig (3 parameters, one RK4 step per sample, refresh every 100
     // samples), past its start (as count_updates' msd_iv_model).

@@ -12,9 +12,9 @@ use std::hint::black_box;
 use std::process::ExitCode;
 use vehid_core::identify::{
     BiasCompensatedLs, CovarianceForm, EkfNoise, Gain, Identifier, IvIdentifier, JointEkf, KalmanIdentifier,
-    KalmanIdentifierVec, KalmanIdentifierVec2, KalmanOptions, NoiseEstimatingBclsLs, SharedKalmanIdentifier,
-    StochasticGradient, StructuredGradient, StructuredKalman, StructuredPrior, TwoAxleStructuredConfig,
-    TwoAxleStructuredKalman,
+    KalmanIdentifierVec, KalmanIdentifierVec2, KalmanOptions, NoiseEstimatingBclsLs, Refresh, Screened,
+    SharedKalmanIdentifier, StochasticGradient, StructuredGradient, StructuredKalman, StructuredPrior,
+    TwoAxleStructuredConfig, TwoAxleStructuredKalman,
 };
 use vehid_core::model::{HalfCar, LinearModel, QuarterCar};
 use vehid_core::nalgebra::SVector;
@@ -24,7 +24,7 @@ use vehid_core::structure::Structure;
 const LEN: usize = 4096;
 
 /// The benches: name and what one update is.
-const BENCHES: [(&str, &str); 24] = [
+const BENCHES: [(&str, &str); 25] = [
     ("quarter_rows", "KalmanIdentifier<f64, 4, 2> (rows) update"),
     ("half_rows", "KalmanIdentifier<f64, 8, 4> (rows) update"),
     ("quarter_rows_sqrt", "KalmanIdentifier<f64, 4, 2> square-root form update"),
@@ -48,6 +48,7 @@ const BENCHES: [(&str, &str); 24] = [
     ("quarter_iv_rows", "IvIdentifier<f64, 4, 2> (delay 1) on the full-row structure update_into"),
     ("quarter_iv_physical", "IvIdentifier<f64, 2, 2> (delay 1, exact start) on the physical structure update_into"),
     ("quarter_bcls_rows", "BiasCompensatedLs<f64, 4, 2> on the full-row structure update_into"),
+    ("quarter_bcls_screened", "Screened(BiasCompensatedLs<f64, 4, 2>, gate 6, refresh as the samples grow by a quarter, as Python builds it) update_into"),
     ("quarter_ekf_physical", "JointEkf<f64, 4, 9> (physical structure, m known, 5 RK4 sub-steps) update_into"),
     ("quarter_nebcls_rows", "NoiseEstimatingBclsLs<f64, 4, 2> (delayed IV inside, full rows) update_into"),
     (
@@ -182,6 +183,7 @@ fn run(bench: &str, n: usize) -> vehid_core::Result<String> {
         | "quarter_iv_rows"
         | "quarter_iv_physical"
         | "quarter_bcls_rows"
+        | "quarter_bcls_screened"
         | "quarter_ekf_physical"
         | "quarter_nebcls_rows" => structured(bench, n)?,
         "half_two_axle_physical" => two_axle_physical(n)?,
@@ -247,6 +249,12 @@ fn structured(bench: &str, n: usize) -> vehid_core::Result<String> {
         )?),
         "quarter_iv_physical" => Box::new(IvIdentifier::<f64, 2, 2>::exact(physical, 1)?),
         "quarter_bcls_rows" => Box::new(BiasCompensatedLs::<f64, 4, 2>::full_rows(4, &q.unknown_rows(), &[6.4e-5])?),
+        "quarter_bcls_screened" => Box::new(Screened::new(
+            BiasCompensatedLs::<f64, 4, 2>::full_rows(4, &q.unknown_rows(), &[6.4e-5])?,
+            full,
+            6.0,
+            Refresh::Geometric,
+        )?),
         "quarter_nebcls_rows" => Box::new(NoiseEstimatingBclsLs::<f64, 4, 2>::full_rows(4, &q.unknown_rows(), 1, 0)?),
         _ => Box::new(ekf_physical(&q)?),
     };
