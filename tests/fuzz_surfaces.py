@@ -1,4 +1,4 @@
-"""The fuzz harness's newer surfaces (issue 33): equation texts drawn from the structure
+"""The fuzz harness's newer surfaces: equation texts drawn from the structure
 grammar and then broken, the structures' identifiers, the noise-robust identifiers
 (``IVIdentifier``, ``BiasCompensated``, ``JointEKF``), the health monitor (with its saved
 state corrupted byte by byte) and the command line in-process.

@@ -1,8 +1,7 @@
 """``vehid monitor`` on a log with a long gap in its time column (a parked car, a log of several
 drives): the gap is fed as at most 60 s of missing samples (``vehid.fieldlog.GAP_CAP``), the
 times after it stay on the log's clock, and memory and time are bounded by the samples logged,
-not by the gap's length (issue 33 item 8: one 58-day gap in a 20,000-row log took 83 s and
-4.7 GB)."""
+not by the gap's length (fed whole, one 58-day gap in a 20,000-row log took 83 s and 4.7 GB)."""
 
 from __future__ import annotations
 

@@ -112,7 +112,7 @@ def test_the_gate_is_on_by_default_and_keeps_an_outlier_out() -> None:
     clean = vehid.KalmanIdentifier(CAR, p0=1000.0, road_sigma=0.1, deriv_noise=0.005)
     clean.fit(run.r, run.z)
     # Left out by both rows: the screen's magnitude test (36 times the derivative's RMS) takes it
-    # before the row's own gate, and a screened sample is left out by every row (issue 33).
+    # before the row's own gate, and a screened sample is left out by every row.
     assert list(kf.gated) == [1, 1]
     xi_clean = vehid.xi(CAR.theta, clean.theta)
     assert abs(vehid.xi(CAR.theta, kf.theta) - xi_clean) < 0.1 * xi_clean

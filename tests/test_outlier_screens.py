@@ -1,4 +1,4 @@
-"""Issue 33, item 5: one outlier must not ruin any identifier.
+"""One outlier must not ruin any identifier.
 
 For every identifier class of the Python API, one sample with a value of 1e30 (in a state, in the
 derivative of an identified state, in the derivative of a state no equation identifies, in a

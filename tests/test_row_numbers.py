@@ -1,5 +1,5 @@
 """Every message about one sample of a file names its place in the file, never its index in
-the chunk the command read it in (issue 33 item 8): for a CSV the line number (1-based,
+the chunk the command read it in: for a CSV the line number (1-based,
 counting the header and comment lines: the line an editor shows), for Parquet the 1-based
 data row (a fleet day's row in its own file, though the day's files are read joined). Each
 case puts the bad cell beyond the first chunk (the chunk made small) or the first file."""
@@ -82,8 +82,8 @@ def test_identify_names_the_parquet_row_of_a_rejected_sample(quarter_csv: Path, 
 def test_a_huge_true_value_is_screened_from_the_truth_fit(quarter_csv: Path, tmp_path: Path,
                                                          capsys: pytest.CaptureFixture[str],
                                                          monkeypatch: pytest.MonkeyPatch) -> None:
-    # Before the outlier screens (issue 33 item 5) the true_* columns' own fit refused this
-    # sample and the note named its line; the default gate now leaves it out, and xi is given.
+    # The default gate (the outlier screen) leaves this sample out of the true_* columns' own
+    # fit, which without the screen would refuse it: xi is given.
     monkeypatch.setattr(clitools, "CHUNK", 1000)
     path = with_cell(quarter_csv, tmp_path / "truth.csv", "true_x1", "1e200")
     capsys.readouterr()

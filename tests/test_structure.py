@@ -507,8 +507,8 @@ def test_cli_simulate_a_model_file_over_measured_inputs(tmp_path: Path) -> None:
 @pytest.mark.parametrize("text", ["a*sign(x) + b*sign(3*x)", "a*sign(x) + b*sign(x)", "a*pos(x - v) + b*neg(v - x)",
                                   "a*x + b*pos(x) + c*neg(x)"])
 def test_parameters_that_are_not_separately_identifiable_are_refused_by_name(text: str) -> None:
-    # Issue 33 item 6: with a prior, `a*sign(x) + b*sign(3*x)` gave an arbitrary split of a
-    # and b with small standard errors. sign(3x) is sign(x): only a + b is identifiable.
+    # With a prior, `a*sign(x) + b*sign(3*x)` would give an arbitrary split of a and b with
+    # small standard errors. sign(3x) is sign(x): only a + b is identifiable.
     with pytest.raises(vehid.VehidError, match=r"parameters: .*'a'.*'b'") as e:
         vehid.Structure(["x", "v"], [], {"x": text, "v": "k*v"})
     assert "identifiable" in str(e.value)

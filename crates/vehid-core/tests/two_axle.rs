@@ -1121,7 +1121,7 @@ fn two_axle_structured_triggers_filters_and_partition_agree_with_its_outputs() {
     assert!(traces > 0.0 && (trace - traces).abs() <= 1e-12 * traces, "trace {trace} against {traces}");
 }
 
-// ---- the outlier screen and the axle pairing (issue 33, item 5) --------------------------
+// ---- the outlier screen and the axle pairing ----------------------------------------------
 
 /// ξ over the four unknown rows, the samples paired, and the samples screened, after `n`
 /// samples of the thesis protocol (cancellation) behind the screen at `gate`, sample `bad`

@@ -503,7 +503,7 @@ fn a_monitor_saved_during_a_long_stuck_channel_restores() {
 }
 
 /// A sample interval too small for the kinematic filter's gain to settle is refused naming
-/// `dt` (the user's option), not `bias_walk` (a constant the user never set; issue 33 item 8,
+/// `dt` (the user's option), not `bias_walk` (a constant the user never set, as in
 /// `vehid monitor --dt 1e-9`); 10⁻⁷ s still works.
 #[test]
 fn a_sample_interval_the_filter_cannot_settle_at_is_named_as_dt() {

@@ -212,9 +212,9 @@ fn counts_are_checked_before_names_are_compared() {
     assert_limit(r, "parameters", "'u' is also a state or input name");
 }
 
-/// Issue 33 item 6: two parameters on the same function of a combination, however the
-/// combination is written, are confounded (before: each function term had a combination of its
-/// own, so even `a*sign(v) + b*sign(v)` was taken, and a prior made up a split of the two).
+/// Two parameters on the same function of a combination, however the combination is written,
+/// are confounded and refused (had each function term a combination of its own, even
+/// `a*sign(v) + b*sign(v)` would be taken, and a prior would make up a split of the two).
 #[test]
 fn parameters_on_one_function_written_two_ways_are_confounded() {
     for text in [
