@@ -2,6 +2,8 @@
 `vehid_core::health::FullHealthMonitor`): the api.md example, naming by corner, a load,
 pickling, bad input, `vehid monitor --model full`."""
 
+import importlib.util
+import io
 import json
 import pickle
 from pathlib import Path
@@ -10,7 +12,7 @@ import numpy as np
 import pytest
 
 import vehid
-from vehid import cli
+from vehid import cli, monitor
 
 DT = 0.005
 FULL = vehid.FullCar.passenger()
@@ -79,5 +81,21 @@ def test_vehid_monitor_model_full(tmp_path: Path, capsys: pytest.CaptureFixture[
     ev = json.loads(out[0])
     assert ev["parameter"] == "b_rl" and ev["name"] == "rear left damper" and ev["before"] == 1000.0
     assert abs(ev["change"] + 0.10) < 0.03
+    if importlib.util.find_spec("matplotlib") is not None:
+        png = tmp_path / "full.png"
+        assert cli.main(["monitor", str(log), "--model", "full", "--plot", str(png)]) == 0
+        assert png.stat().st_size > 10_000 and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # What the plot draws: each corner's spring and damper, their change since the warm-up
+    # from the corner's own equation; at the end of the drive the rear left damper's is the
+    # -10 % change and the seven others 0, each within its band.
+    mon = vehid.HealthMonitor(FULL, dt=DT, sensors="realistic")
+    feeder = monitor.Feeder(mon, 0.0, io.StringIO(), False)
+    feeder.feed(run.y)
+    last = feeder.record.corners[-1]
+    assert last.shape == (8, 3) and np.isnan(feeder.record.corners[0]).all()
+    truth = np.zeros(8)
+    truth[5] = 900.0 / 1000.0 - 1.0  # k_fl, b_fl, k_fr, b_fr, k_rl, b_rl, ...
+    assert np.abs(last[:, 0] - truth).max() < 0.03, last
+    assert ((last[:, 1] < last[:, 0]) & (last[:, 0] < last[:, 2])).all(), last
     assert cli.main(["monitor", str(log), "--model", "full", "--sensors", "state"]) == 2
     assert "realistic sensors only" in capsys.readouterr().err

@@ -571,8 +571,8 @@ def test_vehid_monitor_model_half(tmp_path: Path, capsys: pytest.CaptureFixture[
     mon = vehid.HealthMonitor(HALF, dt=DT, sensors="realistic")
     feeder = monitor.Feeder(mon, 0.0, io.StringIO(), False)
     feeder.feed(run.y)
-    last = feeder.record.half[-1]
-    assert last.shape == (4, 3) and np.isnan(feeder.record.half[0]).all()
+    last = feeder.record.corners[-1]
+    assert last.shape == (4, 3) and np.isnan(feeder.record.corners[0]).all()
     truth = np.array([0.0, 0.0, 19_800.0 / 22_000.0 - 1.0, 0.0])
     assert np.abs(last[:, 0] - truth).max() < 0.03, last
     assert ((last[:, 1] < last[:, 0]) & (last[:, 0] < last[:, 2])).all(), last

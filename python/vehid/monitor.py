@@ -209,9 +209,9 @@ class Record:
     k2m: List[Tuple[float, float, float]] = field(default_factory=list)
     bm: List[Tuple[float, float, float]] = field(default_factory=list)
     status: List[str] = field(default_factory=list)
-    #: Half car: each record's change of the four suspension constants from the monitor's
-    #: first reference (:func:`half_changes`).
-    half: List[NDArray[np.float64]] = field(default_factory=list)
+    #: Half and full car: each record's change of every corner's spring and damper from the
+    #: monitor's first reference (:func:`corner_changes`).
+    corners: List[NDArray[np.float64]] = field(default_factory=list)
 
 
 class Feeder:
@@ -272,10 +272,10 @@ class Feeder:
         self.record.k2m.append(est.get("k2/M", none))  # the quarter car's ratios (the plot)
         self.record.bm.append(est.get("b/M", none))
         self.record.status.append(self.mon.status)
-        if "front" in est:
+        if "front" in est or "fl" in est:
             if self.ref0 is None:
                 self.ref0 = self.mon.reference
-            self.record.half.append(half_changes(est, self.ref0))
+            self.record.corners.append(corner_changes(est, self.ref0))
 
 
     def print_event(self, ev: Event) -> None:
@@ -297,23 +297,33 @@ class Feeder:
 #: ``[α k2_f, α b_f, α k2_r, α b_r]`` (the monitor's estimate), as the plot names them.
 HALF_PLOTTED = (("k2_f", "front spring"), ("b_f", "front damper"), ("k2_r", "rear spring"), ("b_r", "rear damper"))
 
+#: The full car's corners in the order of its body-corner equations and coefficients
+#: (``HealthMonitor.estimate``: corner ``i``'s equation holds ``α_ii k_i`` at ``2i`` and
+#: ``α_ii b_i`` at ``2i + 1``), with the plot's words.
+FULL_CORNERS = (("fl", "front left"), ("fr", "front right"), ("rl", "rear left"), ("rr", "rear right"))
 
-def half_changes(est: Dict[str, Any], ref: Optional[Dict[str, Any]]) -> NDArray[np.float64]:
-    """The half car's tracked change of each suspension constant from the monitor's reference:
-    an array ``[constant, (value, low, high)]`` of relative changes (0.1 is +10 %). A front
-    constant is read from the front body-corner equation, a rear one from the rear: there its
-    coefficient is ``(1/M + a²/J)`` times the constant (``b²`` for the rear), which the ratio
-    to the reference cancels, ``α θ̂ / (α θ_ref) − 1``. (In the other corner's equation the
-    factor is ``1/M − a b/J``, near zero for a car whose pitch inertia is near ``M a b``, so
-    that coefficient's relative change is mostly noise; the monitor weighs both by their
+
+def corner_changes(est: Dict[str, Any], ref: Optional[Dict[str, Any]]) -> NDArray[np.float64]:
+    """The half or full car's tracked change of each corner's spring and damper from the
+    monitor's reference: an array ``[constant, (value, low, high)]`` of relative changes (0.1 is
+    +10 %), the constants in the order of the coefficients (half car: ``k2_f, b_f, k2_r, b_r``;
+    full car: ``k_fl, b_fl, k_fr, b_fr, k_rl, b_rl, k_rr, b_rr``). Corner ``i``'s constants are
+    read from its own body-corner equation, coefficients ``2i`` and ``2i + 1``: there each is
+    ``α_ii`` times the constant (half car: ``1/M + a²/J`` at the front, ``b²`` at the rear; full
+    car: ``1/M + x_i²/Jy + y_i²/Jx``), which the ratio to the reference cancels,
+    ``α θ̂ / (α θ_ref) − 1``. (In another corner's equation the factor ``α_ij`` can be near zero
+    for a car whose inertias are near ``M`` times the products of the distances, so that
+    coefficient's relative change is mostly noise; the monitor weighs all of them by their
     covariance.) NaN during the warm-up (no reference yet)."""
-    out = np.full((4, 3), math.nan)
+    corners = ["front", "rear"] if "front" in est else [c for c, _ in FULL_CORNERS]
+    out = np.full((2 * len(corners), 3), math.nan)
     if ref is None:
         return out
-    for j, corner in enumerate(("front", "front", "rear", "rear")):
-        r = ref[corner][j]
-        if r != 0:
-            out[j] = np.asarray(est[corner][j], dtype=np.float64) / r - 1.0
+    for i, corner in enumerate(corners):
+        for j in (2 * i, 2 * i + 1):
+            r = ref[corner][j]
+            if r != 0:
+                out[j] = np.asarray(est[corner][j], dtype=np.float64) / r - 1.0
     return out
 
 
@@ -391,8 +401,6 @@ def cmd_monitor(args: argparse.Namespace) -> int:
             raise CliError("--model full: the full car's monitor reads the realistic sensors only (--sensors "
                              "realistic: a_body_fl .. a_body_rr, a_wheel_fl .. a_wheel_rr, deflection_fl .. "
                              "deflection_rr)")
-        if plt is not None:
-            raise CliError("--plot: not drawn for the full car yet (--model full); the events and --track are")
         channels = FULL_SENSOR_COLUMNS[sensors]
     else:
         channels = (HALF_SENSOR_COLUMNS if half else SENSOR_COLUMNS)[sensors]
@@ -668,7 +676,12 @@ def plot(feeder: Feeder, car: Union[QuarterCar, HalfCar, FullCar], path: str, pl
     """The tracked ratios with their 95 % bands, the times the monitor could not judge
     (grey) and the events (vertical lines), into ``path`` (PNG, drawn with ``plt``, pyplot)."""
     if isinstance(car, HalfCar):
-        _plot_half(plt, feeder, path)
+        _plot_corners(plt, feeder, path, HALF_PLOTTED, 1)
+        return
+    if isinstance(car, FullCar):
+        plotted = [(f"{k}_{c}", f"{words} {what}") for c, words in FULL_CORNERS for k, what in
+                   (("k", "spring"), ("b", "damper"))]
+        _plot_corners(plt, feeder, path, plotted, 2)
         return
     rec = feeder.record
     t = np.asarray(rec.t)
@@ -719,17 +732,20 @@ def _mark(ax: Any, feeder: Feeder, t: NDArray[np.float64], judged: NDArray[np.bo
                     xycoords=("data", "axes fraction"), va="top", ha="left", color="r", fontsize=8)
 
 
-def _plot_half(plt: Any, feeder: Feeder, path: str) -> None:
-    """The half car: one panel per suspension constant, its change in % from the monitor's
-    first reference (the car as the warm-up found it) as its own body-corner equation tracks
-    it (:func:`half_changes`), with the 95 % band, the times it could not judge and the
-    events."""
+def _plot_corners(plt: Any, feeder: Feeder, path: str, plotted: Sequence[Tuple[str, str]], columns: int) -> None:
+    """The half or full car: one panel per suspension constant (``plotted``: its name and
+    words, in the order of :func:`corner_changes`; the half car's in one column, the full car's
+    in two: spring and damper), its change in % from the monitor's first reference (the car as
+    the warm-up found it) as its own body-corner equation tracks it, with the 95 % band, the
+    times it could not judge and the events."""
     rec = feeder.record
     t = np.asarray(rec.t)
     judged = _judged(rec)
-    h = 100.0 * np.asarray(rec.half).reshape(len(t), 4, 3)
-    fig, axes = plt.subplots(4, 1, sharex=True, figsize=(9, 10))
-    for j, (ax, (name, words)) in enumerate(zip(axes, HALF_PLOTTED)):
+    h = 100.0 * np.asarray(rec.corners).reshape(len(t), len(plotted), 3)
+    rows = len(plotted) // columns
+    fig, grid = plt.subplots(rows, columns, sharex=True, figsize=(9 * columns, 2.5 * rows), squeeze=False)
+    axes = list(grid.flat)
+    for j, (ax, (name, words)) in enumerate(zip(axes, plotted)):
         v = np.where(judged[:, None], h[:, j, :], np.nan)
         ax.fill_between(t, v[:, 1], v[:, 2], alpha=0.3, label="95 % band")
         ax.plot(t, v[:, 0], lw=1, label="tracked")
@@ -737,8 +753,9 @@ def _plot_half(plt: Any, feeder: Feeder, path: str) -> None:
         _mark(ax, feeder, t, judged)
         ax.set_ylabel(f"{words}\n({name}) change (%)")
     axes[0].legend(loc="lower left", fontsize=8)
-    axes[-1].set_xlabel("time (s)")
-    axes[0].set_title("Tracked change since the warm-up, 95 % bands (grey: cannot judge; red: events)")
+    for ax in axes[-columns:]:
+        ax.set_xlabel("time (s)")
+    fig.suptitle("Tracked change since the warm-up, 95 % bands (grey: cannot judge; red: events)")
     _save(plt, fig, path)
 
 
@@ -804,8 +821,8 @@ def add_arguments(p: argparse.ArgumentParser, delimiter: Callable[[str], str]) -
                    help="also write the tracked k2/M and b/M with their 95 %% bands and the status every 0.5 s to "
                         "FILE.parquet")
     p.add_argument("--plot", default=None, metavar="PNG",
-                   help="write the tracked ratios with their bands and the events (the half car: each "
-                        "spring's and damper's change since the warm-up) (needs vehid[plot])")
+                   help="write the tracked ratios with their bands and the events (the half and full car: each "
+                        "corner's spring's and damper's change since the warm-up) (needs vehid[plot])")
 
 
 __all__: Sequence[str] = [
