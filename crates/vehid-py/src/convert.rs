@@ -110,6 +110,22 @@ pub fn matrix(
 
 /// A scalar or a 1-D sequence of values (one per component); the core checks the count and
 /// the domain.
+/// Reads a `p0` argument, the prior covariance of every identifier with a Kalman-type start:
+/// `None` for the exact start (`None` or "exact"), else the finite array, whose shape the caller
+/// matches; another text is refused with `expected` (the forms the caller takes, in words).
+pub fn p0_value(p0: Option<&Bound<'_, PyAny>>, expected: &str) -> PyResult<Option<Array>> {
+    let Some(p0) = p0 else { return Ok(None) };
+    if let Ok(text) = p0.extract::<String>() {
+        return match text.as_str() {
+            "exact" => Ok(None),
+            other => Err(VehidError::new_err(format!("unknown `p0` {other:?}: expected {expected}"))),
+        };
+    }
+    let a = array(p0, "p0")?;
+    finite("p0", &a.data)?;
+    Ok(Some(a))
+}
+
 pub fn values(obj: Option<&Bound<'_, PyAny>>, arg: &str, default: f64) -> PyResult<Vec<f64>> {
     let Some(obj) = obj else { return Ok(vec![default]) };
     let a = array(obj, arg)?;

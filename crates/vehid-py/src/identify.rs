@@ -11,7 +11,7 @@
 //! `guard::borrow` / `guard::borrow_mut`: a call into an identifier that another thread is
 //! fitting raises a `VehidError` saying so.
 
-use crate::convert::{array, finite, shape_str, size, values, Table};
+use crate::convert::{array, finite, p0_value, shape_str, size, values, Table};
 use crate::guard::{borrow, borrow_mut, check_every, Interrupts};
 use crate::model::{to_array2, PyLinearModel};
 use crate::structure::{kalman_on_structure, refuse_for_structure, PyStructure};
@@ -493,17 +493,9 @@ pub struct PyKalmanIdentifier {
 /// Parses `p0` for a model with `k` unknown rows and `n` states (`None` or "exact": the
 /// exact start).
 fn p0_arg(p0: Option<&Bound<'_, PyAny>>, k: usize, n: usize) -> PyResult<Prior<f64>> {
-    let Some(p0) = p0 else { return Ok(Prior::Exact) };
-    if let Ok(text) = p0.extract::<String>() {
-        return match text.as_str() {
-            "exact" => Ok(Prior::Exact),
-            other => Err(VehidError::new_err(format!(
-                "unknown `p0` {other:?}: expected \"exact\", a number, one per unknown row, or a matrix"
-            ))),
-        };
-    }
-    let a = array(p0, "p0")?;
-    finite("p0", &a.data)?;
+    let Some(a) = p0_value(p0, "\"exact\", a number, one per unknown row, or a matrix")? else {
+        return Ok(Prior::Exact);
+    };
     Ok(match a.shape[..] {
         [] => Prior::PerRow(a.data),
         [len] if len == k => Prior::PerRow(a.data),

@@ -8,11 +8,11 @@ use crate::convert::{array, finite, shape_str};
 use crate::guard::borrow;
 use crate::identify::PyIdentifier;
 use crate::model::PyLinearModel;
-use crate::structure::PyStructure;
+use crate::structure::{PyStructure, StructuredP0};
 use crate::{core_err, VehidError};
 use numpy::{IntoPyArray, PyArray1};
 use pyo3::prelude::*;
-use vehid_core::identify::{DynIdentifier, Refresh, StructuredPrior, RING_VALUES};
+use vehid_core::identify::{DynIdentifier, Refresh, RING_VALUES};
 use vehid_core::structure::Structure;
 
 use vehid_runtime::build::PREDICTOR;
@@ -49,42 +49,6 @@ impl<'py> Target<'py> {
             Target::Structure(s) => PyIdentifier::on_structure(inner, s),
             Target::Model(m) => PyIdentifier::new(inner, m.get().data.clone()),
         }
-    }
-}
-
-/// `p0` for a structure of `np` parameters and `ne` equations: "exact" (or None), a scalar,
-/// one per equation, or the (np, np) matrix. Returns the kind and its data.
-fn prior_arg(p0: Option<&Bound<'_, PyAny>>, np: usize, ne: usize, model: bool) -> PyResult<(u8, Vec<f64>)> {
-    let Some(p0) = p0 else { return Ok((0, vec![])) };
-    if let Ok(text) = p0.extract::<String>() {
-        return match text.as_str() {
-            "exact" => Ok((0, vec![])),
-            other => Err(VehidError::new_err(format!(
-                "unknown `p0` {other:?}: expected \"exact\", a number, one per {}, or a ({np}, {np}) matrix",
-                if model { "unknown row" } else { "identified equation" }
-            ))),
-        };
-    }
-    let a = array(p0, "p0")?;
-    finite("p0", &a.data)?;
-    match a.shape[..] {
-        [] => Ok((1, a.data)),
-        [len] if len == ne => Ok((2, a.data)),
-        [r, c] if r == np && c == np => Ok((3, a.data)),
-        _ => Err(VehidError::new_err(format!(
-            "`p0` must be \"exact\", a scalar, one per {} ({ne},) or a ({np}, {np}) matrix, got {}",
-            if model { "unknown row" } else { "identified equation" },
-            shape_str(&a.shape)
-        ))),
-    }
-}
-
-fn prior(kind: u8, data: &[f64]) -> StructuredPrior<'_, f64> {
-    match kind {
-        0 => StructuredPrior::Exact,
-        1 => StructuredPrior::Scalar(data[0]),
-        2 => StructuredPrior::PerEquation(data),
-        _ => StructuredPrior::Matrix(data),
     }
 }
 
@@ -243,7 +207,7 @@ impl PyIVIdentifier {
         let lags = if model_args.is_some() || (road.is_some() && lags.is_none()) { Some(0) } else { lags };
         let (delay, lags) = instrument_args(&s, delay, lags)?;
         let is_model = matches!(target, Target::Model(_));
-        let (kind, p0_data) = prior_arg(p0, np, ne, is_model)?;
+        let p0 = StructuredP0::read(p0, np, ne, if is_model { "unknown row" } else { "identified equation" })?;
         let theta0 = match theta0 {
             None => None,
             Some(t) => {
@@ -259,7 +223,7 @@ impl PyIVIdentifier {
             }
         };
         let r = r_arg(r, ne)?;
-        let p0 = prior(kind, &p0_data);
+        let p0 = p0.prior();
         let th = theta0.as_deref();
         let ma = model_args;
         let inner = build::iv(s, delay, lags, p0, th, &r, ma).map_err(core_err)?;

@@ -2,7 +2,7 @@
 //! core's `StructureBuilder`) or from a car's physical constants (`QuarterCar.structure`,
 //! `HalfCar.structure`: the core's `PhysicalStructure`); and the identifiers built on one.
 
-use crate::convert::{array, finite, py_str, py_str_list, shape_str};
+use crate::convert::{array, finite, p0_value, py_str, py_str_list, shape_str};
 use crate::{core_err, VehidError};
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
@@ -492,6 +492,42 @@ pub(crate) fn vec_arg(obj: &Bound<'_, PyAny>, arg: &str, len: usize) -> PyResult
     Ok(a.data)
 }
 
+/// `p0` for a structure of `np` parameters and `ne` equations (`per`: what an equation is to
+/// the user, "identified equation" or "unknown row"): the exact start ("exact" or None), a
+/// scalar, one per equation, or the (np, np) matrix.
+pub(crate) enum StructuredP0 {
+    Exact,
+    Scalar(f64),
+    PerEquation(Vec<f64>),
+    Matrix(Vec<f64>),
+}
+
+impl StructuredP0 {
+    pub(crate) fn read(p0: Option<&Bound<'_, PyAny>>, np: usize, ne: usize, per: &str) -> PyResult<Self> {
+        let expected = format!("\"exact\", a number, one per {per}, or a ({np}, {np}) matrix");
+        let Some(a) = p0_value(p0, &expected)? else { return Ok(Self::Exact) };
+        match a.shape[..] {
+            [] => Ok(Self::Scalar(a.data[0])),
+            [len] if len == ne => Ok(Self::PerEquation(a.data)),
+            [r, c] if r == np && c == np => Ok(Self::Matrix(a.data)),
+            _ => Err(VehidError::new_err(format!(
+                "`p0` must be \"exact\", a scalar, one per {per} ({ne},) or a ({np}, {np}) matrix, got {}",
+                shape_str(&a.shape)
+            ))),
+        }
+    }
+
+    /// The core's view of it.
+    pub(crate) fn prior(&self) -> StructuredPrior<'_, f64> {
+        match self {
+            Self::Exact => StructuredPrior::Exact,
+            Self::Scalar(v) => StructuredPrior::Scalar(*v),
+            Self::PerEquation(v) => StructuredPrior::PerEquation(v),
+            Self::Matrix(v) => StructuredPrior::Matrix(v),
+        }
+    }
+}
+
 /// The recursive least-squares identifier of a structure: parses `p0`, `theta0` and `r` for
 /// it and picks the filter size from the largest parameter group.
 pub(crate) fn kalman_on_structure(
@@ -502,35 +538,8 @@ pub(crate) fn kalman_on_structure(
     opts: KalmanOptions<f64>,
 ) -> PyResult<Box<dyn DynIdentifier<f64>>> {
     let (np, ne) = (s.core.params(), s.core.equations());
-    let p0_data;
-    let p0 = match p0 {
-        None => StructuredPrior::Exact,
-        Some(p) if p.extract::<String>().is_ok() => match p.extract::<String>()?.as_str() {
-            "exact" => StructuredPrior::Exact,
-            other => {
-                return Err(VehidError::new_err(format!(
-                    "unknown `p0` {other:?}: expected \"exact\", a number, one per identified equation, or a matrix"
-                )))
-            }
-        },
-        Some(p) => {
-            let a = array(p, "p0")?;
-            finite("p0", &a.data)?;
-            p0_data = a.data;
-            match a.shape[..] {
-                [] => StructuredPrior::Scalar(p0_data[0]),
-                [len] if len == ne => StructuredPrior::PerEquation(&p0_data),
-                [rr, cc] if rr == np && cc == np => StructuredPrior::Matrix(&p0_data),
-                _ => {
-                    return Err(VehidError::new_err(format!(
-                        "`p0` must be \"exact\", a scalar, one per identified equation ({ne},) or a ({np}, {np}) \
-                         matrix, got {}",
-                        shape_str(&a.shape)
-                    )))
-                }
-            }
-        }
-    };
+    let p0 = StructuredP0::read(p0, np, ne, "identified equation")?;
+    let p0 = p0.prior();
     let theta0 = match theta0 {
         Some(t) => Some(vec_arg(t, "theta0", np)?),
         None => None,
