@@ -201,7 +201,7 @@ bench-peers: venv $(PEERS_VENV)/.installed
 	$(PEERS_VENV)/bin/python -m pip install --quiet --force-reinstall --no-deps target/peers-wheel/vehid-*.whl
 	$(PEERS_VENV)/bin/python benches/peers/run_peers.py --json target/peers/peers.json
 
-BUDGET_BENCHES := update_f64/(quarter|half)/kalman_(rows|shared)|update_f64/quarter/(structured_(rows|physical)|iv_physical_road|state_filter_realistic)|simulate_f64/quarter/
+BUDGET_BENCHES := update_f64/(quarter|half)/kalman_(rows|shared)|update_f64/quarter/(structured_(rows|physical)|iv_physical_road|state_filter_realistic)|simulate_f64/(quarter/|full/drive)
 STRICT ?=
 BUDGET_RUNS ?= 3
 bench-budgets: develop

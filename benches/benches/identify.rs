@@ -1,5 +1,6 @@
 //! ns per sample update of every identifier, quarter car (4 states) and half car (8 states),
-//! f32 and f64, plus batch least squares per sample and the simulator's throughput.
+//! f32 and f64, plus batch least squares per sample and the simulator's and the drives'
+//! throughput.
 //!
 //! Run: `cargo bench -p vehid-benches --bench identify` (about 2 minutes). Inputs are seeded
 //! simulations cycled through, so the filters see realistic, converging data.
@@ -12,9 +13,11 @@ use vehid_core::identify::{
     KalmanIdentifierVec2, KalmanOptions, LsAccumulator, SharedKalmanIdentifier, StochasticGradient, StructuredGradient,
     StructuredKalman, StructuredPrior,
 };
-use vehid_core::model::{HalfCar, LinearModel, QuarterCar};
+use vehid_core::model::{FullCar, HalfCar, LinearModel, QuarterCar};
 use vehid_core::nalgebra::SVector;
-use vehid_core::sim::{Method, SimConfig, Simulator};
+use vehid_core::sim::{
+    DriveConfig, FullDrive, FullDriveConfig, HalfDrive, HalfDriveConfig, Method, QuarterDrive, SimConfig, Simulator,
+};
 use vehid_core::structure::Structure;
 use vehid_core::Real;
 
@@ -479,6 +482,14 @@ fn simulator(c: &mut Criterion) {
         let mut sim = Simulator::new(HalfCar::thesis().model(), cfg, 1).unwrap();
         g.bench_function(format!("half/{name}"), |b| b.iter(|| black_box(sim.next_sample())));
     }
+    // The drives (road in distance, ISO 8608 class C at 15 m/s, realistic sensors at 200 Hz):
+    // one sample of each car's sensors, road generation and sensor noise included.
+    let mut quarter = QuarterDrive::new(QuarterCar::passenger(), DriveConfig::new(0.005), 1).unwrap();
+    g.bench_function("quarter/drive", |b| b.iter(|| black_box(quarter.next_sample())));
+    let mut half = HalfDrive::new(HalfCar::passenger(), HalfDriveConfig::new(DriveConfig::new(0.005)), 1).unwrap();
+    g.bench_function("half/drive", |b| b.iter(|| black_box(half.next_sample())));
+    let mut full = FullDrive::new(FullCar::passenger(), FullDriveConfig::new(DriveConfig::new(0.005)), 1).unwrap();
+    g.bench_function("full/drive", |b| b.iter(|| black_box(full.next_sample())));
     g.finish();
 }
 

@@ -7,6 +7,11 @@
 //! ISO 8608 class C at 15 m/s, realistic sensors at 200 Hz (as the criterion bench
 //! `health/full_monitor_update_f64`), the monitor past its warm-up (30 s) before the counted
 //! updates, which cycle through the next 100 s of the same drive.
+//!
+//! `count_full_health full_drive N` counts the drive itself instead: `N` samples of the same
+//! drive (both ISO 8608 tracks in distance, the fourteen states' step, the twelve realistic
+//! sensors and their noise; as the criterion bench `simulate_f64/full/drive`), after the same
+//! 30 s.
 
 use std::hint::black_box;
 use std::process::ExitCode;
@@ -38,16 +43,37 @@ fn run(n: usize) -> vehid_core::Result<String> {
     Ok(format!("{events} events, status {:?}", mon.status()))
 }
 
+/// `n` samples of the drive, after its first 30 s.
+fn drive(n: usize) -> vehid_core::Result<String> {
+    let car = FullCar::<f64>::passenger();
+    let mut drive = FullDrive::new(car, FullDriveConfig::new(DriveConfig::new(0.005)), 42)?;
+    for _ in 0..6000 {
+        black_box(drive.next_sample());
+    }
+    let mut sum = 0.0;
+    for _ in 0..n {
+        sum += black_box(drive.next_sample()).y()[0];
+    }
+    Ok(format!("sum of the first channel {sum:.6e}"))
+}
+
 fn main() -> ExitCode {
-    // `full_health N` as callgrind_check.py calls every counting binary (`BENCH N`).
+    // `full_health N` or `full_drive N`, as callgrind_check.py calls every counting binary
+    // (`BENCH N`).
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let (Some("full_health"), Some(Ok(n))) =
-        (args.first().map(String::as_str), args.get(1).map(|s| s.parse::<usize>()))
-    else {
-        eprintln!("usage: count_full_health full_health N");
+    let (Some(bench), Some(Ok(n))) = (args.first().map(String::as_str), args.get(1).map(|s| s.parse::<usize>())) else {
+        eprintln!("usage: count_full_health full_health|full_drive N");
         return ExitCode::from(2);
     };
-    match run(n) {
+    let counted = match bench {
+        "full_health" => run(n),
+        "full_drive" => drive(n),
+        _ => {
+            eprintln!("usage: count_full_health full_health|full_drive N");
+            return ExitCode::from(2);
+        }
+    };
+    match counted {
         Ok(state) => {
             println!("{state}");
             ExitCode::SUCCESS
