@@ -179,8 +179,7 @@ pub(crate) fn physical_full_stats<'py>(
     let p = car.params();
     let (est, se) =
         FullCar::from_theta_se(&theta, &st.s.cov, m, b_in, [p.l_f, p.l_r, p.track_f, p.track_r]).map_err(core_err)?;
-    let df = st.s.df.iter().copied().fold(f64::INFINITY, f64::min);
-    let q = vehid_core::stats::t_ppf(1.0 - st.s.alpha / 2.0, df).map_err(core_err)?;
+    let q = vehid_core::stats::t_interval_factor(st.s.alpha, &st.s.df).map_err(core_err)?;
     let out = PyDict::new(py);
     for ((k, v), s) in est.params().named().iter().zip(se) {
         out.set_item(*k, (*v, v - q * s, v + q * s))?;

@@ -169,8 +169,7 @@ pub(crate) fn physical_from_stats<'py>(
     let Origin::Physical { physical, known: kn, .. } = &ph.origin else {
         return Err(VehidError::new_err("internal: not a physical structure"));
     };
-    let df = st.s.df.iter().copied().fold(f64::INFINITY, f64::min);
-    let q = vehid_core::stats::t_ppf(1.0 - st.s.alpha / 2.0, df).map_err(core_err)?;
+    let q = vehid_core::stats::t_interval_factor(st.s.alpha, &st.s.df).map_err(core_err)?;
     let out = PyDict::new(py);
     for (c, name) in consts.iter().enumerate() {
         if let Some(v) = kn[c] {

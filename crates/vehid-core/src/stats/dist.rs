@@ -203,6 +203,29 @@ pub fn t_ppf(p: f64, df: f64) -> Result<f64> {
     Ok(sign * t)
 }
 
+/// The two-sided Student-t factor `t_{1−α/2}` of a `1 − α` interval (`value ± t · se`) on a
+/// quantity estimated from several equations with degrees of freedom `df`: taken at the
+/// smallest of them, so that a constant mixing several equations' parameters gets the widest
+/// (the least certain equation's) factor. An empty `df`, or `∞` in it, is a known variance:
+/// the normal quantile. Dimensionless.
+///
+/// # Errors
+/// [`t_ppf`]'s: `alpha` outside (0, 1) or NaN, a degree of freedom ≤ 0.
+///
+/// # Examples
+/// ```
+/// use vehid_core::stats::{t_interval_factor, t_ppf};
+/// // Three equations: the factor of the one with 12 degrees of freedom, about 2.179.
+/// let t = t_interval_factor(0.05, &[30.0, 12.0, 100.0])?;
+/// assert_eq!(t, t_ppf(0.975, 12.0)?);
+/// assert!((t - 2.1788).abs() < 1e-4);
+/// # Ok::<(), vehid_core::Error>(())
+/// ```
+pub fn t_interval_factor(alpha: f64, df: &[f64]) -> Result<f64> {
+    let df = df.iter().copied().fold(f64::INFINITY, f64::min);
+    t_ppf(1.0 - alpha / 2.0, df)
+}
+
 /// The standard normal CDF `Φ(x) = ½ erfc(−x/√2)` (scipy `stats.norm.cdf`); `t_cdf(x, ∞)`.
 /// Dimensionless; `x` in standard deviations.
 ///

@@ -41,7 +41,7 @@ pub use cusum::{
     cusum_bound, cusum_into, cusum_scalar, cusum_squares_bounds, cusum_squares_critical, cusum_squares_into,
     CUSUM_SCALARS, CUSUM_SQUARES_SCALARS,
 };
-pub use dist::{normal_cdf, normal_ppf, normal_sf, t_cdf, t_ppf, t_sf};
+pub use dist::{normal_cdf, normal_ppf, normal_sf, t_cdf, t_interval_factor, t_ppf, t_sf};
 #[cfg(feature = "alloc")]
 pub use recursive::recursive_residuals;
 #[cfg(feature = "alloc")]

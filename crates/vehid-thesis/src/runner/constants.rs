@@ -24,7 +24,7 @@ use crate::report::{ConstantSeries, IdentifiedConstants, KnownConstant};
 use vehid_core::identify::{estimate_stats, Identifier};
 use vehid_core::model::{HalfCar, PhysicalStructure, QuarterCar, QuarterKnown};
 use vehid_core::nalgebra::SMatrix;
-use vehid_core::stats::t_ppf;
+use vehid_core::stats::t_interval_factor;
 
 /// About how many iterations of a curve record the constants: half evenly spaced on a log
 /// axis, half on a linear one (fewer where they coincide). 40 keep a report's JSON small
@@ -112,10 +112,10 @@ impl Car {
     }
 }
 
-/// `t₀.₉₇₅` at the smallest of the degrees of freedom (NaN without any).
+/// `t₀.₉₇₅` at the smallest of the degrees of freedom (`t_interval_factor`; NaN where a
+/// degree of freedom is not positive).
 fn t_quantile(df: &[f64]) -> f64 {
-    let df = df.iter().copied().fold(f64::INFINITY, f64::min);
-    t_ppf(1.0 - ALPHA / 2.0, df).unwrap_or(f64::NAN)
+    t_interval_factor(ALPHA, df).unwrap_or(f64::NAN)
 }
 
 /// The standard errors of the constants `car.constants_of(theta) = value` by the delta method
