@@ -766,3 +766,31 @@ fn posterior_stats_read_the_filter_as_it_is() {
     // The check distinguishes: the diagonals differ from the off-diagonal entries.
     assert!(p[1] != p[11] && r[1] != r[4] && r[3] != r[4]);
 }
+
+/// The default sub-steps are the simulator's for the structure's A: on the thesis' full rows
+/// at the car's own rows, `auto_substeps` of the car (the thesis' quarter car at 0.05 s and a
+/// smaller step, so that the count is not 1 by default); a stiffer A needs more; the shapes are
+/// checked.
+#[test]
+fn default_substeps_are_the_simulators_for_the_linearized_structure() {
+    use vehid_core::identify::joint_ekf_substeps;
+    for (car, dt) in [(QuarterCar::<f64>::thesis(), 0.05), (QuarterCar::<f64>::passenger(), 0.01)] {
+        let model = car.model();
+        let a = model.a();
+        let rows: Vec<f64> = [1, 3].iter().flat_map(|&r| (0..4).map(move |j| a[(r, j)])).collect();
+        let want = auto_substeps(&model, dt) as u32;
+        assert_eq!(joint_ekf_substeps::<f64, 4>(&full_rows(), &rows, dt).unwrap(), want, "{dt}");
+        // A much stiffer wheel row (its first entry 400 times larger) needs more, as many as
+        // the simulator takes for that A.
+        let mut stiff = rows.clone();
+        stiff[0] *= 400.0;
+        let mut a2 = *a;
+        a2[(1, 0)] *= 400.0;
+        let want2 = auto_substeps(&vehid_core::model::LinearModel::new(a2, *model.b(), &[1, 3]).unwrap(), dt) as u32;
+        assert!(want2 > want, "{want2} {want}");
+        assert_eq!(joint_ekf_substeps::<f64, 4>(&full_rows(), &stiff, dt).unwrap(), want2);
+    }
+    let err = joint_ekf_substeps::<f64, 4>(&full_rows(), &[0.0; 3], 0.05).unwrap_err();
+    assert!(matches!(err, Error::Shape { arg: "params", expected: 8, got: 3 }), "{err:?}");
+    assert!(matches!(joint_ekf_substeps::<f64, 3>(&full_rows(), &[0.0; 8], 0.05), Err(Error::Shape { .. })));
+}

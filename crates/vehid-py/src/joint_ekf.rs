@@ -19,9 +19,8 @@ use crate::structure::PyStructure;
 use crate::{core_err, VehidError};
 use numpy::{IntoPyArray, PyArray1, PyArray2};
 use pyo3::prelude::*;
-use vehid_core::identify::{EkfNoise, MAX_EKF_SUBSTEPS};
-use vehid_core::model::{auto_substeps, LinearModel};
-use vehid_core::nalgebra::{SMatrix, SVector};
+use vehid_core::identify::{joint_ekf_substeps, EkfNoise, MAX_EKF_SUBSTEPS};
+use vehid_core::nalgebra::SVector;
 use vehid_core::structure::{Basis, Structure, Term, Var};
 use vehid_runtime::ModelData;
 
@@ -43,30 +42,6 @@ fn model_structure(d: &ModelData) -> vehid_core::Result<Structure<f64>> {
         s.push_equation(row, &terms)?;
     }
     Ok(s)
-}
-
-/// The RK4 sub-steps the simulator would choose (`h ρ(A) ≤ 1/2`) for `a` (4 × 4, row-major).
-fn substeps_for(a: &[f64], rows: &[usize], dt: f64) -> vehid_core::Result<u32> {
-    let a = SMatrix::<f64, 4, 4>::from_fn(|i, j| a[i * 4 + j]);
-    let m = LinearModel::new(a, SMatrix::<f64, 4, 1>::zeros(), rows)?;
-    Ok(auto_substeps(&m, dt) as u32)
-}
-
-/// A structure's `A` at parameters `p`: column `j` is `f(e_j) − f(0)` (inputs at 0).
-fn linearized(s: &Structure<f64>, p: &[f64]) -> Vec<f64> {
-    let (n, u) = (s.states(), vec![0.0; s.inputs()]);
-    let (mut base, mut col, mut x) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-    s.derivative(p, &x, &u, &mut base);
-    let mut a = vec![0.0; n * n];
-    for j in 0..n {
-        x[j] = 1.0;
-        s.derivative(p, &x, &u, &mut col);
-        x[j] = 0.0;
-        for i in 0..n {
-            a[i * n + j] = col[i] - base[i];
-        }
-    }
-    a
 }
 
 /// A scalar or one value per component (`len`), each finite and > 0 (`zero_ok`: ≥ 0).
@@ -229,13 +204,13 @@ impl PyJointEKF {
             Some(k) => u32::try_from(k).ok().filter(|k| (1..=MAX_EKF_SUBSTEPS).contains(k)).ok_or_else(|| {
                 VehidError::new_err(format!("`substeps` must be an integer in 1..={MAX_EKF_SUBSTEPS}, got {k}"))
             })?,
+            // At the model's own rows (its A), or at theta0 on a structure.
             None => {
-                let rows: Vec<usize> = s.equation_states().collect();
-                let a = match &data {
-                    Some(d) => d.a.clone(),
-                    None => linearized(&s, &theta0),
+                let at: Vec<f64> = match &data {
+                    Some(d) => d.rows.iter().flat_map(|&r| d.a[r * d.n..(r + 1) * d.n].iter().copied()).collect(),
+                    None => theta0.clone(),
                 };
-                substeps_for(&a, &rows, dt).map_err(core_err)?
+                joint_ekf_substeps::<f64, EKF_STATES>(&s, &at, dt).map_err(core_err)?
             }
         };
         let sq = |v: &[f64]| SVector::<f64, EKF_STATES>::from_iterator(v.iter().map(|x| x * x));

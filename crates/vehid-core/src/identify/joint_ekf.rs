@@ -101,6 +101,41 @@ pub use noise::EkfNoise;
 /// Most RK4 sub-steps per sample the filter accepts.
 pub const MAX_EKF_SUBSTEPS: u32 = 1000;
 
+/// The RK4 sub-steps per sample of the filter's prediction when none is given: those the
+/// simulator would choose ([`crate::model::auto_substeps`]: `h ρ(A) ≤ 1/2`, `dt` in s) for
+/// the structure linearized at the parameters `params`, column `j` of `A` being
+/// `f(e_j) − f(0)` with the inputs at 0 (exact for a linear structure; for `sign`, `pos`,
+/// `neg` terms the slope on the positive side).
+///
+/// # Errors
+/// [`Error::Shape`] for a structure without `N` states or `params` of another length than its
+/// parameters; [`Error::Capacity`] over [`crate::structure::MAX_INPUTS`] inputs.
+pub fn joint_ekf_substeps<T: Real, const N: usize>(structure: &Structure<T>, params: &[T], dt: T) -> Result<u32> {
+    if structure.states() != N {
+        return Err(Error::Shape { arg: "structure", expected: N, got: structure.states() });
+    }
+    if params.len() != structure.params() {
+        return Err(Error::Shape { arg: "params", expected: structure.params(), got: params.len() });
+    }
+    let m = structure.inputs();
+    if m > crate::structure::MAX_INPUTS {
+        return Err(Error::Capacity { arg: "inputs", needed: m, capacity: crate::structure::MAX_INPUTS });
+    }
+    let u = [T::zero(); crate::structure::MAX_INPUTS];
+    let (mut base, mut col, mut x) = ([T::zero(); N], [T::zero(); N], [T::zero(); N]);
+    structure.derivative(params, &x, &u[..m], &mut base);
+    let mut a = SMatrix::<T, N, N>::zeros();
+    for j in 0..N {
+        x[j] = T::one();
+        structure.derivative(params, &x, &u[..m], &mut col);
+        x[j] = T::zero();
+        for i in 0..N {
+            a[(i, j)] = col[i] - base[i];
+        }
+    }
+    Ok(crate::model::auto_substeps_of(&a, dt) as u32)
+}
+
 /// The joint extended Kalman filter on `s = [x; p; u]` (module docs): `N` states, `D =
 /// N + params + 1` (checked at construction: Rust cannot yet compute it from the others).
 ///

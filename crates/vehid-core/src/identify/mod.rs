@@ -91,7 +91,7 @@ pub use iv_filter::IvFilter;
 #[cfg(feature = "alloc")]
 pub use iv_model::ModelIvIdentifierVec;
 pub use iv_model::{ModelInstruments, ModelIvIdentifier};
-pub use joint_ekf::{EkfNoise, JointEkf, MAX_EKF_SUBSTEPS};
+pub use joint_ekf::{joint_ekf_substeps, EkfNoise, JointEkf, MAX_EKF_SUBSTEPS};
 #[cfg(feature = "alloc")]
 pub use kalman::{
     boxed_kalman, FullKalmanIdentifierVec, KalmanIdentifierVec, KalmanIdentifierVec2, KalmanSpec, Prior,

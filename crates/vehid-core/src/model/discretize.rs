@@ -85,7 +85,12 @@ pub fn rk4_map<T: Real, const N: usize, const M: usize>(
 /// `h ρ(A) ≤ 1/2` for the fastest pole `ρ(A)` (the thesis' half car at `dt = 0.05` s has
 /// `dt ρ ≈ 3.3`, beyond RK4's stability limit of about 2.79 on the real axis).
 pub fn auto_substeps<T: Real, const N: usize, const M: usize>(model: &LinearModel<T, N, M>, dt: T) -> usize {
-    let need = libm::ceil(spectral_radius(model.a()) * dt.to_f64() / 0.5);
+    auto_substeps_of(model.a(), dt)
+}
+
+/// [`auto_substeps`] for the state matrix `a` alone (1/s; `dt` in s).
+pub fn auto_substeps_of<T: Real, const N: usize>(a: &SMatrix<T, N, N>, dt: T) -> usize {
+    let need = libm::ceil(spectral_radius(a) * dt.to_f64() / 0.5);
     if need.is_finite() && need >= 1.0 {
         (need as usize).min(MAX_SUBSTEPS)
     } else {
