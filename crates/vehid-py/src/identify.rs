@@ -914,7 +914,8 @@ fn screen_rows(
 /// Batch least squares for `m` in its form (`keep`: stored samples; else the memory-bounded
 /// recursive one), behind the screen at `gate`.
 fn batch_core(m: &ModelData, keep: bool, gate: f64) -> PyResult<Box<dyn DynIdentifier<f64>>> {
-    let inner = if keep { build::batch(m.n, &m.rows).map_err(core_err)? } else { streaming_ls(m)? };
+    let inner = if keep { build::batch(m.n, &m.rows) } else { build::batch_recursive(m.n, &m.rows) };
+    let inner = inner.map_err(core_err)?;
     screen_rows(inner, m, gate, if keep { Refresh::Geometric } else { Refresh::Every })
 }
 
@@ -923,21 +924,6 @@ fn batch_core(m: &ModelData, keep: bool, gate: f64) -> PyResult<Box<dyn DynIdent
 fn batch_on_structure(st: &PyStructure, gate: f64) -> PyResult<Box<dyn DynIdentifier<f64>>> {
     let inner = kalman_on_structure(st, None, None, None, KalmanOptions::default())?;
     build::screened(inner, &st.core, gate, Refresh::Every).map_err(core_err)
-}
-
-/// The memory-bounded least squares of `BatchLeastSquares(model, keep_samples=False)` for a
-/// linear model's unknown `rows`: the exact-start rows filter (`P = (XᵀX)⁻¹` with `r = 1`, the
-/// stored form's unit-noise convention), no gate.
-fn streaming_ls(m: &ModelData) -> PyResult<Box<dyn DynIdentifier<f64>>> {
-    let spec = KalmanSpec {
-        rows: m.rows.clone(),
-        p0: Prior::Exact,
-        theta0: None,
-        r: vec![1.0],
-        mode: Mode::Rows,
-        opts: KalmanOptions::default(),
-    };
-    build::kalman(m.n, &spec).map_err(core_err)
 }
 
 #[pymethods]

@@ -55,6 +55,26 @@ pub fn batch(n: usize, rows: &[usize]) -> Result<Boxed> {
     dispatch_n!(n, batch_n(rows))
 }
 
+/// Least squares on all samples without storing them (`BatchLeastSquares(model,
+/// keep_samples=False)`): the exact-start rows filter of the unknown `rows` of an `n`-state
+/// model, which holds `P = (XᵀX)⁻¹` from the first samples that identify it (r = 1: the stored
+/// form's unit-noise convention), without a gate, so that its estimate is the normal
+/// equations' (Eq 2.14) solved recursively (Eq 2.2–2.4).
+///
+/// # Errors
+/// The core's; sizes outside the table.
+pub fn batch_recursive(n: usize, rows: &[usize]) -> Result<Boxed> {
+    let spec = KalmanSpec {
+        rows: rows.to_vec(),
+        p0: vehid_core::identify::Prior::Exact,
+        theta0: None,
+        r: vec![1.0],
+        mode: vehid_core::identify::Mode::Rows,
+        opts: KalmanOptions::default(),
+    };
+    kalman(n, &spec)
+}
+
 fn stored<const N: usize>(id: &dyn DynIdentifier<f64>) -> Option<&BatchLeastSquares<f64, N>> {
     unscreened(id).as_any().downcast_ref::<BatchLeastSquares<f64, N>>()
 }
