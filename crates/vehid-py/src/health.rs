@@ -10,6 +10,7 @@ use crate::{core_err, option, VehidError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyTuple};
 use vehid_core::health::{self, HealthConfig, Reason, Status};
+use vehid_core::identify::FitError;
 use vehid_core::model::{FullCar, HalfConstant, CORNERS};
 use vehid_core::sim::FullConstant;
 use vehid_core::sim::SensorSet;
@@ -263,6 +264,34 @@ impl Mon {
         }
     }
 
+    /// The rows of `data` (`n` channels each) through the monitor, all or nothing
+    /// (`health::fit_rows`), `interrupt` asked every [`CHECK`] samples.
+    fn fit_rows(
+        &mut self,
+        data: &[f64],
+        n: usize,
+        interrupt: &mut dyn FnMut() -> bool,
+    ) -> Result<Vec<PyEvent>, FitError> {
+        fn run<M: health::Monitor<f64>>(
+            m: &mut M,
+            data: &[f64],
+            n: usize,
+            interrupt: &mut dyn FnMut() -> bool,
+        ) -> Result<Vec<PyEvent>, FitError>
+        where
+            PyEvent: From<health::Event<f64, M::Constant>>,
+        {
+            let mut events = Vec::new();
+            health::fit_rows(m, data, n, &mut events, CHECK, interrupt)?;
+            Ok(events.into_iter().map(PyEvent::from).collect())
+        }
+        match self {
+            Mon::Quarter(m) => run(&mut **m, data, n, interrupt),
+            Mon::Half(m) => run(&mut **m, data, n, interrupt),
+            Mon::Full(m) => run(&mut **m, data, n, interrupt),
+        }
+    }
+
     fn update(&mut self, y: &[f64]) -> vehid_core::Result<Option<PyEvent>> {
         Ok(match self {
             Mon::Quarter(m) => m.update(y)?.map(PyEvent::from),
@@ -408,33 +437,18 @@ impl PyHealthMonitor {
             )));
         }
         let mut signals = Interrupts::new();
-        let start = this.inner.clone();
         let mon = &mut this.inner;
-        let result = py.detach(|| {
-            let mut events = Vec::new();
-            for (k, row) in data.chunks_exact(n).enumerate() {
-                if k % CHECK == 0 && k > 0 && signals.check() {
-                    return Err(None);
-                }
-                match mon.update(row) {
-                    Ok(Some(e)) => events.push(e),
-                    Ok(None) => {}
-                    Err(e) => return Err(Some((k, e))),
-                }
-            }
-            Ok(events)
-        });
-        match result {
+        // All or nothing (the core's `fit_rows`): a rejected sample or an interrupt leaves the
+        // monitor as it was.
+        match py.detach(|| mon.fit_rows(data, n, &mut || signals.check())) {
             Ok(events) => Ok(events),
-            Err(e) => {
-                this.inner = start;
-                match e {
-                    None => Err(signals.raise().unwrap_or_else(|| core_err(vehid_core::Error::Interrupted))),
-                    Some((k, e)) => {
-                        Err(VehidError::new_err(format!("sample {k} was rejected ({e}); the monitor is unchanged")))
-                    }
-                }
+            Err(FitError { error: vehid_core::Error::Interrupted, .. }) => {
+                Err(signals.raise().unwrap_or_else(|| core_err(vehid_core::Error::Interrupted)))
             }
+            Err(FitError { sample: Some(k), error }) => {
+                Err(VehidError::new_err(format!("sample {k} was rejected ({error}); the monitor is unchanged")))
+            }
+            Err(FitError { sample: None, error }) => Err(core_err(error)),
         }
     }
 

@@ -349,8 +349,10 @@
 //! ([`HealthMonitor`]; `monitor/config.rs`: [`HealthConfig`]; `monitor/detect.rs`: its
 //! decisions), `half.rs` ([`HalfHealthMonitor`]; `half/detect.rs`: its decisions), `full.rs`
 //! ([`FullHealthMonitor`]; `full/detect.rs`: its decisions), `pattern.rs`
-//! (the fits to the patterns), `event.rs` ([`Event`], [`Status`], [`Estimate`]).
+//! (the fits to the patterns), `event.rs` ([`Event`], [`Status`], [`Estimate`]), `batch.rs`
+//! ([`Monitor`], what the three share, and `fit_rows`: a block of samples, all or nothing).
 
+mod batch;
 mod consistency;
 mod event;
 mod full;
@@ -360,6 +362,9 @@ mod monitor;
 mod pattern;
 mod rls;
 
+#[cfg(feature = "alloc")]
+pub use batch::fit_rows;
+pub use batch::Monitor;
 pub use consistency::{KinematicCheck, CHECK_HIGH_PASS_HZ, CHECK_LOW_PASS_HZ, CHECK_RATE_HZ};
 pub use event::{Constant, Estimate, Event, Reason, Status};
 pub use full::{
