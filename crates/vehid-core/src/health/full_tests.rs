@@ -340,3 +340,17 @@ fn a_saved_full_monitor_continues_bit_for_bit_and_a_corrupt_one_is_refused() {
     json["belief"][0] = serde_json::json!(-1.0);
     assert!(serde_json::from_value::<FullHealthMonitor<f64>>(json).is_err());
 }
+
+#[test]
+fn the_full_configs_channels_are_a_full_drives_sample() {
+    // What `channels()` tells a caller (the binding sizes its arrays by it) is what a full
+    // drive's realistic sensors give and what `update` takes: one channel fewer is refused.
+    let car = FullCar::<f64>::passenger();
+    let cfg = HealthConfig::new(0.005, car);
+    let mut drive = FullDrive::new(car, FullDriveConfig::new(DriveConfig::new(0.005)), 45).unwrap();
+    let y = drive.next_sample().y().to_vec();
+    assert_eq!(cfg.channels(), y.len());
+    let mut mon = FullHealthMonitor::new(cfg).unwrap();
+    assert!(mon.update(&y[..y.len() - 1]).is_err());
+    mon.update(&y[..cfg.channels()]).unwrap();
+}

@@ -519,3 +519,37 @@ fn a_sample_interval_the_filter_cannot_settle_at_is_named_as_dt() {
     }
     assert!(HealthMonitor::new(HealthConfig::new(1e-7, car)).is_ok());
 }
+
+#[test]
+fn the_tracked_intervals_are_z_standard_errors_either_side() {
+    // The same drive through monitors that differ only in the confidence level: the tracked
+    // values agree to the bit and every interval is centred on its value, with half-widths in
+    // the ratio of the normal quantiles (1.959964 for 95 %, 1 for 68.2689 %: published values).
+    let car = QuarterCar::<f64>::passenger();
+    let mut drive = QuarterDrive::new(car, DriveConfig::new(0.005), 9311).unwrap();
+    let mut wide = HealthMonitor::new(HealthConfig::new(0.005, car)).unwrap();
+    let mut cfg = HealthConfig::new(0.005, car);
+    cfg.confidence = 0.682_689_492_137_086;
+    let mut narrow = HealthMonitor::new(cfg).unwrap();
+    let mut checked = 0;
+    for k in 0..24_000 {
+        let s = drive.next_sample();
+        wide.update(s.y()).unwrap();
+        narrow.update(s.y()).unwrap();
+        if k % 4_000 != 3_999 {
+            continue;
+        }
+        let (w, n) = (wide.estimate(), narrow.estimate());
+        for j in 0..3 {
+            assert_eq!(w.value[j].to_bits(), n.value[j].to_bits(), "sample {k}, value {j}");
+            for e in [w, n] {
+                let (lo, hi) = (e.value[j] - e.low[j], e.high[j] - e.value[j]);
+                assert!(lo > 0.0 && (lo - hi).abs() <= 1e-12 * lo.max(e.value[j].abs()), "sample {k}, {j}: {e:?}");
+            }
+            let ratio = (w.high[j] - w.low[j]) / (n.high[j] - n.low[j]);
+            assert!((ratio - 1.959_964).abs() < 1e-5, "sample {k}, {j}: ratio {ratio}");
+        }
+        checked += 1;
+    }
+    assert_eq!(checked, 6);
+}

@@ -184,3 +184,27 @@ impl<T: Real> HalfHealthMonitor<T> {
         Some(ev)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::health::HealthConfig;
+    use crate::model::HalfCar;
+
+    #[test]
+    fn a_singular_residual_covariance_is_no_reference() {
+        // Σ of two residuals that are one and the same (det Σ = 0 exactly) cannot weigh the
+        // two equations against each other: no reference, and nothing changes, however tight
+        // the estimate is otherwise.
+        let cfg = HealthConfig::new(0.005, HalfCar::<f64>::passenger());
+        let mut mon = HalfHealthMonitor::new(cfg).unwrap();
+        let before = mon.clone();
+        let theta = SMatrix::<f64, 5, 2>::from_fn(|i, j| 10.0 + (i + 3 * j) as f64);
+        let p = SMatrix::<f64, 5, 5>::identity() * 1e-14;
+        assert!(!mon.try_reference([[1.0, 1.0], [1.0, 1.0]], theta, &p));
+        assert_eq!(mon, before);
+        // The same estimate with the residuals independent is adopted: the refusal above is Σ's.
+        assert!(mon.try_reference([[1.0, 0.0], [0.0, 1.0]], theta, &p));
+        assert_ne!(mon, before);
+    }
+}
