@@ -8,9 +8,17 @@ from numpy.typing import ArrayLike, NDArray
 from typing_extensions import Self, disjoint_base
 
 __version__: str
+#: What the classes use when a caller does not give ``road_sigma`` (m), ``deriv_noise`` and
+#: ``gate`` (κ, standard deviations): the thesis' noise levels (Ch. III.C) and the outlier gate.
+DEFAULT_ROAD_SIGMA: float
+DEFAULT_DERIV_NOISE: float
+DEFAULT_GATE: float
 __all__ = [
     "VehidError",
     "__version__",
+    "DEFAULT_ROAD_SIGMA",
+    "DEFAULT_DERIV_NOISE",
+    "DEFAULT_GATE",
     "LinearModel",
     "QuarterCar",
     "HalfCar",

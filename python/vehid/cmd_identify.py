@@ -28,6 +28,8 @@ from numpy.typing import NDArray
 
 from . import clitools, model_file
 from ._vehid import (
+    DEFAULT_DERIV_NOISE,
+    DEFAULT_ROAD_SIGMA,
     BatchLeastSquares,
     IVIdentifier,
     KalmanIdentifier,
@@ -1124,10 +1126,10 @@ def add_parser(sub: Any) -> None:
                        help="kalman: 'exact' (default: the exact start, least squares on the first samples, no "
                             "prior; modes shared/full and two-axle use the thesis' 1000) or a prior covariance "
                             "P(0), one value or one per unknown row, comma-separated")
-    ident.add_argument("--road-sigma", type=float, default=0.1,
-                       help="kalman: road input std sigma_u, m, for R (Eq 4.7) (default 0.1)")
-    ident.add_argument("--deriv-noise", type=float, default=0.005,
-                       help="kalman: derivative noise std sigma_v, for R (default 0.005)")
+    ident.add_argument("--road-sigma", type=float, default=DEFAULT_ROAD_SIGMA,
+                       help=f"kalman: road input std sigma_u, m, for R (Eq 4.7) (default {DEFAULT_ROAD_SIGMA:g})")
+    ident.add_argument("--deriv-noise", type=float, default=DEFAULT_DERIV_NOISE,
+                       help=f"kalman: derivative noise std sigma_v, for R (default {DEFAULT_DERIV_NOISE:g})")
     ident.add_argument("--mode", choices=["rows", "shared", "full"], default="rows",
                        help="kalman: decoupled rows (default), one shared covariance (needs the same R and P0 on "
                        "every row, e.g. --road-sigma 0), or the full stacked filter")

@@ -15,7 +15,7 @@ from typing import IO, Any, Dict, List
 import numpy as np
 
 from . import clitools, model_file
-from ._vehid import Run, Simulator
+from ._vehid import DEFAULT_DERIV_NOISE, DEFAULT_ROAD_SIGMA, Run, Simulator
 from .clitools import MODELS, CliError, count, model_arg, run_chunks, stdout, write_output
 from .io import open_table
 from .monitor import cmd_simulate_drive
@@ -131,10 +131,12 @@ def add_parser(sub: Any) -> None:
     sim.add_argument("--x0", default=None, metavar="VALUES", help="model file: initial state, comma-separated (0)")
     sim.add_argument("--n", type=count(0), default=40_000, help="number of samples (default 40000)")
     sim.add_argument("--dt", type=float, default=None, help="sample interval, s (default 0.05; a drive 0.005)")
-    sim.add_argument("--road-sigma", type=float, default=0.1, help="road input std sigma_u, m (default 0.1)")
+    sim.add_argument("--road-sigma", type=float, default=DEFAULT_ROAD_SIGMA,
+                     help=f"road input std sigma_u, m (default {DEFAULT_ROAD_SIGMA:g})")
     sim.add_argument("--ic-sigma", type=float, default=0.0, help="initial-state std (default 0)")
     sim.add_argument("--state-noise", type=float, default=0.0, help="state measurement noise std sigma_w (default 0)")
-    sim.add_argument("--deriv-noise", type=float, default=0.005, help="derivative noise std sigma_v (default 0.005)")
+    sim.add_argument("--deriv-noise", type=float, default=DEFAULT_DERIV_NOISE,
+                     help=f"derivative noise std sigma_v (default {DEFAULT_DERIV_NOISE:g})")
     sim.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
     sim.add_argument("--method", choices=["rk4", "exact"], default="rk4", help="integrator (default rk4)")
     sim.add_argument("--speed", type=float, default=None,

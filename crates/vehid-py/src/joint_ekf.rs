@@ -104,8 +104,10 @@ pub struct PyJointEKF;
 #[pymethods]
 impl PyJointEKF {
     #[new]
-    #[pyo3(signature = (model, theta0, p0 = None, *, state_noise, deriv_noise = None, road_sigma = 0.1,
-                        road_gain = None, dt = 0.05, substeps = None, x0_var = 1.0, drift = 0.0))]
+    #[pyo3(signature = (model, theta0, p0 = None, *, state_noise, deriv_noise = None, road_sigma = None,
+                        road_gain = None, dt = 0.05, substeps = None, x0_var = 1.0, drift = 0.0),
+           text_signature = "(model, theta0, p0=None, *, state_noise, deriv_noise=None, road_sigma=0.1, \
+                             road_gain=None, dt=0.05, substeps=None, x0_var=1.0, drift=0.0)")]
     #[allow(clippy::too_many_arguments)]
     fn py_new(
         model: &Bound<'_, PyAny>,
@@ -113,7 +115,7 @@ impl PyJointEKF {
         p0: Option<&Bound<'_, PyAny>>,
         state_noise: &Bound<'_, PyAny>,
         deriv_noise: Option<&Bound<'_, PyAny>>,
-        road_sigma: f64,
+        road_sigma: Option<f64>,
         road_gain: Option<&Bound<'_, PyAny>>,
         dt: f64,
         substeps: Option<i128>,
@@ -170,7 +172,7 @@ impl PyJointEKF {
             Some(v) => per_component(v, "deriv_noise", n, "state")?,
             None => vec![vehid_runtime::defaults::DERIV_NOISE; n],
         };
-        let road_sigma = scalar(road_sigma, "road_sigma", false)?;
+        let road_sigma = scalar(road_sigma.unwrap_or(vehid_runtime::defaults::ROAD_SIGMA), "road_sigma", false)?;
         let dt = scalar(dt, "dt", true)?;
         let x0_var = scalar(x0_var, "x0_var", true)?;
         let drift = scalar(drift, "drift", false)?;

@@ -108,6 +108,11 @@ fn snr_db<'py>(
 fn _vehid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("VehidError", m.py().get_type::<VehidError>())?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    // What the classes use when a caller does not say (`vehid_runtime::defaults`), for the
+    // command line's options to show and pass the same values.
+    m.add("DEFAULT_ROAD_SIGMA", vehid_runtime::defaults::ROAD_SIGMA)?;
+    m.add("DEFAULT_DERIV_NOISE", vehid_runtime::defaults::DERIV_NOISE)?;
+    m.add("DEFAULT_GATE", vehid_runtime::defaults::GATE)?;
     m.add_class::<model::PyLinearModel>()?;
     m.add_class::<model::PyQuarterCar>()?;
     m.add_class::<model::PyHalfCar>()?;

@@ -152,17 +152,19 @@ impl PyTwoAxleIdentifier {
 #[pymethods]
 impl PyTwoAxleIdentifier {
     #[new]
-    #[pyo3(signature = (model, spacing = 0.3, method = "cancel", p0 = None, road_sigma = 0.1, deriv_noise = 0.005,
+    #[pyo3(signature = (model, spacing = 0.3, method = "cancel", p0 = None, road_sigma = None, deriv_noise = None,
                         *, p0_body = None, wheelbase = None, direct_front = true, car = None, compensate = true,
-                        gate = None))]
+                        gate = None),
+           text_signature = "(model, spacing=0.3, method='cancel', p0=None, road_sigma=0.1, deriv_noise=0.005, *, \
+                             p0_body=None, wheelbase=None, direct_front=True, car=None, compensate=True, gate=None)")]
     #[allow(clippy::too_many_arguments)]
     fn py_new(
         model: &Bound<'_, PyAny>,
         spacing: f64,
         method: &str,
         p0: Option<&Bound<'_, PyAny>>,
-        road_sigma: f64,
-        deriv_noise: f64,
+        road_sigma: Option<f64>,
+        deriv_noise: Option<f64>,
         p0_body: Option<f64>,
         wheelbase: Option<f64>,
         direct_front: bool,
@@ -171,6 +173,8 @@ impl PyTwoAxleIdentifier {
         #[pyo3(from_py_with = crate::args::gate)] gate: Option<f64>,
     ) -> PyResult<PyClassInitializer<Self>> {
         let gate = gate.unwrap_or(vehid_runtime::defaults::GATE);
+        let road_sigma = road_sigma.unwrap_or(vehid_runtime::defaults::ROAD_SIGMA);
+        let deriv_noise = deriv_noise.unwrap_or(vehid_runtime::defaults::DERIV_NOISE);
         let p0 = p0_arg(p0)?;
         let structure = model.cast::<PyStructure>().ok();
         let car =
