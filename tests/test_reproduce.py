@@ -597,3 +597,37 @@ def test_reproduce_draws_b3_real_roads(tmp_path: Path, monkeypatch: pytest.Monke
     assert md.count("*agrees*") + md.count("*differs*") == len(roads["verdicts"]) == 6
     for f in kept:
         close(f)
+
+
+FULL_KEYS = {"id", "title", "origin", "seconds", "change_at", "seeds", "setup", "rows", "verdicts", "cpu_seconds"}
+FULL_ROW_KEYS = {"label", "expect", "truth", "named", "delay", "change", "early"}
+
+
+def test_reproduce_tabulates_b4_the_full_car_monitor(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "full"
+    argv = ["reproduce", "--quick", "--only", "B-4", "--seeds", "4", "--out", str(out), "--no-tables", "--quiet"]
+    assert main(argv) == 0
+    assert Path(capsys.readouterr().out.strip()) == out / "index.md"
+    data = json.loads((out / "report.json").read_text(encoding="utf-8"))
+    assert not {"sweep", "half_one_road", "real_roads"} & set(data)
+    full = data["full_car"]
+    # The binding's keys: those of the runner's JSON (vehid_thesis::report::FullResult).
+    assert set(full) == FULL_KEYS and all(set(r) == FULL_ROW_KEYS for r in full["rows"])
+    assert (full["id"], full["seeds"], full["seconds"], full["change_at"]) == ("B-4", 4, 90.0, 60.0)
+    labels = [r["label"] for r in full["rows"]]
+    assert labels[:4] == [f"damper {c} −10 %" for c in ("fl", "fr", "rl", "rr")] and labels[-1] == "no change"
+    for r in full["rows"][:-1]:
+        # Each change is named (its corner too) within the 30 s after it, at about its true size.
+        assert r["named"] == [r["expect"]] * 4 and all(0 < d < 30 for d in r["delay"]), r
+        assert all(abs(c - r["truth"]) < 3 for c in r["change"]) and r["early"] == 0
+    assert full["rows"][-1]["early"] == 0 and full["rows"][-1]["named"] == [""] * 4
+    assert all(v["agrees"] for v in full["verdicts"]) and len(full["verdicts"]) == 6
+    # The report: the table with the numbers computed from the rows, the claims in Tables.
+    md = (out / "index.md").read_text(encoding="utf-8")
+    html = (out / "index.html").read_text(encoding="utf-8")
+    head, rows, _ = vehid.reproduce._full_table(full)
+    assert "### Fig B-4:" in md and "| " + " | ".join(head) + " |" in md
+    assert rows[0][:2] == ["damper fl −10 %", "4/4"] and "| " + " | ".join(rows[0]) + " |" in md
+    assert "its health monitor on the full car" in md and "“Fig B-4”" in html and "<h3>Fig B-4:" in html
+    assert "### Fig B-4, beyond the thesis" in md
+    assert md.count("*agrees*") + md.count("*differs*") == len(full["verdicts"])

@@ -16,8 +16,9 @@ the run on a log scale against the state noise σ_w, one line per method for noi
 (median and 25–75 % band over seeds, ``fig-B-1.png``), Fig B-2, the half car on one road,
 as a table, and Fig B-3, "real roads": the relative error of the passenger car's constants M,
 k1, k2, b (log axis) on ISO 8608 roads of classes A–E for the thesis' identifier and the
-real-road one, with the coverage of their 95 % intervals (``fig-B-3.png``); their claims are
-rows of the tables. Every number in the report is computed by the run.
+real-road one, with the coverage of their 95 % intervals (``fig-B-3.png``), and Fig B-4, the
+full car's health monitor, as a table (per change at one corner: named right, delay, reported
+size; false alarms); their claims are rows of the tables. Every number in the report is computed by the run.
 
 >>> data = run(quick=True, only=["3-5"], seeds=2, max_iterations=100, tables=False)
 >>> data["figures"][0]["id"], len(data["figures"][0]["curves"])
@@ -611,7 +612,26 @@ def _not_run(half: Json) -> List[str]:
 
 
 #: The report's keys of the figures beyond the thesis, in the report's order.
-BEYOND_KEYS = ("sweep", "half_one_road", "real_roads")
+BEYOND_KEYS = ("sweep", "half_one_road", "real_roads", "full_car")
+
+
+def _full_table(full: Json) -> Tuple[List[str], List[List[str]], str]:
+    """Fig B-4's numbers: one row per change (the last: none): the seeds on which the change is
+    named right, the median and largest delay, the median reported change, the events before it."""
+    head = ["change", "named right", "median delay (s)", "largest delay (s)", "median reported (%)", "truth (%)",
+            "events before the change"]
+    rows = []
+    for r in full["rows"]:
+        if not r["expect"]:
+            rows.append([r["label"], "—", "—", "—", "—", _fmt(r["truth"]), str(r["early"])])
+            continue
+        named = sum(n == r["expect"] for n in r["named"])
+        detected = [c for c in r["change"] if math.isfinite(c)]
+        rows.append([r["label"], f"{named}/{len(r['named'])}", _fmt(_median(r["delay"])), _fmt(max(r["delay"])),
+                     _fmt(_median(detected)) if detected else "—", _fmt(r["truth"]), str(r["early"])])
+    caption = (f"{full['seeds']} seeds per row, {full['seconds']:g} s drives, the change at {full['change_at']:g} s "
+               f"(a miss counts as ∞). {full['setup']}")
+    return head, rows, caption
 
 
 def _beyond_intro(data: Json, quote: str) -> str:
@@ -624,17 +644,21 @@ def _beyond_intro(data: Json, quote: str) -> str:
         what.append("for noisy states")
     if "real_roads" in data:
         what.append("on real roads")
-    return (f"Not figures of Kessler (1986): vehid's comparison of its identifiers {' and '.join(what)}. Their "
+    compared = f"vehid's comparison of its identifiers {' and '.join(what)}" if what else ""
+    if "full_car" in data:
+        compared += ("; and " if compared else "") + "its health monitor on the full car"
+    return (f"Not figures of Kessler (1986): {compared}. Their "
             f"claims and verdicts are in the table{'s' if len(figs) > 1 else ''} {names} below.")
 
 
 def _beyond_md(data: Json, images: Dict[str, str]) -> List[str]:
     """The section of the figures beyond the thesis (their claims and verdicts: in Tables)."""
     sweep, half, roads = data.get("sweep"), data.get("half_one_road"), data.get("real_roads")
-    if sweep is None and half is None and roads is None:
+    full = data.get("full_car")
+    if sweep is None and half is None and roads is None and full is None:
         return []
     md = ["## Beyond the thesis", "", _beyond_intro(data, "\""), ""]
-    for fig, table in ((sweep, _sweep_table), (half, _half_table), (roads, _roads_table)):
+    for fig, table in ((sweep, _sweep_table), (half, _half_table), (roads, _roads_table), (full, _full_table)):
         if fig is None:
             continue
         md += [f"### Fig {fig['id']}: {fig['title']}", "", f"**{fig['origin']}.**", ""]
@@ -649,6 +673,8 @@ def _beyond_md(data: Json, images: Dict[str, str]) -> List[str]:
         elif fig is roads and roads is not None:
             md += [f"**{_md_cell(_roads_conclusion(roads))}**", ""]
             md += [f"- {_roads_name(r['label'])}: {_md_cell(r['setup'])}" for r in roads["rows"]] + [""]
+        elif fig is full:
+            pass
         else:
             md += [f"- {_beyond_name(c['label'])}: {_md_cell(c['setup'])}" for c in fig["curves"]] + [""]
     return md
@@ -658,10 +684,11 @@ def _beyond_html(data: Json, images: Dict[str, str]) -> List[str]:
     """:func:`_beyond_md` as HTML."""
     e = html.escape
     sweep, half, roads = data.get("sweep"), data.get("half_one_road"), data.get("real_roads")
-    if sweep is None and half is None and roads is None:
+    full = data.get("full_car")
+    if sweep is None and half is None and roads is None and full is None:
         return []
     h = ["<h2>Beyond the thesis</h2>", f"<p>{e(_beyond_intro(data, '“'))}</p>"]
-    for fig, table in ((sweep, _sweep_table), (half, _half_table), (roads, _roads_table)):
+    for fig, table in ((sweep, _sweep_table), (half, _half_table), (roads, _roads_table), (full, _full_table)):
         if fig is None:
             continue
         h.append(f"<h3>Fig {e(fig['id'])}: {e(fig['title'])}</h3><p><strong>{e(fig['origin'])}.</strong></p>")
@@ -679,6 +706,8 @@ def _beyond_html(data: Json, images: Dict[str, str]) -> List[str]:
             h.append(f"<p><strong>{e(_roads_conclusion(roads))}</strong></p><ul>"
                      + "".join(f"<li>{e(_roads_name(r['label']))}: {e(r['setup'])}</li>" for r in roads["rows"])
                      + "</ul>")
+        elif fig is full:
+            pass
         else:
             h.append("<ul>" + "".join(f"<li>{e(_beyond_name(c['label']))}: {e(c['setup'])}</li>"
                                       for c in fig["curves"]) + "</ul>")

@@ -1,5 +1,6 @@
 //! Fig B-1, B-2 and B-3 (beyond the thesis) alone: runs them through the reproduction runner
-//! and writes `fig-B-1.svg`, `fig-B-3.svg`, `beyond.md` and `beyond.json` into a directory.
+//! and writes their tables and claims (`beyond.md`) and the report (`beyond.json`) into a
+//! directory. The figures are drawn by the Python report (`vehid reproduce --only B-1,B-3`).
 //!
 //! `cargo run --release -p vehid-thesis --example beyond -- [--quick] [--seeds N] [--seed S]
 //! [--only B-1,B-3] [OUT]` (OUT defaults to `report-beyond/`).
@@ -37,12 +38,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         report.threads,
         t0.elapsed().as_secs_f64()
     );
-    if let Some(s) = &report.sweep {
-        std::fs::write(out.join("fig-B-1.svg"), beyond::sweep_svg(s))?;
-    }
-    if let Some(r) = &report.real_roads {
-        std::fs::write(out.join("fig-B-3.svg"), beyond::roads_svg(r))?;
-    }
     std::fs::write(out.join("beyond.md"), beyond::markdown(&report, &cmd))?;
     std::fs::write(out.join("beyond.json"), report.to_json())?;
     println!("{}", out.join("beyond.md").display());

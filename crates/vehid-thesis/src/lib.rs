@@ -59,8 +59,9 @@ pub use figures::{
     PULSE_AMPLITUDE, PULSE_START,
 };
 pub use report::{
-    fmt_num, ConstantSeries, CurveResult, FigureResult, HalfCell, HalfResult, HalfRow, IdentifiedConstants,
-    KnownConstant, Report, RoadsCell, RoadsResult, RoadsRow, SweepCurve, SweepResult, Table, TableRow, Verdict,
+    fmt_num, ConstantSeries, CurveResult, FigureResult, FullResult, FullRow, HalfCell, HalfResult, HalfRow,
+    IdentifiedConstants, KnownConstant, Report, RoadsCell, RoadsResult, RoadsRow, SweepCurve, SweepResult, Table,
+    TableRow, Verdict,
 };
 pub use runner::{run, Progress, RunOptions, CONSTANT_POINTS, QUICK_ITERATIONS};
 pub use seeds::job_seed;

@@ -2,22 +2,24 @@
 //! metrics, the physical constants identified along the first seed) and the verdicts, and
 //! the tables. Plain data: every type derives
 //! [`serde::Serialize`], and [`Report::to_json`] writes it with serde_json (the criterion
-//! bench times it; the Python binding converts the same fields to Python objects directly).
+//! bench times it); the Python binding turns the same serialization into Python objects.
 //!
 //! # Non-finite numbers
 //!
 //! ξ is NaN where there is no estimate yet (batch least squares before the data have full
 //! rank) and ∞ where an identifier overflowed; per seed, `settle` and `reach` are ∞ when ξ
 //! never got (to stay) below 0.08, `argmin` is NaN when ξ never was a number. JSON has neither
-//! NaN nor ∞, so the serialized form writes **every non-finite number as `null`**, explicitly
-//! (`#[serde(serialize_with)]` on every float series, not left to the serializer): a JSON
+//! NaN nor ∞, so the JSON has **every non-finite number as `null`** (serde_json's documented
+//! rule for non-finite floats, held by `tests/experiments.rs`,
+//! `the_json_has_the_report_fields_and_writes_every_non_finite_number_as_null`): a JSON
 //! reader sees "no finite value". In `settle` and `reach` `null` means never (∞); in the ξ
 //! series (`median`, `p10`, `p90`, `final_xi`, `min_xi`) it means no estimate or overflow;
 //! in `argmin`, no minimum; in a curve's identified constants (`constants`: `value`, `lo`,
 //! `hi`) it means no estimate (or no positive constants from it) and, for `lo` and `hi`, no
 //! interval (an identifier without a covariance); `constants` itself is `null` for batch
-//! least squares. The scalar floats (σ, `seconds`, `truth`) are always finite. The Rust
-//! values and the Python binding's objects keep NaN and ±∞ as they are.
+//! least squares. The scalar floats (σ, `seconds`, `truth`) are always finite. The serialization
+//! itself keeps NaN and ±∞, so the Rust values and the Python binding's objects have them as
+//! they are.
 //!
 //! The figures beyond the thesis ([`SweepResult`], [`HalfResult`], [`RoadsResult`]) follow the
 //! same rule (their per-seed ξ and relative errors are ∞ where an identifier gave no estimate,
@@ -49,31 +51,22 @@ pub struct CurveResult {
     /// Pulse width in sample intervals (0 = no pulse).
     pub pulse_width: u64,
     /// Median ξ over seeds at each recorded iteration.
-    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub median: Vec<f64>,
     /// 10 % quantile.
-    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub p10: Vec<f64>,
     /// 90 % quantile.
-    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub p90: Vec<f64>,
     /// Per seed: ξ at the last recorded iteration.
-    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub final_xi: Vec<f64>,
     /// Per seed: iteration after which ξ stays below 0.08 (∞ if never).
-    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub settle: Vec<f64>,
     /// Per seed: first iteration with ξ < 0.08 (∞ if never).
-    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub reach: Vec<f64>,
     /// Per seed: minimum ξ over the run.
-    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub min_xi: Vec<f64>,
     /// Per seed: iteration of the minimum.
-    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub argmin: Vec<f64>,
     /// Per seed: Eq 4.36 reinitializations (Kalman), else 0.
-    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub reinits: Vec<f64>,
     /// The car's physical constants identified along the curve's first realization (seed
     /// index 0), with their 95 % intervals; `None` for batch least squares (Ch. III).
@@ -104,14 +97,11 @@ pub struct ConstantSeries {
     pub truth: f64,
     /// The estimate at each `k` (NaN: no estimate yet, the rows give no positive constants,
     /// or the identifier diverged).
-    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub value: Vec<f64>,
     /// Lower end of the 95 % interval at each `k` (NaN: the identifier keeps no covariance,
     /// or the covariance is not defined yet).
-    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub lo: Vec<f64>,
     /// Upper end of the 95 % interval at each `k` (NaN as for `lo`).
-    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub hi: Vec<f64>,
 }
 
@@ -209,22 +199,16 @@ pub struct SweepCurve {
     pub setup: &'static str,
     /// Median ξ over seeds at each level of [`SweepResult::levels`] (an estimate that could
     /// not be read counts as ∞).
-    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub median: Vec<f64>,
     /// 25 % quantile at each level.
-    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub q25: Vec<f64>,
     /// 75 % quantile at each level.
-    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub q75: Vec<f64>,
     /// Smallest ξ over seeds at each level.
-    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub min: Vec<f64>,
     /// Largest ξ over seeds at each level (the worst seed).
-    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub max: Vec<f64>,
     /// ξ per level, per seed (seed index order).
-    #[serde(serialize_with = "ser::nested_non_finite_as_null")]
     pub xi: Vec<Vec<f64>>,
     /// Samples the identifier refused, per level, summed over seeds.
     pub refused: Vec<u64>,
@@ -267,13 +251,10 @@ pub struct HalfCell {
     /// σ_w, % of σ_u.
     pub level: f64,
     /// Per seed: ξ of the wheel rows 1 and 3 (∞: no estimate).
-    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub wheel: Vec<f64>,
     /// Per seed: ξ of the body rows 5 and 7.
-    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub body: Vec<f64>,
     /// Per seed: the largest relative error over the 28 non-zero entries.
-    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub worst_entry: Vec<f64>,
     /// Samples refused, summed over seeds.
     pub refused: u64,
@@ -319,6 +300,51 @@ pub struct HalfResult {
     pub cpu_seconds: f64,
 }
 
+/// One scenario of Fig B-4 (beyond the thesis): per seed what the full car's monitor named
+/// first after the change, when, and how large.
+#[derive(Debug, Clone, Serialize)]
+pub struct FullRow {
+    /// The row label (the change).
+    pub label: &'static str,
+    /// The constant the monitor should name (`FullCar::CONSTANTS`; empty: no change).
+    pub expect: &'static str,
+    /// The true relative change of `expect`, %.
+    pub truth: f64,
+    /// Per seed, the constant named by the first event after the change (empty: none).
+    pub named: Vec<String>,
+    /// Per seed, that event's delay after the change, s (∞: none).
+    pub delay: Vec<f64>,
+    /// Per seed, its reported relative change, % (NaN: none).
+    pub change: Vec<f64>,
+    /// Events before the change over the seeds (the drive without a change: every event).
+    pub early: u64,
+}
+
+/// Fig B-4 (beyond the thesis, a table): the full car's health monitor, one change at a time.
+#[derive(Debug, Clone, Serialize)]
+pub struct FullResult {
+    /// `"B-4"`.
+    pub id: &'static str,
+    /// Caption.
+    pub title: &'static str,
+    /// Where it comes from: not from the thesis.
+    pub origin: &'static str,
+    /// Length of each drive, s.
+    pub seconds: f64,
+    /// When the constants change, s.
+    pub change_at: f64,
+    /// Seeds per row.
+    pub seeds: usize,
+    /// The simulation, the monitor and the seeds, one paragraph.
+    pub setup: String,
+    /// One row per scenario (the last: no change).
+    pub rows: Vec<FullRow>,
+    /// Its claims evaluated.
+    pub verdicts: Vec<Verdict>,
+    /// Wall time of its jobs summed over the worker threads, s.
+    pub cpu_seconds: f64,
+}
+
 /// One identifier of Fig B-3 on one road class: per constant and seed the estimate, its 95 %
 /// interval and its relative error, and their summaries over seeds.
 #[derive(Debug, Clone, Serialize)]
@@ -326,25 +352,18 @@ pub struct RoadsCell {
     /// The ISO 8608 class, `"A"` … `"E"`.
     pub class: &'static str,
     /// Per constant ([`RoadsResult::constants`] order), per seed: the estimate (NaN: none).
-    #[serde(serialize_with = "ser::nested_non_finite_as_null")]
     pub value: Vec<Vec<f64>>,
     /// Per constant, per seed: the lower end of the 95 % interval (NaN: none).
-    #[serde(serialize_with = "ser::nested_non_finite_as_null")]
     pub lo: Vec<Vec<f64>>,
     /// Per constant, per seed: the upper end of the 95 % interval (NaN: none).
-    #[serde(serialize_with = "ser::nested_non_finite_as_null")]
     pub hi: Vec<Vec<f64>>,
     /// Per constant, per seed: the relative error `|estimate / truth − 1|` (∞: no estimate).
-    #[serde(serialize_with = "ser::nested_non_finite_as_null")]
     pub rel_err: Vec<Vec<f64>>,
     /// Per constant: the median relative error over seeds.
-    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub median: Vec<f64>,
     /// Per constant: the smallest relative error over seeds.
-    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub min: Vec<f64>,
     /// Per constant: the largest relative error over seeds (the worst seed).
-    #[serde(serialize_with = "ser::non_finite_as_null")]
     pub max: Vec<f64>,
     /// Per constant: the seeds whose 95 % interval holds the true value.
     pub covered: Vec<usize>,
@@ -433,6 +452,9 @@ pub struct Report {
     /// [`Report::sweep`] for the binding; `vehid reproduce` draws it).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub real_roads: Option<RoadsResult>,
+    /// Fig B-4 (beyond the thesis): the full car's health monitor, when it ran.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub full_car: Option<FullResult>,
 }
 
 impl Report {
@@ -464,16 +486,6 @@ pub fn fmt_num(v: f64) -> String {
 /// The `serialize_with` helpers of the report's fields.
 mod ser {
     use serde::Serializer;
-
-    /// A float series with every non-finite value (NaN, ±∞) written as `None` (JSON `null`).
-    pub(super) fn non_finite_as_null<S: Serializer>(v: &[f64], s: S) -> Result<S::Ok, S::Error> {
-        s.collect_seq(v.iter().map(|x| x.is_finite().then_some(*x)))
-    }
-
-    /// Nested float series, every non-finite value written as `None`.
-    pub(super) fn nested_non_finite_as_null<S: Serializer>(v: &[Vec<f64>], s: S) -> Result<S::Ok, S::Error> {
-        s.collect_seq(v.iter().map(|row| row.iter().map(|x| x.is_finite().then_some(*x)).collect::<Vec<_>>()))
-    }
 
     /// A value as its `Debug` text.
     pub(super) fn debug_text<T: core::fmt::Debug, S: Serializer>(v: &T, s: S) -> Result<S::Ok, S::Error> {

@@ -15,6 +15,9 @@
 //!   (least squares, a white road assumed) and the real-road one (IV on the samples
 //!   differenced by the road's shaping filter), and the coverage of their 95 % intervals
 //!   ([`RoadsIdent`]); claims in [`ROADS_CLAIMS`].
+//! - **Fig B-4** (a table): the full car's health monitor ([`full`]'s module docs) on the
+//!   passenger full car, one change at one corner at a time ([`FULL_SCENARIOS`]): the constant
+//!   named, the delay, the reported size, false alarms; claims in [`FULL_CLAIMS`].
 //!
 //! Every realization derives from the run's base seed ([`crate::seeds`]); within a seed all
 //! methods see the same samples, and B-1's noise levels share the seed's noise realizations
@@ -24,6 +27,7 @@
 //! are blind; on common seeds the five classes would repeat one another's numbers.
 
 mod claims;
+pub mod full;
 mod half;
 mod quarter;
 mod render;
@@ -32,9 +36,11 @@ mod summary;
 mod tables;
 
 pub use claims::{HalfCheck, HalfClaim, Part, RoadsCheck, RoadsClaim, SweepCheck, SweepClaim};
+pub(crate) use full::{full_job, full_result, FullOutcome};
+pub use full::{full_numbers, full_verdicts, FullCheck, FullClaim, FullScenario, FULL_CLAIMS, FULL_ID, FULL_SCENARIOS};
 pub(crate) use half::{half_job, HalfXi};
 pub(crate) use quarter::{sweep_job, QuarterXi};
-pub use render::{markdown, roads_svg, sweep_svg};
+pub use render::markdown;
 pub(crate) use roads::{roads_job, RoadConstants};
 pub(crate) use summary::{class_letter, half_result, roads_result, sweep_result};
 pub use summary::{half_verdicts, roads_verdicts, sweep_verdicts, ORIGIN, ROADS_ORIGIN};
@@ -258,7 +264,7 @@ pub const HALF_EKF_NOT_RUN: &str = "JointEkf carries one road input per sample, 
 
 /// Whether `id` names a figure beyond the thesis.
 pub fn is_beyond(id: &str) -> bool {
-    matches!(id.trim(), SWEEP_ID | HALF_ID | ROADS_ID)
+    matches!(id.trim(), SWEEP_ID | HALF_ID | ROADS_ID | FULL_ID)
 }
 
 use vehid_core::sim::RoadClass;

@@ -5,7 +5,7 @@
 //! for the claims and their verdicts.
 
 use super::{HALF_ID, ROADS_ID, SWEEP_ID};
-use crate::report::{fmt_num, HalfResult, RoadsResult, SweepResult, Table, TableRow, Verdict};
+use crate::report::{fmt_num, FullResult, HalfResult, RoadsResult, SweepResult, Table, TableRow, Verdict};
 use crate::stats::median;
 
 /// The `thesis` column of a row that is vehid's claim, not the thesis'.
@@ -129,7 +129,12 @@ pub fn roads_numbers(r: &RoadsResult) -> String {
 }
 
 /// The tables of the figures that ran.
-pub fn tables(sweep: Option<&SweepResult>, half: Option<&HalfResult>, roads: Option<&RoadsResult>) -> Vec<Table> {
+pub fn tables(
+    sweep: Option<&SweepResult>,
+    half: Option<&HalfResult>,
+    roads: Option<&RoadsResult>,
+    full: Option<&FullResult>,
+) -> Vec<Table> {
     let mut out = vec![];
     if let Some(r) = sweep {
         out.push(Table {
@@ -149,6 +154,13 @@ pub fn tables(sweep: Option<&SweepResult>, half: Option<&HalfResult>, roads: Opt
         out.push(Table {
             title: format!("Fig {ROADS_ID}, beyond the thesis (not from Kessler 1986): {}", r.title),
             method: format!("{}. {} {}", r.origin, r.setup, roads_numbers(r)),
+            rows: r.verdicts.iter().map(row).collect(),
+        });
+    }
+    if let Some(r) = full {
+        out.push(Table {
+            title: format!("Fig {}, beyond the thesis (not from Kessler 1986): {}", super::FULL_ID, r.title),
+            method: format!("{}. {} {}", r.origin, r.setup, super::full_numbers(r)),
             rows: r.verdicts.iter().map(row).collect(),
         });
     }

@@ -101,6 +101,13 @@ pub fn run(opts: &RunOptions, progress: &(dyn Fn(Progress<'_>) + Sync)) -> crate
     let exps = if !opts.only.is_empty() && thesis_ids.is_empty() { vec![] } else { select(&thesis_ids)? };
     let wants = |id: &str| opts.only.is_empty() || beyond_ids.iter().any(|b| b.trim() == id);
     let (run_sweep, run_half, run_roads) = (wants(beyond::SWEEP_ID), wants(beyond::HALF_ID), wants(beyond::ROADS_ID));
+    let run_full = wants(beyond::FULL_ID);
+    let full_seconds = match opts.max_iterations {
+        // A cap on the iterations caps the drives' samples too (but keeps the change inside them).
+        Some(m) => (m.max(1) as f64 * beyond::full::FULL_DT)
+            .clamp(beyond::full::FULL_CHANGE_AT + 1.0, beyond::full::FULL_SECONDS),
+        None => beyond::full::FULL_SECONDS,
+    };
     let seeds = opts.seeds.unwrap_or(if opts.quick { 5 } else { 16 }).max(1);
     // The figures beyond the thesis keep at least MIN_SEEDS seeds unless `seeds` is given.
     let beyond_seeds = opts.seeds.unwrap_or(seeds.max(beyond::MIN_SEEDS)).max(1);
@@ -141,6 +148,12 @@ pub fn run(opts: &RunOptions, progress: &(dyn Fn(Progress<'_>) + Sync)) -> crate
             jobs.extend((0..beyond::ROAD_CLASSES.len()).map(|ci| Job::Roads(ci, s)));
         }
     }
+    let full_seeds = opts.seeds.unwrap_or(beyond::full::FULL_SEEDS).max(1);
+    if run_full {
+        for s in 0..full_seeds {
+            jobs.extend((0..beyond::FULL_SCENARIOS.len()).map(|ci| Job::Full(ci, s)));
+        }
+    }
     let cost = |j: &Job| match *j {
         Job::Curve(fi, _, _) => {
             let e = exps[fi];
@@ -149,6 +162,7 @@ pub fn run(opts: &RunOptions, progress: &(dyn Fn(Progress<'_>) + Sync)) -> crate
         Job::Sweep(..) => beyond_samples * 20,
         Job::Half(..) => beyond_samples * 30,
         Job::Roads(..) => roads_samples * 2,
+        Job::Full(..) => (full_seconds / beyond::full::FULL_DT) as usize,
     };
     jobs.sort_by_key(|j| core::cmp::Reverse(cost(j)));
     let results: Mutex<Vec<Slot>> = Mutex::new((0..jobs.len()).map(|_| None).collect());
@@ -180,6 +194,10 @@ pub fn run(opts: &RunOptions, progress: &(dyn Fn(Progress<'_>) + Sync)) -> crate
                         let seed = beyond_class_seed(opts.base_seed, beyond::ROADS_ID, ci, s);
                         let out = beyond::roads_job(beyond::ROAD_CLASSES[ci], roads_samples, seed);
                         (out.map(Out::Roads), beyond::ROADS_ID)
+                    }
+                    Job::Full(ci, s) => {
+                        let seed = beyond_class_seed(opts.base_seed, beyond::FULL_ID, ci, s);
+                        (beyond::full_job(ci, full_seconds, seed).map(Out::Full), beyond::FULL_ID)
                     }
                 };
                 results.lock().unwrap_or_else(|p| p.into_inner())[i] = Some((out, t0.elapsed().as_secs_f64()));
@@ -232,7 +250,8 @@ pub fn run(opts: &RunOptions, progress: &(dyn Fn(Progress<'_>) + Sync)) -> crate
         vec![vec![vec![]; beyond_seeds]; beyond::HALF_LEVELS.len()],
     );
     let mut roads_out = vec![vec![vec![]; beyond_seeds]; beyond::ROAD_CLASSES.len()];
-    let (mut sweep_cpu, mut half_cpu, mut roads_cpu) = (0.0, 0.0, 0.0);
+    let mut full_out = vec![vec![]; beyond::FULL_SCENARIOS.len()];
+    let (mut sweep_cpu, mut half_cpu, mut roads_cpu, mut full_cpu) = (0.0, 0.0, 0.0, 0.0);
     for (ji, j) in jobs.iter().enumerate() {
         match *j {
             Job::Sweep(li, s) => {
@@ -253,6 +272,12 @@ pub fn run(opts: &RunOptions, progress: &(dyn Fn(Progress<'_>) + Sync)) -> crate
                     roads_cpu += t;
                 }
             }
+            Job::Full(ci, s) => {
+                if let (Out::Full(v), t) = take(&mut results, ji)? {
+                    full_out[ci].push((s, v));
+                    full_cpu += t;
+                }
+            }
             Job::Curve(..) => {}
         }
     }
@@ -263,11 +288,21 @@ pub fn run(opts: &RunOptions, progress: &(dyn Fn(Progress<'_>) + Sync)) -> crate
         run_half.then(|| beyond::half_result(&beyond::HALF_LEVELS, &half_out, beyond_samples, half_cpu));
     let real_roads =
         run_roads.then(|| beyond::roads_result(&roads_out, roads_samples, beyond::ROADS_SAMPLES, roads_cpu));
+    let full_car = run_full.then(|| {
+        let by_seed: Vec<Vec<beyond::FullOutcome>> = full_out
+            .into_iter()
+            .map(|mut v| {
+                v.sort_by_key(|(s, _)| *s);
+                v.into_iter().map(|(_, o)| o).collect()
+            })
+            .collect();
+        beyond::full_result(&by_seed, full_seconds, full_cpu)
+    });
     let mut tables = match table_out {
         Some(t) => t?,
         None => vec![],
     };
-    tables.extend(beyond::tables(sweep.as_ref(), half_one_road.as_ref(), real_roads.as_ref()));
+    tables.extend(beyond::tables(sweep.as_ref(), half_one_road.as_ref(), real_roads.as_ref(), full_car.as_ref()));
     Ok(Report {
         quick: opts.quick,
         base_seed: opts.base_seed,
@@ -278,6 +313,7 @@ pub fn run(opts: &RunOptions, progress: &(dyn Fn(Progress<'_>) + Sync)) -> crate
         sweep,
         half_one_road,
         real_roads,
+        full_car,
     })
 }
 
@@ -292,12 +328,14 @@ enum Job {
     Half(usize, usize),
     /// Fig B-3's (road class, seed index).
     Roads(usize, usize),
+    /// Fig B-4's (scenario, seed index).
+    Full(usize, usize),
 }
 
 impl Job {
     fn seed(&self) -> usize {
         match *self {
-            Job::Curve(_, _, s) | Job::Sweep(_, s) | Job::Half(_, s) | Job::Roads(_, s) => s,
+            Job::Curve(_, _, s) | Job::Sweep(_, s) | Job::Half(_, s) | Job::Roads(_, s) | Job::Full(_, s) => s,
         }
     }
 }
@@ -311,6 +349,7 @@ enum Out {
     Sweep(Vec<beyond::QuarterXi>),
     Half(Vec<beyond::HalfXi>),
     Roads(Vec<beyond::RoadConstants>),
+    Full(beyond::FullOutcome),
 }
 
 /// Job `ji`'s output and its wall time, taken out of the results (each is read once).
