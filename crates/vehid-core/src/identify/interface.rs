@@ -390,3 +390,46 @@ where
         self
     }
 }
+
+/// Inside an `impl Identifier<T> for W`, the methods that read or reset the estimate, forwarded
+/// to the identifier `W` holds in its field `$inner`: `params_into`, `covariance_into`,
+/// `noise_into`, `residuals_into`, `groups_into`, `trace`, `reinit_count` and
+/// `reset_covariance`. For the wrappers that change what a sample does (the outlier screen, the
+/// road differencing, the boxed form) and not what the estimate is; each writes `dims`, `rows`,
+/// `update_into`, `samples` and whatever else it changes itself.
+macro_rules! forward_estimate {
+    ($inner:tt) => {
+        fn params_into(&self, out: &mut [T]) -> $crate::Result<()> {
+            self.$inner.params_into(out)
+        }
+
+        fn covariance_into(&self, out: &mut [T]) -> $crate::Result<()> {
+            self.$inner.covariance_into(out)
+        }
+
+        fn noise_into(&self, out: &mut [T]) -> $crate::Result<()> {
+            self.$inner.noise_into(out)
+        }
+
+        fn residuals_into(&self, ssr: &mut [T], nobs: &mut [T]) -> $crate::Result<()> {
+            self.$inner.residuals_into(ssr, nobs)
+        }
+
+        fn groups_into(&self, group_of_param: &mut [usize], group_of_eq: &mut [usize]) -> $crate::Result<()> {
+            self.$inner.groups_into(group_of_param, group_of_eq)
+        }
+
+        fn trace(&self) -> Option<T> {
+            self.$inner.trace()
+        }
+
+        fn reinit_count(&self) -> u32 {
+            self.$inner.reinit_count()
+        }
+
+        fn reset_covariance(&mut self, p0: T) -> $crate::Result<()> {
+            self.$inner.reset_covariance(p0)
+        }
+    };
+}
+pub(crate) use forward_estimate;

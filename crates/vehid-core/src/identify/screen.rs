@@ -585,41 +585,11 @@ impl<T: Real, I: Identifier<T> + Clone> Identifier<T> for Screened<T, I> {
         self.step(x, z, u, e)
     }
 
-    fn params_into(&self, out: &mut [T]) -> Result<()> {
-        self.inner.params_into(out)
-    }
+    super::interface::forward_estimate!(inner);
 
     /// Samples accepted: those passed on, held and screened.
     fn samples(&self) -> u64 {
         self.state.seen
-    }
-
-    fn covariance_into(&self, out: &mut [T]) -> Result<()> {
-        self.inner.covariance_into(out)
-    }
-
-    fn noise_into(&self, out: &mut [T]) -> Result<()> {
-        self.inner.noise_into(out)
-    }
-
-    fn residuals_into(&self, ssr: &mut [T], nobs: &mut [T]) -> Result<()> {
-        self.inner.residuals_into(ssr, nobs)
-    }
-
-    fn groups_into(&self, group_of_param: &mut [usize], group_of_eq: &mut [usize]) -> Result<()> {
-        self.inner.groups_into(group_of_param, group_of_eq)
-    }
-
-    fn trace(&self) -> Option<T> {
-        self.inner.trace()
-    }
-
-    fn reinit_count(&self) -> u32 {
-        self.inner.reinit_count()
-    }
-
-    fn reset_covariance(&mut self, p0: T) -> Result<()> {
-        self.inner.reset_covariance(p0)
     }
 
     /// The sample is the identifier's to skip (an outer wrapper left it out).

@@ -43,40 +43,10 @@ impl<T: Real> Identifier<T> for BoxedIdentifier<T> {
         self.0.update_into(x, z, u, e)
     }
 
-    fn params_into(&self, out: &mut [T]) -> Result<()> {
-        self.0.params_into(out)
-    }
+    super::super::interface::forward_estimate!(0);
 
     fn samples(&self) -> u64 {
         self.0.samples()
-    }
-
-    fn covariance_into(&self, out: &mut [T]) -> Result<()> {
-        self.0.covariance_into(out)
-    }
-
-    fn noise_into(&self, out: &mut [T]) -> Result<()> {
-        self.0.noise_into(out)
-    }
-
-    fn residuals_into(&self, ssr: &mut [T], nobs: &mut [T]) -> Result<()> {
-        self.0.residuals_into(ssr, nobs)
-    }
-
-    fn groups_into(&self, group_of_param: &mut [usize], group_of_eq: &mut [usize]) -> Result<()> {
-        self.0.groups_into(group_of_param, group_of_eq)
-    }
-
-    fn trace(&self) -> Option<T> {
-        self.0.trace()
-    }
-
-    fn reinit_count(&self) -> u32 {
-        self.0.reinit_count()
-    }
-
-    fn reset_covariance(&mut self, p0: T) -> Result<()> {
-        self.0.reset_covariance(p0)
     }
 
     fn gated_into(&self, out: &mut [u64]) -> Result<()> {
