@@ -561,12 +561,12 @@ fn r_arg(
             let dn = values(dn, "deriv_noise", 0.0)?;
             m.row_noise_var_vec(&rs, &dn)
         }
-        // The exact start's estimate does not depend on r: 1 per row expresses P = (XᵀX)⁻¹.
-        (None, None, None) if exact => Ok(vec![1.0]),
-        (None, None, None) => Err(VehidError::new_err(
-            "give the regression-error variances: `r=` (one per unknown row) or `road_sigma=` and `deriv_noise=` \
+        (None, None, None) => vehid_runtime::defaults::kalman_r(exact).ok_or_else(|| {
+            VehidError::new_err(
+                "give the regression-error variances: `r=` (one per unknown row) or `road_sigma=` and `deriv_noise=` \
              to compute them from the model (Eq 4.7)",
-        )),
+            )
+        }),
         _ => Err(VehidError::new_err("give either `r=` or `road_sigma=`/`deriv_noise=`, not both")),
     }
 }

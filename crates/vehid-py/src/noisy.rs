@@ -54,7 +54,7 @@ impl<'py> Target<'py> {
 
 /// `r`: a scalar or one per identified equation (default 1).
 fn r_arg(r: Option<&Bound<'_, PyAny>>, ne: usize) -> PyResult<Vec<f64>> {
-    let Some(r) = r else { return Ok(vec![1.0]) };
+    let Some(r) = r else { return Ok(vec![vehid_runtime::defaults::NOISY_R]) };
     let a = array(r, "r")?;
     finite("r", &a.data)?;
     if !(a.shape.is_empty() || a.shape == [ne]) {

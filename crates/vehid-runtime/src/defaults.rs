@@ -21,6 +21,19 @@ pub const ROAD_SIGMA: f64 = 0.1;
 /// (Ch. III.C), in the state's units per second.
 pub const DERIV_NOISE: f64 = 0.005;
 
+/// The regression-error variances `r` of a Kalman identifier whose caller gave neither `r` nor
+/// the noise levels to compute it from (Eq 4.7): with the exact start (`exact`: no prior), 1
+/// per row, which leaves the estimate as it is (least squares: the exact start's estimate does
+/// not depend on `r`) and makes `P = (XᵀX)⁻¹`; with a prior none (`None`: the estimate weighs
+/// the prior against the data by `r`, which only the caller knows).
+pub fn kalman_r(exact: bool) -> Option<Vec<f64>> {
+    exact.then(|| vec![1.0])
+}
+
+/// The equation-error variance `r` of each equation of the instrumental-variable and
+/// bias-compensated identifiers when the caller gives none: 1 (every equation weighed alike).
+pub const NOISY_R: f64 = 1.0;
+
 /// The refined instruments' past samples (`lags`) of the instrumental-variable identifiers
 /// for samples of `width` values: 6 (what the quarter car's full rows need at 8 % state
 /// noise), fewer when the samples are wide, so that the predictor fits in [`PREDICTOR`].
