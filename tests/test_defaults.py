@@ -76,3 +76,15 @@ def test_an_identifier_without_the_arguments_is_the_one_with_the_defaults() -> N
     assert np.array_equal(ids[0].theta, ids[1].theta)
     # A different road_sigma is a different identifier (the comparison above can fail).
     assert not np.array_equal(ids[0].theta, ids[2].theta)
+
+
+def test_the_kalman_identifiers_r_default_is_one_from_the_exact_start_and_none_with_a_prior() -> None:
+    car = vehid.QuarterCar()
+    run = vehid.Simulator(car, seed=3).run(2000)
+    exact, unit = vehid.KalmanIdentifier(car), vehid.KalmanIdentifier(car, r=1.0)
+    exact.fit(run.x, run.xdot)
+    unit.fit(run.x, run.xdot)
+    assert np.array_equal(exact.theta, unit.theta) and np.array_equal(exact.covariance, unit.covariance)
+    # With a prior the estimate weighs it against the data by r: no default, an error naming the ways to give it.
+    with pytest.raises(ValueError, match="`r=`.*`road_sigma=`"):
+        vehid.KalmanIdentifier(car, p0=100.0)
