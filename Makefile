@@ -147,11 +147,9 @@ test-rust:
 
 # The AVX2 and portable updates must agree to the bit where it matters: optimized code. Built
 # with vehid-py in the same selection, so that the dependencies resolve to the features of
-# the extension's release build and are not compiled a second time; without vehid-core's
-# default feature, which the extension does not ask for: `default` in its feature set made
-# vehid-core itself a second release build here (47 s on the critical path of `make test`).
+# the extension's release build and are not compiled a second time.
 test-python: develop
-	$(CARGO) test --release -p vehid-core -p vehid-py --no-default-features --features vehid-core/std --test simd_paths
+	$(CARGO) test --release -p vehid-core -p vehid-py --test simd_paths
 	$(VBIN)/python -m pytest -q -n auto tests
 	$(VBIN)/python -m mypy.stubtest vehid._vehid
 	$(VBIN)/python -m mypy python/vehid
