@@ -915,4 +915,30 @@ mod tests {
             }
         }
     }
+
+    /// The magnitude test alone (IV: no residual test) screens a value beyond κ² = 36 times its
+    /// channel's root mean square so far and passes one within it: a wheel position 40 times
+    /// its RMS over the first 10⁴ samples (computed here) is screened, 30 times is not.
+    #[test]
+    fn the_magnitude_test_screens_beyond_kappa_squared_times_the_rms() {
+        let s = Structure::full_rows(4, &[1, 3]).unwrap();
+        let data = run(7);
+        let rms = (data.x[..GOOD].iter().map(|x| x[0] * x[0]).sum::<f64>() / GOOD as f64).sqrt();
+        for (times, screened) in [(40.0, true), (30.0, false)] {
+            let mut id = screened_iv(&s);
+            let mut e = [0.0; 2];
+            for k in 0..GOOD {
+                id.update_into(&data.x[k], &data.z[k], &[], &mut e).unwrap();
+            }
+            let before = id.screened();
+            let mut x = data.x[GOOD];
+            x[0] = times * rms;
+            id.update_into(&x, &data.z[GOOD], &[], &mut e).unwrap();
+            assert_eq!(id.screened() - before, u64::from(screened), "{times} × RMS");
+        }
+    }
+
+    fn screened_iv(s: &Structure<f64>) -> Screened<f64, BoxedIdentifier<f64>> {
+        screened(iv, s, 6.0)
+    }
 }
