@@ -1,8 +1,7 @@
-//! Fig B-1, B-2 and B-3 as report tables: the claims as rows (with the verdict), the numbers in
-//! the table's text. This is the form a renderer that draws only figures of ξ against
-//! iterations can show; [`super::render`] draws B-1 against σ_w (SVG), and so does the
-//! Python report (`vehid reproduce`, from [`crate::Report::sweep`]), which keeps these tables
-//! for the claims and their verdicts.
+//! Fig B-1 to B-4 as report tables: the claims as rows (with the verdict), the numbers in the
+//! table's text. The Python report (`vehid reproduce`) draws the figures and their tables from
+//! the report's fields ([`crate::Report::sweep`] and the others) and shows these tables for the
+//! claims and their verdicts; the `beyond` example prints them.
 
 use super::{HALF_ID, ROADS_ID, SWEEP_ID};
 use crate::report::{fmt_num, FullResult, HalfResult, RoadsResult, SweepResult, Table, TableRow, Verdict};
