@@ -941,4 +941,24 @@ mod tests {
     fn screened_iv(s: &Structure<f64>) -> Screened<f64, BoxedIdentifier<f64>> {
         screened(iv, s, 6.0)
     }
+
+    /// The residual scale `σ̂² = Σe²/(nobs − p)` counts exactly the samples that had a residual,
+    /// those after the estimate was first read: samples before it (or, for an identifier whose
+    /// estimate the screen never reads, all of them) would add zero residuals and shrink σ̂.
+    #[test]
+    fn the_residual_scale_counts_only_samples_with_a_residual() {
+        let s = Structure::full_rows(4, &[1, 3]).unwrap();
+        let data = run(8);
+        for build in [batch as Build, iv] {
+            let mut id = screened(build, &s, 6.0);
+            let mut e = [0.0; 2];
+            let mut with_residual = 0u32;
+            for k in 0..2_000 {
+                with_residual += u32::from(id.state.have);
+                id.update_into(&data.x[k], &data.z[k], &[], &mut e).unwrap();
+            }
+            assert_eq!(id.screened(), 0);
+            assert_eq!(id.state.nobs, f64::from(with_residual));
+        }
+    }
 }
