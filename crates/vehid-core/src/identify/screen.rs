@@ -961,4 +961,33 @@ mod tests {
             assert_eq!(id.state.nobs, f64::from(with_residual));
         }
     }
+
+    /// An outlier among the start's held samples is found when they are judged and the
+    /// identifier restarts from the others, as they were: the estimate after the run is the
+    /// clean run's, bit for bit.
+    #[test]
+    fn an_outlier_in_the_start_leaves_the_clean_runs_estimate() {
+        let s = Structure::full_rows(4, &[1, 3]).unwrap();
+        let data = run(9);
+        for build in [batch as Build, bc] {
+            let fit = |bad: bool| {
+                let mut id = screened(build, &s, 6.0);
+                let mut e = [0.0; 2];
+                for k in 0..3_000 {
+                    if bad && k == 5 {
+                        let mut x = data.x[k];
+                        x[1] = 1e6;
+                        id.update_into(&x, &data.z[k], &[], &mut e).unwrap();
+                    }
+                    id.update_into(&data.x[k], &data.z[k], &[], &mut e).unwrap();
+                }
+                let mut p = [0.0; 8];
+                id.params_into(&mut p).unwrap();
+                (p.map(f64::to_bits), id.screened())
+            };
+            let ((clean, n0), (with, n1)) = (fit(false), fit(true));
+            assert_eq!((n0, n1), (0, 1));
+            assert_eq!(with, clean);
+        }
+    }
 }
