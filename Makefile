@@ -74,7 +74,7 @@ develop: venv
 	rm -f python/vehid/*.so python/vehid/*.pyd
 	@echo "develop: building the extension (release, linted; the first build compiles the dependencies, then"
 	@echo "develop: vehid-runtime and vehid-py, each several minutes on two cores with no output while they compile)"
-	env -u CONDA_PREFIX VIRTUAL_ENV="$(abspath $(VENV))" PIP_QUIET=1 $(VBIN)/maturin develop --release
+	env -u CONDA_PREFIX VIRTUAL_ENV="$(abspath $(VENV))" PIP_QUIET=1 $(VBIN)/maturin develop --release $(MATURIN_FLAGS)
 
 # The plot extra (vehid[plot] = matplotlib) into the same venv, then the quick reproduction.
 demo: develop
@@ -147,9 +147,12 @@ test-rust:
 
 # The AVX2 and portable updates must agree to the bit where it matters: optimized code. Built
 # with vehid-py in the same selection, so that the dependencies resolve to the features of
-# the extension's release build and are not compiled a second time.
+# the extension's release build and are not compiled a second time. vehid-core's features
+# must be the extension's too (its default feature off: the extension does not ask for it, and
+# the crate's dev-dependency on itself says `default-features = false`): with `default` in the
+# set vehid-core itself was a second release build (48 s on the critical path of `make test`).
 test-python: develop
-	$(CARGO) test --release -p vehid-core -p vehid-py --test simd_paths
+	$(CARGO) test --release -p vehid-core -p vehid-py --no-default-features --features vehid-core/std --test simd_paths
 	$(VBIN)/python -m pytest -q -n auto tests
 	$(VBIN)/python -m mypy.stubtest vehid._vehid
 	$(VBIN)/python -m mypy python/vehid
