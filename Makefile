@@ -1,14 +1,14 @@
 # Developer entry points. Assumes only python3, cargo and access to PyPI / crates.io.
 #   make venv     .venv with maturin, numpy, pytest, pytest-xdist, mypy, ruff, scipy (tests: derivatives, t quantiles),
 #                 matplotlib and pyarrow (the plot and parquet extras, tested) (from PyPI)
-#   make develop  build the extension (release) into .venv, editable
+#   make develop  build the extension (release; VEHID_CARGO_PROFILE=ci as `test` and `demo` build it) into .venv, editable
 #   make demo     build with the plot extra (matplotlib), reproduce the thesis (--quick) into report/, print its path
 #   make docs     the documentation site into site/ (open site/index.html): mkdocs-material with the
 #                 tools pinned in docs/requirements.txt, every page's examples run at build time,
 #                 the Python API from the docstrings, rustdoc (cargo doc) under site/rustdoc/, the
 #                 thesis-equation index generated from the sources; --strict: any warning fails it
 #   make test     lint, every Rust test (unit, integration, bins, benches in test mode, examples,
-#                 doctests), the no_std build, the release-mode SIMD bit check, pytest on the fresh
+#                 doctests), the no_std build, the optimized-code SIMD bit check, pytest on the fresh
 #                 extension, stub check (clippy -D warnings runs inside those builds: see `test:`)
 #   make lint     cargo fmt --check, clippy -D warnings, ruff (`make test` lints the same, in its builds)
 #   make install-check  `pip install .` into a fresh venv in a temp dir (the pyproject backend
@@ -68,13 +68,21 @@ $(VENV)/.installed: Makefile
 	$(VBIN)/python -m pip install --quiet maturin numpy pytest pytest-xdist mypy ruff scipy statsmodels matplotlib pyarrow "dask[distributed]" rosbags
 	touch $@
 
+# The Cargo profile of the extension: release, but `make test` and `make demo` build the `ci`
+# profile (Cargo.toml: the release profile with vehid-runtime, the size table's crate, at
+# opt-level 1: the same results bit for bit, about half the CPU to compile, slower per sample).
+# The scripts that build Rust binaries for the tests (the golden θ, the callgrind gate's own
+# test) read it too, so that they reuse that build. What is timed uses release.
+VEHID_CARGO_PROFILE ?= release
+export VEHID_CARGO_PROFILE
+
 # A stale extension module in python/vehid/ would shadow the fresh build: remove it first.
 # Cargo's progress is shown (the first build takes minutes); pip stays quiet (PIP_QUIET).
 develop: venv
 	rm -f python/vehid/*.so python/vehid/*.pyd
-	@echo "develop: building the extension (release, linted; the first build compiles the dependencies, then"
+	@echo "develop: building the extension (profile $(VEHID_CARGO_PROFILE), linted; the first build compiles the dependencies, then"
 	@echo "develop: vehid-runtime and vehid-py, each several minutes on two cores with no output while they compile)"
-	env -u CONDA_PREFIX VIRTUAL_ENV="$(abspath $(VENV))" PIP_QUIET=1 $(VBIN)/maturin develop --release $(MATURIN_FLAGS)
+	env -u CONDA_PREFIX VIRTUAL_ENV="$(abspath $(VENV))" PIP_QUIET=1 $(VBIN)/maturin develop --profile $(VEHID_CARGO_PROFILE) $(MATURIN_FLAGS)
 
 # The plot extra (vehid[plot] = matplotlib) into the same venv, then the quick reproduction.
 demo: develop
@@ -96,7 +104,7 @@ docs: develop
 # are compiled by rustc as always) with `-D warnings` (CLIPPY_ARGS, clippy's own way of passing
 # its arguments). So every workspace target is linted while it is compiled for its test: the
 # library, tests, bins, benches and examples in test-rust, the no_std build, and vehid-py in the
-# extension's release build. A separate `cargo clippy` would check the whole dependency tree a
+# extension's build. A separate `cargo clippy` would check the whole dependency tree a
 # third time (about 2 minutes of a clean `make test` here). `make lint` still runs it on its own.
 # The wrapper is part of cargo's fingerprint of the workspace crates, so `develop` (and with it
 # `make demo`) compiles the extension the same way when clippy is installed: `make demo` then
@@ -104,7 +112,7 @@ docs: develop
 # `develop` uses rustc alone (`make test` then needs clippy, and rebuilds the workspace crates).
 #
 # The two builds run side by side: the Rust tests' (test profile, target/debug) and the
-# extension's (release, target/release), each followed by what uses it. Cargo locks each
+# extension's (the `ci` profile, target/ci), each followed by what uses it. Cargo locks each
 # profile's directory on its own, so they do not wait for each other. Each cargo runs as many
 # compilers as there are cores, so the serial stretches of one build (one large crate, a
 # link, single-threaded tests) leave no core idle while the other has work. (Sharing make's
@@ -119,6 +127,7 @@ docs: develop
 # edit-test loop may want it back: `CARGO_INCREMENTAL=1 make test`.
 CLIPPY_ARGS_DENY := -D__CLIPPY_HACKERY__warnings__CLIPPY_HACKERY__
 test: export CARGO_INCREMENTAL ?= 0
+test demo: export VEHID_CARGO_PROFILE := ci
 test: export RUSTC_WORKSPACE_WRAPPER := clippy-driver
 test: export CLIPPY_ARGS := $(CLIPPY_ARGS_DENY)
 develop: export RUSTC_WORKSPACE_WRAPPER := $(shell command -v clippy-driver >/dev/null 2>&1 && echo clippy-driver)
@@ -127,8 +136,8 @@ test:
 	@$(MAKE) --no-print-directory -j2 lint-fast test-rust test-python
 
 # Every check compiles with one feature set per profile, so each dependency is built once per
-# profile: the test profile here, the release profile for the extension (shared with the
-# release-mode check below).
+# profile: the test profile here, the extension's profile (`ci` in `make test`), shared with
+# the SIMD check below.
 lint: lint-fast
 	$(CARGO) clippy --workspace --all-targets -- -D warnings
 
@@ -140,19 +149,20 @@ lint-fast: venv
 # checks them and `develop` builds them; the runtime's 16 x 4 size table would only be compiled
 # once more, unoptimized, for a test harness.
 test-rust:
-	$(CARGO) test --workspace --exclude vehid-py --exclude vehid-runtime --tests --benches --examples
+	$(CARGO) test --workspace --exclude vehid-py --exclude vehid-runtime --tests --benches --examples $(CARGO_TEST_FLAGS)
 	$(CARGO) test --workspace --exclude vehid-py --exclude vehid-runtime --doc
 	$(CARGO) check -p vehid-core --no-default-features
 	$(CARGO) check -p vehid-core --no-default-features --features persist
 
-# The AVX2 and portable updates must agree to the bit where it matters: optimized code. Built
+# The AVX2 and portable updates must agree to the bit where it matters: optimized code (the
+# `ci` profile compiles vehid-core and this test at opt-level 3, as release does). Built
 # with vehid-py in the same selection, so that the dependencies resolve to the features of
-# the extension's release build and are not compiled a second time. vehid-core's features
+# the extension's build and are not compiled a second time. vehid-core's features
 # must be the extension's too (its default feature off: the extension does not ask for it, and
 # the crate's dev-dependency on itself says `default-features = false`): with `default` in the
-# set vehid-core itself was a second release build (48 s on the critical path of `make test`).
+# set vehid-core itself was compiled a second time (48 s on the critical path of `make test`).
 test-python: develop
-	$(CARGO) test --release -p vehid-core -p vehid-py --no-default-features --features vehid-core/std --test simd_paths
+	$(CARGO) test --profile $(VEHID_CARGO_PROFILE) -p vehid-core -p vehid-py --no-default-features --features vehid-core/std --test simd_paths
 	$(VBIN)/python -m pytest -q -n auto tests
 	$(VBIN)/python -m mypy.stubtest vehid._vehid
 	$(VBIN)/python -m mypy python/vehid

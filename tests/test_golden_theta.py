@@ -8,6 +8,7 @@ test`` does that first). Skipped when ``cargo`` is not on PATH.
 """
 
 import json
+import os
 import shutil
 import subprocess
 from pathlib import Path
@@ -32,10 +33,13 @@ def python_bits(seed: int, n: int) -> list[str]:
 @pytest.mark.skipif(shutil.which("cargo") is None, reason="cargo is not on PATH")
 def test_theta_matches_rust_bit_for_bit() -> None:
     # Built with vehid-py in the selection, as benches/callgrind_check.py builds its binaries:
-    # the dependencies then resolve to the extension's features and its release build serves
-    # (a `cargo run -p vehid-benches` alone would compile vehid-core and its dependencies again).
+    # the dependencies then resolve to the extension's features and its build serves (a `cargo
+    # run -p vehid-benches` alone would compile vehid-core and its dependencies again), in the
+    # extension's profile (`make test`: ci, whose vehid-runtime, through which Python's fit runs,
+    # is compiled at opt-level 1: the bits must not depend on it; this binary does not use it).
+    profile = os.environ.get("VEHID_CARGO_PROFILE", "release")
     built = subprocess.run(
-        ["cargo", "build", "-q", "--release", "-p", "vehid-benches", "-p", "vehid-py", "--bin", "theta_golden",
+        ["cargo", "build", "-q", "--profile", profile, "-p", "vehid-benches", "-p", "vehid-py", "--bin", "theta_golden",
          "--message-format=json-render-diagnostics"],
         cwd=ROOT, capture_output=True, text=True, timeout=3600,
     )
