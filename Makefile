@@ -52,7 +52,7 @@ VENV   := .venv
 VBIN   := $(VENV)/bin
 CARGO  ?= cargo
 
-.PHONY: venv develop demo docs test lint lint-fast test-rust test-simd test-python install-check wheel-check bench-python bench-fit bench-peers bench-budgets bench-check bench-check-update soak fuzz mutants mutants-uncovered clean
+.PHONY: venv develop demo docs test lint lint-fast test-rust test-python install-check wheel-check bench-python bench-fit bench-peers bench-budgets bench-check bench-check-update soak fuzz mutants mutants-uncovered clean
 
 venv: $(VENV)/.installed
 
@@ -133,7 +133,7 @@ test: export CLIPPY_ARGS := $(CLIPPY_ARGS_DENY)
 develop: export RUSTC_WORKSPACE_WRAPPER := $(shell command -v clippy-driver >/dev/null 2>&1 && echo clippy-driver)
 develop: export CLIPPY_ARGS := $(CLIPPY_ARGS_DENY)
 test:
-	@$(MAKE) --no-print-directory -j3 lint-fast test-rust test-simd test-python
+	@$(MAKE) --no-print-directory -j2 lint-fast test-rust test-python
 
 # Every check compiles with one feature set per profile, so each dependency is built once per
 # profile: the test profile here, the extension's profile (`ci` in `make test`), shared with
@@ -161,13 +161,8 @@ test-rust:
 # must be the extension's too (its default feature off: the extension does not ask for it, and
 # the crate's dev-dependency on itself says `default-features = false`): with `default` in the
 # set vehid-core itself was compiled a second time (48 s on the critical path of `make test`).
-# It runs beside pytest (make -j3 above: each cargo and pytest use every core whatever make's
-# job count, so the third job only fills what would be idle), not before it: a minute of
-# compiling that was the last serial stretch of `make test`.
-test-simd: develop
-	$(CARGO) test --profile $(VEHID_CARGO_PROFILE) -p vehid-core -p vehid-py --no-default-features --features vehid-core/std --test simd_paths
-
 test-python: develop
+	$(CARGO) test --profile $(VEHID_CARGO_PROFILE) -p vehid-core -p vehid-py --no-default-features --features vehid-core/std --test simd_paths
 	$(VBIN)/python -m pytest -q -n auto tests
 	$(VBIN)/python -m mypy.stubtest vehid._vehid
 	$(VBIN)/python -m mypy python/vehid
