@@ -10,6 +10,8 @@
 #   make test     lint, every Rust test (unit, integration, bins, benches in test mode, examples,
 #                 doctests), the no_std build, the optimized-code SIMD bit check, pytest on the fresh
 #                 extension, stub check (clippy -D warnings runs inside those builds: see `test:`)
+#                 (MATURIN_FLAGS=... and CARGO_TEST_FLAGS=... pass options to the extension's and the Rust
+#                 tests' builds, e.g. --timings for cargo's report of where the compile goes)
 #   make lint     cargo fmt --check, clippy -D warnings, ruff (`make test` lints the same, in its builds)
 #   make install-check  `pip install .` into a fresh venv in a temp dir (the pyproject backend
 #                 builds through maturin), then `vehid --help` and `vehid simulate | vehid

@@ -192,24 +192,25 @@ def per_update(binary: Path, bench: str, n: int) -> float:
     return (instructions(binary, bench, n) - instructions(binary, bench, 0)) / n
 
 
-def build() -> Dict[str, Path]:
-    """Builds count_updates and the other counting binaries (release) and returns the
-    executables cargo reports for them, by name: the hashed paths of this checkout's build, not
-    ``target/release/count_updates``, which another checkout sharing the target directory
-    (``CARGO_TARGET_DIR``) may have overwritten."""
+def build_bins(names: Sequence[str], timeout: Optional[float] = None) -> Dict[str, Path]:
+    """Builds the vehid-benches binaries ``names`` in ``PROFILE`` and returns the executables
+    cargo reports for them, by name: the hashed paths of this checkout's build, not
+    ``target/<profile>/<name>``, which another checkout sharing the target directory
+    (``CARGO_TARGET_DIR``) may have overwritten. (The golden-θ test builds its binary here too.)"""
     cargo = os.environ.get("CARGO", "cargo")
-    names = ["count_updates", *sorted(set(OTHER_BINARIES.values()))]
     # vehid-py in the selection only resolves the dependencies' features as the extension's
-    # release build does (numpy turns on num-traits' and num-complex's defaults), so that
-    # vehid-core and its dependencies are that build's artifacts and not compiled a second
-    # time; with `--bin` filtering the targets, vehid-py itself is not built.
+    # build does (numpy turns on num-traits' and num-complex's defaults), so that vehid-core
+    # and its dependencies are that build's artifacts and not compiled a second time; with
+    # `--bin` filtering the targets, vehid-py itself is not built.
     cmd = [cargo, "build", "--quiet", "--profile", PROFILE, "-p", "vehid-benches", "-p", "vehid-py"]
     for name in names:
         cmd += ["--bin", name]
-    out = subprocess.run(cmd + ["--message-format=json-render-diagnostics"],
-                         cwd=ROOT, check=True, capture_output=True, text=True).stdout
+    proc = subprocess.run(cmd + ["--message-format=json-render-diagnostics"],
+                          cwd=ROOT, capture_output=True, text=True, timeout=timeout)
+    if proc.returncode != 0:
+        raise SystemExit(f"callgrind_check: {' '.join(cmd)} failed ({proc.returncode}):\n{proc.stderr[-4000:]}")
     found: Dict[str, Path] = {}
-    for line in out.splitlines():
+    for line in proc.stdout.splitlines():
         msg = json.loads(line)
         name = msg.get("target", {}).get("name")
         if msg.get("reason") == "compiler-artifact" and name in names and msg.get("executable"):
@@ -218,6 +219,11 @@ def build() -> Dict[str, Path]:
     if missing:
         raise SystemExit(f"callgrind_check: cargo did not report the executable of {', '.join(missing)}")
     return found
+
+
+def build() -> Dict[str, Path]:
+    """Builds count_updates and the other counting binaries (``build_bins``)."""
+    return build_bins(["count_updates", *sorted(set(OTHER_BINARIES.values()))])
 
 
 def binary_for(bench: str, binaries: Mapping[str, Path]) -> Path:

@@ -7,18 +7,15 @@ patterns. The extension must be built from the same core sources (``make develop
 test`` does that first). Skipped when ``cargo`` is not on PATH.
 """
 
-import json
-import os
 import shutil
 import subprocess
-from pathlib import Path
 
 import numpy as np
 import pytest
+from bench_scripts import load  # tests/ is on sys.path under pytest
 
 import vehid
 
-ROOT = Path(__file__).resolve().parents[1]
 SEED, N = 7, 5000
 
 
@@ -32,22 +29,12 @@ def python_bits(seed: int, n: int) -> list[str]:
 
 @pytest.mark.skipif(shutil.which("cargo") is None, reason="cargo is not on PATH")
 def test_theta_matches_rust_bit_for_bit() -> None:
-    # Built with vehid-py in the selection, as benches/callgrind_check.py builds its binaries:
-    # the dependencies then resolve to the extension's features and its build serves (a `cargo
-    # run -p vehid-benches` alone would compile vehid-core and its dependencies again), in the
-    # extension's profile (`make test`: ci, whose vehid-runtime, through which Python's fit runs,
-    # is compiled at opt-level 1: the bits must not depend on it; this binary does not use it).
-    profile = os.environ.get("VEHID_CARGO_PROFILE", "release")
-    built = subprocess.run(
-        ["cargo", "build", "-q", "--profile", profile, "-p", "vehid-benches", "-p", "vehid-py", "--bin", "theta_golden",
-         "--message-format=json-render-diagnostics"],
-        cwd=ROOT, capture_output=True, text=True, timeout=3600,
-    )
-    assert built.returncode == 0, built.stderr
-    exe = [m["executable"] for m in map(json.loads, built.stdout.splitlines())
-           if m.get("reason") == "compiler-artifact" and m["target"]["name"] == "theta_golden" and m.get("executable")]
-    assert len(exe) == 1, built.stdout
-    done = subprocess.run([exe[0], str(SEED), str(N)], capture_output=True, text=True, timeout=600)
+    # Built as benches/callgrind_check.py builds its binaries, in the extension's profile and with
+    # its dependencies' features, so the extension's build serves (`make test`: ci, whose
+    # vehid-runtime, through which Python's fit runs, is compiled at opt-level 1: the bits must
+    # not depend on it; this binary does not use it).
+    exe = load("callgrind_check").build_bins(["theta_golden"], timeout=3600)["theta_golden"]
+    done = subprocess.run([exe, str(SEED), str(N)], capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr
     rust = done.stdout.split()
     assert len(rust) == 8, done.stdout
