@@ -208,3 +208,55 @@ def test_constants_back_from_identified_rows() -> None:
         car.physical(theta)
     with pytest.raises(vehid.VehidError, match="no physical structure yet"):
         car.structure(known=masses)
+
+
+def cancelled_lstsq(run: vehid.Run, front: int, rear: int, rho: float, d: int) -> tuple[np.ndarray, np.ndarray]:
+    """One track's road cancellation by numpy: z_rear(k) - rho z_front(k-d) regressed on
+    [x(k), -rho x(k-d)] by least squares; the rear and the front row."""
+    x, z = run.x, run.xdot
+    h = np.hstack([x[d:], -rho * x[:-d]])
+    y = z[d:, rear] - rho * z[:-d, front]
+    sol = np.linalg.lstsq(h, y, rcond=None)[0]
+    n = x.shape[1]
+    return sol[:n], sol[n:]
+
+
+def test_two_tracks_road_cancellation_on_an_iso_road() -> None:
+    # ISO 8608 class C at 20 m/s, sampled every 5 ms (0.1 m: the rear wheels 31 samples behind),
+    # the true state: each track's wheel rows by road cancellation, every non-zero entry of the
+    # seven unknown rows within 5 % (and the same as numpy's least squares on the cancelled
+    # equations), the constants back through physical(); the plain rows are far off.
+    car = vehid.FullCar.passenger()
+    v = 20.0
+    run = vehid.Simulator(car, dt=DT, road="iso8608-C", speed=v, sensors="state", seed=31).run(20_000)
+    two = vehid.TwoAxleIdentifier(car, spacing=v * DT, direct_front=False)
+    two.fit(run.x, run.xdot)
+    assert (two.delay, two.paired) == (31, 20_000 - 31)
+    rows = list(car.unknown_rows)
+    nz = car.a[rows] != 0
+    err = np.abs(two.a_hat[rows][nz] / car.a[rows][nz] - 1)
+    assert err.max() < 0.05, err.max()
+    b = car.b
+    for j, (front, rear) in enumerate([(1, 5), (3, 7)]):  # left track, right track
+        rho = b[rear, 2 + j] / b[front, j]
+        a_rear, a_front = cancelled_lstsq(run, front, rear, rho, 31)
+        np.testing.assert_allclose(two.a_hat[rear], a_rear, rtol=1e-4, atol=1e-4 * np.abs(a_rear).max())
+        np.testing.assert_allclose(two.a_hat[front], a_front, rtol=1e-4, atol=1e-4 * np.abs(a_front).max())
+    masses = {f"m_{c}": car.params[f"m_{c}"] for c in CORNERS}
+    est = car.physical(two.theta, **masses)
+    for k, val in car.params.items():
+        if not k.startswith("arb"):
+            assert est[k] == pytest.approx(val, rel=0.02), (k, est[k], val)
+    plain = vehid.TwoAxleIdentifier(car, spacing=v * DT, method="none")
+    plain.fit(run.x, run.xdot)
+    wheel = [r for r in rows if r < 8]
+    wnz = car.a[wheel] != 0
+    assert np.abs(plain.a_hat[wheel][wnz] / car.a[wheel][wnz] - 1).max() > 0.5
+    # Pickled, it continues bit for bit.
+    twin = pickle.loads(pickle.dumps(two))
+    more = vehid.Simulator(car, dt=DT, road="iso8608-C", speed=v, sensors="state", seed=32).run(500)
+    two.fit(more.x, more.xdot)
+    twin.fit(more.x, more.xdot)
+    np.testing.assert_array_equal(two.theta, twin.theta)
+    with pytest.raises(vehid.VehidError, match="does not divide the wheelbase"):
+        vehid.TwoAxleIdentifier(car, spacing=15 * DT)

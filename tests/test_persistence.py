@@ -4,6 +4,7 @@ compare by value."""
 
 import copy
 import pickle
+from pathlib import Path
 from typing import Any, Callable, List
 
 import numpy as np
@@ -165,10 +166,10 @@ def test_corrupt_or_foreign_state_is_a_clear_error() -> None:
     kf = vehid.KalmanIdentifier(CAR, p0=1000.0, r=RV)
     kf.fit(run.r[:50], run.z[:50])
     fmt, version, payload = state_of(kf)
-    assert fmt == 5 and version.startswith("vehid ")
+    assert fmt == 6 and version.startswith("vehid ")
     blank = vehid.KalmanIdentifier(CAR, p0=1000.0, r=RV)
     # A state of the previous format (3: the binding named the core's type) is refused, naming both.
-    with pytest.raises(vehid.VehidError, match="vehid 9.9 in state format 3.*reads format 5"):
+    with pytest.raises(vehid.VehidError, match="vehid 9.9 in state format 3.*reads formats 5 to 6"):
         blank.__setstate__((3, "vehid 9.9", payload))
     with pytest.raises(vehid.VehidError, match="corrupt"):
         blank.__setstate__((fmt, version, payload[:-7]))
@@ -277,3 +278,18 @@ def test_every_changed_byte_of_a_saved_monitor_is_refused(car: Any) -> None:
     mon = vehid.HealthMonitor(car, dt=0.005)
     mon.fit(y)
     assert _sweep(mon, lambda: vehid.HealthMonitor(car, dt=0.005)) > 0
+
+
+def test_pickles_of_the_previous_format_load_or_are_refused_naming_it() -> None:
+    # Pickled by vehid 0.1.0 in state format 5 (tests/data, made with that release): a Kalman
+    # identifier's state did not change and loads (its estimate as saved, and it goes on); the
+    # two-axle identifier's did (format 6: per track) and is refused naming the format.
+    data = np.load(Path(__file__).resolve().parent / "data" / "pickles_vehid_0_1_0_format5.npz")
+    kf = pickle.loads(data["kalman"].tobytes())
+    assert kf.__reduce__()[2][0] == 6
+    np.testing.assert_array_equal(kf.theta, data["kalman_theta"])
+    run = RUNS["quarter"]
+    kf.fit(run.r[:50], run.z[:50])
+    assert kf.samples == 350
+    with pytest.raises(vehid.VehidError, match="TwoAxleIdentifier: it was pickled by vehid 0.1.0 in state format 5"):
+        pickle.loads(data["two_axle"].tobytes())

@@ -380,7 +380,8 @@ mod impls {
         ser: [T: Serialize], de: [T: crate::Real]);
 
     checked!("TwoAxle",
-        [T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<T, N>>] TwoAxle<T, N, P, S, B>,
+        [T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<T, N>>, const M: usize]
+        TwoAxle<T, N, P, S, B, M>,
         ser: [T: Serialize, S::Group: Serialize],
         de: [T: crate::Real, S::Group: Deserialize<'de>]);
 

@@ -91,5 +91,5 @@ pub fn set_state(obj: &Bound<'_, PyIdentifier>, state: &Bound<'_, PyAny>) -> PyR
     let (class, _, text) = identity(obj)?;
     let mut this = borrow_mut(obj)?;
     let model = this.model.clone();
-    saved::load(this.inner.as_mut(), &payload, who(&class, &text, &model)).map_err(refused)
+    saved::load(this.inner.as_mut(), &payload, who(&class, &text, &model), (format, &version)).map_err(refused)
 }

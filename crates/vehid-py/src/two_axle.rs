@@ -17,13 +17,15 @@ use vehid_runtime::ModelData;
 /// Ring capacity of the Python `AxleSampler`.
 pub const SAMPLER_SLOTS: usize = 4096;
 
-/// The wheelbase of a model: the half car's `l1 + l2`, or the one given.
+/// The wheelbase of a model: the half car's `l1 + l2`, the full car's `l_f + l_r`, or the
+/// one given.
 pub(crate) fn wheelbase_of(model: &PyLinearModel, wheelbase: Option<f64>) -> PyResult<f64> {
     match (wheelbase, model.kind) {
         (Some(w), _) => Ok(w),
         (None, Kind::Half(car)) => Ok(car.wheelbase()),
+        (None, Kind::Full(car)) => Ok(car.wheelbase()),
         (None, _) => Err(VehidError::new_err(
-            "`wheelbase` is needed for a model other than HalfCar (the distance between the axles, m)",
+            "`wheelbase` is needed for a model other than HalfCar or FullCar (the distance between the axles, m)",
         )),
     }
 }
@@ -41,6 +43,8 @@ pub(crate) fn half_dims(d: &ModelData, what: &str) -> PyResult<()> {
 // ---- TwoAxleIdentifier ---------------------------------------------------------------------
 
 type Id = TwoAxleIdentifierVec<f64, 8, 16>;
+/// The full car's: 14 states, 4 road inputs (two tracks).
+type IdFull = TwoAxleIdentifierVec<f64, 14, 28, 4>;
 
 use vehid_runtime::build::TWO_AXLE_SIZES as STRUCTURED_SIZES;
 
@@ -74,7 +78,7 @@ fn p0_arg(p0: Option<&Bound<'_, PyAny>>) -> PyResult<P0> {
         .map_err(|_| VehidError::new_err("`p0` must be a number (P(0) on every parameter) or \"exact\""))
 }
 
-/// Identifier of the unknown rows of a half car driven along one road (Ch. VI.D).
+/// Identifier of the unknown rows of a half car (or a full car) driven along one road (Ch. VI.D).
 ///
 /// Samples must be taken every `spacing` metres (e.g. `Simulator(half, speed=..., spacing=...)`
 /// or `AxleSampler`), so that the rear axle is over the road point of the sample
@@ -83,7 +87,10 @@ fn p0_arg(p0: Option<&Bound<'_, PyAny>>) -> PyResult<P0> {
 /// innovation d samples earlier subtracted from the rear row's), "cancel" (the joint regression
 /// of z4(k) − (b42/b21) z2(k−d) on [x(k), −(b42/b21) x(k−d)], in which the road input cancels;
 /// variance σ_v²(1 + (b42/b21)²), plus the direct front equation weighted by its own variance).
-/// The body rows are plain Kalman rows. `road_sigma` (m) and `deriv_noise` give every
+/// The body rows are plain Kalman rows. A `FullCar` has two tracks: each rear wheel rolls on its
+/// front wheel's track (left, right) a wheelbase later, and each track's pair of wheel rows
+/// (rows 1 and 5, 3 and 7) is identified as above on its own (`wheel_variances`: the left
+/// track's). `road_sigma` (m) and `deriv_noise` give every
 /// equation's variance; `p0` is P(0) on every row (default 1000; `p0_body` overrides it on the
 /// body rows). `update` and `fit` take one sample per road point, in order.
 ///
@@ -119,13 +126,22 @@ impl PyTwoAxleIdentifier {
     /// The settings the getters report, from whichever core the base holds.
     fn info(slf: &PyRef<'_, Self>) -> PyResult<Info> {
         let base: &PyIdentifier = slf.as_super();
-        if let Some(id) = vehid_runtime::build::unscreened(base.inner.as_ref()).as_any().downcast_ref::<Id>() {
-            return Ok(Info {
-                method: id.config().method.as_str(),
-                delay: id.delay(),
-                variances: id.wheel_variances(),
-                paired: id.paired(),
-            });
+        let any = vehid_runtime::build::unscreened(base.inner.as_ref()).as_any();
+        macro_rules! rows_info {
+            ($id:expr) => {
+                Info {
+                    method: $id.config().method.as_str(),
+                    delay: $id.delay(),
+                    variances: $id.wheel_variances(),
+                    paired: $id.paired(),
+                }
+            };
+        }
+        if let Some(id) = any.downcast_ref::<Id>() {
+            return Ok(rows_info!(id));
+        }
+        if let Some(id) = any.downcast_ref::<IdFull>() {
+            return Ok(rows_info!(id));
         }
         with_structured!(base.inner, |id| Info {
             method: WheelMethod::Cancel.as_str(),
@@ -199,7 +215,10 @@ impl PyTwoAxleIdentifier {
                 )),
             };
         let m = car.get();
-        half_dims(&m.data, if structure.is_some() { "`car`" } else { "TwoAxleIdentifier" })?;
+        let full = structure.is_none() && matches!(m.kind, Kind::Full(_));
+        if !full {
+            half_dims(&m.data, if structure.is_some() { "`car`" } else { "TwoAxleIdentifier (or a FullCar)" })?;
+        }
         let wheelbase = wheelbase_of(m, wheelbase)?;
         let (d, residual) = axle_delay(wheelbase, spacing).map_err(core_err)?;
         if residual > 1e-9 * wheelbase {
@@ -210,7 +229,6 @@ impl PyTwoAxleIdentifier {
             )));
         }
         let method = option::<WheelMethod>(method)?;
-        let core = m.data.model::<8, 2>().map_err(core_err)?;
         let memory = |e: vehid_core::Error| match e {
             // The ring of the last d samples is what grows as `spacing` shrinks.
             vehid_core::Error::OutOfMemory { bytes, .. } => PyMemoryError::new_err(format!(
@@ -233,6 +251,7 @@ impl PyTwoAxleIdentifier {
                 ));
             }
             let s = st.get().core;
+            let core = m.data.model::<8, 2>().map_err(core_err)?;
             let mut cfg = TwoAxleStructuredConfig::new(road_sigma, deriv_noise);
             cfg.p0 = match p0 {
                 P0::Default | P0::Exact => None,
@@ -273,10 +292,13 @@ impl PyTwoAxleIdentifier {
             let mut cfg = TwoAxleConfig::new(method, p0, road_sigma, deriv_noise);
             cfg.p0_body = p0_body.unwrap_or(p0);
             cfg.direct_front = direct_front;
-            let inner = Id::new(&core, d, cfg).map_err(memory)?;
-            let rows = vehid_core::structure::Structure::full_rows(8, inner.rows()).map_err(core_err)?;
-            let inner =
-                vehid_runtime::build::screened(Box::new(inner), &rows, gate, Refresh::Every).map_err(core_err)?;
+            let inner: vehid_runtime::build::Boxed = if full {
+                Box::new(IdFull::new(&m.data.model::<14, 4>().map_err(core_err)?, d, cfg).map_err(memory)?)
+            } else {
+                Box::new(Id::new(&m.data.model::<8, 2>().map_err(core_err)?, d, cfg).map_err(memory)?)
+            };
+            let rows = vehid_core::structure::Structure::full_rows(m.data.n, inner.rows()).map_err(core_err)?;
+            let inner = vehid_runtime::build::screened(inner, &rows, gate, Refresh::Every).map_err(core_err)?;
             PyIdentifier::new(inner, m.data.clone())
         };
         Ok(PyClassInitializer::from(base).add_subclass(Self { model: car.unbind(), spacing, wheelbase, gate }))

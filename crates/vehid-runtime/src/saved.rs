@@ -19,8 +19,13 @@ use vehid_core::identify::DynIdentifier;
 /// 3: the core's type named by the binding, a CRC-32. 4: the core's type implied by the
 /// class and its settings (`Persist`), the envelope below. 5: the outlier screen of the
 /// identifiers without one of their own (its state saved with the core's, its gate among the
-/// settings).
-pub const FORMAT: u32 = 5;
+/// settings). 6: the two-axle identifier's wheel filters per track (the full car's two); the
+/// other identifiers' states are those of 5.
+pub const FORMAT: u32 = 6;
+
+/// The oldest format this reader restores: format 5 states of every identifier whose state did
+/// not change since ([`load`] names the format when one did and does not load).
+pub const OLDEST: u32 = 5;
 
 /// What a saved identifier holds.
 #[derive(Debug, Serialize, Deserialize)]
@@ -78,24 +83,31 @@ pub fn save(id: &dyn DynIdentifier<f64>, who: Identity<'_>) -> vehid_core::Resul
 /// Checks the format a state was saved in (`version`: the vehid that saved it, for the message).
 ///
 /// # Errors
-/// [`Refused`] naming both formats for any other than [`FORMAT`].
+/// [`Refused`] naming the formats read for any outside [`OLDEST`]..=[`FORMAT`].
 pub fn check_format(format: u32, version: &str) -> Result<(), Refused> {
-    if format == FORMAT {
+    if (OLDEST..=FORMAT).contains(&format) {
         return Ok(());
     }
     Err(Refused(format!(
         "cannot restore the identifier: it was pickled by {version} in state format {format}, and this vehid ({}) \
-         reads format {FORMAT} only; refit it, or load it with the version that saved it",
+         reads formats {OLDEST} to {FORMAT} only; refit it, or load it with the version that saved it",
         env!("CARGO_PKG_VERSION")
     )))
 }
 
-/// Restores the sealed `bytes` into `id`, a fresh object `who`; all or nothing.
+/// Restores the sealed `bytes` into `id`, a fresh object `who`; all or nothing. `saved_in`:
+/// the format and the vehid version the state was saved in (checked by [`check_format`]).
 ///
 /// # Errors
 /// [`Refused`] when the bytes fail their checksum or do not decode, were saved from an object
-/// of another class, settings, basis or model, or the core refuses the state.
-pub fn load(id: &mut dyn DynIdentifier<f64>, bytes: &[u8], who: Identity<'_>) -> Result<(), Refused> {
+/// of another class, settings, basis or model, or the core refuses the state (naming the
+/// format when it is older than [`FORMAT`]: the core's state changed since).
+pub fn load(
+    id: &mut dyn DynIdentifier<f64>,
+    bytes: &[u8],
+    who: Identity<'_>,
+    saved_in: (u32, &str),
+) -> Result<(), Refused> {
     let saved: Envelope =
         seal::open(bytes).map_err(|e| corrupt(&format!("its payload does not decode or fails its checksum ({e})")))?;
     if saved.class != who.class || saved.settings != who.settings {
@@ -111,5 +123,13 @@ pub fn load(id: &mut dyn DynIdentifier<f64>, bytes: &[u8], who: Identity<'_>) ->
             saved.basis, who.basis
         )));
     }
-    id.load_state(&saved.state).map_err(|e| corrupt(&format!("its core does not load ({e})")))
+    id.load_state(&saved.state).map_err(|e| match saved_in {
+        (format, version) if format < FORMAT => Refused(format!(
+            "cannot restore the {}: it was pickled by {version} in state format {format}, and its state changed in \
+             format {FORMAT} (this vehid, {}); refit it, or load it with the version that saved it",
+            who.class,
+            env!("CARGO_PKG_VERSION")
+        )),
+        _ => corrupt(&format!("its core does not load ({e})")),
+    })
 }

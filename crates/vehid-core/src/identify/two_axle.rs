@@ -23,6 +23,14 @@
 //! The other unknown rows (the half car's body rows) are the plain Kalman rows
 //! ([`KalmanRows`]); rows without an input have `r = σ_v²`.
 //!
+//! **Tracks.** A model with `M = 2t` inputs, the `t` front wheels' roads first and the rear
+//! wheels' in the same order (`M = 2`: the half car's front and rear; `M = 4`: the full car's
+//! `fl, fr, rl, rr`), has `t` tracks (wheel paths): rear wheel `j` rolls on front wheel `j`'s
+//! track one wheelbase later (`u_{t+j}(k) = u_j(k − d)`). Each track's pair of wheel rows is
+//! identified as above on its own (its own `ρ_j`, variances and joint filter); a road input
+//! enters only its own wheel row, so the tracks' roads need not be independent (the full
+//! car's left and right tracks are coherent: `sim/two_track.rs`). At most [`MAX_TRACKS`].
+//!
 //! Each sample is identified by its road-point (grid) index; [`TwoAxle::update_at`] with
 //! `grid = None` takes the next one. A ring of the last `d` samples (a fixed array `[_; C]`,
 //! or a `Vec`) holds what the pairing needs. Nothing here uses the time between samples.
@@ -88,8 +96,11 @@ impl<T: Real> TwoAxleConfig<T> {
     }
 }
 
-/// One remembered sample of the ring: its grid index, measured state `r(k)`, front-row
-/// derivative `z2(k)` and front-row innovation `e1(k)`.
+/// Most tracks (wheel paths) of a [`TwoAxle`]: the full car's left and right.
+pub const MAX_TRACKS: usize = 2;
+
+/// One remembered sample of the ring: its grid index, measured state `r(k)`, and per track
+/// the front-row derivative `z2(k)` and front-row innovation `e1(k)`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(
     feature = "serde",
@@ -101,15 +112,16 @@ pub struct Past<T: Real, const N: usize> {
     pub grid: u64,
     /// Measured state `r(k)`.
     pub x: SVector<T, N>,
-    /// Measured derivative of the front wheel row, `z2(k)`.
-    pub z_front: T,
-    /// Front-row innovation `e1(k) = z2(k) − r(k)ᵀ θ̂_2(k−1)` (Eq 6.13).
-    pub e_front: T,
+    /// Measured derivative of each track's front wheel row, `z2(k)`.
+    pub z_front: [T; MAX_TRACKS],
+    /// Each track's front-row innovation `e1(k) = z2(k) − r(k)ᵀ θ̂_2(k−1)` (Eq 6.13).
+    pub e_front: [T; MAX_TRACKS],
     /// `false` for an empty slot.
     pub valid: bool,
 }
 
-/// The two-axle identifier over a body-row [`Store`] `S` and a ring storage `B`; see
+/// The two-axle identifier over a body-row [`Store`] `S` and a ring storage `B`, for a model
+/// of `M` road inputs (`M / 2` tracks: 2 for the half car, 4 for the full car); see
 /// [`TwoAxleIdentifier`] (no allocation) and `TwoAxleIdentifierVec` (heap).
 ///
 /// `P` must be `2 N` (the joint regression of the `Cancel` method; checked at construction).
@@ -125,21 +137,29 @@ pub struct Past<T: Real, const N: usize> {
         )
     )
 )]
-pub struct TwoAxle<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<T, N>>> {
-    model: LinearModel<T, N, 2>,
+pub struct TwoAxle<
+    T: Real,
+    const N: usize,
+    const P: usize,
+    S: Store<T, N>,
+    B: RingStore<Past<T, N>>,
+    const M: usize = 2,
+> {
+    model: LinearModel<T, N, M>,
     rows: RowSet<N>,
     cfg: TwoAxleConfig<T>,
-    front_row: usize,
-    rear_row: usize,
-    ratio: T,
+    tracks: usize,
+    front_row: [usize; MAX_TRACKS],
+    rear_row: [usize; MAX_TRACKS],
+    ratio: [T; MAX_TRACKS],
     d: usize,
-    r_front: T,
-    r_rear: T,
-    r_cancel: T,
-    direct_scale: T,
-    front: RowIdentifier<T, N>,
-    rear: RowIdentifier<T, N>,
-    joint: RowIdentifier<T, P>,
+    r_front: [T; MAX_TRACKS],
+    r_rear: [T; MAX_TRACKS],
+    r_cancel: [T; MAX_TRACKS],
+    direct_scale: [T; MAX_TRACKS],
+    front: [RowIdentifier<T, N>; MAX_TRACKS],
+    rear: [RowIdentifier<T, N>; MAX_TRACKS],
+    joint: [RowIdentifier<T, P>; MAX_TRACKS],
     body: Option<KalmanRows<T, N, S>>,
     #[cfg_attr(feature = "serde", serde(with = "crate::persist::ring"))]
     ring: B,
@@ -149,8 +169,9 @@ pub struct TwoAxle<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: R
 }
 
 /// The two-axle identifier with fixed storage: `N` states, `P = 2N` joint parameters, `KB`
-/// body rows (unknown rows other than the two wheel rows), a ring of `C ≥ d` samples. No
-/// allocation. The thesis' half car: `TwoAxleIdentifier<f64, 8, 16, 2, C>`.
+/// body rows (unknown rows other than the wheel rows), a ring of `C ≥ d` samples, `M` road
+/// inputs (default 2). No allocation. The thesis' half car: `TwoAxleIdentifier<f64, 8, 16,
+/// 2, C>`; the full car: `TwoAxleIdentifier<f64, 14, 28, 3, C, 4>`.
 ///
 /// # Examples
 /// ```
@@ -171,21 +192,28 @@ pub struct TwoAxle<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: R
 /// assert!((theta[(0, 0)] / car.theta()[(0, 0)] - 1.0).abs() < 0.1);
 /// # Ok::<(), vehid_core::Error>(())
 /// ```
-pub type TwoAxleIdentifier<T, const N: usize, const P: usize, const KB: usize, const C: usize> =
-    TwoAxle<T, N, P, Fixed<KB>, [Past<T, N>; C]>;
+pub type TwoAxleIdentifier<T, const N: usize, const P: usize, const KB: usize, const C: usize, const M: usize = 2> =
+    TwoAxle<T, N, P, Fixed<KB>, [Past<T, N>; C], M>;
 
 /// [`TwoAxle`] with heap storage (any number of body rows, any `d`).
 #[cfg(feature = "alloc")]
-pub type TwoAxleIdentifierVec<T, const N: usize, const P: usize> =
-    TwoAxle<T, N, P, Dynamic, alloc::vec::Vec<Past<T, N>>>;
+pub type TwoAxleIdentifierVec<T, const N: usize, const P: usize, const M: usize = 2> =
+    TwoAxle<T, N, P, Dynamic, alloc::vec::Vec<Past<T, N>>, M>;
 
-/// The wheel rows: the unknown row each input enters (exactly one each).
-pub(crate) fn wheel_rows<T: Real, const N: usize>(model: &LinearModel<T, N, 2>) -> Result<(usize, usize)> {
+/// The wheel rows `(fronts, rears, tracks)`: the unknown row each input enters (exactly one
+/// each, all different), the first `M / 2` inputs the front wheels', the rest the rear wheels'
+/// in the same order.
+pub(crate) fn wheel_rows<T: Real, const N: usize, const M: usize>(
+    model: &LinearModel<T, N, M>,
+) -> Result<([usize; MAX_TRACKS], [usize; MAX_TRACKS], usize)> {
     const BAD: Error = Error::InvalidArgument {
         arg: "b",
-        expected: "two inputs (front, rear road), each entering exactly one unknown row of its own \
-                   (the front and rear wheel rows), as in the half car",
+        expected: "2 or 4 road inputs, the front wheels' then the rear wheels' in the same order (half car: front, \
+                   rear; full car: fl, fr, rl, rr), each entering exactly one unknown row of its own (its wheel row)",
     };
+    if M != 2 && M != 2 * MAX_TRACKS {
+        return Err(BAD);
+    }
     let b = model.b();
     let only = |col: usize| -> Result<usize> {
         let mut found = None;
@@ -199,28 +227,38 @@ pub(crate) fn wheel_rows<T: Real, const N: usize>(model: &LinearModel<T, N, 2>) 
         }
         found.ok_or(BAD)
     };
-    let (f, r) = (only(0)?, only(1)?);
+    let tracks = M / 2;
+    let (mut fronts, mut rears) = ([0; MAX_TRACKS], [0; MAX_TRACKS]);
     let rows = model.unknown_rows();
-    if f == r || !rows.contains(f) || !rows.contains(r) {
-        return Err(BAD);
+    for j in 0..tracks {
+        (fronts[j], rears[j]) = (only(j)?, only(tracks + j)?);
     }
-    Ok((f, r))
+    let all = fronts[..tracks].iter().chain(&rears[..tracks]);
+    for (i, &r) in all.clone().enumerate() {
+        if !rows.contains(r) || all.clone().skip(i + 1).any(|&o| o == r) {
+            return Err(BAD);
+        }
+    }
+    Ok((fronts, rears, tracks))
 }
 
-impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<T, N>>> TwoAxle<T, N, P, S, B> {
-    /// Builds the identifier for a 2-input model (front and rear road) whose inputs each
-    /// enter one unknown row, with `d` road points (samples) between the axles.
+impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<T, N>>, const M: usize>
+    TwoAxle<T, N, P, S, B, M>
+{
+    /// Builds the identifier for a model of `M = 2` or `4` road inputs (the front wheels'
+    /// then the rear wheels', each entering one unknown row), with `d` road points (samples)
+    /// between the axles.
     ///
     /// Variances (per equation, from the noise levels): front and rear rows
-    /// `σ_v² + b² σ_u²` (Eq 4.7); the cancelled equation `σ_v² (1 + ρ²)`; the other rows
-    /// `σ_v² + Σ_j (B_ij σ_u)²`.
+    /// `σ_v² + b² σ_u²` (Eq 4.7); each track's cancelled equation `σ_v² (1 + ρ²)`; the other
+    /// rows `σ_v² + Σ_j (B_ij σ_u)²`.
     ///
     /// # Errors
     /// [`Error::InvalidArgument`] for `p0 ≤ 0`, negative noise levels, `d = 0`, or a `B` that
-    /// is not two wheel inputs; [`Error::Shape`] when `P ≠ 2N` or when a fixed body store
+    /// is not 2 or 4 wheel inputs; [`Error::Shape`] when `P ≠ 2N` or when a fixed body store
     /// does not hold exactly the other unknown rows; [`Error::Capacity`] when the ring holds
     /// fewer than `d` samples.
-    pub fn new(model: &LinearModel<T, N, 2>, d: usize, cfg: TwoAxleConfig<T>) -> Result<Self> {
+    pub fn new(model: &LinearModel<T, N, M>, d: usize, cfg: TwoAxleConfig<T>) -> Result<Self> {
         cfg.validate()?;
         if P != 2 * N {
             return Err(Error::Shape { arg: "P (joint parameters, must be 2N)", expected: 2 * N, got: P });
@@ -228,24 +266,29 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
         if d == 0 {
             return Err(Error::InvalidArgument { arg: "d", expected: "at least 1 road point between the axles" });
         }
-        let (front_row, rear_row) = wheel_rows(model)?;
+        let (front_row, rear_row, tracks) = wheel_rows(model)?;
         let b = model.b();
-        let (b21, b42) = (b[(front_row, 0)], b[(rear_row, 1)]);
-        let ratio = b42 / b21;
         let sv2 = cfg.deriv_noise * cfg.deriv_noise;
         let su2 = cfg.road_sigma * cfg.road_sigma;
-        let r_front = sv2 + b21 * b21 * su2;
-        let r_rear = sv2 + b42 * b42 * su2;
-        let r_cancel = sv2 * (T::one() + ratio * ratio);
-        let direct_scale = if r_front > T::zero() { (r_cancel / r_front).sqrt() } else { T::one() };
+        let zero = [T::zero(); MAX_TRACKS];
+        let (mut ratio, mut r_front, mut r_rear, mut r_cancel, mut direct_scale) = (zero, zero, zero, zero, zero);
+        for j in 0..tracks {
+            let (b21, b42) = (b[(front_row[j], j)], b[(rear_row[j], tracks + j)]);
+            ratio[j] = b42 / b21;
+            r_front[j] = sv2 + b21 * b21 * su2;
+            r_rear[j] = sv2 + b42 * b42 * su2;
+            r_cancel[j] = sv2 * (T::one() + ratio[j] * ratio[j]);
+            direct_scale[j] = if r_front[j] > T::zero() { (r_cancel[j] / r_front[j]).sqrt() } else { T::one() };
+        }
+        let wheel = |row: usize| front_row[..tracks].contains(&row) || rear_row[..tracks].contains(&row);
         let mut body_rows = [0usize; N];
         let mut body_r = [T::zero(); N];
         let mut nb = 0;
         for &row in model.unknown_rows().as_slice() {
-            if row != front_row && row != rear_row {
+            if !wheel(row) {
                 body_rows[nb] = row;
                 let mut v = sv2;
-                for j in 0..2 {
+                for j in 0..M {
                     v += b[(row, j)] * b[(row, j)] * su2;
                 }
                 body_r[nb] = v;
@@ -257,12 +300,26 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
         } else {
             None
         };
-        let empty = Past { grid: 0, x: SVector::zeros(), z_front: T::zero(), e_front: T::zero(), valid: false };
+        let empty = Past { grid: 0, x: SVector::zeros(), z_front: zero, e_front: zero, valid: false };
         let ring = B::with_len("TwoAxle ring capacity C (samples between the axles, d)", d, empty)?;
+        // Unused track slots (the half car's second) repeat the first.
+        let filters = |r: [T; MAX_TRACKS]| -> Result<[RowIdentifier<T, N>; MAX_TRACKS]> {
+            let first = RowIdentifier::new(cfg.p0_wheel, r[0])?;
+            let mut out = [first; MAX_TRACKS];
+            for j in 1..tracks {
+                out[j] = RowIdentifier::new(cfg.p0_wheel, r[j])?;
+            }
+            Ok(out)
+        };
+        let mut joint = [RowIdentifier::new(cfg.p0_wheel, r_cancel[0])?; MAX_TRACKS];
+        for j in 1..tracks {
+            joint[j] = RowIdentifier::new(cfg.p0_wheel, r_cancel[j])?;
+        }
         Ok(Self {
             model: model.clone(),
             rows: model.unknown_rows(),
             cfg,
+            tracks,
             front_row,
             rear_row,
             ratio,
@@ -271,14 +328,27 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
             r_rear,
             r_cancel,
             direct_scale,
-            front: RowIdentifier::new(cfg.p0_wheel, r_front)?,
-            rear: RowIdentifier::new(cfg.p0_wheel, r_rear)?,
-            joint: RowIdentifier::new(cfg.p0_wheel, r_cancel)?,
+            front: filters(r_front)?,
+            rear: filters(r_rear)?,
+            joint,
             body,
             ring,
             last_grid: None,
             samples: 0,
             paired: 0,
+        })
+    }
+
+    /// Whether `row` is a wheel row: `Some((track, front))`.
+    fn wheel_of(&self, row: usize) -> Option<(usize, bool)> {
+        (0..self.tracks).find_map(|j| {
+            if row == self.front_row[j] {
+                Some((j, true))
+            } else if row == self.rear_row[j] {
+                Some((j, false))
+            } else {
+                None
+            }
         })
     }
 
@@ -290,11 +360,13 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
             return Err(Error::Shape { arg: "P (joint parameters, must be 2N)", expected: 2 * N, got: P });
         }
         self.cfg.validate()?;
-        if self.rows != self.model.unknown_rows() || wheel_rows(&self.model)? != (self.front_row, self.rear_row) {
+        if self.rows != self.model.unknown_rows()
+            || wheel_rows(&self.model)? != (self.front_row, self.rear_row, self.tracks)
+        {
             return Err(Error::InvalidArgument { arg: "rows", expected: "the model's unknown rows and wheel rows" });
         }
         let body = self.body.as_ref().map_or(&[][..], |b| b.rows());
-        let others = self.rows.as_slice().iter().filter(|&&r| r != self.front_row && r != self.rear_row);
+        let others = self.rows.as_slice().iter().filter(|&&r| self.wheel_of(r).is_none());
         if !others.eq(body.iter()) {
             return Err(Error::InvalidArgument { arg: "body", expected: "the unknown rows other than the wheel rows" });
         }
@@ -312,14 +384,29 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
         &self.cfg
     }
 
-    /// The wheel rows `(front, rear)` (0-based rows of `A`; the half car's 1 and 3).
+    /// The first track's wheel rows `(front, rear)` (0-based rows of `A`; the half car's 1
+    /// and 3; the full car's left wheels, 1 and 5).
     pub fn wheel_rows(&self) -> (usize, usize) {
-        (self.front_row, self.rear_row)
+        (self.front_row[0], self.rear_row[0])
     }
 
-    /// `ρ = b42 / b21`.
+    /// Tracks (wheel paths): `M / 2`.
+    pub fn tracks(&self) -> usize {
+        self.tracks
+    }
+
+    /// Track `j`'s wheel rows `(front, rear)`.
+    ///
+    /// # Panics
+    /// For `j ≥ tracks()`.
+    pub fn track_rows(&self, j: usize) -> (usize, usize) {
+        assert!(j < self.tracks, "track_rows: track {j} of {}", self.tracks);
+        (self.front_row[j], self.rear_row[j])
+    }
+
+    /// The first track's `ρ = b42 / b21`.
     pub fn ratio(&self) -> T {
-        self.ratio
+        self.ratio[0]
     }
 
     /// Road points between the axles, `d`.
@@ -327,9 +414,9 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
         self.d
     }
 
-    /// Variances `(front, rear, cancelled)` of the wheel equations.
+    /// Variances `(front, rear, cancelled)` of the first track's wheel equations.
     pub fn wheel_variances(&self) -> (T, T, T) {
-        (self.r_front, self.r_rear, self.r_cancel)
+        (self.r_front[0], self.r_rear[0], self.r_cancel[0])
     }
 
     /// Samples accepted.
@@ -342,9 +429,9 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
         self.paired
     }
 
-    /// The joint filter of the `Cancel` method (parameters `[a_rear; a_front]`).
+    /// The first track's joint filter of the `Cancel` method (parameters `[a_rear; a_front]`).
     pub fn joint(&self) -> &RowIdentifier<T, P> {
-        &self.joint
+        &self.joint[0]
     }
 
     /// The unknown rows (0-based), in the order of θ and of the innovations.
@@ -359,18 +446,17 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
     /// For `row ≥ N`, as indexing past `A`'s last row would (it used to read row `N − 1`).
     pub fn theta_row(&self, row: usize) -> SVector<T, N> {
         assert!(row < N, "theta_row: row {row} of a model with {N} states");
-        if row == self.front_row || row == self.rear_row {
-            let front = row == self.front_row;
+        if let Some((t, front)) = self.wheel_of(row) {
             return match self.cfg.method {
                 WheelMethod::Cancel => {
                     let off = if front { N } else { 0 };
-                    SVector::from_fn(|j, _| self.joint.theta()[off + j])
+                    SVector::from_fn(|j, _| self.joint[t].theta()[off + j])
                 }
                 _ => {
                     if front {
-                        self.front.theta()
+                        self.front[t].theta()
                     } else {
-                        self.rear.theta()
+                        self.rear[t].theta()
                     }
                 }
             };
@@ -499,41 +585,44 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
         } else {
             None
         };
-        let (zf, zr) = (z[self.front_row], z[self.rear_row]);
-        // Plan on copies; commit only when every step succeeded.
-        let mut front = self.front;
-        let mut rear = self.rear;
-        let mut joint = None;
-        let (e_front, e_rear);
-        match self.cfg.method {
-            WheelMethod::None => {
-                e_front = front.update(r, zf)?;
-                e_rear = rear.update(r, zr)?;
-            }
-            WheelMethod::Thesis => {
-                e_front = front.update(r, zf)?;
-                e_rear = match past {
-                    Some(p) => rear.update(r, zr - self.ratio * p.e_front)?,
-                    None => T::zero(),
-                };
-            }
-            WheelMethod::Cancel => {
-                let mut j = self.joint;
-                let th = j.theta();
-                e_front = zf - (0..N).fold(T::zero(), |a, i| a + th[N + i] * r[i]);
-                e_rear = match past {
-                    Some(p) => {
-                        let h = SVector::<T, P>::from_fn(|i, _| if i < N { r[i] } else { -self.ratio * p.x[i - N] });
-                        j.update(&h, zr - self.ratio * p.z_front)?
-                    }
-                    None => T::zero(),
-                };
-                if self.cfg.direct_front && self.direct_scale > T::zero() {
-                    let h =
-                        SVector::<T, P>::from_fn(|i, _| if i < N { T::zero() } else { r[i - N] * self.direct_scale });
-                    j.update(&h, zf * self.direct_scale)?;
+        // Plan on copies, one track at a time; commit only when every step succeeded.
+        let zero = [T::zero(); MAX_TRACKS];
+        let (mut zf, mut e_front, mut e_rear) = (zero, zero, zero);
+        let mut planned: [Option<(RowIdentifier<T, N>, RowIdentifier<T, N>)>; MAX_TRACKS] = [None; MAX_TRACKS];
+        let mut joint: [Option<RowIdentifier<T, P>>; MAX_TRACKS] = [None; MAX_TRACKS];
+        for t in 0..self.tracks {
+            zf[t] = z[self.front_row[t]];
+            let zr = z[self.rear_row[t]];
+            let ratio = self.ratio[t];
+            match self.cfg.method {
+                WheelMethod::None | WheelMethod::Thesis => {
+                    let (mut front, mut rear) = (self.front[t], self.rear[t]);
+                    e_front[t] = front.update(r, zf[t])?;
+                    e_rear[t] = match (self.cfg.method, past) {
+                        (WheelMethod::None, _) => rear.update(r, zr)?,
+                        (_, Some(p)) => rear.update(r, zr - ratio * p.e_front[t])?,
+                        (_, None) => T::zero(),
+                    };
+                    planned[t] = Some((front, rear));
                 }
-                joint = Some(j);
+                WheelMethod::Cancel => {
+                    let mut j = self.joint[t];
+                    let th = j.theta();
+                    e_front[t] = zf[t] - (0..N).fold(T::zero(), |a, i| a + th[N + i] * r[i]);
+                    e_rear[t] = match past {
+                        Some(p) => {
+                            let h = SVector::<T, P>::from_fn(|i, _| if i < N { r[i] } else { -ratio * p.x[i - N] });
+                            j.update(&h, zr - ratio * p.z_front[t])?
+                        }
+                        None => T::zero(),
+                    };
+                    let scale = self.direct_scale[t];
+                    if self.cfg.direct_front && scale > T::zero() {
+                        let h = SVector::<T, P>::from_fn(|i, _| if i < N { T::zero() } else { r[i - N] * scale });
+                        j.update(&h, zf[t] * scale)?;
+                    }
+                    joint[t] = Some(j);
+                }
             }
         }
         let mut eb = [T::zero(); N];
@@ -542,22 +631,23 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
             body.update_vec(r, z, &mut eb[..k])?;
         }
         // Commit.
-        match joint {
-            Some(j) => self.joint = j,
-            None => {
-                self.front = front;
-                self.rear = rear;
+        for t in 0..self.tracks {
+            if let Some(j) = joint[t] {
+                self.joint[t] = j;
+            }
+            if let Some((front, rear)) = planned[t] {
+                (self.front[t], self.rear[t]) = (front, rear);
             }
         }
         let mut ib = 0;
         for (i, &row) in rows.as_slice().iter().enumerate() {
-            e[i] = if row == self.front_row {
-                e_front
-            } else if row == self.rear_row {
-                e_rear
-            } else {
-                ib += 1;
-                eb[ib - 1]
+            e[i] = match self.wheel_of(row) {
+                Some((t, true)) => e_front[t],
+                Some((t, false)) => e_rear[t],
+                None => {
+                    ib += 1;
+                    eb[ib - 1]
+                }
             };
         }
         self.ring.slots_mut()[(grid % cap) as usize] = Past { grid, x: *r, z_front: zf, e_front, valid: true };
@@ -570,8 +660,8 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
     }
 }
 
-impl<T: Real, const N: usize, const P: usize, const KB: usize, const C: usize>
-    TwoAxle<T, N, P, Fixed<KB>, [Past<T, N>; C]>
+impl<T: Real, const N: usize, const P: usize, const KB: usize, const C: usize, const M: usize>
+    TwoAxle<T, N, P, Fixed<KB>, [Past<T, N>; C], M>
 {
     /// One sample on the next road point; returns whether it was paired. See
     /// [`TwoAxle::update_at`].

@@ -2,10 +2,10 @@
 
 use super::*;
 
-crate::identify::persist_by_serde!([T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<T, N>>] TwoAxle<T, N, P, S, B>);
+crate::identify::persist_by_serde!([T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<T, N>>, const M: usize] TwoAxle<T, N, P, S, B, M>);
 
-impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<T, N>>> Identifier<T>
-    for TwoAxle<T, N, P, S, B>
+impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<T, N>>, const M: usize> Identifier<T>
+    for TwoAxle<T, N, P, S, B, M>
 {
     fn dims(&self) -> Dims {
         let k = self.rows.len();
