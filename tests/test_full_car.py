@@ -260,3 +260,5 @@ def test_two_tracks_road_cancellation_on_an_iso_road() -> None:
     np.testing.assert_array_equal(two.theta, twin.theta)
     with pytest.raises(vehid.VehidError, match="does not divide the wheelbase"):
         vehid.TwoAxleIdentifier(car, spacing=15 * DT)
+    with pytest.raises(vehid.VehidError, match="`gate` = 6.0: the outlier screen cannot hold"):
+        vehid.TwoAxleIdentifier(car, spacing=v * DT, gate=6.0)

@@ -420,6 +420,23 @@ fn two_axle(c: &mut Criterion) {
         let _ = black_box(id.update_into(x.as_slice(), z.as_slice(), &[], &mut e));
     };
     bench_updates(c, "update_f64", &data, &mut update, "half/two_axle_physical");
+
+    // The full car's rows on two tracks (as count_full_health's full_two_axle): the passenger
+    // car on ISO 8608 class C at 20 m/s, 200 Hz (0.1 m: the rear wheels 31 samples behind),
+    // true states; two 28-parameter joint filters and three body rows of 14, fixed storage.
+    use vehid_core::identify::{TwoAxleConfig, TwoAxleIdentifier, WheelMethod};
+    use vehid_core::sim::RoadClass;
+    let full = FullCar::<f64>::passenger();
+    let cfg = FullDriveConfig::new(DriveConfig::new(0.005).road(RoadClass::C).speed(20.0));
+    let mut drive = FullDrive::new(full, cfg, 42).unwrap();
+    let data: Vec<_> = (0..LEN).map(|_| drive.next_sample()).map(|s| (s.x, s.xdot)).collect();
+    let cfg = TwoAxleConfig::new(WheelMethod::Cancel, 1000.0, 0.1, 0.005);
+    let mut id = TwoAxleIdentifier::<f64, 14, 28, 3, 32, 4>::new(&full.model(), 31, cfg).unwrap();
+    let mut e = [0.0; 7];
+    let mut update = |x: &SVector<f64, 14>, z: &SVector<f64, 14>| {
+        let _ = black_box(id.update_at(x, z, None, &mut e));
+    };
+    bench_updates(c, "update_f64", &data, &mut update, "full/two_axle_rows");
 }
 
 /// The realistic sensors' body-equation fit (`identify::StateFilterFit`, the Python
