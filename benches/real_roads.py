@@ -112,9 +112,10 @@ def full_car(seed0: int, seeds: int, classes: str, speeds: str, n: int) -> int:
     """The passenger full car on ISO roads (two coherent tracks, each rear wheel on its front
     wheel's track a wheelbase later), true states, ``n`` samples at 200 Hz:
     ``TwoAxleIdentifier(FullCar)``, road cancellation per track (the direct front equation off:
-    the road is not white); how many seeds have every one of the 75 nonzero entries of the seven
-    unknown rows within 5 %, the worst entry, the worst identified constant through
-    ``physical()`` (wheel masses known), and the plain rows' worst wheel entry on the same samples."""
+    the road is not white); how many seeds have every nonzero entry of the seven unknown rows
+    within 5 % (66 for the passenger car, without anti-roll bars), the worst entry, the worst
+    identified constant through ``physical()`` (wheel masses known), and the plain rows' worst
+    wheel entry on the same samples."""
     car = vehid.FullCar.passenger()
     masses = {k: v for k, v in car.params.items() if k.startswith("m_")}
     named = [k for k in car.params if k in ("M", "Jx", "Jy") or k[:2] in ("k_", "b_")]

@@ -291,8 +291,9 @@ impl PyLinearModel {
             Kind::Full(_) => {
                 return Err(VehidError::new_err(
                     "the full car has no physical structure yet (its body equations need more terms than a \
-                     vehid.Structure holds): identify its rows (model.unknown_rows) and read the constants with \
-                     FullCar.physical(theta_hat, m_fl=, m_fr=, m_rl=, m_rr=)",
+                     vehid.Structure holds): identify its rows (model.unknown_rows; on a road that is not white, \
+                     TwoAxleIdentifier(full, spacing=...)) and read the constants with FullCar.physical(theta_hat, \
+                     m_fl=, m_fr=, m_rl=, m_rr=)",
                 ))
             }
             Kind::Generic => {
