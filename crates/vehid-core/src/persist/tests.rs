@@ -367,7 +367,7 @@ fn inconsistent_input_is_an_error() {
     v["ring"] = json!([]);
     rejects::<TwoAxleIdentifierVec<f64, 8, 16>>(&v, "ring");
     let mut v = good.clone();
-    v["front_row"] = json!(9);
+    v["front_row"][0] = json!(9);
     rejects::<TwoAxleIdentifierVec<f64, 8, 16>>(&v, "wheel rows");
     let mut v = good.clone();
     v["body"]["rows"] = json!([5]);
