@@ -14,6 +14,10 @@ identifier on data whose road and integrator share none of vehid's code or assum
 
 ``simulate(params, cls, speed, dt, n, seed)`` returns ``(x, xdot, s)``: states, derivatives and
 distance travelled, as ``vehid.Simulator(..., sensors="state").run(n)``'s ``x``, ``xdot``, ``s``.
+``simulate_full(params, cls, speed, dt, n, seed)`` the same for the full car (``FullCar.params``
+names): its ``A`` and ``B`` from Lagrange's equations written here (``full_matrices``), two
+independent tracks of the same kind of road, each rear wheel on its front wheel's track a
+wheelbase later.
 ``simulate_lift_off(...)`` the same with a tyre that only pushes (the static load included: it
 leaves the ground when the road falls away faster than the wheel), by a fixed-step RK4 of its
 own, and which samples were off the ground.
@@ -83,6 +87,74 @@ def simulate(
     hk = h[::SUBSTEPS]
     xdot = x @ a.T + np.outer(hk, b[:, 0])
     return np.ascontiguousarray(x), np.ascontiguousarray(xdot), s_fine[::SUBSTEPS].copy()
+
+
+CORNERS = ("fl", "fr", "rl", "rr")
+
+
+def full_matrices(p: Dict[str, float]) -> Tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``A`` (14 x 14) and ``B`` (14 x 4) of the full car from Lagrange's equations: generalized
+    coordinates ``q = (z_fl, z_fr, z_rl, z_rr, heave, pitch, roll)``, each corner's suspension
+    extension ``d = G q`` (corner ``(x, y)`` from the centre of mass: front ``+l_f``, rear
+    ``-l_r``, left ``+track/2``), potential ``½ qᵀ K q`` with ``K = Gᵀ diag(k) G + diag(kt)`` plus
+    each anti-roll bar ``arb (d_left − d_right)² / (2 track²)``, dissipation ``½ q̇ᵀ Gᵀ diag(b) G
+    q̇``; the road under each wheel pushes through its tyre. States interleave positions and
+    velocities (vehid's order); inputs the road under ``fl, fr, rl, rr``."""
+    corners = [(p["l_f"], p["track_f"] / 2), (p["l_f"], -p["track_f"] / 2),
+               (-p["l_r"], p["track_r"] / 2), (-p["l_r"], -p["track_r"] / 2)]
+    g = np.zeros((4, 7))
+    for i, (x, y) in enumerate(corners):
+        g[i, i] = -1.0
+        g[i, 4:] = [1.0, x, y]
+    kt = [p[f"kt_{c}"] for c in CORNERS]
+    k = g.T @ np.diag([p[f"k_{c}"] for c in CORNERS]) @ g + np.diag(kt + [0.0, 0.0, 0.0])
+    for axle, (left, right) in (("f", (0, 1)), ("r", (2, 3))):
+        diff = (g[left] - g[right]) / p[f"track_{axle}"]
+        k += p[f"arb_{axle}"] * np.outer(diff, diff)
+    c = g.T @ np.diag([p[f"b_{c}"] for c in CORNERS]) @ g
+    mass = np.array([p[f"m_{c}"] for c in CORNERS] + [p["M"], p["Jy"], p["Jx"]])
+    a = np.zeros((14, 14))
+    b = np.zeros((14, 4))
+    for r in range(7):
+        a[2 * r, 2 * r + 1] = 1.0
+        a[2 * r + 1, 0::2] = -k[r] / mass[r]
+        a[2 * r + 1, 1::2] = -c[r] / mass[r]
+    for i in range(4):
+        b[2 * i + 1, i] = kt[i] / mass[i]
+    return a, b
+
+
+def simulate_full(
+    params: Dict[str, float], cls: str, speed: float, dt: float, n: int, seed: int
+) -> Tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """``(x, xdot, u)`` of ``n`` samples every ``dt`` seconds of the full car with ``params`` at a
+    constant ``speed`` on two independent class-``cls`` tracks (left, right; harmonics as
+    :func:`spectral_road`), each rear wheel on its front wheel's track ``l_f + l_r`` metres
+    later; integrated by ``scipy.signal.lsim`` (the road linear between points, :data:`SUBSTEPS`
+    per sample), starting at rest on the road. ``u``: the road under ``fl, fr, rl, rr``."""
+    from scipy.signal import lsim
+
+    rng = np.random.default_rng(seed)
+    wheelbase = params["l_f"] + params["l_r"]
+    h_fine = dt / SUBSTEPS
+    s_rear = np.arange(n * SUBSTEPS) * speed * h_fine  # the rear axle's distance; the front is ahead
+    length = float(s_rear[-1]) + wheelbase + 1.0
+    left, right = spectral_road(cls, length, rng), spectral_road(cls, length, rng)
+    grid = np.arange(left.size)
+
+    def at(track: NDArray[np.float64], s: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.interp(s / GRID, grid, track)
+
+    front = s_rear + wheelbase
+    h = np.column_stack([at(left, front), at(right, front), at(left, s_rear), at(right, s_rear)])
+    a, b = full_matrices(params)
+    x0 = -np.linalg.solve(a, b @ h[0])  # at rest: A x0 + B u0 = 0
+    t = np.arange(n * SUBSTEPS) * h_fine
+    _, _, x = lsim((a, b, np.eye(14), np.zeros((14, 4))), h, t, X0=x0, interp=True)
+    x = x[::SUBSTEPS]
+    hk = h[::SUBSTEPS]
+    xdot = x @ a.T + hk @ b.T
+    return np.ascontiguousarray(x), np.ascontiguousarray(xdot), np.ascontiguousarray(hk)
 
 
 GRAVITY = 9.80665

@@ -108,7 +108,7 @@ def half_car(seed0: int, seeds: int, classes: str, speeds: str) -> int:
     return 0
 
 
-def full_car(seed0: int, seeds: int, classes: str, speeds: str, n: int) -> int:
+def full_car(seed0: int, seeds: int, classes: str, speeds: str, n: int, generator: str = "vehid") -> int:
     """The passenger full car on ISO roads (two coherent tracks, each rear wheel on its front
     wheel's track a wheelbase later), true states, ``n`` samples at 200 Hz:
     ``TwoAxleIdentifier(FullCar)``, road cancellation per track (the direct front equation off:
@@ -128,22 +128,27 @@ def full_car(seed0: int, seeds: int, classes: str, speeds: str, n: int) -> int:
         for v in (float(x) for x in speeds.split(",") if x != "varying"):
             good, worst, consts, plain = 0, [], [], []
             for i, seed in enumerate(range(seed0, seed0 + seeds)):
-                run = vehid.Simulator(car, dt=DT, road=f"iso8608-{cls}", speed=v, sensors="state", seed=seed).run(n)
+                if generator == "vehid":
+                    run = vehid.Simulator(car, dt=DT, road=f"iso8608-{cls}", speed=v, sensors="state", seed=seed).run(n)
+                    x, xdot = run.x, run.xdot
+                else:
+                    x, xdot, _ = independent_road.simulate_full(car.params, cls, v, DT, n, seed)
                 two = vehid.TwoAxleIdentifier(car, spacing=v * DT, direct_front=False)
-                two.fit(run.x, run.xdot)
+                two.fit(x, xdot)
                 err = np.abs(two.a_hat[rows][nz] / car.a[rows][nz] - 1)
                 good += bool(np.all(err < 0.05))
                 worst.append(float(err.max()))
                 est = car.physical(two.theta, **masses)
                 consts.append(max(abs(est[k] / car.params[k] - 1) for k in named))
                 rows_only = vehid.TwoAxleIdentifier(car, spacing=v * DT, method="none")
-                rows_only.fit(run.x, run.xdot)
+                rows_only.fit(x, xdot)
                 plain.append(float(np.abs(rows_only.a_hat[wheel][wnz] / car.a[wheel][wnz] - 1).max()))
                 print(f"[{i + 1}/{seeds} {time.time() - t0:.0f} s] full car {cls} {v:.0f} m/s seed {seed}: worst entry"
                       f" {100 * worst[-1]:.2f} %, worst constant {100 * consts[-1]:.2f} %, plain rows"
                       f" {100 * plain[-1]:.0f} %", flush=True)
-            print(f"full car, {cls} {v:.0f} m/s, {n} samples: all {int(nz.sum())} entries within 5 % on {good}/{seeds}"
-                  f" seeds; worst entry median {100 * np.median(worst):.2g} %, largest {100 * max(worst):.2g} %;"
+            print(f"full car ({generator}), {cls} {v:.0f} m/s, {n} samples: all {int(nz.sum())} entries within 5 %"
+                  f" on {good}/{seeds} seeds; worst entry median {100 * np.median(worst):.2g} %, largest"
+                  f" {100 * max(worst):.2g} %;"
                   f" worst of M, Jx, Jy, k, b: median {100 * np.median(consts):.2g} %, largest"
                   f" {100 * max(consts):.2g} %; plain rows' worst wheel entry: median {100 * np.median(plain):.0f} %",
                   flush=True)
@@ -255,7 +260,7 @@ def main(argv: list[str] | None = None) -> int:
     if a.half:
         return half_car(a.seed0, min(a.seeds, a.first), a.classes, a.speeds)
     if a.full:
-        return full_car(a.seed0, min(a.seeds, a.first), a.classes, a.speeds, a.samples)
+        return full_car(a.seed0, min(a.seeds, a.first), a.classes, a.speeds, a.samples, a.generator)
     if a.lift_off:
         return lift_off(a.seed0, a.seeds)
     car = vehid.QuarterCar.passenger()

@@ -1,7 +1,8 @@
 """The full car from Python: constants, the model against an independent numpy construction and
 scipy's eigenvalues, pickling, drives (shapes, the rear delay, changes per corner, the sensors'
-geometry, the left/right coherence by scipy's cross-spectra) and the constants recovered from
-identified rows."""
+geometry, the left/right coherence by scipy's cross-spectra), the constants recovered from
+identified rows, and the rows identified on one road by road cancellation on the two tracks (on
+vehid's drives and on an independent simulator's), with their statistics."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 import scipy.signal
+from bench_scripts import load  # tests/ is on sys.path under pytest
 from scipy.special import k1
 
 import vehid
@@ -284,3 +286,21 @@ def test_two_tracks_statistics_give_the_constants_intervals() -> None:
         if k in ("M", "Jx", "Jy") or k[:2] in ("k_", "b_"):
             assert low < val < high, (k, low, val, high)
             assert (high - low) / val < 0.1, (k, low, high)
+
+
+def test_two_tracks_on_data_from_an_independent_simulator() -> None:
+    # benches/independent_road.py: the full car's A and B from Lagrange's equations written
+    # there (checked against vehid's), two independent harmonic class C tracks (not vehid's
+    # shaping filter nor its coherence model), scipy's lsim: every nonzero entry within 5 %.
+    ir = load("independent_road")
+    car = vehid.FullCar.passenger()
+    a, b = ir.full_matrices(car.params)
+    np.testing.assert_allclose(a, car.a, rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(b, car.b, rtol=1e-12, atol=1e-9)
+    x, xdot, u = ir.simulate_full(car.params, "C", 20.0, DT, 20_000, 5)
+    np.testing.assert_allclose(u[31:, 2:], u[:-31, :2], rtol=0, atol=1e-12)  # rear = front, 3.1 m later
+    two = vehid.TwoAxleIdentifier(car, spacing=20.0 * DT, direct_front=False, p0=1e8)
+    two.fit(x, xdot)
+    rows = list(car.unknown_rows)
+    nz = car.a[rows] != 0
+    assert np.abs(two.a_hat[rows][nz] / car.a[rows][nz] - 1).max() < 0.05
