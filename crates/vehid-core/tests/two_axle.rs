@@ -876,6 +876,7 @@ fn two_axle_accessors_read_back_what_the_test_gave() {
         road_sigma: 0.02,
         deriv_noise: 0.003,
         direct_front: false,
+        exact: false,
     };
     let d = 7;
     let mut id = Id::new(&model, d, cfg).unwrap();
@@ -1318,7 +1319,7 @@ fn full_car_two_axle_refuses_bad_models_and_samples() {
 /// rows one group each. With white derivative noise of the declared σ_v on every row the
 /// estimated noise scale `σ̂²/r` is 1 within 5 % on every row. Returns how many of the 66
 /// nonzero entries' 95 % intervals hold the truth, and the sum of their squared standardized
-/// errors (a diffuse prior: see the comment).
+/// errors (the exact start: see the comment).
 fn full_car_stats_run(seed: u64) -> (usize, usize, f64) {
     use rand_distr::{Distribution, StandardNormal};
     use vehid_core::identify::estimate_stats;
@@ -1329,10 +1330,11 @@ fn full_car_stats_run(seed: u64) -> (usize, usize, f64) {
     let sv = 0.05;
     let cfg = FullDriveConfig::new(DriveConfig::new(0.005).road(RoadClass::C).speed(20.0));
     let mut drive = FullDrive::new(car, cfg, seed).unwrap();
-    // A diffuse prior (P(0) = 10⁸): the prior's misfit (θ²/p0 summed, about 60 with the
-    // thesis' P(0) = 1000 against entries up to 5000 s⁻²) enters the recursive residual sums.
-    let mut cfg = TwoAxleConfig::new(WheelMethod::Cancel, 1e8, 0.1, sv);
+    // The exact start: with a prior its misfit (θ²/p0 summed, about 60 with the thesis'
+    // P(0) = 1000 against entries up to 5000 s⁻²) would enter the recursive residual sums.
+    let mut cfg = TwoAxleConfig::new(WheelMethod::Cancel, 1000.0, 0.1, sv);
     cfg.direct_front = false;
+    cfg.exact = true;
     let mut id = Full::new(&car.model(), 31, cfg).unwrap();
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
     let mut e = [0.0; 7];
@@ -1400,4 +1402,47 @@ fn full_car_two_axle_statistics_are_the_filters_and_cover() {
     // Measured: 519/528 (98.3 %), 0.855 (seeds 401-408); per seed 0.50-1.08.
     assert!(n == 8 * 66 && (0.9..=1.0).contains(&cover), "{inside}/{n} intervals hold the truth");
     assert!((0.6..1.4).contains(&z2), "mean squared standardized error {z2:.3}");
+}
+
+/// The exact start (`TwoAxleConfig::exact`): no estimate until every filter in use has its
+/// parameters determined (`RankDeficient`), then least squares; on true states of the full car
+/// on class C the cancelled regressions fit to rounding (every entry within 10⁻⁶, where
+/// `p0 = 1000` leaves the prior's 0.1–0.3 %). The thesis' method refuses it.
+#[test]
+fn full_car_exact_start_is_least_squares() {
+    use vehid_core::model::FullCar;
+    use vehid_core::sim::{DriveConfig, FullDrive, FullDriveConfig, RoadClass};
+    type Full = TwoAxleIdentifierVec<f64, 14, 28, 4>;
+    let car = FullCar::<f64>::passenger();
+    let model = car.model();
+    let mut cfg = TwoAxleConfig::new(WheelMethod::Cancel, 1000.0, 0.1, 0.005);
+    cfg.exact = true;
+    cfg.direct_front = false;
+    let mut id = Full::new(&model, 31, cfg).unwrap();
+    let drive_cfg = FullDriveConfig::new(DriveConfig::new(0.005).road(RoadClass::C).speed(20.0));
+    let mut drive = FullDrive::new(car, drive_cfg, 515).unwrap();
+    let mut e = [0.0; 7];
+    let mut out = [0.0; 98];
+    for k in 0..20_000 {
+        let s = drive.next_sample();
+        id.update_at(&s.x, &s.xdot, None, &mut e).unwrap();
+        if k == 40 {
+            // 10 pairs so far: the joint filters (28 parameters) are still in their start.
+            assert!(matches!(id.theta_into(&mut out), Err(Error::RankDeficient { needed: 28, .. })));
+        }
+    }
+    id.theta_into(&mut out).unwrap();
+    let mut worst = 0.0f64;
+    for (i, &row) in id.rows().iter().enumerate() {
+        for j in 0..14 {
+            let a = model.a()[(row, j)];
+            if a != 0.0 {
+                worst = worst.max((out[i * 14 + j] / a - 1.0).abs());
+            }
+        }
+    }
+    assert!(worst < 1e-6, "worst entry {worst:e}");
+    let mut thesis = TwoAxleConfig::new(WheelMethod::Thesis, 1000.0, 0.1, 0.005);
+    thesis.exact = true;
+    assert!(matches!(Full::new(&model, 31, thesis), Err(Error::InvalidArgument { arg: "exact", .. })));
 }

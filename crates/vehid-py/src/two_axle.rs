@@ -93,7 +93,8 @@ fn p0_arg(p0: Option<&Bound<'_, PyAny>>) -> PyResult<P0> {
 /// track's; no outlier screen: its seven rows of 14 exceed what the screen holds, so `gate`
 /// must be 0 or left out). `road_sigma` (m) and `deriv_noise` give every
 /// equation's variance; `p0` is P(0) on every row (default 1000; `p0_body` overrides it on the
-/// body rows). `update` and `fit` take one sample per road point, in order.
+/// body rows), or "exact" (methods "none" and "cancel"): least squares on every sample once each
+/// filter's parameters are determined, no prior (`theta` raises until then). `update` and `fit` take one sample per road point, in order.
 ///
 /// On a Structure (`model=half.structure(known={"m1": 1.0, "m2": 1.0, "l1": 2.0, "l2": 1.0})`,
 /// with `car=half`: the 8-state, 2-input model whose B gives the wheel rows and ρ = b42/b21,
@@ -277,14 +278,19 @@ impl PyTwoAxleIdentifier {
             let inner = vehid_runtime::build::screened(inner, &s, gate, Refresh::Geometric).map_err(core_err)?;
             PyIdentifier::on_structure(inner, st)
         } else {
-            let p0 = match p0 {
-                P0::Default => 1000.0,
-                P0::Value(v) => v,
-                P0::Exact => {
+            let (p0, exact) = match p0 {
+                P0::Default => (1000.0, false),
+                P0::Value(v) => (v, false),
+                P0::Exact if p0_body.is_some() => {
                     return Err(VehidError::new_err(
-                        "`p0` = \"exact\" is for a Structure: the rows identifier needs a number (P(0), e.g. 1000)",
+                        "`p0_body` is for a prior: with p0=\"exact\" every row starts exactly (no prior)",
                     ))
                 }
+                P0::Exact if method == WheelMethod::Thesis => return Err(VehidError::new_err(
+                    "`p0` = \"exact\" is for methods \"none\" and \"cancel\": the thesis' method subtracts the front \
+                         row's innovation, which a row in its exact start does not have (give a number, e.g. 1000)",
+                )),
+                P0::Exact => (1000.0, true),
             };
             if !compensate {
                 return Err(VehidError::new_err(
@@ -294,6 +300,7 @@ impl PyTwoAxleIdentifier {
             let mut cfg = TwoAxleConfig::new(method, p0, road_sigma, deriv_noise);
             cfg.p0_body = p0_body.unwrap_or(p0);
             cfg.direct_front = direct_front;
+            cfg.exact = exact;
             let inner: vehid_runtime::build::Boxed = if full {
                 Box::new(IdFull::new(&m.data.model::<14, 4>().map_err(core_err)?, d, cfg).map_err(memory)?)
             } else {

@@ -80,19 +80,33 @@ pub struct TwoAxleConfig<T> {
     pub deriv_noise: T,
     /// `Cancel` only: also use the direct front-row equation, weighted by its variance.
     pub direct_front: bool,
+    /// The exact start on every filter ([`RowIdentifier::exact`], [`KalmanRows::exact`]):
+    /// least squares on every sample once each filter's parameters are determined, no prior
+    /// (`p0_wheel`, `p0_body` unused). Methods `None` and `Cancel` (the thesis' method reads the
+    /// front row's innovation, which a filter in its start does not have); every equation's
+    /// variance must be positive.
+    pub exact: bool,
 }
 
 impl<T: Real> TwoAxleConfig<T> {
-    /// `p0` on every row, the direct front equation on.
+    /// `p0` on every row, the direct front equation on, no exact start.
     pub fn new(method: WheelMethod, p0: T, road_sigma: T, deriv_noise: T) -> Self {
-        Self { method, p0_wheel: p0, p0_body: p0, road_sigma, deriv_noise, direct_front: true }
+        Self { method, p0_wheel: p0, p0_body: p0, road_sigma, deriv_noise, direct_front: true, exact: false }
     }
 
     fn validate(&self) -> Result<()> {
         check_positive("p0", self.p0_wheel)?;
         check_positive("p0", self.p0_body)?;
         check_nonneg("road_sigma", self.road_sigma)?;
-        check_nonneg("deriv_noise", self.deriv_noise)
+        check_nonneg("deriv_noise", self.deriv_noise)?;
+        if self.exact && self.method == WheelMethod::Thesis {
+            return Err(Error::InvalidArgument {
+                arg: "exact",
+                expected: "methods none or cancel with the exact start (the thesis' method subtracts the front row's \
+                           innovation, which a filter in its exact start does not have)",
+            });
+        }
+        Ok(())
     }
 }
 
@@ -295,26 +309,35 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
                 nb += 1;
             }
         }
-        let body = if nb > 0 {
-            Some(KalmanRows::from_slices(&body_rows[..nb], &[cfg.p0_body], &body_r[..nb], KalmanOptions::default())?)
-        } else {
-            None
+        let body = match (nb, cfg.exact) {
+            (0, _) => None,
+            (_, true) => Some(KalmanRows::exact(&body_rows[..nb], &body_r[..nb], KalmanOptions::default())?),
+            (_, false) => Some(KalmanRows::from_slices(
+                &body_rows[..nb],
+                &[cfg.p0_body],
+                &body_r[..nb],
+                KalmanOptions::default(),
+            )?),
         };
         let empty = Past { grid: 0, x: SVector::zeros(), z_front: zero, e_front: zero, valid: false };
         let ring = B::with_len("TwoAxle ring capacity C (samples between the axles, d)", d, empty)?;
         // Unused track slots (the half car's second) repeat the first.
-        let filters = |r: [T; MAX_TRACKS]| -> Result<[RowIdentifier<T, N>; MAX_TRACKS]> {
-            let first = RowIdentifier::new(cfg.p0_wheel, r[0])?;
-            let mut out = [first; MAX_TRACKS];
+        fn filters<T: Real, const K: usize>(
+            cfg: &TwoAxleConfig<T>,
+            r: [T; MAX_TRACKS],
+            tracks: usize,
+        ) -> Result<[RowIdentifier<T, K>; MAX_TRACKS]> {
+            let one = |r: T| if cfg.exact { RowIdentifier::exact(r) } else { RowIdentifier::new(cfg.p0_wheel, r) };
+            let mut out = [one(r[0])?; MAX_TRACKS];
             for j in 1..tracks {
-                out[j] = RowIdentifier::new(cfg.p0_wheel, r[j])?;
+                out[j] = one(r[j])?;
             }
             Ok(out)
-        };
-        let mut joint = [RowIdentifier::new(cfg.p0_wheel, r_cancel[0])?; MAX_TRACKS];
-        for j in 1..tracks {
-            joint[j] = RowIdentifier::new(cfg.p0_wheel, r_cancel[j])?;
         }
+        // The filters that run: a method's own (the others are kept at their start).
+        // (The exact start needs r > 0, which an unused filter's variance need not be.)
+        let used = |r: [T; MAX_TRACKS], by: bool| if by || !cfg.exact { r } else { [T::one(); MAX_TRACKS] };
+        let rows_method = cfg.method != WheelMethod::Cancel;
         Ok(Self {
             model: model.clone(),
             rows: model.unknown_rows(),
@@ -328,15 +351,29 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
             r_rear,
             r_cancel,
             direct_scale,
-            front: filters(r_front)?,
-            rear: filters(r_rear)?,
-            joint,
+            front: filters(&cfg, used(r_front, rows_method), tracks)?,
+            rear: filters(&cfg, used(r_rear, rows_method), tracks)?,
+            joint: filters(&cfg, used(r_cancel, !rows_method), tracks)?,
             body,
             ring,
             last_grid: None,
             samples: 0,
             paired: 0,
         })
+    }
+
+    /// With the exact start, the first filter in use still in its start: `(rank, needed)`.
+    fn start_rank(&self) -> Option<(usize, usize)> {
+        if !self.cfg.exact {
+            return None;
+        }
+        let t = self.tracks;
+        let wheels = match self.cfg.method {
+            WheelMethod::Cancel => self.joint[..t].iter().find(|f| f.starting()).map(|f| (f.start_rank(), P)),
+            _ => self.front[..t].iter().chain(&self.rear[..t]).find(|f| f.starting()).map(|f| (f.start_rank(), N)),
+        };
+        let body = self.body.as_ref().filter(|b| b.starting()).map(|b| (b.filter(0).start_rank(), N));
+        wheels.or(body)
     }
 
     /// Whether `row` is a wheel row: `Some((track, front))`.
@@ -472,12 +509,16 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
     /// Writes θ̂ (the unknown rows, `K × N` row-major, in the model's order) into `out`.
     ///
     /// # Errors
-    /// [`Error::Shape`] for a wrong length.
+    /// [`Error::Shape`] for a wrong length; [`Error::RankDeficient`] while a filter in use is
+    /// in its exact start ([`TwoAxleConfig::exact`]: no estimate yet).
     pub fn theta_into(&self, out: &mut [T]) -> Result<()> {
         let rows = self.rows;
         let k = rows.len();
         if out.len() != k * N {
             return Err(Error::Shape { arg: "out", expected: k * N, got: out.len() });
+        }
+        if let Some((rank, needed)) = self.start_rank() {
+            return Err(Error::RankDeficient { rank, needed });
         }
         for (i, &row) in rows.as_slice().iter().enumerate() {
             out[i * N..(i + 1) * N].copy_from_slice(self.theta_row(row).as_slice());
