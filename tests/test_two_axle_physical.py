@@ -155,7 +155,7 @@ def test_bad_input_raises_value_error_naming_the_argument() -> None:
     with pytest.raises(ValueError, match="p0"):
         physical(p0="diffuse")
     with pytest.raises(ValueError, match="p0"):
-        vehid.TwoAxleIdentifier(HALF, p0="exact")
+        vehid.TwoAxleIdentifier(HALF, p0="exact", method="thesis")
     with pytest.raises(ValueError, match="compensate"):
         vehid.TwoAxleIdentifier(HALF, compensate=False)
     with pytest.raises(ValueError, match="spacing"):

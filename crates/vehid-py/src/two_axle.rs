@@ -90,8 +90,9 @@ fn p0_arg(p0: Option<&Bound<'_, PyAny>>) -> PyResult<P0> {
 /// The body rows are plain Kalman rows. A `FullCar` has two tracks: each rear wheel rolls on its
 /// front wheel's track (left, right) a wheelbase later, and each track's pair of wheel rows
 /// (rows 1 and 5, 3 and 7) is identified as above on its own (`wheel_variances`: the left
-/// track's; no outlier screen: its seven rows of 14 exceed what the screen holds, so `gate`
-/// must be 0 or left out). `road_sigma` (m) and `deriv_noise` give every
+/// track's; its seven rows of 14 exceed what the outlier screen below holds, so each filter
+/// gates its own samples instead: a sample whose recursive residual on a filter exceeds `gate`
+/// κ times that filter's residual scale leaves the filter unchanged). `road_sigma` (m) and `deriv_noise` give every
 /// equation's variance; `p0` is P(0) on every row (default 1000; `p0_body` overrides it on the
 /// body rows), or "exact" (methods "none" and "cancel"): least squares on every sample once each
 /// filter's parameters are determined, no prior (`theta` raises until then). `update` and `fit` take one sample per road point, in order.
@@ -190,8 +191,7 @@ impl PyTwoAxleIdentifier {
         compensate: bool,
         #[pyo3(from_py_with = crate::args::gate)] gate: Option<f64>,
     ) -> PyResult<PyClassInitializer<Self>> {
-        let gate_given = gate;
-        let mut gate = gate.unwrap_or(vehid_runtime::defaults::GATE);
+        let gate = gate.unwrap_or(vehid_runtime::defaults::GATE);
         let road_sigma = road_sigma.unwrap_or(vehid_runtime::defaults::ROAD_SIGMA);
         let deriv_noise = deriv_noise.unwrap_or(vehid_runtime::defaults::DERIV_NOISE);
         let p0 = p0_arg(p0)?;
@@ -301,28 +301,20 @@ impl PyTwoAxleIdentifier {
             cfg.p0_body = p0_body.unwrap_or(p0);
             cfg.direct_front = direct_front;
             cfg.exact = exact;
+            // The outer screen's structure holds the model's full rows (the half car's), or each
+            // filter gates its own samples (the full car's seven rows of 14, 98 terms, exceed it).
+            let screen = vehid_core::structure::Structure::full_rows(m.data.n, &m.data.rows).ok();
+            if screen.is_none() {
+                cfg.gate = gate;
+            }
             let inner: vehid_runtime::build::Boxed = if full {
                 Box::new(IdFull::new(&m.data.model::<14, 4>().map_err(core_err)?, d, cfg).map_err(memory)?)
             } else {
                 Box::new(Id::new(&m.data.model::<8, 2>().map_err(core_err)?, d, cfg).map_err(memory)?)
             };
-            let inner = match vehid_core::structure::Structure::full_rows(m.data.n, inner.rows()) {
-                Ok(rows) => vehid_runtime::build::screened(inner, &rows, gate, Refresh::Every).map_err(core_err)?,
-                // The full car's seven rows of 14 (98 terms) exceed what the screen's structure
-                // holds: no screen (its gate 0), and a gate asked for is refused.
-                Err(_) if gate_given.is_none_or(|g| g == 0.0) => {
-                    gate = 0.0;
-                    inner
-                }
-                Err(_) => {
-                    return Err(VehidError::new_err(format!(
-                        "`gate` = {gate}: the outlier screen cannot hold this model's {} unknown rows of {} states \
-                         (the full car's: more than its 96 terms); pass gate=0 (without it the full car's identifier \
-                         has no screen)",
-                        inner.rows().len(),
-                        m.data.n
-                    )))
-                }
+            let inner = match screen {
+                Some(rows) => vehid_runtime::build::screened(inner, &rows, gate, Refresh::Every).map_err(core_err)?,
+                None => inner,
             };
             PyIdentifier::new(inner, m.data.clone())
         };

@@ -35,7 +35,10 @@
 //! `grid = None` takes the next one. A ring of the last `d` samples (a fixed array `[_; C]`,
 //! or a `Vec`) holds what the pairing needs. Nothing here uses the time between samples.
 
-use super::{check_lengths, check_sample, vector, Dims, Identifier, KalmanOptions, KalmanRows, RowIdentifier, Store};
+use super::{
+    check_lengths, check_sample, vector, CovarianceForm, Dims, Identifier, KalmanOptions, KalmanRows, RowIdentifier,
+    Store,
+};
 use crate::error::{check_nonneg, check_positive};
 use crate::model::{LinearModel, RowSet};
 use crate::sampler::{RingStore, Trigger};
@@ -86,12 +89,26 @@ pub struct TwoAxleConfig<T> {
     /// front row's innovation, which a filter in its start does not have); every equation's
     /// variance must be positive.
     pub exact: bool,
+    /// Each filter's own outlier gate κ (0: off; [`KalmanOptions::gate`]): a sample whose
+    /// recursive residual on a filter exceeds κ σ̂ leaves that filter unchanged (the wheel
+    /// rows' filters, and every body row). For models whose rows an outer screen
+    /// ([`super::Screened`]) cannot hold (the full car).
+    pub gate: T,
 }
 
 impl<T: Real> TwoAxleConfig<T> {
     /// `p0` on every row, the direct front equation on, no exact start.
     pub fn new(method: WheelMethod, p0: T, road_sigma: T, deriv_noise: T) -> Self {
-        Self { method, p0_wheel: p0, p0_body: p0, road_sigma, deriv_noise, direct_front: true, exact: false }
+        Self {
+            method,
+            p0_wheel: p0,
+            p0_body: p0,
+            road_sigma,
+            deriv_noise,
+            direct_front: true,
+            exact: false,
+            gate: T::zero(),
+        }
     }
 
     fn validate(&self) -> Result<()> {
@@ -99,6 +116,7 @@ impl<T: Real> TwoAxleConfig<T> {
         check_positive("p0", self.p0_body)?;
         check_nonneg("road_sigma", self.road_sigma)?;
         check_nonneg("deriv_noise", self.deriv_noise)?;
+        check_nonneg("gate", self.gate)?;
         if self.exact && self.method == WheelMethod::Thesis {
             return Err(Error::InvalidArgument {
                 arg: "exact",
@@ -309,15 +327,11 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
                 nb += 1;
             }
         }
+        let opts = KalmanOptions { gate: cfg.gate, ..KalmanOptions::default() };
         let body = match (nb, cfg.exact) {
             (0, _) => None,
-            (_, true) => Some(KalmanRows::exact(&body_rows[..nb], &body_r[..nb], KalmanOptions::default())?),
-            (_, false) => Some(KalmanRows::from_slices(
-                &body_rows[..nb],
-                &[cfg.p0_body],
-                &body_r[..nb],
-                KalmanOptions::default(),
-            )?),
+            (_, true) => Some(KalmanRows::exact(&body_rows[..nb], &body_r[..nb], opts)?),
+            (_, false) => Some(KalmanRows::from_slices(&body_rows[..nb], &[cfg.p0_body], &body_r[..nb], opts)?),
         };
         let empty = Past { grid: 0, x: SVector::zeros(), z_front: zero, e_front: zero, valid: false };
         let ring = B::with_len("TwoAxle ring capacity C (samples between the axles, d)", d, empty)?;
@@ -327,7 +341,15 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
             r: [T; MAX_TRACKS],
             tracks: usize,
         ) -> Result<[RowIdentifier<T, K>; MAX_TRACKS]> {
-            let one = |r: T| if cfg.exact { RowIdentifier::exact(r) } else { RowIdentifier::new(cfg.p0_wheel, r) };
+            let opts = KalmanOptions { gate: cfg.gate, ..KalmanOptions::default() };
+            let one = |r: T| {
+                let f = if cfg.exact { RowIdentifier::exact(r) } else { RowIdentifier::new(cfg.p0_wheel, r) }?;
+                if cfg.gate > T::zero() {
+                    f.configured(CovarianceForm::Standard, &opts)
+                } else {
+                    Ok(f)
+                }
+            };
             let mut out = [one(r[0])?; MAX_TRACKS];
             for j in 1..tracks {
                 out[j] = one(r[j])?;
