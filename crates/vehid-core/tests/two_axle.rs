@@ -1450,7 +1450,11 @@ fn full_car_exact_start_is_least_squares() {
 
 /// One 1e30 derivative (rear left wheel) after 10⁴ good samples of the full car: with each
 /// filter's own gate (`TwoAxleConfig::gate`, κ = 6: the full car's rows exceed what the outer
-/// screen holds) ξ moves by under 10 %; without it the estimate is ruined. Also a 1e30 state.
+/// screen holds) ξ moves by under 10 %; without it the estimate is ruined. Also a 1e30 state,
+/// on a state with a coefficient (the heave rate) and one without in the rows that see it
+/// (the front left wheel's position in the left rear wheel's row: left out by the magnitude
+/// test, which every sample passes through; the residual gate alone would take it), and an
+/// outlier within the magnitude bound (the heave row's residual gate).
 #[test]
 fn full_car_gate_survives_one_outlier() {
     use vehid_core::model::FullCar;
@@ -1462,7 +1466,8 @@ fn full_car_gate_survives_one_outlier() {
     let drive_cfg = FullDriveConfig::new(DriveConfig::new(0.005).road(RoadClass::C).speed(20.0));
     let mut drive = FullDrive::new(car, drive_cfg, 606).unwrap();
     let data: Vec<_> = (0..12_000).map(|_| drive.next_sample()).map(|s| (s.x, s.xdot)).collect();
-    let run = |gate: f64, bad: Option<(bool, usize)>| -> f64 {
+    // (state?, index, value): the value replaces the sample's, or (NaN) 0.5 is added to it.
+    let run = |gate: f64, bad: Option<(bool, usize, f64)>| -> (f64, f64) {
         let mut cfg = TwoAxleConfig::new(WheelMethod::Cancel, 1000.0, 0.1, 0.005);
         cfg.direct_front = false;
         cfg.gate = gate;
@@ -1472,22 +1477,39 @@ fn full_car_gate_survives_one_outlier() {
             let (mut x, mut z) = (*x, *z);
             if k == 10_000 {
                 match bad {
-                    Some((true, i)) => x[i] = 1e30,
-                    Some((false, i)) => z[i] = 1e30,
+                    Some((true, i, v)) => x[i] = v,
+                    Some((false, i, v)) if v.is_nan() => z[i] += 0.5,
+                    Some((false, i, v)) => z[i] = v,
                     None => {}
                 }
             }
-            let _ = id.update_at(&x, &z, None, &mut e);
+            let step = id.update_at(&x, &z, None, &mut e);
+            // With the gate every sample is taken (the outlier left out); without it a state
+            // outlier may be refused (then nothing changes) or ruin the estimate.
+            if gate > 0.0 {
+                step.unwrap();
+            }
+        }
+        if gate > 0.0 {
+            let by_magnitude = bad.is_some_and(|b| !b.2.is_nan());
+            assert_eq!(id.screened(), u64::from(by_magnitude), "{bad:?}: the magnitude test's count");
         }
         let mut th = [0.0; 98];
         id.theta_into(&mut th).unwrap();
-        xi(&truth, &th).unwrap()
+        // Every row, and the heave row (the fifth unknown row, row 9) alone.
+        (xi(&truth, &th).unwrap(), xi(&truth[56..70], &th[56..70]).unwrap())
     };
     let clean = run(6.0, None);
-    for bad in [(false, 5), (true, 9)] {
-        let gated = run(6.0, Some(bad));
+    // 1e30 in a derivative and in two states (magnitude test); 0.5 m/s² added to the heave
+    // acceleration, within its magnitude bound (the heave row's own residual gate).
+    // ξ of every row, and of the heave row for the outlier in its derivative.
+    for bad in [(false, 5, 1e30), (true, 9, 1e30), (true, 0, 1e30), (false, 9, f64::NAN)] {
+        let pick = |r: (f64, f64)| if bad.2.is_nan() { r.1 } else { r.0 };
+        let (clean, gated) = (pick(clean), pick(run(6.0, Some(bad))));
         assert!((gated / clean - 1.0).abs() < 0.1, "{bad:?}: xi {clean:.3e} -> {gated:.3e} with the gate");
+        if !bad.0 {
+            let ungated = pick(run(0.0, Some(bad)));
+            assert!(ungated > 10.0 * clean, "{bad:?} without the gate: xi {clean:.3e} -> {ungated:.3e}");
+        }
     }
-    let ungated = run(0.0, Some((false, 5)));
-    assert!(ungated > 10.0 * clean, "without the gate: xi {clean:.3e} -> {ungated:.3e}");
 }
