@@ -12,11 +12,6 @@
 //! drive (both ISO 8608 tracks in distance, the fourteen states' step, the twelve realistic
 //! sensors and their noise; as the criterion bench `simulate_f64/full/drive`), after the same
 //! 30 s.
-//!
-//! `count_full_health full_two_axle N` counts `N` updates of the full car's two-axle rows
-//! identifier (road cancellation on two tracks; as the criterion bench
-//! `update_f64/full/two_axle_rows`): the passenger car on ISO 8608 class C at 20 m/s, true
-//! states, the rear wheels 31 samples behind, after 6000 updates.
 
 use std::hint::black_box;
 use std::process::ExitCode;
@@ -62,42 +57,19 @@ fn drive(n: usize) -> vehid_core::Result<String> {
     Ok(format!("sum of the first channel {sum:.6e}"))
 }
 
-/// `n` updates of the full car's two-axle identifier, after 6000.
-fn two_axle(n: usize) -> vehid_core::Result<String> {
-    use vehid_core::identify::{TwoAxleConfig, TwoAxleIdentifier, WheelMethod};
-    use vehid_core::sim::RoadClass;
-    let car = FullCar::<f64>::passenger();
-    let cfg = FullDriveConfig::new(DriveConfig::new(0.005).road(RoadClass::C).speed(20.0));
-    let mut drive = FullDrive::new(car, cfg, 42)?;
-    let cfg = TwoAxleConfig::new(WheelMethod::Cancel, 1000.0, 0.1, 0.005);
-    let mut id = TwoAxleIdentifier::<f64, 14, 28, 3, 32, 4>::new(&car.model(), 31, cfg)?;
-    let mut e = [0.0; 7];
-    for _ in 0..6000 {
-        let s = drive.next_sample();
-        id.update_at(&s.x, &s.xdot, None, &mut e)?;
-    }
-    let data: Vec<_> = (0..LEN).map(|_| drive.next_sample()).map(|s| (s.x, s.xdot)).collect();
-    let mut paired = 0;
-    for (x, z) in data.iter().cycle().take(n) {
-        paired += usize::from(black_box(id.update_at(black_box(x), black_box(z), None, &mut e))?);
-    }
-    Ok(format!("{paired} paired, theta[0] {:.6e}", id.theta_row(1)[0]))
-}
-
 fn main() -> ExitCode {
     // `full_health N` or `full_drive N`, as callgrind_check.py calls every counting binary
     // (`BENCH N`).
     let args: Vec<String> = std::env::args().skip(1).collect();
     let (Some(bench), Some(Ok(n))) = (args.first().map(String::as_str), args.get(1).map(|s| s.parse::<usize>())) else {
-        eprintln!("usage: count_full_health full_health|full_drive|full_two_axle N");
+        eprintln!("usage: count_full_health full_health|full_drive N");
         return ExitCode::from(2);
     };
     let counted = match bench {
         "full_health" => run(n),
         "full_drive" => drive(n),
-        "full_two_axle" => two_axle(n),
         _ => {
-            eprintln!("usage: count_full_health full_health|full_drive|full_two_axle N");
+            eprintln!("usage: count_full_health full_health|full_drive N");
             return ExitCode::from(2);
         }
     };
