@@ -316,15 +316,17 @@ def test_two_tracks_gate_each_filter() -> None:
     run = vehid.Simulator(car, dt=DT, road="iso8608-C", speed=20.0, sensors="state", seed=41).run(12_000)
     truth = car.theta
 
-    def xi_with(gate: float, col: int, in_state: bool) -> float:
+    def xi_with(gate: float, col: int, in_state: bool) -> tuple[float, int]:
         x, z = run.x.copy(), run.xdot.copy()
         if col >= 0:
             (x if in_state else z)[10_000, col] = 1e30
         two = vehid.TwoAxleIdentifier(car, spacing=20.0 * DT, direct_front=False, gate=gate)
         two.fit(x, z)
-        return vehid.xi(truth, two.theta)
+        return vehid.xi(truth, two.theta), int(two.gated.min())
 
-    clean = xi_with(6.0, -1, False)
+    clean, none_left_out = xi_with(6.0, -1, False)
+    assert none_left_out == 0
     for col, in_state in [(5, False), (9, True), (0, True)]:
-        assert abs(xi_with(6.0, col, in_state) / clean - 1) < 0.1, (col, in_state)
-    assert xi_with(0.0, 5, False) > 10 * clean
+        value, left_out = xi_with(6.0, col, in_state)
+        assert abs(value / clean - 1) < 0.1 and left_out == 1, (col, in_state, value, left_out)
+    assert xi_with(0.0, 5, False)[0] > 10 * clean

@@ -1493,6 +1493,13 @@ fn full_car_gate_survives_one_outlier() {
         if gate > 0.0 {
             let by_magnitude = bad.is_some_and(|b| !b.2.is_nan());
             assert_eq!(id.screened(), u64::from(by_magnitude), "{bad:?}: the magnitude test's count");
+            let mut gated = [0u64; 7];
+            id.gated_into(&mut gated).unwrap();
+            if by_magnitude {
+                assert!(gated.iter().all(|&g| g >= 1), "{bad:?}: every row counts the sample left out: {gated:?}");
+            } else if bad.is_some() {
+                assert_eq!(gated[4], 1, "the heave row's gate: {gated:?}");
+            }
         }
         let mut th = [0.0; 98];
         id.theta_into(&mut th).unwrap();

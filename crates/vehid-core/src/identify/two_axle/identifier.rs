@@ -101,6 +101,26 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
         Ok(())
     }
 
+    /// Each row's samples left out: by the magnitude test (every row), plus by its filter's
+    /// own residual gate ([`TwoAxleConfig::gate`]; a track's joint filter counts on both its
+    /// rows).
+    fn gated_into(&self, out: &mut [u64]) -> Result<()> {
+        let k = self.rows.len();
+        if out.len() != k {
+            return Err(Error::Shape { arg: "out", expected: k, got: out.len() });
+        }
+        for (o, &row) in out.iter_mut().zip(self.rows.as_slice()) {
+            let own = match self.source(row) {
+                Source::Body(i) => self.body.as_ref().map_or(0, |b| b.filter(i).gated()),
+                Source::Joint(t, _) => self.joint[t].gated(),
+                Source::Row(t, true) => self.front[t].gated(),
+                Source::Row(t, false) => self.rear[t].gated(),
+            };
+            *o = self.screened + own;
+        }
+        Ok(())
+    }
+
     /// One group per body row, per wheel row (methods none and thesis) or per track (its two
     /// rows, method cancel).
     fn groups_into(&self, group_of_param: &mut [usize], group_of_eq: &mut [usize]) -> Result<()> {
