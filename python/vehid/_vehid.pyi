@@ -477,7 +477,7 @@ _Trigger = Tuple[int, int, float, Optional[Tuple[int, int, float]]]
 
 @final
 class TwoAxleIdentifier(Identifier):
-    """Half car on one road (Ch. VI.D): plain rows, Eq 6.14, or road cancellation (also on a Structure)."""
+    """Half or full car on one road (Ch. VI.D): plain rows, Eq 6.14, road cancellation (half car: also a Structure)."""
 
     def __new__(
         cls,
