@@ -94,7 +94,7 @@ BENCHES = [
     "quarter_state_filter_realistic",  # update_f64/quarter/state_filter_realistic (binary count_road)
     "full_health",                  # health/full_monitor_update_f64 (full car; binary count_full_health)
     "full_drive",                   # simulate_f64/full/drive (the full car's drive; binary count_full_health)
-    "full_two_axle",                # update_f64/full/two_axle_rows (road cancellation, two tracks; binary count_two_axle)
+    "full_two_axle",                # update_f64/full/two_axle_rows (road cancellation; binary count_two_axle)
 ]
 # Benches counted by a binary other than count_updates (kept apart so that their code does not
 # change how count_updates is compiled).
