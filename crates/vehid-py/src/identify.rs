@@ -897,8 +897,8 @@ fn full_rows(m: &ModelData) -> Option<vehid_core::structure::Structure<f64>> {
 
 /// A linear model's identifier behind the screen at `gate` (`build::screened`), its residuals
 /// those of the model's full rows; when those rows exceed a structure's capacity (more than 96
-/// terms: e.g. 16 states with 6 or more unknown rows) the identifier as it is (the Kalman
-/// identifiers keep their own gate; the others then have none: a known gap).
+/// terms: e.g. the full car's seven rows of 14 states) the screen's magnitude test and held
+/// start only (`build::screened_magnitudes`; the Kalman identifiers test residuals themselves).
 fn screen_rows(
     inner: Box<dyn DynIdentifier<f64>>,
     m: &ModelData,
@@ -907,7 +907,7 @@ fn screen_rows(
 ) -> PyResult<Box<dyn DynIdentifier<f64>>> {
     match full_rows(m) {
         Some(s) => build::screened(inner, &s, gate, refresh).map_err(core_err),
-        None => Ok(inner),
+        None => build::screened_magnitudes(inner, gate).map_err(core_err),
     }
 }
 

@@ -98,6 +98,19 @@ pub fn screened(inner: Boxed, s: &Structure<f64>, gate: f64, refresh: Refresh) -
     Ok(Box::new(ScreenedCore::new(BoxedIdentifier(inner), *s, gate, refresh)?))
 }
 
+/// `inner` behind the outlier screen's magnitude test and held start only (`gate = 0`: `inner`
+/// as it is), for an identifier whose equations no structure holds (a linear model's rows beyond
+/// a structure's capacity: the full car's seven rows of 14 states).
+///
+/// # Errors
+/// The core's (a `gate` not finite and ≥ 0; more than 16 equations).
+pub fn screened_magnitudes(inner: Boxed, gate: f64) -> Result<Boxed> {
+    if gate == 0.0 {
+        return Ok(inner);
+    }
+    Ok(Box::new(ScreenedCore::magnitudes_only(BoxedIdentifier(inner), gate)?))
+}
+
 /// The identifier behind the screen when `id` is screened ([`screened`]), else `id`.
 pub fn unscreened(id: &dyn DynIdentifier<f64>) -> &dyn DynIdentifier<f64> {
     match id.as_any().downcast_ref::<ScreenedCore>() {

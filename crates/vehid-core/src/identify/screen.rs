@@ -163,7 +163,9 @@ pub struct ScreenState<T> {
 #[derive(Debug, Clone)]
 pub struct Screened<T: Real, I> {
     inner: I,
-    structure: Structure<T>,
+    /// The residual test's structure; `None`: the magnitude test and the held start only
+    /// ([`Screened::magnitudes_only`]).
+    structure: Option<Structure<T>>,
     state: ScreenState<T>,
     /// The identifier as built, kept through the start: restarted from it, without the
     /// outliers, when the start turns out to hold one (`None` once the start is over).
@@ -181,7 +183,6 @@ impl<T: Real, I: Identifier<T> + Clone> Screened<T, I> {
     /// sizes than the identifier's; [`Error::Capacity`] when a sample has more than
     /// [`SAMPLE_VALUES`] values or the identifier has already taken samples.
     pub fn new(inner: I, structure: Structure<T>, gate: T, refresh: Refresh) -> Result<Self> {
-        crate::error::check_nonneg("gate", gate)?;
         let d = inner.dims();
         if (structure.states(), structure.inputs(), structure.equations(), structure.params())
             != (d.states, d.inputs, d.equations, d.params)
@@ -190,6 +191,15 @@ impl<T: Real, I: Identifier<T> + Clone> Screened<T, I> {
                 arg: "structure",
                 expected: "the identifier's structure (its states, inputs, equations and parameters)",
             });
+        }
+        Self::build(inner, Some(structure), gate, refresh)
+    }
+
+    fn build(inner: I, structure: Option<Structure<T>>, gate: T, refresh: Refresh) -> Result<Self> {
+        crate::error::check_nonneg("gate", gate)?;
+        let d = inner.dims();
+        if d.equations > MAX_EQUATIONS {
+            return Err(Error::Capacity { arg: "equations", needed: d.equations, capacity: MAX_EQUATIONS });
         }
         if inner.samples() > 0 {
             return Err(Error::InvalidArgument { arg: "gate", expected: "a screen set before the first sample" });
@@ -204,7 +214,8 @@ impl<T: Real, I: Identifier<T> + Clone> Screened<T, I> {
             refresh,
             width: width as u16,
             equations: d.equations as u16,
-            params: d.params as u16,
+            // The residual test's parameters (none without a structure).
+            params: structure.map_or(0, |s| s.params()) as u16,
             hold: hold as u16,
             held: 0,
             taken: 0,
@@ -223,6 +234,17 @@ impl<T: Real, I: Identifier<T> + Clone> Screened<T, I> {
         };
         let pristine = (gate > T::zero()).then(|| inner.clone());
         Ok(Self { inner, structure, state, pristine })
+    }
+
+    /// `inner` behind the magnitude test and the held start only (as [`Refresh::Never`]), for an
+    /// identifier whose equations no [`Structure`] holds (a linear model's rows beyond its
+    /// capacity: the full car's seven rows of 14 states). The screen's state keeps no
+    /// parameters.
+    ///
+    /// # Errors
+    /// As [`Screened::new`].
+    pub fn magnitudes_only(inner: I, gate: T) -> Result<Self> {
+        Self::build(inner, None, gate, Refresh::Never)
     }
 
     /// The identifier behind the screen.
@@ -313,12 +335,12 @@ impl<T: Real, I: Identifier<T> + Clone> Screened<T, I> {
         }
         // Residual test against the estimate read last (once its scale has its warm-up).
         let ne = self.state.equations as usize;
-        let np = self.structure.params();
+        let np = self.state.params as usize;
         let active = self.state.have && self.state.nobs >= T::of(np as f64 + WARMUP);
         let (mut res2, mut bound2) = ([T::zero(); MAX_EQUATIONS], [T::zero(); MAX_EQUATIONS]);
-        if self.state.have {
+        if let (true, Some(structure)) = (self.state.have, &self.structure) {
             for i in 0..ne {
-                let r = self.structure.residual(i, &self.state.theta[..np], x, z, u);
+                let r = structure.residual(i, &self.state.theta[..np], x, z, u);
                 res2[i] = r * r;
                 bound2[i] = k2 * self.state.ssr[i] / (self.state.nobs - T::of(np as f64));
                 if active && self.state.ssr[i] > T::zero() && !(res2[i] <= bound2[i]) {
@@ -467,10 +489,11 @@ impl<T: Real, I: Identifier<T> + Clone> Screened<T, I> {
     /// Re-reads the estimate when due ([`Refresh`]); an estimate that does not exist yet
     /// (exact start, too few samples) turns the residual test off until it does.
     fn read_estimate(&mut self) {
-        if self.state.passed < self.state.next_read || self.state.refresh == Refresh::Never {
+        if self.state.passed < self.state.next_read || self.state.refresh == Refresh::Never || self.structure.is_none()
+        {
             return;
         }
-        let np = self.structure.params();
+        let np = self.state.params as usize;
         let ok = self.inner.params_into(&mut self.state.theta[..np]).is_ok()
             && self.state.theta[..np].iter().all(|v| v.finite());
         if !ok && self.state.have {
@@ -713,7 +736,16 @@ mod tests {
     /// value `j` of `x | z | u` set to 1e30 (`outlier = Some((j, at))`), and the samples
     /// screened.
     fn xi_with(build: Build, s: &Structure<f64>, data: &Run, outlier: Option<(usize, usize)>, gate: f64) -> (f64, u64) {
-        let mut id = screened(build, s, gate);
+        xi_of(screened(build, s, gate), s, data, outlier)
+    }
+
+    /// [`xi_with`] on a screen built by the caller.
+    fn xi_of(
+        mut id: Screened<f64, BoxedIdentifier<f64>>,
+        s: &Structure<f64>,
+        data: &Run,
+        outlier: Option<(usize, usize)>,
+    ) -> (f64, u64) {
         let m = s.inputs();
         let mut e = vec![0.0; id.dims().equations];
         for k in 0..data.x.len() {
@@ -755,6 +787,36 @@ mod tests {
                     );
                 }
             }
+        }
+    }
+
+    /// The magnitude test and the held start alone (`Screened::magnitudes_only`: what guards an
+    /// identifier whose rows no structure holds, the full car's) take a 1e30 state or derivative
+    /// after 10⁴ samples or first: ξ within 10 %.
+    #[test]
+    fn the_magnitude_test_alone_takes_one_outlier() {
+        let s = Structure::full_rows(4, &[1, 3]).unwrap();
+        for (what, build) in [("batch", batch as Build), ("gradient", gradient)] {
+            let alone = |gate: f64| Screened::magnitudes_only(BoxedIdentifier(build(&s).0), gate).unwrap();
+            for seed in SEEDS {
+                let data = run(seed);
+                let (clean, _) = xi_of(alone(6.0), &s, &data, None);
+                for j in [0, 1, 5, 4] {
+                    for at in [GOOD, 0] {
+                        let (xi, screened) = xi_of(alone(6.0), &s, &data, Some((j, at)));
+                        let change = (xi - clean).abs() / clean;
+                        assert!(
+                            change < 0.1 && screened >= 1,
+                            "{what}, seed {seed}, value {j} at {at}: ξ {clean:.4} -> {xi:.4e} ({screened} screened)"
+                        );
+                    }
+                }
+            }
+            // Without it the outlier ruins the estimate.
+            let data = run(SEEDS[0]);
+            let (clean, _) = xi_of(alone(6.0), &s, &data, None);
+            let (ruined, _) = xi_of(alone(0.0), &s, &data, Some((5, GOOD)));
+            assert!(ruined > 10.0 * clean, "{what} without the screen: ξ {clean:.4} -> {ruined:.4e}");
         }
     }
 
