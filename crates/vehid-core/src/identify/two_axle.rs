@@ -159,7 +159,7 @@ pub struct Past<T: Real, const N: usize> {
 }
 
 /// The two-axle identifier over a body-row [`Store`] `S` and a ring storage `B`, for a model
-/// of `M` road inputs (`M / 2` tracks: 2 for the half car, 4 for the full car); see
+/// of `M` road inputs (2 for the half car, 4 for the full car: `M / 2` tracks); see
 /// [`TwoAxleIdentifier`] (no allocation) and `TwoAxleIdentifierVec` (heap).
 ///
 /// `P` must be `2 N` (the joint regression of the `Cancel` method; checked at construction).
@@ -186,7 +186,6 @@ pub struct TwoAxle<
     model: LinearModel<T, N, M>,
     rows: RowSet<N>,
     cfg: TwoAxleConfig<T>,
-    tracks: usize,
     front_row: [usize; MAX_TRACKS],
     rear_row: [usize; MAX_TRACKS],
     ratio: [T; MAX_TRACKS],
@@ -245,12 +244,12 @@ pub type TwoAxleIdentifier<T, const N: usize, const P: usize, const KB: usize, c
 pub type TwoAxleIdentifierVec<T, const N: usize, const P: usize, const M: usize = 2> =
     TwoAxle<T, N, P, Dynamic, alloc::vec::Vec<Past<T, N>>, M>;
 
-/// The wheel rows `(fronts, rears, tracks)`: the unknown row each input enters (exactly one
+/// The wheel rows `(fronts, rears)` of the `M / 2` tracks: the unknown row each input enters (exactly one
 /// each, all different), the first `M / 2` inputs the front wheels', the rest the rear wheels'
 /// in the same order.
 pub(crate) fn wheel_rows<T: Real, const N: usize, const M: usize>(
     model: &LinearModel<T, N, M>,
-) -> Result<([usize; MAX_TRACKS], [usize; MAX_TRACKS], usize)> {
+) -> Result<([usize; MAX_TRACKS], [usize; MAX_TRACKS])> {
     const BAD: Error = Error::InvalidArgument {
         arg: "b",
         expected: "2 or 4 road inputs, the front wheels' then the rear wheels' in the same order (half car: front, \
@@ -284,7 +283,7 @@ pub(crate) fn wheel_rows<T: Real, const N: usize, const M: usize>(
             return Err(BAD);
         }
     }
-    Ok((fronts, rears, tracks))
+    Ok((fronts, rears))
 }
 
 impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<T, N>>, const M: usize>
@@ -311,7 +310,8 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
         if d == 0 {
             return Err(Error::InvalidArgument { arg: "d", expected: "at least 1 road point between the axles" });
         }
-        let (front_row, rear_row, tracks) = wheel_rows(model)?;
+        let (front_row, rear_row) = wheel_rows(model)?;
+        let tracks = Self::TRACKS;
         let b = model.b();
         let sv2 = cfg.deriv_noise * cfg.deriv_noise;
         let su2 = cfg.road_sigma * cfg.road_sigma;
@@ -377,7 +377,6 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
             model: model.clone(),
             rows: model.unknown_rows(),
             cfg,
-            tracks,
             front_row,
             rear_row,
             ratio,
@@ -401,12 +400,15 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
         })
     }
 
+    /// Tracks (wheel paths): `M / 2`.
+    const TRACKS: usize = M / 2;
+
     /// With the exact start, the first filter in use still in its start: `(rank, needed)`.
     fn start_rank(&self) -> Option<(usize, usize)> {
         if !self.cfg.exact {
             return None;
         }
-        let t = self.tracks;
+        let t = Self::TRACKS;
         let wheels = match self.cfg.method {
             WheelMethod::Cancel => self.joint[..t].iter().find(|f| f.starting()).map(|f| (f.start_rank(), P)),
             _ => self.front[..t].iter().chain(&self.rear[..t]).find(|f| f.starting()).map(|f| (f.start_rank(), N)),
@@ -417,7 +419,7 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
 
     /// Whether `row` is a wheel row: `Some((track, front))`.
     fn wheel_of(&self, row: usize) -> Option<(usize, bool)> {
-        (0..self.tracks).find_map(|j| {
+        (0..Self::TRACKS).find_map(|j| {
             if row == self.front_row[j] {
                 Some((j, true))
             } else if row == self.rear_row[j] {
@@ -436,9 +438,7 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
             return Err(Error::Shape { arg: "P (joint parameters, must be 2N)", expected: 2 * N, got: P });
         }
         self.cfg.validate()?;
-        if self.rows != self.model.unknown_rows()
-            || wheel_rows(&self.model)? != (self.front_row, self.rear_row, self.tracks)
-        {
+        if self.rows != self.model.unknown_rows() || wheel_rows(&self.model)? != (self.front_row, self.rear_row) {
             return Err(Error::InvalidArgument { arg: "rows", expected: "the model's unknown rows and wheel rows" });
         }
         let body = self.body.as_ref().map_or(&[][..], |b| b.rows());
@@ -471,7 +471,7 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
 
     /// Tracks (wheel paths): `M / 2`.
     pub fn tracks(&self) -> usize {
-        self.tracks
+        Self::TRACKS
     }
 
     /// Track `j`'s wheel rows `(front, rear)`.
@@ -479,7 +479,7 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
     /// # Panics
     /// For `j ≥ tracks()`.
     pub fn track_rows(&self, j: usize) -> (usize, usize) {
-        assert!(j < self.tracks, "track_rows: track {j} of {}", self.tracks);
+        assert!(j < Self::TRACKS, "track_rows: track {j} of {}", Self::TRACKS);
         (self.front_row[j], self.rear_row[j])
     }
 
@@ -716,7 +716,7 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
         let (mut zf, mut e_front, mut e_rear) = (zero, zero, zero);
         let mut planned: [Option<(RowIdentifier<T, N>, RowIdentifier<T, N>)>; MAX_TRACKS] = [None; MAX_TRACKS];
         let mut joint: [Option<RowIdentifier<T, P>>; MAX_TRACKS] = [None; MAX_TRACKS];
-        for t in 0..self.tracks {
+        for t in 0..Self::TRACKS {
             zf[t] = z[self.front_row[t]];
             let zr = z[self.rear_row[t]];
             let ratio = self.ratio[t];
@@ -757,7 +757,7 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
             body.update_vec(r, z, &mut eb[..k])?;
         }
         // Commit.
-        for t in 0..self.tracks {
+        for t in 0..Self::TRACKS {
             if let Some(j) = joint[t] {
                 self.joint[t] = j;
             }

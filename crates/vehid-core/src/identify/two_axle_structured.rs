@@ -249,7 +249,7 @@ impl<T: Real, const P: usize, F: Flat<RowIdentifier<T, P>>, B: RingStore<FrontRe
                 what: "compensating the derivative noise of der(·) inside sign/pos/neg (set compensate = false)",
             });
         }
-        let (fronts, rears, _) = wheel_rows(model)?;
+        let (fronts, rears) = wheel_rows(model)?;
         let (front_row, rear_row) = (fronts[0], rears[0]);
         let eq_of = |row: usize| {
             structure.equation_states().position(|s| s == row).ok_or(Error::InvalidArgument {
