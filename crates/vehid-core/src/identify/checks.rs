@@ -62,3 +62,19 @@ pub(crate) fn check_lengths<T>(dims: Dims, x: &[T], z: &[T], u: &[T], e: &[T]) -
     }
     Ok(())
 }
+
+/// Writes the diagonal `k × k` matrix whose entry `(i, i)` is `diag(i)` into `out` (row-major):
+/// an identifier's `noise_into` when its equations' noises are independent.
+///
+/// # Errors
+/// [`Error::Shape`] when `out` does not hold `k²` values.
+pub(crate) fn diagonal_into<T: Real>(out: &mut [T], k: usize, diag: impl Fn(usize) -> T) -> Result<()> {
+    if out.len() != k * k {
+        return Err(Error::Shape { arg: "out", expected: k * k, got: out.len() });
+    }
+    out.fill(T::zero());
+    for i in 0..k {
+        out[i * k + i] = diag(i);
+    }
+    Ok(())
+}

@@ -511,15 +511,7 @@ impl<T: Real, const N: usize> Identifier<T> for BatchLeastSquares<T, N> {
 
     /// Unit variances: [`Identifier::covariance_into`] is `(XᵀX)⁻¹`.
     fn noise_into(&self, out: &mut [T]) -> Result<()> {
-        let k = self.rows.len();
-        if out.len() != k * k {
-            return Err(Error::Shape { arg: "out", expected: k * k, got: out.len() });
-        }
-        out.fill(T::zero());
-        for i in 0..k {
-            out[i * k + i] = T::one();
-        }
-        Ok(())
+        crate::identify::checks::diagonal_into(out, self.rows.len(), |_| T::one())
     }
 
     /// Stores every sample; rolls back by truncating the stored samples (no copy of them).

@@ -76,15 +76,7 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
     /// Each row's filter's `r`: a track's two rows under [`WheelMethod::Cancel`] both the
     /// cancelled equation's `σ_v² (1 + ρ²)` (the joint filter's unit).
     fn noise_into(&self, out: &mut [T]) -> Result<()> {
-        let k = self.rows.len();
-        if out.len() != k * k {
-            return Err(Error::Shape { arg: "out", expected: k * k, got: out.len() });
-        }
-        out.fill(T::zero());
-        for (i, &row) in self.rows.as_slice().iter().enumerate() {
-            out[i * k + i] = self.filter_stats(row).0;
-        }
-        Ok(())
+        crate::identify::checks::diagonal_into(out, self.rows.len(), |i| self.filter_stats(self.rows.as_slice()[i]).0)
     }
 
     /// Each row's filter's residual sums; under [`WheelMethod::Cancel`] a track's joint filter

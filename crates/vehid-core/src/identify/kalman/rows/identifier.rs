@@ -89,15 +89,7 @@ impl<T: Real, const N: usize, S: Store<T, N>> Identifier<T> for KalmanRows<T, N,
     }
 
     fn noise_into(&self, out: &mut [T]) -> Result<()> {
-        let k = self.rows.flat().len();
-        if out.len() != k * k {
-            return Err(Error::Shape { arg: "out", expected: k * k, got: out.len() });
-        }
-        out.fill(T::zero());
-        for i in 0..k {
-            out[i * k + i] = self.filter(i).r();
-        }
-        Ok(())
+        crate::identify::checks::diagonal_into(out, self.rows.flat().len(), |i| self.filter(i).r())
     }
 
     fn trace(&self) -> Option<T> {

@@ -67,15 +67,7 @@ impl<T: Real, const N: usize, S: Store<T, N>> Identifier<T> for KalmanShared<T, 
     }
 
     fn noise_into(&self, out: &mut [T]) -> Result<()> {
-        let k = self.rows.flat().len();
-        if out.len() != k * k {
-            return Err(Error::Shape { arg: "out", expected: k * k, got: out.len() });
-        }
-        out.fill(T::zero());
-        for i in 0..k {
-            out[i * k + i] = self.r.flat()[i];
-        }
-        Ok(())
+        crate::identify::checks::diagonal_into(out, self.rows.flat().len(), |i| self.r.flat()[i])
     }
 
     fn trace(&self) -> Option<T> {
