@@ -25,7 +25,7 @@ own, and which samples were off the ground.
 
 from __future__ import annotations
 
-from typing import Dict, Tuple, Union
+from typing import Dict, List, Tuple, Union
 
 import numpy as np
 from numpy.typing import NDArray
@@ -92,6 +92,13 @@ def simulate(
 CORNERS = ("fl", "fr", "rl", "rr")
 
 
+def corner_positions(p: Dict[str, float]) -> List[Tuple[float, float]]:
+    """Each corner's ``(x, y)`` from the centre of mass, in the order of :data:`CORNERS`: front
+    ``+l_f``, rear ``-l_r``, left ``+track/2``."""
+    return [(p["l_f"], p["track_f"] / 2), (p["l_f"], -p["track_f"] / 2),
+            (-p["l_r"], p["track_r"] / 2), (-p["l_r"], -p["track_r"] / 2)]
+
+
 def full_matrices(p: Dict[str, float]) -> Tuple[NDArray[np.float64], NDArray[np.float64]]:
     """``A`` (14 x 14) and ``B`` (14 x 4) of the full car from Lagrange's equations: generalized
     coordinates ``q = (z_fl, z_fr, z_rl, z_rr, heave, pitch, roll)``, each corner's suspension
@@ -100,10 +107,8 @@ def full_matrices(p: Dict[str, float]) -> Tuple[NDArray[np.float64], NDArray[np.
     each anti-roll bar ``arb (d_left − d_right)² / (2 track²)``, dissipation ``½ q̇ᵀ Gᵀ diag(b) G
     q̇``; the road under each wheel pushes through its tyre. States interleave positions and
     velocities (vehid's order); inputs the road under ``fl, fr, rl, rr``."""
-    corners = [(p["l_f"], p["track_f"] / 2), (p["l_f"], -p["track_f"] / 2),
-               (-p["l_r"], p["track_r"] / 2), (-p["l_r"], -p["track_r"] / 2)]
     g = np.zeros((4, 7))
-    for i, (x, y) in enumerate(corners):
+    for i, (x, y) in enumerate(corner_positions(p)):
         g[i, i] = -1.0
         g[i, 4:] = [1.0, x, y]
     kt = [p[f"kt_{c}"] for c in CORNERS]

@@ -21,36 +21,8 @@ DT = 0.005
 CORNERS = ("fl", "fr", "rl", "rr")
 
 
-def geometry(p: dict[str, float]) -> list[tuple[float, float]]:
-    """Each corner's (x, y) from the centre of mass: front +l_f, rear -l_r, left +track/2."""
-    return [
-        (p["l_f"], p["track_f"] / 2),
-        (p["l_f"], -p["track_f"] / 2),
-        (-p["l_r"], p["track_r"] / 2),
-        (-p["l_r"], -p["track_r"] / 2),
-    ]
-
-
-def a_by_hand(p: dict[str, float]) -> np.ndarray:
-    """A from Lagrange's equations written here: q = (z_fl, z_fr, z_rl, z_rr, zb, pitch, roll),
-    extensions d = G q, potential ½ qᵀ K q with K = Gᵀ diag(k) G + diag(kt) + bars, dissipation
-    ½ q̇ᵀ Gᵀ diag(b) G q̇; states interleave positions and velocities."""
-    g = np.zeros((4, 7))
-    for i, (x, y) in enumerate(geometry(p)):
-        g[i, i] = -1.0
-        g[i, 4:] = [1.0, x, y]
-    k = g.T @ np.diag([p[f"k_{c}"] for c in CORNERS]) @ g + np.diag([p[f"kt_{c}"] for c in CORNERS] + [0, 0, 0])
-    for axle, (left, right) in (("f", (0, 1)), ("r", (2, 3))):
-        diff = (g[left] - g[right]) / p[f"track_{axle}"]
-        k += p[f"arb_{axle}"] * np.outer(diff, diff)
-    c = g.T @ np.diag([p[f"b_{c}"] for c in CORNERS]) @ g
-    mass = np.array([p[f"m_{c}"] for c in CORNERS] + [p["M"], p["Jy"], p["Jx"]])
-    a = np.zeros((14, 14))
-    for r in range(7):
-        a[2 * r, 2 * r + 1] = 1.0
-        a[2 * r + 1, 0::2] = -k[r] / mass[r]
-        a[2 * r + 1, 1::2] = -c[r] / mass[r]
-    return a
+# The full car's model written without vehid (Lagrange's equations, benches/independent_road.py).
+INDEPENDENT = load("independent_road")
 
 
 def test_constants_defaults_and_errors() -> None:
@@ -78,7 +50,7 @@ def test_constants_defaults_and_errors() -> None:
 def test_model_is_lagranges_and_poles_are_scipys() -> None:
     p = {**vehid.FullCar.passenger().params, "arb_f": 15000.0, "arb_r": 6000.0, "k_fr": 33000.0, "b_rl": 1150.0}
     car = vehid.FullCar(**p)
-    np.testing.assert_allclose(car.a, a_by_hand(p), rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(car.a, INDEPENDENT.full_matrices(p)[0], rtol=1e-12, atol=1e-9)
     b = car.b
     for i, c in enumerate(CORNERS):
         assert b[2 * i + 1, i] == pytest.approx(p[f"kt_{c}"] / p[f"m_{c}"])
@@ -136,7 +108,7 @@ def test_the_api_drive_and_its_change() -> None:
     assert np.all(b_fl[run.t < 60.0] == 1000.0) and np.all(b_fl[run.t >= 60.0] == 1350.0)
     # The deflection sensors read each corner's extension with 0.3 mm of noise.
     x = run.x
-    for i, (cx, cy) in enumerate(geometry(vehid.FullCar.passenger().params)):
+    for i, (cx, cy) in enumerate(INDEPENDENT.corner_positions(vehid.FullCar.passenger().params)):
         err = run.y[:, 8 + i] - (x[:, 8] + cx * x[:, 10] + cy * x[:, 12] - x[:, 2 * i])
         assert 0.27e-3 < np.std(err) < 0.33e-3
     # The body and wheels move, the sides differently.
@@ -294,7 +266,7 @@ def test_two_tracks_on_data_from_an_independent_simulator() -> None:
     # benches/independent_road.py: the full car's A and B from Lagrange's equations written
     # there (checked against vehid's), two independent harmonic class C tracks (not vehid's
     # shaping filter nor its coherence model), scipy's lsim: every nonzero entry within 5 %.
-    ir = load("independent_road")
+    ir = INDEPENDENT
     car = vehid.FullCar.passenger()
     a, b = ir.full_matrices(car.params)
     np.testing.assert_allclose(a, car.a, rtol=1e-12, atol=1e-9)
