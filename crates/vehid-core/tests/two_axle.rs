@@ -1449,14 +1449,16 @@ fn full_car_exact_start_is_least_squares() {
 }
 
 /// One 1e30 derivative (rear left wheel) after 10⁴ good samples of the full car: with each
-/// filter's own gate (`TwoAxleConfig::gate`, κ = 6: the full car's rows exceed what the outer
-/// screen holds) ξ moves by under 10 %; without it the estimate is ruined. Also a 1e30 state,
-/// on a state with a coefficient (the heave rate) and one without in the rows that see it
-/// (the front left wheel's position in the left rear wheel's row: left out by the magnitude
-/// test, which every sample passes through; the residual gate alone would take it), and an
-/// outlier within the magnitude bound (the heave row's residual gate).
+/// filter's own gate (`TwoAxleConfig::gate`, κ = 6) behind the screen's magnitude test
+/// (`Screened::magnitudes_only`: the full car's rows exceed what the screen's structure holds)
+/// ξ moves by under 10 %; without them the estimate is ruined. Also a 1e30 state, on a state
+/// with a coefficient (the heave rate) and one without in the rows that see it (the front left
+/// wheel's position in the left rear wheel's row: left out by the magnitude test, which every
+/// sample passes through), and an outlier within the magnitude bound (the heave row's
+/// residual gate).
 #[test]
 fn full_car_gate_survives_one_outlier() {
+    use vehid_core::identify::Screened;
     use vehid_core::model::FullCar;
     use vehid_core::sim::{DriveConfig, FullDrive, FullDriveConfig, RoadClass};
     type Full = TwoAxleIdentifierVec<f64, 14, 28, 4>;
@@ -1471,7 +1473,7 @@ fn full_car_gate_survives_one_outlier() {
         let mut cfg = TwoAxleConfig::new(WheelMethod::Cancel, 1000.0, 0.1, 0.005);
         cfg.direct_front = false;
         cfg.gate = gate;
-        let mut id = Full::new(&model, 31, cfg).unwrap();
+        let mut id = Screened::magnitudes_only(Full::new(&model, 31, cfg).unwrap(), gate).unwrap();
         let mut e = [0.0; 7];
         for (k, (x, z)) in data.iter().enumerate() {
             let (mut x, mut z) = (*x, *z);
@@ -1483,7 +1485,7 @@ fn full_car_gate_survives_one_outlier() {
                     None => {}
                 }
             }
-            let step = id.update_at(&x, &z, None, &mut e);
+            let step = id.update_into(x.as_slice(), z.as_slice(), &[], &mut e);
             // With the gate every sample is taken (the outlier left out); without it a state
             // outlier may be refused (then nothing changes) or ruin the estimate.
             if gate > 0.0 {
@@ -1493,6 +1495,7 @@ fn full_car_gate_survives_one_outlier() {
         if gate > 0.0 {
             let by_magnitude = bad.is_some_and(|b| !b.2.is_nan());
             assert_eq!(id.screened(), u64::from(by_magnitude), "{bad:?}: the magnitude test's count");
+            assert_eq!(id.inner().samples(), 12_000 - u64::from(by_magnitude), "{bad:?}: the samples passed on");
             let mut gated = [0u64; 7];
             id.gated_into(&mut gated).unwrap();
             if by_magnitude {
@@ -1502,7 +1505,7 @@ fn full_car_gate_survives_one_outlier() {
             }
         }
         let mut th = [0.0; 98];
-        id.theta_into(&mut th).unwrap();
+        id.inner().theta_into(&mut th).unwrap();
         // Every row, and the heave row (the fifth unknown row, row 9) alone.
         (xi(&truth, &th).unwrap(), xi(&truth[56..70], &th[56..70]).unwrap())
     };

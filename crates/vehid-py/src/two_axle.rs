@@ -90,10 +90,9 @@ fn p0_arg(p0: Option<&Bound<'_, PyAny>>) -> PyResult<P0> {
 /// The body rows are plain Kalman rows. A `FullCar` has two tracks: each rear wheel rolls on its
 /// front wheel's track (left, right) a wheelbase later, and each track's pair of wheel rows
 /// (rows 1 and 5, 3 and 7) is identified as above on its own (`wheel_variances`: the left
-/// track's; its seven rows of 14 exceed what the outlier screen below holds, so it screens
-/// itself: a sample any of whose values exceeds κ² times its root mean square so far is left
-/// out whole, and one whose recursive residual on a filter exceeds κ times that filter's
-/// residual scale leaves the filter unchanged). `road_sigma` (m) and `deriv_noise` give every
+/// track's; its seven rows of 14 exceed what the outlier screen below holds in its structure:
+/// the screen judges magnitudes and holds the start, and a sample whose recursive residual on
+/// a filter exceeds κ times that filter's residual scale leaves the filter unchanged). `road_sigma` (m) and `deriv_noise` give every
 /// equation's variance; `p0` is P(0) on every row (default 1000; `p0_body` overrides it on the
 /// body rows), or "exact" (methods "none" and "cancel"): least squares on every sample once each
 /// filter's parameters are determined, no prior (`theta` raises until then). `update` and `fit` take one sample per road point, in order.
@@ -302,8 +301,9 @@ impl PyTwoAxleIdentifier {
             cfg.p0_body = p0_body.unwrap_or(p0);
             cfg.direct_front = direct_front;
             cfg.exact = exact;
-            // The outer screen's structure holds the model's full rows (the half car's), or each
-            // filter gates its own samples (the full car's seven rows of 14, 98 terms, exceed it).
+            // The outer screen's structure holds the model's full rows (the half car's); the full
+            // car's seven rows of 14 (98 terms) exceed it: each filter gates its own residuals
+            // behind the screen's magnitude test.
             let screen = vehid_core::structure::Structure::full_rows(m.data.n, &m.data.rows).ok();
             if screen.is_none() {
                 cfg.gate = gate;
@@ -315,7 +315,7 @@ impl PyTwoAxleIdentifier {
             };
             let inner = match screen {
                 Some(rows) => vehid_runtime::build::screened(inner, &rows, gate, Refresh::Every).map_err(core_err)?,
-                None => inner,
+                None => vehid_runtime::build::screened_magnitudes(inner, gate).map_err(core_err)?,
             };
             PyIdentifier::new(inner, m.data.clone())
         };

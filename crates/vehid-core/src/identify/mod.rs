@@ -125,7 +125,7 @@ pub use structured::{Structured, StructuredKalman, StructuredPrior};
 pub use structured_gradient::StructuredGradient;
 #[cfg(feature = "alloc")]
 pub use two_axle::TwoAxleIdentifierVec;
-pub use two_axle::{Past, TwoAxle, TwoAxleConfig, TwoAxleIdentifier, WheelMethod, MAGNITUDE_WARMUP, MAX_TRACKS};
+pub use two_axle::{Past, TwoAxle, TwoAxleConfig, TwoAxleIdentifier, WheelMethod, MAX_TRACKS};
 #[cfg(feature = "alloc")]
 pub use two_axle_structured::TwoAxleStructuredVec;
 pub use two_axle_structured::{FrontRegression, TwoAxleStructured, TwoAxleStructuredConfig, TwoAxleStructuredKalman};

@@ -91,11 +91,10 @@ pub struct TwoAxleConfig<T> {
     pub exact: bool,
     /// Each filter's own outlier gate κ (0: off; [`KalmanOptions::gate`]): a sample whose
     /// recursive residual on a filter exceeds κ σ̂ leaves that filter unchanged (the wheel
-    /// rows' filters, and every body row); and after [`MAGNITUDE_WARMUP`] samples a sample any
-    /// of whose states or derivatives exceeds κ² times its root mean square so far is left out
-    /// whole (its innovations NaN, its road point passes: the rear axle stays paired with the
-    /// samples around it; counted in [`TwoAxle::screened`]), as [`super::Screened`] judges
-    /// magnitudes. For models whose rows that outer screen cannot hold (the full car).
+    /// rows' filters, and every body row), counted in that filter's rows' `gated`. For models
+    /// whose rows the outer screen's structure cannot hold (the full car's seven rows of 14):
+    /// put the identifier behind [`super::Screened::magnitudes_only`] for the magnitude test
+    /// (a screened sample's road point passes, [`Identifier::skip_sample`]).
     pub gate: T,
 }
 
@@ -130,9 +129,6 @@ impl<T: Real> TwoAxleConfig<T> {
         Ok(())
     }
 }
-
-/// Samples before [`TwoAxleConfig::gate`]'s magnitude test judges one.
-pub const MAGNITUDE_WARMUP: u64 = 16;
 
 /// Most tracks (wheel paths) of a [`TwoAxle`]: the full car's left and right.
 pub const MAX_TRACKS: usize = 2;
@@ -201,13 +197,6 @@ pub struct TwoAxle<
     #[cfg_attr(feature = "serde", serde(with = "crate::persist::ring"))]
     ring: B,
     last_grid: Option<u64>,
-    /// Sums of squares of the samples' states and derivatives (Winsorized), and their count
-    /// (the magnitude test of [`TwoAxleConfig::gate`]).
-    sq_x: SVector<T, N>,
-    sq_z: SVector<T, N>,
-    n_sq: u64,
-    /// Samples the magnitude test left out.
-    screened: u64,
     samples: u64,
     paired: u64,
 }
@@ -393,10 +382,6 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
             last_grid: None,
             samples: 0,
             paired: 0,
-            sq_x: SVector::zeros(),
-            sq_z: SVector::zeros(),
-            n_sq: 0,
-            screened: 0,
         })
     }
 
@@ -452,9 +437,6 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
         if self.ring.slots().len() < self.d {
             return Err(Error::Capacity { arg: "ring", needed: self.d, capacity: self.ring.slots().len() });
         }
-        if !self.sq_x.iter().chain(self.sq_z.iter()).all(|&v| v.finite() && v >= T::zero()) {
-            return Err(Error::InvalidArgument { arg: "sq", expected: "finite, non-negative sums of squares" });
-        }
         Ok(())
     }
 
@@ -501,39 +483,6 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
     /// Samples accepted.
     pub fn samples(&self) -> u64 {
         self.samples
-    }
-
-    /// Samples [`TwoAxleConfig::gate`]'s magnitude test left out.
-    pub fn screened(&self) -> u64 {
-        self.screened
-    }
-
-    /// The magnitude test of [`TwoAxleConfig::gate`]: whether a value of the sample exceeds κ²
-    /// times its root mean square so far (after [`MAGNITUDE_WARMUP`] samples; a channel zero so
-    /// far is not judged), and the sums of squares with this sample in them, a value beyond
-    /// the bound counted at the bound (Winsorized, as [`super::Screened`] does: a lasting rise
-    /// of a signal passes after a few samples).
-    fn magnitudes(&self, r: &SVector<T, N>, z: &SVector<T, N>) -> (bool, SVector<T, N>, SVector<T, N>) {
-        let (mut sq_x, mut sq_z) = (self.sq_x, self.sq_z);
-        let k2 = self.cfg.gate * self.cfg.gate;
-        if k2 == T::zero() {
-            return (false, sq_x, sq_z);
-        }
-        let judged = self.n_sq >= MAGNITUDE_WARMUP;
-        let n = T::of(self.n_sq.max(1) as f64);
-        let mut beyond = false;
-        for (sq, v) in [(&mut sq_x, r), (&mut sq_z, z)] {
-            for (s, &vj) in sq.iter_mut().zip(v.iter()) {
-                let (v2, bound) = (vj * vj, k2 * k2 * *s / n);
-                if judged && *s > T::zero() && !(v2 <= bound) {
-                    beyond = true;
-                    *s += bound;
-                } else {
-                    *s += v2;
-                }
-            }
-        }
-        (beyond, sq_x, sq_z)
     }
 
     /// Samples that found their partner `d` road points earlier.
@@ -695,16 +644,6 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
         };
         let d = self.d as u64;
         let cap = self.ring.slots().len() as u64;
-        let (beyond, sq_x, sq_z) = self.magnitudes(r, z);
-        if beyond {
-            // Left out whole; its road point passes (nothing pairs with it later).
-            e.fill(T::of(f64::NAN));
-            self.ring.slots_mut()[(grid % cap) as usize].valid = false;
-            self.last_grid = Some(grid);
-            (self.sq_x, self.sq_z, self.n_sq) = (sq_x, sq_z, self.n_sq + 1);
-            self.screened += 1;
-            return Ok(false);
-        }
         let past = if allow_pair && grid >= d {
             let p = self.ring.slots()[((grid - d) % cap) as usize];
             (p.valid && p.grid == grid - d).then_some(p)
@@ -779,9 +718,6 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
         self.ring.slots_mut()[(grid % cap) as usize] = Past { grid, x: *r, z_front: zf, e_front, valid: true };
         self.last_grid = Some(grid);
         self.samples += 1;
-        if self.cfg.gate > T::zero() {
-            (self.sq_x, self.sq_z, self.n_sq) = (sq_x, sq_z, self.n_sq + 1);
-        }
         if past.is_some() {
             self.paired += 1;
         }

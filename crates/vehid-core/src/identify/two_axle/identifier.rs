@@ -93,9 +93,8 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
         Ok(())
     }
 
-    /// Each row's samples left out: by the magnitude test (every row), plus by its filter's
-    /// own residual gate ([`TwoAxleConfig::gate`]; a track's joint filter counts on both its
-    /// rows).
+    /// Each row's samples left out by its filter's own residual gate
+    /// ([`TwoAxleConfig::gate`]; a track's joint filter counts on both its rows).
     fn gated_into(&self, out: &mut [u64]) -> Result<()> {
         let k = self.rows.len();
         if out.len() != k {
@@ -108,7 +107,7 @@ impl<T: Real, const N: usize, const P: usize, S: Store<T, N>, B: RingStore<Past<
                 Source::Row(t, true) => self.front[t].gated(),
                 Source::Row(t, false) => self.rear[t].gated(),
             };
-            *o = self.screened + own;
+            *o = own;
         }
         Ok(())
     }
