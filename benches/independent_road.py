@@ -25,7 +25,7 @@ own, and which samples were off the ground.
 
 from __future__ import annotations
 
-from typing import Dict, List, Tuple, Union
+from typing import Dict, List, Optional, Tuple, Union
 
 import numpy as np
 from numpy.typing import NDArray
@@ -99,14 +99,18 @@ def corner_positions(p: Dict[str, float]) -> List[Tuple[float, float]]:
             (-p["l_r"], p["track_r"] / 2), (-p["l_r"], -p["track_r"] / 2)]
 
 
-def full_matrices(p: Dict[str, float]) -> Tuple[NDArray[np.float64], NDArray[np.float64]]:
+def full_matrices(
+    p: Dict[str, float], load: Optional[Tuple[float, float, float]] = None
+) -> Tuple[NDArray[np.float64], NDArray[np.float64]]:
     """``A`` (14 x 14) and ``B`` (14 x 4) of the full car from Lagrange's equations: generalized
     coordinates ``q = (z_fl, z_fr, z_rl, z_rr, heave, pitch, roll)``, each corner's suspension
     extension ``d = G q`` (corner ``(x, y)`` from the centre of mass: front ``+l_f``, rear
     ``-l_r``, left ``+track/2``), potential ``½ qᵀ K q`` with ``K = Gᵀ diag(k) G + diag(kt)`` plus
     each anti-roll bar ``arb (d_left − d_right)² / (2 track²)``, dissipation ``½ q̇ᵀ Gᵀ diag(b) G
     q̇``; the road under each wheel pushes through its tyre. States interleave positions and
-    velocities (vehid's order); inputs the road under ``fl, fr, rl, rr``."""
+    velocities (vehid's order); inputs the road under ``fl, fr, rl, rr``. ``load = (m, x, y)``: a
+    point mass on the body at ``(x, y)``, whose kinetic energy ``½ m (w·q̇)²`` (``w`` = heave 1,
+    pitch ``x``, roll ``y``) adds ``m w wᵀ`` to the mass matrix."""
     g = np.zeros((4, 7))
     for i, (x, y) in enumerate(corner_positions(p)):
         g[i, i] = -1.0
@@ -117,15 +121,20 @@ def full_matrices(p: Dict[str, float]) -> Tuple[NDArray[np.float64], NDArray[np.
         diff = (g[left] - g[right]) / p[f"track_{axle}"]
         k += p[f"arb_{axle}"] * np.outer(diff, diff)
     c = g.T @ np.diag([p[f"b_{c}"] for c in CORNERS]) @ g
-    mass = np.array([p[f"m_{c}"] for c in CORNERS] + [p["M"], p["Jy"], p["Jx"]])
+    mass = np.diag([p[f"m_{c}"] for c in CORNERS] + [p["M"], p["Jy"], p["Jx"]])
+    if load is not None:
+        w = np.zeros(7)
+        w[4:] = [1.0, load[1], load[2]]
+        mass = mass + load[0] * np.outer(w, w)
+    tyre = np.zeros((7, 4))
+    tyre[:4] = np.diag(kt)
+    inv = np.linalg.inv(mass)
     a = np.zeros((14, 14))
     b = np.zeros((14, 4))
-    for r in range(7):
-        a[2 * r, 2 * r + 1] = 1.0
-        a[2 * r + 1, 0::2] = -k[r] / mass[r]
-        a[2 * r + 1, 1::2] = -c[r] / mass[r]
-    for i in range(4):
-        b[2 * i + 1, i] = kt[i] / mass[i]
+    a[0::2, 1::2] = np.eye(7)
+    a[1::2, 0::2] = -inv @ k
+    a[1::2, 1::2] = -inv @ c
+    b[1::2] = inv @ tyre
     return a, b
 
 

@@ -115,6 +115,42 @@ def test_the_api_drive_and_its_change() -> None:
     assert np.std(x[:, 12]) > 1e-4 and np.std(run.u[:, 0] - run.u[:, 1]) > 1e-3
 
 
+def test_a_point_load_moves_the_body_as_lagranges_equations_say() -> None:
+    # 120 kg set down 2.2 m behind and 0.4 m left of the centre of mass at 2 s (a boot load):
+    # after it every sample's derivative is A'x + B'u + f' with A', B' from Lagrange's equations
+    # with the point mass in the mass matrix (written without vehid) and f' = -M'^-1 m g w, the
+    # load's weight (the unloaded car's is balanced at the initial equilibrium); before it the
+    # unloaded car's. The constants show M + m, Jx + m y^2, Jy + m x^2.
+    car = vehid.FullCar.passenger()
+    p = car.params
+    m, x, y = 120.0, -2.2, 0.4
+    run = drive(4.0, speed=15.0, sensors="state", changes=[(2.0, {"load": m, "load_x": x, "load_y": y})])
+    before, after = run.t < 2.0 - 1e-9, run.t >= 2.0 - 1e-9
+    a0, b0 = INDEPENDENT.full_matrices(p)
+    a1, b1 = INDEPENDENT.full_matrices(p, load=(m, x, y))
+    w = np.zeros(7)
+    w[4:] = [1.0, x, y]
+    mass = np.diag([p[f"m_{c}"] for c in CORNERS] + [p["M"], p["Jy"], p["Jx"]]) + m * np.outer(w, w)
+    f = np.zeros(14)
+    f[1::2] = -np.linalg.solve(mass, m * 9.80665 * w)
+    scale = np.abs(run.xdot).max(axis=0)
+    for sel, a, b, c in ((before, a0, b0, np.zeros(14)), (after, a1, b1, f)):
+        resid = run.xdot[sel] - run.x[sel] @ a.T - run.u[sel] @ b.T - c
+        assert np.all(np.abs(resid) <= 1e-9 * scale + 1e-12), np.abs(resid).max(axis=0)
+    assert run.constants is not None
+    names = vehid.FullCar.CONSTANTS
+    c_after = run.constants[after][0]
+    assert c_after[names.index("M")] == p["M"] + m
+    assert c_after[names.index("Jx")] == pytest.approx(p["Jx"] + m * y * y, rel=1e-15)
+    assert c_after[names.index("Jy")] == pytest.approx(p["Jy"] + m * x * x, rel=1e-15)
+    with pytest.raises(vehid.VehidError, match="give its mass"):
+        drive(0.1, changes=[(1.0, {"load_x": -2.0})])
+    with pytest.raises(vehid.VehidError, match="load.mass"):
+        drive(0.1, changes=[(1.0, {"load": -5.0})])
+    with pytest.raises(vehid.VehidError, match="FullCar"):
+        vehid.Simulator(vehid.HalfCar.passenger(), dt=DT, road="iso8608-C", changes=[(1.0, {"load": 50.0})])
+
+
 def test_rear_wheels_follow_their_front_tracks() -> None:
     # Wheelbase 3.1 m at 15.5 m/s and 200 Hz: 40 samples.
     run = drive(20.0, speed=15.5, seed=3)

@@ -8,8 +8,8 @@ use crate::{core_err, option, VehidError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 use vehid_core::sim::{
-    Change, DriveConfig, FullChange, FullDrive, FullDriveConfig, HalfChange, HalfDrive, HalfDriveConfig, QuarterDrive,
-    RoadClass, SensorNoise, SensorSet, MAX_CHANGES,
+    Change, DriveConfig, FullChange, FullDrive, FullDriveConfig, FullLoad, HalfChange, HalfDrive, HalfDriveConfig,
+    QuarterDrive, RoadClass, SensorNoise, SensorSet, MAX_CHANGES,
 };
 use vehid_core::{Error, Result};
 
@@ -126,8 +126,14 @@ impl DriveSim {
             )));
         }
         let base = DriveConfig::new(dt).road(road).speed(speed).sensors(sensors).noise(noise);
-        let changes = parse_changes(changes)?;
+        let (changes, loads) = parse_changes(changes)?;
         let bad = |e: vehid_core::Error| VehidError::new_err(format!("`changes`: {e}"));
+        if !loads.is_empty() && !matches!(model.kind, Kind::Full(_)) {
+            return Err(VehidError::new_err(
+                "`changes`: a point load ('load' kg at 'load_x', 'load_y' m from the centre of mass) is set down on \
+                 a vehid.FullCar; for this car change 'M' (a load spread like the body's mass)",
+            ));
+        }
         let drive = match model.kind {
             Kind::Half(car) => {
                 let mut cfg = HalfDriveConfig::new(base);
@@ -140,6 +146,9 @@ impl DriveSim {
                 let mut cfg = FullDriveConfig::new(base);
                 for (t, name, v, ramp) in changes {
                     cfg = cfg.with_change(FullChange::ramp(t, &name, v, ramp).map_err(bad)?).map_err(core_err)?;
+                }
+                for (t, [m, x, y], ramp) in loads {
+                    cfg = cfg.with_load(FullLoad::ramp(t, m, x, y, ramp).map_err(bad)?).map_err(bad)?;
                 }
                 AnyDrive::Full(Box::new(FullDrive::new(car, cfg, seed).map_err(core_err)?))
             }
@@ -315,13 +324,21 @@ pub fn sensor_noise_arg(sensor_noise: Option<&Bound<'_, PyDict>>) -> PyResult<Se
 
 /// `changes=[(t, {"b": 1350.0}), (t, {"k2": 19800.0}, ramp_seconds), ...]`: `(t, name,
 /// value, ramp)` per constant (the names are checked by the core's change of the car).
-fn parse_changes(changes: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<(f64, String, f64, f64)>> {
-    let Some(obj) = changes else { return Ok(vec![]) };
+/// A point load of a full-car drive: `(t, [mass, x, y], ramp)`.
+type Load = (f64, [f64; 3], f64);
+
+/// The constant changes `(t, name, value, ramp)` and the point loads of `changes`.
+#[allow(clippy::type_complexity)]
+fn parse_changes(changes: Option<&Bound<'_, PyAny>>) -> PyResult<(Vec<(f64, String, f64, f64)>, Vec<Load>)> {
+    let Some(obj) = changes else { return Ok((vec![], vec![])) };
     let usage = "`changes` must be a list of (t, {name: value}) or (t, {name: value}, ramp) tuples, e.g. \
                  [(60.0, {'b': 1350.0})]: t and ramp in seconds, names 'M', 'm', 'k1', 'k2', 'b' (QuarterCar) or \
                  'M', 'J', 'k1_f', 'k1_r', 'k2_f', 'k2_r', 'b_f', 'b_r', 'm_f', 'm_r' (HalfCar) or 'M', 'Jx', 'Jy', \
-                 'kt_fl' .. 'kt_rr', 'k_fl' .. 'k_rr', 'b_fl' .. 'b_rr', 'm_fl' .. 'm_rr', 'arb_f', 'arb_r' (FullCar)";
+                 'kt_fl' .. 'kt_rr', 'k_fl' .. 'k_rr', 'b_fl' .. 'b_rr', 'm_fl' .. 'm_rr', 'arb_f', 'arb_r', and a point \
+                 load 'load' (kg) at 'load_x', 'load_y' (m forward and to the left of the centre of mass, default 0) \
+                 (FullCar)";
     let mut out = Vec::new();
+    let mut loads = Vec::new();
     for item in obj.try_iter().map_err(|_| VehidError::new_err(usage))? {
         let item = item?;
         let tuple = item.cast::<PyTuple>().map_err(|_| VehidError::new_err(usage))?;
@@ -335,10 +352,24 @@ fn parse_changes(changes: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<(f64, Strin
         };
         let values = tuple.get_item(1)?;
         let values = values.cast::<PyDict>().map_err(|_| VehidError::new_err(usage))?;
+        let mut load: [Option<f64>; 3] = [None; 3];
         for (k, v) in values.iter() {
             let name: String = k.extract().map_err(|_| VehidError::new_err(usage))?;
             let v: f64 = v.extract().map_err(|_| VehidError::new_err(usage))?;
-            out.push((t, name, v, ramp));
+            match ["load", "load_x", "load_y"].iter().position(|n| *n == name) {
+                Some(i) => load[i] = Some(v),
+                None => out.push((t, name, v, ramp)),
+            }
+        }
+        match load {
+            [None, None, None] => {}
+            [Some(m), x, y] => loads.push((t, [m, x.unwrap_or(0.0), y.unwrap_or(0.0)], ramp)),
+            [None, ..] => {
+                return Err(VehidError::new_err(
+                    "`changes`: 'load_x' and 'load_y' place a point load: give its mass too, e.g. {'load': 100.0, \
+                     'load_x': -2.0}",
+                ))
+            }
         }
     }
     if out.len() > MAX_CHANGES {
@@ -347,5 +378,5 @@ fn parse_changes(changes: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<(f64, Strin
             out.len()
         )));
     }
-    Ok(out)
+    Ok((out, loads))
 }

@@ -301,7 +301,10 @@ impl Engine {
 /// or the 16 state channels; `run.u` (N, 2) the road under each wheel.
 /// A `FullCar` drive: a left and a right track with the isotropic-road coherence, each rear
 /// wheel on its front wheel's track a wheelbase later; changes of 'M', 'Jx', 'Jy' and the
-/// corner constants ('b_fl', 'k_rr', ...; 'arb_f', 'arb_r'); realistic channels (a body
+/// corner constants ('b_fl', 'k_rr', ...; 'arb_f', 'arb_r'), and point loads:
+/// `(t, {"load": 100.0, "load_x": -2.2, "load_y": 0.3})` sets 100 kg down on the body 2.2 m
+/// behind and 0.3 m left of the centre of mass (`run.constants` then show M + 100, and Jx, Jy
+/// about the initial centre of mass); realistic channels (a body
 /// accelerometer above each wheel, four wheel accelerometers, four deflections, corners
 /// fl, fr, rl, rr) or the 28 state channels; `run.u` (N, 4).
 #[pyclass(name = "Simulator", module = "vehid._vehid")]

@@ -24,7 +24,19 @@
 //! **Changes.** [`FullChange`]: at time `t` a constant named as in [`FullCar::CONSTANTS`]
 //! (`"M"`, `"Jx"`, `"Jy"`, `"kt_fl"`, …, `"k_rr"`, `"b_fl"`, …, `"m_rr"`, `"arb_f"`, `"arb_r"`;
 //! not the geometry) becomes `value`, by a step or a linear ramp, with the timing rules of the
-//! quarter car's [`super::Change`]. A load is `M`, `Jx`, `Jy` changed at the same `t`.
+//! quarter car's [`super::Change`]. A load spread like the body's own mass is `M`, `Jx`, `Jy`
+//! changed at the same `t`.
+//!
+//! **Loads.** [`FullLoad`]: a point mass `m` set down on the body at `(x, y)` (m from the
+//! initial centre of mass, `x` forward, `y` to the left: the frame of
+//! [`FullCar::corner_position`]) at time `t`, at once or over a ramp. A point of the body at
+//! `(x, y)` moves by `v · q`, `v = [1, x, y]`, `q = [z_b, θ, φ]`, so the load adds `m v vᵀ` to the
+//! body's mass matrix `M_b = diag(M, Jy, Jx)` and `−m g v` to its generalized forces (with
+//! `gravity`). The body's three acceleration rows of `A` (and of the gravity term) become
+//! `(M_b + m v vᵀ)⁻¹ M_b` times the unloaded ones, plus `−(M_b + m v vᵀ)⁻¹ m g v`: exact, in the
+//! coordinates of the unloaded car (its centre of mass moves by `m (x, y) / (M + m)`; the
+//! corners' sensors stay where they are). The sample's constants show `M + m`,
+//! `Jx + m y²`, `Jy + m x²` (about the initial centre of mass).
 //!
 //! **Sensors.** [`SensorSet::State`]: the measured state and derivative (28 channels,
 //! [`FULL_STATE_CHANNELS`], white noise [`SensorNoise::state`], [`SensorNoise::deriv`]).
@@ -39,7 +51,7 @@ use super::drive::{DriveConfig, GRAVITY, MAX_CHANGES};
 use super::half_drive::RoadHistory;
 use super::streams;
 use super::two_track::TwoTrackRoad;
-use crate::error::{check_nonneg, check_positive};
+use crate::error::{check_finite, check_nonneg, check_positive};
 use crate::linalg::expm_with_integral;
 use crate::model::{
     FullCar, SensorNoise, SensorSet, FULL_CONSTANTS, FULL_REALISTIC_CHANNELS, FULL_STATES, FULL_STATE_CHANNELS,
@@ -181,19 +193,100 @@ impl<T: Real> FullChange<T> {
     }
 }
 
+/// Most loads of a [`FullDriveConfig`].
+pub const MAX_LOADS: usize = 4;
+
+/// A point mass set down on the body during a drive (module documentation, "Loads"): `mass`
+/// kg at `(x, y)` m from the initial centre of mass (`x` forward, `y` to the left), from `t` s,
+/// its mass growing linearly over `ramp` s (0: at once).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FullLoad<T> {
+    /// Start time, s (≥ 0).
+    pub t: T,
+    /// Mass, kg (> 0).
+    pub mass: T,
+    /// Position forward of the initial centre of mass, m.
+    pub x: T,
+    /// Position to the left of the initial centre of mass, m.
+    pub y: T,
+    /// Ramp duration, s (0 for a load set down at once).
+    pub ramp: T,
+}
+
+impl<T: Real> FullLoad<T> {
+    /// `mass` kg set down at `(x, y)` at `t` s.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for a `t` not finite and ≥ 0 or a `mass` not finite and > 0;
+    /// [`Error::NonFinite`] for an `x` or `y` not finite.
+    pub fn at(t: T, mass: T, x: T, y: T) -> Result<Self> {
+        Self::ramp(t, mass, x, y, T::zero())
+    }
+
+    /// As [`FullLoad::at`], the mass growing linearly from 0 at `t` to `mass` at `t + ramp`.
+    ///
+    /// # Errors
+    /// As [`FullLoad::at`], and [`Error::InvalidArgument`] for a `ramp` not finite and ≥ 0.
+    pub fn ramp(t: T, mass: T, x: T, y: T, ramp: T) -> Result<Self> {
+        let l = Self { t, mass, x, y, ramp };
+        l.validate()?;
+        Ok(l)
+    }
+
+    fn validate(&self) -> Result<()> {
+        check_nonneg("load.t", self.t)?;
+        check_positive("load.mass", self.mass)?;
+        check_finite("load.x", &[self.x])?;
+        check_finite("load.y", &[self.y])?;
+        check_nonneg("load.ramp", self.ramp)
+    }
+
+    /// The mass in place at time `t`, kg.
+    fn mass_at(&self, t: f64) -> f64 {
+        let (t0, ramp, m) = (self.t.to_f64(), self.ramp.to_f64(), self.mass.to_f64());
+        if t < t0 {
+            0.0
+        } else if ramp > 0.0 && t < t0 + ramp {
+            m * ((t - t0) / ramp)
+        } else {
+            m
+        }
+    }
+}
+
 /// Settings of a full-car drive: the quarter car's [`DriveConfig`] (interval, road, speed,
-/// sensors, noise, gravity; it must hold no quarter-car change) and the full car's changes.
+/// sensors, noise, gravity; it must hold no quarter-car change), the full car's changes and
+/// its loads.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FullDriveConfig<T> {
     /// Everything but the changes.
     pub base: DriveConfig<T>,
     changes: [Option<FullChange<T>>; MAX_CHANGES],
+    loads: [Option<FullLoad<T>>; MAX_LOADS],
 }
 
 impl<T: Real> FullDriveConfig<T> {
     /// The settings of `base`, no change.
     pub fn new(base: DriveConfig<T>) -> Self {
-        Self { base, changes: [None; MAX_CHANGES] }
+        Self { base, changes: [None; MAX_CHANGES], loads: [None; MAX_LOADS] }
+    }
+
+    /// Adds a load.
+    ///
+    /// # Errors
+    /// [`Error::Capacity`] beyond [`MAX_LOADS`]; the checks of [`FullLoad::at`].
+    pub fn with_load(mut self, load: FullLoad<T>) -> Result<Self> {
+        load.validate()?;
+        match self.loads.iter_mut().find(|c| c.is_none()) {
+            Some(slot) => *slot = Some(load),
+            None => return Err(Error::Capacity { arg: "loads", needed: MAX_LOADS + 1, capacity: MAX_LOADS }),
+        }
+        Ok(self)
+    }
+
+    /// The loads configured.
+    pub fn loads(&self) -> impl Iterator<Item = &FullLoad<T>> {
+        self.loads.iter().flatten()
     }
 
     /// Adds a parameter change.
@@ -228,6 +321,9 @@ impl<T: Real> FullDriveConfig<T> {
         }
         for c in self.changes() {
             c.validate()?;
+        }
+        for l in self.loads() {
+            l.validate()?;
         }
         Ok(())
     }
@@ -283,6 +379,8 @@ pub struct FullDrive<T: Real> {
     dt: f64,
     c: [f64; FULL_CONSTANTS],
     start: [f64; MAX_CHANGES],
+    /// Each load's mass in place, kg.
+    load: [f64; MAX_LOADS],
     /// Static equilibrium of the initial car (positions; velocities zero).
     q0: SVector<f64, FULL_STATES>,
     a: SMatrix<f64, FULL_STATES, FULL_STATES>,
@@ -363,6 +461,7 @@ impl<T: Real> FullDrive<T> {
             dt,
             c,
             start: [f64::NAN; MAX_CHANGES],
+            load: [0.0; MAX_LOADS],
             q0,
             a: SMatrix::zeros(),
             b: SMatrix::zeros(),
@@ -419,9 +518,24 @@ impl<T: Real> FullDrive<T> {
         self.bias.map(T::of)
     }
 
-    /// The constants in effect, in the order of [`FullCar::CONSTANTS`].
+    /// The constants in effect, in the order of [`FullCar::CONSTANTS`] (with the loads in
+    /// place: module documentation, "Loads").
     pub fn constants(&self) -> [T; FULL_CONSTANTS] {
-        self.c.map(T::of)
+        self.loaded_constants().map(T::of)
+    }
+
+    /// The car's constants with the loads in place: `M + Σ m`, `Jx + Σ m y²`, `Jy + Σ m x²`.
+    fn loaded_constants(&self) -> [f64; FULL_CONSTANTS] {
+        let mut c = self.c;
+        for (l, &m) in self.cfg.loads.iter().zip(&self.load) {
+            if let Some(l) = l {
+                let (x, y) = (l.x.to_f64(), l.y.to_f64());
+                c[0] += m;
+                c[1] += m * y * y;
+                c[2] += m * x * x;
+            }
+        }
+        c
     }
 
     /// The road's two tracks (for their coherence model).
@@ -444,12 +558,45 @@ impl<T: Real> FullDrive<T> {
     fn rebuild(&mut self) -> Result<()> {
         let car = FullCar::from_constants(self.c)?;
         let model = car.model();
-        let (a, bm) = (*model.a(), *model.b());
+        let (mut a, mut bm) = (*model.a(), *model.b());
         let mut f = SVector::<f64, FULL_STATES>::zeros();
         if self.cfg.base.gravity {
             f = a * self.q0;
             for r in [1usize, 3, 5, 7, 9] {
                 f[r] -= GRAVITY;
+            }
+        }
+        if self.load.iter().any(|&m| m > 0.0) {
+            // The body's rows: (M_b + Σ m v vᵀ)⁻¹ M_b times the unloaded ones, and the loads'
+            // weight (module documentation, "Loads").
+            let p = car.params();
+            let mb = SMatrix::<f64, 3, 3>::from_diagonal(&SVector::from([p.m_body, p.jy, p.jx]));
+            let (mut ml, mut w) = (mb, SVector::<f64, 3>::zeros());
+            for (l, &m) in self.cfg.loads.iter().zip(&self.load) {
+                if let Some(l) = l {
+                    let v = SVector::<f64, 3>::from([1.0, l.x.to_f64(), l.y.to_f64()]);
+                    ml += v * v.transpose() * m;
+                    w -= v * (m * GRAVITY);
+                }
+            }
+            let inv = ml.try_inverse().ok_or(Error::Singular { what: "the loaded body's mass matrix" })?;
+            let t = inv * mb;
+            const BODY: [usize; 3] = [9, 11, 13];
+            let rows = |m: &SMatrix<f64, FULL_STATES, FULL_STATES>| {
+                SMatrix::<f64, 3, FULL_STATES>::from_fn(|i, j| m[(BODY[i], j)])
+            };
+            let ab = t * rows(&a);
+            let bb = t * SMatrix::<f64, 3, 4>::from_fn(|i, j| bm[(BODY[i], j)]);
+            let fb = t * SVector::<f64, 3>::from_fn(|i, _| f[BODY[i]])
+                + if self.cfg.base.gravity { inv * w } else { SVector::zeros() };
+            for (i, &r) in BODY.iter().enumerate() {
+                for j in 0..FULL_STATES {
+                    a[(r, j)] = ab[(i, j)];
+                }
+                for j in 0..4 {
+                    bm[(r, j)] = bb[(i, j)];
+                }
+                f[r] = fb[i];
             }
         }
         // Augmented state [x, u (4), u̇ (4), 1]: each wheel's road linear over the interval.
@@ -473,9 +620,18 @@ impl<T: Real> FullDrive<T> {
         Ok(())
     }
 
-    /// Applies the changes due at time `t`; `true` when a constant moved.
+    /// Applies the changes and loads due at time `t`; `true` when a constant or a load moved.
     fn apply_changes(&mut self, t: f64) -> bool {
         let mut moved = false;
+        for (l, m) in self.cfg.loads.iter().zip(self.load.iter_mut()) {
+            if let Some(l) = l {
+                let now = l.mass_at(t);
+                if now != *m {
+                    *m = now;
+                    moved = true;
+                }
+            }
+        }
         for (i, ch) in self.cfg.changes.iter().enumerate() {
             let Some(ch) = ch else { continue };
             let t0 = ch.t.to_f64();
@@ -577,7 +733,7 @@ impl<T: Real> FullDrive<T> {
             x: x.map(T::of),
             xdot: xdot.map(T::of),
             u: u.map(T::of),
-            constants: self.c.map(T::of),
+            constants: self.loaded_constants().map(T::of),
             y,
             len,
         };

@@ -150,6 +150,58 @@ fn a_load_makes_each_corner_sag_as_statics_say() {
 }
 
 #[test]
+fn a_point_load_makes_each_corner_sag_as_statics_say() {
+    // The symmetric car (equal corners, no anti-roll bars) on a flat road, 150 kg set down at
+    // (x, y) = (−1.0, 0.4) m at 1 s. With S = Σ c_i c_iᵀ (c_i = [1, x_i, y_i], here
+    // diag(4, 4 l², 4 w²)) the body takes q = −m g (k_eff S)⁻¹ v and corner i's spring the force
+    // m g c_iᵀ S⁻¹ v = m g (1/4 + x_i x / (4 l²) + y_i y / (4 w²)); its extension drops by that
+    // over k. The mass matrix does not enter: this checks the load's weight and where it acts.
+    let car = FullCar::<f64>::default();
+    let p = car.params();
+    let (m, x, y) = (150.0, -1.0, 0.4);
+    let base = DriveConfig::new(0.005).road(RoadClass::Flat).noise(quiet());
+    let cfg = FullDriveConfig::new(base).with_load(FullLoad::at(1.0, m, x, y).unwrap()).unwrap();
+    let mut drive = FullDrive::new(car, cfg, 3).unwrap();
+    let first = drive.next_sample();
+    assert_eq!(first.constants[0], p.m_body, "no load before 1 s");
+    let mut last = first;
+    for _ in 0..8000 {
+        last = drive.next_sample();
+    }
+    let (l, w) = (p.l_f, p.track_f / 2.0);
+    for i in 0..4 {
+        let (xi, yi) = car.corner_position(i);
+        let force = m * GRAVITY * (0.25 + xi * x / (4.0 * l * l) + yi * y / (4.0 * w * w));
+        let drop = first.y()[8 + i] - last.y()[8 + i];
+        assert!(
+            (drop - force / p.k[i]).abs() < 1e-3 * force.abs() / p.k[i],
+            "corner {i}: {drop} vs {}",
+            force / p.k[i]
+        );
+    }
+    assert!(last.xdot.iter().all(|v| v.abs() < 1e-6), "settled: {:?}", last.xdot);
+    let c = last.constants;
+    assert_eq!([c[0], c[1], c[2]], [p.m_body + m, p.jx + m * y * y, p.jy + m * x * x]);
+    // A ramp: half the mass halfway, and the settings are checked.
+    let base = DriveConfig::new(0.005).road(RoadClass::Flat).noise(quiet());
+    let cfg = FullDriveConfig::new(base).with_load(FullLoad::ramp(0.0, 100.0, 0.0, 0.0, 1.0).unwrap()).unwrap();
+    let mut drive = FullDrive::new(car, cfg, 3).unwrap();
+    let mid = (0..=100).map(|_| drive.next_sample()).last().unwrap();
+    assert!((mid.constants[0] - (p.m_body + 50.0)).abs() < 1e-9, "{}", mid.constants[0]);
+    assert!(matches!(FullLoad::at(0.0, 0.0, 0.0, 0.0), Err(Error::InvalidArgument { arg: "load.mass", .. })));
+    assert!(matches!(FullLoad::at(0.0, 1.0, f64::NAN, 0.0), Err(Error::NonFinite { arg: "load.x", .. })));
+    assert!(matches!(FullLoad::at(-1.0, 1.0, 0.0, 0.0), Err(Error::InvalidArgument { arg: "load.t", .. })));
+    let mut cfg = FullDriveConfig::new(DriveConfig::new(0.005));
+    for _ in 0..MAX_LOADS {
+        cfg = cfg.with_load(FullLoad::at(0.0, 1.0, 0.0, 0.0).unwrap()).unwrap();
+    }
+    assert!(matches!(
+        cfg.with_load(FullLoad::at(0.0, 1.0, 0.0, 0.0).unwrap()),
+        Err(Error::Capacity { arg: "loads", .. })
+    ));
+}
+
+#[test]
 fn realistic_channels_are_the_corners_geometry() {
     let car = FullCar::<f64>::passenger();
     let base = DriveConfig::new(0.005).noise(quiet());

@@ -41,7 +41,9 @@ pub use drive::{
     Change, DriveConfig, DriveSample, QuarterConstant, QuarterDrive, SensorNoise, SensorSet, GRAVITY, MAX_CHANGES,
     MAX_CHANNELS, REALISTIC_CHANNELS, STATE_CHANNELS,
 };
-pub use full_drive::{FullChange, FullConstant, FullDrive, FullDriveConfig, FullDriveSample, FULL_MAX_CHANNELS};
+pub use full_drive::{
+    FullChange, FullConstant, FullDrive, FullDriveConfig, FullDriveSample, FullLoad, FULL_MAX_CHANNELS, MAX_LOADS,
+};
 pub use half_drive::{HalfChange, HalfDrive, HalfDriveConfig, HalfDriveSample, HALF_MAX_CHANNELS, ROAD_HISTORY};
 pub use iso8608::{IsoRoad, RoadClass, DEFAULT_CUTOFF, N0};
 pub use road::{RoadConfig, RoadMode, RoadSample, RoadSimulator, SpeedProfile};
