@@ -70,6 +70,34 @@ def test_a_load_and_bad_input() -> None:
         vehid.HealthMonitor(FULL, dt=DT, sensors="state")
 
 
+def test_a_boot_load_is_named_with_its_mass_and_place(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # 100 kg set down 0.8 m behind the rear axle, 0.4 m right of centre, at 40 s (the drive's
+    # point load): one event 'M', 1500 -> ~1600 kg with its interval holding 1600, the place
+    # within 0.5 m; the monitor's constants gain the load (Jx, Jy about the nominal centre of
+    # mass); the event pickles with its position and prints it on the command line.
+    run = drive(90.0, changes=[(40.0, {"load": 100.0, "load_x": -2.5, "load_y": -0.4})], seed=55)
+    mon = vehid.HealthMonitor(FULL, dt=DT)
+    events = mon.fit(run.y)
+    assert [e.parameter for e in events] == ["M"], events
+    ev = events[0]
+    assert abs(ev.after - 1600.0) < 45.0 and ev.low < 1600.0 < ev.high, ev
+    assert ev.position is not None and np.hypot(ev.position[0] + 2.5, ev.position[1] + 0.4) < 0.5, ev
+    m, (x, y) = ev.after - 1500.0, ev.position
+    assert mon.constants["Jy"] == pytest.approx(2160.0 + m * x * x) and mon.constants["Jx"] == pytest.approx(
+        460.0 + m * y * y)
+    assert pickle.loads(pickle.dumps(ev)) == ev and "position=" in repr(ev)
+    d = ev.to_dict()
+    assert (d["load_x"], d["load_y"]) == ev.position
+    with pytest.raises(vehid.VehidError, match="position"):
+        vehid.Event(1.0, 0.5, "b_fl", 1000.0, 900.0, 880.0, 920.0, -0.1, (0.0, 0.0))
+    log = tmp_path / "boot.csv"
+    np.savetxt(log, np.column_stack([run.t, run.y]), delimiter=",", header="t," + ",".join(run.channels),
+               comments="")
+    assert cli.main(["monitor", str(log), "--model", "full"]) == 0
+    out = capsys.readouterr().out
+    assert "M (body mass)" in out and "a load at x -2." in out, out
+
+
 def test_vehid_monitor_model_full(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     run = drive(100.0, changes=[(40.0, {"b_rl": 900.0})], seed=54)
     log = tmp_path / "full.csv"

@@ -288,9 +288,11 @@ class Feeder:
             print(json.dumps(d), file=self.out, flush=True)
             return
         name, unit = PARAMETERS[ev.parameter]
+        at = "" if ev.position is None else (
+            f"; a load at x {ev.position[0]:+.1f} m, y {ev.position[1]:+.1f} m from the centre of mass")
         print(f"{self.clock(ev.t):.3f} s  {ev.parameter} ({name}): {ev.before:.6g} -> {ev.after:.6g} {unit} "
               f"({100 * ev.change:+.1f} %; 95 % interval {ev.low:.6g} .. {ev.high:.6g}; "
-              f"onset {self.clock(ev.t_change):.2f} s)", file=self.out, flush=True)
+              f"onset {self.clock(ev.t_change):.2f} s{at})", file=self.out, flush=True)
 
 
 #: The half car's suspension constants in the order of its coefficients

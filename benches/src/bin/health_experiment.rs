@@ -40,8 +40,10 @@
 //! - `--car full`: the full car instead (`FullCar::passenger`, `FullDrive` with its two ISO
 //!   8608 tracks, `FullHealthMonitor`; realistic sensors at the four corners): each corner's
 //!   damper −10 % and spring −10 %, body mass +20 % (with `Jx`, `Jy` +20 %), and body mass
-//!   +20 % with the inertias unchanged (outside the monitor's assumption). Realistic sensors
-//!   only (no `--state-noise`).
+//!   +20 % with the inertias unchanged (outside the monitor's assumption), and 100 kg in the
+//!   boot (a point load 0.8 m behind the rear axle on the centre line, x = −2.5 m: its
+//!   event must be `M` +6.7 % with the load's position within 0.5 m). Realistic sensors only
+//!   (no `--state-noise`).
 //!
 //! Usage: `health_experiment [--car quarter|half|full] [--seed0 N] [--seeds N] [--hours H] [--threshold h] [--window s] [--warmup s] [--calibrate] [--vary] [--state-noise F]`.
 
@@ -49,8 +51,8 @@ use std::time::Instant;
 use vehid_core::health::{FullHealthMonitor, HalfHealthMonitor, HealthConfig, HealthMonitor, Status};
 use vehid_core::model::{FullCar, HalfCar, QuarterCar};
 use vehid_core::sim::{
-    Change, DriveConfig, FullChange, FullDrive, FullDriveConfig, HalfChange, HalfDrive, HalfDriveConfig, QuarterDrive,
-    RoadClass, SensorNoise, SensorSet,
+    Change, DriveConfig, FullChange, FullDrive, FullDriveConfig, FullLoad, HalfChange, HalfDrive, HalfDriveConfig,
+    QuarterDrive, RoadClass, SensorNoise, SensorSet,
 };
 
 const DT: f64 = 0.005;
@@ -230,13 +232,18 @@ enum Rig {
     Full(Box<FullDrive<f64>>, Box<FullHealthMonitor<f64>>),
 }
 
-/// An event: when, the constant's name, the relative change.
+/// An event: when, the constant's name, the relative change, a load's position.
 #[derive(Clone, Copy)]
 struct Ev {
     t: f64,
     name: &'static str,
     change: f64,
+    position: Option<[f64; 2]>,
 }
+
+/// Where the full car's scenario "load" sets its mass down: 0.8 m behind the passenger car's
+/// rear axle (l_r = 1.7 m), on the centre line.
+const BOOT: [f64; 2] = [-2.5, 0.0];
 
 impl Rig {
     /// A drive of `car` with the step changes `changes` (name, value) at `T_CHANGE`.
@@ -265,7 +272,11 @@ impl Rig {
             Car::Full(c) => {
                 let mut cfg = FullDriveConfig::new(drive_config());
                 for (name, v) in changes {
-                    cfg = cfg.with_change(FullChange::step(T_CHANGE, name, *v).unwrap()).unwrap();
+                    cfg = if *name == "load" {
+                        cfg.with_load(FullLoad::at(T_CHANGE, *v, BOOT[0], BOOT[1]).unwrap()).unwrap()
+                    } else {
+                        cfg.with_change(FullChange::step(T_CHANGE, name, *v).unwrap()).unwrap()
+                    };
                 }
                 Rig::Full(
                     Box::new(FullDrive::new(c, cfg, seed).unwrap()),
@@ -283,21 +294,36 @@ impl Rig {
                     Some(v) => d.next_sample_at(v).unwrap(),
                     None => d.next_sample(),
                 };
-                m.update(s.y()).unwrap().map(|e| Ev { t: e.t, name: e.parameter.as_str(), change: e.change })
+                m.update(s.y()).unwrap().map(|e| Ev {
+                    t: e.t,
+                    name: e.parameter.as_str(),
+                    change: e.change,
+                    position: e.position,
+                })
             }
             Rig::Half(d, m) => {
                 let s = match speed {
                     Some(v) => d.next_sample_at(v).unwrap(),
                     None => d.next_sample(),
                 };
-                m.update(s.y()).unwrap().map(|e| Ev { t: e.t, name: e.parameter.as_str(), change: e.change })
+                m.update(s.y()).unwrap().map(|e| Ev {
+                    t: e.t,
+                    name: e.parameter.as_str(),
+                    change: e.change,
+                    position: e.position,
+                })
             }
             Rig::Full(d, m) => {
                 let s = match speed {
                     Some(v) => d.next_sample_at(v).unwrap(),
                     None => d.next_sample(),
                 };
-                m.update(s.y()).unwrap().map(|e| Ev { t: e.t, name: e.parameter.as_str(), change: e.change })
+                m.update(s.y()).unwrap().map(|e| Ev {
+                    t: e.t,
+                    name: e.parameter.as_str(),
+                    change: e.change,
+                    position: e.position,
+                })
             }
         }
     }
@@ -463,6 +489,7 @@ fn main() {
             ("body mass +20 % (Jx, Jy +20 %)", vec![("M", 1800.0), ("Jx", 552.0), ("Jy", 2592.0)], "M", 1800.0, 1500.0),
             // Outside the monitor's assumption (the inertias scale with M).
             ("body mass +20 %, Jx, Jy unchanged", vec![("M", 1800.0)], "M", 1800.0, 1500.0),
+            ("100 kg in the boot (x -2.5 m, y 0)", vec![("load", 100.0)], "M", 1600.0, 1500.0),
         ]
     } else if a.half {
         vec![
@@ -487,7 +514,7 @@ fn main() {
         let t0 = Instant::now();
         let mut delays = Vec::new();
         let mut errs = Vec::new();
-        let (mut named, mut early, mut missed, mut within) = (0, 0, 0, 0);
+        let (mut named, mut early, mut missed, mut within, mut placed) = (0, 0, 0, 0, 0);
         for i in 0..a.seeds {
             let seed = a.seed0 + 10_000 * si as u64 + i;
             let o = detect(car, seed, changes, (a.threshold, a.window));
@@ -498,6 +525,7 @@ fn main() {
                     named += usize::from(e.name == *want);
                     errs.push(100.0 * e.change - truth);
                     within += usize::from((100.0 * e.change - truth).abs() <= 3.0);
+                    placed += usize::from(e.position.is_some_and(|[x, y]| (x - BOOT[0]).hypot(y - BOOT[1]) <= 0.5));
                 }
                 None => {
                     delays.push(f64::INFINITY);
@@ -514,7 +542,7 @@ fn main() {
         let mean_err = errs.iter().sum::<f64>() / errs.len().max(1) as f64;
         println!(
             "  {label}: {} seeds in {:.1} s: median delay {:.2} s, p95 {:.2} s, named {named}, within 3 points {within}, \
-             missed {missed}",
+             missed {missed}, a point load within 0.5 m of the boot {placed}",
             a.seeds,
             t0.elapsed().as_secs_f64(),
             pct(&delays, 50.0),

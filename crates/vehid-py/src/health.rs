@@ -27,7 +27,9 @@ pub const STATE_FORMAT: u32 = 2;
 /// `t` is when it was reported and `t_change` the estimated onset (s); `parameter` names the
 /// constant ('b' damper, N s/m; 'k2' spring, N/m; 'M' body mass, kg); `before` and `after` are
 /// its values, `low` .. `high` the interval of `after` (the monitor's `confidence`, 95 % by
-/// default), `change` the relative change `after / before - 1`.
+/// default), `change` the relative change `after / before - 1`. `position`: for a full car's
+/// 'M' event whose changes fit a point load, where it was set down, `(x, y)` m from the nominal
+/// car's centre of mass (x forward, y to the left); else None.
 #[pyclass(name = "Event", module = "vehid._vehid", frozen, eq)]
 #[derive(Clone, PartialEq)]
 pub struct PyEvent {
@@ -56,6 +58,9 @@ pub struct PyEvent {
     /// The relative change after / before - 1.
     #[pyo3(get)]
     change: f64,
+    /// Where a point load was set down, (x, y) m from the centre of mass, or None.
+    #[pyo3(get)]
+    position: Option<(f64, f64)>,
 }
 
 impl From<health::Event<f64, HalfConstant>> for PyEvent {
@@ -69,6 +74,7 @@ impl From<health::Event<f64, HalfConstant>> for PyEvent {
             low: e.low,
             high: e.high,
             change: e.change,
+            position: e.position.map(|[x, y]| (x, y)),
         }
     }
 }
@@ -84,6 +90,7 @@ impl From<health::Event<f64, FullConstant>> for PyEvent {
             low: e.low,
             high: e.high,
             change: e.change,
+            position: e.position.map(|[x, y]| (x, y)),
         }
     }
 }
@@ -99,6 +106,7 @@ impl From<health::Event<f64>> for PyEvent {
             low: e.low,
             high: e.high,
             change: e.change,
+            position: e.position.map(|[x, y]| (x, y)),
         }
     }
 }
@@ -107,7 +115,7 @@ impl From<health::Event<f64>> for PyEvent {
 impl PyEvent {
     /// An event from its fields (what unpickling calls; the monitor makes them otherwise).
     #[new]
-    #[pyo3(signature = (t, t_change, parameter, before, after, low, high, change))]
+    #[pyo3(signature = (t, t_change, parameter, before, after, low, high, change, position = None))]
     #[allow(clippy::too_many_arguments)]
     fn py_new(
         t: f64,
@@ -118,7 +126,14 @@ impl PyEvent {
         low: f64,
         high: f64,
         change: f64,
+        position: Option<(f64, f64)>,
     ) -> PyResult<Self> {
+        if position.is_some() && parameter != "M" {
+            return Err(VehidError::new_err(format!(
+                "`position` is where a load was set down: for parameter 'M' only, got {}",
+                py_str(parameter)
+            )));
+        }
         let parameter = match parameter {
             "M" => "M",
             "k2" => "k2",
@@ -135,16 +150,17 @@ impl PyEvent {
                 }
             },
         };
-        Ok(Self { t, t_change, parameter, before, after, low, high, change })
+        Ok(Self { t, t_change, parameter, before, after, low, high, change, position })
     }
 
     fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyTuple>> {
         let e = slf.get();
-        let args = (e.t, e.t_change, e.parameter, e.before, e.after, e.low, e.high, e.change);
+        let args = (e.t, e.t_change, e.parameter, e.before, e.after, e.low, e.high, e.change, e.position);
         (slf.get_type(), args).into_pyobject(slf.py())
     }
 
-    /// The event as a dict (JSON-ready): t, t_change, parameter, before, after, low, high, change.
+    /// The event as a dict (JSON-ready): t, t_change, parameter, before, after, low, high, change,
+    /// and load_x, load_y for an event with a `position`.
     fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(py);
         d.set_item("t", self.t)?;
@@ -159,12 +175,17 @@ impl PyEvent {
         ] {
             d.set_item(k, v)?;
         }
+        if let Some((x, y)) = self.position {
+            d.set_item("load_x", x)?;
+            d.set_item("load_y", y)?;
+        }
         Ok(d)
     }
 
     fn __repr__(&self) -> String {
+        let at = self.position.map_or(String::new(), |(x, y)| format!(", position=({x:?}, {y:?})"));
         format!(
-            "Event(t={:?}, parameter={}, before={:?}, after={:?}, low={:?}, high={:?}, change={:?})",
+            "Event(t={:?}, parameter={}, before={:?}, after={:?}, low={:?}, high={:?}, change={:?}{at})",
             self.t,
             py_str(self.parameter),
             self.before,
@@ -201,7 +222,9 @@ impl PyEvent {
 /// channels `[a_body_fl, a_body_fr, a_body_rl, a_body_rr, a_wheel_fl, .., a_wheel_rr,
 /// deflection_fl, .., deflection_rr]` (a body accelerometer above each wheel, wheel
 /// accelerometers, suspension extensions); events name the corner, 'k_fl' .. 'k_rr',
-/// 'b_fl' .. 'b_rr', or 'M' (a load: Jx and Jy scale with M).
+/// 'b_fl' .. 'b_rr', or 'M': a load, spread like the body's own mass (Jx and Jy scale with M)
+/// or, when a point mass fits the changes better, set down where the event's `position` says
+/// (its mass added to M, Jx and Jy about the nominal centre of mass).
 #[pyclass(name = "HealthMonitor", module = "vehid._vehid")]
 pub struct PyHealthMonitor {
     inner: Mon,

@@ -88,6 +88,11 @@ pub struct Event<T, C = Constant> {
     pub high: T,
     /// The relative change `after / before − 1`.
     pub change: T,
+    /// Where a load was set down, for a body-mass event of the full car whose changes fit a
+    /// point mass better than a load spread like the body's own mass: `[x, y]`, m from the
+    /// nominal car's centre of mass (`x` forward, `y` to the left: the frame of
+    /// [`crate::model::FullCar::corner_position`]); `None` otherwise.
+    pub position: Option<[T; 2]>,
 }
 
 /// The tracked ratios with their intervals.

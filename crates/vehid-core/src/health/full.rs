@@ -114,6 +114,51 @@ pub fn full_relative_patterns<T: Real>(car: &FullCar<T>) -> [SMatrix<T, 8, 4>; F
     })
 }
 
+/// The relative pattern of a point mass `m` set down on the body at `(x, y)` (m from the
+/// centre of mass, `x` forward, `y` to the left), and `s = 1/M + x²/Jy + y²/Jx`. The mass
+/// matrix `diag(M, Jy, Jx)` gains `m v vᵀ` (`v = [1, x, y]`), so by Sherman–Morrison the body's
+/// acceleration coefficients become `α − m_e w wᵀ` with `w_i = 1/M + x_i x/Jy + y_i y/Jx` (corner
+/// `i`'s acceleration per unit force at the load) and `m_e = m / (1 + m s)`: `ΔΘ_2j,i =
+/// −m_e w_i (K w)_j`, `ΔΘ_2j+1,i = −m_e w_i w_j b_j` ([`full_coefficients`]). Returned per unit
+/// `m_e / M` and relative to `Θ` (entries where `Θ` is zero to rounding are 0); a fitted
+/// amplitude `ε` is the mass `m = ε M / (1 − ε M s)`.
+pub fn full_load_pattern<T: Real>(car: &FullCar<T>, x: T, y: T) -> (SMatrix<T, 8, 4>, T) {
+    let p = car.params();
+    let theta = full_coefficients(car);
+    let stiff = full_stiffness(car);
+    let w = SVector::<T, 4>::from_fn(|i, _| {
+        let (xi, yi) = car.corner_position(i);
+        T::one() / p.m_body + xi * x / p.jy + yi * y / p.jx
+    });
+    let kw = stiff * w;
+    let big = theta.iter().fold(T::zero(), |m, v| m.max(v.abs()));
+    let tiny = big * T::of(1e-9);
+    let u = SMatrix::from_fn(|r, i| {
+        let j = r / 2;
+        let d = if r % 2 == 0 { kw[j] } else { w[j] * p.b[j] };
+        let th = theta[(r, i)];
+        if th.abs() > tiny {
+            -p.m_body * w[i] * d / th
+        } else {
+            T::zero()
+        }
+    });
+    (u, T::one() / p.m_body + x * x / p.jy + y * y / p.jx)
+}
+
+/// How far beyond the axles a point load is looked for, m ([`FullHealthMonitor`]'s load
+/// search: from `l_r + LOAD_REACH` behind the centre of mass to `l_f + LOAD_REACH` ahead of
+/// it, across the wider track, on a grid of [`LOAD_STEP`]).
+pub const LOAD_REACH: f64 = 1.0;
+
+/// Spacing of the load search's grid, m.
+pub const LOAD_STEP: f64 = 0.1;
+
+/// What a point load's fit must gain over the best single constant's (or the load spread like
+/// the body's) weighted residual to be reported as one: the 95 % point of χ² with the 2
+/// degrees of freedom its position adds (5.99).
+pub const LOAD_PENALTY: f64 = 5.99;
+
 /// The tracked coefficients of the four body-corner equations with their intervals: row `i`
 /// (corner `i`'s equation) is `[Θ_0,i, …, Θ_7,i, c_i]` ([`full_coefficients`]: the extension and
 /// rate coefficients of corners fl, fr, rl, rr, 1/s² and 1/s, then the offset, m/s²).

@@ -240,6 +240,74 @@ fn a_load_is_named_the_body_mass() {
 }
 
 #[test]
+fn a_point_loads_pattern_is_the_loaded_mass_matrix() {
+    // The coefficients of the car with m kg at (x, y) computed the long way: α' = C (M_b +
+    // m v vᵀ)⁻¹ Cᵀ by a matrix inverse, Θ' from α' as `full_coefficients` does; the pattern
+    // (Sherman–Morrison) times m_e / M must give (Θ' − Θ)/Θ, and m_e back m. Also with
+    // anti-roll bars and unequal tracks, a point off both axes.
+    let mut barred = FullCar::<f64>::passenger().params();
+    barred.arb_f = 12_000.0;
+    barred.track_r = 1.55;
+    for car in [FullCar::<f64>::passenger(), FullCar::new(barred).unwrap()] {
+        let p = car.params();
+        let (m, x, y) = (100.0, -2.5, 0.3);
+        let mb = SMatrix::<f64, 3, 3>::from_diagonal(&SVector::from([p.m_body, p.jy, p.jx]));
+        let v = SVector::<f64, 3>::from([1.0, x, y]);
+        let inv = (mb + v * v.transpose() * m).try_inverse().unwrap();
+        let c = SMatrix::<f64, 4, 3>::from_fn(|i, k| {
+            let (xi, yi) = car.corner_position(i);
+            [1.0, xi, yi][k]
+        });
+        let alpha = c * inv * c.transpose();
+        let stiff = full_stiffness(&car);
+        let ak = alpha * stiff;
+        let theta = full_coefficients(&car);
+        let (u, s) = full_load_pattern(&car, x, y);
+        let me = m / (1.0 + m * s);
+        for r in 0..8 {
+            for i in 0..4 {
+                let j = r / 2;
+                let loaded = if r % 2 == 0 { ak[(i, j)] } else { alpha[(i, j)] * p.b[j] };
+                let want = loaded / theta[(r, i)] - 1.0;
+                let got = u[(r, i)] * me / p.m_body;
+                assert!((got - want).abs() < 1e-12, "({r}, {i}): {got} vs {want}");
+            }
+        }
+        let eps = me / p.m_body;
+        assert!((eps * p.m_body / (1.0 - eps * p.m_body * s) - m).abs() < 1e-9);
+    }
+}
+
+#[test]
+fn a_point_load_in_the_boot_is_named_with_its_mass_and_place() {
+    // 100 kg 0.8 m behind the rear axle (x = −2.5 m), 0.3 m left of centre, at 40 s: one
+    // event, "M", +100 kg within 3 points of M (6.7 %), its interval holding the truth, the
+    // place within 0.5 m; the beliefs M + m, Jx + m y², Jy + m x².
+    let car = FullCar::<f64>::passenger();
+    let (m, x, y) = (100.0, -2.5, 0.3);
+    let cfg = FullDriveConfig::new(DriveConfig::new(0.005))
+        .with_load(crate::sim::FullLoad::at(40.0, m, x, y).unwrap())
+        .unwrap();
+    let mut drive = FullDrive::new(car, cfg, 4201).unwrap();
+    let mut mon = FullHealthMonitor::new(HealthConfig::new(0.005, car)).unwrap();
+    let mut events = Vec::new();
+    for _ in 0..(70.0 / 0.005) as usize {
+        events.extend(mon.update(drive.next_sample().y()).unwrap());
+    }
+    assert_eq!(events.len(), 1, "{events:?}");
+    let e = events[0];
+    assert_eq!(e.parameter.as_str(), "M", "{e:?}");
+    assert!((e.change - m / 1500.0).abs() < 0.03, "{e:?}");
+    assert!(e.low < 1600.0 && 1600.0 < e.high, "{e:?}");
+    let [ex, ey] = e.position.expect("a point load's place");
+    assert!((ex - x).abs() < 0.5 && (ey - y).abs() < 0.5, "{e:?}");
+    let c = mon.constants();
+    assert_eq!(c[0], e.after);
+    assert!((c[1] - (460.0 + (e.after - 1500.0) * ey * ey)).abs() < 1e-9);
+    assert!((c[2] - (2160.0 + (e.after - 1500.0) * ex * ex)).abs() < 1e-9);
+}
+
+#[test]
 fn f32_full_monitor_detects_the_front_left_damper() {
     let car = FullCar::<f32>::passenger();
     let cfg = FullDriveConfig::new(DriveConfig::new(0.005f32))

@@ -334,10 +334,17 @@
 //! `judge_error/√2`), the sensor checks (stuck, jump, NaN; the kinematic check on each of
 //! the four corners) are the half car's.
 //!
-//! **Load.** A load is taken to scale `M`, `Jx` and `Jy` together (spread like the body's
-//! own mass; every `α` by `1/(1 + ε)`). A load that shifts the centre of mass toward a corner
-//! changes the `α` unequally: there are no load-position patterns yet, and such a load is
-//! reported as the pattern that fits best (usually `M`).
+//! **Load.** The named pattern `M` is a load spread like the body's own mass (`M`, `Jx` and
+//! `Jy` scaled together; every `α` by `1/(1 + ε)`). A load is rarely that: luggage in the
+//! boot sits behind the rear axle. A point mass `m` at `(x, y)` adds `m v vᵀ` (`v = [1, x, y]`) to the body's
+//! mass matrix, so (Sherman–Morrison) `α` loses the rank-one `m_e w wᵀ`, `w_i = 1/M + x_i x/Jy
+//! + y_i y/Jx`, `m_e = m/(1 + m s)`, `s = 1/M + x²/Jy + y²/Jx`: a pattern for every place
+//! ([`full_load_pattern`]). When a change has settled, the monitor also fits a point load at
+//! every point of a 0.1 m grid over the body and 1 m beyond each axle ([`LOAD_STEP`],
+//! [`LOAD_REACH`]; about 900 fits, once per event) and reports the best as a body-mass event
+//! with its `position` when its weighted residual beats the best single constant's by
+//! [`LOAD_PENALTY`] (χ²₂'s 95 % point: the position's two degrees of freedom). Its size is
+//! `m`, added to `M`, and to `Jx`, `Jy` about the nominal centre of mass.
 //!
 //! Figures (`health_experiment --car full --seed0 9000000 --seeds 100 --hours 200`, the
 //! passenger full car on class C at 15 m/s; docs/capabilities/health.md, "The full car"): every
@@ -368,8 +375,8 @@ pub use batch::Monitor;
 pub use consistency::{KinematicCheck, CHECK_HIGH_PASS_HZ, CHECK_LOW_PASS_HZ, CHECK_RATE_HZ};
 pub use event::{Constant, Estimate, Event, Reason, Status};
 pub use full::{
-    full_alpha, full_coefficients, full_relative_patterns, full_stiffness, FullEstimate, FullHealthMonitor,
-    FULL_CHANNELS, FULL_NAMED, FULL_NAMED_COUNT,
+    full_alpha, full_coefficients, full_load_pattern, full_relative_patterns, full_stiffness, FullEstimate,
+    FullHealthMonitor, FULL_CHANNELS, FULL_NAMED, FULL_NAMED_COUNT, LOAD_PENALTY, LOAD_REACH, LOAD_STEP,
 };
 pub use half::{HalfEstimate, HalfHealthMonitor, DECISION_INTERVAL, HALF_CHANNELS, HALF_NAMED, HALF_STATE_CHANNELS};
 pub use kinematic::{DeflectionFilter, RateGain};

@@ -52,15 +52,58 @@ impl<T: Real> FullHealthMonitor<T> {
         true
     }
 
-    /// The fits of the named constants to the tracked (`post = false`) or the settling
-    /// (`post = true`) estimate's deviations from the reference.
-    pub(super) fn fits(&self, post: bool) -> Option<Fits<T>> {
+    /// The tracked (`post = false`) or the settling (`post = true`) estimate's deviations from
+    /// the reference `X̃` and their covariance factor `Q` (tracked plus reference).
+    fn deviations(&self, post: bool) -> (SMatrix<T, 8, 4>, SMatrix<T, 8, 8>) {
         let (rls, scale) =
             if post { (&self.post, T::one()) } else { (&self.fast, T::one() / (T::one() + self.fast.lambda())) };
         let (th, p, r) = (rls.theta(), rls.p(), &self.theta_ref);
         let dtheta = SMatrix::<T, 8, 4>::from_fn(|j, o| th[(j, o)] - r[(j, o)]);
         let q = SMatrix::<T, 8, 8>::from_fn(|j, k| p[(j, k)] * scale + self.q_ref[(j, k)]);
+        (dtheta, q)
+    }
+
+    /// The fits of the named constants to the tracked (`post = false`) or the settling
+    /// (`post = true`) estimate's deviations from the reference.
+    pub(super) fn fits(&self, post: bool) -> Option<Fits<T>> {
+        let (dtheta, q) = self.deviations(post);
         fit_kron_patterns(&dtheta, &self.patterns, &self.sigma_inv, &q)
+    }
+
+    /// The point load that fits the settling estimate's deviations best
+    /// ([`full_load_pattern`] at every point of the search grid: [`LOAD_REACH`], [`LOAD_STEP`]):
+    /// its fit (amplitude `m_e / M`), its position `[x, y]` and its `s`. `None` when `Q` is
+    /// not positive definite.
+    fn point_load(&self) -> Option<(Fit<T>, [T; 2], T)> {
+        let (dtheta, q) = self.deviations(true);
+        let qi = spd_inverse(&q)?;
+        let zx = (qi * dtheta) * self.sigma_inv;
+        let xx = dtheta.dot(&zx);
+        let r = self.theta_ref.fixed_view::<8, 4>(0, 0).into_owned();
+        let p = self.cfg.car.params();
+        let (step, reach) = (LOAD_STEP, LOAD_REACH);
+        let nx = libm::round((p.l_f.to_f64() + p.l_r.to_f64() + 2.0 * reach) / step) as i64;
+        let half = 0.5 * p.track_f.to_f64().max(p.track_r.to_f64());
+        let ny = libm::round(half / step) as i64;
+        let mut best: Option<(Fit<T>, [T; 2], T)> = None;
+        for ix in 0..=nx {
+            let x = T::of(-(p.l_r.to_f64() + reach) + ix as f64 * step);
+            for iy in -ny..=ny {
+                let y = T::of(iy as f64 * step);
+                let (u, s) = full_load_pattern(&self.cfg.car, x, y);
+                let u = u.component_mul(&r);
+                let uu = u.dot(&((qi * u) * self.sigma_inv));
+                if !(uu > T::zero()) {
+                    continue;
+                }
+                let ux = u.dot(&zx);
+                let fit = Fit { value: ux / uu, var: T::one() / uu, ssr: xx - ux * ux / uu };
+                if best.is_none_or(|b| fit.ssr < b.0.ssr) {
+                    best = Some((fit, [x, y], s));
+                }
+            }
+        }
+        best
     }
 
     /// The CUSUM step on each named constant's relative deviation, for the `n_decide`
@@ -99,7 +142,15 @@ impl<T: Real> FullHealthMonitor<T> {
         }
     }
 
-    /// Ends the settling: names the constant whose pattern fits best, reports it, moves the
+    /// A settled change below `min_change / 2`: the alarm is dropped, monitoring goes on.
+    fn drop_alarm(&mut self) -> Option<Event<T, FullConstant>> {
+        self.g = [[T::zero(); 2]; FULL_NAMED_COUNT];
+        self.phase = Phase::Monitoring;
+        None
+    }
+
+    /// Ends the settling: names the constant whose pattern fits best, or a point load
+    /// ([`full_load_pattern`]) when it fits better by [`LOAD_PENALTY`], reports it, moves the
     /// reference (`None` for a settled change below `min_change / 2`: the alarm is dropped).
     pub(super) fn finish(&mut self) -> Option<Event<T, FullConstant>> {
         if self.sensors.vetoes() {
@@ -114,28 +165,57 @@ impl<T: Real> FullHealthMonitor<T> {
                 .min_by(|&a, &b| fits[a].ssr.partial_cmp(&fits[b].ssr).unwrap_or(core::cmp::Ordering::Equal))
                 .map(|u| (u, fits[u]))
         });
-        let Some((u, fit)) = best.filter(|(_, f)| f.value.abs() >= self.cfg.min_change * T::of(0.5)) else {
-            self.g = [[T::zero(); 2]; FULL_NAMED_COUNT];
-            self.phase = Phase::Monitoring;
-            return None;
+        // A point load, when it fits better than any one constant by more than its position's
+        // two degrees of freedom buy (and its mass is finite: m_e s < 1).
+        let m_nom = self.cfg.car.params().m_body;
+        let mass = |eps: T, s: T| {
+            let me = eps * m_nom;
+            let den = one - me * s;
+            (den > T::of(1e-9)).then(|| me / den)
         };
-        let parameter = FULL_NAMED[u];
-        let dx = fit.value;
-        let idx = parameter.index();
-        let before = self.belief[idx];
-        let sd = (self.inflate * fit.var + self.cfg.systematic * self.cfg.systematic).sqrt();
-        let (after, low, high) = if u == BODY_MASS {
-            let hi_den = (one + dx - self.z * sd).max(T::of(1e-9));
-            (before / (one + dx), before / (one + dx + self.z * sd), before / hi_den)
-        } else {
-            (before * (one + dx), before * (one + dx - self.z * sd), before * (one + dx + self.z * sd))
+        let load = self.point_load().filter(|(f, _, s)| {
+            mass(f.value, *s).is_some() && best.is_none_or(|(_, b)| f.ssr + T::of(LOAD_PENALTY) < b.ssr)
+        });
+        let half = self.cfg.min_change * T::of(0.5);
+        let (parameter, before, after, low, high, position) = match (load, best) {
+            (Some((fit, at, s)), _) => {
+                let idx = FULL_NAMED[BODY_MASS].index();
+                let before = self.belief[idx];
+                let m = mass(fit.value, s).unwrap_or(T::zero());
+                if !(m.abs() >= half * before) {
+                    return self.drop_alarm();
+                }
+                let sd = (self.inflate * fit.var + self.cfg.systematic * self.cfg.systematic).sqrt();
+                let lo = mass(fit.value - self.z * sd, s).unwrap_or(m);
+                let hi = mass(fit.value + self.z * sd, s).unwrap_or(T::biggest());
+                self.belief[idx] = before + m;
+                // About the nominal car's centre of mass, as the drive reports them.
+                self.belief[1] += m * at[1] * at[1];
+                self.belief[2] += m * at[0] * at[0];
+                (FULL_NAMED[BODY_MASS], before, before + m, before + lo, before + hi, Some(at))
+            }
+            (None, Some((u, fit))) if fit.value.abs() >= half => {
+                let parameter = FULL_NAMED[u];
+                let dx = fit.value;
+                let idx = parameter.index();
+                let before = self.belief[idx];
+                let sd = (self.inflate * fit.var + self.cfg.systematic * self.cfg.systematic).sqrt();
+                let (after, low, high) = if u == BODY_MASS {
+                    let hi_den = (one + dx - self.z * sd).max(T::of(1e-9));
+                    (before / (one + dx), before / (one + dx + self.z * sd), before / hi_den)
+                } else {
+                    (before * (one + dx), before * (one + dx - self.z * sd), before * (one + dx + self.z * sd))
+                };
+                self.belief[idx] = after;
+                if u == BODY_MASS {
+                    // Jx and Jy scale with M (a load spread like the body's own mass).
+                    self.belief[1] /= one + dx;
+                    self.belief[2] /= one + dx;
+                }
+                (parameter, before, after, low, high, None)
+            }
+            _ => return self.drop_alarm(),
         };
-        self.belief[idx] = after;
-        if u == BODY_MASS {
-            // Jx and Jy scale with M (the load is assumed spread like the body's own mass).
-            self.belief[1] /= one + dx;
-            self.belief[2] /= one + dx;
-        }
         let dt = self.cfg.dt.to_f64();
         let ev = Event {
             t: T::of((self.k - 1) as f64 * dt),
@@ -146,6 +226,7 @@ impl<T: Real> FullHealthMonitor<T> {
             low,
             high,
             change: after / before - one,
+            position,
         };
         let (th, p) = (*self.post.theta(), *self.post.p());
         self.fast = Rls::new(th, p, self.fast.lambda());

@@ -166,6 +166,7 @@ impl<T: Real> HalfHealthMonitor<T> {
             low,
             high,
             change: after / before - one,
+            position: None,
         };
         let (th, p) = (*self.post.theta(), *self.post.p());
         self.fast = Rls::new(th, p, self.fast.lambda());

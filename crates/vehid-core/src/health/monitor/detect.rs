@@ -200,6 +200,7 @@ impl<T: Real> HealthMonitor<T> {
             low,
             high,
             change: after / before - one,
+            position: None,
         };
         // The reference moves to the settled new value; the tracker continues from it.
         self.fast = Rls3::new(th, p, self.fast.lambda());
