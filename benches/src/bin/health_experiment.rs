@@ -18,6 +18,7 @@
 //! - `--vary`: the no-change hours (and the calibration) under changing conditions instead:
 //!   speed `16 + 8 sin(2π t / 240 s)` m/s (8–24 m/s) and the road class cycling C, B, C, D
 //!   every 300 s (the reference is learned in the first 20 s, on class C near 16 m/s).
+//!   `--speeds LO,HI` sets the speed's range (default 8,24; the sine between them).
 //!
 //! (Instructions per update are counted by `count_health`, the callgrind gate's binary.)
 //!
@@ -95,6 +96,11 @@ fn parse() -> Args {
             "--hours" => a.hours = val().parse().expect("--hours: an integer"),
             "--threshold" => a.threshold = Some(val().parse().expect("--threshold: a number")),
             "--window" => a.window = Some(val().parse().expect("--window: seconds")),
+            "--speeds" => {
+                let v: Vec<f64> = val().split(',').map(|x| x.parse().expect("--speeds: LO,HI in m/s")).collect();
+                assert!(v.len() == 2 && 0.0 <= v[0] && v[0] <= v[1], "--speeds: LO,HI with 0 <= LO <= HI");
+                SPEEDS.set((v[0], v[1])).expect("--speeds once");
+            }
             "--warmup" => WARMUP.set(val().parse().expect("--warmup: seconds")).expect("--warmup once"),
             "--state-noise" => a.state_noise = Some(val().parse().expect("--state-noise: a fraction")),
             "--car" => {
@@ -127,6 +133,9 @@ type Tune = (Option<f64>, Option<f64>);
 
 /// The monitor's warm-up (`HealthConfig::warmup`), s, if `--warmup` is given.
 static WARMUP: std::sync::OnceLock<f64> = std::sync::OnceLock::new();
+
+/// The range of the speed under `--vary`, m/s (`--speeds`).
+static SPEEDS: std::sync::OnceLock<(f64, f64)> = std::sync::OnceLock::new();
 
 /// The sensors of every drive and monitor (set once in `main`).
 static SENSORS: std::sync::OnceLock<(SensorSet, SensorNoise<f64>)> = std::sync::OnceLock::new();
@@ -392,7 +401,8 @@ fn hour(car: Car, seed: u64, tune: Tune, vary: bool, peaks: Option<&mut Vec<f64>
             if k % (300.0 / DT) as usize == 0 {
                 rig.set_road(classes[(k / (300.0 / DT) as usize) % classes.len()]);
             }
-            rig.step(Some(16.0 + 8.0 * (2.0 * std::f64::consts::PI * t / 240.0).sin()))
+            let (lo, hi) = *SPEEDS.get_or_init(|| (8.0, 24.0));
+            rig.step(Some(0.5 * (lo + hi) + 0.5 * (hi - lo) * (2.0 * std::f64::consts::PI * t / 240.0).sin()))
         } else {
             rig.step(None)
         };
@@ -564,7 +574,12 @@ fn main() {
     println!(
         "false alarms: {} h without change{}, one hour per seed from {}",
         a.hours,
-        if a.vary { " (varying speed and road class)" } else { "" },
+        if a.vary {
+            let (lo, hi) = *SPEEDS.get_or_init(|| (8.0, 24.0));
+            format!(" (speed varying {lo}-{hi} m/s, road class C, B, C, D)")
+        } else {
+            String::new()
+        },
         a.seed0 + 500_000
     );
     let t0 = Instant::now();
