@@ -139,13 +139,18 @@ def full_matrices(
 
 
 def simulate_full(
-    params: Dict[str, float], cls: str, speed: float, dt: float, n: int, seed: int
+    params: Dict[str, float], cls: str, speed: float, dt: float, n: int, seed: int,
+    change: Optional[Tuple[int, Dict[str, float], Optional[Tuple[float, float, float]]]] = None,
 ) -> Tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """``(x, xdot, u)`` of ``n`` samples every ``dt`` seconds of the full car with ``params`` at a
     constant ``speed`` on two independent class-``cls`` tracks (left, right; harmonics as
     :func:`spectral_road`), each rear wheel on its front wheel's track ``l_f + l_r`` metres
     later; integrated by ``scipy.signal.lsim`` (the road linear between points, :data:`SUBSTEPS`
-    per sample), starting at rest on the road. ``u``: the road under ``fl, fr, rl, rr``."""
+    per sample), starting at rest on the road. ``u``: the road under ``fl, fr, rl, rr``.
+    ``change = (k, constants, load)``: from sample ``k`` on, the constants ``constants`` (a dict
+    of the changed ones) and a point load ``(m, x, y)`` (or None) on the body, whose weight
+    ``m g`` the model feeds as a constant force (the car's own weight is balanced at rest: the
+    states are deviations from it); integrated on from the state at sample ``k``."""
     from scipy.signal import lsim
 
     rng = np.random.default_rng(seed)
@@ -164,10 +169,33 @@ def simulate_full(
     a, b = full_matrices(params)
     x0 = -np.linalg.solve(a, b @ h[0])  # at rest: A x0 + B u0 = 0
     t = np.arange(n * SUBSTEPS) * h_fine
-    _, _, x = lsim((a, b, np.eye(14), np.zeros((14, 4))), h, t, X0=x0, interp=True)
+    # The input [road (4), 1]: the fifth column of B carries a constant force (a load's weight).
+    h1 = np.column_stack([h, np.ones(len(h))])
+    segments = [(0, n * SUBSTEPS, a, np.column_stack([b, np.zeros(14)]))]
+    if change is not None:
+        k, constants, load = change
+        a2, b2 = full_matrices({**params, **constants}, load=load)
+        force = np.zeros(14)
+        if load is not None:
+            mass = np.diag([params[f"m_{c}"] for c in CORNERS] + [params["M"], params["Jy"], params["Jx"]])
+            w = np.zeros(7)
+            w[4:] = [1.0, load[1], load[2]]
+            mass = mass + load[0] * np.outer(w, w)
+            force[1::2] = -np.linalg.solve(mass, load[0] * 9.80665 * w)
+        segments = [(0, k * SUBSTEPS + 1, segments[0][2], segments[0][3]),
+                    (k * SUBSTEPS, n * SUBSTEPS, a2, np.column_stack([b2, force]))]
+    x = np.empty((n * SUBSTEPS, 14))
+    start = x0
+    for lo, hi, am, bm in segments:
+        _, _, xs = lsim((am, bm, np.eye(14), np.zeros((14, 5))), h1[lo:hi], t[lo:hi] - t[lo], X0=start, interp=True)
+        x[lo:hi] = xs
+        start = xs[-1]
     x = x[::SUBSTEPS]
     hk = h[::SUBSTEPS]
-    xdot = x @ a.T + hk @ b.T
+    xdot = np.empty_like(x)
+    for lo, hi, am, bm in segments:
+        sel = slice(lo // SUBSTEPS, n if hi == n * SUBSTEPS else hi // SUBSTEPS)
+        xdot[sel] = x[sel] @ am.T + h1[::SUBSTEPS][sel] @ bm.T
     return np.ascontiguousarray(x), np.ascontiguousarray(xdot), np.ascontiguousarray(hk)
 
 

@@ -1,6 +1,7 @@
 """The full car's health monitor from Python (`vehid.HealthMonitor(FullCar)`, Rust
 `vehid_core::health::FullHealthMonitor`): the api.md example, naming by corner, a load,
-pickling, bad input, `vehid monitor --model full`."""
+pickling, bad input, `vehid monitor --model full`, a point load, drives from an independent
+simulator."""
 
 import importlib.util
 import io
@@ -10,12 +11,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from bench_scripts import load  # tests/ is on sys.path under pytest
 
 import vehid
 from vehid import cli, monitor
 
 DT = 0.005
 FULL = vehid.FullCar.passenger()
+# The full car written without vehid (Lagrange's equations, scipy's lsim): benches/independent_road.py.
+INDEPENDENT = load("independent_road")
 
 
 def drive(seconds: float, changes: object = None, seed: int = 1) -> vehid.Run:
@@ -96,6 +100,48 @@ def test_a_boot_load_is_named_with_its_mass_and_place(tmp_path: Path, capsys: py
     assert cli.main(["monitor", str(log), "--model", "full"]) == 0
     out = capsys.readouterr().out
     assert "M (body mass)" in out and "a load at x -2." in out, out
+
+
+def realistic(x: np.ndarray, xdot: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """The full car's realistic channels from its states (the drive's geometry, written here):
+    a body accelerometer above each wheel, the wheel accelerometers, the extensions; with the
+    Simulator's default noise (body 0.02 and wheel 0.1 m/s^2 white, biases of 0.1 and 0.3 m/s^2
+    drawn once, deflection 0.3 mm)."""
+    pos = INDEPENDENT.corner_positions(FULL.params)
+    body = np.column_stack([xdot[:, 9] + cx * xdot[:, 11] + cy * xdot[:, 13] for cx, cy in pos])
+    wheel = xdot[:, 1:8:2]
+    ext = np.column_stack([x[:, 8] + cx * x[:, 10] + cy * x[:, 12] - x[:, 2 * i] for i, (cx, cy) in enumerate(pos)])
+    n = len(x)
+    body = body + 0.1 * rng.standard_normal(4) + 0.02 * rng.standard_normal((n, 4))
+    wheel = wheel + 0.3 * rng.standard_normal(4) + 0.1 * rng.standard_normal((n, 4))
+    ext = ext + 3e-4 * rng.standard_normal((n, 4))
+    return np.column_stack([body, wheel, ext])
+
+
+@pytest.mark.parametrize("case", ["none", "b_rl", "boot"])
+def test_the_monitor_on_an_independent_simulator(case: str) -> None:
+    # Drives from benches/independent_road.py (Lagrange's equations and two random-phase
+    # harmonic tracks written without vehid, scipy's lsim; a change from sample 12,000 = 60 s
+    # on, integrated on from the state there), the sensors formed here: no event without a
+    # change; the rear left damper -10 % named within 3 points; 100 kg in the boot (0.8 m
+    # behind the rear axle, 0.3 m left) named M, 1500 -> 1600 kg within 3 points of M, placed
+    # within 0.5 m.
+    n, k = 18_000, 12_000
+    change = {"none": None, "b_rl": (k, {"b_rl": 900.0}, None), "boot": (k, {}, (100.0, -2.5, 0.3))}[case]
+    x, xdot, _ = INDEPENDENT.simulate_full(FULL.params, "C", 15.0, DT, n, seed=71, change=change)
+    y = realistic(x, xdot, np.random.default_rng(72))
+    events = vehid.HealthMonitor(FULL, dt=DT).fit(y)
+    if case == "none":
+        assert events == []
+        return
+    assert len(events) == 1, events
+    ev = events[0]
+    assert 60.0 < ev.t < 70.0, ev
+    if case == "b_rl":
+        assert ev.parameter == "b_rl" and abs(ev.change + 0.10) < 0.03, ev
+    else:
+        assert ev.parameter == "M" and abs(ev.change - 100.0 / 1500.0) < 0.03, ev
+        assert ev.position is not None and np.hypot(ev.position[0] + 2.5, ev.position[1] - 0.3) < 0.5, ev
 
 
 def test_vehid_monitor_model_full(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
