@@ -222,7 +222,7 @@ def test_option_errors_are_one_line(run_csv: Path, capsys: pytest.CaptureFixture
         "vehid: error: the following arguments are required: --model (see vehid identify --help)")
     line = error_line(capsys, ["identify", str(run_csv), "--model", "bus"])
     assert line == (
-        "vehid: error: argument --model: invalid choice: 'bus' (choose from half, quarter, or a model file "
+        "vehid: error: argument --model: invalid choice: 'bus' (choose from full, half, quarter, or a model file "
         "NAME.toml) (see vehid identify --help)")
     assert error_line(capsys, []) == "vehid: error: the following arguments are required: COMMAND (see vehid --help)"
 

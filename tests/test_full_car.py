@@ -340,6 +340,21 @@ def test_two_tracks_gate_each_filter() -> None:
     assert xi_with(0.0, 5, False)[0] > 10 * clean
 
 
+def test_residuals_and_regressors_of_rows_no_structure_holds() -> None:
+    # The full car's seven rows of 14 exceed a Structure: residuals and regressors come from the
+    # rows themselves, z_r - theta_r . x (numpy's here), and the regression reproduces them.
+    car = vehid.FullCar.passenger()
+    run = vehid.Simulator(car, dt=DT, road_sigma=0.01, seed=13).run(3000)
+    ident = vehid.KalmanIdentifier(car)
+    ident.fit(run.r, run.z)
+    rows = list(car.unknown_rows)
+    want = run.z[:, rows] - run.r @ ident.theta.T
+    np.testing.assert_allclose(ident.residuals(run.r, run.z), want, rtol=1e-12, atol=1e-12)
+    h, y = ident.regressors(run.r, run.z, equation=2)
+    assert h.shape == (3000, 98) and np.array_equal(h[:, 28:42], run.r) and not h[:, :28].any()
+    np.testing.assert_allclose(y - h @ ident.theta.ravel(), want[:, 2], rtol=1e-12, atol=1e-10)
+
+
 def test_batch_least_squares_on_the_full_car_is_screened() -> None:
     # The full car's seven rows of 14 exceed what the outlier screen's structure holds: batch
     # least squares gets the screen's magnitude test and held start alone. One 1e30 derivative

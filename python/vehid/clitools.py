@@ -22,7 +22,7 @@ import os
 import sys
 from typing import IO, Callable, Dict, Iterator, List, Optional, Union
 
-from ._vehid import HalfCar, LinearModel, QuarterCar, Run, Simulator
+from ._vehid import FullCar, HalfCar, LinearModel, QuarterCar, Run, Simulator
 from .io import WHITESPACE, Column, run_columns
 
 #: Samples simulated, or read, per chunk.
@@ -31,9 +31,15 @@ CHUNK = 100_000
 PROGRESS_ABOVE = 200_000
 
 
-MODELS: dict[str, Callable[[], LinearModel]] = {"quarter": QuarterCar, "half": HalfCar}
+def full_car(**constants: float) -> FullCar:
+    """The full car ``--model full`` names: the documented passenger car
+    (:meth:`vehid.FullCar.passenger`), or the car of ``constants`` (every one)."""
+    return FullCar(**constants) if constants else FullCar.passenger()
+
+
+MODELS: dict[str, Callable[..., LinearModel]] = {"quarter": QuarterCar, "half": HalfCar, "full": full_car}
 #: What ``vehid identify`` calls each model in its messages.
-MODEL_NAMES = {"quarter": "quarter car", "half": "half car"}
+MODEL_NAMES = {"quarter": "quarter car", "half": "half car", "full": "full car"}
 
 
 class CliError(Exception):
@@ -214,7 +220,7 @@ def model_arg(text: str) -> str:
     >>> model_arg("car")
     Traceback (most recent call last):
     ...
-    argparse.ArgumentTypeError: invalid choice: 'car' (choose from half, quarter, or a model file NAME.toml)
+    argparse.ArgumentTypeError: invalid choice: 'car' (choose from full, half, quarter, or a model file NAME.toml)
     """
     if text in MODELS or text.endswith(".toml"):
         return text

@@ -21,7 +21,7 @@ import math
 import re
 import sys
 from dataclasses import dataclass, field
-from typing import IO, Any, Callable, Dict, List, Optional, Tuple, Union, cast
+from typing import IO, Any, Callable, Dict, List, Literal, Optional, Tuple, Union, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -128,7 +128,7 @@ def _misfits(table: Table, unknown: List[int], name: str, model: LinearModel) ->
             raise CliError(f"{table.source}: column {header!r}: states and inputs are numbered from 1 "
                            f"(x1..x{n}, dx1..dx{n}, u1..u{m})")
         if mt.group(1) in ("x", "dx") and states > n:
-            other = {4: "quarter", 8: "half"}.get(states)
+            other = {4: "quarter", 8: "half", 14: "full"}.get(states)
             hint = f": use --model {other}" if other else ""
             raise CliError(f"{table.source} has {states} states (x1..x{states}) "
                            f"but the {MODEL_NAMES[name]} has {n}{hint}")
@@ -166,7 +166,7 @@ def resolve_layout(
             raise CliError(f"{table.source}, line {table.header_line}: the header is one column "
                            f"{shown!r}{hint or ': pass the delimiter with --delimiter'}")
         found_x = max((int(c[1:]) for c in index if re.fullmatch(r"x\d+", c)), default=0)
-        other = {4: "quarter", 8: "half"}.get(found_x)
+        other = {4: "quarter", 8: "half", 14: "full"}.get(found_x)
         if other and found_x < n and all(f"x{i}" in index for i in range(1, found_x + 1)):
             raise CliError(f"{table.source} has {found_x} states (x1..x{found_x}) but the {MODEL_NAMES[name]} "
                            f"has {n}: use --model {other}")
@@ -569,6 +569,22 @@ def check_road_args(args: argparse.Namespace) -> None:
     args.method = "iv"
 
 
+def two_axle_p0(args: argparse.Namespace) -> Union[Literal["exact"], float, None]:
+    """``--p0`` of ``--method two-axle``: the full car's rows start exactly by default (least
+    squares, no prior: its constants' intervals need it), the half car's from the thesis' prior
+    (Ch. VI's figures); ``None`` for more than one value.
+
+    >>> two_axle_p0(argparse.Namespace(p0="exact", model="full", wheel_method="cancel"))
+    'exact'
+    >>> two_axle_p0(argparse.Namespace(p0="exact", model="half", wheel_method="cancel"))
+    1000.0
+    """
+    if args.p0 == "exact":
+        return "exact" if args.model == "full" and args.wheel_method != "thesis" else THESIS_P0
+    given = args.p0
+    return given if isinstance(given, float) else given[0] if len(given) == 1 else None
+
+
 def make_identifier(args: argparse.Namespace, model: LinearModel, spacing: Union[float, str] = 1.0) -> Identifier:
     if args.method == "iv":
         return IVIdentifier(model, **road_options(args, spacing))
@@ -584,10 +600,9 @@ def make_identifier(args: argparse.Namespace, model: LinearModel, spacing: Union
     if args.method == "sg":
         return StochasticGradient(model, gain=args.gain, h=args.h)
     if args.method == "two-axle":
-        if args.model != "half":
-            raise CliError("--method two-axle needs --model half (two axles on one road)")
-        given = THESIS_P0 if args.p0 == "exact" else args.p0
-        p0 = given if isinstance(given, float) else given[0] if len(given) == 1 else None
+        if args.model not in ("half", "full"):
+            raise CliError("--method two-axle needs --model half or full (two axles on one road)")
+        p0 = two_axle_p0(args)
         if p0 is None:
             raise CliError("--method two-axle takes one --p0 value (the body rows' prior is the thesis' 8)")
         return TwoAxleIdentifier(
@@ -703,7 +718,7 @@ def method_options(args: argparse.Namespace, ident: Optional[Identifier] = None)
     if args.method == "sg":
         return {"gain": args.gain, "h": 1.0 if args.h is None else args.h}
     if args.method == "two-axle":
-        return {"p0": THESIS_P0 if args.p0 == "exact" else args.p0, "road_sigma": args.road_sigma,
+        return {"p0": two_axle_p0(args), "road_sigma": args.road_sigma,
                 "deriv_noise": args.deriv_noise, "spacing": args.spacing, "wheel_method": args.wheel_method}
     if args.method == "iv" and isinstance(ident, IVIdentifier):
         opts: Dict[str, Any] = {"road": ident.road, "delay": ident.delay, "min_spacing": ident.min_spacing}
@@ -753,18 +768,23 @@ def prior_note(args: argparse.Namespace, ident: Identifier, rows: List[int]) -> 
 
 def known_masses(args: argparse.Namespace, truth: Optional[Truth] = None,
                  notes: Optional[List[str]] = None) -> Dict[str, float]:
-    """The known wheel masses (``--m``; the half car's ``--m1``, ``--m2``), kg: as given, else
-    from ``--truth`` when it names them (with a note in ``notes``: a passenger car's 40 kg
-    wheel taken as 1 kg made every constant 1/40 of the truth), else the thesis car's 1 kg
-    (the car ``--model quarter`` names; the report says "known: m = 1 kg")."""
-    names = ("m",) if args.model == "quarter" else ("m1", "m2")
+    """The known wheel masses (``--m``; the half car's ``--m1``, ``--m2``; the full car's
+    ``--m-fl`` .. ``--m-rr``, each ``--m`` when not given), kg: as given, else from ``--truth``
+    when it names them (with a note in ``notes``: a passenger car's 40 kg wheel taken as 1 kg
+    made every constant 1/40 of the truth), else the car ``--model`` names: the thesis car's
+    1 kg (the report says "known: m = 1 kg"), the full passenger car's 59 kg."""
+    names = {"quarter": ("m",), "full": ("m_fl", "m_fr", "m_rl", "m_rr")}.get(args.model, ("m1", "m2"))
     out: Dict[str, float] = {}
     for name in names:
         given = getattr(args, name, None)
+        if given is None and args.model == "full":
+            given = getattr(args, "m", None)
         if given is None and truth is not None and truth.constants and name in truth.constants:
             given = float(truth.constants[name])
             if notes is not None and given != 1.0:
-                notes.append(f"--{name} not given: {name} = {given:g} kg from {truth.source}")
+                notes.append(f"--{name.replace('_', '-')} not given: {name} = {given:g} kg from {truth.source}")
+        elif given is None and args.model == "full":
+            given = float(MODELS["full"]().params[name])  # type: ignore[attr-defined]
         elif given is None:
             given = 1.0  # the car --model names: the thesis' (the report says "known: m = 1 kg")
         setattr(args, name, given)
@@ -811,8 +831,23 @@ def state_space(model: LinearModel, theta: NDArray[np.float64], physical: Option
     return {"A": _json_array(a), "B": _json_array(b), "modes": modes(a)}
 
 
-#: Units of the physical constants, by name without the axle digit.
-UNITS = {"M": "kg", "m": "kg", "k": "N/m", "b": "N s/m", "J": "kg m^2", "l": "m"}
+#: Units of the physical constants, by name without the axle digit or corner.
+UNITS = {"M": "kg", "m": "kg", "k": "N/m", "b": "N s/m", "J": "kg m^2", "l": "m", "kt": "N/m", "Jx": "kg m^2",
+         "Jy": "kg m^2", "track": "m", "arb": "N m/rad"}
+
+
+def unit_of(name: str) -> str:
+    """The unit of a physical constant of the built-in cars.
+
+    >>> unit_of("k12"), unit_of("b_fl"), unit_of("Jy"), unit_of("arb_r"), unit_of("l_f")
+    ('N/m', 'N s/m', 'kg m^2', 'N m/rad', 'm')
+    """
+    base = name.rstrip("0123456789")
+    for suffix in ("_fl", "_fr", "_rl", "_rr", "_f", "_r"):
+        if base.endswith(suffix):
+            base = base[: -len(suffix)]
+            break
+    return UNITS.get(base, "")
 
 
 def _seconds(v: Optional[float]) -> str:
@@ -948,9 +983,11 @@ def cmd_identify(args: argparse.Namespace) -> int:
         except VehidError:
             conf_int = None
     intervals: Optional[Dict[str, Tuple[float, float, float]]] = None
-    if structured is not None:
+    if structured is not None or (args.method == "two-axle" and args.model == "full"):
+        # The quarter car's physical structure, or the full car's rows (each track's joint
+        # filter's covariance): the constants by the delta method.
         try:
-            intervals = model.physical(structured.stats(), **known)
+            intervals = model.physical((structured or ident).stats(), **known)
         except VehidError:
             intervals = None
         for mass_note in mass_notes:  # the constants scale with the wheel mass: said with them
@@ -1040,7 +1077,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
     if physical is not None:
         print(f"physical constants (known: {given}):")
         for k, v in physical.items():
-            unit = UNITS.get(k.rstrip("0123456789"), "")
+            unit = unit_of(k)
             true_v = f"true {true_constants[k]:.6g}" if k in true_constants else ""
             print(f"  {k:3s} = {v:<12.6g} {unit:6s} {true_v}".rstrip())
     else:
@@ -1048,12 +1085,13 @@ def cmd_identify(args: argparse.Namespace) -> int:
     if intervals is not None:
         print()
         how = ("instrumental variables on the differenced equations" if args.method == "iv"
+               else "the rows' covariance, delta method" if args.method == "two-axle"
                else "least squares on the same samples")
         print(f"physical constants in the car's physical structure ({how}, known: {given}), 95 % intervals:")
         for k, (v, lo, hi) in intervals.items():
-            if k in known:
+            if k in known or lo == hi:  # given, or fixed by the model (a tyre from B, the geometry)
                 continue
-            unit = UNITS.get(k.rstrip("0123456789"), "")
+            unit = unit_of(k)
             true_v = f"true {true_constants[k]:.6g}" if k in true_constants else ""
             band = f"[{lo:.6g}, {hi:.6g}]"
             print(f"  {k:3s} = {v:<12.6g} {band:24s} {unit:6s} {true_v}".rstrip())
@@ -1101,8 +1139,8 @@ def add_parser(sub: Any) -> None:
     )
     ident.add_argument("file", metavar="FILE", help="CSV or Parquet run, '-' for stdin (CSV)")
     ident.add_argument("--model", required=True, metavar="MODEL", type=model_arg,
-                       help="quarter (4 states), half (8 states), or a model file (.toml: any vehid.Structure, "
-                            "see python/vehid/model_file.py)")
+                       help="quarter (4 states), half (8 states), full (14 states: FullCar.passenger's B), or a "
+                            "model file (.toml: any vehid.Structure, see python/vehid/model_file.py)")
     ident.add_argument("--columns", action="append", metavar="MAP",
                        help="map file columns to the model's names: NAME=COLUMN pairs, comma-separated "
                             "(e.g. x1=wheel_z,dx1=wheel_zdot,t=Zeit), or a file with one NAME = COLUMN per line; "
@@ -1116,8 +1154,8 @@ def add_parser(sub: Any) -> None:
                             "or 'thesis' (default: the file's true_* columns if any, else no xi)")
     ident.add_argument("--method", choices=["kalman", "ls", "sg", "two-axle"], default="kalman",
                        help="kalman (Eq 4.3-4.7, default), ls (least squares on every sample, Eq 2.14, computed "
-                            "recursively in bounded memory), sg (stochastic gradient), two-axle (half car on one "
-                            "road, samples every --spacing metres)")
+                            "recursively in bounded memory), sg (stochastic gradient), two-axle (half or full car on "
+                            "one road, samples every --spacing metres)")
     ident.add_argument("--spacing", type=float, default=0.3,
                        help="two-axle: metres between samples, as simulated (default 0.3)")
     ident.add_argument("--wheel-method", choices=["none", "thesis", "cancel"], default="cancel",
@@ -1181,5 +1219,9 @@ def add_parser(sub: Any) -> None:
                        help="half: known front wheel mass m1, kg (default: as --m)")
     ident.add_argument("--m2", type=positive_float, default=None,
                        help="half: known rear wheel mass m2, kg (default: as --m)")
+    for corner, where in (("fl", "front left"), ("fr", "front right"), ("rl", "rear left"), ("rr", "rear right")):
+        ident.add_argument(f"--m-{corner}", dest=f"m_{corner}", type=positive_float, default=None,
+                           help=f"full: known {where} wheel mass m_{corner}, kg (default: --m, else --truth's, "
+                                "else the passenger full car's 59 kg)")
     ident.add_argument("--json", action="store_true", help="print one JSON object instead of text")
     ident.set_defaults(func=cmd_identify)

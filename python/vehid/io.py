@@ -105,6 +105,22 @@ STATES: Dict[str, Tuple[Tuple[str, str], ...]] = {
         ("pitch", "rad"),
         ("pitch_rate", "rad/s"),
     ),
+    "full": (
+        ("front_left_wheel_pos", "m"),
+        ("front_left_wheel_vel", "m/s"),
+        ("front_right_wheel_pos", "m"),
+        ("front_right_wheel_vel", "m/s"),
+        ("rear_left_wheel_pos", "m"),
+        ("rear_left_wheel_vel", "m/s"),
+        ("rear_right_wheel_pos", "m"),
+        ("rear_right_wheel_vel", "m/s"),
+        ("body_pos", "m"),
+        ("body_vel", "m/s"),
+        ("pitch", "rad"),
+        ("pitch_rate", "rad/s"),
+        ("roll", "rad"),
+        ("roll_rate", "rad/s"),
+    ),
 }
 
 #: The state channels of a drive with state sensors (``vehid simulate --road iso8608-C --sensors
@@ -112,6 +128,8 @@ STATES: Dict[str, Tuple[Tuple[str, str], ...]] = {
 DRIVE_STATES: Dict[str, Tuple[str, ...]] = {
     "quarter": ("zw", "vw", "zb", "vb"),
     "half": ("z1", "v1", "z2", "v2", "zb", "vb", "ph", "om"),
+    "full": ("z_fl", "v_fl", "z_fr", "v_fr", "z_rl", "v_rl", "z_rr", "v_rr", "zb", "vb", "pitch", "pitch_rate", "roll",
+             "roll_rate"),
 }
 
 #: Header names taken as the time column ``t`` (after :func:`normalize`), in seconds.

@@ -90,9 +90,10 @@ def parse_change(text: str) -> Tuple[float, Dict[str, float], float]:
     return t, values, ramp
 
 
-def drive_car(text: Optional[str], half: bool = False) -> Union[QuarterCar, HalfCar]:
+def drive_car(text: Optional[str], half: bool = False, full: bool = False) -> Union[QuarterCar, HalfCar, FullCar]:
     """``--car`` of a drive: ``passenger`` (default) or ``thesis``, then ``NAME=VALUE``
-    overrides (the half car's by their thesis names: ``k12``, ``b1``, ...).
+    overrides (the half car's by their thesis names: ``k12``, ``b1``, ...; the full car, whose
+    only documented car is the passenger one, by its own: ``b_fl``, ``M``, ...).
 
     >>> drive_car("thesis,b=30").params["b"], drive_car(None).params["M"]
     (30.0, 320.0)
@@ -104,16 +105,21 @@ def drive_car(text: Optional[str], half: bool = False) -> Union[QuarterCar, Half
     if tokens and tokens[0] in ("passenger", "thesis"):
         base = tokens.pop(0)
     overrides = ",".join(tokens) or None
+    if full:
+        if base == "thesis":
+            raise CliError("--car thesis: the thesis has no full car; the full car's drive is the passenger car's "
+                           "(--car passenger, the default) with your NAME=VALUE overrides")
+        return with_constants(FullCar.passenger(), overrides)
     car = with_constants(HalfCar.passenger() if base == "passenger" else HalfCar(), overrides) if half \
         else nominal_car("quarter" if base == "thesis" else "passenger", overrides)
-    assert not isinstance(car, FullCar)  # the drives of vehid simulate: quarter and half car
     return car
 
 
 #: The columns of a drive's true constants (``Run.constants``), per car.
 TRUE_COLUMNS = {
-    False: ("M", "m", "k1", "k2", "b"),
-    True: ("M", "J", "k11", "k21", "k12", "k22", "b1", "b2", "m1", "m2", "l1", "l2"),
+    "quarter": ("M", "m", "k1", "k2", "b"),
+    "half": ("M", "J", "k11", "k21", "k12", "k22", "b1", "b2", "m1", "m2", "l1", "l2"),
+    "full": tuple(FullCar.CONSTANTS),
 }
 
 
@@ -121,11 +127,11 @@ def cmd_simulate_drive(args: argparse.Namespace) -> int:
     """``vehid simulate --road iso8608-C [--model half] [--sensors] [--change ...] [--car ...]``:
     a drive of the quarter or the half car, its sensor channels, distance and true constants as
     CSV."""
-    if args.model not in ("quarter", "half"):
+    if args.model not in ("quarter", "half", "full"):
         raise CliError(f"--model {args.model}: a drive (--road iso8608-A..E, --sensors, --change) simulates the "
-                         "quarter car (--model quarter) or the half car (--model half), with --car passenger "
-                         "(default), thesis or your constants")
-    half = args.model == "half"
+                         "quarter car (--model quarter), the half car (--model half) or the full car (--model full), "
+                         "with --car passenger (default), thesis or your constants")
+    half, full = args.model == "half", args.model == "full"
     if args.road in ("white", "independent"):
         raise CliError("--sensors and --change apply to a drive on an ISO 8608 road: give --road iso8608-A..E")
     for given, name in ((args.input or args.params or args.x0, "--input/--params/--x0"),
@@ -135,7 +141,7 @@ def cmd_simulate_drive(args: argparse.Namespace) -> int:
     to_stdout = args.output == "-"
     if to_stdout:
         stdout()  # closed: said before the work
-    car = drive_car(args.car, half=half)
+    car = drive_car(args.car, half=half, full=full)
     sensors: Literal["realistic", "state"] = args.sensors or "realistic"
     kw: Dict[str, Any] = {}
     if sensors == "state":
@@ -144,7 +150,7 @@ def cmd_simulate_drive(args: argparse.Namespace) -> int:
                     speed=15.0 if args.speed is None else args.speed,
                     changes=[parse_change(c) for c in args.change or []], sensors=sensors, seed=args.seed, **kw)
 
-    header = ["t", *(sim.channels or ()), "s", *(f"true_{c}" for c in TRUE_COLUMNS[half])]
+    header = ["t", *(sim.channels or ()), "s", *(f"true_{c}" for c in TRUE_COLUMNS[args.model])]
 
     def write(out: IO[str]) -> None:
         out.write(",".join(header) + "\n")

@@ -165,10 +165,17 @@ impl<'py> Measured<'py> {
         r: &Bound<'py, PyAny>,
         z: &Bound<'py, PyAny>,
         u: Option<&Bound<'py, PyAny>>,
-    ) -> PyResult<(vehid_core::structure::Structure<f64>, Self)> {
+    ) -> PyResult<(Equations, Self)> {
         let structure = match &this.structure {
-            Some(st) => st.get().core,
-            None => vehid_core::structure::Structure::full_rows(this.model.n, &this.model.rows).map_err(core_err)?,
+            Some(st) => Equations::Structure(Box::new(st.get().core)),
+            None => match vehid_core::structure::Structure::full_rows(this.model.n, &this.model.rows) {
+                Ok(s) => Equations::Structure(Box::new(s)),
+                // Rows no structure holds (the full car's seven of 14): the rows as they are.
+                Err(vehid_core::Error::Capacity { .. } | vehid_core::Error::InvalidArgument { .. }) => {
+                    Equations::Rows { n: this.model.n, rows: this.model.rows.clone() }
+                }
+                Err(e) => return Err(core_err(e)),
+            },
         };
         let (n, m) = (structure.states(), structure.inputs());
         let rt = Table::new(r, "r", None, n, "measured states")?;
@@ -184,6 +191,65 @@ impl<'py> Measured<'py> {
     fn samples(&self) -> Rows<'_> {
         let u = self.u.as_ref().map_or(&[][..], |t| t.data());
         Rows { rows: self.rows, n: self.n, m: self.m, x: self.r.data(), z: self.z.data(), u }
+    }
+}
+
+/// The equations `residuals` and `regressors` evaluate: a Structure's, or a linear model's
+/// unknown rows `z_r = θ_r · x + (the road, unmeasured)` when no structure holds them.
+enum Equations {
+    Structure(Box<vehid_core::structure::Structure<f64>>),
+    Rows { n: usize, rows: Vec<usize> },
+}
+
+impl Equations {
+    fn states(&self) -> usize {
+        match self {
+            Self::Structure(s) => s.states(),
+            Self::Rows { n, .. } => *n,
+        }
+    }
+
+    fn inputs(&self) -> usize {
+        match self {
+            Self::Structure(s) => s.inputs(),
+            Self::Rows { .. } => 0,
+        }
+    }
+
+    fn equations(&self) -> usize {
+        match self {
+            Self::Structure(s) => s.equations(),
+            Self::Rows { rows, .. } => rows.len(),
+        }
+    }
+
+    fn params(&self) -> usize {
+        match self {
+            Self::Structure(s) => s.params(),
+            Self::Rows { n, rows } => n * rows.len(),
+        }
+    }
+
+    /// Equation `i`'s residual at `theta` (`Structure::residual`; for rows
+    /// `vehid_core::model::row_residual`).
+    fn residual(&self, i: usize, theta: &[f64], x: &[f64], z: &[f64], u: &[f64]) -> f64 {
+        match self {
+            Self::Structure(s) => s.residual(i, theta, x, z, u),
+            Self::Rows { n, rows } => vehid_core::model::row_residual(&theta[i * n..(i + 1) * n], x, z[rows[i]]),
+        }
+    }
+
+    /// Equation `i`'s regressors into `h` (all parameters), its left side returned
+    /// (`Structure::regression`; for rows, `x` in row `i`'s block and `z_r`).
+    fn regression(&self, i: usize, x: &[f64], z: &[f64], u: &[f64], h: &mut [f64]) -> f64 {
+        match self {
+            Self::Structure(s) => s.regression(i, x, z, u, h),
+            Self::Rows { n, rows } => {
+                h.fill(0.0);
+                h[i * n..(i + 1) * n].copy_from_slice(x);
+                z[rows[i]]
+            }
+        }
     }
 }
 

@@ -382,6 +382,18 @@ pub(crate) fn broadcast<T: Real, const K: usize>(arg: &'static str, v: &[T]) -> 
     Ok(out)
 }
 
+/// The residual of an unknown row of a linear model (Eq 2.8, the row as a regression on the
+/// state, the unmeasured road left in it): `z_r − θ_r · x`, `θ_r` the row's identified
+/// entries (`x.len()` of them), `z_r` the row's measured derivative.
+///
+/// # Examples
+/// ```
+/// assert_eq!(vehid_core::model::row_residual(&[2.0, -1.0], &[3.0, 4.0], 5.0), 3.0);
+/// ```
+pub fn row_residual<T: Real>(theta_row: &[T], x: &[T], z_row: T) -> T {
+    theta_row.iter().zip(x).fold(z_row, |e, (t, xi)| e - *t * *xi)
+}
+
 /// The least-squares scale `μ` with `μ v ≈ y`: `μ = v·y / v·v`.
 pub(crate) fn scale_ls<T: Real>(v: &[T], y: impl Iterator<Item = T>, what: &'static str) -> Result<T> {
     let mut num = T::zero();
