@@ -616,12 +616,13 @@ def test_reproduce_tabulates_b4_the_full_car_monitor(tmp_path: Path, capsys: pyt
     assert (full["id"], full["seeds"], full["seconds"], full["change_at"]) == ("B-4", 4, 90.0, 60.0)
     labels = [r["label"] for r in full["rows"]]
     assert labels[:4] == [f"damper {c} −10 %" for c in ("fl", "fr", "rl", "rr")] and labels[-1] == "no change"
+    assert labels[-2] == "load 100 kg in the boot" and abs(full["rows"][-2]["truth"] - 100 / 15) < 1e-12
     for r in full["rows"][:-1]:
         # Each change is named (its corner too) within the 30 s after it, at about its true size.
         assert r["named"] == [r["expect"]] * 4 and all(0 < d < 30 for d in r["delay"]), r
         assert all(abs(c - r["truth"]) < 3 for c in r["change"]) and r["early"] == 0
     assert full["rows"][-1]["early"] == 0 and full["rows"][-1]["named"] == [""] * 4
-    assert all(v["agrees"] for v in full["verdicts"]) and len(full["verdicts"]) == 6
+    assert all(v["agrees"] for v in full["verdicts"]) and len(full["verdicts"]) == 8
     # The report: the table with the numbers computed from the rows, the claims in Tables.
     md = (out / "index.md").read_text(encoding="utf-8")
     html = (out / "index.html").read_text(encoding="utf-8")

@@ -262,4 +262,11 @@ fn full_car_figure_is_seeded_and_its_claims_fail_on_wrong_results() {
     let mut alarm = r.clone();
     alarm.rows.last_mut().unwrap().early = 1;
     assert!(!agrees(&alarm, 5));
+    // The point load: named elsewhere (wrong_corner names it b_rr), read as a spread load.
+    assert!(!agrees(&wrong_corner, 6));
+    let mut spread = r.clone();
+    spread.rows.iter_mut().filter(|row| row.label.starts_with("load")).for_each(|row| {
+        row.change.iter_mut().for_each(|c| *c += 12.0);
+    });
+    assert!(!agrees(&spread, 7) && agrees(&spread, 4));
 }
