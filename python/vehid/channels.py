@@ -59,14 +59,21 @@ HALF_SENSOR_COLUMNS: Dict[str, Tuple[Column, ...]] = {
     ),
 }
 
-#: The full car's channels (``--model full``; realistic sensors only): a body accelerometer
-#: above each wheel, the wheel accelerometers, the suspension extensions, corners fl, fr, rl, rr.
+_FULL_STATES = (("z_fl", "m"), ("v_fl", "m/s"), ("z_fr", "m"), ("v_fr", "m/s"), ("z_rl", "m"), ("v_rl", "m/s"),
+                ("z_rr", "m"), ("v_rr", "m/s"), ("zb", "m"), ("vb", "m/s"), ("pitch", "rad"), ("pitch_rate", "rad/s"),
+                ("roll", "rad"), ("roll_rate", "rad/s"))
+
+#: The full car's channels (``--model full``): a body accelerometer above each wheel, the wheel
+#: accelerometers, the suspension extensions, corners fl, fr, rl, rr; or the 28 state channels.
 FULL_SENSOR_COLUMNS: Dict[str, Tuple[Column, ...]] = {
     "realistic": tuple(
         [Column(f"a_body_{c}", None, "m/s^2") for c in ("fl", "fr", "rl", "rr")]
         + [Column(f"a_wheel_{c}", None, "m/s^2") for c in ("fl", "fr", "rl", "rr")]
         + [Column(f"deflection_{c}", None, "m") for c in ("fl", "fr", "rl", "rr")]
     ),
+    "state": tuple([Column(name, None, unit) for name, unit in _FULL_STATES]
+                   + [Column(f"d{name}", None, unit[:-2] + "/s^2" if unit.endswith("/s") else unit + "/s")
+                      for name, unit in _FULL_STATES]),
 }
 
 

@@ -405,10 +405,6 @@ def cmd_monitor(args: argparse.Namespace) -> int:
     plt = _pyplot() if args.plot else None
     half = isinstance(car, HalfCar)
     if isinstance(car, FullCar):
-        if sensors != "realistic":
-            raise CliError("--model full: the full car's monitor reads the realistic sensors only (--sensors "
-                             "realistic: a_body_fl .. a_body_rr, a_wheel_fl .. a_wheel_rr, deflection_fl .. "
-                             "deflection_rr)")
         channels = FULL_SENSOR_COLUMNS[sensors]
     else:
         channels = (HALF_SENSOR_COLUMNS if half else SENSOR_COLUMNS)[sensors]

@@ -152,7 +152,8 @@ fn drive_config() -> DriveConfig<f64> {
 
 /// The state sensors' noise: `f` times the standard deviations of `zb` and `dvb` on a
 /// noise-free pilot drive of 600 s (the half car: of its body's centre `zb` and `dvb`, channels
-/// 4 and 13 of `model::HALF_STATE_CHANNELS`; the deflection reported is the front axle's).
+/// 4 and 13 of `model::HALF_STATE_CHANNELS`; the full car: of `zb` and `dvb`, channels 8 and 23; the
+/// deflection reported is the front (left) corner's).
 fn state_noise(car: Car, f: f64, seed: u64) -> SensorNoise<f64> {
     let base = DriveConfig::new(DT).sensors(SensorSet::State);
     let mut next: Box<dyn FnMut() -> [f64; 3]> = match car {
@@ -173,7 +174,15 @@ fn state_noise(car: Car, f: f64, seed: u64) -> SensorNoise<f64> {
                 [y[4], y[13], y[4] + l1 * y[6] - y[0]]
             })
         }
-        Car::Full(_) => panic!("--state-noise: the full car's monitor reads the realistic sensors only"),
+        Car::Full(c) => {
+            let (lf, w) = (c.params().l_f, c.params().track_f / 2.0);
+            let mut drive = FullDrive::new(c, FullDriveConfig::new(base), seed).unwrap();
+            Box::new(move || {
+                let y = drive.next_sample();
+                let y = y.y();
+                [y[8], y[23], y[8] + lf * y[10] + w * y[12] - y[0]]
+            })
+        }
     };
     let n = (600.0 / DT) as usize;
     let (mut s, mut s2) = ([0.0f64; 3], [0.0f64; 3]);
@@ -190,7 +199,10 @@ fn state_noise(car: Car, f: f64, seed: u64) -> SensorNoise<f64> {
     let (name, gain) = match car {
         Car::Quarter(_) => ("zb - zw", 2f64.sqrt()),
         Car::Half(c) => ("zb + l1 ph - z1", (2.0 + c.params().l1.powi(2)).sqrt()),
-        Car::Full(_) => unreachable!(),
+        Car::Full(c) => {
+            let p = c.params();
+            ("zb + l_f pitch + t/2 roll - z_fl", (2.0 + p.l_f.powi(2) + (p.track_f / 2.0).powi(2)).sqrt())
+        }
     };
     println!(
         "state sensors: std(zb) {:.4} m, std(dvb) {:.3} m/s^2, std({name}) {:.4} m; noise sigma_w {:.3e} m, \

@@ -218,10 +218,10 @@ impl PyEvent {
 /// accelerometers, suspension extensions) or the 16 state channels; events name 'k2_f',
 /// 'b_f', 'k2_r', 'b_r' or 'M' (a body-mass event assumes J scales with M and moves both).
 ///
-/// With a `FullCar` (Rust `FullHealthMonitor`, realistic sensors only): `y` rows the 12
-/// channels `[a_body_fl, a_body_fr, a_body_rl, a_body_rr, a_wheel_fl, .., a_wheel_rr,
-/// deflection_fl, .., deflection_rr]` (a body accelerometer above each wheel, wheel
-/// accelerometers, suspension extensions); events name the corner, 'k_fl' .. 'k_rr',
+/// With a `FullCar` (Rust `FullHealthMonitor`): `y` rows the 12 channels `[a_body_fl,
+/// a_body_fr, a_body_rl, a_body_rr, a_wheel_fl, .., a_wheel_rr, deflection_fl, ..,
+/// deflection_rr]` (a body accelerometer above each wheel, wheel accelerometers, suspension
+/// extensions) or the 28 state channels; events name the corner, 'k_fl' .. 'k_rr',
 /// 'b_fl' .. 'b_rr', or 'M': a load, spread like the body's own mass (Jx and Jy scale with M)
 /// or, when a point mass fits the changes better, set down where the event's `position` says
 /// (its mass added to M, Jx and Jy about the nominal centre of mass).

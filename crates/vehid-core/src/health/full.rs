@@ -4,7 +4,7 @@
 use super::consistency::SensorGuard;
 use super::event::{Event, Reason, Status};
 use super::half::DECISION_INTERVAL;
-use super::kinematic::DeflectionFilter;
+use super::kinematic::{DeflectionFilter, RateGain};
 use super::monitor::{
     cusum_step, screen, stuck_step, HealthConfig, Phase, JUMP_GATE, MAX_DELAY, OFFSET_RELEASE, OFFSET_WALK,
 };
@@ -12,15 +12,19 @@ use super::pattern::{fit_kron_patterns, spd_inverse, Fit, Pattern};
 use super::rls::Rls;
 use crate::model::{FullCar, SensorSet, FULL_CONSTANTS};
 use crate::sim::FullConstant;
-use crate::{Error, Real, Result};
+use crate::{Real, Result};
 use nalgebra::{SMatrix, SVector};
 
 mod detect;
 
-/// Channels [`FullHealthMonitor::update`] reads (the realistic sensors,
-/// `model::FULL_REALISTIC_CHANNELS`): `[a_body_fl, a_body_fr, a_body_rl, a_body_rr,
+/// Channels [`FullHealthMonitor::update`] reads with the realistic sensors
+/// (`model::FULL_REALISTIC_CHANNELS`): `[a_body_fl, a_body_fr, a_body_rl, a_body_rr,
 /// a_wheel_fl, …, a_wheel_rr, deflection_fl, …, deflection_rr]`.
 pub const FULL_CHANNELS: usize = 12;
+
+/// Channels [`FullHealthMonitor::update`] reads with the state sensors (the measured state and
+/// derivative, `model::FULL_STATE_CHANNELS`).
+pub const FULL_STATE_CHANNELS: usize = 28;
 
 /// Number of constants the full car's monitor names ([`FULL_NAMED`]).
 pub const FULL_NAMED_COUNT: usize = 9;
@@ -41,14 +45,23 @@ pub const FULL_NAMED: [FullConstant; FULL_NAMED_COUNT] = [
     FullConstant::at(0),
 ];
 
+/// The least accelerometer noise the full car's monitor assumes, m/s² (added to the residual
+/// covariance `Σ` in quadrature): the four corner equations hold only three rigid-body
+/// accelerations, so on noise-free accelerations (state sensors without derivative noise) one
+/// combination's residual is exactly zero and `Σ` singular. 10⁻³ m/s² is 0.1 mg, a twentieth
+/// of the realistic body accelerometer's default noise.
+pub const MIN_ACCEL_NOISE: f64 = 1e-3;
+
 /// Index of the body mass in [`FULL_NAMED`].
 const BODY_MASS: usize = 8;
 
 impl<T: Real> HealthConfig<T, FullCar<T>> {
-    /// Channels per sample ([`FULL_CHANNELS`]: the full car's monitor reads the realistic
-    /// sensors only).
+    /// Channels per sample of this sensor set ([`FULL_CHANNELS`] or [`FULL_STATE_CHANNELS`]).
     pub fn channels(&self) -> usize {
-        FULL_CHANNELS
+        match self.sensors {
+            SensorSet::Realistic => FULL_CHANNELS,
+            SensorSet::State => FULL_STATE_CHANNELS,
+        }
     }
 }
 
@@ -211,6 +224,10 @@ pub struct FullHealthMonitor<T: Real> {
     n_decide: u64,
     z: T,
     kf: [DeflectionFilter<T>; 4],
+    // The state sensors' filter gain with the measured rates (every corner; derived from the
+    // settings, also on load; not saved). Unused with the realistic sensors.
+    #[cfg_attr(feature = "serde", serde(skip, default = "RateGain::unused"))]
+    rate: RateGain<T>,
     #[cfg_attr(feature = "serde", serde(with = "crate::persist::array2"))]
     ring: [[T; 12]; MAX_DELAY],
     #[cfg_attr(feature = "serde", serde(with = "crate::persist::array"))]
@@ -266,16 +283,10 @@ impl<T: Real> FullHealthMonitor<T> {
     /// A monitor with settings `cfg`.
     ///
     /// # Errors
-    /// As [`super::HealthMonitor::new`]: [`Error::InvalidArgument`] naming the setting; and
-    /// `sensors` for [`SensorSet::State`] (the full car's monitor reads the realistic sensors).
+    /// As [`super::HealthMonitor::new`]: [`Error::InvalidArgument`] naming the setting.
     pub fn new(cfg: HealthConfig<T, FullCar<T>>) -> Result<Self> {
         let (kf, z) = cfg.check()?;
-        if cfg.sensors != SensorSet::Realistic {
-            return Err(Error::InvalidArgument {
-                arg: "sensors",
-                expected: "the realistic sensors (the full car's monitor does not read the state sensors)",
-            });
-        }
+        let rate = cfg.rate_gain()?;
         let [n_warm, n_burn, n_settle, n_reacq] = cfg.sample_counts();
         let lambda = T::one() - cfg.dt / cfg.window;
         let p0 = SMatrix::<T, 9, 9>::identity() * T::of(1e6);
@@ -289,6 +300,7 @@ impl<T: Real> FullHealthMonitor<T> {
             n_decide: (libm::round(DECISION_INTERVAL / cfg.dt.to_f64()) as u64).max(1),
             z,
             kf: [kf; 4],
+            rate,
             ring: [[T::zero(); 12]; MAX_DELAY],
             ring_k: [0; MAX_DELAY],
             head: 0,
@@ -361,6 +373,7 @@ impl<T: Real> FullHealthMonitor<T> {
             return Err(corrupt);
         }
         self.n_decide = fresh.n_decide;
+        self.rate = fresh.rate;
         self.patterns = fresh.patterns;
         self.derive();
         Ok(())
@@ -443,21 +456,44 @@ impl<T: Real> FullHealthMonitor<T> {
         out
     }
 
-    /// One sample `y` of the 12 channels of [`FULL_CHANNELS`] (m/s², m); returns the event it
-    /// completes, if any. A NaN channel marks a missing sample. No allocation.
+    /// One sample `y`: the 12 channels of [`FULL_CHANNELS`] (m/s², m) with the realistic
+    /// sensors, the 28 of `model::FULL_STATE_CHANNELS` with the state sensors (the monitor
+    /// forms the same twelve quantities from them, corner `i` at `(x_i, y_i)`: `dvb + x_i
+    /// dpitch_rate + y_i droll_rate`, `dv_i`, `zb + x_i pitch + y_i roll − z_i`, and the
+    /// deflection rates `vb + x_i pitch_rate + y_i roll_rate − v_i` for the kinematic filters);
+    /// returns the event it completes, if any. A NaN channel marks a missing sample. No
+    /// allocation.
     ///
     /// # Errors
-    /// [`Error::Shape`] for a length other than 12, [`Error::NonFinite`] for ±∞; the monitor
-    /// is then unchanged.
+    /// [`Error::Shape`] for a length other than the sensor set's channels,
+    /// [`Error::NonFinite`] for ±∞; the monitor is then unchanged.
     pub fn update(&mut self, y: &[T]) -> Result<Option<Event<T, FullConstant>>> {
-        let missing = screen(y, FULL_CHANNELS)?;
-        let mut v = [T::zero(); 12];
-        v.copy_from_slice(y);
-        Ok(self.step(missing, v))
+        let missing = screen(y, self.cfg.channels())?;
+        match self.cfg.sensors {
+            SensorSet::Realistic => {
+                let mut v = [T::zero(); 12];
+                v.copy_from_slice(y);
+                Ok(self.step(missing, v, None))
+            }
+            SensorSet::State => {
+                let (mut v, mut rates) = ([T::zero(); 12], [T::zero(); 4]);
+                let d = FULL_STATE_CHANNELS / 2;
+                for (i, r) in rates.iter_mut().enumerate() {
+                    let (xi, yi) = self.cfg.car.corner_position(i);
+                    v[i] = y[d + 9] + xi * y[d + 11] + yi * y[d + 13];
+                    v[4 + i] = y[d + 2 * i + 1];
+                    v[8 + i] = y[8] + xi * y[10] + yi * y[12] - y[2 * i];
+                    *r = y[9] + xi * y[11] + yi * y[13] - y[2 * i + 1];
+                }
+                Ok(self.step(missing, v, Some(rates)))
+            }
+        }
     }
 
-    /// [`FullHealthMonitor::update`] after the screening.
-    fn step(&mut self, missing: bool, y: [T; 12]) -> Option<Event<T, FullConstant>> {
+    /// [`FullHealthMonitor::update`] after the screening: the twelve quantities `y`, `rates`
+    /// the measured deflection rates (state sensors), `missing` a NaN channel.
+    #[inline(always)]
+    fn step(&mut self, missing: bool, y: [T; 12], rates: Option<[T; 4]>) -> Option<Event<T, FullConstant>> {
         let k = self.k;
         self.k += 1;
         if missing {
@@ -478,7 +514,11 @@ impl<T: Real> FullHealthMonitor<T> {
         let mut kf = self.kf;
         let mut dv = [(T::zero(), T::zero()); 4];
         for i in 0..4 {
-            match kf[i].update_gated(y[8 + i], rel[i], gate) {
+            let step = match rates {
+                None => kf[i].update_gated(y[8 + i], rel[i], gate),
+                Some(r) => kf[i].update_rate_gated(y[8 + i], r[i], rel[i], &self.rate, gate),
+            };
+            match step {
                 Some(s) => dv[i] = s,
                 None => {
                     self.interrupt(Reason::Jump);
@@ -559,7 +599,11 @@ impl<T: Real> FullHealthMonitor<T> {
                     self.e_prev = Some(e);
                 }
                 if self.warm_n >= self.n_warm && self.e2_n > 0 {
-                    let sigma = self.e2_sum / T::of(self.e2_n as f64);
+                    // The four equations hold three rigid-body accelerations: with noise-free
+                    // accelerations one combination's residual is zero and Σ singular; the
+                    // floor keeps the weights finite.
+                    let floor = T::of(MIN_ACCEL_NOISE * MIN_ACCEL_NOISE);
+                    let sigma = self.e2_sum / T::of(self.e2_n as f64) + SMatrix::<T, 4, 4>::identity() * floor;
                     let mut rho = T::zero();
                     for o in 0..4 {
                         rho = rho.max(self.e1_sum[o] / self.e2_sum[(o, o)]);

@@ -376,7 +376,8 @@ pub use consistency::{KinematicCheck, CHECK_HIGH_PASS_HZ, CHECK_LOW_PASS_HZ, CHE
 pub use event::{Constant, Estimate, Event, Reason, Status};
 pub use full::{
     full_alpha, full_coefficients, full_load_pattern, full_relative_patterns, full_stiffness, FullEstimate,
-    FullHealthMonitor, FULL_CHANNELS, FULL_NAMED, FULL_NAMED_COUNT, LOAD_PENALTY, LOAD_REACH, LOAD_STEP,
+    FullHealthMonitor, FULL_CHANNELS, FULL_NAMED, FULL_NAMED_COUNT, FULL_STATE_CHANNELS, LOAD_PENALTY, LOAD_REACH,
+    LOAD_STEP, MIN_ACCEL_NOISE,
 };
 pub use half::{HalfEstimate, HalfHealthMonitor, DECISION_INTERVAL, HALF_CHANNELS, HALF_NAMED, HALF_STATE_CHANNELS};
 pub use kinematic::{DeflectionFilter, RateGain};
