@@ -182,7 +182,9 @@ impl<T: Real> FullHealthMonitor<T> {
                 let idx = FULL_NAMED[BODY_MASS].index();
                 let before = self.belief[idx];
                 let m = mass(fit.value, s).unwrap_or(T::zero());
-                if !(m.abs() >= half * before) {
+                // (A mass removed is at most the body's: m > −1/s ≥ −M; after earlier events
+                // the belief may be below M, and a body of no mass is no result.)
+                if !(m.abs() >= half * before) || !(before + m > T::zero()) {
                     return self.drop_alarm();
                 }
                 let sd = (self.inflate * fit.var + self.cfg.systematic * self.cfg.systematic).sqrt();
