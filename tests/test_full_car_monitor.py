@@ -177,10 +177,10 @@ def test_vehid_monitor_model_full(tmp_path: Path, capsys: pytest.CaptureFixture[
 
 
 def test_state_sensors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    # The 28 state channels with 0.1 mm and 0.02 m/s^2 of white noise from Python, and noise-free
-    # from the command line (vehid simulate --sensors state, vehid monitor --sensors state; its
-    # --noise names the realistic sensors only): the rear left damper -10 % at 40 s named within
-    # 3 points.
+    # The 28 state channels with 0.1 mm and 0.02 m/s^2 of white noise, from Python and from the
+    # command line (vehid simulate --sensors state, vehid monitor --sensors state --noise
+    # state=...,deriv=...): the rear left damper -10 % at 40 s named within 3 points; noise-free
+    # too (the accelerometer floor).
     sim = vehid.Simulator(FULL, dt=DT, road="iso8608-C", speed=15.0, changes=[(40.0, {"b_rl": 900.0})],
                           sensors="state", state_noise=1e-4, deriv_noise=0.02, seed=57)
     run = sim.run(14_000)
@@ -188,9 +188,13 @@ def test_state_sensors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> No
     events = mon.fit(run.y)
     assert [e.parameter for e in events] == ["b_rl"] and abs(events[0].change + 0.10) < 0.03, events
     log = tmp_path / "state.csv"
-    assert cli.main(["simulate", "--model", "full", "--road", "iso8608-C", "--sensors", "state", "--change",
-                     "40:b_rl=900", "--n", "14000", "--seed", "57", "-o", str(log)]) == 0
-    capsys.readouterr()
-    assert cli.main(["monitor", str(log), "--model", "full", "--sensors", "state", "--json"]) == 0
-    out = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
-    assert [e["parameter"] for e in out] == ["b_rl"] and abs(out[0]["change"] + 0.10) < 0.03, out
+    for noise in (["--state-noise", "1e-4", "--deriv-noise", "0.02"], []):
+        assert cli.main(["simulate", "--model", "full", "--road", "iso8608-C", "--sensors", "state", *noise,
+                         "--change", "40:b_rl=900", "--n", "14000", "--seed", "57", "-o", str(log)]) == 0
+        capsys.readouterr()
+        declared = ["--noise", "state=1e-4,deriv=0.02"] if noise else []
+        assert cli.main(["monitor", str(log), "--model", "full", "--sensors", "state", *declared, "--json"]) == 0
+        out = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+        assert [e["parameter"] for e in out] == ["b_rl"] and abs(out[0]["change"] + 0.10) < 0.03, (noise, out)
+    assert cli.main(["monitor", str(log), "--model", "full", "--sensors", "state", "--noise", "a_body=0.1"]) == 2
+    assert "NAME in state, deriv" in capsys.readouterr().err

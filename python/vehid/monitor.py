@@ -400,7 +400,7 @@ def cmd_monitor(args: argparse.Namespace) -> int:
     settings = {k: getattr(args, k) for k in ("window", "warmup", "min_change", "threshold", "confidence")
                 if getattr(args, k) is not None}
     if getattr(args, "noise", None):
-        settings["sensor_noise"] = parse_noise(args.noise)
+        settings["sensor_noise"] = parse_noise(args.noise, sensors)
     # matplotlib before the log: a missing plot extra is said at once, not after the whole run.
     plt = _pyplot() if args.plot else None
     half = isinstance(car, HalfCar)
@@ -591,24 +591,30 @@ def _car_words(args: argparse.Namespace) -> str:
 
 #: ``--noise`` names: the sensor noise standard deviations the monitor assumes.
 NOISE_NAMES = ("a_body", "a_wheel", "deflection", "a_body_bias", "a_wheel_bias")
+#: The same for the state sensors: every state's and every derivative's white noise, in the
+#: channels' own units.
+STATE_NOISE_NAMES = ("state", "deriv")
 
 
-def parse_noise(text: str) -> Dict[str, float]:
+def parse_noise(text: str, sensors: str = "realistic") -> Dict[str, float]:
     """``--noise a_body=0.06,deflection=0.0009`` (m/s^2, m: the sensors' white noise per
-    sample at the log's rate) to the monitor's ``sensor_noise``.
+    sample at the log's rate; with ``--sensors state``, ``state=1e-4,deriv=0.02``) to the
+    monitor's ``sensor_noise``.
 
-    >>> parse_noise("a_body=0.06, deflection=9e-4")
-    {'a_body': 0.06, 'deflection': 0.0009}
+    >>> parse_noise("a_body=0.06, deflection=9e-4"), parse_noise("state=1e-4", "state")
+    ({'a_body': 0.06, 'deflection': 0.0009}, {'state': 0.0001})
     """
+    names = STATE_NOISE_NAMES if sensors == "state" else NOISE_NAMES
+    units = "each channel's own units" if sensors == "state" else "m/s^2, m"
     out: Dict[str, float] = {}
     for item in text.split(","):
         if not item.strip():
             continue
         name, sep, value = item.partition("=")
         name = name.strip()
-        if not sep or name not in NOISE_NAMES:
-            raise CliError(f"--noise {text}: expected NAME=VALUE with NAME in {', '.join(NOISE_NAMES)} "
-                             f"(m/s^2, m), got {item.strip()!r}")
+        if not sep or name not in names:
+            raise CliError(f"--noise {text}: expected NAME=VALUE with NAME in {', '.join(names)} "
+                             f"({units}; --sensors {sensors}), got {item.strip()!r}")
         try:
             v = float(value)
         except ValueError:
@@ -808,7 +814,8 @@ def add_arguments(p: argparse.ArgumentParser, delimiter: Callable[[str], str]) -
                    help="the sensors' white noise per sample, e.g. a_body=0.06,a_wheel=0.3,deflection=0.0009 "
                         "(m/s^2, m; undeclared: the accelerometers' estimated from the log, the deflection's the "
                         "default 0.0003 unless the log shows over 1.25 times that; the summary says which; standard "
-                        "input: the defaults 0.02, 0.1, 0.0003)")
+                        "input: the defaults 0.02, 0.1, 0.0003); with --sensors state: state=SW,deriv=SV, every "
+                        "state's and derivative's (default 0)")
     p.add_argument("--delimiter", type=delimiter, default=None, metavar="D", help="CSV separator (default: sniffed)")
     p.add_argument("--window", type=float, default=None, help="tracking window T_f, s (default 6)")
     p.add_argument("--warmup", type=float, default=None, help="seconds of data forming the reference (default 20)")
