@@ -1,6 +1,7 @@
 """The full car on the command line: `vehid simulate --model full` (a drive on two ISO 8608
 tracks, its changes and point loads) and `vehid identify --model full` (road cancellation on
-both tracks, the physical constants with their intervals)."""
+both tracks, the physical constants with their intervals); a drive's true constants read by
+`vehid identify` (the truth, and the wheel masses)."""
 
 import json
 from pathlib import Path
@@ -27,8 +28,12 @@ def test_simulate_then_identify_the_full_car(tmp_path: Path, capsys: pytest.Capt
     capsys.readouterr()
     assert cli.main(["identify", str(csv), "--model", "full", "--method", "two-axle", "--spacing", "0.1",
                      "--json"]) == 0
-    report = json.loads(capsys.readouterr().out)
+    captured = capsys.readouterr()
+    report = json.loads(captured.out)
     assert report["options"]["p0"] == "exact" and report["known"] == {f"m_{c}": 59.0 for c in ("fl", "fr", "rl", "rr")}
+    # The drive's true constants are the truth (xi) and give the wheel masses, with a note.
+    assert report["truth"]["source"] == "the file's true_* constants" and report["xi"] < 1e-3, report["xi"]
+    assert "m_fl = 59 kg from the file's true_* constants" in captured.err and "ignoring" not in captured.err
     intervals = report["physical_intervals"]
     for name in ["M", "Jx", "Jy"] + [f"{k}_{c}" for k in ("k", "b") for c in ("fl", "fr", "rl", "rr")]:
         value, low, high = intervals[name]
@@ -61,3 +66,28 @@ def test_a_drive_with_a_boot_load_and_its_monitor(tmp_path: Path, capsys: pytest
     assert cli.main(["simulate", "--model", "full", "--road", "iso8608-C", "--car", "thesis", "--n", "10",
                      "-o", str(tmp_path / "x.csv")]) == 2
     assert "no full car" in capsys.readouterr().err
+
+
+def test_a_quarter_car_drive_gives_its_wheel_mass(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # A quarter-car drive (state sensors, class C, 100 s at 15 m/s): its true_m = 40 kg is the
+    # known wheel mass, where the thesis car's 1 kg made every constant 1/40 of the truth; a
+    # drive with a --change has no single truth (no xi), said in a note.
+    csv = tmp_path / "q.csv"
+    assert cli.main(["simulate", "--model", "quarter", "--road", "iso8608-C", "--sensors", "state", "--n", "20000",
+                     "--seed", "8", "-o", str(csv)]) == 0
+    capsys.readouterr()
+    assert cli.main(["identify", str(csv), "--model", "quarter", "--road", "iso8608", "--speed", "15",
+                     "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["known"] == {"m": 40.0} and report["truth"]["constants"]["M"] == 320.0
+    for name in ("M", "k1", "k2", "b"):
+        value, low, high = report["physical_intervals"][name]
+        truth = report["truth"]["constants"][name]
+        assert abs(value / truth - 1) < 0.15 and low < truth < high, (name, value, low, high)
+    changed = tmp_path / "changed.csv"
+    assert cli.main(["simulate", "--model", "quarter", "--road", "iso8608-C", "--sensors", "state", "--n", "4000",
+                     "--change", "10:b=1350", "--seed", "8", "-o", str(changed)]) == 0
+    capsys.readouterr()
+    assert cli.main(["identify", str(changed), "--model", "quarter", "--json"]) == 0
+    captured = capsys.readouterr()
+    assert json.loads(captured.out)["xi"] is None and "true constants change during the run" in captured.err

@@ -87,6 +87,9 @@ class Layout:
     true_dx: List[int] = field(default_factory=list)
     u: List[int] = field(default_factory=list)
     s: Optional[int] = None
+    #: A drive's true constants (``vehid simulate --road ...``: ``true_M``, ...), every one of
+    #: the model's: ``(name, place in a chunk)``.
+    constants: List[Tuple[str, int]] = field(default_factory=list)
     #: Per read column, the factor to ``col``'s SI unit from the unit its header declares
     #: (``SuspTravel [mm]``: 0.001).
     scales: List[float] = field(default_factory=list)
@@ -201,7 +204,16 @@ def resolve_layout(
                   "pass --truth for one", file=notes)
     if distance and "s" in index:
         layout.s = layout.add(cols["s"], index["s"], table.names[index["s"]])
-    unused = [repr(table.names[i]) for i in match.unknown]
+    # A drive's true constants, as vehid simulate names them (every one of the model's).
+    exact = {h.strip().strip('"'): i for i, h in enumerate(table.names)}
+    places = [(c, exact.get(f"true_{c}")) for c in MODELS[name]().params]  # type: ignore[attr-defined]
+    unknown = match.unknown
+    if file_truth and all(i is not None for _, i in places):
+        at = [(c, cast(int, i)) for c, i in places]
+        layout.constants = [(c, layout.add(Column(f"true_{c}", None, unit_of(c)), i, table.names[i])) for c, i in at]
+        taken = {i for _, i in places}
+        unknown = [i for i in unknown if i not in taken]
+    unused = [repr(table.names[i]) for i in unknown]
     if unused:
         print(f"vehid: note: {table.source}: ignoring column(s) {', '.join(unused[:8])}"
               f"{', ...' if len(unused) > 8 else ''} (names vehid does not know; map them with --columns)", file=notes)
@@ -922,17 +934,23 @@ def cmd_identify(args: argparse.Namespace) -> int:
     truth = parse_truth(args.truth, args.model)
     check_road_args(args)
     mass_notes: List[str] = []
-    known = known_masses(args, truth, mass_notes)
     ident: Optional[Identifier] = make_identifier(args, model)  # option errors before any reading
     structured = None
-    if coloured(args):  # built at the first chunk, when the distance per sample is known
-        ident = None
-    else:
-        structured = physical_identifier(args, model, known)
+    known: Dict[str, float] = {}
     with open_table(args.file, delimiter=args.delimiter) as table:
         source = table.source
         layout = resolve_layout(table, args.model, model, mapping, args.no_time, truth is None, sys.stderr,
                                 distance=coloured(args) and args.speed is None)
+        # A drive's true constants are read from its first row: the wheel masses known from them
+        # too (as from --truth), so the physical identifier waits for that row.
+        file_constants: Optional[Dict[str, float]] = None
+        constants_vary = False
+        if not layout.constants:
+            known = known_masses(args, truth, mass_notes)
+        if coloured(args):  # built at the first chunk, when the distance per sample is known
+            ident = None
+        elif not layout.constants:
+            structured = physical_identifier(args, model, known)
         time = None
         if layout.t is not None:
             time = TimeCheck(table, layout.used["t"], layout.labels[layout.t], sys.stderr)
@@ -946,6 +964,16 @@ def cmd_identify(args: argparse.Namespace) -> int:
                 time.add(data[:, layout.t], chunk.lines)
             x, dx = np.ascontiguousarray(data[:, layout.x]), np.ascontiguousarray(data[:, layout.dx])
             odometer = None if layout.s is None else data[:, layout.s]
+            if layout.constants:
+                values = data[:, [i for _, i in layout.constants]]
+                if file_constants is None and len(values):
+                    file_constants = {c: float(v) for (c, _), v in zip(layout.constants, values[0])}
+                    known = known_masses(args, Truth(model.theta, "the file's true_* constants", file_constants),
+                                         mass_notes)
+                    if not coloured(args):
+                        structured = physical_identifier(args, model, known)
+                if file_constants is not None and not (values == np.asarray(list(file_constants.values()))).all():
+                    constants_vary = True
             if ident is None:
                 spacing = road_spacing(args, source, layout, data)
                 ident = make_identifier(args, model, spacing)
@@ -1024,6 +1052,18 @@ def cmd_identify(args: argparse.Namespace) -> int:
             except VehidError:
                 constants = None
             truth = Truth(true_theta, "the file's true_* columns", constants)
+    if file_constants is not None:
+        if constants_vary:
+            print(f"vehid: note: {source}: the true constants change during the run (a drive's --change): no xi, "
+                  "and the wheel masses are the first sample's", file=sys.stderr)
+        else:
+            try:
+                truth = Truth(MODELS[args.model](**file_constants).theta, "the file's true_* constants", file_constants)
+            except VehidError as e:
+                print(f"vehid: note: {source}: the true_* constants do not make a car ({e}): no xi", file=sys.stderr)
+        if structured is None and not (args.method == "two-axle" and args.model == "full"):
+            for mass_note in mass_notes:  # said with the constants below otherwise
+                print(f"vehid: note: {mass_note}", file=sys.stderr)
     xi_value = xi(truth.theta, theta) if truth is not None else None
     if args.json:
         report = {
