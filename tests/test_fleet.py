@@ -312,6 +312,38 @@ def test_fleet_toml_layers_defaults_class_vehicle() -> None:
         fleet.parse_config("[vehicles.a]\n").vehicle("x")
 
 
+def test_a_full_car_vehicle_reports_the_corner_and_its_trend(tmp_path: Path) -> None:
+    """A full car in a fleet (``model = "full"``): its twelve channels from the logs, a damper
+    fault named with its corner, a boot load named toward the corner it was set down at, and the
+    trend tracks each corner's own spring and damper coefficients."""
+    root = tmp_path / "fleet"
+    (root).mkdir()
+    (root / "fleet.toml").write_text('[defaults]\nmodel = "full"\n')
+    full = vehid.FullCar.passenger()
+    for day, changes in (("2026-03-02", [(40.0, {"b_fl": 700.0})]),
+                         ("2026-03-03", [(40.0, {"load": 100.0, "load_x": -2.5, "load_y": -0.4})])):
+        run = vehid.Simulator(full, dt=0.005, road="iso8608-C", speed=15.0, changes=changes,  # type: ignore[arg-type]
+                              sensors="realistic", seed=31 + len(day)).run(18000)
+        d = root / "vehicle=car" / f"day={day}"
+        d.mkdir(parents=True)
+        cols = {"t": run.t + 8 * 3600.0, **{c: run.y[:, i] for i, c in enumerate(run.channels)}}
+        pq.write_table(pa.table(cols), d / "08-00-00.parquet")
+        full = vehid.FullCar(**{**full.params, "b_fl": 700.0})  # the fault stays
+    res = fleet.run(str(root), str(tmp_path / "store"), workers=1)
+    assert res.problems.num_rows == 0, res.problems.to_pylist()
+    events = res.events.to_pylist()
+    assert [(e["day"], e["parameter"], e["corner"]) for e in events] == [
+        ("2026-03-02", "b_fl", "fl"), ("2026-03-03", "M", "rr")], events
+    assert abs(events[0]["after"] / 700.0 - 1) < 0.05 and abs(events[1]["after"] / 1600.0 - 1) < 0.05, events
+    first = json.loads(res.states.to_pylist()[0]["summary"])["trend"]
+    assert first["names"] == ["k_fl", "b_fl", "k_fr", "b_fr", "k_rl", "b_rl", "k_rr", "b_rr"]
+    k_fl, b_fl, k_fr, b_fr = first["values"][-1][:4]  # day one's end, the faulty damper on
+    # Each corner's own coefficients in its own equation, (alpha K)_ii and alpha_ii b_i: the two
+    # front corners have the same alpha_ii (equal track), so the springs' match and the dampers'
+    # stand as 700 to 1000.
+    assert abs(k_fl / k_fr - 1) < 0.05 and abs(b_fl / b_fr / 0.7 - 1) < 0.05, first["values"]
+
+
 # --- the report -------------------------------------------------------------------------------
 
 

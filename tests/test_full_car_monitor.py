@@ -100,7 +100,7 @@ def test_a_boot_load_is_named_with_its_mass_and_place(tmp_path: Path, capsys: py
                comments="")
     assert cli.main(["monitor", str(log), "--model", "full"]) == 0
     out = capsys.readouterr().out
-    assert "M (body mass)" in out and "a load at x -2." in out, out
+    assert "M (body mass)" in out and "a load at x -2." in out and "toward the rear right corner" in out, out
 
 
 def realistic(x: np.ndarray, xdot: np.ndarray, rng: np.random.Generator) -> np.ndarray:

@@ -77,6 +77,28 @@ FULL_SENSOR_COLUMNS: Dict[str, Tuple[Column, ...]] = {
 }
 
 
+#: How far from the centre line (m) a load counts as on one side (:func:`event_corner`).
+SIDE = 0.2
+
+
+def event_corner(parameter: str, position: Optional[Tuple[float, float]] = None) -> Optional[str]:
+    """The corner (``"fl"`` .. ``"rr"``) or axle (``"f"``, ``"r"``) an event names: its
+    constant's suffix, or for a point load (``position``, m forward and to the left of the centre
+    of mass) the corner it was set down toward (the axle when within :data:`SIDE` of the centre
+    line); ``None`` otherwise.
+
+    >>> event_corner("b_fl"), event_corner("k2_r"), event_corner("M"), event_corner("M", (-2.5, 0.05))
+    ('fl', 'r', None, 'r')
+    >>> event_corner("M", (0.4, -0.5))
+    'fr'
+    """
+    if position is not None:
+        axle = "f" if position[0] >= 0 else "r"
+        side = "" if abs(position[1]) < SIDE else ("l" if position[1] > 0 else "r")
+        return axle + side
+    return parameter.split("_", 1)[1] if "_" in parameter else None
+
+
 @dataclass
 class ChannelSpec:
     """Where one vehid channel comes from (a section of ``channels.toml``)."""

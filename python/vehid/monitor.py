@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 from . import fieldlog
 from ._vehid import Event, FullCar, HalfCar, HealthMonitor, QuarterCar, Simulator, VehidError
 from .align import nominal_interval
-from .channels import FULL_SENSOR_COLUMNS, HALF_SENSOR_COLUMNS, SENSOR_COLUMNS
+from .channels import FULL_SENSOR_COLUMNS, HALF_SENSOR_COLUMNS, SENSOR_COLUMNS, event_corner
 from .clitools import CliError, run_chunks, stdout, write_output
 from .io import Column, Table, TableError, column_factor, match_columns, open_table, parse_column_map
 from .reproduce import load_pyplot
@@ -53,7 +53,11 @@ RECORD = 0.5
 #: time are then bounded by the samples logged, not by the gaps' length.
 GAP_CAP = fieldlog.GAP_CAP
 
+#: What a load's corner (:func:`vehid.channels.event_corner`) is called in a report line.
+CORNER_WORDS = {"f": "the front axle", "r": "the rear axle", "fl": "the front left corner",
+                "fr": "the front right corner", "rl": "the rear left corner", "rr": "the rear right corner", "": "?"}
 #: What each named constant is, and its unit, for the printed lines.
+
 PARAMETERS = {"b": ("damper", "N s/m"), "k2": ("spring", "N/m"), "M": ("body mass", "kg"),
               "b_f": ("front damper", "N s/m"), "b_r": ("rear damper", "N s/m"),
               "k2_f": ("front spring", "N/m"), "k2_r": ("rear spring", "N/m"),
@@ -295,7 +299,8 @@ class Feeder:
             return
         name, unit = PARAMETERS[ev.parameter]
         at = "" if ev.position is None else (
-            f"; a load at x {ev.position[0]:+.1f} m, y {ev.position[1]:+.1f} m from the centre of mass")
+            f"; a load at x {ev.position[0]:+.1f} m, y {ev.position[1]:+.1f} m from the centre of mass, toward "
+            f"{CORNER_WORDS[event_corner(ev.parameter, ev.position) or '']}")
         print(f"{self.clock(ev.t):.3f} s  {ev.parameter} ({name}): {ev.before:.6g} -> {ev.after:.6g} {unit} "
               f"({100 * ev.change:+.1f} %; 95 % interval {ev.low:.6g} .. {ev.high:.6g}; "
               f"onset {self.clock(ev.t_change):.2f} s{at})", file=self.out, flush=True)

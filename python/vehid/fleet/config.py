@@ -4,7 +4,7 @@ interval, monitor settings and column names.
 Schema (every table optional but ``[defaults]`` or ``[vehicles.<id>]`` for each vehicle)::
 
     [defaults]                      # every vehicle, unless its class or its own entry says otherwise
-    model = "passenger"             # quarter (the thesis' car) | passenger | half (a passenger half car)
+    model = "passenger"             # quarter (the thesis' car) | passenger | half | full (passenger half, full car)
     sensors = "realistic"           # realistic (a_body, a_wheel, deflection) | state
     dt = 0.005                      # sample interval, s (200 Hz)
     constants = { b = 1500.0 }      # the nominal car's constants (the model's names and SI units)
@@ -32,7 +32,7 @@ import sys
 from dataclasses import dataclass
 from typing import Any, Dict, Mapping, Optional, Tuple, Union
 
-from .._vehid import HalfCar, HealthMonitor, QuarterCar
+from .._vehid import FullCar, HalfCar, HealthMonitor, QuarterCar
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -40,7 +40,7 @@ else:  # pragma: no cover - exercised on Python < 3.11 only
     import tomli as tomllib
 
 #: The car models a vehicle may have.
-MODELS = ("quarter", "passenger", "half")
+MODELS = ("quarter", "passenger", "half", "full")
 #: The HealthMonitor settings ``monitor = {...}`` may give (seconds, fractions, counts).
 MONITOR_SETTINGS = ("window", "warmup", "settle", "reacquire", "min_change", "judge_error", "threshold",
                     "confidence", "systematic", "stuck_samples")
@@ -55,7 +55,7 @@ class ConfigError(ValueError):
 class VehicleConfig:
     """One vehicle's resolved settings (plain values: it pickles, for the Dask engine)."""
 
-    #: ``quarter``, ``passenger`` or ``half``.
+    #: ``quarter``, ``passenger``, ``half`` or ``full``.
     model: str = "passenger"
     #: ``realistic`` or ``state``.
     sensors: str = "realistic"
@@ -73,8 +73,17 @@ class VehicleConfig:
         """True for the half car (six channels), False for the quarter car (three)."""
         return self.model == "half"
 
-    def car(self) -> Union[QuarterCar, HalfCar]:
+    @property
+    def full(self) -> bool:
+        """True for the full car (twelve channels, or 28 state channels)."""
+        return self.model == "full"
+
+    def car(self) -> Union[QuarterCar, HalfCar, FullCar]:
         """The nominal car: the model with ``constants`` applied."""
+        if self.model == "full":
+            params = dict(FullCar.passenger().params)
+            params.update(self.constants)
+            return FullCar(**params)
         if self.model == "half":
             params = dict(HalfCar.passenger().params)
             params.update(self.constants)
@@ -147,7 +156,9 @@ def _resolve(d: Dict[str, Any], where: str) -> VehicleConfig:
     dt = _number(d.get("dt", 0.005), f"{where} dt")
     if dt <= 0:
         raise ConfigError(f"{where} dt = {dt!r}: the sample interval must be > 0 s (e.g. 0.005 for 200 Hz)")
-    known = (HalfCar.passenger() if model == "half" else QuarterCar.passenger()).params
+    nominal: Union[QuarterCar, HalfCar, FullCar] = (
+        FullCar.passenger() if model == "full" else HalfCar.passenger() if model == "half" else QuarterCar.passenger())
+    known = nominal.params
     constants = []
     for name, value in sorted(d["constants"].items()):
         if name not in known:

@@ -31,7 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._vehid import HealthMonitor, VehidError
-from ..channels import HALF_SENSOR_COLUMNS, SENSOR_COLUMNS
+from ..channels import FULL_SENSOR_COLUMNS, HALF_SENSOR_COLUMNS, SENSOR_COLUMNS, event_corner
 from ..io import Column, TableError, match_columns
 from ._deps import module
 from .config import VehicleConfig
@@ -114,7 +114,8 @@ class DayResult:
 
 def channels(config: VehicleConfig) -> Tuple[Column, ...]:
     """The sensor channels a vehicle's logs must hold."""
-    return (HALF_SENSOR_COLUMNS if config.half else SENSOR_COLUMNS)[config.sensors]
+    table = FULL_SENSOR_COLUMNS if config.full else HALF_SENSOR_COLUMNS if config.half else SENSOR_COLUMNS
+    return table[config.sensors]
 
 
 def day_arrays(table: Any, config: VehicleConfig, where: str = "the day") -> Tuple[NDArray[np.float64],
@@ -201,7 +202,8 @@ def fold(state: Optional[bytes], table: Any, config: VehicleConfig) -> DayResult
     width = y.shape[1]
     block = max(1, int(round(BLOCK / dt)))
     trend_rows = max(1, int(round(TREND / dt)))
-    names = ("k2_f", "b_f", "k2_r", "b_r") if config.half else ("k2/M", "b/M")
+    names = (tuple(f"{q}_{c}" for c in ("fl", "fr", "rl", "rr") for q in ("k", "b")) if config.full
+             else ("k2_f", "b_f", "k2_r", "b_r") if config.half else ("k2/M", "b/M"))
     shares: Dict[str, float] = {"warmup": 0.0, "judged": 0.0, "cannot judge": 0.0}
     reasons: Dict[str, float] = {}
     trend_t: List[float] = []
@@ -228,7 +230,7 @@ def fold(state: Optional[bytes], table: Any, config: VehicleConfig) -> DayResult
         for ev in evs:
             p = ev.parameter
             events.append({"t": day_time(ev.t), "parameter": p, "before": ev.before, "after": ev.after,
-                           "low": ev.low, "high": ev.high, "corner": p.split("_", 1)[1] if "_" in p else None,
+                           "low": ev.low, "high": ev.high, "corner": event_corner(p, ev.position),
                            "t_change": day_time(ev.t_change), "change": ev.change})
 
     for a, b, gap in zip(starts.tolist(), ends.tolist(), missing.tolist()):
@@ -250,7 +252,7 @@ def fold(state: Optional[bytes], table: Any, config: VehicleConfig) -> DayResult
                 reasons[why] = reasons.get(why, 0.0) + seconds
             if j // trend_rows > i // trend_rows or i == 0:
                 trend_t.append(round(float(t[j - 1]), 3))
-                trend_v.append(_tracked(mon.estimate, config.half) if judged else [None] * len(names))
+                trend_v.append(_tracked(mon.estimate, config.model) if judged else [None] * len(names))
     summary: Dict[str, Any] = {
         "t0": float(t[0]), "t1": float(t[-1]), "samples": int(len(t)), "seconds": round(len(t) * dt, 9),
         "missing": int(missing.sum()), "status": {k: round(v, 6) for k, v in shares.items()},
@@ -260,11 +262,14 @@ def fold(state: Optional[bytes], table: Any, config: VehicleConfig) -> DayResult
     return DayResult(state=pack_state(mon), events=events, summary=summary)
 
 
-def _tracked(est: Dict[str, Any], half: bool) -> List[Optional[float]]:
+def _tracked(est: Dict[str, Any], model: str) -> List[Optional[float]]:
     """The tracked ratios now: the quarter car's k2/M (1/s²) and b/M (1/s); the half car's
     corner coefficients of its own constants (α k2_f, α b_f from the front equation, α k2_r,
-    α b_r from the rear)."""
-    if half:
+    α b_r from the rear); the full car's each corner's spring's and damper's in its own
+    equation ((α K)_ii, α_ii b_i; corners fl, fr, rl, rr)."""
+    if model == "full":
+        vals = [est[c][j][0] for i, c in enumerate(("fl", "fr", "rl", "rr")) for j in (2 * i, 2 * i + 1)]
+    elif model == "half":
         vals = [est["front"][0][0], est["front"][1][0], est["rear"][2][0], est["rear"][3][0]]
     else:
         vals = [est["k2/M"][0], est["b/M"][0]]

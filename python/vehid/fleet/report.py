@@ -127,7 +127,7 @@ def render(store_path: str) -> str:
            f'<p id="summary">{len(vehicles)} vehicles, {len(store.rows)} vehicle-days, {hours:.1f} vehicle-hours; '
            f"{n_events} events on {len(with_events)} vehicles; {len(store.problems_table())} problems. "
            f"Store: <code>{esc(store_path)}</code>.</p>",
-           "<p>Trend: each tracked ratio (quarter car: k2/M, b/M; half car: each corner's spring and damper "
+           "<p>Trend: each tracked ratio (quarter car: k2/M, b/M; half and full car: each corner's spring and damper "
            "coefficient) as its change in % from its first judged value, against the hours of the vehicle's logs "
            "(its days end to end, grey lines between them); red lines: events. <em>Cannot judge</em>: the share "
            "of the driving time the monitor could not judge (too little excitation, missing or stuck data).</p>",
