@@ -165,6 +165,9 @@ pub(crate) fn physical_full_stats<'py>(
     known: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     use vehid_core::model::FULL_STATES;
+    if st.names == crate::realistic::corner_names() {
+        return physical_corners(py, car, st, known);
+    }
     let n = 7 * FULL_STATES;
     if st.s.params.len() != n || st.s.cov.len() != n * n {
         return Err(VehidError::new_err(format!(
@@ -183,6 +186,49 @@ pub(crate) fn physical_full_stats<'py>(
     let out = PyDict::new(py);
     for ((k, v), s) in est.params().named().iter().zip(se) {
         out.set_item(*k, (*v, v - q * s, v + q * s))?;
+    }
+    Ok(out)
+}
+
+/// `FullCar.physical(stats, M=...)` on the stats of `RealisticIdentifier(full)`: the body mass
+/// given, the constants the four body-corner equations determine (`model::CORNER_DETERMINED`:
+/// inertias, springs, dampers, anti-roll bars) with intervals at the stats' level
+/// (`FullCar::from_corner_coefficients`: a weighted fit, its sandwich covariance), and `M` as
+/// (value, value, value); the tyres and the wheel masses are not determined by these sensors
+/// and are left out.
+fn physical_corners<'py>(
+    py: Python<'py>,
+    car: &FullCar<f64>,
+    st: &crate::stats::PyStats,
+    known: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let mut m_body = None;
+    if let Some(kw) = known {
+        for (k, v) in kw.iter() {
+            let key: String = k.extract()?;
+            if key != "M" {
+                return Err(PyTypeError::new_err(format!(
+                    "physical() got an unexpected keyword argument '{key}' (the corner equations' stats take the \
+                     body mass only: M=)"
+                )));
+            }
+            m_body = Some(v.extract::<f64>().map_err(|_| VehidError::new_err("`M` must be a number (a mass in kg)"))?);
+        }
+    }
+    let Some(m_body) = m_body else {
+        return Err(VehidError::new_err(
+            "FullCar.physical() on the corner equations needs the body mass M= (kg): the realistic sensors \
+             determine the springs, dampers, inertias and bars only relative to it",
+        ));
+    };
+    let (est, se) = car.from_corner_coefficients(&st.s.params, &st.s.cov, m_body).map_err(core_err)?;
+    let q = vehid_core::stats::t_interval_factor(st.s.alpha, &st.s.df).map_err(core_err)?;
+    let p = est.params();
+    let values = [p.jx, p.jy, p.k[0], p.k[1], p.k[2], p.k[3], p.b[0], p.b[1], p.b[2], p.b[3], p.arb_f, p.arb_r];
+    let out = PyDict::new(py);
+    out.set_item("M", (m_body, m_body, m_body))?;
+    for ((name, v), s) in vehid_core::model::CORNER_DETERMINED.iter().zip(values).zip(se) {
+        out.set_item(*name, (v, v - q * s, v + q * s))?;
     }
     Ok(out)
 }

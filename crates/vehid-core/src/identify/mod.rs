@@ -45,6 +45,8 @@
 mod bias_compensated;
 mod buffers;
 mod checks;
+#[cfg(feature = "alloc")]
+mod corner_filter;
 mod cost;
 mod deriv_noise;
 #[cfg(feature = "alloc")]
@@ -75,6 +77,8 @@ mod two_axle_structured;
 #[cfg(feature = "alloc")]
 pub use bias_compensated::BiasCompensatedVec;
 pub use bias_compensated::{BcGroup, BiasCompensated, BiasCompensatedLs};
+#[cfg(feature = "alloc")]
+pub use corner_filter::{CornerFilterFit, CORNER_COEFFICIENTS, CORNER_REGRESSORS};
 pub use cost::Cost;
 #[cfg(feature = "alloc")]
 pub use estimate_stats::{estimate_stats, posterior_stats, EstimateStats};

@@ -63,22 +63,22 @@ pub const DEFAULT_BLOCK: f64 = 2.0;
 const NP: usize = 3;
 
 /// Samples of `[a_body, deflection]` kept for the five-point derivative.
-const HISTORY: usize = 5;
+pub(super) const HISTORY: usize = 5;
 
 /// A second-order IIR filter in transposed direct form II (`y = b0 u + s0`,
 /// `s0 ← b1 u − a1 y + s1`, `s1 ← b2 u − a2 y`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-struct Biquad {
-    b: [f64; 3],
-    a: [f64; 2],
-    s: [f64; 2],
+pub(super) struct Biquad {
+    pub(super) b: [f64; 3],
+    pub(super) a: [f64; 2],
+    pub(super) s: [f64; 2],
 }
 
 impl Biquad {
     /// The bilinear transform (`s = K (1 − z⁻¹)/(1 + z⁻¹)`, `K = 2/dt`) of `λ² / (s + λ)²`:
     /// with `α = K + λ`, `β = λ − K`, `(s + λ)² = (α + β z⁻¹)² / (1 + z⁻¹)²`.
-    fn bilinear(dt: f64, lambda: f64) -> Self {
+    pub(super) fn bilinear(dt: f64, lambda: f64) -> Self {
         let k = 2.0 / dt;
         let (al, be) = (k + lambda, lambda - k);
         let g = lambda * lambda / (al * al);
@@ -86,7 +86,7 @@ impl Biquad {
     }
 
     #[inline]
-    fn step(&mut self, u: f64) -> f64 {
+    pub(super) fn step(&mut self, u: f64) -> f64 {
         let y = self.b[0] * u + self.s[0];
         self.s = [self.b[1] * u - self.a[0] * y + self.s[1], self.b[2] * u - self.a[1] * y];
         y
@@ -94,12 +94,43 @@ impl Biquad {
 
     /// The state of a filter whose input has been `u` for ever (no start transient from an
     /// offset).
-    fn prime(&mut self, u: f64) {
+    pub(super) fn prime(&mut self, u: f64) {
         let dc = (self.b[0] + self.b[1] + self.b[2]) / (1.0 + self.a[0] + self.a[1]);
         let y = dc * u;
         let s1 = self.b[2] * u - self.a[1] * y;
         self.s = [self.b[1] * u - self.a[0] * y + s1, s1];
     }
+}
+
+/// The settings of a state-variable-filter fit checked: the block length and the samples left
+/// out while the filters settle (`⌈10/(λ dt)⌉`), both in samples.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] naming `dt`, `bandwidth` (finite, > 0, below the Nyquist
+/// frequency `π/dt` by a factor of 10 so that the bilinear transform is accurate) or `block`
+/// (finite, at least `20/λ` and one sample).
+pub(super) fn filter_settings(dt: f64, bandwidth: f64, block: f64) -> Result<(u64, u64)> {
+    crate::error::check_positive("dt", dt)?;
+    if !(bandwidth.is_finite() && bandwidth > 0.0 && bandwidth * dt <= core::f64::consts::PI / 10.0) {
+        return Err(Error::InvalidArgument {
+            arg: "bandwidth",
+            expected: "a filter bandwidth in rad/s, > 0 and at most a tenth of the Nyquist frequency pi/dt",
+        });
+    }
+    if !(block.is_finite() && block >= 20.0 / bandwidth && block >= dt) {
+        return Err(Error::InvalidArgument {
+            arg: "block",
+            expected: "a block length in seconds of at least 20/bandwidth (the residuals' correlation)",
+        });
+    }
+    Ok((libm::round(block / dt).max(1.0) as u64, libm::ceil(10.0 / (bandwidth * dt)) as u64))
+}
+
+/// The five-point central derivative at the centre of `v` (samples `dt` s apart):
+/// `(v₀ − 8 v₁ + 8 v₃ − v₄) / (12 dt)`.
+#[inline]
+pub(super) fn five_point(v: [f64; HISTORY], dt: f64) -> f64 {
+    (v[0] - 8.0 * v[1] + 8.0 * v[3] - v[4]) / (12.0 * dt)
 }
 
 /// Sums of one block of samples: `A = Σ h hᵀ`, `c = Σ h y`, `Σ y²`, the count.
@@ -207,19 +238,7 @@ impl StateFilterFit {
     /// structure with more than one identified equation, other than 3 states or more than 3
     /// parameters.
     pub fn new(structure: Structure<f64>, dt: f64, bandwidth: f64, block: f64) -> Result<Self> {
-        crate::error::check_positive("dt", dt)?;
-        if !(bandwidth.is_finite() && bandwidth > 0.0 && bandwidth * dt <= core::f64::consts::PI / 10.0) {
-            return Err(Error::InvalidArgument {
-                arg: "bandwidth",
-                expected: "a filter bandwidth in rad/s, > 0 and at most a tenth of the Nyquist frequency pi/dt",
-            });
-        }
-        if !(block.is_finite() && block >= 20.0 / bandwidth && block >= dt) {
-            return Err(Error::InvalidArgument {
-                arg: "block",
-                expected: "a block length in seconds of at least 20/bandwidth (the residuals' correlation)",
-            });
-        }
+        let (block, skip) = filter_settings(dt, bandwidth, block)?;
         if structure.equations() != 1 || structure.states() != 3 || structure.params() > NP || structure.inputs() != 0 {
             return Err(Error::Unsupported {
                 what: "a state-variable-filter fit other than of the realistic sensors' body equation \
@@ -231,8 +250,8 @@ impl StateFilterFit {
             structure,
             dt,
             bandwidth,
-            block: libm::round(block / dt).max(1.0) as u64,
-            skip: libm::ceil(10.0 / (bandwidth * dt)) as u64,
+            block,
+            skip,
             filters: [f; 3],
             history: [[0.0; 2]; HISTORY],
             since_start: 0,
@@ -324,8 +343,7 @@ impl StateFilterFit {
         }
         // The centre sample (two back) and the deflection's rate there.
         let [ab, d] = self.history[2];
-        let h = &self.history;
-        let rate = (h[0][1] - 8.0 * h[1][1] + 8.0 * h[3][1] - h[4][1]) / (12.0 * self.dt);
+        let rate = five_point(self.history.map(|s| s[1]), self.dt);
         if self.since_start == HISTORY as u64 {
             self.filters[0].prime(ab);
             self.filters[1].prime(d);

@@ -404,6 +404,10 @@ impl<T: Real> FullCar<T> {
 #[path = "full_theta.rs"]
 mod theta;
 
+#[path = "full_corners.rs"]
+mod corners;
+pub use corners::CORNER_DETERMINED;
+
 #[cfg(test)]
 #[path = "full_tests.rs"]
 mod tests;

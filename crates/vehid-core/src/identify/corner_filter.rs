@@ -1,0 +1,379 @@
+//! The full car's four body-corner equations from the sensors a car has (a body accelerometer
+//! above each wheel and each corner's deflection sensor), through the state-variable filter of
+//! [`StateFilterFit`](super::StateFilterFit), with cluster-robust intervals.
+//!
+//! Each corner's vertical body acceleration obeys (`crate::health`'s module documentation:
+//! the body's heave, pitch and roll under the four suspension forces `T_j = (K d)_j + b_j ḋ_j`)
+//!
+//! ```text
+//! a_i = Σ_j Θ_2j,i (−d_j) + Θ_2j+1,i (−ḋ_j) + c_i,     Θ_2j,i = (α K)_ij,  Θ_2j+1,i = α_ij b_j
+//! α_ij = 1/M + x_i x_j / Jy + y_i y_j / Jx
+//! ```
+//!
+//! with no road term, so it holds on any road. As for the quarter car, no sensor measures the
+//! rates `ḋ_j`: the same low-pass `F(s) = λ²/(s + λ)²` on both sides replaces them by `(sF)[d_j]`,
+//! computed from the deflection samples (five-point derivative, bilinear transform):
+//!
+//! ```text
+//! F[a_i] = Σ_j Θ_2j,i (−F[d_j]) + Θ_2j+1,i (−(sF)[d_j]) + c_i
+//! ```
+//!
+//! The four equations share their nine regressors `h = [−F d_fl, −(sF) d_fl, …, −(sF) d_rr, 1]`,
+//! so one normal matrix `A = Σ h hᵀ` serves them all: `Θ̂ = A⁻¹ C`, `C = Σ h F[a]ᵀ` (`9 × 4`),
+//! which is least squares equation by equation. The covariance of all 36 coefficients is
+//! cluster-robust over blocks of samples (Cameron & Miller 2015), across the equations too: a
+//! block's score is `G_b = C_b − A_b Θ̂` and
+//!
+//! ```text
+//! cov(vec Θ̂) = (I ⊗ A⁻¹) (Σ_b vec G_b vec G_bᵀ) (I ⊗ A⁻¹) · G/(G − 1) · (N − 1)/(N − k)
+//! ```
+//!
+//! (`G` blocks, `N` samples, `k = 9` per equation: statsmodels' correction for one equation),
+//! Student's t on `G − 1` degrees of freedom. The sums `Σ vec C_b vec C_bᵀ`, `Σ vec C_b vec A_bᵀ`
+//! and `Σ vec A_b vec A_bᵀ` give the middle term at any `Θ̂` later without keeping the blocks.
+//!
+//! With equal track widths the four corner accelerations hold only three rigid-body motions
+//! (`a_fl − a_fr − a_rl + a_rr = 0`), so the estimates of the four equations are nearly
+//! dependent and the 36 × 36 covariance is close to singular in that direction: it is kept
+//! as computed (each coefficient's interval is right), and
+//! [`crate::model::FullCar::from_corner_coefficients`] reads the constants without inverting it.
+
+use super::state_filter::{filter_settings, five_point, Biquad, HISTORY};
+use super::EstimateStats;
+use crate::{Error, Result};
+use alloc::vec::Vec;
+use nalgebra::{Cholesky, SMatrix};
+
+/// Regressors of each corner equation: each corner's filtered extension and rate, and 1.
+pub const CORNER_REGRESSORS: usize = 9;
+/// Corner equations (fl, fr, rl, rr).
+const EQS: usize = 4;
+/// Coefficients in all: 9 per equation.
+pub const CORNER_COEFFICIENTS: usize = CORNER_REGRESSORS * EQS;
+/// Entries of the normal matrix.
+const AA: usize = CORNER_REGRESSORS * CORNER_REGRESSORS;
+/// The realistic channels read: `[a_body_fl..rr, a_wheel_fl..rr, deflection_fl..rr]`.
+const CHANNELS: usize = 12;
+
+/// Sums of one block of samples: `A = Σ h hᵀ`, `C = Σ h yᵀ`, `Σ y yᵀ`, the count.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+struct Sums {
+    a: SMatrix<f64, CORNER_REGRESSORS, CORNER_REGRESSORS>,
+    c: SMatrix<f64, CORNER_REGRESSORS, EQS>,
+    yy: SMatrix<f64, EQS, EQS>,
+    n: u64,
+}
+
+impl Sums {
+    fn add(&mut self, o: &Sums) {
+        self.a += o.a;
+        self.c += o.c;
+        self.yy += o.yy;
+        self.n += o.n;
+    }
+
+    fn finite(&self) -> bool {
+        self.a.iter().chain(self.c.iter()).chain(self.yy.iter()).all(|v| v.is_finite())
+            && (0..CORNER_REGRESSORS).all(|i| self.a[(i, i)] >= 0.0)
+            && (0..EQS).all(|i| self.yy[(i, i)] >= 0.0)
+            && self.a == self.a.transpose()
+    }
+}
+
+/// The closed blocks' sums of the cluster-robust covariance (module documentation).
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+struct Clusters {
+    total: Sums,
+    cc: SMatrix<f64, CORNER_COEFFICIENTS, CORNER_COEFFICIENTS>,
+    ca: SMatrix<f64, CORNER_COEFFICIENTS, AA>,
+    aa: SMatrix<f64, AA, AA>,
+    blocks: u64,
+}
+
+impl Default for Clusters {
+    fn default() -> Self {
+        Self { total: Sums::default(), cc: SMatrix::zeros(), ca: SMatrix::zeros(), aa: SMatrix::zeros(), blocks: 0 }
+    }
+}
+
+impl Clusters {
+    /// Takes in one block's sums (column-major `vec`: `vec C[l + 9 i] = C[l, i]`).
+    fn close(&mut self, b: &Sums) {
+        if b.n == 0 {
+            return;
+        }
+        self.total.add(b);
+        let (c, a) = (b.c.as_slice(), b.a.as_slice());
+        for (q, cq) in c.iter().enumerate() {
+            for (r, cr) in c.iter().enumerate() {
+                self.cc[(q, r)] += cq * cr;
+            }
+            for (r, ar) in a.iter().enumerate() {
+                self.ca[(q, r)] += cq * ar;
+            }
+        }
+        for (q, aq) in a.iter().enumerate() {
+            for (r, ar) in a.iter().enumerate() {
+                self.aa[(q, r)] += aq * ar;
+            }
+        }
+        self.blocks += 1;
+    }
+
+    /// `Σ_b vec G_b vec G_bᵀ` at `theta`, `G_b = C_b − A_b θ`.
+    fn meat(
+        &self,
+        theta: &SMatrix<f64, CORNER_REGRESSORS, EQS>,
+    ) -> SMatrix<f64, CORNER_COEFFICIENTS, CORNER_COEFFICIENTS> {
+        const K: usize = CORNER_REGRESSORS;
+        // vec(A_b θ)[l + K i] = Σ_m A_b[l, m] θ[m, i] = Σ_m vec A_b[l + K m] θ[m, i]: a linear map
+        // L (36 × 81) of vec A_b, so vec G_b = vec C_b − L vec A_b.
+        let mut lmap = SMatrix::<f64, CORNER_COEFFICIENTS, AA>::zeros();
+        for i in 0..EQS {
+            for l in 0..K {
+                for m in 0..K {
+                    lmap[(l + K * i, l + K * m)] = theta[(m, i)];
+                }
+            }
+        }
+        let cross = self.ca * lmap.transpose();
+        self.cc - cross - cross.transpose() + lmap * self.aa * lmap.transpose()
+    }
+}
+
+/// The full car's four body-corner equations identified through a state-variable filter, with
+/// cluster-robust intervals (module documentation). Samples are the full car's realistic
+/// channels `[a_body_fl, …, a_body_rr, a_wheel_fl, …, a_wheel_rr, deflection_fl, …,
+/// deflection_rr]` (m/s², m/s², m; deflection `z_body − z_wheel` at the corner, positive in
+/// extension; the wheels' are not read).
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct CornerFilterFit {
+    dt: f64,
+    bandwidth: f64,
+    block: u64,
+    skip: u64,
+    /// The body accelerations', the deflections' and the rates' filters, corner by corner.
+    filters: [[Biquad; EQS]; 3],
+    /// The last [`HISTORY`] samples `[a_body ×4, deflection ×4]`, oldest first.
+    history: [[f64; 2 * EQS]; HISTORY],
+    since_start: u64,
+    current: Sums,
+    closed: Clusters,
+}
+
+impl CornerFilterFit {
+    /// A fit from samples every `dt` s, filter bandwidth `bandwidth` (rad/s,
+    /// [`super::DEFAULT_BANDWIDTH`]) and blocks of `block` s ([`super::DEFAULT_BLOCK`]).
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] naming `dt`, `bandwidth` or `block` as
+    /// [`StateFilterFit::new`](super::StateFilterFit::new).
+    pub fn new(dt: f64, bandwidth: f64, block: f64) -> Result<Self> {
+        let (block, skip) = filter_settings(dt, bandwidth, block)?;
+        let f = Biquad::bilinear(dt, bandwidth);
+        Ok(Self {
+            dt,
+            bandwidth,
+            block,
+            skip,
+            filters: [[f; EQS]; 3],
+            history: [[0.0; 2 * EQS]; HISTORY],
+            since_start: 0,
+            current: Sums::default(),
+            closed: Clusters::default(),
+        })
+    }
+
+    /// Whether a restored value keeps every invariant [`CornerFilterFit::update`] and
+    /// [`CornerFilterFit::stats`] rely on: settings valid and its filters the ones they give,
+    /// every sum finite, the normal matrices symmetric with a non-negative diagonal, each block
+    /// within the block length.
+    pub fn is_consistent(&self) -> bool {
+        let Ok(fresh) = Self::new(self.dt, self.bandwidth, self.block as f64 * self.dt) else {
+            return false;
+        };
+        let coefficients = |f: &Biquad| (f.b, f.a);
+        let filters_ok = self
+            .filters
+            .iter()
+            .flatten()
+            .zip(fresh.filters.iter().flatten())
+            .all(|(f, g)| coefficients(f) == coefficients(g) && f.s.iter().all(|v| v.is_finite()))
+            && self.history.iter().flatten().all(|v| v.is_finite());
+        let c = &self.closed;
+        fresh.block == self.block
+            && fresh.skip == self.skip
+            && filters_ok
+            && self.current.finite()
+            && self.current.n <= self.block
+            && c.total.finite()
+            && c.total.n >= c.blocks
+            && (c.blocks > 0 || c.total == Sums::default())
+            && c.cc.iter().chain(c.ca.iter()).chain(c.aa.iter()).all(|v| v.is_finite())
+            && (0..CORNER_COEFFICIENTS).all(|i| c.cc[(i, i)] >= 0.0)
+    }
+
+    /// Sample interval, s.
+    pub fn dt(&self) -> f64 {
+        self.dt
+    }
+
+    /// Filter bandwidth `λ`, rad/s.
+    pub fn bandwidth(&self) -> f64 {
+        self.bandwidth
+    }
+
+    /// Block length, samples.
+    pub fn block(&self) -> u64 {
+        self.block
+    }
+
+    /// Samples left out after each start while the filters settle (as
+    /// [`StateFilterFit::settling`](super::StateFilterFit::settling)).
+    pub fn settling(&self) -> u64 {
+        self.skip + HISTORY as u64 - 1
+    }
+
+    /// Samples used.
+    pub fn samples(&self) -> u64 {
+        self.closed.total.n + self.current.n
+    }
+
+    /// One sample of the twelve realistic channels.
+    ///
+    /// # Errors
+    /// [`Error::Shape`] for other than 12 values; [`Error::NonFinite`] (`"y"`) — nothing changes
+    /// (a gap: call [`CornerFilterFit::restart`]). No allocation.
+    pub fn update(&mut self, y: &[f64]) -> Result<()> {
+        if y.len() != CHANNELS {
+            return Err(Error::Shape { arg: "y", expected: CHANNELS, got: y.len() });
+        }
+        crate::error::check_finite("y", y)?;
+        if self.current.n >= self.block {
+            self.closed.close(&core::mem::take(&mut self.current));
+        }
+        self.history.rotate_left(1);
+        let last = &mut self.history[HISTORY - 1];
+        last[..EQS].copy_from_slice(&y[..EQS]);
+        last[EQS..].copy_from_slice(&y[2 * EQS..]);
+        self.since_start += 1;
+        if self.since_start < HISTORY as u64 {
+            return Ok(());
+        }
+        // The centre sample (two back) and each deflection's rate there.
+        let centre = self.history[2];
+        let prime = self.since_start == HISTORY as u64;
+        let mut h = SMatrix::<f64, CORNER_REGRESSORS, 1>::zeros();
+        let mut fa = SMatrix::<f64, EQS, 1>::zeros();
+        for j in 0..EQS {
+            let rate = five_point(self.history.map(|s| s[EQS + j]), self.dt);
+            let [fa_f, fd_f, fv_f] = &mut self.filters;
+            if prime {
+                fa_f[j].prime(centre[j]);
+                fd_f[j].prime(centre[EQS + j]);
+                fv_f[j].prime(rate);
+            }
+            fa[j] = fa_f[j].step(centre[j]);
+            h[2 * j] = -fd_f[j].step(centre[EQS + j]);
+            h[2 * j + 1] = -fv_f[j].step(rate);
+        }
+        h[CORNER_REGRESSORS - 1] = 1.0;
+        if self.since_start <= self.settling() {
+            return Ok(());
+        }
+        let m = &mut self.current;
+        m.a += h * h.transpose();
+        m.c += h * fa.transpose();
+        m.yy += fa * fa.transpose();
+        m.n += 1;
+        Ok(())
+    }
+
+    /// Rows of the realistic channels (`N × 12`, row-major), as [`CornerFilterFit::update`] on
+    /// each; every value is checked first, so a bad one changes nothing.
+    ///
+    /// # Errors
+    /// As [`CornerFilterFit::update`]; [`Error::NonFinite`] gives the flat index.
+    pub fn fit(&mut self, y: &[f64]) -> Result<()> {
+        if y.len() % CHANNELS != 0 {
+            return Err(Error::Shape { arg: "y", expected: CHANNELS, got: y.len() % CHANNELS });
+        }
+        crate::error::check_finite("y", y)?;
+        y.chunks_exact(CHANNELS).try_for_each(|row| self.update(row))
+    }
+
+    /// A gap in the record: the filters start again at the next sample, and the current block
+    /// ends (as [`StateFilterFit::restart`](super::StateFilterFit::restart)).
+    pub fn restart(&mut self) {
+        self.since_start = 0;
+        self.closed.close(&core::mem::take(&mut self.current));
+    }
+
+    /// The 36 coefficients, equation by equation (corner `i`'s nine at `9 i ..`: the extension
+    /// and the rate of fl, fr, rl, rr, then the offset `c_i` in m/s²; units 1/s² and 1/s), their
+    /// cluster-robust covariance and `1 − alpha` intervals; `df` is `G − 1`, `sigma2` each
+    /// filtered equation's residual variance.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for `alpha` outside (0, 1), or naming `samples` for fewer
+    /// than ten blocks (the covariance needs blocks); [`Error::RankDeficient`] when the filtered
+    /// deflections and their rates do not determine the coefficients (no excitation, a corner's
+    /// sensor stuck, two corners moving alike).
+    pub fn stats(&self, alpha: f64) -> Result<EstimateStats> {
+        const K: usize = CORNER_REGRESSORS;
+        if !(alpha > 0.0 && alpha < 1.0) {
+            return Err(Error::InvalidArgument { arg: "alpha", expected: "a level in (0, 1), e.g. 0.05" });
+        }
+        let mut all = self.closed.clone();
+        all.close(&self.current);
+        let g = all.blocks as usize;
+        if g < K + 1 {
+            return Err(Error::InvalidArgument {
+                arg: "samples",
+                expected: "more data: at least one block (block seconds) per regressor and one more",
+            });
+        }
+        let total = all.total;
+        let scale = (0..K).map(|i| total.a[(i, i)]).fold(0.0, f64::max);
+        let chol = Cholesky::new(total.a);
+        let rank =
+            chol.as_ref().map_or(0, |c| (0..K).filter(|&i| c.l()[(i, i)] * c.l()[(i, i)] > 1e-12 * scale).count());
+        let chol = chol.filter(|_| rank == K).ok_or(Error::RankDeficient { rank, needed: K })?;
+        let ainv = chol.inverse();
+        let theta = ainv * total.c;
+        let meat = all.meat(&theta);
+        let mut bread = SMatrix::<f64, CORNER_COEFFICIENTS, CORNER_COEFFICIENTS>::zeros();
+        for i in 0..EQS {
+            bread.fixed_view_mut::<K, K>(K * i, K * i).copy_from(&ainv);
+        }
+        let (n, gf, k) = (total.n as f64, g as f64, K as f64);
+        let cov = bread * meat * bread * (gf / (gf - 1.0) * (n - 1.0) / (n - k));
+        let df = gf - 1.0;
+        let q = crate::stats::t_ppf(1.0 - alpha / 2.0, df)?;
+        let params: Vec<f64> = theta.as_slice().to_vec();
+        let bse: Vec<f64> = (0..CORNER_COEFFICIENTS).map(|i| libm::sqrt(cov[(i, i)].max(0.0))).collect();
+        let sigma2 = (0..EQS)
+            .map(|i| {
+                let (t, c) = (theta.column(i), total.c.column(i));
+                (total.yy[(i, i)] - 2.0 * t.dot(&c) + (t.transpose() * total.a * t)[(0, 0)]).max(0.0) / (n - k)
+            })
+            .collect();
+        Ok(EstimateStats {
+            conf_int: params.iter().zip(&bse).map(|(p, s)| (p - q * s, p + q * s)).collect(),
+            params,
+            cov: cov.transpose().as_slice().to_vec(),
+            bse,
+            df: alloc::vec![df; CORNER_COEFFICIENTS],
+            sigma2,
+            nobs: alloc::vec![n; EQS],
+            alpha,
+        })
+    }
+}
+
+#[cfg(all(test, feature = "serde"))]
+#[path = "corner_filter_tests.rs"]
+mod tests;

@@ -1,0 +1,112 @@
+//! Tests of the full car's corner fit: the coefficients and the constants from a drive's
+//! realistic sensors, the constants exact on exact coefficients (anti-roll bars, a start far
+//! off), persistence, bad input.
+
+use super::*;
+use crate::health::full_coefficients;
+use crate::model::{FullCar, FullCarParams};
+use crate::sim::{DriveConfig, FullDrive, FullDriveConfig};
+
+fn with_bars() -> FullCar<f64> {
+    let mut p = FullCar::<f64>::passenger().params();
+    p.k = [33_000.0, 36_000.0, 39_000.0, 41_000.0];
+    p.b = [900.0, 1_100.0, 1_000.0, 1_250.0];
+    p.arb_f = 18_000.0;
+    p.arb_r = 7_000.0;
+    FullCar::new(p).unwrap()
+}
+
+/// The 36 coefficients of a car (corner `i`'s nine at `9 i`, offset 0).
+fn exact(car: &FullCar<f64>) -> Vec<f64> {
+    let th = full_coefficients(car);
+    (0..36).map(|q| if q % 9 == 8 { 0.0 } else { th[(q % 9, q / 9)] }).collect()
+}
+
+#[test]
+fn the_constants_are_exact_on_exact_coefficients() {
+    let car = with_bars();
+    let p = car.params();
+    // The start is far off: inertias 40 % high, no bars.
+    let start = FullCar::new(FullCarParams { jx: p.jx * 1.4, jy: p.jy * 1.4, arb_f: 0.0, arb_r: 0.0, ..p }).unwrap();
+    let cov: Vec<f64> = (0..36 * 36).map(|q| if q / 36 == q % 36 { 1e-6 } else { 0.0 }).collect();
+    let (got, se) = start.from_corner_coefficients(&exact(&car), &cov, p.m_body).unwrap();
+    let g = got.params();
+    let want = [p.jx, p.jy, p.k[0], p.k[1], p.k[2], p.k[3], p.b[0], p.b[1], p.b[2], p.b[3], p.arb_f, p.arb_r];
+    let have = [g.jx, g.jy, g.k[0], g.k[1], g.k[2], g.k[3], g.b[0], g.b[1], g.b[2], g.b[3], g.arb_f, g.arb_r];
+    for ((name, w), h) in crate::model::CORNER_DETERMINED.iter().zip(want).zip(have) {
+        assert!((h - w).abs() <= 1e-8 * w.abs().max(1.0), "{name}: {h} for {w}");
+    }
+    assert!(se.iter().all(|s| s.is_finite() && *s >= 0.0));
+    // What the equations do not hold is the start's.
+    assert_eq!((g.kt, g.m, g.l_f, g.track_r), (p.kt, p.m, p.l_f, p.track_r));
+    // A body mass 10 % off scales every constant with it.
+    let (heavy, _) = start.from_corner_coefficients(&exact(&car), &cov, 1.1 * p.m_body).unwrap();
+    assert!((heavy.params().k[2] / p.k[2] - 1.1).abs() < 1e-9);
+}
+
+#[test]
+fn coefficients_and_constants_from_a_drive() {
+    // The passenger car with bars on a class C road at 15 m/s, the default realistic sensors
+    // (their noise and biases), 120 s at 200 Hz.
+    let car = with_bars();
+    let dt = 0.005;
+    let mut drive = FullDrive::new(car, FullDriveConfig::new(DriveConfig::new(dt).speed(15.0)), 11).unwrap();
+    let mut fit = CornerFilterFit::new(dt, 10.0, 2.0).unwrap();
+    for _ in 0..24_000 {
+        fit.update(drive.next_sample().y()).unwrap();
+    }
+    let st = fit.stats(0.05).unwrap();
+    let want = exact(&car);
+    for q in (0..36).filter(|q| q % 9 != 8) {
+        // Coefficients below a tenth of the largest in their equation are cross terms of
+        // the roll and pitch; their error is judged against the equation's scale.
+        let big = want[9 * (q / 9)..9 * (q / 9) + 8].iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        assert!((st.params[q] - want[q]).abs() < 0.02 * big, "coefficient {q}: {} for {}", st.params[q], want[q]);
+    }
+    let (got, se) = car.from_corner_coefficients(&st.params, &st.cov, car.params().m_body).unwrap();
+    let (g, p) = (got.params(), car.params());
+    let pairs = [(g.jx, p.jx), (g.jy, p.jy), (g.k[0], p.k[0]), (g.k[3], p.k[3]), (g.b[1], p.b[1]), (g.b[2], p.b[2])];
+    for (h, w) in pairs {
+        assert!((h / w - 1.0).abs() < 0.01, "{h} for {w}");
+    }
+    assert!((g.arb_f / p.arb_f - 1.0).abs() < 0.1, "{} for {}", g.arb_f, p.arb_f);
+    assert!(se.iter().all(|s| *s > 0.0));
+}
+
+#[test]
+fn a_saved_fit_restores_and_bad_input_changes_nothing() {
+    let car = FullCar::<f64>::passenger();
+    let dt = 0.005;
+    let mut drive = FullDrive::new(car, FullDriveConfig::new(DriveConfig::new(dt)), 3).unwrap();
+    let mut fit = CornerFilterFit::new(dt, 10.0, 2.0).unwrap();
+    for _ in 0..5_000 {
+        fit.update(drive.next_sample().y()).unwrap();
+    }
+    assert!(fit.is_consistent());
+    let bytes = postcard::to_allocvec(&fit).unwrap();
+    let mut back: CornerFilterFit = postcard::from_bytes(&bytes).unwrap();
+    assert!(back.is_consistent());
+    assert_eq!(back, fit);
+    let before = fit.clone();
+    assert!(matches!(fit.update(&[0.0; 11]), Err(Error::Shape { .. })));
+    let mut bad = [0.1; 12];
+    bad[7] = f64::NAN;
+    assert!(matches!(fit.update(&bad), Err(Error::NonFinite { .. })));
+    assert_eq!(fit, before);
+    for _ in 0..3_000 {
+        let s = drive.next_sample();
+        fit.update(s.y()).unwrap();
+        back.update(s.y()).unwrap();
+    }
+    assert_eq!(back.stats(0.05).unwrap(), fit.stats(0.05).unwrap());
+    let mut broken = back.clone();
+    broken.closed.aa[(3, 5)] = f64::INFINITY;
+    assert!(!broken.is_consistent());
+    let mut broken = back;
+    broken.current.n = broken.block + 1;
+    assert!(!broken.is_consistent());
+    // Too short a record: too few blocks for the covariance.
+    let short = CornerFilterFit::new(dt, 10.0, 2.0).unwrap();
+    assert!(matches!(short.stats(0.05), Err(Error::InvalidArgument { arg: "samples", .. })));
+    assert!(matches!(CornerFilterFit::new(dt, 1000.0, 2.0), Err(Error::InvalidArgument { arg: "bandwidth", .. })));
+}

@@ -1,0 +1,208 @@
+//! The full car's constants from its four body-corner equations, the coefficients the realistic
+//! sensors determine ([`crate::identify::CornerFilterFit`]).
+
+use super::FullCar;
+use crate::error::{check_finite, check_positive};
+use crate::{Error, Result};
+use nalgebra::{Cholesky, SMatrix};
+
+/// The constants the body-corner equations determine with the body mass known, in the order
+/// [`FullCar::from_corner_coefficients`] returns their standard errors.
+pub const CORNER_DETERMINED: [&str; 12] =
+    ["Jx", "Jy", "k_fl", "k_fr", "k_rl", "k_rr", "b_fl", "b_fr", "b_rl", "b_rr", "arb_f", "arb_r"];
+
+/// Coefficients fitted: each equation's eight spring and damper coefficients (not its offset).
+const FITTED: usize = 32;
+/// Unknowns: `k` ×4, `b` ×4, `1/Jx`, `1/Jy`, `arb_f/t_f²`, `arb_r/t_r²`.
+const UNKNOWNS: usize = 12;
+
+/// Equation `i`'s eight coefficients for the unknowns `p` (order of [`UNKNOWNS`]) and the
+/// corners' positions: `Θ_2j,i = (α K)_ij`, `Θ_2j+1,i = α_ij b_j`, `α_ij = 1/M + x_i x_j/Jy +
+/// y_i y_j/Jx` (`crate::health::full_coefficients`), stacked equation by equation.
+fn coefficients(p: &[f64; UNKNOWNS], inv_m: f64, pos: &[(f64, f64); 4]) -> SMatrix<f64, FITTED, 1> {
+    let alpha = SMatrix::<f64, 4, 4>::from_fn(|i, j| inv_m + pos[i].0 * pos[j].0 * p[9] + pos[i].1 * pos[j].1 * p[8]);
+    let mut stiff = SMatrix::<f64, 4, 4>::from_diagonal(&nalgebra::Vector4::new(p[0], p[1], p[2], p[3]));
+    for (a, s) in [(0, p[10]), (2, p[11])] {
+        stiff[(a, a)] += s;
+        stiff[(a + 1, a + 1)] += s;
+        stiff[(a, a + 1)] -= s;
+        stiff[(a + 1, a)] -= s;
+    }
+    let ak = alpha * stiff;
+    SMatrix::from_fn(|q, _| {
+        let (i, r) = (q / 8, q % 8);
+        let j = r / 2;
+        if r % 2 == 0 {
+            ak[(i, j)]
+        } else {
+            alpha[(i, j)] * p[4 + j]
+        }
+    })
+}
+
+impl FullCar<f64> {
+    /// The spring, damper, roll and pitch constants from the coefficients of the four
+    /// body-corner equations (`theta`: 36 values, corner `i`'s nine at `9 i`, the order of
+    /// [`crate::identify::CornerFilterFit::stats`]) and their covariance `cov` (36 × 36,
+    /// row-major), given the body mass `m_body` (kg) — the equations determine every constant
+    /// only relative to it — and the geometry of `self` (`l_f`, `l_r` and the tracks); `self`'s
+    /// other constants start the fit and are kept where the equations say nothing (the tyres
+    /// and the wheel masses: no road term, no wheel equation).
+    ///
+    /// `Θ` is multilinear in `p = [k_j, b_j, 1/Jx, 1/Jy, arb_f/t_f², arb_r/t_r²]`: with `1/Jx`
+    /// and `1/Jy` fixed it is linear in the rest, and the other way round. Gauss–Newton on the
+    /// 32 spring and damper coefficients, each weighted by its inverse variance (not the full
+    /// covariance: with equal tracks it is nearly singular, module documentation of
+    /// [`crate::identify::CornerFilterFit`]), from `self`'s values; the covariance of `p` is the
+    /// sandwich `G cov Gᵀ`, `G = (JᵀWJ)⁻¹ JᵀW`, mapped to the constants (`Jx = 1/p₈`, …).
+    /// Returns the car and the standard errors of [`CORNER_DETERMINED`] (kg·m², N/m, N·s/m,
+    /// N·m/rad). Exact on exact coefficients.
+    ///
+    /// # Errors
+    /// [`Error::Shape`] for `theta` or `cov` of other lengths; [`Error::InvalidArgument`] for
+    /// non-finite values or `m_body` not > 0; [`Error::RankDeficient`] when the coefficients do
+    /// not determine the constants (a corner without excitation); [`Error::NotIdentifiable`]
+    /// when the fit does not converge or gives a car with a constant ≤ 0 (a bar < 0), which
+    /// coefficients of a rigid body on four suspensions cannot give.
+    pub fn from_corner_coefficients(&self, theta: &[f64], cov: &[f64], m_body: f64) -> Result<(Self, [f64; 12])> {
+        const N: usize = 36;
+        if theta.len() != N {
+            return Err(Error::Shape { arg: "theta", expected: N, got: theta.len() });
+        }
+        if cov.len() != N * N {
+            return Err(Error::Shape { arg: "cov", expected: N * N, got: cov.len() });
+        }
+        check_finite("theta", theta)?;
+        check_finite("cov", cov)?;
+        check_positive("M", m_body)?;
+        let s = self.params();
+        let pos: [(f64, f64); 4] = core::array::from_fn(|i| self.corner_position(i));
+        let (tf2, tr2) = (s.track_f * s.track_f, s.track_r * s.track_r);
+        // Fitted entries: each equation's first eight of nine.
+        let at = |q: usize| 9 * (q / 8) + q % 8;
+        let obs = SMatrix::<f64, FITTED, 1>::from_fn(|q, _| theta[at(q)]);
+        let sigma = SMatrix::<f64, FITTED, FITTED>::from_fn(|q, r| cov[at(q) * N + at(r)]);
+        let weight: [f64; FITTED] = core::array::from_fn(|q| {
+            let v = sigma[(q, q)];
+            if v > 0.0 {
+                1.0 / v
+            } else {
+                0.0
+            }
+        });
+        if weight.iter().all(|w| *w == 0.0) {
+            return Err(Error::InvalidArgument { arg: "cov", expected: "a covariance with positive variances" });
+        }
+        let inv_m = 1.0 / m_body;
+        // The start: self's inertias and bars; each spring and damper from its own coefficient.
+        let mut p = [0.0; UNKNOWNS];
+        p[8] = 1.0 / s.jx;
+        p[9] = 1.0 / s.jy;
+        p[10] = s.arb_f / tf2;
+        p[11] = s.arb_r / tr2;
+        for (j, (x, y)) in pos.iter().enumerate() {
+            let own = inv_m + x * x * p[9] + y * y * p[8];
+            p[j] = (theta[9 * j + 2 * j] / own).max(s.k[j] * 1e-3);
+            p[4 + j] = (theta[9 * j + 2 * j + 1] / own).max(s.b[j] * 1e-3);
+        }
+        let mean_k = s.k.iter().sum::<f64>() / 4.0;
+        let scale: [f64; UNKNOWNS] = core::array::from_fn(|k| match k {
+            0..=3 => s.k[k],
+            4..=7 => s.b[k - 4],
+            8 => p[8],
+            9 => p[9],
+            _ => mean_k,
+        });
+        let cost = |p: &[f64; UNKNOWNS]| {
+            let r = obs - coefficients(p, inv_m, &pos);
+            (0..FITTED).map(|q| weight[q] * r[q] * r[q]).sum::<f64>()
+        };
+        let jacobian = |p: &[f64; UNKNOWNS]| {
+            // Θ is linear in each unknown alone: central differences are exact to rounding.
+            let mut jac = SMatrix::<f64, FITTED, UNKNOWNS>::zeros();
+            for k in 0..UNKNOWNS {
+                let h = scale[k] * 1e-3;
+                let (mut up, mut down) = (*p, *p);
+                up[k] += h;
+                down[k] -= h;
+                jac.set_column(k, &((coefficients(&up, inv_m, &pos) - coefficients(&down, inv_m, &pos)) / (2.0 * h)));
+            }
+            jac
+        };
+        let normal = |jac: &SMatrix<f64, FITTED, UNKNOWNS>| {
+            let mut wj = *jac;
+            for (q, w) in weight.iter().enumerate() {
+                wj.row_mut(q).scale_mut(*w);
+            }
+            (jac.transpose() * wj, wj)
+        };
+        let mut converged = false;
+        let mut now = cost(&p);
+        for _ in 0..100 {
+            let jac = jacobian(&p);
+            let (jtwj, wj) = normal(&jac);
+            let rank = Cholesky::new(jtwj).ok_or(Error::RankDeficient { rank: UNKNOWNS - 1, needed: UNKNOWNS })?;
+            let step = rank.solve(&(wj.transpose() * (obs - coefficients(&p, inv_m, &pos))));
+            // Step halving keeps every step downhill.
+            let mut t = 1.0;
+            let mut next = p;
+            let mut next_cost = f64::INFINITY;
+            for _ in 0..30 {
+                next = core::array::from_fn(|k| p[k] + t * step[k]);
+                next_cost = cost(&next);
+                if next_cost <= now {
+                    break;
+                }
+                t *= 0.5;
+            }
+            if !(next_cost <= now) {
+                converged = true; // no downhill step left: at the minimum to rounding
+                break;
+            }
+            let small = (0..UNKNOWNS).all(|k| (t * step[k]).abs() <= 1e-12 * scale[k]);
+            p = next;
+            now = next_cost;
+            if small {
+                converged = true;
+                break;
+            }
+        }
+        if !converged {
+            return Err(Error::NotIdentifiable {
+                what: "the constants: the fit of the corner coefficients did not converge",
+            });
+        }
+        let jac = jacobian(&p);
+        let (jtwj, wj) = normal(&jac);
+        let chol = Cholesky::new(jtwj).ok_or(Error::RankDeficient { rank: UNKNOWNS - 1, needed: UNKNOWNS })?;
+        let gain = chol.solve(&wj.transpose()); // G = (JᵀWJ)⁻¹ JᵀW
+        let cov_p = gain * sigma * gain.transpose();
+        let se_p: [f64; UNKNOWNS] = core::array::from_fn(|k| libm::sqrt(cov_p[(k, k)].max(0.0)));
+        let mut c = s;
+        c.m_body = m_body;
+        c.jx = 1.0 / p[8];
+        c.jy = 1.0 / p[9];
+        c.k = [p[0], p[1], p[2], p[3]];
+        c.b = [p[4], p[5], p[6], p[7]];
+        c.arb_f = p[10] * tf2;
+        c.arb_r = p[11] * tr2;
+        let car = FullCar::new(c).map_err(|_| Error::NotIdentifiable {
+            what: "the constants: the corner coefficients give a constant <= 0 (or a bar < 0), which no car has",
+        })?;
+        let se = [
+            se_p[8] / (p[8] * p[8]),
+            se_p[9] / (p[9] * p[9]),
+            se_p[0],
+            se_p[1],
+            se_p[2],
+            se_p[3],
+            se_p[4],
+            se_p[5],
+            se_p[6],
+            se_p[7],
+            se_p[10] * tf2,
+            se_p[11] * tr2,
+        ];
+        Ok((car, se))
+    }
+}
