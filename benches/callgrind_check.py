@@ -95,6 +95,7 @@ BENCHES = [
     "full_health",                  # health/full_monitor_update_f64 (full car; binary count_full_health)
     "full_drive",                   # simulate_f64/full/drive (the full car's drive; binary count_full_health)
     "full_two_axle",                # update_f64/full/two_axle_rows (road cancellation; binary count_two_axle)
+    "full_corner_filter_realistic",  # update_f64/full/corner_filter_realistic (binary count_corner_filter)
 ]
 # Benches counted by a binary other than count_updates (kept apart so that their code does not
 # change how count_updates is compiled).
@@ -109,6 +110,7 @@ OTHER_BINARIES = {
     "full_health": "count_full_health",
     "full_drive": "count_full_health",
     "full_two_axle": "count_two_axle",
+    "full_corner_filter_realistic": "count_corner_filter",
 }
 
 

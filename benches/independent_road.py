@@ -138,6 +138,23 @@ def full_matrices(
     return a, b
 
 
+def full_realistic(params: Dict[str, float], x: NDArray[np.float64], xdot: NDArray[np.float64],
+                   rng: np.random.Generator) -> NDArray[np.float64]:
+    """The full car's realistic channels ``[a_body_fl..rr, a_wheel_fl..rr, deflection_fl..rr]``
+    from its states (the geometry written here): a body accelerometer above each wheel, the
+    wheel accelerometers, the extensions; with vehid's default sensor noise (body 0.02 and wheel
+    0.1 m/s^2 white, biases of 0.1 and 0.3 m/s^2 drawn once, deflection 0.3 mm)."""
+    pos = corner_positions(params)
+    body = np.column_stack([xdot[:, 9] + cx * xdot[:, 11] + cy * xdot[:, 13] for cx, cy in pos])
+    wheel = xdot[:, 1:8:2]
+    ext = np.column_stack([x[:, 8] + cx * x[:, 10] + cy * x[:, 12] - x[:, 2 * i] for i, (cx, cy) in enumerate(pos)])
+    n = len(x)
+    body = body + 0.1 * rng.standard_normal(4) + 0.02 * rng.standard_normal((n, 4))
+    wheel = wheel + 0.3 * rng.standard_normal(4) + 0.1 * rng.standard_normal((n, 4))
+    ext = ext + 3e-4 * rng.standard_normal((n, 4))
+    return np.column_stack([body, wheel, ext])
+
+
 def simulate_full(
     params: Dict[str, float], cls: str, speed: float, dt: float, n: int, seed: int,
     change: Optional[Tuple[int, Dict[str, float], Optional[Tuple[float, float, float]]]] = None,

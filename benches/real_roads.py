@@ -18,7 +18,8 @@ odometer given), over ``--seeds`` seeds from ``--seed0``:
 Prints one progress line per setting and a table at the end; ``--json PATH`` writes the figures.
 Reproducible from the seeds: ``.venv/bin/python benches/real_roads.py --seed0 50000 --seeds 100``.
 ``--half`` / ``--full``: the half car / the full car on one road by road cancellation (e.g.
-``benches/real_roads.py --full --seed0 61000 --seeds 10 --classes B,C,D --speeds 10,20 --samples 20000``).
+``benches/real_roads.py --full --seed0 61000 --seeds 10 --classes B,C,D --speeds 10,20 --samples 20000``);
+``--full --sensors realistic``: the full car from its realistic sensors (``RealisticIdentifier(full)``).
 """
 
 from __future__ import annotations
@@ -231,6 +232,50 @@ def realistic(seed0: int, seeds: int, first: int, classes: str, speeds: str, gen
     return 0
 
 
+#: The full car of the realistic-sensor runs: the passenger car with anti-roll bars (N m/rad),
+#: so that the bars are identified too.
+FULL_BARS = {"arb_f": 15_000.0, "arb_r": 8_000.0}
+
+
+def realistic_full(seed0: int, seeds: int, first: int, classes: str, speeds: str, generator: str, n: int) -> int:
+    """The full car's realistic sensors (a body accelerometer above each wheel, the wheel
+    accelerometers, each corner's deflection; vehid's default noise and biases), the passenger
+    car with anti-roll bars (:data:`FULL_BARS`), ``n`` samples at 200 Hz:
+    ``RealisticIdentifier(full)`` and ``full.physical(stats, M=...)`` give Jx, Jy, each spring
+    and damper and both bars (the tyres and wheel masses are not determined); every constant
+    within 5 % on the first ``first`` seeds, and each 95 % interval's coverage over all seeds.
+    ``--generator independent``: the states from ``independent_road.simulate_full`` (Lagrange's
+    equations, scipy), the channels formed by ``independent_road.full_realistic``."""
+    car = vehid.FullCar(**{**vehid.FullCar.passenger().params, **FULL_BARS})
+    truth = car.params
+    names = ["Jx", "Jy", *[f"{q}_{c}" for q in ("k", "b") for c in ("fl", "fr", "rl", "rr")], "arb_f", "arb_r"]
+    settings = [(c, float(v)) for c in classes.split(",") for v in speeds.split(",")]
+    t0 = time.time()
+    for i, (cls, speed) in enumerate(settings):
+        cover = {k: 0 for k in names}
+        within, worst = 0, []
+        for j, seed in enumerate(range(seed0, seed0 + seeds)):
+            if generator == "vehid":
+                y = vehid.Simulator(car, dt=DT, road=f"iso8608-{cls}", speed=speed, sensors="realistic",
+                                    seed=seed).run(n).y
+            else:
+                x, xd, _ = independent_road.simulate_full(truth, cls, speed, DT, n, seed)
+                y = independent_road.full_realistic(truth, x, xd, np.random.default_rng(seed + 9_999))
+            phys = car.physical(vehid.RealisticIdentifier(car, DT).fit(y).stats(), M=truth["M"])
+            err = {k: abs(phys[k][0] / truth[k] - 1) for k in names}
+            worst.append(max(err.values()))
+            within += j < first and worst[-1] < 0.05
+            for k in names:
+                cover[k] += phys[k][1] <= truth[k] <= phys[k][2]
+            print(f"[{i + 1}/{len(settings)}, seed {j + 1}/{seeds}, {time.time() - t0:.0f} s] worst constant"
+                  f" {max(err, key=err.__getitem__)} {100 * worst[-1]:.2f} %", flush=True)
+        cov = ", ".join(f"{k} {100 * cover[k] / seeds:.0f}" for k in names)
+        print(f"full car, realistic sensors ({generator}), {cls} {speed:.0f} m/s, {n} samples: every constant within"
+              f" 5 % on {within}/{min(first, seeds)}; worst error median {100 * np.median(worst):.2f} %, largest"
+              f" {100 * max(worst):.2f} %; 95 % coverage (%): {cov}", flush=True)
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seed0", type=int, default=50_000)
@@ -255,6 +300,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="realistic: accelerometers and deflection, RealisticIdentifier (k2, b with M known)")
     ap.add_argument("--json", default=None)
     a = ap.parse_args(argv)
+    if a.sensors == "realistic" and a.full:
+        return realistic_full(a.seed0, a.seeds, a.first, a.classes, a.speeds, a.generator, a.samples)
     if a.sensors == "realistic":
         return realistic(a.seed0, a.seeds, a.first, a.classes, a.speeds, a.generator)
     if a.half:

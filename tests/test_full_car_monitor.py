@@ -104,19 +104,9 @@ def test_a_boot_load_is_named_with_its_mass_and_place(tmp_path: Path, capsys: py
 
 
 def realistic(x: np.ndarray, xdot: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """The full car's realistic channels from its states (the drive's geometry, written here):
-    a body accelerometer above each wheel, the wheel accelerometers, the extensions; with the
-    Simulator's default noise (body 0.02 and wheel 0.1 m/s^2 white, biases of 0.1 and 0.3 m/s^2
-    drawn once, deflection 0.3 mm)."""
-    pos = INDEPENDENT.corner_positions(FULL.params)
-    body = np.column_stack([xdot[:, 9] + cx * xdot[:, 11] + cy * xdot[:, 13] for cx, cy in pos])
-    wheel = xdot[:, 1:8:2]
-    ext = np.column_stack([x[:, 8] + cx * x[:, 10] + cy * x[:, 12] - x[:, 2 * i] for i, (cx, cy) in enumerate(pos)])
-    n = len(x)
-    body = body + 0.1 * rng.standard_normal(4) + 0.02 * rng.standard_normal((n, 4))
-    wheel = wheel + 0.3 * rng.standard_normal(4) + 0.1 * rng.standard_normal((n, 4))
-    ext = ext + 3e-4 * rng.standard_normal((n, 4))
-    return np.column_stack([body, wheel, ext])
+    """The passenger full car's realistic channels from its states, with vehid's default
+    sensor noise (benches/independent_road.full_realistic: the geometry written there)."""
+    return INDEPENDENT.full_realistic(FULL.params, x, xdot, rng)
 
 
 @pytest.mark.parametrize("case", ["none", "b_rl", "boot"])

@@ -467,6 +467,35 @@ fn state_filter(c: &mut Criterion) {
     g.finish();
 }
 
+/// The full car's realistic-sensor fit (`identify::CornerFilterFit`, the Python
+/// `RealisticIdentifier(FullCar)`): one sample of the twelve channels of the passenger full
+/// car's drive on ISO class C at 15 m/s (200 Hz); blocks of 2 s close as they fill.
+fn corner_filter(c: &mut Criterion) {
+    use vehid_core::identify::{CornerFilterFit, DEFAULT_BANDWIDTH, DEFAULT_BLOCK};
+    use vehid_core::model::FullCar;
+    use vehid_core::sim::{DriveConfig, FullDrive, FullDriveConfig};
+    let car = FullCar::<f64>::passenger();
+    let mut drive = FullDrive::new(car, FullDriveConfig::new(DriveConfig::new(0.005).speed(15.0)), 42).unwrap();
+    let data: Vec<[f64; 12]> = (0..LEN)
+        .map(|_| {
+            let mut y = [0.0; 12];
+            y.copy_from_slice(drive.next_sample().y());
+            y
+        })
+        .collect();
+    let mut fit = CornerFilterFit::new(0.005, DEFAULT_BANDWIDTH, DEFAULT_BLOCK).unwrap();
+    let mut g = c.benchmark_group("update_f64");
+    g.throughput(Throughput::Elements(1));
+    let mut i = 0usize;
+    g.bench_function("full/corner_filter_realistic", |b| {
+        b.iter(|| {
+            let _ = black_box(fit.update(black_box(&data[i])));
+            i = (i + 1) & (LEN - 1);
+        })
+    });
+    g.finish();
+}
+
 fn batch_least_squares(c: &mut Criterion) {
     let q = QuarterCar::<f64>::thesis();
     let data = samples(q.model());
@@ -517,5 +546,5 @@ fn config() -> Criterion {
         .sample_size(30)
 }
 
-criterion_group! { name = benches; config = config(); targets = identifiers, structured, noisy_states, two_axle, state_filter, batch_least_squares, simulator }
+criterion_group! { name = benches; config = config(); targets = identifiers, structured, noisy_states, two_axle, state_filter, corner_filter, batch_least_squares, simulator }
 criterion_main!(benches);

@@ -10,7 +10,7 @@ use crate::structure::PyStructure;
 use crate::{core_err, VehidError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyTuple};
-use vehid_core::identify::{CornerFilterFit, StateFilterFit, DEFAULT_BANDWIDTH, DEFAULT_BLOCK};
+use vehid_core::identify::{CornerFilterFit, StateFilterFit, CORNER_BANDWIDTH, DEFAULT_BANDWIDTH, DEFAULT_BLOCK};
 use vehid_core::model::CORNERS;
 
 /// Version of the pickled state's layout.
@@ -62,7 +62,8 @@ pub(crate) fn corner_names() -> Vec<String> {
 /// positive in extension), on any road: a state-variable filter `F(s) = λ²/(s + λ)²` on both
 /// sides of `a_body = -(k2/M) d - (b/M) ḋ + offset` (Young 1981; CONTSID), so that no
 /// deflection rate is needed, and intervals that are cluster-robust over blocks of `block`
-/// seconds (the filtered residuals are coloured). `bandwidth` is `λ` in rad/s.
+/// seconds (the filtered residuals are coloured). `bandwidth` is `λ` in rad/s (default 10; the
+/// full car's 30, `vehid_core::identify::CORNER_BANDWIDTH` says why).
 ///
 /// `stats()` gives the parameters with intervals (Student's t, blocks − 1 degrees of
 /// freedom); `car.physical(stats)` the constants (k2 and b with M known); m and k1 are not
@@ -110,13 +111,14 @@ impl PyRealisticIdentifier {
 #[pymethods]
 impl PyRealisticIdentifier {
     #[new]
-    #[pyo3(signature = (structure, dt, bandwidth = DEFAULT_BANDWIDTH, block = DEFAULT_BLOCK))]
-    fn new(structure: &Bound<'_, PyAny>, dt: f64, bandwidth: f64, block: f64) -> PyResult<Self> {
+    #[pyo3(signature = (structure, dt, bandwidth = None, block = DEFAULT_BLOCK))]
+    fn new(structure: &Bound<'_, PyAny>, dt: f64, bandwidth: Option<f64>, block: f64) -> PyResult<Self> {
         if let Ok(model) = structure.cast::<PyLinearModel>() {
             if matches!(model.get().kind, Kind::Full(_)) {
-                return Self::build_full(structure, dt, bandwidth, block);
+                return Self::build_full(structure, dt, bandwidth.unwrap_or(CORNER_BANDWIDTH), block);
             }
         }
+        let bandwidth = bandwidth.unwrap_or(DEFAULT_BANDWIDTH);
         let s = structure.cast::<PyStructure>().map_err(|_| {
             VehidError::new_err(
                 "`structure` must be a vehid.Structure from QuarterCar.structure(known=..., sensors=\"realistic\"), \

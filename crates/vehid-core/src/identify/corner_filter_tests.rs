@@ -51,7 +51,7 @@ fn coefficients_and_constants_from_a_drive() {
     let car = with_bars();
     let dt = 0.005;
     let mut drive = FullDrive::new(car, FullDriveConfig::new(DriveConfig::new(dt).speed(15.0)), 11).unwrap();
-    let mut fit = CornerFilterFit::new(dt, 10.0, 2.0).unwrap();
+    let mut fit = CornerFilterFit::new(dt, CORNER_BANDWIDTH, 2.0).unwrap();
     for _ in 0..24_000 {
         fit.update(drive.next_sample().y()).unwrap();
     }
@@ -78,7 +78,7 @@ fn a_saved_fit_restores_and_bad_input_changes_nothing() {
     let car = FullCar::<f64>::passenger();
     let dt = 0.005;
     let mut drive = FullDrive::new(car, FullDriveConfig::new(DriveConfig::new(dt)), 3).unwrap();
-    let mut fit = CornerFilterFit::new(dt, 10.0, 2.0).unwrap();
+    let mut fit = CornerFilterFit::new(dt, CORNER_BANDWIDTH, 2.0).unwrap();
     for _ in 0..5_000 {
         fit.update(drive.next_sample().y()).unwrap();
     }
@@ -106,7 +106,7 @@ fn a_saved_fit_restores_and_bad_input_changes_nothing() {
     broken.current.n = broken.block + 1;
     assert!(!broken.is_consistent());
     // Too short a record: too few blocks for the covariance.
-    let short = CornerFilterFit::new(dt, 10.0, 2.0).unwrap();
+    let short = CornerFilterFit::new(dt, CORNER_BANDWIDTH, 2.0).unwrap();
     assert!(matches!(short.stats(0.05), Err(Error::InvalidArgument { arg: "samples", .. })));
     assert!(matches!(CornerFilterFit::new(dt, 1000.0, 2.0), Err(Error::InvalidArgument { arg: "bandwidth", .. })));
 }

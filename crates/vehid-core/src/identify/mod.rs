@@ -78,7 +78,7 @@ mod two_axle_structured;
 pub use bias_compensated::BiasCompensatedVec;
 pub use bias_compensated::{BcGroup, BiasCompensated, BiasCompensatedLs};
 #[cfg(feature = "alloc")]
-pub use corner_filter::{CornerFilterFit, CORNER_COEFFICIENTS, CORNER_REGRESSORS};
+pub use corner_filter::{CornerFilterFit, CORNER_BANDWIDTH, CORNER_COEFFICIENTS, CORNER_REGRESSORS};
 pub use cost::Cost;
 #[cfg(feature = "alloc")]
 pub use estimate_stats::{estimate_stats, posterior_stats, EstimateStats};

@@ -1,0 +1,146 @@
+"""The full car from the sensors a car has (a body accelerometer above each wheel, the wheel
+accelerometers, each corner's deflection): ``RealisticIdentifier(full)`` checked against scipy's
+filters and statsmodels' cluster-robust OLS on the same samples, its cross-equation covariance
+against numpy, the constants through ``full.physical(stats, M=...)`` on drives from vehid and from
+an independent simulator, pickling and bad input."""
+
+from __future__ import annotations
+
+import copy
+import pickle
+
+import numpy as np
+import pytest
+from bench_scripts import load  # tests/ is on sys.path under pytest
+
+import vehid
+
+DT = 0.005
+BARS = {"arb_f": 15_000.0, "arb_r": 8_000.0}
+CAR = vehid.FullCar(**{**vehid.FullCar.passenger().params, **BARS})
+TRUE = CAR.params
+NAMES = ["Jx", "Jy", *[f"{q}_{c}" for q in ("k", "b") for c in ("fl", "fr", "rl", "rr")], "arb_f", "arb_r"]
+# The full car written without vehid (Lagrange's equations, scipy's lsim): benches/independent_road.py.
+INDEPENDENT = load("independent_road")
+
+
+def drive(seconds: float, seed: int, road: str = "iso8608-C", speed: float = 15.0) -> vehid.Run:
+    sim = vehid.Simulator(CAR, dt=DT, road=road, speed=speed, sensors="realistic", seed=seed)
+    return sim.run(int(round(seconds / DT)))
+
+
+def filtered(y: np.ndarray, bandwidth: float, settling: int) -> tuple[np.ndarray, np.ndarray]:
+    """The filtered corner equations by scipy: F(s) = λ²/(s+λ)², bilinear, started in its
+    steady state, on each body acceleration, each deflection and its five-point central
+    derivative (at the centre sample); regressors [-F d_fl, -F ḋ_fl, ..., -F ḋ_rr, 1] and the
+    four targets F a_i, after the filters' settling."""
+    from scipy import signal
+
+    lam = bandwidth
+    b, a, _ = signal.cont2discrete(([lam**2], [1.0, 2 * lam, lam**2]), DT, method="bilinear")
+    b = np.ravel(b)
+    skip = settling - 4
+
+    def f(x: np.ndarray) -> np.ndarray:
+        return signal.lfilter(b, a, x, zi=signal.lfilter_zi(b, a) * x[0])[0][skip:]
+
+    cols = []
+    for j in range(4):
+        d = y[:, 8 + j]
+        rate = (d[:-4] - 8 * d[1:-3] + 8 * d[3:-1] - d[4:]) / (12 * DT)
+        cols += [-f(d[2:-2]), -f(rate)]
+    h = np.column_stack(cols + [np.ones(len(cols[0]))])
+    return h, np.column_stack([f(y[2:-2, i]) for i in range(4)])
+
+
+def test_the_fit_is_ols_with_cluster_robust_errors_on_scipys_filtered_signals() -> None:
+    # Each corner equation: statsmodels' OLS with cluster-robust errors on the same samples;
+    # all 36 coefficients' covariance: the cluster sandwich written here in numpy.
+    sm = pytest.importorskip("statsmodels.api")
+    run = drive(60.0, seed=74_001)
+    ident = vehid.RealisticIdentifier(CAR, DT).fit(run.y)
+    st = ident.stats()
+    h, ys = filtered(run.y, ident.bandwidth, ident.settling)
+    assert ident.samples == len(h)
+    assert st.names[:3] == ("a_fl:d_fl", "a_fl:rate_fl", "a_fl:d_fr") and st.names[8] == "a_fl:offset"
+    groups = np.arange(len(h)) // int(round(ident.block / DT))
+    for i in range(4):
+        ref = sm.OLS(ys[:, i], h).fit(cov_type="cluster", cov_kwds={"groups": groups})
+        np.testing.assert_allclose(st.params[9 * i:9 * i + 9], ref.params, rtol=1e-7, atol=1e-9)
+        np.testing.assert_allclose(st.bse[9 * i:9 * i + 9], ref.bse, rtol=1e-6)
+    ainv = np.linalg.inv(h.T @ h)
+    theta = ainv @ h.T @ ys
+    resid = ys - h @ theta
+    g = groups[-1] + 1
+    scores = np.stack([(h[groups == b].T @ resid[groups == b]).T.ravel() for b in range(g)])
+    bread = np.kron(np.eye(4), ainv)
+    n, k = len(h), 9
+    cov = bread @ scores.T @ scores @ bread * g / (g - 1) * (n - 1) / (n - k)
+    # Compared in units of the standard errors (the Kronecker sums cancel to ~1e-6 of them).
+    se = np.sqrt(np.diag(cov))
+    np.testing.assert_allclose(st.cov / np.outer(se, se), cov / np.outer(se, se), rtol=0, atol=1e-5)
+    assert st.df[0] == g - 1
+
+
+def test_the_constants_from_a_drive_are_the_cars() -> None:
+    # vehid's drive, class C at 15 m/s, 120 s: the coefficients hold each corner's spring and
+    # damper, the inertias and the bars; with the body mass, each within a few tenths of a
+    # percent (the bars: a few percent), inside its interval's reach.
+    st = vehid.RealisticIdentifier(CAR, DT).fit(drive(120.0, seed=74_002).y).stats()
+    phys = CAR.physical(st, M=TRUE["M"])
+    assert set(phys) == {"M", *NAMES}  # kt and m: not determined by these sensors
+    assert phys["M"] == (TRUE["M"],) * 3
+    for name in NAMES:
+        v, lo, hi = phys[name]
+        tol = 0.1 if name.startswith("arb") else 0.01
+        assert abs(v / TRUE[name] - 1) < tol, (name, v, TRUE[name])
+        half = (hi - lo) / 2
+        assert 0 < half and abs(v - TRUE[name]) < 2.5 * half, (name, phys[name], TRUE[name])
+
+
+@pytest.mark.parametrize("seed", [74_101, 74_102])
+def test_the_constants_on_an_independent_simulator(seed: int) -> None:
+    # The states from benches/independent_road.py (Lagrange's equations with the bars, two
+    # random-phase harmonic tracks, scipy's lsim), the sensors formed there with vehid's
+    # default noise: every constant within 2 % (bars 10 %).
+    x, xdot, _ = INDEPENDENT.simulate_full(TRUE, "C", 20.0, DT, 24_000, seed=seed)
+    y = INDEPENDENT.full_realistic(TRUE, x, xdot, np.random.default_rng(seed + 1))
+    phys = CAR.physical(vehid.RealisticIdentifier(CAR, DT).fit(y).stats(), M=TRUE["M"])
+    for name in NAMES:
+        tol = 0.1 if name.startswith("arb") else 0.02
+        assert abs(phys[name][0] / TRUE[name] - 1) < tol, (name, phys[name], TRUE[name])
+
+
+def test_pickles_continues_and_refuses_bad_input() -> None:
+    y = drive(30.0, seed=74_003).y
+    ident = vehid.RealisticIdentifier(CAR, DT).fit(y[:3000])
+    assert "FullCar" in repr(ident) and ident.car is not None and ident.car.params == TRUE
+    with pytest.raises(vehid.VehidError, match="no Structure"):
+        _ = ident.structure
+    back = pickle.loads(pickle.dumps(ident))
+    twin = copy.deepcopy(ident)
+    for obj in (ident, back, twin):
+        obj.fit(y[3000:])
+    assert np.array_equal(back.stats().params, ident.stats().params)
+    assert np.array_equal(twin.stats().cov, ident.stats().cov)
+    before = pickle.dumps(ident)
+    with pytest.raises(ValueError, match=r"shape \(samples, 12\)"):
+        ident.fit(y[:, :3])
+    with pytest.raises(ValueError, match=r"shape \(12,\)"):
+        ident.update(np.zeros(3))
+    bad = y[:10].copy()
+    bad[4, 9] = np.nan
+    with pytest.raises(ValueError, match="row 4, column 9"):
+        ident.fit(bad)
+    assert pickle.dumps(ident) == before
+    st = ident.stats()
+    with pytest.raises(ValueError, match="M="):
+        CAR.physical(st)
+    with pytest.raises(TypeError, match="m_fl"):
+        CAR.physical(st, M=1500.0, m_fl=59.0)
+    with pytest.raises(ValueError, match="samples"):
+        vehid.RealisticIdentifier(CAR, DT).fit(y[:500]).stats()
+    # The quarter car's structure is refused a full car's channels, and the other way round.
+    s = vehid.QuarterCar.passenger().structure(known={"M": 320.0}, sensors="realistic")
+    with pytest.raises(ValueError, match=r"shape \(samples, 3\)"):
+        vehid.RealisticIdentifier(s, DT).fit(y)
