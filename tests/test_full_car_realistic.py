@@ -12,6 +12,7 @@ import pickle
 import numpy as np
 import pytest
 from bench_scripts import load  # tests/ is on sys.path under pytest
+from readme_blocks import README, python_blocks
 
 import vehid
 
@@ -144,3 +145,11 @@ def test_pickles_continues_and_refuses_bad_input() -> None:
     s = vehid.QuarterCar.passenger().structure(known={"M": 320.0}, sensors="realistic")
     with pytest.raises(ValueError, match=r"shape \(samples, 3\)"):
         vehid.RealisticIdentifier(s, DT).fit(y)
+
+
+def test_the_worked_example_runs() -> None:
+    # docs/capabilities/real-roads.md, "The full car's realistic sensors": its Python block.
+    page = (README.parent / "docs" / "capabilities" / "real-roads.md").read_text()
+    blocks = [code for _, code in python_blocks(page) if "RealisticIdentifier(full" in code]
+    assert len(blocks) == 1
+    exec(compile(blocks[0], "real-roads.md", "exec"), {})

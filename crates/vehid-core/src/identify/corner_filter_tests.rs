@@ -110,3 +110,85 @@ fn a_saved_fit_restores_and_bad_input_changes_nothing() {
     assert!(matches!(short.stats(0.05), Err(Error::InvalidArgument { arg: "samples", .. })));
     assert!(matches!(CornerFilterFit::new(dt, 1000.0, 2.0), Err(Error::InvalidArgument { arg: "bandwidth", .. })));
 }
+
+#[test]
+fn the_covariance_is_the_cluster_sandwich_of_the_blocks() {
+    // The Kronecker sums against each block's score computed directly: the blocks' sums kept
+    // as they close, G_b = C_b − A_b Θ̂, meat = Σ vec G_b vec G_bᵀ.
+    let dt = 0.005;
+    let mut drive = FullDrive::new(with_bars(), FullDriveConfig::new(DriveConfig::new(dt)), 5).unwrap();
+    let mut fit = CornerFilterFit::new(dt, CORNER_BANDWIDTH, 2.0).unwrap();
+    let mut blocks: Vec<Sums> = Vec::new();
+    for _ in 0..12_345 {
+        if fit.current.n >= fit.block {
+            blocks.push(fit.current);
+        }
+        fit.update(drive.next_sample().y()).unwrap();
+    }
+    blocks.push(fit.current);
+    let st = fit.stats(0.05).unwrap();
+    let mut total = Sums::default();
+    blocks.iter().for_each(|b| total.add(b));
+    let ainv = total.a.try_inverse().unwrap();
+    let theta = ainv * total.c;
+    let mut meat = nalgebra::DMatrix::<f64>::zeros(36, 36);
+    for b in &blocks {
+        let g = b.c - b.a * theta;
+        let v = nalgebra::DVector::from_column_slice(g.as_slice());
+        meat += &v * v.transpose();
+    }
+    let mut bread = nalgebra::DMatrix::<f64>::zeros(36, 36);
+    for i in 0..4 {
+        bread.view_mut((9 * i, 9 * i), (9, 9)).copy_from(&ainv);
+    }
+    let (n, g) = (total.n as f64, blocks.len() as f64);
+    let cov = &bread * meat * &bread * (g / (g - 1.0) * (n - 1.0) / (n - 9.0));
+    for q in 0..36 {
+        assert!((st.params[q] - theta.as_slice()[q]).abs() <= 1e-9 * theta.as_slice()[q].abs().max(1.0));
+        for r in 0..36 {
+            let scale = (cov[(q, q)] * cov[(r, r)]).sqrt();
+            assert!((st.cov[q * 36 + r] - cov[(q, r)]).abs() <= 1e-6 * scale, "cov[{q}, {r}]");
+        }
+    }
+    assert_eq!(st.df[0], g - 1.0);
+}
+
+#[test]
+fn the_constants_standard_errors_are_their_scatter() {
+    // Exact coefficients plus Gaussian noise of a known covariance (independent, each
+    // coefficient's own size, so that the weights matter): over 400 draws each constant's
+    // scatter is its standard error within 15 % (the sample sd of 400 normal draws is within
+    // 15 % of the truth with probability > 0.999).
+    use rand::{rngs::Xoshiro256PlusPlus, SeedableRng};
+    use rand_distr::{Distribution, StandardNormal};
+    let car = with_bars();
+    let truth = exact(&car);
+    let sd: Vec<f64> =
+        truth.iter().enumerate().map(|(q, v)| 1e-3 * v.abs().max(1.0) * (1.0 + (q % 5) as f64)).collect();
+    let cov: Vec<f64> = (0..36 * 36).map(|q| if q / 36 == q % 36 { sd[q / 36] * sd[q / 36] } else { 0.0 }).collect();
+    let (_, se) = car.from_corner_coefficients(&truth, &cov, car.params().m_body).unwrap();
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(81);
+    let draws = 400;
+    let mut sum = [0.0; 12];
+    let mut sq = [0.0; 12];
+    for _ in 0..draws {
+        let noisy: Vec<f64> = truth
+            .iter()
+            .zip(&sd)
+            .map(|(v, s)| v + s * <StandardNormal as Distribution<f64>>::sample(&StandardNormal, &mut rng))
+            .collect();
+        let (got, _) = car.from_corner_coefficients(&noisy, &cov, car.params().m_body).unwrap();
+        let g = got.params();
+        let v = [g.jx, g.jy, g.k[0], g.k[1], g.k[2], g.k[3], g.b[0], g.b[1], g.b[2], g.b[3], g.arb_f, g.arb_r];
+        for k in 0..12 {
+            sum[k] += v[k];
+            sq[k] += v[k] * v[k];
+        }
+    }
+    for k in 0..12 {
+        let n = draws as f64;
+        let scatter = ((sq[k] - sum[k] * sum[k] / n) / (n - 1.0)).sqrt();
+        let name = crate::model::CORNER_DETERMINED[k];
+        assert!((scatter / se[k] - 1.0).abs() < 0.15, "{name}: scatter {scatter}, standard error {}", se[k]);
+    }
+}
