@@ -1,5 +1,5 @@
-"""``vehid identify LOG --model quarter --sensors realistic``: the constants a car's own sensors
-determine.
+"""``vehid identify LOG --model quarter|full --sensors realistic``: the constants a car's own
+sensors determine.
 
 A body accelerometer, a wheel accelerometer and a suspension deflection sensor (the channels
 ``a_body``, ``a_wheel``, ``deflection`` of ``vehid simulate --sensors realistic`` and ``vehid
@@ -9,6 +9,12 @@ is measured by none of them (the wheel's absolute position and the road height a
 so m and k1 are printed as not identifiable, with what would determine them. The fit is the
 core's state-variable filter (``vehid.RealisticIdentifier``); this module reads the log,
 restarts the filter at gaps and prints.
+
+The full car (``--model full``): a body accelerometer above each wheel, the wheel
+accelerometers and each corner's deflection (``a_body_fl`` .. ``deflection_rr``) determine its
+four body-corner equations, and with ``--M`` the roll and pitch inertias, every corner's spring
+and damper and the anti-roll bars, given the corners' positions (``--geometry``: the passenger
+full car's by default); the tyres and the wheel masses are printed as not identifiable.
 """
 
 from __future__ import annotations
@@ -22,16 +28,46 @@ from typing import Any, Dict, List, Optional, Tuple
 import numpy as np
 from numpy.typing import NDArray
 
-from . import QuarterCar, RealisticIdentifier, VehidError, fieldlog
+from . import FullCar, QuarterCar, RealisticIdentifier, VehidError, fieldlog
 from .align import nominal_interval
-from .channels import SENSOR_COLUMNS
+from .channels import FULL_SENSOR_COLUMNS, SENSOR_COLUMNS
 from .io import Column, Table, TableError, column_factor, match_columns, open_table, parse_column_map
 
 CHUNK = 65_536
 # A step between samples this many times the sample interval is a gap: the filter restarts.
 GAP_FACTOR = 1.5
 UNITS = {"k2": "N/m", "b": "N s/m", "k2/M": "1/s^2", "b/M": "1/s", "offset": "m/s^2", "M": "kg", "m": "kg",
-         "k1": "N/m"}
+         "k1": "N/m", "Jx": "kg m^2", "Jy": "kg m^2", "arb_f": "N m/rad", "arb_r": "N m/rad",
+         **{f"{q}_{c}": u for c in ("fl", "fr", "rl", "rr") for q, u in (("k", "N/m"), ("b", "N s/m"))}}
+#: The corners' positions ``--geometry`` may give.
+GEOMETRY = ("l_f", "l_r", "track_f", "track_r")
+#: What the full car's realistic sensors cannot determine, and what would.
+FULL_NEEDS = {**{f"kt_{c}": f"the tyre force kt_{c} (u - zw): the road height under the wheel"
+                 for c in ("fl", "fr", "rl", "rr")},
+              **{f"m_{c}": f"the wheel's equation m_{c} dvw/dt = T - kt (zw - u): the tyre force"
+                 for c in ("fl", "fr", "rl", "rr")}}
+
+
+def _unit(name: str) -> str:
+    """A parameter's unit: the named ones, the full car's corner coefficients (``a_fl:d_fr``
+    1/s^2, ``a_fl:rate_fr`` 1/s, ``a_fl:offset`` m/s^2)."""
+    if ":" in name:
+        tail = name.split(":", 1)[1]
+        return "1/s^2" if tail.startswith("d_") else "1/s" if tail.startswith("rate_") else "m/s^2"
+    return UNITS.get(name, "")
+
+
+def _full_car(text: Optional[str]) -> Any:
+    """The passenger full car with ``--geometry`` applied."""
+    params = dict(FullCar.passenger().params)
+    for key, value in (_pairs(text, "--geometry") if text else {}).items():
+        if key not in GEOMETRY:
+            raise RealisticError(f"--geometry: {key!r} is not one of {', '.join(GEOMETRY)}")
+        params[key] = value
+    try:
+        return FullCar(**params)
+    except VehidError as e:
+        raise RealisticError(f"--geometry: {e}") from None
 
 
 class RealisticError(Exception):
@@ -60,21 +96,61 @@ def _gaps(t: NDArray[np.float64], prev: Optional[float], dt: float, table: Table
     return gap if prev is not None else np.concatenate([[False], gap])
 
 
+class _Fit:
+    """The model's side of the fit: the quarter car's structure or the full car, its channels,
+    the identifier, the constants from its stats and what stays undetermined."""
+
+    def __init__(self, args: argparse.Namespace) -> None:
+        self.full = args.model == "full"
+        self.known: Dict[str, float] = {} if args.M is None else {"M": args.M}
+        self.args = args
+        if self.full:
+            self.car: Any = _full_car(args.geometry)
+            self.source: Any = self.car
+            self.channels = FULL_SENSOR_COLUMNS["realistic"]
+            self.needs = dict(FULL_NEEDS)
+            if not self.known:
+                self.needs.update({k: "a known body mass (--M): these sensors give each only relative to it"
+                                   for k in ("M", "Jx", "Jy", "arb_f", "arb_r")})
+        else:
+            if args.geometry is not None:
+                raise RealisticError("--geometry is the full car's (--model full)")
+            self.car = QuarterCar.passenger()
+            try:
+                self.source = self.car.structure(known=self.known, sensors="realistic")
+            except VehidError as e:
+                raise RealisticError(str(e)) from None
+            self.channels = SENSOR_COLUMNS["realistic"]
+            self.needs = self.source.not_identifiable
+
+    def identifier(self, dt: float, where: str) -> RealisticIdentifier:
+        try:
+            return RealisticIdentifier(self.source, dt, bandwidth=self.args.bandwidth, block=self.args.block)
+        except VehidError as e:
+            raise RealisticError(f"{where}: {e}") from None
+
+    def constants(self, st: Any, where: str) -> Dict[str, Tuple[float, float, float]]:
+        if not self.known:
+            return {}
+        try:
+            out: Dict[str, Tuple[float, float, float]] = (
+                self.car.physical(st, **self.known) if self.full else self.car.physical(st))
+            return out
+        except VehidError as e:
+            raise RealisticError(f"{where}: {e}") from None
+
+
 def cmd_identify_realistic(args: argparse.Namespace) -> int:
-    if args.model != "quarter":
+    if args.model not in ("quarter", "full"):
         raise RealisticError(
-            "--sensors realistic: the quarter car only (--model quarter); for the half car identify each axle's "
-            "body equation from its own channels (a_body_f, a_wheel_f, deflection_f as a quarter car), or record "
-            "the state sensors")
-    known: Dict[str, float] = {} if args.M is None else {"M": args.M}
-    truth = _truth(args.truth)
-    try:
-        structure = QuarterCar.passenger().structure(known=known, sensors="realistic")
-    except VehidError as e:
-        raise RealisticError(str(e)) from None
-    channels = SENSOR_COLUMNS["realistic"]
+            "--sensors realistic: the quarter or the full car (--model quarter|full); for the half car identify "
+            "each axle's body equation from its own channels (a_body_f, a_wheel_f, deflection_f as a quarter car), "
+            "or record the state sensors")
+    fit = _Fit(args)
+    truth = _truth(args.truth, fit.full)
+    channels = fit.channels
     if args.file != "-" and (fieldlog.is_bag(args.file) or any(fieldlog.is_channel_map(c) for c in args.columns or [])):
-        return _identify_field_log(args, structure, known, truth)
+        return _identify_field_log(args, fit, truth)
     try:
         mapping = parse_column_map(args.columns or [])
     except TableError as e:
@@ -111,10 +187,7 @@ def cmd_identify_realistic(args: argparse.Namespace) -> int:
                     if len(data) < 2:
                         raise RealisticError(f"{table.source}: one sample cannot give the sample interval: give --dt")
                     dt = nominal_interval(data[:, 0])  # the nominal rate, not a float's noise
-                try:
-                    ident = RealisticIdentifier(structure, dt, bandwidth=args.bandwidth, block=args.block)
-                except VehidError as e:
-                    raise RealisticError(f"{table.source}: {e}") from None
+                ident = fit.identifier(dt, table.source)
             restart = np.zeros(len(y), dtype=bool)
             if has_t:
                 restart = _gaps(data[:, 0], prev, ident.dt, table, chunk.lines, prev_line)
@@ -138,10 +211,8 @@ def cmd_identify_realistic(args: argparse.Namespace) -> int:
         st = ident.stats()
     except VehidError as e:
         raise RealisticError(f"{source}: {e}") from None
-    car = QuarterCar.passenger()
-    constants = car.physical(st) if known else {}
-    needs = structure.not_identifiable
-    report = _report(args, source, samples, gaps, missing, ident, st, constants, needs, truth)
+    constants = fit.constants(st, source)
+    report = _report(args, fit, source, samples, gaps, missing, ident, st, constants, truth)
     if args.json:
         print(json.dumps(report, allow_nan=False))
     else:
@@ -149,12 +220,11 @@ def cmd_identify_realistic(args: argparse.Namespace) -> int:
     return 0
 
 
-def _identify_field_log(args: argparse.Namespace, structure: Any, known: Dict[str, float],
-                        truth: Optional[Dict[str, float]]) -> int:
+def _identify_field_log(args: argparse.Namespace, fit: _Fit, truth: Optional[Dict[str, float]]) -> int:
     """A bag, or a table through a ``channels.toml``: the channels read, converted, aligned
     and checked as ``vehid monitor`` reads them (:mod:`vehid.fieldlog`), then fitted; the
     filter restarts after every missing sample."""
-    channels = SENSOR_COLUMNS["realistic"]
+    channels = fit.channels
     cmap: Optional[fieldlog.ChannelMap] = None
     pairs: List[str] = []
     try:
@@ -169,10 +239,7 @@ def _identify_field_log(args: argparse.Namespace, structure: Any, known: Dict[st
         raise RealisticError(str(e)) from None
     for note in al.notes:
         print(f"vehid: note: {note}", file=sys.stderr)
-    try:
-        ident = RealisticIdentifier(structure, al.dt, bandwidth=args.bandwidth, block=args.block)
-    except VehidError as e:
-        raise RealisticError(f"{log.source}: {e}") from None
+    ident = fit.identifier(al.dt, log.source)
     bad = ~np.isfinite(al.y).all(axis=1)
     starts = np.flatnonzero(np.diff(np.concatenate([[True], bad]).astype(np.int8)) == -1)
     stops = np.flatnonzero(np.diff(np.concatenate([bad, [True]]).astype(np.int8)) == 1) + 1
@@ -184,9 +251,9 @@ def _identify_field_log(args: argparse.Namespace, structure: Any, known: Dict[st
         st = ident.stats()
     except VehidError as e:
         raise RealisticError(f"{log.source}: {e}") from None
-    constants = QuarterCar.passenger().physical(st) if known else {}
-    report = _report(args, log.source, len(al.y), max(0, len(starts) - 1), int(bad.sum()), ident, st, constants,
-                     structure.not_identifiable, truth)
+    constants = fit.constants(st, log.source)
+    report = _report(args, fit, log.source, len(al.y), max(0, len(starts) - 1), int(bad.sum()), ident, st, constants,
+                     truth)
     if args.json:
         print(json.dumps(report, allow_nan=False))
     else:
@@ -194,32 +261,39 @@ def _identify_field_log(args: argparse.Namespace, structure: Any, known: Dict[st
     return 0
 
 
-def _truth(text: Optional[str]) -> Optional[Dict[str, float]]:
+def _truth(text: Optional[str], full: bool = False) -> Optional[Dict[str, float]]:
     if text is None:
         return None
     if text.strip() == "passenger":
-        return dict(QuarterCar.passenger().params)
-    if text.strip() == "thesis":
+        return dict((FullCar if full else QuarterCar).passenger().params)
+    if text.strip() == "thesis" and not full:
         return dict(QuarterCar().params)
+    return _pairs(text, "--truth")
+
+
+def _pairs(text: str, option: str) -> Dict[str, float]:
+    """``NAME=VALUE,...`` with finite values."""
     out: Dict[str, float] = {}
     for item in text.split(","):
         key, sep, value = item.partition("=")
         try:
             out[key.strip()] = float(value)
         except ValueError:
-            raise RealisticError(f"--truth: {item.strip()!r} is not NAME=VALUE") from None
+            raise RealisticError(f"{option}: {item.strip()!r} is not NAME=VALUE") from None
         if not sep or not math.isfinite(out[key.strip()]):
-            raise RealisticError(f"--truth: {item.strip()!r} is not NAME=VALUE with a finite value")
+            raise RealisticError(f"{option}: {item.strip()!r} is not NAME=VALUE with a finite value")
     return out
 
 
-def _report(args: argparse.Namespace, source: str, samples: int, gaps: int, missing: int,
+def _report(args: argparse.Namespace, fit: _Fit, source: str, samples: int, gaps: int, missing: int,
             ident: RealisticIdentifier, st: Any, constants: Dict[str, Tuple[float, float, float]],
-            needs: Dict[str, str], truth: Optional[Dict[str, float]]) -> Dict[str, Any]:
+            truth: Optional[Dict[str, float]]) -> Dict[str, Any]:
     params: List[Dict[str, Any]] = []
     for name, v, (lo, hi) in zip(st.names, st.params.tolist(), st.conf_int.tolist()):
         true = None
-        if truth is not None and "/" in name:
+        if truth is not None and ":" in name:
+            true = None
+        elif truth is not None and "/" in name:
             a, b = name.split("/")
             true = truth[a] / truth[b] if a in truth and b in truth else None
         elif truth is not None and name in truth:
@@ -229,7 +303,7 @@ def _report(args: argparse.Namespace, source: str, samples: int, gaps: int, miss
               for k, (v, lo, hi) in constants.items()}
     return {
         "source": source,
-        "model": "quarter",
+        "model": "full" if fit.full else "quarter",
         "sensors": "realistic",
         "samples": samples,
         "used": ident.samples,
@@ -243,23 +317,31 @@ def _report(args: argparse.Namespace, source: str, samples: int, gaps: int, miss
         "known": {"M": args.M} if args.M is not None else {},
         "params": params,
         "constants": consts,
-        "not_identifiable": {k: v for k, v in needs.items() if k not in constants},
+        "not_identifiable": {k: v for k, v in fit.needs.items() if k not in constants},
     }
 
 
 def _print(r: Dict[str, Any]) -> None:
+    full = r["model"] == "full"
+    what = ("full car, realistic sensors (a_body, a_wheel, deflection at fl, fr, rl, rr)" if full
+            else "quarter car, realistic sensors (a_body, a_wheel, deflection)")
     print(f"{r['source']}: {r['samples']} samples ({r['used']} used; {r['restarts']} restart(s) at gaps, "
-          f"{r['missing']} with a missing value), quarter car, realistic sensors (a_body, a_wheel, deflection), "
-          f"sample interval {r['dt']:.6g} s")
-    print(f"method: state-variable filter (bandwidth {r['bandwidth']:g} rad/s) on the body equation, intervals "
+          f"{r['missing']} with a missing value), {what}, sample interval {r['dt']:.6g} s")
+    print(f"method: state-variable filter (bandwidth {r['bandwidth']:g} rad/s) on the "
+          f"{'four body-corner equations' if full else 'body equation'}, intervals "
           f"cluster-robust over {r['blocks']:.0f} blocks of {r['block']:g} s")
     print()
     level = f"{100 * (1 - r['alpha']):g} %"
-    print(f"body equation dvb/dt = -(k2/M) d - (b/M) v + offset, {level} intervals:")
+    if full:
+        print(f"body-corner equations a_i = sum_j (alpha K)_ij (-d_j) + alpha_ij b_j (-v_j) + offset_i, {level} "
+              "intervals (a_i:d_j is (alpha K)_ij, a_i:rate_j alpha_ij b_j):")
+    else:
+        print(f"body equation dvb/dt = -(k2/M) d - (b/M) v + offset, {level} intervals:")
+    width = 13 if full else 6
     for p in r["params"]:
         band = f"[{p['low']:.6g}, {p['high']:.6g}]"
         true = f"true {p['true']:.6g}" if p["true"] is not None else ""
-        print(f"  {p['name']:6s} = {p['value']:<12.6g} {band:26s} {UNITS.get(p['name'], ''):7s} {true}".rstrip())
+        print(f"  {p['name']:{width}s} = {p['value']:<12.6g} {band:26s} {_unit(p['name']):7s} {true}".rstrip())
     print()
     given = ", ".join(f"{k} = {v:g} kg" for k, v in r["known"].items()) or "none"
     print(f"physical constants (known: {given}), {level} intervals:")
@@ -268,6 +350,6 @@ def _print(r: Dict[str, Any]) -> None:
             continue
         band = f"[{c['low']:.6g}, {c['high']:.6g}]"
         true = f"true {c['true']:.6g}" if c["true"] is not None else ""
-        print(f"  {k:3s} = {c['value']:<12.6g} {band:26s} {UNITS.get(k, ''):7s} {true}".rstrip())
+        print(f"  {k:5s} = {c['value']:<12.6g} {band:26s} {_unit(k):7s} {true}".rstrip())
     for k, why in r["not_identifiable"].items():
-        print(f"  {k:3s}   not identifiable from these signals: needs {why}")
+        print(f"  {k:5s}   not identifiable from these signals: needs {why}")

@@ -193,7 +193,8 @@ pub(crate) fn physical_full_stats<'py>(
 /// `FullCar.physical(stats, M=...)` on the stats of `RealisticIdentifier(full)`: the body mass
 /// given, the constants the four body-corner equations determine (`model::CORNER_DETERMINED`:
 /// inertias, springs, dampers, anti-roll bars) with intervals at the stats' level
-/// (`FullCar::from_corner_coefficients`: a weighted fit, its sandwich covariance), and `M` as
+/// (`FullCar::from_corner_coefficients`: a weighted fit, its sandwich covariance; a bar's
+/// estimate as fitted, below 0 on a car without one when its scatter says so), and `M` as
 /// (value, value, value); the tyres and the wheel masses are not determined by these sensors
 /// and are left out.
 fn physical_corners<'py>(
@@ -221,10 +222,8 @@ fn physical_corners<'py>(
              determine the springs, dampers, inertias and bars only relative to it",
         ));
     };
-    let (est, se) = car.from_corner_coefficients(&st.s.params, &st.s.cov, m_body).map_err(core_err)?;
+    let (_, values, se) = car.from_corner_coefficients(&st.s.params, &st.s.cov, m_body).map_err(core_err)?;
     let q = vehid_core::stats::t_interval_factor(st.s.alpha, &st.s.df).map_err(core_err)?;
-    let p = est.params();
-    let values = [p.jx, p.jy, p.k[0], p.k[1], p.k[2], p.k[3], p.b[0], p.b[1], p.b[2], p.b[3], p.arb_f, p.arb_r];
     let out = PyDict::new(py);
     out.set_item("M", (m_body, m_body, m_body))?;
     for ((name, v), s) in vehid_core::model::CORNER_DETERMINED.iter().zip(values).zip(se) {

@@ -29,7 +29,7 @@ fn the_constants_are_exact_on_exact_coefficients() {
     // The start is far off: inertias 40 % high, no bars.
     let start = FullCar::new(FullCarParams { jx: p.jx * 1.4, jy: p.jy * 1.4, arb_f: 0.0, arb_r: 0.0, ..p }).unwrap();
     let cov: Vec<f64> = (0..36 * 36).map(|q| if q / 36 == q % 36 { 1e-6 } else { 0.0 }).collect();
-    let (got, se) = start.from_corner_coefficients(&exact(&car), &cov, p.m_body).unwrap();
+    let (got, _, se) = start.from_corner_coefficients(&exact(&car), &cov, p.m_body).unwrap();
     let g = got.params();
     let want = [p.jx, p.jy, p.k[0], p.k[1], p.k[2], p.k[3], p.b[0], p.b[1], p.b[2], p.b[3], p.arb_f, p.arb_r];
     let have = [g.jx, g.jy, g.k[0], g.k[1], g.k[2], g.k[3], g.b[0], g.b[1], g.b[2], g.b[3], g.arb_f, g.arb_r];
@@ -40,7 +40,7 @@ fn the_constants_are_exact_on_exact_coefficients() {
     // What the equations do not hold is the start's.
     assert_eq!((g.kt, g.m, g.l_f, g.track_r), (p.kt, p.m, p.l_f, p.track_r));
     // A body mass 10 % off scales every constant with it.
-    let (heavy, _) = start.from_corner_coefficients(&exact(&car), &cov, 1.1 * p.m_body).unwrap();
+    let (heavy, _, _) = start.from_corner_coefficients(&exact(&car), &cov, 1.1 * p.m_body).unwrap();
     assert!((heavy.params().k[2] / p.k[2] - 1.1).abs() < 1e-9);
 }
 
@@ -63,7 +63,7 @@ fn coefficients_and_constants_from_a_drive() {
         let big = want[9 * (q / 9)..9 * (q / 9) + 8].iter().fold(0.0f64, |m, v| m.max(v.abs()));
         assert!((st.params[q] - want[q]).abs() < 0.02 * big, "coefficient {q}: {} for {}", st.params[q], want[q]);
     }
-    let (got, se) = car.from_corner_coefficients(&st.params, &st.cov, car.params().m_body).unwrap();
+    let (got, _, se) = car.from_corner_coefficients(&st.params, &st.cov, car.params().m_body).unwrap();
     let (g, p) = (got.params(), car.params());
     let pairs = [(g.jx, p.jx), (g.jy, p.jy), (g.k[0], p.k[0]), (g.k[3], p.k[3]), (g.b[1], p.b[1]), (g.b[2], p.b[2])];
     for (h, w) in pairs {
@@ -166,7 +166,7 @@ fn the_constants_standard_errors_are_their_scatter() {
     let sd: Vec<f64> =
         truth.iter().enumerate().map(|(q, v)| 1e-3 * v.abs().max(1.0) * (1.0 + (q % 5) as f64)).collect();
     let cov: Vec<f64> = (0..36 * 36).map(|q| if q / 36 == q % 36 { sd[q / 36] * sd[q / 36] } else { 0.0 }).collect();
-    let (_, se) = car.from_corner_coefficients(&truth, &cov, car.params().m_body).unwrap();
+    let (_, _, se) = car.from_corner_coefficients(&truth, &cov, car.params().m_body).unwrap();
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(81);
     let draws = 400;
     let mut sum = [0.0; 12];
@@ -177,7 +177,7 @@ fn the_constants_standard_errors_are_their_scatter() {
             .zip(&sd)
             .map(|(v, s)| v + s * <StandardNormal as Distribution<f64>>::sample(&StandardNormal, &mut rng))
             .collect();
-        let (got, _) = car.from_corner_coefficients(&noisy, &cov, car.params().m_body).unwrap();
+        let (got, _, _) = car.from_corner_coefficients(&noisy, &cov, car.params().m_body).unwrap();
         let g = got.params();
         let v = [g.jx, g.jy, g.k[0], g.k[1], g.k[2], g.k[3], g.b[0], g.b[1], g.b[2], g.b[3], g.arb_f, g.arb_r];
         for k in 0..12 {
@@ -191,4 +191,29 @@ fn the_constants_standard_errors_are_their_scatter() {
         let name = crate::model::CORNER_DETERMINED[k];
         assert!((scatter / se[k] - 1.0).abs() < 0.15, "{name}: scatter {scatter}, standard error {}", se[k]);
     }
+}
+
+#[test]
+fn a_car_without_bars_keeps_their_scatter_about_zero() {
+    // The passenger car has no bars: on a drive their estimates scatter about 0, and one
+    // below 0 is reported as it is (with its standard error) while the car takes 0.
+    let car = FullCar::<f64>::passenger();
+    let dt = 0.005;
+    let mut lows = 0;
+    for seed in 0..6 {
+        let mut drive = FullDrive::new(car, FullDriveConfig::new(DriveConfig::new(dt).speed(20.0)), 60 + seed).unwrap();
+        let mut fit = CornerFilterFit::new(dt, CORNER_BANDWIDTH, 2.0).unwrap();
+        for _ in 0..12_000 {
+            fit.update(drive.next_sample().y()).unwrap();
+        }
+        let st = fit.stats(0.05).unwrap();
+        let (got, values, se) = car.from_corner_coefficients(&st.params, &st.cov, car.params().m_body).unwrap();
+        for (v, s) in values[10..].iter().zip(&se[10..]) {
+            assert!(v.abs() < 4.0 * s, "a bar of {v} +- {s} on a car without");
+            lows += usize::from(*v < 0.0);
+        }
+        assert!(got.params().arb_f >= 0.0 && got.params().arb_r >= 0.0);
+        assert_eq!(got.params().arb_f, values[10].max(0.0));
+    }
+    assert!(lows > 0, "no bar estimate below 0 in 12: the test does not reach the clamp");
 }

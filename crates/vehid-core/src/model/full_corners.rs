@@ -55,16 +55,23 @@ impl FullCar<f64> {
     /// covariance: with equal tracks it is nearly singular, module documentation of
     /// [`crate::identify::CornerFilterFit`]), from `self`'s values; the covariance of `p` is the
     /// sandwich `G cov Gᵀ`, `G = (JᵀWJ)⁻¹ JᵀW`, mapped to the constants (`Jx = 1/p₈`, …).
-    /// Returns the car and the standard errors of [`CORNER_DETERMINED`] (kg·m², N/m, N·s/m,
-    /// N·m/rad). Exact on exact coefficients.
+    /// Returns the car, the estimates of [`CORNER_DETERMINED`] and their standard errors (kg·m²,
+    /// N/m, N·s/m, N·m/rad). An anti-roll bar's estimate may be below 0 on a car without one
+    /// (its scatter about 0): the estimates keep it, the car takes it as 0. Exact on exact
+    /// coefficients.
     ///
     /// # Errors
     /// [`Error::Shape`] for `theta` or `cov` of other lengths; [`Error::InvalidArgument`] for
     /// non-finite values or `m_body` not > 0; [`Error::RankDeficient`] when the coefficients do
     /// not determine the constants (a corner without excitation); [`Error::NotIdentifiable`]
-    /// when the fit does not converge or gives a car with a constant ≤ 0 (a bar < 0), which
+    /// when the fit does not converge or gives an inertia, spring or damper ≤ 0, which
     /// coefficients of a rigid body on four suspensions cannot give.
-    pub fn from_corner_coefficients(&self, theta: &[f64], cov: &[f64], m_body: f64) -> Result<(Self, [f64; 12])> {
+    pub fn from_corner_coefficients(
+        &self,
+        theta: &[f64],
+        cov: &[f64],
+        m_body: f64,
+    ) -> Result<(Self, [f64; 12], [f64; 12])> {
         const N: usize = 36;
         if theta.len() != N {
             return Err(Error::Shape { arg: "theta", expected: N, got: theta.len() });
@@ -184,11 +191,12 @@ impl FullCar<f64> {
         c.jy = 1.0 / p[9];
         c.k = [p[0], p[1], p[2], p[3]];
         c.b = [p[4], p[5], p[6], p[7]];
-        c.arb_f = p[10] * tf2;
-        c.arb_r = p[11] * tr2;
+        c.arb_f = (p[10] * tf2).max(0.0);
+        c.arb_r = (p[11] * tr2).max(0.0);
         let car = FullCar::new(c).map_err(|_| Error::NotIdentifiable {
-            what: "the constants: the corner coefficients give a constant <= 0 (or a bar < 0), which no car has",
+            what: "the constants: the corner coefficients give an inertia, spring or damper <= 0, which no car has",
         })?;
+        let values = [c.jx, c.jy, p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[10] * tf2, p[11] * tr2];
         let se = [
             se_p[8] / (p[8] * p[8]),
             se_p[9] / (p[9] * p[9]),
@@ -203,6 +211,6 @@ impl FullCar<f64> {
             se_p[10] * tf2,
             se_p[11] * tr2,
         ];
-        Ok((car, se))
+        Ok((car, values, se))
     }
 }
