@@ -7,7 +7,9 @@ an independent simulator, pickling and bad input."""
 from __future__ import annotations
 
 import copy
+import json
 import pickle
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,6 +17,7 @@ from bench_scripts import load  # tests/ is on sys.path under pytest
 from readme_blocks import README, python_blocks
 
 import vehid
+from vehid import cli
 
 DT = 0.005
 BARS = {"arb_f": 15_000.0, "arb_r": 8_000.0}
@@ -153,3 +156,32 @@ def test_the_worked_example_runs() -> None:
     blocks = [code for _, code in python_blocks(page) if "RealisticIdentifier(full" in code]
     assert len(blocks) == 1
     exec(compile(blocks[0], "real-roads.md", "exec"), {})
+
+
+def test_vehid_identify_model_full_sensors_realistic(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # A passenger full car's drive from `vehid simulate` (no bars), identified from its twelve
+    # realistic channels: with --M every k and b within 1 % (the CSV's true constants are not
+    # read here; --truth passenger gives the true column), the bars about 0, the tyres and
+    # wheel masses not identifiable; without --M the constants are named as needing it.
+    log = tmp_path / "full.csv"
+    assert cli.main(["simulate", "--model", "full", "--road", "iso8608-C", "--speed", "20", "--sensors", "realistic",
+                     "--n", "40000", "--seed", "4", "-o", str(log)]) == 0
+    capsys.readouterr()
+    assert cli.main(["identify", str(log), "--model", "full", "--sensors", "realistic", "--M", "1500",
+                     "--truth", "passenger", "--json"]) == 0
+    r = json.loads(capsys.readouterr().out)
+    assert r["model"] == "full" and r["bandwidth"] == 30.0 and len(r["params"]) == 36
+    truth = vehid.FullCar.passenger().params
+    for name in NAMES[:10]:
+        c = r["constants"][name]
+        assert abs(c["value"] / truth[name] - 1) < 0.01 and c["true"] == truth[name], (name, c)
+    for bar in ("arb_f", "arb_r"):
+        c = r["constants"][bar]
+        assert abs(c["value"]) < c["high"] - c["low"], (bar, c)  # within about two standard errors of 0
+    assert set(r["not_identifiable"]) == {f"{q}_{c}" for q in ("kt", "m") for c in ("fl", "fr", "rl", "rr")}
+    assert cli.main(["identify", str(log), "--model", "full", "--sensors", "realistic"]) == 0
+    out = capsys.readouterr().out
+    assert "a_fl:rate_fl" in out and "Jx      not identifiable from these signals: needs a known body mass" in out
+    assert cli.main(["identify", str(log), "--model", "full", "--sensors", "realistic", "--M", "1500",
+                     "--geometry", "l_f=1.4,wheelbase=3"]) == 2
+    assert "'wheelbase' is not one of l_f, l_r, track_f, track_r" in capsys.readouterr().err

@@ -191,4 +191,4 @@ def test_vehid_identify_realistic_refuses_what_it_cannot_do(tmp_path: Path,
     assert cli.main(["identify", str(log), "--model", "quarter", "--sensors", "realistic"]) == 2
     assert "no column a_wheel" in capsys.readouterr().err
     assert cli.main(["identify", str(log), "--model", "half", "--sensors", "realistic"]) == 2
-    assert "quarter car only" in capsys.readouterr().err
+    assert "the quarter or the full car (--model quarter|full)" in capsys.readouterr().err

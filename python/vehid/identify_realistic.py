@@ -343,6 +343,7 @@ def _print(r: Dict[str, Any]) -> None:
         true = f"true {p['true']:.6g}" if p["true"] is not None else ""
         print(f"  {p['name']:{width}s} = {p['value']:<12.6g} {band:26s} {_unit(p['name']):7s} {true}".rstrip())
     print()
+    name_width = 5 if full else 3
     given = ", ".join(f"{k} = {v:g} kg" for k, v in r["known"].items()) or "none"
     print(f"physical constants (known: {given}), {level} intervals:")
     for k, c in r["constants"].items():
@@ -350,6 +351,6 @@ def _print(r: Dict[str, Any]) -> None:
             continue
         band = f"[{c['low']:.6g}, {c['high']:.6g}]"
         true = f"true {c['true']:.6g}" if c["true"] is not None else ""
-        print(f"  {k:5s} = {c['value']:<12.6g} {band:26s} {_unit(k):7s} {true}".rstrip())
+        print(f"  {k:{name_width}s} = {c['value']:<12.6g} {band:26s} {_unit(k):7s} {true}".rstrip())
     for k, why in r["not_identifiable"].items():
-        print(f"  {k:5s}   not identifiable from these signals: needs {why}")
+        print(f"  {k:{name_width}s}   not identifiable from these signals: needs {why}")
