@@ -1244,16 +1244,18 @@ def add_parser(sub: Any) -> None:
                             "zw, vw, zb, vb and their derivatives); realistic: a body and a wheel accelerometer and a "
                             "deflection sensor (columns a_body, a_wheel, deflection; quarter car), which determine "
                             "k2/M and b/M (k2 and b with --M) on any road, never m or k1 (printed as not "
-                            "identifiable, with what they need); the full car's a_body_fl .. deflection_rr (with --M: "
-                            "Jx, Jy, every k and b, the anti-roll bars)")
+                            "identifiable, with what they need); the half car's a_body_f .. deflection_r (with --M: J, "
+                            "k12, k22, b1, b2), the full car's a_body_fl .. deflection_rr (with --M: Jx, Jy, every k "
+                            "and b, the anti-roll bars)")
     ident.add_argument("--M", type=positive_float, default=None,
                        help="--sensors realistic: the known body mass M, kg (then k2 and b, else only k2/M and b/M)")
     ident.add_argument("--bandwidth", type=positive_float, default=None,
-                       help="--sensors realistic: the state-variable filter's bandwidth, rad/s (default 10; the full "
-                            "car's 30)")
+                       help="--sensors realistic: the state-variable filter's bandwidth, rad/s (default 10; the half "
+                            "and full car's 30)")
     ident.add_argument("--geometry", default=None, metavar="NAME=VALUE,...",
-                       help="--model full --sensors realistic: the corners' positions l_f, l_r, track_f, track_r, m "
-                            "(default: the passenger full car's 1.4, 1.7, 1.5, 1.5)")
+                       help="--model full|half --sensors realistic: the corners' positions, m: the full car's l_f, "
+                            "l_r, track_f, track_r (default: the passenger full car's 1.4, 1.7, 1.5, 1.5), the half "
+                            "car's l1, l2 (the passenger half car's 1.2, 1.5)")
     ident.add_argument("--block", type=positive_float, default=2.0,
                        help="--sensors realistic: the blocks of the cluster-robust intervals, s (default 2)")
     ident.add_argument("--dt", type=positive_float, default=None,

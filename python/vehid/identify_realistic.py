@@ -28,24 +28,29 @@ from typing import Any, Dict, List, Optional, Tuple
 import numpy as np
 from numpy.typing import NDArray
 
-from . import FullCar, QuarterCar, RealisticIdentifier, VehidError, fieldlog
+from . import FullCar, HalfCar, QuarterCar, RealisticIdentifier, VehidError, fieldlog
 from .align import nominal_interval
-from .channels import FULL_SENSOR_COLUMNS, SENSOR_COLUMNS
+from .channels import FULL_SENSOR_COLUMNS, HALF_SENSOR_COLUMNS, SENSOR_COLUMNS
 from .io import Column, Table, TableError, column_factor, match_columns, open_table, parse_column_map
 
 CHUNK = 65_536
 # A step between samples this many times the sample interval is a gap: the filter restarts.
 GAP_FACTOR = 1.5
 UNITS = {"k2": "N/m", "b": "N s/m", "k2/M": "1/s^2", "b/M": "1/s", "offset": "m/s^2", "M": "kg", "m": "kg",
-         "k1": "N/m", "Jx": "kg m^2", "Jy": "kg m^2", "arb_f": "N m/rad", "arb_r": "N m/rad",
+         "k1": "N/m", "Jx": "kg m^2", "Jy": "kg m^2", "arb_f": "N m/rad", "arb_r": "N m/rad", "J": "kg m^2",
+         "k12": "N/m", "k22": "N/m", "b1": "N s/m", "b2": "N s/m",
          **{f"{q}_{c}": u for c in ("fl", "fr", "rl", "rr") for q, u in (("k", "N/m"), ("b", "N s/m"))}}
-#: The corners' positions ``--geometry`` may give.
-GEOMETRY = ("l_f", "l_r", "track_f", "track_r")
+#: The corners' positions ``--geometry`` may give (the full car's, the half car's).
+GEOMETRY = {"full": ("l_f", "l_r", "track_f", "track_r"), "half": ("l1", "l2")}
 #: What the full car's realistic sensors cannot determine, and what would.
 FULL_NEEDS = {**{f"kt_{c}": f"the tyre force kt_{c} (u - zw): the road height under the wheel"
                  for c in ("fl", "fr", "rl", "rr")},
               **{f"m_{c}": f"the wheel's equation m_{c} dvw/dt = T - kt (zw - u): the tyre force"
                  for c in ("fl", "fr", "rl", "rr")}}
+#: The half car's: the tyres k11, k21 and the wheel masses m1, m2.
+HALF_NEEDS = {"k11": "the front tyre force k11 (u - zw): the road height under the wheel",
+              "k21": "the rear tyre force k21 (u - zw): the road height under the wheel",
+              "m1": "the front wheel's equation: the tyre force", "m2": "the rear wheel's equation: the tyre force"}
 
 
 def _unit(name: str) -> str:
@@ -57,15 +62,16 @@ def _unit(name: str) -> str:
     return UNITS.get(name, "")
 
 
-def _full_car(text: Optional[str]) -> Any:
-    """The passenger full car with ``--geometry`` applied."""
-    params = dict(FullCar.passenger().params)
+def _corner_car(model: str, text: Optional[str]) -> Any:
+    """The passenger full or half car with ``--geometry`` applied."""
+    cls: Any = FullCar if model == "full" else HalfCar
+    params = dict(cls.passenger().params)
     for key, value in (_pairs(text, "--geometry") if text else {}).items():
-        if key not in GEOMETRY:
-            raise RealisticError(f"--geometry: {key!r} is not one of {', '.join(GEOMETRY)}")
+        if key not in GEOMETRY[model]:
+            raise RealisticError(f"--geometry: {key!r} is not one of {', '.join(GEOMETRY[model])}")
         params[key] = value
     try:
-        return FullCar(**params)
+        return cls(**params)
     except VehidError as e:
         raise RealisticError(f"--geometry: {e}") from None
 
@@ -101,20 +107,23 @@ class _Fit:
     the identifier, the constants from its stats and what stays undetermined."""
 
     def __init__(self, args: argparse.Namespace) -> None:
-        self.full = args.model == "full"
+        self.model = args.model
+        self.full = args.model in ("full", "half")  # the corner equations
         self.known: Dict[str, float] = {} if args.M is None else {"M": args.M}
         self.args = args
         if self.full:
-            self.car: Any = _full_car(args.geometry)
+            half = args.model == "half"
+            self.car: Any = _corner_car(args.model, args.geometry)
             self.source: Any = self.car
-            self.channels = FULL_SENSOR_COLUMNS["realistic"]
-            self.needs = dict(FULL_NEEDS)
+            self.channels = (HALF_SENSOR_COLUMNS if half else FULL_SENSOR_COLUMNS)["realistic"]
+            self.needs = dict(HALF_NEEDS if half else FULL_NEEDS)
             if not self.known:
+                relative = ("M", "J", "k12", "k22", "b1", "b2") if half else ("M", "Jx", "Jy", "arb_f", "arb_r")
                 self.needs.update({k: "a known body mass (--M): these sensors give each only relative to it"
-                                   for k in ("M", "Jx", "Jy", "arb_f", "arb_r")})
+                                   for k in relative})
         else:
             if args.geometry is not None:
-                raise RealisticError("--geometry is the full car's (--model full)")
+                raise RealisticError("--geometry is the full or the half car's (--model full|half)")
             self.car = QuarterCar.passenger()
             try:
                 self.source = self.car.structure(known=self.known, sensors="realistic")
@@ -141,11 +150,10 @@ class _Fit:
 
 
 def cmd_identify_realistic(args: argparse.Namespace) -> int:
-    if args.model not in ("quarter", "full"):
+    if args.model not in ("quarter", "half", "full"):
         raise RealisticError(
-            "--sensors realistic: the quarter or the full car (--model quarter|full); for the half car identify "
-            "each axle's body equation from its own channels (a_body_f, a_wheel_f, deflection_f as a quarter car), "
-            "or record the state sensors")
+            "--sensors realistic: the quarter, half or full car (--model quarter|half|full); a model file's "
+            "structure needs its state sensors")
     fit = _Fit(args)
     truth = _truth(args.truth, fit.full)
     channels = fit.channels
@@ -303,7 +311,7 @@ def _report(args: argparse.Namespace, fit: _Fit, source: str, samples: int, gaps
               for k, (v, lo, hi) in constants.items()}
     return {
         "source": source,
-        "model": "full" if fit.full else "quarter",
+        "model": fit.model,
         "sensors": "realistic",
         "samples": samples,
         "used": ident.samples,
@@ -322,13 +330,14 @@ def _report(args: argparse.Namespace, fit: _Fit, source: str, samples: int, gaps
 
 
 def _print(r: Dict[str, Any]) -> None:
-    full = r["model"] == "full"
-    what = ("full car, realistic sensors (a_body, a_wheel, deflection at fl, fr, rl, rr)" if full
+    full = r["model"] in ("full", "half")
+    corners = "f, r" if r["model"] == "half" else "fl, fr, rl, rr"
+    what = (f"{r['model']} car, realistic sensors (a_body, a_wheel, deflection at {corners})" if full
             else "quarter car, realistic sensors (a_body, a_wheel, deflection)")
     print(f"{r['source']}: {r['samples']} samples ({r['used']} used; {r['restarts']} restart(s) at gaps, "
           f"{r['missing']} with a missing value), {what}, sample interval {r['dt']:.6g} s")
     print(f"method: state-variable filter (bandwidth {r['bandwidth']:g} rad/s) on the "
-          f"{'four body-corner equations' if full else 'body equation'}, intervals "
+          f"{'body-corner equations' if full else 'body equation'}, intervals "
           f"cluster-robust over {r['blocks']:.0f} blocks of {r['block']:g} s")
     print()
     level = f"{100 * (1 - r['alpha']):g} %"

@@ -165,7 +165,7 @@ pub(crate) fn physical_full_stats<'py>(
     known: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     use vehid_core::model::FULL_STATES;
-    if st.names == crate::realistic::corner_names() {
+    if st.names == crate::realistic::corner_names(4) {
         return physical_corners(py, car, st, known);
     }
     let n = 7 * FULL_STATES;
@@ -203,6 +203,19 @@ fn physical_corners<'py>(
     st: &crate::stats::PyStats,
     known: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let m_body = body_mass_keyword(known)?;
+    let (_, values, se) = car.from_corner_coefficients(&st.s.params, &st.s.cov, m_body).map_err(core_err)?;
+    let q = vehid_core::stats::t_interval_factor(st.s.alpha, &st.s.df).map_err(core_err)?;
+    let out = PyDict::new(py);
+    out.set_item("M", (m_body, m_body, m_body))?;
+    for ((name, v), s) in vehid_core::model::CORNER_DETERMINED.iter().zip(values).zip(se) {
+        out.set_item(*name, (v, v - q * s, v + q * s))?;
+    }
+    Ok(out)
+}
+
+/// The body mass `M=` of `physical()` on the corner equations' stats (the only keyword).
+pub(crate) fn body_mass_keyword(known: Option<&Bound<'_, PyDict>>) -> PyResult<f64> {
     let mut m_body = None;
     if let Some(kw) = known {
         for (k, v) in kw.iter() {
@@ -216,20 +229,12 @@ fn physical_corners<'py>(
             m_body = Some(v.extract::<f64>().map_err(|_| VehidError::new_err("`M` must be a number (a mass in kg)"))?);
         }
     }
-    let Some(m_body) = m_body else {
-        return Err(VehidError::new_err(
-            "FullCar.physical() on the corner equations needs the body mass M= (kg): the realistic sensors \
-             determine the springs, dampers, inertias and bars only relative to it",
-        ));
-    };
-    let (_, values, se) = car.from_corner_coefficients(&st.s.params, &st.s.cov, m_body).map_err(core_err)?;
-    let q = vehid_core::stats::t_interval_factor(st.s.alpha, &st.s.df).map_err(core_err)?;
-    let out = PyDict::new(py);
-    out.set_item("M", (m_body, m_body, m_body))?;
-    for ((name, v), s) in vehid_core::model::CORNER_DETERMINED.iter().zip(values).zip(se) {
-        out.set_item(*name, (v, v - q * s, v + q * s))?;
-    }
-    Ok(out)
+    m_body.ok_or_else(|| {
+        VehidError::new_err(
+            "physical() on the corner equations needs the body mass M= (kg): the realistic sensors determine the \
+             springs, dampers and inertias only relative to it",
+        )
+    })
 }
 
 /// The four wheel masses from `physical()`'s keywords (each required; no other keyword).

@@ -326,6 +326,11 @@ impl PyLinearModel {
         if let (Ok(st), Kind::Full(car)) = (theta_hat.cast::<crate::stats::PyStats>(), self.kind) {
             return crate::full::physical_full_stats(py, &car, &self.data, st.get(), known);
         }
+        if let (Ok(st), Kind::Half(car)) = (theta_hat.cast::<crate::stats::PyStats>(), self.kind) {
+            if st.get().names == crate::realistic::corner_names(2) {
+                return crate::realistic::physical_half_corners(py, &car, st.get(), known);
+            }
+        }
         if let (Ok(st), Kind::Quarter(_) | Kind::Half(_)) = (theta_hat.cast::<crate::stats::PyStats>(), self.kind) {
             let car = match self.kind {
                 Kind::Quarter(_) => crate::structure::CarKind::Quarter,

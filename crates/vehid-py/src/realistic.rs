@@ -16,7 +16,8 @@ use vehid_core::model::CORNERS;
 /// Version of the pickled state's layout.
 const STATE_FORMAT: u32 = 2;
 
-/// The fit: the quarter car's body equation on its structure, or the full car's four corners.
+/// The fit: the quarter car's body equation on its structure, or the full car's four corners
+/// (the half car's two) with the car given.
 enum Core {
     Quarter(Box<StateFilterFit>, Py<PyStructure>),
     Full(Box<CornerFilterFit>, Py<PyAny>),
@@ -36,6 +37,9 @@ impl Core {
     fn channels(&self) -> (usize, &'static str) {
         match self {
             Core::Quarter(..) => (3, "a_body, a_wheel, deflection"),
+            Core::Full(c, _) if c.corners() == 2 => {
+                (6, "a_body_f, a_body_r, a_wheel_f, a_wheel_r, deflection_f, deflection_r (the half car's)")
+            }
             Core::Full(..) => {
                 (12, "a_body_fl..rr, a_wheel_fl..rr, deflection_fl..rr (the full car's realistic channels)")
             }
@@ -43,12 +47,14 @@ impl Core {
     }
 }
 
-/// The names of the full car's 36 coefficients: `a_<corner>:d_<corner>` (the extension's),
-/// `a_<corner>:rate_<corner>` and `a_<corner>:offset`, equation by equation.
-pub(crate) fn corner_names() -> Vec<String> {
-    let mut out = Vec::with_capacity(36);
-    for i in CORNERS {
-        for j in CORNERS {
+/// The names of the full car's 36 coefficients (the half car's 10: `corners` 2):
+/// `a_<corner>:d_<corner>` (the extension's), `a_<corner>:rate_<corner>` and `a_<corner>:offset`,
+/// equation by equation.
+pub(crate) fn corner_names(corners: usize) -> Vec<String> {
+    let names: &[&str] = if corners == 2 { &["f", "r"] } else { &CORNERS };
+    let mut out = Vec::with_capacity(names.len() * (2 * names.len() + 1));
+    for i in names {
+        for j in names {
             out.push(format!("a_{i}:d_{j}"));
             out.push(format!("a_{i}:rate_{j}"));
         }
@@ -69,7 +75,9 @@ pub(crate) fn corner_names() -> Vec<String> {
 /// freedom); `car.physical(stats)` the constants (k2 and b with M known); m and k1 are not
 /// determined by these sensors (`structure.not_identifiable`).
 ///
-/// Given a `FullCar` instead of a structure: the four body-corner equations `a_i = Σ_j
+/// Given a `FullCar` instead of a structure (a `HalfCar`: the same with its two corners f, r,
+/// `α_ij = 1/M + x_i x_j/J`, six channels, `half.physical(stats, M=...)` for J, k12, k22, b1,
+/// b2): the four body-corner equations `a_i = Σ_j
 /// Θ_2j,i (−d_j) + Θ_2j+1,i (−ḋ_j) + c_i` (`Θ_2j,i = (α K)_ij`, `Θ_2j+1,i = α_ij b_j`, `α_ij =
 /// 1/M + x_i x_j/Jy + y_i y_j/Jx`) from the twelve realistic channels `[a_body_fl..rr,
 /// a_wheel_fl..rr, deflection_fl..rr]`, the same filter on every signal, the covariance of all
@@ -93,8 +101,10 @@ impl PyRealisticIdentifier {
         Ok(Self { core: Core::Quarter(Box::new(core), structure.clone().unbind()) })
     }
 
-    fn build_full(car: &Bound<'_, PyAny>, dt: f64, bandwidth: f64, block: f64) -> PyResult<Self> {
-        let core = CornerFilterFit::new(dt, bandwidth, block).map_err(core_err)?;
+    fn build_corners(car: &Bound<'_, PyAny>, half: bool, dt: f64, bandwidth: f64, block: f64) -> PyResult<Self> {
+        let core =
+            if half { CornerFilterFit::half(dt, bandwidth, block) } else { CornerFilterFit::new(dt, bandwidth, block) }
+                .map_err(core_err)?;
         Ok(Self { core: Core::Full(Box::new(core), car.clone().unbind()) })
     }
 
@@ -114,15 +124,16 @@ impl PyRealisticIdentifier {
     #[pyo3(signature = (structure, dt, bandwidth = None, block = DEFAULT_BLOCK))]
     fn new(structure: &Bound<'_, PyAny>, dt: f64, bandwidth: Option<f64>, block: f64) -> PyResult<Self> {
         if let Ok(model) = structure.cast::<PyLinearModel>() {
-            if matches!(model.get().kind, Kind::Full(_)) {
-                return Self::build_full(structure, dt, bandwidth.unwrap_or(CORNER_BANDWIDTH), block);
+            if let Kind::Full(_) | Kind::Half(_) = model.get().kind {
+                let half = matches!(model.get().kind, Kind::Half(_));
+                return Self::build_corners(structure, half, dt, bandwidth.unwrap_or(CORNER_BANDWIDTH), block);
             }
         }
         let bandwidth = bandwidth.unwrap_or(DEFAULT_BANDWIDTH);
         let s = structure.cast::<PyStructure>().map_err(|_| {
             VehidError::new_err(
                 "`structure` must be a vehid.Structure from QuarterCar.structure(known=..., sensors=\"realistic\"), \
-                 or a vehid.FullCar",
+                 a vehid.HalfCar or a vehid.FullCar",
             )
         })?;
         Self::build(s, dt, bandwidth, block)
@@ -189,7 +200,7 @@ impl PyRealisticIdentifier {
             }
             Core::Full(c, _) => {
                 let s = c.stats(alpha).map_err(core_err)?;
-                Ok(PyStats { s, names: corner_names(), structure: None })
+                Ok(PyStats { s, names: corner_names(c.corners()), structure: None })
             }
         }
     }
@@ -205,7 +216,7 @@ impl PyRealisticIdentifier {
         }
     }
 
-    /// The FullCar given (None for a structure's fit).
+    /// The FullCar or HalfCar given (None for a structure's fit).
     #[getter]
     fn car(slf: &Bound<'_, Self>) -> PyResult<Option<Py<PyAny>>> {
         Ok(match &borrow(slf)?.core {
@@ -247,7 +258,11 @@ impl PyRealisticIdentifier {
     fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
         let this = borrow(slf)?;
         let (dt, bandwidth, samples) = both!(&this.core, c => (c.dt(), c.bandwidth(), c.samples()));
-        let of = if matches!(this.core, Core::Full(..)) { "FullCar, " } else { "" };
+        let of = match &this.core {
+            Core::Full(c, _) if c.corners() == 2 => "HalfCar, ",
+            Core::Full(..) => "FullCar, ",
+            Core::Quarter(..) => "",
+        };
         Ok(format!("RealisticIdentifier({of}dt={dt:?}, bandwidth={bandwidth:?}, samples={samples})"))
     }
 
@@ -304,7 +319,7 @@ impl PyRealisticIdentifier {
             }
             Core::Full(now, _) => {
                 let core: CornerFilterFit = vehid_runtime::seal::open(&payload).map_err(undecodable)?;
-                let settings = |c: &CornerFilterFit| (c.dt(), c.bandwidth(), c.block());
+                let settings = |c: &CornerFilterFit| (c.corners(), c.dt(), c.bandwidth(), c.block());
                 if settings(&core) != settings(now) || !core.is_consistent() {
                     return Err(mismatch());
                 }
@@ -321,4 +336,24 @@ impl PyRealisticIdentifier {
     fn __deepcopy__(slf: &Bound<'_, Self>, _memo: &Bound<'_, PyAny>) -> PyResult<Self> {
         Self::__copy__(slf)
     }
+}
+
+/// `HalfCar.physical(stats, M=...)` on the stats of `RealisticIdentifier(half)`: `M` given as
+/// (value, value, value), then J, k12, k22, b1, b2 with intervals at the stats' level
+/// (`HalfCar::from_corner_coefficients`); the tyres and the wheel masses are left out.
+pub(crate) fn physical_half_corners<'py>(
+    py: Python<'py>,
+    car: &vehid_core::model::HalfCar<f64>,
+    st: &PyStats,
+    known: Option<&Bound<'py, pyo3::types::PyDict>>,
+) -> PyResult<Bound<'py, pyo3::types::PyDict>> {
+    let m_body = crate::full::body_mass_keyword(known)?;
+    let (_, values, se) = car.from_corner_coefficients(&st.s.params, &st.s.cov, m_body).map_err(core_err)?;
+    let q = vehid_core::stats::t_interval_factor(st.s.alpha, &st.s.df).map_err(core_err)?;
+    let out = pyo3::types::PyDict::new(py);
+    out.set_item("M", (m_body, m_body, m_body))?;
+    for ((name, v), s) in vehid_core::model::HALF_CORNER_DETERMINED.iter().zip(values).zip(se) {
+        out.set_item(*name, (v, v - q * s, v + q * s))?;
+    }
+    Ok(out)
 }

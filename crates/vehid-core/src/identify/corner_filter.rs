@@ -1,6 +1,10 @@
-//! The full car's four body-corner equations from the sensors a car has (a body accelerometer
-//! above each wheel and each corner's deflection sensor), through the state-variable filter of
-//! [`StateFilterFit`](super::StateFilterFit), with cluster-robust intervals.
+//! The full car's four body-corner equations (the half car's two) from the sensors a car has (a
+//! body accelerometer above each wheel and each corner's deflection sensor), through the
+//! state-variable filter of [`StateFilterFit`](super::StateFilterFit), with cluster-robust
+//! intervals.
+//!
+//! The half car is the same with two corners (front, rear) and `α_ij = 1/M + x_i x_j / J`
+//! (`x_f = l1`, `x_r = −l2`): five regressors, ten coefficients.
 //!
 //! Each corner's vertical body acceleration obeys (`crate::health`'s module documentation:
 //! the body's heave, pitch and roll under the four suspension forces `T_j = (K d)_j + b_j ḋ_j`)
@@ -42,7 +46,7 @@ use super::state_filter::{filter_settings, five_point, Biquad, HISTORY};
 use super::EstimateStats;
 use crate::{Error, Result};
 use alloc::vec::Vec;
-use nalgebra::{Cholesky, SMatrix};
+use nalgebra::{Cholesky, DMatrix, SMatrix};
 
 /// Default bandwidth `λ` of the full car's filter, rad/s: three times the quarter car's
 /// ([`super::DEFAULT_BANDWIDTH`]). At low frequency the body moves as one and the four
@@ -53,16 +57,15 @@ use nalgebra::{Cholesky, SMatrix};
 /// 10 rad/s, +1.4/−0.7 % at 5, within ±0.03 % (≤ 0.5 standard errors) at 30 and 50. 30 keeps
 /// the filter valid down to 100 Hz sampling (`λ dt ≤ π/10`).
 pub const CORNER_BANDWIDTH: f64 = 30.0;
-/// Regressors of each corner equation: each corner's filtered extension and rate, and 1.
+/// Regressors of each of the full car's corner equations: each corner's filtered extension
+/// and rate, and 1 (the half car's: 5).
 pub const CORNER_REGRESSORS: usize = 9;
-/// Corner equations (fl, fr, rl, rr).
+/// Most corner equations (the full car's fl, fr, rl, rr); the sums are kept at this size.
 const EQS: usize = 4;
-/// Coefficients in all: 9 per equation.
+/// The full car's coefficients in all: 9 per equation (the half car's: 10).
 pub const CORNER_COEFFICIENTS: usize = CORNER_REGRESSORS * EQS;
 /// Entries of the normal matrix.
 const AA: usize = CORNER_REGRESSORS * CORNER_REGRESSORS;
-/// The realistic channels read: `[a_body_fl..rr, a_wheel_fl..rr, deflection_fl..rr]`.
-const CHANNELS: usize = 12;
 
 /// Sums of one block of samples: `A = Σ h hᵀ`, `C = Σ h yᵀ`, `Σ y yᵀ`, the count.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -131,35 +134,42 @@ impl Clusters {
         self.blocks += 1;
     }
 
-    /// `Σ_b vec G_b vec G_bᵀ` at `theta`, `G_b = C_b − A_b θ`.
-    fn meat(
-        &self,
-        theta: &SMatrix<f64, CORNER_REGRESSORS, EQS>,
-    ) -> SMatrix<f64, CORNER_COEFFICIENTS, CORNER_COEFFICIENTS> {
-        const K: usize = CORNER_REGRESSORS;
-        // vec(A_b θ)[l + K i] = Σ_m A_b[l, m] θ[m, i] = Σ_m vec A_b[l + K m] θ[m, i]: a linear map
-        // L (36 × 81) of vec A_b, so vec G_b = vec C_b − L vec A_b.
-        let mut lmap = SMatrix::<f64, CORNER_COEFFICIENTS, AA>::zeros();
-        for i in 0..EQS {
-            for l in 0..K {
-                for m in 0..K {
-                    lmap[(l + K * i, l + K * m)] = theta[(m, i)];
+    /// `Σ_b vec G_b vec G_bᵀ` at `theta` (`k × c`: the first `k` regressors, `c` equations),
+    /// `G_b = C_b − A_b θ`, over the entries in use (`k c` of them, equation by equation).
+    fn meat(&self, theta: &DMatrix<f64>) -> DMatrix<f64> {
+        const S: usize = CORNER_REGRESSORS; // the stride of the kept sums' vec
+        let (k, c) = theta.shape();
+        let qs: Vec<usize> = (0..c).flat_map(|i| (0..k).map(move |l| l + S * i)).collect();
+        let rs: Vec<usize> = (0..k).flat_map(|m| (0..k).map(move |l| l + S * m)).collect();
+        let cc = DMatrix::from_fn(qs.len(), qs.len(), |a, b| self.cc[(qs[a], qs[b])]);
+        let ca = DMatrix::from_fn(qs.len(), rs.len(), |a, b| self.ca[(qs[a], rs[b])]);
+        let aa = DMatrix::from_fn(rs.len(), rs.len(), |a, b| self.aa[(rs[a], rs[b])]);
+        // vec(A_b θ)[l + k i] = Σ_m A_b[l, m] θ[m, i] = Σ_m vec A_b[l + k m] θ[m, i]: a linear map
+        // L of vec A_b, so vec G_b = vec C_b − L vec A_b.
+        let mut lmap = DMatrix::<f64>::zeros(k * c, k * k);
+        for i in 0..c {
+            for l in 0..k {
+                for m in 0..k {
+                    lmap[(l + k * i, l + k * m)] = theta[(m, i)];
                 }
             }
         }
-        let cross = self.ca * lmap.transpose();
-        self.cc - cross - cross.transpose() + lmap * self.aa * lmap.transpose()
+        let cross = ca * lmap.transpose();
+        &cc - &cross - cross.transpose() + &lmap * aa * lmap.transpose()
     }
 }
 
-/// The full car's four body-corner equations identified through a state-variable filter, with
-/// cluster-robust intervals (module documentation). Samples are the full car's realistic
-/// channels `[a_body_fl, …, a_body_rr, a_wheel_fl, …, a_wheel_rr, deflection_fl, …,
-/// deflection_rr]` (m/s², m/s², m; deflection `z_body − z_wheel` at the corner, positive in
-/// extension; the wheels' are not read).
+/// The full car's four body-corner equations (or the half car's two) identified through a
+/// state-variable filter, with cluster-robust intervals (module documentation). Samples are the
+/// car's realistic channels `[a_body_fl, …, a_body_rr, a_wheel_fl, …, a_wheel_rr,
+/// deflection_fl, …, deflection_rr]` (the half car's `[a_body_f, a_body_r, a_wheel_f,
+/// a_wheel_r, deflection_f, deflection_r]`; m/s², m/s², m; deflection `z_body − z_wheel` at the
+/// corner, positive in extension; the wheels' are not read).
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct CornerFilterFit {
+    /// 4 (the full car) or 2 (the half car).
+    corners: usize,
     dt: f64,
     bandwidth: f64,
     block: u64,
@@ -181,9 +191,23 @@ impl CornerFilterFit {
     /// [`Error::InvalidArgument`] naming `dt`, `bandwidth` or `block` as
     /// [`StateFilterFit::new`](super::StateFilterFit::new).
     pub fn new(dt: f64, bandwidth: f64, block: f64) -> Result<Self> {
+        Self::with_corners(EQS, dt, bandwidth, block)
+    }
+
+    /// The half car's two body-corner equations (front, rear), otherwise as
+    /// [`CornerFilterFit::new`].
+    ///
+    /// # Errors
+    /// As [`CornerFilterFit::new`].
+    pub fn half(dt: f64, bandwidth: f64, block: f64) -> Result<Self> {
+        Self::with_corners(2, dt, bandwidth, block)
+    }
+
+    fn with_corners(corners: usize, dt: f64, bandwidth: f64, block: f64) -> Result<Self> {
         let (block, skip) = filter_settings(dt, bandwidth, block)?;
         let f = Biquad::bilinear(dt, bandwidth);
         Ok(Self {
+            corners,
             dt,
             bandwidth,
             block,
@@ -201,7 +225,10 @@ impl CornerFilterFit {
     /// every sum finite, the normal matrices symmetric with a non-negative diagonal, each block
     /// within the block length.
     pub fn is_consistent(&self) -> bool {
-        let Ok(fresh) = Self::new(self.dt, self.bandwidth, self.block as f64 * self.dt) else {
+        if !matches!(self.corners, 2 | EQS) {
+            return false;
+        }
+        let Ok(fresh) = Self::with_corners(self.corners, self.dt, self.bandwidth, self.block as f64 * self.dt) else {
             return false;
         };
         let coefficients = |f: &Biquad| (f.b, f.a);
@@ -223,6 +250,21 @@ impl CornerFilterFit {
             && (c.blocks > 0 || c.total == Sums::default())
             && c.cc.iter().chain(c.ca.iter()).chain(c.aa.iter()).all(|v| v.is_finite())
             && (0..CORNER_COEFFICIENTS).all(|i| c.cc[(i, i)] >= 0.0)
+    }
+
+    /// Corner equations: 4 (the full car) or 2 (the half car).
+    pub fn corners(&self) -> usize {
+        self.corners
+    }
+
+    /// Regressors per equation: `2 corners + 1`.
+    pub fn regressors(&self) -> usize {
+        2 * self.corners + 1
+    }
+
+    /// Channels per sample: `3 corners`.
+    pub fn channels(&self) -> usize {
+        3 * self.corners
     }
 
     /// Sample interval, s.
@@ -251,14 +293,15 @@ impl CornerFilterFit {
         self.closed.total.n + self.current.n
     }
 
-    /// One sample of the twelve realistic channels.
+    /// One sample of the realistic channels (12 for the full car, 6 for the half car).
     ///
     /// # Errors
-    /// [`Error::Shape`] for other than 12 values; [`Error::NonFinite`] (`"y"`) — nothing changes
+    /// [`Error::Shape`] for another number of values; [`Error::NonFinite`] (`"y"`) — nothing changes
     /// (a gap: call [`CornerFilterFit::restart`]). No allocation.
     pub fn update(&mut self, y: &[f64]) -> Result<()> {
-        if y.len() != CHANNELS {
-            return Err(Error::Shape { arg: "y", expected: CHANNELS, got: y.len() });
+        let c = self.corners;
+        if y.len() != 3 * c {
+            return Err(Error::Shape { arg: "y", expected: 3 * c, got: y.len() });
         }
         crate::error::check_finite("y", y)?;
         if self.current.n >= self.block {
@@ -266,8 +309,8 @@ impl CornerFilterFit {
         }
         self.history.rotate_left(1);
         let last = &mut self.history[HISTORY - 1];
-        last[..EQS].copy_from_slice(&y[..EQS]);
-        last[EQS..].copy_from_slice(&y[2 * EQS..]);
+        last[..c].copy_from_slice(&y[..c]);
+        last[EQS..EQS + c].copy_from_slice(&y[2 * c..]);
         self.since_start += 1;
         if self.since_start < HISTORY as u64 {
             return Ok(());
@@ -277,7 +320,7 @@ impl CornerFilterFit {
         let prime = self.since_start == HISTORY as u64;
         let mut h = SMatrix::<f64, CORNER_REGRESSORS, 1>::zeros();
         let mut fa = SMatrix::<f64, EQS, 1>::zeros();
-        for j in 0..EQS {
+        for j in 0..c {
             let rate = five_point(self.history.map(|s| s[EQS + j]), self.dt);
             let [fa_f, fd_f, fv_f] = &mut self.filters;
             if prime {
@@ -289,7 +332,7 @@ impl CornerFilterFit {
             h[2 * j] = -fd_f[j].step(centre[EQS + j]);
             h[2 * j + 1] = -fv_f[j].step(rate);
         }
-        h[CORNER_REGRESSORS - 1] = 1.0;
+        h[2 * c] = 1.0;
         if self.since_start <= self.settling() {
             return Ok(());
         }
@@ -301,17 +344,19 @@ impl CornerFilterFit {
         Ok(())
     }
 
-    /// Rows of the realistic channels (`N × 12`, row-major), as [`CornerFilterFit::update`] on
-    /// each; every value is checked first, so a bad one changes nothing.
+    /// Rows of the realistic channels (`N × 12`, or `N × 6` for the half car, row-major), as
+    /// [`CornerFilterFit::update`] on each; every value is checked first, so a bad one changes
+    /// nothing.
     ///
     /// # Errors
     /// As [`CornerFilterFit::update`]; [`Error::NonFinite`] gives the flat index.
     pub fn fit(&mut self, y: &[f64]) -> Result<()> {
-        if y.len() % CHANNELS != 0 {
-            return Err(Error::Shape { arg: "y", expected: CHANNELS, got: y.len() % CHANNELS });
+        let width = self.channels();
+        if y.len() % width != 0 {
+            return Err(Error::Shape { arg: "y", expected: width, got: y.len() % width });
         }
         crate::error::check_finite("y", y)?;
-        y.chunks_exact(CHANNELS).try_for_each(|row| self.update(row))
+        y.chunks_exact(width).try_for_each(|row| self.update(row))
     }
 
     /// A gap in the record: the filters start again at the next sample, and the current block
@@ -322,7 +367,8 @@ impl CornerFilterFit {
     }
 
     /// The 36 coefficients, equation by equation (corner `i`'s nine at `9 i ..`: the extension
-    /// and the rate of fl, fr, rl, rr, then the offset `c_i` in m/s²; units 1/s² and 1/s), their
+    /// and the rate of fl, fr, rl, rr, then the offset `c_i` in m/s²; units 1/s² and 1/s; the
+    /// half car's 10, five per equation: f, r, offset), their
     /// cluster-robust covariance and `1 − alpha` intervals; `df` is `G − 1`, `sigma2` each
     /// filtered equation's residual variance.
     ///
@@ -332,44 +378,47 @@ impl CornerFilterFit {
     /// deflections and their rates do not determine the coefficients (no excitation, a corner's
     /// sensor stuck, two corners moving alike).
     pub fn stats(&self, alpha: f64) -> Result<EstimateStats> {
-        const K: usize = CORNER_REGRESSORS;
+        let (k, eqs) = (self.regressors(), self.corners);
+        let np = k * eqs;
         if !(alpha > 0.0 && alpha < 1.0) {
             return Err(Error::InvalidArgument { arg: "alpha", expected: "a level in (0, 1), e.g. 0.05" });
         }
         let mut all = self.closed.clone();
         all.close(&self.current);
         let g = all.blocks as usize;
-        if g < K + 1 {
+        if g < k + 1 {
             return Err(Error::InvalidArgument {
                 arg: "samples",
                 expected: "more data: at least one block (block seconds) per regressor and one more",
             });
         }
         let total = all.total;
-        let scale = (0..K).map(|i| total.a[(i, i)]).fold(0.0, f64::max);
-        let chol = Cholesky::new(total.a);
+        let a = DMatrix::from_fn(k, k, |i, j| total.a[(i, j)]);
+        let cs = DMatrix::from_fn(k, eqs, |i, j| total.c[(i, j)]);
+        let scale = (0..k).map(|i| a[(i, i)]).fold(0.0, f64::max);
+        let chol = Cholesky::new(a.clone());
         let rank =
-            chol.as_ref().map_or(0, |c| (0..K).filter(|&i| c.l()[(i, i)] * c.l()[(i, i)] > 1e-12 * scale).count());
-        let chol = chol.filter(|_| rank == K).ok_or(Error::RankDeficient { rank, needed: K })?;
+            chol.as_ref().map_or(0, |c| (0..k).filter(|&i| c.l()[(i, i)] * c.l()[(i, i)] > 1e-12 * scale).count());
+        let chol = chol.filter(|_| rank == k).ok_or(Error::RankDeficient { rank, needed: k })?;
         let ainv = chol.inverse();
-        let theta = ainv * total.c;
+        let theta = &ainv * &cs;
         let meat = all.meat(&theta);
-        let mut bread = SMatrix::<f64, CORNER_COEFFICIENTS, CORNER_COEFFICIENTS>::zeros();
-        for i in 0..EQS {
-            bread.fixed_view_mut::<K, K>(K * i, K * i).copy_from(&ainv);
+        let mut bread = DMatrix::<f64>::zeros(np, np);
+        for i in 0..eqs {
+            bread.view_mut((k * i, k * i), (k, k)).copy_from(&ainv);
         }
-        let (n, gf, k) = (total.n as f64, g as f64, K as f64);
-        let cov = bread * meat * bread * (gf / (gf - 1.0) * (n - 1.0) / (n - k));
+        let (n, gf, kf) = (total.n as f64, g as f64, k as f64);
+        let cov = &bread * meat * &bread * (gf / (gf - 1.0) * (n - 1.0) / (n - kf));
         // Symmetric to rounding (the Kronecker sums cancel): made exactly so.
-        let cov = (cov + cov.transpose()) * 0.5;
+        let cov = (&cov + cov.transpose()) * 0.5;
         let df = gf - 1.0;
         let q = crate::stats::t_ppf(1.0 - alpha / 2.0, df)?;
         let params: Vec<f64> = theta.as_slice().to_vec();
-        let bse: Vec<f64> = (0..CORNER_COEFFICIENTS).map(|i| libm::sqrt(cov[(i, i)].max(0.0))).collect();
-        let sigma2 = (0..EQS)
+        let bse: Vec<f64> = (0..np).map(|i| libm::sqrt(cov[(i, i)].max(0.0))).collect();
+        let sigma2 = (0..eqs)
             .map(|i| {
-                let (t, c) = (theta.column(i), total.c.column(i));
-                (total.yy[(i, i)] - 2.0 * t.dot(&c) + (t.transpose() * total.a * t)[(0, 0)]).max(0.0) / (n - k)
+                let (t, c) = (theta.column(i), cs.column(i));
+                (total.yy[(i, i)] - 2.0 * t.dot(&c) + (t.transpose() * &a * t)[(0, 0)]).max(0.0) / (n - kf)
             })
             .collect();
         Ok(EstimateStats {
@@ -377,9 +426,9 @@ impl CornerFilterFit {
             params,
             cov: cov.as_slice().to_vec(),
             bse,
-            df: alloc::vec![df; CORNER_COEFFICIENTS],
+            df: alloc::vec![df; np],
             sigma2,
-            nobs: alloc::vec![n; EQS],
+            nobs: alloc::vec![n; eqs],
             alpha,
         })
     }

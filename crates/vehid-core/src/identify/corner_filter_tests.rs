@@ -217,3 +217,52 @@ fn a_car_without_bars_keeps_their_scatter_about_zero() {
     }
     assert!(lows > 0, "no bar estimate below 0 in 12: the test does not reach the clamp");
 }
+
+/// The half car's ten coefficients (front equation then rear, offsets 0), written from the
+/// body's equations: `α_ij = 1/M + x_i x_j / J`.
+fn half_exact(car: &crate::model::HalfCar<f64>) -> Vec<f64> {
+    let p = car.params();
+    let x = [p.l1, -p.l2];
+    let (k, b) = ([p.k12, p.k22], [p.b1, p.b2]);
+    let mut out = Vec::new();
+    for xi in x {
+        for j in 0..2 {
+            let alpha = 1.0 / p.m_body + xi * x[j] / p.j;
+            out.extend([alpha * k[j], alpha * b[j]]);
+        }
+        out.push(0.0);
+    }
+    out
+}
+
+#[test]
+fn the_half_car_from_its_two_corners() {
+    use crate::model::{HalfCar, HALF_CORNER_DETERMINED};
+    use crate::sim::{HalfDrive, HalfDriveConfig};
+    let car = HalfCar::<f64>::passenger();
+    let p = car.params();
+    // Exact coefficients, from a start with J 40 % high: exact constants.
+    let start = HalfCar::new(crate::model::HalfCarParams { j: 1.4 * p.j, ..p }).unwrap();
+    let cov: Vec<f64> = (0..100).map(|q| if q / 10 == q % 10 { 1e-6 } else { 0.0 }).collect();
+    let (_, values, _) = start.from_corner_coefficients(&half_exact(&car), &cov, p.m_body).unwrap();
+    let want = [p.j, p.k12, p.k22, p.b1, p.b2];
+    for ((name, v), w) in HALF_CORNER_DETERMINED.iter().zip(values).zip(want) {
+        assert!((v / w - 1.0).abs() < 1e-9, "{name}: {v} for {w}");
+    }
+    // A drive on class C at 15 m/s with the default realistic sensors, 300 s: the fit's ten
+    // coefficients and the constants within 1 %.
+    let dt = 0.005;
+    let mut drive = HalfDrive::new(car, HalfDriveConfig::new(DriveConfig::new(dt).speed(15.0)), 21).unwrap();
+    let mut fit = CornerFilterFit::half(dt, CORNER_BANDWIDTH, 2.0).unwrap();
+    assert_eq!((fit.corners(), fit.channels()), (2, 6));
+    for _ in 0..60_000 {
+        fit.update(drive.next_sample().y()).unwrap();
+    }
+    let st = fit.stats(0.05).unwrap();
+    assert_eq!(st.params.len(), 10);
+    let (_, values, se) = car.from_corner_coefficients(&st.params, &st.cov, p.m_body).unwrap();
+    for (((name, v), w), s) in HALF_CORNER_DETERMINED.iter().zip(values).zip(want).zip(se) {
+        assert!((v / w - 1.0).abs() < 0.01 && s > 0.0, "{name}: {v} +- {s} for {w}");
+    }
+    assert!(matches!(fit.update(&[0.0; 12]), Err(Error::Shape { expected: 6, .. })));
+}

@@ -406,7 +406,7 @@ mod theta;
 
 #[path = "full_corners.rs"]
 mod corners;
-pub use corners::CORNER_DETERMINED;
+pub use corners::{CORNER_DETERMINED, HALF_CORNER_DETERMINED};
 
 #[cfg(test)]
 #[path = "full_tests.rs"]

@@ -25,7 +25,10 @@ mod quarter;
 mod sensors;
 
 pub use discretize::{auto_substeps, auto_substeps_of, rk4_map, zoh, MAX_SUBSTEPS};
-pub use full::{FullCar, FullCarParams, CORNERS, CORNER_DETERMINED, FULL_CONSTANTS, FULL_STATES, FULL_STATE_NAMES};
+pub use full::{
+    FullCar, FullCarParams, CORNERS, CORNER_DETERMINED, FULL_CONSTANTS, FULL_STATES, FULL_STATE_NAMES,
+    HALF_CORNER_DETERMINED,
+};
 pub use half::{HalfCar, HalfCarParams, HalfConstant};
 pub use physical::{PhysicalStructure, MAX_CONSTANTS};
 pub use quarter::{QuarterCar, QuarterKnown};
