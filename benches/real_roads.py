@@ -19,7 +19,8 @@ Prints one progress line per setting and a table at the end; ``--json PATH`` wri
 Reproducible from the seeds: ``.venv/bin/python benches/real_roads.py --seed0 50000 --seeds 100``.
 ``--half`` / ``--full``: the half car / the full car on one road by road cancellation (e.g.
 ``benches/real_roads.py --full --seed0 61000 --seeds 10 --classes B,C,D --speeds 10,20 --samples 20000``);
-``--full --sensors realistic``: the full car from its realistic sensors (``RealisticIdentifier(full)``).
+``--full --sensors realistic``: the full car from its realistic sensors (``RealisticIdentifier(full)``;
+``--half --sensors realistic`` the half car's).
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ import json
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -237,7 +239,8 @@ def realistic(seed0: int, seeds: int, first: int, classes: str, speeds: str, gen
 FULL_BARS = {"arb_f": 15_000.0, "arb_r": 8_000.0}
 
 
-def realistic_full(seed0: int, seeds: int, first: int, classes: str, speeds: str, generator: str, n: int) -> int:
+def realistic_full(seed0: int, seeds: int, first: int, classes: str, speeds: str, generator: str, n: int,
+                   half: bool = False) -> int:
     """The full car's realistic sensors (a body accelerometer above each wheel, the wheel
     accelerometers, each corner's deflection; vehid's default noise and biases), the passenger
     car with anti-roll bars (:data:`FULL_BARS`), ``n`` samples at 200 Hz:
@@ -245,10 +248,15 @@ def realistic_full(seed0: int, seeds: int, first: int, classes: str, speeds: str
     and damper and both bars (the tyres and wheel masses are not determined); every constant
     within 5 % on the first ``first`` seeds, and each 95 % interval's coverage over all seeds.
     ``--generator independent``: the states from ``independent_road.simulate_full`` (Lagrange's
-    equations, scipy), the channels formed by ``independent_road.full_realistic``."""
-    car = vehid.FullCar(**{**vehid.FullCar.passenger().params, **FULL_BARS})
+    equations, scipy), the channels formed by ``independent_road.full_realistic``.
+    ``half``: the passenger half car instead (J, k12, k22, b1, b2; vehid's drives only)."""
+    if half and generator != "vehid":
+        raise SystemExit("--half --sensors realistic: vehid's drives only (--generator vehid)")
+    car: Any = vehid.HalfCar.passenger() if half else vehid.FullCar(**{**vehid.FullCar.passenger().params,
+                                                                       **FULL_BARS})
     truth = car.params
-    names = ["Jx", "Jy", *[f"{q}_{c}" for q in ("k", "b") for c in ("fl", "fr", "rl", "rr")], "arb_f", "arb_r"]
+    names = (["J", "k12", "k22", "b1", "b2"] if half else
+             ["Jx", "Jy", *[f"{q}_{c}" for q in ("k", "b") for c in ("fl", "fr", "rl", "rr")], "arb_f", "arb_r"])
     settings = [(c, float(v)) for c in classes.split(",") for v in speeds.split(",")]
     t0 = time.time()
     for i, (cls, speed) in enumerate(settings):
@@ -270,7 +278,8 @@ def realistic_full(seed0: int, seeds: int, first: int, classes: str, speeds: str
             print(f"[{i + 1}/{len(settings)}, seed {j + 1}/{seeds}, {time.time() - t0:.0f} s] worst constant"
                   f" {max(err, key=err.__getitem__)} {100 * worst[-1]:.2f} %", flush=True)
         cov = ", ".join(f"{k} {100 * cover[k] / seeds:.0f}" for k in names)
-        print(f"full car, realistic sensors ({generator}), {cls} {speed:.0f} m/s, {n} samples: every constant within"
+        print(f"{'half' if half else 'full'} car, realistic sensors ({generator}), {cls} {speed:.0f} m/s, {n} samples:"
+              f" every constant within"
               f" 5 % on {within}/{min(first, seeds)}; worst error median {100 * np.median(worst):.2f} %, largest"
               f" {100 * max(worst):.2f} %; 95 % coverage (%): {cov}", flush=True)
     return 0
@@ -300,8 +309,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="realistic: accelerometers and deflection, RealisticIdentifier (k2, b with M known)")
     ap.add_argument("--json", default=None)
     a = ap.parse_args(argv)
-    if a.sensors == "realistic" and a.full:
-        return realistic_full(a.seed0, a.seeds, a.first, a.classes, a.speeds, a.generator, a.samples)
+    if a.sensors == "realistic" and (a.full or a.half):
+        return realistic_full(a.seed0, a.seeds, a.first, a.classes, a.speeds, a.generator, a.samples, a.half)
     if a.sensors == "realistic":
         return realistic(a.seed0, a.seeds, a.first, a.classes, a.speeds, a.generator)
     if a.half:

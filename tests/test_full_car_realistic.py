@@ -185,3 +185,65 @@ def test_vehid_identify_model_full_sensors_realistic(tmp_path: Path, capsys: pyt
     assert cli.main(["identify", str(log), "--model", "full", "--sensors", "realistic", "--M", "1500",
                      "--geometry", "l_f=1.4,wheelbase=3"]) == 2
     assert "'wheelbase' is not one of l_f, l_r, track_f, track_r" in capsys.readouterr().err
+
+
+# --- the half car: the same fit with its two corners -------------------------------------------
+
+HALF = vehid.HalfCar.passenger()
+HALF_NAMES = ["J", "k12", "k22", "b1", "b2"]
+
+
+def test_the_half_car_from_its_realistic_sensors() -> None:
+    # Its two body-corner equations from the six channels, statsmodels' cluster-robust OLS per
+    # equation on scipy's filtered signals; J and each spring and damper within 1 % with M known.
+    sm = pytest.importorskip("statsmodels.api")
+    run = vehid.Simulator(HALF, dt=DT, road="iso8608-C", speed=15.0, sensors="realistic", seed=74_201).run(60_000)
+    ident = vehid.RealisticIdentifier(HALF, DT).fit(run.y)
+    st = ident.stats()
+    assert st.names == ("a_f:d_f", "a_f:rate_f", "a_f:d_r", "a_f:rate_r", "a_f:offset",
+                        "a_r:d_f", "a_r:rate_f", "a_r:d_r", "a_r:rate_r", "a_r:offset")
+    from scipy import signal
+    lam = ident.bandwidth
+    b, a, _ = signal.cont2discrete(([lam**2], [1.0, 2 * lam, lam**2]), DT, method="bilinear")
+    b = np.ravel(b)
+    skip = ident.settling - 4
+
+    def f(x: np.ndarray) -> np.ndarray:
+        return signal.lfilter(b, a, x, zi=signal.lfilter_zi(b, a) * x[0])[0][skip:]
+
+    cols = []
+    for j in range(2):
+        d = run.y[:, 4 + j]
+        rate = (d[:-4] - 8 * d[1:-3] + 8 * d[3:-1] - d[4:]) / (12 * DT)
+        cols += [-f(d[2:-2]), -f(rate)]
+    h = np.column_stack(cols + [np.ones(len(cols[0]))])
+    groups = np.arange(len(h)) // int(round(ident.block / DT))
+    for i in range(2):
+        ref = sm.OLS(f(run.y[2:-2, i]), h).fit(cov_type="cluster", cov_kwds={"groups": groups})
+        np.testing.assert_allclose(st.params[5 * i:5 * i + 5], ref.params, rtol=1e-7, atol=1e-9)
+        np.testing.assert_allclose(st.bse[5 * i:5 * i + 5], ref.bse, rtol=1e-6)
+    phys = HALF.physical(st, M=HALF.params["M"])
+    assert set(phys) == {"M", *HALF_NAMES}
+    for name in HALF_NAMES:
+        v, lo, hi = phys[name]
+        assert abs(v / HALF.params[name] - 1) < 0.01 and lo < v < hi, (name, phys[name], HALF.params[name])
+    back = pickle.loads(pickle.dumps(ident))
+    assert "HalfCar" in repr(back) and np.array_equal(back.stats().cov, st.cov)
+    with pytest.raises(ValueError, match=r"shape \(samples, 6\)"):
+        ident.fit(np.zeros((10, 12)))
+
+
+def test_vehid_identify_model_half_sensors_realistic(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    log = tmp_path / "half.csv"
+    assert cli.main(["simulate", "--model", "half", "--road", "iso8608-C", "--speed", "20", "--sensors", "realistic",
+                     "--n", "40000", "--seed", "6", "-o", str(log)]) == 0
+    capsys.readouterr()
+    assert cli.main(["identify", str(log), "--model", "half", "--sensors", "realistic", "--M", "640", "--json"]) == 0
+    r = json.loads(capsys.readouterr().out)
+    assert r["model"] == "half" and len(r["params"]) == 10
+    for name in HALF_NAMES:
+        assert abs(r["constants"][name]["value"] / HALF.params[name] - 1) < 0.01, (name, r["constants"][name])
+    assert set(r["not_identifiable"]) == {"k11", "k21", "m1", "m2"}
+    assert cli.main(["identify", str(log), "--model", "half", "--sensors", "realistic", "--M", "640",
+                     "--geometry", "l_f=1.2"]) == 2
+    assert "'l_f' is not one of l1, l2" in capsys.readouterr().err

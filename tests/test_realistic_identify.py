@@ -191,4 +191,6 @@ def test_vehid_identify_realistic_refuses_what_it_cannot_do(tmp_path: Path,
     assert cli.main(["identify", str(log), "--model", "quarter", "--sensors", "realistic"]) == 2
     assert "no column a_wheel" in capsys.readouterr().err
     assert cli.main(["identify", str(log), "--model", "half", "--sensors", "realistic"]) == 2
-    assert "the quarter or the full car (--model quarter|full)" in capsys.readouterr().err
+    assert "no column a_body_f" in capsys.readouterr().err
+    assert cli.main(["identify", str(log), "--model", "car.toml", "--sensors", "realistic"]) == 2
+    assert "the quarter, half or full car (--model quarter|half|full)" in capsys.readouterr().err

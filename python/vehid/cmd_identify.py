@@ -1250,8 +1250,8 @@ def add_parser(sub: Any) -> None:
     ident.add_argument("--M", type=positive_float, default=None,
                        help="--sensors realistic: the known body mass M, kg (then k2 and b, else only k2/M and b/M)")
     ident.add_argument("--bandwidth", type=positive_float, default=None,
-                       help="--sensors realistic: the state-variable filter's bandwidth, rad/s (default 10; the half "
-                            "and full car's 30)")
+                       help="--sensors realistic: the state-variable filter's bandwidth, rad/s (default 10; the full "
+                            "car's 30)")
     ident.add_argument("--geometry", default=None, metavar="NAME=VALUE,...",
                        help="--model full|half --sensors realistic: the corners' positions, m: the full car's l_f, "
                             "l_r, track_f, track_r (default: the passenger full car's 1.4, 1.7, 1.5, 1.5), the half "

@@ -68,8 +68,8 @@ pub(crate) fn corner_names(corners: usize) -> Vec<String> {
 /// positive in extension), on any road: a state-variable filter `F(s) = λ²/(s + λ)²` on both
 /// sides of `a_body = -(k2/M) d - (b/M) ḋ + offset` (Young 1981; CONTSID), so that no
 /// deflection rate is needed, and intervals that are cluster-robust over blocks of `block`
-/// seconds (the filtered residuals are coloured). `bandwidth` is `λ` in rad/s (default 10; the
-/// full car's 30, `vehid_core::identify::CORNER_BANDWIDTH` says why).
+/// seconds (the filtered residuals are coloured). `bandwidth` is `λ` in rad/s (default 10, the
+/// half car's too; the full car's 30, `vehid_core::identify::CORNER_BANDWIDTH` says why).
 ///
 /// `stats()` gives the parameters with intervals (Student's t, blocks − 1 degrees of
 /// freedom); `car.physical(stats)` the constants (k2 and b with M known); m and k1 are not
@@ -126,7 +126,8 @@ impl PyRealisticIdentifier {
         if let Ok(model) = structure.cast::<PyLinearModel>() {
             if let Kind::Full(_) | Kind::Half(_) = model.get().kind {
                 let half = matches!(model.get().kind, Kind::Half(_));
-                return Self::build_corners(structure, half, dt, bandwidth.unwrap_or(CORNER_BANDWIDTH), block);
+                let default = if half { DEFAULT_BANDWIDTH } else { CORNER_BANDWIDTH };
+                return Self::build_corners(structure, half, dt, bandwidth.unwrap_or(default), block);
             }
         }
         let bandwidth = bandwidth.unwrap_or(DEFAULT_BANDWIDTH);
