@@ -74,15 +74,7 @@ impl FullCar<f64> {
         m_body: f64,
     ) -> Result<(Self, [f64; 12], [f64; 12])> {
         const N: usize = 36;
-        if theta.len() != N {
-            return Err(Error::Shape { arg: "theta", expected: N, got: theta.len() });
-        }
-        if cov.len() != N * N {
-            return Err(Error::Shape { arg: "cov", expected: N * N, got: cov.len() });
-        }
-        check_finite("theta", theta)?;
-        check_finite("cov", cov)?;
-        check_positive("M", m_body)?;
+        check_coefficients::<N>(theta, cov, m_body)?;
         let s = self.params();
         let pos: [(f64, f64); 4] = core::array::from_fn(|i| self.corner_position(i));
         let (tf2, tr2) = (s.track_f * s.track_f, s.track_r * s.track_r);
@@ -139,6 +131,23 @@ impl FullCar<f64> {
         ];
         Ok((car, values, se))
     }
+}
+
+/// `N` coefficients, their `N × N` covariance and the body mass checked.
+///
+/// # Errors
+/// [`Error::Shape`] naming `theta` or `cov`; [`Error::InvalidArgument`] for a value not finite,
+/// `M` not > 0.
+fn check_coefficients<const N: usize>(theta: &[f64], cov: &[f64], m_body: f64) -> Result<()> {
+    if theta.len() != N {
+        return Err(Error::Shape { arg: "theta", expected: N, got: theta.len() });
+    }
+    if cov.len() != N * N {
+        return Err(Error::Shape { arg: "cov", expected: N * N, got: cov.len() });
+    }
+    check_finite("theta", theta)?;
+    check_finite("cov", cov)?;
+    check_positive("M", m_body)
 }
 
 /// Fits the unknowns `p` of a multilinear map `model(p)` of corner coefficients to the observed
@@ -260,15 +269,7 @@ impl HalfCar<f64> {
         m_body: f64,
     ) -> Result<(Self, [f64; 5], [f64; 5])> {
         const N: usize = 10;
-        if theta.len() != N {
-            return Err(Error::Shape { arg: "theta", expected: N, got: theta.len() });
-        }
-        if cov.len() != N * N {
-            return Err(Error::Shape { arg: "cov", expected: N * N, got: cov.len() });
-        }
-        check_finite("theta", theta)?;
-        check_finite("cov", cov)?;
-        check_positive("M", m_body)?;
+        check_coefficients::<N>(theta, cov, m_body)?;
         let s = self.params();
         let x = [s.l1, -s.l2];
         let inv_m = 1.0 / m_body;
