@@ -231,6 +231,11 @@ def test_the_half_car_from_its_realistic_sensors() -> None:
     assert "HalfCar" in repr(back) and np.array_equal(back.stats().cov, st.cov)
     with pytest.raises(ValueError, match=r"shape \(samples, 6\)"):
         ident.fit(np.zeros((10, 12)))
+    # The structure route says where the half car's realistic fit is (not a quarter car per axle).
+    with pytest.raises(vehid.VehidError, match=r"RealisticIdentifier\(half, dt\)"):
+        HALF.structure(known={"M": 640.0}, sensors="realistic")
+    with pytest.raises(vehid.VehidError, match=r"RealisticIdentifier\(full, dt\)"):
+        CAR.structure()
 
 
 def test_vehid_identify_model_half_sensors_realistic(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -293,7 +293,8 @@ impl PyLinearModel {
                     "the full car has no physical structure yet (its body equations need more terms than a \
                      vehid.Structure holds): identify its rows (model.unknown_rows; on a road that is not white, \
                      TwoAxleIdentifier(full, spacing=...)) and read the constants with FullCar.physical(theta_hat, \
-                     m_fl=, m_fr=, m_rl=, m_rr=)",
+                     m_fl=, m_fr=, m_rl=, m_rr=); from the realistic sensors, RealisticIdentifier(full, dt) and \
+                     FullCar.physical(stats, M=...)",
                 ))
             }
             Kind::Generic => {

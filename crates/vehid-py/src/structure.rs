@@ -58,8 +58,9 @@ impl CarKind {
                 }
             }
             CarKind::Half if realistic => Err(vehid_core::Error::Unsupported {
-                what: "the half car's structure for the realistic sensors (identify each axle's body equation \
-                       with QuarterCar.structure(sensors=\"realistic\") on its channels, or use the state sensors)",
+                what: "the half car's structure for the realistic sensors (its two body-corner equations share \
+                       the pitch inertia, which a Structure does not hold: fit them with RealisticIdentifier(half, dt) \
+                       and read J, k12, k22, b1, b2 with HalfCar.physical(stats, M=...))",
             }),
             CarKind::Half => {
                 let mut k = [None; 12];
