@@ -216,6 +216,61 @@ def simulate_full(
     return np.ascontiguousarray(x), np.ascontiguousarray(xdot), np.ascontiguousarray(hk)
 
 
+def simulate_half_realistic(params: Dict[str, float], cls: str, speed: float, dt: float, n: int,
+                            seed: int) -> NDArray[np.float64]:
+    """The half car's realistic channels ``[a_body_f, a_body_r, a_wheel_f, a_wheel_r,
+    deflection_f, deflection_r]`` of ``n`` samples every ``dt`` seconds at a constant ``speed``
+    on one class-``cls`` track (the rear wheel ``l1 + l2`` metres behind the front), with
+    vehid's default sensor noise (as :func:`full_realistic`). Newton's equations written here:
+    states ``[zw_f, vw_f, zw_r, vw_r, zb, vb, theta, omega]`` (theta nose up), the corners'
+    heights ``zb + l1 theta`` and ``zb - l2 theta``, each suspension force ``T = k2 d + b d'``
+    on the extension ``d`` = corner height - wheel height; integrated by ``scipy.signal.lsim``
+    from rest on the road."""
+    from scipy.signal import lsim
+
+    rng = np.random.default_rng(seed)
+    l1, l2, big_m, j = params["l1"], params["l2"], params["M"], params["J"]
+    m = [params["m1"], params["m2"]]
+    kt = [params["k11"], params["k21"]]
+    k = [params["k12"], params["k22"]]
+    b = [params["b1"], params["b2"]]
+    x_c = [l1, -l2]
+    a = np.zeros((8, 8))
+    bm = np.zeros((8, 2))
+    for i in range(2):
+        zw, vw = 2 * i, 2 * i + 1
+        a[zw, vw] = 1.0
+        # d_i = zb + x_i theta - zw_i; T_i = k_i d_i + b_i d_i'
+        d = np.zeros(8)
+        d[4], d[6], d[zw] = 1.0, x_c[i], -1.0
+        dd = np.zeros(8)
+        dd[5], dd[7], dd[vw] = 1.0, x_c[i], -1.0
+        force = k[i] * d + b[i] * dd
+        a[vw] += force / m[i]
+        a[vw, zw] -= kt[i] / m[i]
+        bm[vw, i] = kt[i] / m[i]
+        a[5] -= force / big_m
+        a[7] -= x_c[i] * force / j
+    a[4, 5] = a[6, 7] = 1.0
+    h_fine = dt / SUBSTEPS
+    s_rear = np.arange(n * SUBSTEPS) * speed * h_fine
+    track = spectral_road(cls, float(s_rear[-1]) + l1 + l2 + 1.0, rng)
+    grid = np.arange(track.size)
+    u = np.column_stack([np.interp((s_rear + l1 + l2) / GRID, grid, track), np.interp(s_rear / GRID, grid, track)])
+    x0 = -np.linalg.solve(a, bm @ u[0])
+    t = np.arange(n * SUBSTEPS) * h_fine
+    _, _, x = lsim((a, bm, np.eye(8), np.zeros((8, 2))), u, t, X0=x0, interp=True)
+    x, uk = x[::SUBSTEPS], u[::SUBSTEPS]
+    xdot = x @ a.T + uk @ bm.T
+    body = np.column_stack([xdot[:, 5] + xc * xdot[:, 7] for xc in x_c])
+    wheel = xdot[:, [1, 3]]
+    ext = np.column_stack([x[:, 4] + xc * x[:, 6] - x[:, 2 * i] for i, xc in enumerate(x_c)])
+    body = body + 0.1 * rng.standard_normal(2) + 0.02 * rng.standard_normal((n, 2))
+    wheel = wheel + 0.3 * rng.standard_normal(2) + 0.1 * rng.standard_normal((n, 2))
+    ext = ext + 3e-4 * rng.standard_normal((n, 2))
+    return np.column_stack([body, wheel, ext])
+
+
 GRAVITY = 9.80665
 
 

@@ -238,6 +238,17 @@ def test_the_half_car_from_its_realistic_sensors() -> None:
         CAR.structure()
 
 
+@pytest.mark.parametrize("seed", [74_301, 74_302])
+def test_the_half_car_on_an_independent_simulator(seed: int) -> None:
+    # Newton's equations of the half car written without vehid (benches/independent_road.py,
+    # scipy's lsim, its own ISO road), the sensors with vehid's default noise: J and each
+    # spring and damper within 1 % with M known.
+    y = INDEPENDENT.simulate_half_realistic(HALF.params, "C", 20.0, DT, 60_000, seed)
+    phys = HALF.physical(vehid.RealisticIdentifier(HALF, DT).fit(y).stats(), M=HALF.params["M"])
+    for name in HALF_NAMES:
+        assert abs(phys[name][0] / HALF.params[name] - 1) < 0.01, (name, phys[name], HALF.params[name])
+
+
 def test_vehid_identify_model_half_sensors_realistic(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     log = tmp_path / "half.csv"
     assert cli.main(["simulate", "--model", "half", "--road", "iso8608-C", "--speed", "20", "--sensors", "realistic",
