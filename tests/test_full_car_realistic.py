@@ -160,8 +160,8 @@ def test_the_worked_example_runs() -> None:
 
 def test_vehid_identify_model_full_sensors_realistic(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     # A passenger full car's drive from `vehid simulate` (no bars), identified from its twelve
-    # realistic channels: with --M every k and b within 1 % (the CSV's true constants are not
-    # read here; --truth passenger gives the true column), the bars about 0, the tyres and
+    # realistic channels: with --M every k and b within 1 % (--truth passenger gives the true
+    # column; without it the drive's true_* columns would), the bars about 0, the tyres and
     # wheel masses not identifiable; without --M the constants are named as needing it.
     log = tmp_path / "full.csv"
     assert cli.main(["simulate", "--model", "full", "--road", "iso8608-C", "--speed", "20", "--sensors", "realistic",
@@ -257,8 +257,9 @@ def test_vehid_identify_model_half_sensors_realistic(tmp_path: Path, capsys: pyt
     assert cli.main(["identify", str(log), "--model", "half", "--sensors", "realistic", "--M", "640", "--json"]) == 0
     r = json.loads(capsys.readouterr().out)
     assert r["model"] == "half" and len(r["params"]) == 10
-    for name in HALF_NAMES:
-        assert abs(r["constants"][name]["value"] / HALF.params[name] - 1) < 0.01, (name, r["constants"][name])
+    for name in HALF_NAMES:  # the truth from the drive's true_* columns (no --truth given)
+        c = r["constants"][name]
+        assert abs(c["value"] / HALF.params[name] - 1) < 0.01 and c["true"] == HALF.params[name], (name, c)
     assert set(r["not_identifiable"]) == {"k11", "k21", "m1", "m2"}
     assert cli.main(["identify", str(log), "--model", "half", "--sensors", "realistic", "--M", "640",
                      "--geometry", "l_f=1.2"]) == 2

@@ -176,9 +176,17 @@ def cmd_identify_realistic(args: argparse.Namespace) -> int:
         has_t = "t" in match.index and not args.no_time
         if not has_t and args.dt is None:
             raise RealisticError(f"{table.source} has no time column t: give the sample interval with --dt SECONDS")
-        cols = ([match.index["t"]] if has_t else []) + [match.index[c.name] for c in channels]
-        labels = (["t"] if has_t else []) + [c.describe() for c in channels]
-        units = [Column("t", "time", "s")] * has_t + list(channels)
+        # A drive's true constants (vehid simulate's true_M, ...: every one of the car's), read
+        # as the truth when --truth is not given and they stay constant.
+        names = list(fit.car.params)
+        exact = {h: i for i, h in enumerate(table.names)}
+        true_at = [exact.get(f"true_{c}") for c in names]
+        read_truth = truth is None and all(i is not None for i in true_at)
+        extra = [i for i in true_at if i is not None] if read_truth else []
+        width = len(channels)
+        cols = ([match.index["t"]] if has_t else []) + [match.index[c.name] for c in channels] + extra
+        labels = (["t"] if has_t else []) + [c.describe() for c in channels] + [f"true_{c}" for c in names] * read_truth
+        units = [Column("t", "time", "s")] * has_t + list(channels) + [Column("true", None, "")] * len(extra)
         try:  # declared units ([mm], [g], [ms]) to SI
             factors = np.asarray([column_factor(c.unit, table.names[i], f"column {table.names[i]!r}")
                                   for c, i in zip(units, cols)])
@@ -186,9 +194,17 @@ def cmd_identify_realistic(args: argparse.Namespace) -> int:
             raise RealisticError(str(e)) from None
         prev: Optional[float] = None
         prev_line = 0
+        file_truth: Optional[Dict[str, float]] = None
+        varies = False
         for chunk in table.chunks(cols, labels, CHUNK, missing=True):
             data = table.to_si(chunk.data, factors, chunk.lines, labels)
-            y = np.ascontiguousarray(data[:, 1:] if has_t else data)
+            first = int(has_t)
+            y = np.ascontiguousarray(data[:, first:first + width])
+            if read_truth:
+                true_rows = data[:, first + width:]
+                if file_truth is None:
+                    file_truth = dict(zip(names, true_rows[0].tolist()))
+                varies = varies or bool((true_rows != true_rows[0]).any())
             if ident is None:
                 dt = args.dt
                 if dt is None:
@@ -213,6 +229,11 @@ def cmd_identify_realistic(args: argparse.Namespace) -> int:
                     start = i + 1 if bool(bad[i]) else i
             samples += len(y)
         source = table.source
+    if file_truth is not None and varies:
+        print(f"vehid: note: {source}: the drive's true constants change during it (a --change): no single truth "
+              "to compare with", file=sys.stderr)
+    elif file_truth is not None:
+        truth = file_truth
     if ident is None:
         raise RealisticError(f"{source} has no samples")
     try:
