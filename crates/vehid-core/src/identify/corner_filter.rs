@@ -339,10 +339,12 @@ impl CornerFilterFit {
         if self.since_start <= self.settling() {
             return Ok(());
         }
+        // Rank-one updates in place (each entry gains one product: the same sums as forming
+        // h hᵀ first, without the temporary; h_i h_j = h_j h_i keeps A symmetric).
         let m = &mut self.current;
-        m.a += h * h.transpose();
-        m.c += h * fa.transpose();
-        m.yy += fa * fa.transpose();
+        m.a.ger(1.0, &h, &h, 1.0);
+        m.c.ger(1.0, &h, &fa, 1.0);
+        m.yy.ger(1.0, &fa, &fa, 1.0);
         m.n += 1;
         Ok(())
     }
