@@ -17,28 +17,19 @@ const FITTED: usize = 32;
 /// Unknowns: `k` ×4, `b` ×4, `1/Jx`, `1/Jy`, `arb_f/t_f²`, `arb_r/t_r²`.
 const UNKNOWNS: usize = 12;
 
-/// Equation `i`'s eight coefficients for the unknowns `p` (order of [`UNKNOWNS`]) and the
-/// corners' positions: `Θ_2j,i = (α K)_ij`, `Θ_2j+1,i = α_ij b_j`, `α_ij = 1/M + x_i x_j/Jy +
-/// y_i y_j/Jx` (`crate::health::full_coefficients`), stacked equation by equation.
-fn coefficients(p: &[f64; UNKNOWNS], inv_m: f64, pos: &[(f64, f64); 4]) -> SMatrix<f64, FITTED, 1> {
-    let alpha = SMatrix::<f64, 4, 4>::from_fn(|i, j| inv_m + pos[i].0 * pos[j].0 * p[9] + pos[i].1 * pos[j].1 * p[8]);
-    let mut stiff = SMatrix::<f64, 4, 4>::from_diagonal(&nalgebra::Vector4::new(p[0], p[1], p[2], p[3]));
-    for (a, s) in [(0, p[10]), (2, p[11])] {
-        stiff[(a, a)] += s;
-        stiff[(a + 1, a + 1)] += s;
-        stiff[(a, a + 1)] -= s;
-        stiff[(a + 1, a)] -= s;
-    }
-    let ak = alpha * stiff;
-    SMatrix::from_fn(|q, _| {
-        let (i, r) = (q / 8, q % 8);
-        let j = r / 2;
-        if r % 2 == 0 {
-            ak[(i, j)]
-        } else {
-            alpha[(i, j)] * p[4 + j]
-        }
-    })
+/// The 32 spring and damper coefficients (equation by equation: `Θ_r,i` at `8 i + r`) of the
+/// car `base` with the unknowns `p` (order of [`UNKNOWNS`]) put in: the monitor's
+/// [`crate::health::full_coefficients`] on it, unchecked (a Gauss–Newton trial step may leave
+/// the constants' ranges).
+fn coefficients(base: &super::FullCarParams<f64>, p: &[f64; UNKNOWNS]) -> SMatrix<f64, FITTED, 1> {
+    let mut c = *base;
+    c.k = [p[0], p[1], p[2], p[3]];
+    c.b = [p[4], p[5], p[6], p[7]];
+    c.jx = 1.0 / p[8];
+    c.jy = 1.0 / p[9];
+    c.arb_f = p[10] * c.track_f * c.track_f;
+    c.arb_r = p[11] * c.track_r * c.track_r;
+    SMatrix::from_column_slice(crate::health::full_coefficients(&FullCar::from_params_unchecked(c)).as_slice())
 }
 
 impl FullCar<f64> {
@@ -73,16 +64,12 @@ impl FullCar<f64> {
         cov: &[f64],
         m_body: f64,
     ) -> Result<(Self, [f64; 12], [f64; 12])> {
-        const N: usize = 36;
-        check_coefficients::<N>(theta, cov, m_body)?;
+        let (obs, sigma) = fitted::<36, FITTED>(theta, cov, m_body)?;
         let s = self.params();
         let pos: [(f64, f64); 4] = core::array::from_fn(|i| self.corner_position(i));
         let (tf2, tr2) = (s.track_f * s.track_f, s.track_r * s.track_r);
-        // Fitted entries: each equation's first eight of nine.
-        let at = |q: usize| 9 * (q / 8) + q % 8;
-        let obs = SMatrix::<f64, FITTED, 1>::from_fn(|q, _| theta[at(q)]);
-        let sigma = SMatrix::<f64, FITTED, FITTED>::from_fn(|q, r| cov[at(q) * N + at(r)]);
         let inv_m = 1.0 / m_body;
+        let base = super::FullCarParams { m_body, ..s };
         // The start: self's inertias and bars; each spring and damper from its own coefficient.
         let mut p = [0.0; UNKNOWNS];
         p[8] = 1.0 / s.jx;
@@ -102,7 +89,7 @@ impl FullCar<f64> {
             9 => p[9],
             _ => mean_k,
         });
-        let (p, se_p) = fit_coefficients(&obs, &sigma, p, scale, |p: &[f64; UNKNOWNS]| coefficients(p, inv_m, &pos))?;
+        let (p, se_p) = fit_coefficients(&obs, &sigma, p, scale, |p: &[f64; UNKNOWNS]| coefficients(&base, p))?;
         let mut c = s;
         c.m_body = m_body;
         c.jx = 1.0 / p[8];
@@ -133,12 +120,18 @@ impl FullCar<f64> {
     }
 }
 
-/// `N` coefficients, their `N × N` covariance and the body mass checked.
+/// The `N` coefficients of the corner equations (each equation's springs and dampers, then its
+/// offset), their `N × N` covariance and the body mass checked; the `F` fitted ones (each
+/// equation's all but its offset, equation by equation) and their covariance.
 ///
 /// # Errors
 /// [`Error::Shape`] naming `theta` or `cov`; [`Error::InvalidArgument`] for a value not finite,
 /// `M` not > 0.
-fn check_coefficients<const N: usize>(theta: &[f64], cov: &[f64], m_body: f64) -> Result<()> {
+fn fitted<const N: usize, const F: usize>(
+    theta: &[f64],
+    cov: &[f64],
+    m_body: f64,
+) -> Result<(SMatrix<f64, F, 1>, SMatrix<f64, F, F>)> {
     if theta.len() != N {
         return Err(Error::Shape { arg: "theta", expected: N, got: theta.len() });
     }
@@ -147,7 +140,11 @@ fn check_coefficients<const N: usize>(theta: &[f64], cov: &[f64], m_body: f64) -
     }
     check_finite("theta", theta)?;
     check_finite("cov", cov)?;
-    check_positive("M", m_body)
+    check_positive("M", m_body)?;
+    // N − F equations of `per` coefficients each, the last its offset.
+    let per = N / (N - F);
+    let at = |q: usize| per * (q / (per - 1)) + q % (per - 1);
+    Ok((SMatrix::from_fn(|q, _| theta[at(q)]), SMatrix::from_fn(|q, r| cov[at(q) * N + at(r)])))
 }
 
 /// Fits the unknowns `p` of a multilinear map `model(p)` of corner coefficients to the observed
@@ -268,15 +265,10 @@ impl HalfCar<f64> {
         cov: &[f64],
         m_body: f64,
     ) -> Result<(Self, [f64; 5], [f64; 5])> {
-        const N: usize = 10;
-        check_coefficients::<N>(theta, cov, m_body)?;
+        let (obs, sigma) = fitted::<10, 8>(theta, cov, m_body)?;
         let s = self.params();
         let x = [s.l1, -s.l2];
         let inv_m = 1.0 / m_body;
-        // Fitted entries: each equation's first four of five.
-        let at = |q: usize| 5 * (q / 4) + q % 4;
-        let obs = SMatrix::<f64, 8, 1>::from_fn(|q, _| theta[at(q)]);
-        let sigma = SMatrix::<f64, 8, 8>::from_fn(|q, r| cov[at(q) * N + at(r)]);
         // p = [k12, k22, b1, b2, 1/J]; Θ_i = [α_if k12, α_if b1, α_ir k22, α_ir b2].
         let model = |p: &[f64; 5]| {
             let alpha = |i: usize, j: usize| inv_m + x[i] * x[j] * p[4];
