@@ -261,6 +261,10 @@ def test_vehid_identify_model_half_sensors_realistic(tmp_path: Path, capsys: pyt
         c = r["constants"][name]
         assert abs(c["value"] / HALF.params[name] - 1) < 0.01 and c["true"] == HALF.params[name], (name, c)
     assert set(r["not_identifiable"]) == {"k11", "k21", "m1", "m2"}
+    # --truth passenger is the passenger half car's (it was the full car's).
+    assert cli.main(["identify", str(log), "--model", "half", "--sensors", "realistic", "--M", "640", "--truth",
+                     "passenger", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["constants"]["k12"]["true"] == HALF.params["k12"]
     assert cli.main(["identify", str(log), "--model", "half", "--sensors", "realistic", "--M", "640",
                      "--geometry", "l_f=1.2"]) == 2
     assert "'l_f' is not one of l1, l2" in capsys.readouterr().err

@@ -108,10 +108,10 @@ class _Fit:
 
     def __init__(self, args: argparse.Namespace) -> None:
         self.model = args.model
-        self.full = args.model in ("full", "half")  # the corner equations
+        self.corners = args.model in ("full", "half")  # the corner equations
         self.known: Dict[str, float] = {} if args.M is None else {"M": args.M}
         self.args = args
-        if self.full:
+        if self.corners:
             half = args.model == "half"
             self.car: Any = _corner_car(args.model, args.geometry)
             self.source: Any = self.car
@@ -143,7 +143,7 @@ class _Fit:
             return {}
         try:
             out: Dict[str, Tuple[float, float, float]] = (
-                self.car.physical(st, **self.known) if self.full else self.car.physical(st))
+                self.car.physical(st, **self.known) if self.corners else self.car.physical(st))
             return out
         except VehidError as e:
             raise RealisticError(f"{where}: {e}") from None
@@ -155,7 +155,7 @@ def cmd_identify_realistic(args: argparse.Namespace) -> int:
             "--sensors realistic: the quarter, half or full car (--model quarter|half|full); a model file's "
             "structure needs its state sensors")
     fit = _Fit(args)
-    truth = _truth(args.truth, fit.full)
+    truth = _truth(args.truth, args.model)
     channels = fit.channels
     if args.file != "-" and (fieldlog.is_bag(args.file) or any(fieldlog.is_channel_map(c) for c in args.columns or [])):
         return _identify_field_log(args, fit, truth)
@@ -290,12 +290,13 @@ def _identify_field_log(args: argparse.Namespace, fit: _Fit, truth: Optional[Dic
     return 0
 
 
-def _truth(text: Optional[str], full: bool = False) -> Optional[Dict[str, float]]:
+def _truth(text: Optional[str], model: str = "quarter") -> Optional[Dict[str, float]]:
     if text is None:
         return None
     if text.strip() == "passenger":
-        return dict((FullCar if full else QuarterCar).passenger().params)
-    if text.strip() == "thesis" and not full:
+        cls: Any = {"full": FullCar, "half": HalfCar}.get(model, QuarterCar)
+        return dict(cls.passenger().params)
+    if text.strip() == "thesis" and model == "quarter":
         return dict(QuarterCar().params)
     return _pairs(text, "--truth")
 
