@@ -188,3 +188,25 @@ def test_state_sensors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> No
         assert [e["parameter"] for e in out] == ["b_rl"] and abs(out[0]["change"] + 0.10) < 0.03, (noise, out)
     assert cli.main(["monitor", str(log), "--model", "full", "--sensors", "state", "--noise", "a_body=0.1"]) == 2
     assert "NAME in state, deriv" in capsys.readouterr().err
+
+
+def test_anti_roll_bars_are_named(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # A car with bars (15 and 8 kN m/rad) loses its front bar's end link at 40 s: one event
+    # 'arb_f' of about -100 %, its interval stopping at 0 (a bar is a torsion spring), and
+    # `vehid monitor --car arb_f=...,arb_r=...` names it in words.
+    barred = vehid.FullCar(**{**FULL.params, "arb_f": 15_000.0, "arb_r": 8_000.0})
+    sim = vehid.Simulator(barred, dt=DT, road="iso8608-C", speed=15.0, changes=[(40.0, {"arb_f": 0.0})],
+                          sensors="realistic", seed=61)
+    run = sim.run(int(round(80.0 / DT)))
+    mon = vehid.HealthMonitor(barred, dt=DT)
+    events = mon.fit(run.y)
+    assert [e.parameter for e in events] == ["arb_f"], events
+    ev = events[0]
+    assert ev.before == 15_000.0 and ev.change < -0.9 and ev.low == 0.0 < ev.high and 40.0 < ev.t < 50.0, ev
+    assert mon.constants["arb_f"] == ev.after and mon.constants["arb_r"] == 8_000.0
+    log = tmp_path / "bars.csv"
+    np.savetxt(log, np.column_stack([run.t, run.y]), delimiter=",", header="t," + ",".join(run.channels),
+               comments="")
+    assert cli.main(["monitor", str(log), "--model", "full", "--car", "arb_f=15000,arb_r=8000"]) == 0
+    out = capsys.readouterr().out
+    assert "arb_f (front anti-roll bar): 15000 -> " in out and "N m/rad" in out, out

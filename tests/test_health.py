@@ -410,10 +410,18 @@ def test_a_corrupt_monitor_pickle_is_refused() -> None:
     fresh = fn(*args)
     with pytest.raises(vehid.VehidError, match="format 99"):
         fresh.__setstate__((99, version, payload))
-    # The layout before the sensor check (format 1) is refused, naming both formats.
-    with pytest.raises(vehid.VehidError, match=f"format 1, and this vehid .* reads format {fmt} only"):
+    # The layout before the sensor check (format 1) is refused, naming the formats read.
+    with pytest.raises(vehid.VehidError, match=f"format 1, and this vehid .* formats 2 to {fmt} only"):
         fresh.__setstate__((1, "vehid 0.0.0", payload))
-    assert fmt == 2
+    assert fmt == 3
+    # Format 3 changed the full car's monitor only (the anti-roll bars' CUSUMs): a quarter car's
+    # format-2 state still loads, a full car's is refused, naming the format it needs.
+    fresh.__setstate__((2, "vehid 0.1.0", payload))
+    full = vehid.HealthMonitor(vehid.FullCar.passenger(), dt=DT)
+    _, _, (_, _, full_payload) = full.__reduce__()
+    with pytest.raises(vehid.VehidError, match="format 2, and this vehid .* formats 3 to 3 only; run the monitor"):
+        full.__setstate__((2, "vehid 0.1.0", full_payload))
+    full.__setstate__((3, version, full_payload))
     with pytest.raises(vehid.VehidError, match="does not decode"):
         fresh.__setstate__((fmt, version, payload[: len(payload) // 2]))
     with pytest.raises(vehid.VehidError, match="not a \\(format, version, bytes\\) tuple"):

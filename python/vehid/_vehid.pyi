@@ -663,7 +663,7 @@ def validate(
 _Parameter = Literal[
     "M", "k2", "b",  # quarter car
     "k2_f", "b_f", "k2_r", "b_r",  # half car
-    "k_fl", "k_fr", "k_rl", "k_rr", "b_fl", "b_fr", "b_rl", "b_rr",  # full car
+    "k_fl", "k_fr", "k_rl", "k_rr", "b_fl", "b_fr", "b_rl", "b_rr", "arb_f", "arb_r",  # full car
 ]
 
 @final

@@ -64,7 +64,8 @@ PARAMETERS = {"b": ("damper", "N s/m"), "k2": ("spring", "N/m"), "M": ("body mas
               **{f"b_{c}": (f"{w} damper", "N s/m") for c, w in
                  (("fl", "front left"), ("fr", "front right"), ("rl", "rear left"), ("rr", "rear right"))},
               **{f"k_{c}": (f"{w} spring", "N/m") for c, w in
-                 (("fl", "front left"), ("fr", "front right"), ("rl", "rear left"), ("rr", "rear right"))}}
+                 (("fl", "front left"), ("fr", "front right"), ("rl", "rear left"), ("rr", "rear right"))},
+              "arb_f": ("front anti-roll bar", "N m/rad"), "arb_r": ("rear anti-roll bar", "N m/rad")}
 
 CARS: Dict[str, Callable[[], Union[QuarterCar, HalfCar, FullCar]]] = {
     "quarter": QuarterCar, "passenger": QuarterCar.passenger, "half": HalfCar.passenger, "full": FullCar.passenger}

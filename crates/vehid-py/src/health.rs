@@ -19,8 +19,9 @@ use vehid_core::sim::SensorSet;
 const CHECK: usize = 1 << 16;
 
 /// Version of a pickled monitor's state layout (raise it when the core's serialized form
-/// changes in a way older readers cannot follow).
-pub const STATE_FORMAT: u32 = 2;
+/// changes in a way older readers cannot follow). 3: the full car's monitor names the
+/// anti-roll bars (two more CUSUMs); the quarter and half car's states are those of 2.
+pub const STATE_FORMAT: u32 = 3;
 
 /// A detected change of one physical constant (reported by `HealthMonitor`).
 ///
@@ -40,7 +41,8 @@ pub struct PyEvent {
     #[pyo3(get)]
     t_change: f64,
     /// The constant: 'b', 'k2' or 'M' (quarter car); 'b_f', 'b_r', 'k2_f', 'k2_r' or 'M'
-    /// (half car); 'k_fl' .. 'k_rr', 'b_fl' .. 'b_rr' or 'M' (full car).
+    /// (half car); 'k_fl' .. 'k_rr', 'b_fl' .. 'b_rr', 'M', 'arb_f' or 'arb_r' (full car; N m/rad for
+    /// an anti-roll bar).
     #[pyo3(get)]
     parameter: &'static str,
     /// Its value before, in its unit (N s/m, N/m, kg).
@@ -144,7 +146,7 @@ impl PyEvent {
                 _ => {
                     return Err(VehidError::new_err(format!(
                         "`parameter` must be 'M', 'k2' or 'b' (quarter car), 'k2_f', 'b_f', 'k2_r', 'b_r' (half \
-                         car) or 'k_fl' .. 'k_rr', 'b_fl' .. 'b_rr' (full car), got {}",
+                         car) or 'k_fl' .. 'k_rr', 'b_fl' .. 'b_rr', 'arb_f', 'arb_r' (full car), got {}",
                         py_str(other)
                     )))
                 }
@@ -649,14 +651,18 @@ impl PyHealthMonitor {
         let Ok((format, version, payload)) = state.extract::<(u32, String, Vec<u8>)>() else {
             return Err(corrupt("its state is not a (format, version, bytes) tuple"));
         };
-        if format != STATE_FORMAT {
+        let mut this = borrow_mut(slf)?;
+        // Format 2 states of the quarter and half car's monitors are those of 3.
+        let readable = format == STATE_FORMAT || (format == 2 && !matches!(this.inner, Mon::Full(_)));
+        if !readable {
+            let oldest = if matches!(this.inner, Mon::Full(_)) { STATE_FORMAT } else { 2 };
             return Err(VehidError::new_err(format!(
                 "cannot restore the health monitor: it was pickled by {version} in state format {format}, and \
-                 this vehid ({}) reads format {STATE_FORMAT} only",
+                 this vehid ({}) reads this car's monitor in formats {oldest} to {STATE_FORMAT} only; run the monitor \
+                 again from its log, or load it with the version that saved it",
                 env!("CARGO_PKG_VERSION")
             )));
         }
-        let mut this = borrow_mut(slf)?;
         let decode = |e: vehid_runtime::seal::Error| {
             corrupt(&format!("its payload does not decode or fails its checksum ({e})"))
         };

@@ -27,12 +27,16 @@ pub const FULL_CHANNELS: usize = 12;
 pub const FULL_STATE_CHANNELS: usize = 28;
 
 /// Number of constants the full car's monitor names ([`FULL_NAMED`]).
-pub const FULL_NAMED_COUNT: usize = 9;
+pub const FULL_NAMED_COUNT: usize = 11;
 
 /// The constants the full car's monitor names, in the order of its patterns and of
 /// [`FullHealthMonitor::cusum`]: the four springs `k_fl … k_rr`, the four dampers
 /// `b_fl … b_rr` (corner order fl, fr, rl, rr), the body mass `M` (a load: `Jx`, `Jy` scale with
-/// it).
+/// it), the front and rear anti-roll bars `arb_f`, `arb_r` (N m/rad). A bar is judged by the
+/// change it makes to its axle's roll stiffness ([`full_bar_share`]: the CUSUM's `min_change`
+/// and `judge_error` apply to `Δarb / K_φ`); its event reports the bar's own change. A bar the
+/// nominal car does not have (`0`) is not judged: its pattern is zero
+/// ([`full_relative_patterns`]) and its CUSUM stays 0.
 pub const FULL_NAMED: [FullConstant; FULL_NAMED_COUNT] = [
     FullConstant::at(7),
     FullConstant::at(8),
@@ -43,6 +47,8 @@ pub const FULL_NAMED: [FullConstant; FULL_NAMED_COUNT] = [
     FullConstant::at(13),
     FullConstant::at(14),
     FullConstant::at(0),
+    FullConstant::at(23),
+    FullConstant::at(24),
 ];
 
 /// The least accelerometer noise the full car's monitor assumes, m/s² (added to the residual
@@ -54,6 +60,9 @@ pub const MIN_ACCEL_NOISE: f64 = 1e-3;
 
 /// Index of the body mass in [`FULL_NAMED`].
 const BODY_MASS: usize = 8;
+
+/// Index of the front anti-roll bar in [`FULL_NAMED`] (the rear one follows).
+pub(crate) const FRONT_BAR: usize = 9;
 
 impl<T: Real> HealthConfig<T, FullCar<T>> {
     /// Channels per sample of this sensor set ([`FULL_CHANNELS`] or [`FULL_STATE_CHANNELS`]).
@@ -111,20 +120,67 @@ pub fn full_coefficients<T: Real>(car: &FullCar<T>) -> SMatrix<T, 8, 4> {
 /// (entries where `Θ` is zero to rounding are 0): spring `k_j`, `α_ij k_j / (αK)_ij` in row `2j`
 /// (1 without anti-roll bars); damper `b_j`, 1 in row `2j + 1`; the body mass, all ones — the
 /// sign of `∂ ln Θ / ∂ ln M = −1` is folded into its report (`M (1 + ε)` moves every coefficient
-/// by `1/(1 + ε) − 1`).
+/// by `1/(1 + ε) − 1`); the front bar (`s = arb_f / t_f²`, [`full_stiffness`]),
+/// `(α_i,fl − α_i,fr) s / Θ` in row 0 (corner fl's extension) and its negative over `Θ` in row 2
+/// (fr's), the rear bar the same on rows 4 and 6, each divided by the bar's share of its axle's
+/// roll stiffness ([`full_bar_share`]: the fitted amplitude is the change of the roll
+/// stiffness, `Δarb / K_φ`) — zero for a bar of `0` (not judged).
 pub fn full_relative_patterns<T: Real>(car: &FullCar<T>) -> [SMatrix<T, 8, 4>; FULL_NAMED_COUNT] {
-    let (alpha, theta, k) = (full_alpha(car), full_coefficients(car), car.params().k);
+    let (alpha, theta, p) = (full_alpha(car), full_coefficients(car), car.params());
     let big = theta.iter().fold(T::zero(), |m, v| m.max(v.abs()));
     let tiny = big * T::of(1e-9);
     let rel = |d: T, th: T| if th.abs() > tiny { d / th } else { T::zero() };
+    // s / share = (arb / t²) (K_φ / arb) = K_φ / t² (0 without the bar).
+    let bars: [T; 2] = core::array::from_fn(|a| {
+        let (bar, t) = if a == 0 { (p.arb_f, p.track_f) } else { (p.arb_r, p.track_r) };
+        if bar > T::zero() {
+            bar / (t * t) / full_bar_share(car, a)
+        } else {
+            T::zero()
+        }
+    });
     core::array::from_fn(|c| {
         SMatrix::from_fn(|r, i| match c {
-            0..=3 if r == 2 * c => rel(alpha[(i, c)] * k[c], theta[(r, i)]),
+            0..=3 if r == 2 * c => rel(alpha[(i, c)] * p.k[c], theta[(r, i)]),
             4..=7 if r == 2 * (c - 4) + 1 => T::one(),
             BODY_MASS => T::one(),
+            FRONT_BAR.. if r % 2 == 0 && r / 4 == c - FRONT_BAR => {
+                // Corners a (left) and a + 1 (right) of the bar's axle; row 2j is corner j's.
+                let a = 2 * (c - FRONT_BAR);
+                let d = (alpha[(i, a)] - alpha[(i, a + 1)]) * bars[c - FRONT_BAR];
+                rel(if r / 2 == a { d } else { -d }, theta[(r, i)])
+            }
             _ => T::zero(),
         })
     })
+}
+
+/// The share of axle `a`'s (0 front, 1 rear) roll stiffness that its anti-roll bar holds,
+/// `arb / K_φ` with `K_φ = (k_l + k_r) t² / 4 + arb` (N m/rad: the two springs at `±t/2`
+/// and the bar); 0 without a bar. The monitor judges a bar's change by `Δarb / K_φ`, the
+/// change of the axle's roll stiffness: what the ride and the handling feel (a 10 % change of
+/// a bar holding a quarter of the roll stiffness moves it by 2.5 %).
+pub fn full_bar_share<T: Real>(car: &FullCar<T>, a: usize) -> T {
+    let p = car.params();
+    let (bar, t, k) =
+        if a == 0 { (p.arb_f, p.track_f, p.k[0] + p.k[1]) } else { (p.arb_r, p.track_r, p.k[2] + p.k[3]) };
+    let roll = k * t * t / T::of(4.0) + bar;
+    if bar > T::zero() {
+        bar / roll
+    } else {
+        T::zero()
+    }
+}
+
+/// Whether the monitor judges constant `c` of [`FULL_NAMED`] for `car`: every one but an
+/// anti-roll bar the car does not have.
+pub(crate) fn full_judged<T: Real>(car: &FullCar<T>, c: usize) -> bool {
+    let p = car.params();
+    match c {
+        FRONT_BAR => p.arb_f > T::zero(),
+        c if c == FRONT_BAR + 1 => p.arb_r > T::zero(),
+        _ => true,
+    }
 }
 
 /// The relative pattern of a point mass `m` set down on the body at `(x, y)` (m from the
@@ -276,7 +332,7 @@ pub struct FullHealthMonitor<T: Real> {
 
 #[cfg(feature = "serde")]
 fn zero_patterns<T: Real>() -> [Pattern<T, 8, 4>; FULL_NAMED_COUNT] {
-    [Pattern { u: SMatrix::zeros(), row: None }; FULL_NAMED_COUNT]
+    [Pattern { u: SMatrix::zeros(), row: None, zero: true }; FULL_NAMED_COUNT]
 }
 
 impl<T: Real> FullHealthMonitor<T> {
@@ -325,7 +381,7 @@ impl<T: Real> FullHealthMonitor<T> {
             sigma: SMatrix::zeros(),
             theta_ref: SMatrix::zeros(),
             q_ref: SMatrix::zeros(),
-            patterns: rel.map(|u| Pattern { u, row: None }),
+            patterns: rel.map(Pattern::new),
             sigma_inv: SMatrix::zeros(),
             cap: [T::biggest(); 9],
             g: [[T::zero(); 2]; FULL_NAMED_COUNT],

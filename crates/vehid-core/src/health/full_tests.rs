@@ -3,6 +3,7 @@
 //! generalized least squares, detection and naming of a change per corner and of a load, no
 //! event on clean drives, bad input, f32, a saved monitor.
 
+use super::full::full_judged;
 use super::pattern::{fit_kron, fit_kron_patterns, fit_patterns, Pattern};
 use super::*;
 use crate::model::{FullCar, SensorNoise, SensorSet};
@@ -60,7 +61,23 @@ pub(super) fn drive_events(
     changes: &[(&str, f64)],
     seconds: f64,
 ) -> (Vec<Event<f64, FullConstant>>, FullHealthMonitor<f64>) {
-    let car = FullCar::<f64>::passenger();
+    drive_events_of(FullCar::passenger(), seed, changes, seconds)
+}
+
+/// The passenger full car with anti-roll bars of 15 kN m/rad (front) and 8 kN m/rad (rear).
+fn barred() -> FullCar<f64> {
+    let mut p = FullCar::<f64>::passenger().params();
+    (p.arb_f, p.arb_r) = (15_000.0, 8_000.0);
+    FullCar::new(p).unwrap()
+}
+
+/// [`drive_events`] of `car`.
+fn drive_events_of(
+    car: FullCar<f64>,
+    seed: u64,
+    changes: &[(&str, f64)],
+    seconds: f64,
+) -> (Vec<Event<f64, FullConstant>>, FullHealthMonitor<f64>) {
     let mut cfg = FullDriveConfig::new(DriveConfig::new(0.005));
     for (name, v) in changes {
         cfg = cfg.with_change(FullChange::step(40.0, name, *v).unwrap()).unwrap();
@@ -93,13 +110,16 @@ fn patterns_reduce_to_the_half_cars_indicators() {
                 let want = match c {
                     0..=3 => f64::from(r == 2 * c),
                     4..=7 => f64::from(r == 2 * (c - 4) + 1),
-                    _ => 1.0,
+                    8 => 1.0,
+                    // No bars: nothing to judge.
+                    _ => 0.0,
                 };
                 assert_eq!(uc[(r, i)], want, "pattern {c} ({}) row {r} eq {i}", FULL_NAMED[c]);
             }
         }
         let one_row = Pattern::new(*uc).row;
         assert_eq!(one_row, (c < 8).then_some(if c < 4 { 2 * c } else { 2 * (c - 4) + 1 }));
+        assert_eq!(full_judged(&car, c), c < 9, "{}", FULL_NAMED[c]);
     }
     let p = car.params();
     let a = full_alpha(&car);
@@ -122,7 +142,18 @@ fn patterns_reduce_to_the_half_cars_indicators() {
         // The bar's pattern on row 0 (corner fl's extension): α_i,fl s − α_i,fr s.
         let bar = (al[(i, 0)] - al[(i, 1)]) * s / th[(0, i)];
         assert!((ub[0][(0, i)] + bar - 1.0).abs() < 1e-12, "eq {i}");
+        // The bar's own pattern is that term over the bar's share of the front roll stiffness
+        // (its amplitude: the roll stiffness' change), on rows 0 and 2 (fr's: the negative).
+        let share = q.arb_f / (q.arb_f + (q.k[0] + q.k[1]) * q.track_f * q.track_f / 4.0);
+        assert_eq!(full_bar_share(&barred, 0), share);
+        assert!((ub[9][(0, i)] * share - bar).abs() < 1e-12, "eq {i}: {}", ub[9]);
+        let bar_fr = -(al[(i, 0)] - al[(i, 1)]) * s / th[(2, i)];
+        assert!((ub[1][(2, i)] + ub[9][(2, i)] * share - 1.0).abs() < 1e-12);
+        assert!((ub[9][(2, i)] * share - bar_fr).abs() < 1e-12);
     }
+    assert!(ub[9].iter().enumerate().all(|(k, &v)| (k % 8 == 0 || k % 8 == 2) || v == 0.0), "{}", ub[9]);
+    assert!(ub[10].iter().all(|&v| v == 0.0), "no rear bar: {}", ub[10]);
+    assert!(full_judged(&barred, 9) && !full_judged(&barred, 10));
 }
 
 #[test]
@@ -136,7 +167,11 @@ fn structured_pattern_fits_equal_the_dense_generalized_least_squares() {
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(1818);
     let n = |rng: &mut Xoshiro256PlusPlus| -> f64 { StandardNormal.sample(rng) };
     let close = |a: f64, b: f64, scale: f64| (a - b).abs() <= 1e-7 * scale;
-    let rel = full_relative_patterns(&FullCar::<f64>::passenger());
+    // With both bars (every pattern non-zero; a bar's is on two rows).
+    let mut barred = FullCar::<f64>::passenger().params();
+    (barred.arb_f, barred.arb_r) = (12_000.0, 5_000.0);
+    let rel = full_relative_patterns(&FullCar::new(barred).unwrap());
+    assert!(rel.iter().all(|u| u.iter().any(|&v| v != 0.0)));
     for case in 0..100 {
         let r = SMatrix::<f64, 8, 4>::from_fn(|_, _| {
             let v: f64 = n(&mut rng);
@@ -222,6 +257,32 @@ fn front_left_damper_step_is_detected_and_named() {
     let (events, mon) = drive_events(41, &[("b_fl", 900.0)], 100.0);
     assert_one(&events, "b_fl", -0.10);
     assert_eq!(mon.constants()[11], events[0].after);
+}
+
+#[test]
+fn anti_roll_bars_are_named_and_sized() {
+    // A car with bars: no event on a clean drive; the front bar −30 % (a worn end link's
+    // bushings) and the rear bar lost (−100 %: a broken link) are named with their size,
+    // not as a corner's spring (the springs' patterns also move the bar's rows).
+    let car = barred();
+    let (events, mon) = drive_events_of(car, 51, &[], 100.0);
+    assert!(events.is_empty(), "{events:?}");
+    let g = mon.cusum().iter().flatten().fold(0.0f64, |m, &v| m.max(v));
+    assert!(g < 0.5 * mon.config().threshold, "CUSUM {g}");
+    let (events, mon) = drive_events_of(car, 52, &[("arb_f", 10_500.0)], 100.0);
+    assert_one(&events, "arb_f", -0.30);
+    assert_eq!(mon.constants()[23], events[0].after);
+    assert_eq!(crate::model::FullCar::<f64>::CONSTANTS[23], "arb_f");
+    let (events, _) = drive_events_of(car, 53, &[("arb_r", 0.0)], 100.0);
+    assert_eq!(events.len(), 1, "{events:?}");
+    assert_eq!(events[0].parameter.as_str(), "arb_r", "{:?}", events[0]);
+    // The bar's stiffness stops at 0 (estimate and low end); the interval holds the truth.
+    let e = events[0];
+    assert!(e.after >= 0.0 && e.low == 0.0 && e.high > 0.0 && e.after <= e.high, "{e:?}");
+    assert!(e.change < -0.9, "{e:?}");
+    // Without bars the passenger car judges neither (its CUSUMs stay 0).
+    let (_, mon) = drive_events(54, &[], 60.0);
+    assert!(mon.cusum()[9..].iter().flatten().all(|&v| v == 0.0));
 }
 
 #[test]

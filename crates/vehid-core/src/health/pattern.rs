@@ -181,22 +181,25 @@ pub(crate) fn spd_inverse<T: Real, const K: usize>(q: &SMatrix<T, K, K>) -> Opti
 /// A constant's pattern in the coefficients' own units, `Ũ = ∂Θ/∂ ln c` (`N × O`: a row per
 /// regressor, a column per equation), for [`fit_kron_patterns`]; `row` is its only non-zero
 /// row when it has one (a spring or a damper without anti-roll bars: the fit then needs one
-/// entry of `Q⁻¹`).
+/// entry of `Q⁻¹`); `zero` when it has none (a constant the monitor does not judge: its fit
+/// is skipped).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Pattern<T: Real, const N: usize, const O: usize> {
     pub u: SMatrix<T, N, O>,
     pub row: Option<usize>,
+    pub zero: bool,
 }
 
 impl<T: Real, const N: usize, const O: usize> Pattern<T, N, O> {
     /// The pattern `u`, its single non-zero row found.
     pub(crate) fn new(u: SMatrix<T, N, O>) -> Self {
         let mut rows = (0..N).filter(|&r| (0..O).any(|o| u[(r, o)] != T::zero()));
-        let row = match (rows.next(), rows.next()) {
+        let (first, second) = (rows.next(), rows.next());
+        let row = match (first, second) {
             (Some(r), None) => Some(r),
             _ => None,
         };
-        Self { u, row }
+        Self { u, row, zero: first.is_none() }
     }
 }
 
@@ -204,7 +207,8 @@ impl<T: Real, const N: usize, const O: usize> Pattern<T, N, O> {
 /// share their `N` regressors: [`fit_kron`] for any size (the full car's monitor: `N = 8`,
 /// `O = 4`). The relative deviations' covariance is `C = D (Σ ⊗ Q) D`, so with `Z = Q⁻¹ A Σ⁻¹`
 /// `uᵀC⁻¹x = Σ Ũ ⊙ Z(X̃)` and `uᵀC⁻¹u = Σ Ũ ⊙ Z(Ũ)`; for a pattern with one non-zero row `r`
-/// the latter is `Q⁻¹_rr ũ_r Σ⁻¹ ũ_rᵀ`. `None` when `Q` is not positive definite.
+/// the latter is `Q⁻¹_rr ũ_r Σ⁻¹ ũ_rᵀ`. A zero pattern fits nothing: amplitude 0, variance
+/// `∞`, the whole weighted residual. `None` when `Q` is not positive definite.
 pub(crate) fn fit_kron_patterns<T: Real, const N: usize, const O: usize, const P: usize>(
     dtheta: &SMatrix<T, N, O>,
     patterns: &[Pattern<T, N, O>; P],
@@ -216,6 +220,10 @@ pub(crate) fn fit_kron_patterns<T: Real, const N: usize, const O: usize, const P
     let xx = dtheta.dot(&zx);
     let mut out = [Fit { value: T::zero(), var: T::zero(), ssr: T::zero() }; P];
     for (o, p) in out.iter_mut().zip(patterns) {
+        if p.zero {
+            *o = Fit { value: T::zero(), var: T::one() / T::zero(), ssr: xx };
+            continue;
+        }
         let ux = p.u.dot(&zx);
         let uu = match p.row {
             Some(r) => {

@@ -26,7 +26,7 @@ impl<T: Real> FullHealthMonitor<T> {
         self.derive();
         let lim = self.cfg.min_change / T::of(6.0);
         let ok = fit_kron_patterns(&SMatrix::zeros(), &self.patterns, &self.sigma_inv, &self.q_ref)
-            .is_some_and(|fits| fits.iter().all(|f| f.var > T::zero() && f.var.sqrt() < lim));
+            .is_some_and(|fits| fits[..FRONT_BAR].iter().all(|f| f.var > T::zero() && f.var.sqrt() < lim));
         if !ok {
             self.sigma = old_sigma;
             self.theta_ref = old_theta;
@@ -68,6 +68,13 @@ impl<T: Real> FullHealthMonitor<T> {
     pub(super) fn fits(&self, post: bool) -> Option<Fits<T>> {
         let (dtheta, q) = self.deviations(post);
         fit_kron_patterns(&dtheta, &self.patterns, &self.sigma_inv, &q)
+    }
+
+    /// The fits of the constants the monitor judges ([`full_judged`]: not a bar the nominal car
+    /// does not have), with their places in [`FULL_NAMED`].
+    fn judged<'a>(&self, fits: &'a Fits<T>) -> impl Iterator<Item = (usize, &'a Fit<T>)> + 'a {
+        let car = self.cfg.car;
+        fits.iter().enumerate().filter(move |(u, _)| full_judged(&car, *u))
     }
 
     /// The point load that fits the settling estimate's deviations best
@@ -115,7 +122,7 @@ impl<T: Real> FullHealthMonitor<T> {
         let p = self.fast.p();
         let faded = (0..8).any(|j| !(p[(j, j)] <= self.cap[j] * T::of(0.5)));
         let fits = match self.fits(false) {
-            Some(f) if !faded && f.iter().all(|f| f.var <= lim * lim) => f,
+            Some(f) if !faded && f[..FRONT_BAR].iter().all(|f| f.var <= lim * lim) => f,
             _ => {
                 self.reason = Some(Reason::LowExcitation);
                 return;
@@ -126,7 +133,9 @@ impl<T: Real> FullHealthMonitor<T> {
         let half = delta * T::of(0.5);
         let w = T::of(self.n_decide as f64) * (T::one() - self.fast.lambda()) * delta;
         let mut best = (T::zero(), 0usize, 0usize);
-        for (u, f) in fits.iter().enumerate() {
+        // A bar is judged when its own change is known to judge_error too (it is often less
+        // well determined than the corners: a soft bar moves the coefficients little).
+        for (u, f) in self.judged(&fits).filter(|(u, f)| *u < FRONT_BAR || f.var <= lim * lim) {
             let (g, side) = cusum_step(&mut self.g[u], &mut self.zero_k[u], f.value, w / f.var, half, kr);
             if g > best.0 {
                 best = (g, u, side);
@@ -161,9 +170,9 @@ impl<T: Real> FullHealthMonitor<T> {
         }
         let one = T::one();
         let best = self.fits(true).and_then(|fits| {
-            (0..FULL_NAMED_COUNT)
-                .min_by(|&a, &b| fits[a].ssr.partial_cmp(&fits[b].ssr).unwrap_or(core::cmp::Ordering::Equal))
-                .map(|u| (u, fits[u]))
+            self.judged(&fits)
+                .min_by(|a, b| a.1.ssr.partial_cmp(&b.1.ssr).unwrap_or(core::cmp::Ordering::Equal))
+                .map(|(u, f)| (u, *f))
         });
         // A point load, when it fits better than any one constant by more than its position's
         // two degrees of freedom buy (and its mass is finite: m_e s < 1).
@@ -205,6 +214,16 @@ impl<T: Real> FullHealthMonitor<T> {
                 let (after, low, high) = if u == BODY_MASS {
                     let hi_den = (one + dx - self.z * sd).max(T::of(1e-9));
                     (before / (one + dx), before / (one + dx + self.z * sd), before / hi_den)
+                } else if u >= FRONT_BAR {
+                    // The fit is the change of the axle's roll stiffness: the bar's own is
+                    // that over its share. A bar is a torsion spring, ≥ 0: a lost bar (a
+                    // broken end link) reads about −100 %, and the estimate and its interval
+                    // stop at 0.
+                    let share = full_bar_share(&self.cfg.car, u - FRONT_BAR);
+                    let (dx, sd) = (dx / share, sd / share);
+                    let z = T::zero();
+                    let at = |v: T| (before * v).max(z);
+                    (at(one + dx), at(one + dx - self.z * sd), at(one + dx + self.z * sd))
                 } else {
                     (before * (one + dx), before * (one + dx - self.z * sd), before * (one + dx + self.z * sd))
                 };
