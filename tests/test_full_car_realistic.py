@@ -127,6 +127,15 @@ def test_pickles_continues_and_refuses_bad_input() -> None:
         obj.fit(y[3000:])
     assert np.array_equal(back.stats().params, ident.stats().params)
     assert np.array_equal(twin.stats().cov, ident.stats().cov)
+    # Format 3 added the deflection noise's sums to the corner fits: a format-2 state of one is
+    # refused, naming the formats read (the quarter car's format-2 states still load).
+    fn, args, (fmt, version, payload) = ident.__reduce__()
+    assert fmt == 3
+    with pytest.raises(ValueError, match="format 2, and this vehid .* reads this fit in formats 3 to 3 only"):
+        fn(*args).__setstate__((2, "vehid 0.1.0", payload))
+    quarter = vehid.RealisticIdentifier(vehid.QuarterCar.passenger().structure(sensors="realistic"), DT)
+    qfn, qargs, (_, qversion, qpayload) = quarter.__reduce__()
+    qfn(*qargs).__setstate__((2, qversion, qpayload))
     before = pickle.dumps(ident)
     with pytest.raises(ValueError, match=r"shape \(samples, 12\)"):
         ident.fit(y[:, :3])

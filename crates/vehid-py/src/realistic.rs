@@ -13,8 +13,9 @@ use pyo3::types::{PyBytes, PyTuple};
 use vehid_core::identify::{CornerFilterFit, StateFilterFit, CORNER_BANDWIDTH, DEFAULT_BANDWIDTH, DEFAULT_BLOCK};
 use vehid_core::model::CORNERS;
 
-/// Version of the pickled state's layout.
-const STATE_FORMAT: u32 = 2;
+/// Version of the pickled state's layout. 3: the corner fits (full and half car) keep the
+/// deflection noise's sums (its compensation); the quarter car's states are those of 2.
+const STATE_FORMAT: u32 = 3;
 
 /// The fit: the quarter car's body equation on its structure, or the full car's four corners
 /// (the half car's two) with the car given.
@@ -298,10 +299,13 @@ impl PyRealisticIdentifier {
         let Ok((format, version, payload)) = state.extract::<(u32, String, Vec<u8>)>() else {
             return Err(corrupt("its state is not a (format, version, bytes) tuple"));
         };
-        if format != STATE_FORMAT {
+        let corners = matches!(borrow(slf)?.core, Core::Full(..));
+        let oldest = if corners { STATE_FORMAT } else { 2 };
+        if !(oldest..=STATE_FORMAT).contains(&format) {
             return Err(VehidError::new_err(format!(
                 "cannot restore the RealisticIdentifier: it was pickled by {version} in state format {format}, and \
-                 this vehid ({}) reads format {STATE_FORMAT} only",
+                 this vehid ({}) reads this fit in formats {oldest} to {STATE_FORMAT} only; fit it again, or load it \
+                 with the version that saved it",
                 env!("CARGO_PKG_VERSION")
             )));
         }
