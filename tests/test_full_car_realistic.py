@@ -57,9 +57,56 @@ def filtered(y: np.ndarray, bandwidth: float, settling: int) -> tuple[np.ndarray
     return h, np.column_stack([f(y[2:-2, i]) for i in range(4)])
 
 
-def test_the_fit_is_ols_with_cluster_robust_errors_on_scipys_filtered_signals() -> None:
-    # Each corner equation: statsmodels' OLS with cluster-robust errors on the same samples;
-    # all 36 coefficients' covariance: the cluster sandwich written here in numpy.
+def noise_gains(bandwidth: float) -> np.ndarray:
+    """The filtered deflection noise's second moments per unit variance, by scipy: white noise
+    reaches the deflection regressor through F on the centre sample (two samples back) and the
+    rate regressor through F after the five-point derivative (`filtered`'s rate, written as a
+    causal filter: taps -1, 8, 0, -8, 1 over 12 dt, newest first); [Σ f0², Σ f0 f1, Σ f1²]."""
+    from scipy import signal
+
+    b, a, _ = signal.cont2discrete(([bandwidth**2], [1.0, 2 * bandwidth, bandwidth**2]), DT, method="bilinear")
+    n = 20_000
+    centre, taps = np.zeros(n), np.zeros(n)
+    centre[2] = 1.0
+    taps[:5] = np.array([-1.0, 8.0, 0.0, -8.0, 1.0]) / (12 * DT)
+    f0, f1 = signal.lfilter(np.ravel(b), a, centre), signal.lfilter(np.ravel(b), a, taps)
+    return np.array([f0 @ f0, f0 @ f1, f1 @ f1])
+
+
+def compensated_fit(h: np.ndarray, ys: np.ndarray, deflections: np.ndarray, bandwidth: float,
+                    groups: np.ndarray, compensate: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """The corner equations' bias-compensated least squares and its cluster sandwich, from the
+    documented equations (identify/corner_filter.rs, "The deflection sensors' noise"): each
+    deflection's noise variance from its fourth differences, Σ(Δ⁴d)²/(70 N₄); S block-diagonal
+    with σ² times `noise_gains`; Θ = (HᵀH − N S)⁻¹ HᵀY, scores C_b − (A_b − n_b S) Θ. With
+    `compensate=False`, S = 0: plain least squares and its cluster-robust covariance."""
+    corners = deflections.shape[1]
+    k = 2 * corners + 1
+    s = np.zeros((k, k))
+    if compensate:
+        g0, g01, g1 = noise_gains(bandwidth)
+        for j in range(corners):
+            v = np.mean(np.diff(deflections[:, j], 4) ** 2) / 70
+            s[2 * j:2 * j + 2, 2 * j:2 * j + 2] = v * np.array([[g0, g01], [g01, g1]])
+    n = len(h)
+    ainv = np.linalg.inv(h.T @ h - n * s)
+    theta = ainv @ h.T @ ys
+    g = groups[-1] + 1
+    scores = []
+    for blk in range(g):
+        hb, yb = h[groups == blk], ys[groups == blk]
+        scores.append((hb.T @ yb - (hb.T @ hb - len(hb) * s) @ theta).T.ravel())
+    sc = np.stack(scores)
+    bread = np.kron(np.eye(ys.shape[1]), ainv)
+    cov = bread @ sc.T @ sc @ bread * g / (g - 1) * (n - 1) / (n - k)
+    return theta, cov
+
+
+def test_the_fit_is_compensated_least_squares_with_cluster_robust_errors_on_scipys_filtered_signals() -> None:
+    # The sandwich written here in numpy is statsmodels' cluster-robust OLS when nothing is
+    # compensated (each equation's estimates and standard errors); with the deflection noise
+    # compensated (its variance from numpy's fourth differences, its gains from scipy's impulse
+    # responses) it is vehid's fit, all 36 coefficients and their covariance.
     sm = pytest.importorskip("statsmodels.api")
     run = drive(60.0, seed=74_001)
     ident = vehid.RealisticIdentifier(CAR, DT).fit(run.y)
@@ -68,22 +115,20 @@ def test_the_fit_is_ols_with_cluster_robust_errors_on_scipys_filtered_signals() 
     assert ident.samples == len(h)
     assert st.names[:3] == ("a_fl:d_fl", "a_fl:rate_fl", "a_fl:d_fr") and st.names[8] == "a_fl:offset"
     groups = np.arange(len(h)) // int(round(ident.block / DT))
+    plain, plain_cov = compensated_fit(h, ys, run.y[:, 8:], ident.bandwidth, groups, compensate=False)
     for i in range(4):
         ref = sm.OLS(ys[:, i], h).fit(cov_type="cluster", cov_kwds={"groups": groups})
-        np.testing.assert_allclose(st.params[9 * i:9 * i + 9], ref.params, rtol=1e-7, atol=1e-9)
-        np.testing.assert_allclose(st.bse[9 * i:9 * i + 9], ref.bse, rtol=1e-6)
-    ainv = np.linalg.inv(h.T @ h)
-    theta = ainv @ h.T @ ys
-    resid = ys - h @ theta
-    g = groups[-1] + 1
-    scores = np.stack([(h[groups == b].T @ resid[groups == b]).T.ravel() for b in range(g)])
-    bread = np.kron(np.eye(4), ainv)
-    n, k = len(h), 9
-    cov = bread @ scores.T @ scores @ bread * g / (g - 1) * (n - 1) / (n - k)
+        np.testing.assert_allclose(plain[:, i], ref.params, rtol=1e-7, atol=1e-9)
+        np.testing.assert_allclose(np.sqrt(np.diag(plain_cov))[9 * i:9 * i + 9], ref.bse, rtol=1e-6)
+    theta, cov = compensated_fit(h, ys, run.y[:, 8:], ident.bandwidth, groups)
+    np.testing.assert_allclose(st.params, theta.T.ravel(), rtol=1e-7, atol=1e-9)
     # Compared in units of the standard errors (the Kronecker sums cancel to ~1e-6 of them).
     se = np.sqrt(np.diag(cov))
     np.testing.assert_allclose(st.cov / np.outer(se, se), cov / np.outer(se, se), rtol=0, atol=1e-5)
-    assert st.df[0] == g - 1
+    assert st.df[0] == groups[-1]
+    # The compensation matters at this size: the damper coefficients move by over a tenth of a
+    # standard error.
+    assert np.max(np.abs(theta - plain).T.ravel() / se) > 0.1
 
 
 def test_the_constants_from_a_drive_are_the_cars() -> None:
@@ -203,8 +248,10 @@ HALF_NAMES = ["J", "k12", "k22", "b1", "b2"]
 
 
 def test_the_half_car_from_its_realistic_sensors() -> None:
-    # Its two body-corner equations from the six channels, statsmodels' cluster-robust OLS per
-    # equation on scipy's filtered signals; J and each spring and damper within 1 % with M known.
+    # Its two body-corner equations from the six channels: the compensated least squares and
+    # cluster sandwich of `compensated_fit` on scipy's filtered signals (statsmodels' cluster-
+    # robust OLS per equation without the compensation); J and each spring and damper within
+    # 1 % with M known.
     sm = pytest.importorskip("statsmodels.api")
     run = vehid.Simulator(HALF, dt=DT, road="iso8608-C", speed=15.0, sensors="realistic", seed=74_201).run(60_000)
     ident = vehid.RealisticIdentifier(HALF, DT).fit(run.y)
@@ -227,10 +274,15 @@ def test_the_half_car_from_its_realistic_sensors() -> None:
         cols += [-f(d[2:-2]), -f(rate)]
     h = np.column_stack(cols + [np.ones(len(cols[0]))])
     groups = np.arange(len(h)) // int(round(ident.block / DT))
+    ys = np.column_stack([f(run.y[2:-2, i]) for i in range(2)])
+    plain, plain_cov = compensated_fit(h, ys, run.y[:, 4:], lam, groups, compensate=False)
+    theta, cov = compensated_fit(h, ys, run.y[:, 4:], lam, groups)
     for i in range(2):
-        ref = sm.OLS(f(run.y[2:-2, i]), h).fit(cov_type="cluster", cov_kwds={"groups": groups})
-        np.testing.assert_allclose(st.params[5 * i:5 * i + 5], ref.params, rtol=1e-7, atol=1e-9)
-        np.testing.assert_allclose(st.bse[5 * i:5 * i + 5], ref.bse, rtol=1e-6)
+        ref = sm.OLS(ys[:, i], h).fit(cov_type="cluster", cov_kwds={"groups": groups})
+        np.testing.assert_allclose(plain[:, i], ref.params, rtol=1e-7, atol=1e-9)
+        np.testing.assert_allclose(np.sqrt(np.diag(plain_cov))[5 * i:5 * i + 5], ref.bse, rtol=1e-6)
+        np.testing.assert_allclose(st.params[5 * i:5 * i + 5], theta[:, i], rtol=1e-7, atol=1e-9)
+        np.testing.assert_allclose(st.bse[5 * i:5 * i + 5], np.sqrt(np.diag(cov))[5 * i:5 * i + 5], rtol=1e-6)
     phys = HALF.physical(st, M=HALF.params["M"])
     assert set(phys) == {"M", *HALF_NAMES}
     for name in HALF_NAMES:
