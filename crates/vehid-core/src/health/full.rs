@@ -172,15 +172,15 @@ pub fn full_bar_share<T: Real>(car: &FullCar<T>, a: usize) -> T {
     }
 }
 
-/// Whether the monitor judges constant `c` of [`FULL_NAMED`] for `car`: every one but an
+/// Which constants of [`FULL_NAMED`] the monitor judges for `car`: every one but an
 /// anti-roll bar the car does not have.
-pub(crate) fn full_judged<T: Real>(car: &FullCar<T>, c: usize) -> bool {
+pub(crate) fn full_judged<T: Real>(car: &FullCar<T>) -> [bool; FULL_NAMED_COUNT] {
     let p = car.params();
-    match c {
+    core::array::from_fn(|c| match c {
         FRONT_BAR => p.arb_f > T::zero(),
         c if c == FRONT_BAR + 1 => p.arb_r > T::zero(),
         _ => true,
-    }
+    })
 }
 
 /// The relative pattern of a point mass `m` set down on the body at `(x, y)` (m from the

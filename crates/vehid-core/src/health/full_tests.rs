@@ -119,7 +119,7 @@ fn patterns_reduce_to_the_half_cars_indicators() {
         }
         let one_row = Pattern::new(*uc).row;
         assert_eq!(one_row, (c < 8).then_some(if c < 4 { 2 * c } else { 2 * (c - 4) + 1 }));
-        assert_eq!(full_judged(&car, c), c < 9, "{}", FULL_NAMED[c]);
+        assert_eq!(full_judged(&car)[c], c < 9, "{}", FULL_NAMED[c]);
     }
     let p = car.params();
     let a = full_alpha(&car);
@@ -153,7 +153,7 @@ fn patterns_reduce_to_the_half_cars_indicators() {
     }
     assert!(ub[9].iter().enumerate().all(|(k, &v)| (k % 8 == 0 || k % 8 == 2) || v == 0.0), "{}", ub[9]);
     assert!(ub[10].iter().all(|&v| v == 0.0), "no rear bar: {}", ub[10]);
-    assert!(full_judged(&barred, 9) && !full_judged(&barred, 10));
+    assert!(full_judged(&barred)[9] && !full_judged(&barred)[10]);
 }
 
 #[test]

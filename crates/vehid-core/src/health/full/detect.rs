@@ -73,8 +73,8 @@ impl<T: Real> FullHealthMonitor<T> {
     /// The fits of the constants the monitor judges ([`full_judged`]: not a bar the nominal car
     /// does not have), with their places in [`FULL_NAMED`].
     fn judged<'a>(&self, fits: &'a Fits<T>) -> impl Iterator<Item = (usize, &'a Fit<T>)> + 'a {
-        let car = self.cfg.car;
-        fits.iter().enumerate().filter(move |(u, _)| full_judged(&car, *u))
+        let judged = full_judged(&self.cfg.car);
+        fits.iter().enumerate().filter(move |(u, _)| judged[*u])
     }
 
     /// The point load that fits the settling estimate's deviations best
