@@ -262,11 +262,22 @@ fn full_car_figure_is_seeded_and_its_claims_fail_on_wrong_results() {
     let mut alarm = r.clone();
     alarm.rows.last_mut().unwrap().early = 1;
     assert!(!agrees(&alarm, 5));
+    // The bars: named as their axle's springs, their size 9 points off.
+    let mut as_springs = r.clone();
+    for row in as_springs.rows.iter_mut() {
+        row.named.iter_mut().for_each(|n| *n = n.replace("arb_f", "k_fl").replace("arb_r", "k_rl"));
+    }
+    assert!(!agrees(&as_springs, 6) && agrees(&as_springs, 0));
+    let mut bar_size = r.clone();
+    bar_size.rows.iter_mut().filter(|row| row.label.starts_with("anti-roll")).for_each(|row| {
+        row.change.iter_mut().for_each(|c| *c += 9.0);
+    });
+    assert!(!agrees(&bar_size, 7) && agrees(&bar_size, 4));
     // The point load: named elsewhere (wrong_corner names it b_rr), read as a spread load.
-    assert!(!agrees(&wrong_corner, 6));
+    assert!(!agrees(&wrong_corner, 8));
     let mut spread = r.clone();
     spread.rows.iter_mut().filter(|row| row.label.starts_with("load")).for_each(|row| {
         row.change.iter_mut().for_each(|c| *c += 12.0);
     });
-    assert!(!agrees(&spread, 7) && agrees(&spread, 4));
+    assert!(!agrees(&spread, 9) && agrees(&spread, 4));
 }

@@ -1,7 +1,8 @@
 //! Fig B-4 (a table): the full car's health monitor (`health::FullHealthMonitor`) on the
 //! passenger full car (`FullCar::passenger()`, Ikenaga et al. 2000), a change at one corner at
 //! a time: which constant and corner it names, how soon, and how large it reports the change;
-//! and the alarms on drives without a change.
+//! and the alarms on drives without a change. Two rows drive the same car with anti-roll bars
+//! ([`FULL_BARS`]) and change a bar.
 //!
 //! Each job is one drive: ISO 8608 class C on both tracks at 15 m/s, the realistic sensors at
 //! 200 Hz (`FullDrive`: four body-corner and four wheel accelerometers, four deflection
@@ -31,12 +32,18 @@ pub const FULL_SECONDS: f64 = 90.0;
 /// milliseconds, and the claims on the 95th percentile need this many.
 pub const FULL_SEEDS: usize = 50;
 
-/// One scenario of Fig B-4: the constants that change (factor on the passenger car's value)
+/// The anti-roll bars of the rows that change one, N·m/rad (front, rear): 28 % and 16 % of
+/// their axles' roll stiffness on the passenger car (`health::full_bar_share`).
+pub const FULL_BARS: [f64; 2] = [15_000.0, 8_000.0];
+
+/// One scenario of Fig B-4: the constants that change (factor on the value of the row's car)
 /// or a point load set down, and the constant the monitor should name.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FullScenario {
     /// The row label.
     pub label: &'static str,
+    /// The row's car has the anti-roll bars [`FULL_BARS`] (else none, as the passenger car).
+    pub bars: bool,
     /// `(constant, factor)`: each named constant (`FullCar::CONSTANTS`) times its factor.
     pub changes: &'static [(&'static str, f64)],
     /// A point load `[kg, x, y]` (m from the centre of mass, forward and to the left;
@@ -47,7 +54,22 @@ pub struct FullScenario {
 }
 
 const fn sc(label: &'static str, changes: &'static [(&'static str, f64)], expect: &'static str) -> FullScenario {
-    FullScenario { label, changes, load: None, expect }
+    FullScenario { label, bars: false, changes, load: None, expect }
+}
+
+const fn barred(label: &'static str, changes: &'static [(&'static str, f64)], expect: &'static str) -> FullScenario {
+    FullScenario { label, bars: true, changes, load: None, expect }
+}
+
+impl FullScenario {
+    /// The row's car: the passenger full car, with [`FULL_BARS`] for a row with bars.
+    pub fn car(&self) -> FullCar<f64> {
+        let mut p = FullCar::<f64>::passenger().params();
+        if self.bars {
+            [p.arb_f, p.arb_r] = FULL_BARS;
+        }
+        FullCar::new(p).unwrap_or_else(|_| FullCar::passenger())
+    }
 }
 
 impl FullScenario {
@@ -63,7 +85,7 @@ impl FullScenario {
 }
 
 /// Fig B-4's scenarios, in the table's order; the last is the drive without a change.
-pub const FULL_SCENARIOS: [FullScenario; 11] = [
+pub const FULL_SCENARIOS: [FullScenario; 13] = [
     sc("damper fl −10 %", &[("b_fl", 0.9)], "b_fl"),
     sc("damper fr −10 %", &[("b_fr", 0.9)], "b_fr"),
     sc("damper rl −10 %", &[("b_rl", 0.9)], "b_rl"),
@@ -73,8 +95,17 @@ pub const FULL_SCENARIOS: [FullScenario; 11] = [
     sc("spring rl −10 %", &[("k_rl", 0.9)], "k_rl"),
     sc("spring rr −10 %", &[("k_rr", 0.9)], "k_rr"),
     sc("body mass +20 % (Jx, Jy +20 %)", &[("M", 1.2), ("Jx", 1.2), ("Jy", 1.2)], "M"),
+    // A worn bar's bushings, and a broken end link (the bar's roll stiffness lost).
+    barred("anti-roll bar front −30 % (car with bars)", &[("arb_f", 0.7)], "arb_f"),
+    barred("anti-roll bar rear lost (car with bars)", &[("arb_r", 0.0)], "arb_r"),
     // 0.8 m behind the rear axle (l_r = 1.7 m), on the centre line.
-    FullScenario { label: "load 100 kg in the boot", changes: &[], load: Some([100.0, -2.5, 0.0]), expect: "M" },
+    FullScenario {
+        label: "load 100 kg in the boot",
+        bars: false,
+        changes: &[],
+        load: Some([100.0, -2.5, 0.0]),
+        expect: "M",
+    },
     sc("no change", &[], ""),
 ];
 
@@ -97,7 +128,7 @@ pub(crate) struct FullOutcome {
 /// A simulation or monitor error (a bug in the table).
 pub(crate) fn full_job(scenario: usize, seconds: f64, seed: u64) -> crate::Result<FullOutcome> {
     let sc = &FULL_SCENARIOS[scenario];
-    let car = FullCar::<f64>::passenger();
+    let car = sc.car();
     let named = car.params().named();
     let mut cfg = FullDriveConfig::new(DriveConfig::new(FULL_DT));
     for &(name, factor) in sc.changes {
@@ -150,11 +181,14 @@ pub(crate) fn full_result(out: &[Vec<FullOutcome>], seconds: f64, cpu_seconds: f
         "The passenger full car (FullCar::passenger(), Ikenaga et al. 2000) on ISO 8608 class C tracks at 15 m/s, \
          the realistic sensors at {} Hz (FullDrive: body-corner and wheel accelerometers, deflection sensors, with \
          their default noise and biases), a step of the row's constants at {FULL_CHANGE_AT} s, {seconds} s per drive, \
-         {seeds} seeds per row (each row its own roads and noise); FullHealthMonitor with its defaults. Per row: the \
+         {seeds} seeds per row (each row its own roads and noise); the rows marked with bars drive that car with \
+         anti-roll bars of {} and {} N m/rad (front, rear); FullHealthMonitor with its defaults. Per row: the \
          seeds on which the first event after the change names the expected constant, the median and largest delay \
          after the change (a miss counts as ∞), the median reported change against the truth, and the events before \
          the change; the last row drives without a change (every event is a false alarm).",
-        1.0 / FULL_DT
+        1.0 / FULL_DT,
+        FULL_BARS[0],
+        FULL_BARS[1]
     );
     let mut r = FullResult {
         id: FULL_ID,
@@ -221,12 +255,16 @@ const fn fc(text: &'static str, check: FullCheck) -> FullClaim {
 }
 
 const CORNERS: &[&str] = &["damper", "spring"];
+const BARS: &[&str] = &["anti-roll bar"];
 
 /// Fig B-4's claims (both modes: [`FULL_SEEDS`] per row), measured on base seeds 1986, 7 and
 /// 20261128: every change named on 50 of 50 seeds, the median delay 4.2–6.2 s and the largest
 /// 7.6 s, every reported change within 0.2 points of the truth's −10 % or +20 % in the median,
 /// no false alarm; the boot load named on 50 of 50, median delay 4.25 s, largest 4.55 s, its
 /// size 6.67 % in the median (truth 6.67 %) (`docs/capabilities/health.md`, "The full car").
+/// The bars' rows (added later, the same three base seeds): named on 50 of 50, median delays
+/// 6.75–7.02 s (front −30 %) and 5.45–5.64 s (rear lost), largest 8.50 s; their sizes within 8
+/// points on 50 of 50 (largest error 7.24 points), no false alarm.
 pub static FULL_CLAIMS: &[FullClaim] = &[
     fc(
         "every corner's damper and spring change (−10 %) is named, constant and corner, on at least 98 % of the seeds",
@@ -246,6 +284,16 @@ pub static FULL_CLAIMS: &[FullClaim] = &[
         FullCheck::Size { prefixes: &["damper", "spring", "body mass"], points: 3.0, lo: 0.95 },
     ),
     fc("no false alarm: no event before a change, none on the drives without one", FullCheck::FalseAlarms { hi: 0 }),
+    fc(
+        "an anti-roll bar's change (the front bar −30 %, the rear bar lost) is named on at least 98 % of the seeds",
+        FullCheck::Named { prefixes: BARS, lo: 0.98 },
+    ),
+    fc(
+        "a bar's reported change is within ±8 points of the truth on at least 95 % of the seeds (a bar is judged by \
+         the change it makes to its axle's roll stiffness, and its own size is less precise: 16-28 % of the roll \
+         stiffness divides the error)",
+        FullCheck::Size { prefixes: BARS, points: 8.0, lo: 0.95 },
+    ),
     fc(
         "a point load (100 kg in the boot, 0.8 m behind the rear axle) is named the body mass on at least 98 % of the \
          seeds",
