@@ -436,12 +436,17 @@ impl<T: Real> FullHealthMonitor<T> {
     }
 
     /// Sets what is derived from the reference: `Σ⁻¹` and the patterns `Ũ_c = Θ_ref ⊙ u_c` of
-    /// the nominal car's relative patterns `u_c` ([`full_relative_patterns`]). (Zeros while
-    /// `Σ` is not positive definite.)
+    /// the nominal car's relative patterns `u_c` ([`full_relative_patterns`]); a bar's is
+    /// `Θ_nom ⊙ u_c`, the nominal car's own derivative: `Θ` is linear in a bar, so that
+    /// derivative holds at any value of it, a lost bar's included (the reference's `Θ` would
+    /// scale it by what the bar's loss took from its rows). (Zeros while `Σ` is not positive
+    /// definite.)
     fn derive(&mut self) {
         let rel = full_relative_patterns(&self.cfg.car);
         let th = self.theta_ref.fixed_view::<8, 4>(0, 0).into_owned();
-        self.patterns = rel.map(|u| Pattern::new(u.component_mul(&th)));
+        let nominal = full_coefficients(&self.cfg.car);
+        self.patterns =
+            core::array::from_fn(|c| Pattern::new(rel[c].component_mul(if c >= FRONT_BAR { &nominal } else { &th })));
         self.sigma_inv = spd_inverse(&self.sigma).unwrap_or_else(SMatrix::zeros);
     }
 

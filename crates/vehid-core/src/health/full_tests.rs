@@ -80,7 +80,9 @@ fn drive_events_of(
 ) -> (Vec<Event<f64, FullConstant>>, FullHealthMonitor<f64>) {
     let mut cfg = FullDriveConfig::new(DriveConfig::new(0.005));
     for (name, v) in changes {
-        cfg = cfg.with_change(FullChange::step(40.0, name, *v).unwrap()).unwrap();
+        // `name@T`: at T s instead of 40 s.
+        let (name, t) = name.split_once('@').map_or((*name, 40.0), |(n, t)| (n, t.parse().unwrap()));
+        cfg = cfg.with_change(FullChange::step(t, name, *v).unwrap()).unwrap();
     }
     let mut drive = FullDrive::new(car, cfg, seed).unwrap();
     let mut mon = FullHealthMonitor::new(HealthConfig::new(0.005, car)).unwrap();
@@ -280,6 +282,13 @@ fn anti_roll_bars_are_named_and_sized() {
     let e = events[0];
     assert!(e.after >= 0.0 && e.low == 0.0 && e.high > 0.0 && e.after <= e.high, "{e:?}");
     assert!(e.change < -0.9, "{e:?}");
+    // The rear bar lost, then repaired (its belief 0 in between): 8000 -> ~0 -> ~8000.
+    let (events, mon) = drive_events_of(car, 55, &[("arb_r", 0.0), ("arb_r@90", 8_000.0)], 140.0);
+    assert_eq!(events.iter().map(|e| e.parameter.as_str()).collect::<Vec<_>>(), ["arb_r", "arb_r"], "{events:?}");
+    let (lost, back) = (events[0], events[1]);
+    assert!(lost.after < 800.0 && back.before == lost.after && back.t > 90.0, "{events:?}");
+    assert!((back.after / 8_000.0 - 1.0).abs() < 0.1 && back.low < 8_000.0 && 8_000.0 < back.high, "{back:?}");
+    assert_eq!(mon.constants()[24], back.after);
     // Without bars the passenger car judges neither (its CUSUMs stay 0).
     let (_, mon) = drive_events(54, &[], 60.0);
     assert!(mon.cusum()[9..].iter().flatten().all(|&v| v == 0.0));
