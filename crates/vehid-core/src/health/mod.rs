@@ -330,7 +330,10 @@
 //! `min_change` and `judge_error` apply to it. The event reports the bar's own change (the
 //! amplitude over the share), stopping at 0: a lost bar (a broken end link) reads −100 %. A
 //! bar is judged only while its own fit meets `judge_error`, and never holds back the others'
-//! judgement; a bar of 0 in the nominal car is not judged at all (no pattern). The monitor
+//! judgement; a bar of 0 in the nominal car is not judged at all (no pattern). Its pattern in
+//! the coefficients' units is the nominal car's derivative, not scaled by the reference as
+//! the springs' are: `Θ` is linear in a bar, so the derivative holds at any value of it, and a
+//! lost bar's repair (its belief 0) reads as one. The monitor
 //! works in the coefficients' own units, `Ũ_c = Θ_ref ⊙ u_c`
 //! and `X̃ = Θ − Θ_ref`, so that a coefficient near zero (the cross terms `α_ij` of a car with
 //! `1/M ≈ x_i x_j/Jy + y_i y_j/Jx`) needs no division.
