@@ -339,7 +339,7 @@ impl<T: Real> FullHealthMonitor<T> {
     /// A monitor with settings `cfg`.
     ///
     /// # Errors
-    /// As [`super::HealthMonitor::new`]: [`Error::InvalidArgument`] naming the setting.
+    /// As [`super::HealthMonitor::new`]: [`crate::Error::InvalidArgument`] naming the setting.
     pub fn new(cfg: HealthConfig<T, FullCar<T>>) -> Result<Self> {
         let (kf, z) = cfg.check()?;
         let rate = cfg.rate_gain()?;
@@ -526,8 +526,8 @@ impl<T: Real> FullHealthMonitor<T> {
     /// allocation.
     ///
     /// # Errors
-    /// [`Error::Shape`] for a length other than the sensor set's channels,
-    /// [`Error::NonFinite`] for ±∞; the monitor is then unchanged.
+    /// [`crate::Error::Shape`] for a length other than the sensor set's channels,
+    /// [`crate::Error::NonFinite`] for ±∞; the monitor is then unchanged.
     pub fn update(&mut self, y: &[T]) -> Result<Option<Event<T, FullConstant>>> {
         let missing = screen(y, self.cfg.channels())?;
         match self.cfg.sensors {

@@ -22,7 +22,7 @@ pub const MAX_DELAY: usize = 64;
 /// deflection against the integrated accelerations is [`Reason::Jump`].
 pub const JUMP_GATE: f64 = 8.0;
 
-/// Largest relative change of the sensors' kinematic gain ([`KinematicCheck`]) the monitor
+/// Largest relative change of the sensors' kinematic gain ([`super::KinematicCheck`]) the monitor
 /// judges through, as a fraction of `min_change` (a deflection gain error `ε` moves both
 /// ratios by about `−ε`; at `0.4 δ` it stays below the CUSUM's allowance `δ/2`).
 pub const SENSOR_TOLERANCE: f64 = 0.4;

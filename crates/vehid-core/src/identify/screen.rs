@@ -181,7 +181,8 @@ impl<T: Real, I: Identifier<T> + Clone> Screened<T, I> {
     /// # Errors
     /// [`Error::InvalidArgument`] for a `gate` not finite and ≥ 0, or a structure of other
     /// sizes than the identifier's; [`Error::Capacity`] when a sample has more than
-    /// [`SAMPLE_VALUES`] values or the identifier has already taken samples.
+    /// `2 MAX_STATES + MAX_INPUTS` values ([`crate::structure::MAX_STATES`],
+    /// [`crate::structure::MAX_INPUTS`]) or the identifier has already taken samples.
     pub fn new(inner: I, structure: Structure<T>, gate: T, refresh: Refresh) -> Result<Self> {
         let d = inner.dims();
         if (structure.states(), structure.inputs(), structure.equations(), structure.params())
