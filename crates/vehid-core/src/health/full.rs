@@ -132,9 +132,9 @@ pub fn full_relative_patterns<T: Real>(car: &FullCar<T>) -> [SMatrix<T, 8, 4>; F
     let rel = |d: T, th: T| if th.abs() > tiny { d / th } else { T::zero() };
     // s / share = (arb / t²) (K_φ / arb) = K_φ / t² (0 without the bar).
     let bars: [T; 2] = core::array::from_fn(|a| {
-        let (bar, t) = if a == 0 { (p.arb_f, p.track_f) } else { (p.arb_r, p.track_r) };
+        let (bar, t, roll) = axle_roll(car, a);
         if bar > T::zero() {
-            bar / (t * t) / full_bar_share(car, a)
+            roll / (t * t)
         } else {
             T::zero()
         }
@@ -161,10 +161,7 @@ pub fn full_relative_patterns<T: Real>(car: &FullCar<T>) -> [SMatrix<T, 8, 4>; F
 /// change of the axle's roll stiffness: what the ride and the handling feel (a 10 % change of
 /// a bar holding a quarter of the roll stiffness moves it by 2.5 %).
 pub fn full_bar_share<T: Real>(car: &FullCar<T>, a: usize) -> T {
-    let p = car.params();
-    let (bar, t, k) =
-        if a == 0 { (p.arb_f, p.track_f, p.k[0] + p.k[1]) } else { (p.arb_r, p.track_r, p.k[2] + p.k[3]) };
-    let roll = k * t * t / T::of(4.0) + bar;
+    let (bar, _, roll) = axle_roll(car, a);
     if bar > T::zero() {
         bar / roll
     } else {
@@ -172,15 +169,19 @@ pub fn full_bar_share<T: Real>(car: &FullCar<T>, a: usize) -> T {
     }
 }
 
+/// Axle `a`'s (0 front, 1 rear) anti-roll bar, track width and roll stiffness
+/// `K_φ = (k_l + k_r) t²/4 + arb` (N m/rad, m, N m/rad).
+pub(crate) fn axle_roll<T: Real>(car: &FullCar<T>, a: usize) -> (T, T, T) {
+    let p = car.params();
+    let (bar, t, k) =
+        if a == 0 { (p.arb_f, p.track_f, p.k[0] + p.k[1]) } else { (p.arb_r, p.track_r, p.k[2] + p.k[3]) };
+    (bar, t, k * t * t / T::of(4.0) + bar)
+}
+
 /// Which constants of [`FULL_NAMED`] the monitor judges for `car`: every one but an
 /// anti-roll bar the car does not have.
 pub(crate) fn full_judged<T: Real>(car: &FullCar<T>) -> [bool; FULL_NAMED_COUNT] {
-    let p = car.params();
-    core::array::from_fn(|c| match c {
-        FRONT_BAR => p.arb_f > T::zero(),
-        c if c == FRONT_BAR + 1 => p.arb_r > T::zero(),
-        _ => true,
-    })
+    core::array::from_fn(|c| c < FRONT_BAR || axle_roll(car, c - FRONT_BAR).0 > T::zero())
 }
 
 /// The relative pattern of a point mass `m` set down on the body at `(x, y)` (m from the

@@ -215,16 +215,14 @@ impl<T: Real> FullHealthMonitor<T> {
                     let hi_den = (one + dx - self.z * sd).max(T::of(1e-9));
                     (before / (one + dx), before / (one + dx + self.z * sd), before / hi_den)
                 } else if u >= FRONT_BAR {
-                    // The fit is the change of the axle's roll stiffness, in the nominal car's
-                    // units: the bar's own change is that over its share, times the nominal
-                    // bar, added to the belief (a lost bar's belief is 0, and its repair must
-                    // still read as one). A bar is a torsion spring, ≥ 0: a lost bar (a broken
-                    // end link) reads about −100 %, and the estimate and its interval stop at 0.
-                    let a = u - FRONT_BAR;
-                    let nominal = if a == 0 { self.cfg.car.params().arb_f } else { self.cfg.car.params().arb_r };
-                    let per = nominal / full_bar_share(&self.cfg.car, a);
+                    // The fit is the change of the axle's roll stiffness relative to the nominal
+                    // car's, Δarb / K_φ: the bar's own change is that times K_φ, added to the
+                    // belief (a lost bar's belief is 0, and its repair must still read as one).
+                    // A bar is a torsion spring, ≥ 0: a lost bar (a broken end link) reads
+                    // about −100 %, and the estimate and its interval stop at 0.
+                    let (_, _, roll) = axle_roll(&self.cfg.car, u - FRONT_BAR);
                     let z = T::zero();
-                    let at = |d: T| (before + d * per).max(z);
+                    let at = |d: T| (before + d * roll).max(z);
                     (at(dx), at(dx - self.z * sd), at(dx + self.z * sd))
                 } else {
                     (before * (one + dx), before * (one + dx - self.z * sd), before * (one + dx + self.z * sd))
