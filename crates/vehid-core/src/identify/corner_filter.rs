@@ -330,6 +330,22 @@ impl CornerFilterFit {
         g
     }
 
+    /// The deflection noise's share `S` of the normal matrix per sample (`k × k`, `k` the
+    /// regressors; module documentation, "The deflection sensors' noise"): corner `j`'s
+    /// extension and rate block `σ̂_j² [[Σ f₀², Σ f₀f₁], [Σ f₀f₁, Σ f₁²]]`
+    /// ([`CornerFilterFit::noise_gains`], [`CornerFilterFit::deflection_noise`]), 0 elsewhere.
+    fn noise_share(&self) -> DMatrix<f64> {
+        let [g0, g01, g1] = self.noise_gains();
+        let sd = self.deflection_noise();
+        let mut s = DMatrix::<f64>::zeros(self.regressors(), self.regressors());
+        for j in 0..self.corners {
+            let v = sd[j] * sd[j];
+            let block = SMatrix::<f64, 2, 2>::new(g0, g01, g01, g1) * v;
+            s.view_mut((2 * j, 2 * j), (2, 2)).copy_from(&block);
+        }
+        s
+    }
+
     /// Each corner's deflection noise estimated from the samples, m: the standard deviation
     /// `σ̂_j = √(Σ (Δ⁴ d_j)² / (70 N₄))` (module documentation, "The deflection sensors'
     /// noise"); 0 before five samples (`[fl, fr, rl, rr]`, the half car's `[f, r]` first).
@@ -401,20 +417,18 @@ impl CornerFilterFit {
         if self.since_start < HISTORY as u64 {
             return Ok(());
         }
-        // Each deflection's fourth difference (its noise, for the compensation).
-        for j in 0..c {
-            let d = self.history.map(|s| s[EQS + j]);
-            let d4 = d[0] - 4.0 * d[1] + 6.0 * d[2] - 4.0 * d[3] + d[4];
-            self.diff4[j] += d4 * d4;
-        }
-        self.diff4_n += 1;
-        // The centre sample (two back) and each deflection's rate there.
+        // The centre sample (two back), each deflection's rate there, and its fourth
+        // difference (its noise, for the compensation).
         let centre = self.history[2];
         let prime = self.since_start == HISTORY as u64;
         let mut h = SMatrix::<f64, CORNER_REGRESSORS, 1>::zeros();
         let mut fa = SMatrix::<f64, EQS, 1>::zeros();
+        self.diff4_n += 1;
         for j in 0..c {
-            let rate = five_point(self.history.map(|s| s[EQS + j]), self.dt);
+            let d = self.history.map(|s| s[EQS + j]);
+            let d4 = d[0] - 4.0 * d[1] + 6.0 * d[2] - 4.0 * d[3] + d[4];
+            self.diff4[j] += d4 * d4;
+            let rate = five_point(d, self.dt);
             let [fa_f, fd_f, fv_f] = &mut self.filters;
             if prime {
                 fa_f[j].prime(centre[j]);
@@ -491,17 +505,7 @@ impl CornerFilterFit {
         let total = all.total;
         let a = DMatrix::from_fn(k, k, |i, j| total.a[(i, j)]);
         let cs = DMatrix::from_fn(k, eqs, |i, j| total.c[(i, j)]);
-        // The deflection noise's share of A, per sample (module documentation).
-        let [g0, g01, g1] = self.noise_gains();
-        let sd = self.deflection_noise();
-        let mut s = DMatrix::<f64>::zeros(k, k);
-        for j in 0..eqs {
-            let v = sd[j] * sd[j];
-            s[(2 * j, 2 * j)] = g0 * v;
-            s[(2 * j, 2 * j + 1)] = g01 * v;
-            s[(2 * j + 1, 2 * j)] = g01 * v;
-            s[(2 * j + 1, 2 * j + 1)] = g1 * v;
-        }
+        let s = self.noise_share();
         let compensated = &a - &s * total.n as f64;
         let scale = (0..k).map(|i| a[(i, i)]).fold(0.0, f64::max);
         let chol = Cholesky::new(compensated);
