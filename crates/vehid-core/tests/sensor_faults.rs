@@ -205,6 +205,35 @@ fn a_deflection_gain_off_by_ten_percent_is_no_event() {
     check(Fault::Gain(1.1), SEEDS);
 }
 
+/// A deflection gain off by 2 %: under the check's tolerance (2 % of the defaults), yet it
+/// moves `k2/M` by about 3 %, past the CUSUM's allowance, and looks like a spring change
+/// (`health::GAIN_LEVERAGE`). An event is held back when a gain has moved by a third of the
+/// event's size, so such a drive mostly reports nothing (it need not say "cannot judge": the
+/// gain's move is within the tolerance). ×0.98 and ×1.02 on 20 quarter-car drives each (seeds
+/// 61_100–61_119, not used while the rule was made): at most 6 of the 40 with an event; on 10
+/// half-car drives each (the front deflection): at most 7 of the 20. Without the rule 36 and
+/// 44 of 50 quarter-car drives gave one (`check_gain --fault-gain`, seeds 67_000–67_049, the
+/// fault at 120 s of 180), with it 2 and 2; on seeds 61_200–61_209 (×0.98 and ×1.02 together)
+/// the quarter car 17 of 20 before and 1 after, the half car 14 and 3, the full car (front
+/// left) 2 and 0.
+#[test]
+fn a_deflection_gain_off_by_two_percent_is_seldom_an_event() {
+    for (car, run, seeds, most) in
+        [("quarter", run as fn(u64, Fault) -> (usize, bool), 61_100..61_120, 6), ("half", run_half, 61_100..61_110, 7)]
+    {
+        let mut with_events = Vec::new();
+        for gain in [0.98, 1.02] {
+            for seed in seeds.clone() {
+                if run(seed, Fault::Gain(gain)).0 > 0 {
+                    with_events.push((gain, seed));
+                }
+            }
+        }
+        let n = 2 * seeds.count();
+        assert!(with_events.len() <= most, "{car}: events on {} of {n} drives: {with_events:?}", with_events.len());
+    }
+}
+
 #[test]
 fn inverted_swapped_and_stuck_channels_are_no_event() {
     check(Fault::Inverted, SEEDS);

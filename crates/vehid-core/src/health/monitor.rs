@@ -23,8 +23,10 @@ pub const MAX_DELAY: usize = 64;
 pub const JUMP_GATE: f64 = 8.0;
 
 /// Largest relative change of the sensors' kinematic gain ([`super::KinematicCheck`]) the monitor
-/// judges through, as a fraction of `min_change` (a deflection gain error `ε` moves both
-/// ratios by about `−ε`; at `0.4 δ` it stays below the CUSUM's allowance `δ/2`).
+/// judges through, as a fraction of `min_change`. A deflection gain error `ε` moves `k2/M` by
+/// about `−1.2 ε` to `−1.5 ε` ([`super::GAIN_LEVERAGE`]), so a gain error just under this
+/// tolerance can move it past the CUSUM's allowance `δ/2`: an event is also held back when a
+/// gain has moved by a third of the event's size.
 pub const SENSOR_TOLERANCE: f64 = 0.4;
 
 /// What a restart adds to the unscaled variance of the body equation's offset `c`

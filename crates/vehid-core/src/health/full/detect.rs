@@ -162,12 +162,6 @@ impl<T: Real> FullHealthMonitor<T> {
     /// ([`full_load_pattern`]) when it fits better by [`LOAD_PENALTY`], reports it, moves the
     /// reference (`None` for a settled change below `min_change / 2`: the alarm is dropped).
     pub(super) fn finish(&mut self) -> Option<Event<T, FullConstant>> {
-        if self.sensors.vetoes() {
-            self.g = [[T::zero(); 2]; FULL_NAMED_COUNT];
-            self.phase = Phase::Monitoring;
-            self.reason = Some(Reason::Sensors);
-            return None;
-        }
         let one = T::one();
         let best = self.fits(true).and_then(|fits| {
             self.judged(&fits)
@@ -185,6 +179,16 @@ impl<T: Real> FullHealthMonitor<T> {
         let load = self.point_load().filter(|(f, _, s)| {
             mass(f.value, *s).is_some() && best.is_none_or(|(_, b)| f.ssr + T::of(LOAD_PENALTY) < b.ssr)
         });
+        // A change that arrived with a moved sensor gain is the sensor's: the gain's tracker
+        // lags the ratios' by a few seconds, so it is looked at again before reporting; a
+        // gain error explains a change up to GAIN_LEVERAGE times its own size.
+        let size = load.map(|(f, ..)| f.value).or(best.map(|(_, f)| f.value)).unwrap_or(T::zero());
+        if self.sensors.vetoes(size) {
+            self.g = [[T::zero(); 2]; FULL_NAMED_COUNT];
+            self.phase = Phase::Monitoring;
+            self.reason = Some(Reason::Sensors);
+            return None;
+        }
         let half = self.cfg.min_change * T::of(0.5);
         let (parameter, before, after, low, high, position) = match (load, best) {
             (Some((fit, at, s)), _) => {

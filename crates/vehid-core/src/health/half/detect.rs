@@ -120,20 +120,21 @@ impl<T: Real> HalfHealthMonitor<T> {
     /// Ends the settling: names the constant whose pattern fits best, reports it, moves the
     /// reference (`None` for a settled change below `min_change / 2`: the alarm is dropped).
     pub(super) fn finish(&mut self) -> Option<Event<T, HalfConstant>> {
-        // A change that arrived with a moved sensor gain is the sensor's: the gain's tracker
-        // lags the ratios' by a few seconds, so it is looked at again before reporting.
-        if self.sensors.vetoes() {
-            self.g = [[T::zero(); 2]; 5];
-            self.phase = Phase::Monitoring;
-            self.reason = Some(Reason::Sensors);
-            return None;
-        }
         let one = T::one();
         let best = self.fits(true).and_then(|fits| {
             (0..5)
                 .min_by(|&a, &b| fits[a].ssr.partial_cmp(&fits[b].ssr).unwrap_or(core::cmp::Ordering::Equal))
                 .map(|u| (u, fits[u]))
         });
+        // A change that arrived with a moved sensor gain is the sensor's: the gain's tracker
+        // lags the ratios' by a few seconds, so it is looked at again before reporting; a
+        // gain error explains a change up to GAIN_LEVERAGE times its own size.
+        if self.sensors.vetoes(best.map_or(T::zero(), |(_, f)| f.value)) {
+            self.g = [[T::zero(); 2]; 5];
+            self.phase = Phase::Monitoring;
+            self.reason = Some(Reason::Sensors);
+            return None;
+        }
         let Some((u, fit)) = best.filter(|(_, f)| f.value.abs() >= self.cfg.min_change * T::of(0.5)) else {
             self.g = [[T::zero(); 2]; 5];
             self.phase = Phase::Monitoring;

@@ -128,14 +128,6 @@ impl<T: Real> HealthMonitor<T> {
     /// (`None`: the settled change is smaller than `min_change / 2`, a transient such as a
     /// jump in the data; the alarm is dropped and the reference kept.)
     pub(super) fn finish(&mut self) -> Option<Event<T>> {
-        // A change that arrived with a moved sensor gain is the sensor's: the gain's tracker
-        // lags the ratios' by a few seconds, so it is looked at again before reporting.
-        if self.sensors.vetoes() {
-            self.g = [[T::zero(); 2]; 2];
-            self.phase = Phase::Monitoring;
-            self.reason = Some(Reason::Sensors);
-            return None;
-        }
         let th = *self.post.theta();
         let p = *self.post.p();
         let s2 = self.sigma2;
@@ -167,6 +159,15 @@ impl<T: Real> HealthMonitor<T> {
             }
         }
         let (_, parameter, dx, sd) = best.unwrap_or((T::zero(), Constant::Damper, x[1], c11.sqrt()));
+        // A change that arrived with a moved sensor gain is the sensor's: the gain's tracker
+        // lags the ratios' by a few seconds, so it is looked at again before reporting; a
+        // gain error explains a change up to GAIN_LEVERAGE times its own size.
+        if self.sensors.vetoes(dx) {
+            self.g = [[T::zero(); 2]; 2];
+            self.phase = Phase::Monitoring;
+            self.reason = Some(Reason::Sensors);
+            return None;
+        }
         if !(dx.abs() >= self.cfg.min_change * T::of(0.5)) {
             self.g = [[T::zero(); 2]; 2];
             self.phase = Phase::Monitoring;
