@@ -415,6 +415,9 @@ fn bad_input_is_an_error_and_changes_nothing() {
     }
     assert!(matches!(mon.update(&y[..11]), Err(Error::Shape { .. })));
     assert_eq!(mon, before);
+    // Every sample taken counts, a refused one does not.
+    let n = (25.0 / 0.005) as u64;
+    assert_eq!(mon.samples(), n);
     // A NaN channel is a missing sample: cannot judge, then re-acquiring.
     let mut z = y;
     z[9] = f64::NAN;
@@ -422,6 +425,7 @@ fn bad_input_is_an_error_and_changes_nothing() {
     assert_eq!(mon.status(), Status::CannotJudge(Reason::Missing));
     mon.update(&y).unwrap();
     assert_eq!(mon.status(), Status::CannotJudge(Reason::Reacquiring));
+    assert_eq!(mon.samples(), n + 2);
     // With the state sensors the sample is the 28 state channels.
     let cfg = HealthConfig::new(0.005, car).with_sensors(SensorSet::State, &SensorNoise::default());
     let mut state = FullHealthMonitor::new(cfg).unwrap();
