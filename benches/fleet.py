@@ -154,6 +154,7 @@ def _score(truth: List[Dict[str, Any]], events: List[Dict[str, Any]], states: An
     faults = {(f["vehicle"], f["day"]): f for f in truth}
     matched = set()
     found, named, delays, errors = 0, 0, [], []
+    delays_by: Dict[str, List[float]] = {}
     for f in truth:
         evs = [e for e in events if (e["vehicle"], e["day"]) == (f["vehicle"], f["day"])
                and f["t"] <= e["t"] <= f["t"] + window]
@@ -165,6 +166,7 @@ def _score(truth: List[Dict[str, Any]], events: List[Dict[str, Any]], states: An
             matched.add((e["vehicle"], e["day"], e["t"], e["parameter"]))
             named += 1
             delays.append(e["t"] - f["t"])
+            delays_by.setdefault(f["parameter"], []).append(e["t"] - f["t"])
             errors.append(100 * (e["after"] / f["after"] - 1))
     false, after_fault = 0, 0
     false_by: Dict[str, int] = {}
@@ -194,6 +196,7 @@ def _score(truth: List[Dict[str, Any]], events: List[Dict[str, Any]], states: An
             "other events after a fault": after_fault, "false by": false_by, "after by": after_by,
             "delay median s": statistics.median(delays) if delays else float("nan"),
             "delay p95 s": float(np.percentile(delays, 95)) if delays else float("nan"),
+            "delays by": {k: (statistics.median(v), float(np.percentile(v, 95))) for k, v in delays_by.items()},
             "after within 3 points": sum(abs(x) <= 3 for x in errors),
             "cannot judge %": 100 * cannot / max(1e-9, total_s), "hours": total_s / 3600}
 
@@ -234,6 +237,8 @@ def detect(args: argparse.Namespace) -> None:
               f"delay median {s['delay median s']:.2f} s, p95 {s['delay p95 s']:.2f} s")
         print("  per constant (faults, named right): " + ", ".join(f"{k} {v[0]}/{v[1]}" for k, v in
                                                                    sorted(by_kind.items())))
+        print("  delay by constant, median / p95 s: " + ", ".join(f"{k} {m:.1f} / {q:.1f}" for k, (m, q) in
+                                                                 sorted(s["delays by"].items())))
         print(f"  events {s['events']}: precision {100 * s['precision']:.1f} %; {s['other events after a fault']} "
               f"further events after a fault")
         print("  further events after a fault (fault: event): "
