@@ -369,6 +369,8 @@ fn a_point_load_in_the_boot_is_named_with_its_mass_and_place() {
     assert_eq!(e.parameter.as_str(), "M", "{e:?}");
     assert!((e.change - m / 1500.0).abs() < 0.03, "{e:?}");
     assert!(e.low < 1600.0 && 1600.0 < e.high, "{e:?}");
+    // The interval is the load's statistical and systematic error, narrower than the load.
+    assert!(e.high - e.low < m, "{e:?}");
     let [ex, ey] = e.position.expect("a point load's place");
     assert!((ex - x).abs() < 0.5 && (ey - y).abs() < 0.5, "{e:?}");
     let c = mon.constants();
