@@ -532,3 +532,42 @@ fn the_full_configs_channels_are_a_full_drives_sample() {
     assert!(mon.update(&y[..y.len() - 1]).is_err());
     mon.update(&y[..cfg.channels()]).unwrap();
 }
+
+#[test]
+fn tracked_fits_standard_errors_against_their_spread_over_drives() {
+    // The CUSUM weighs each named constant's tracked relative deviation by its fit's
+    // variance: the tracked estimate's covariance `P/(1+λ)` (the forgetting's effective
+    // count) plus the reference's, without the residuals' colour (the threshold's
+    // calibration over seeds carries that). Over 24 no-change drives of 60 s (seeds
+    // 62_500–62_523; 62_400– were looked at first) the mean over the four springs and four
+    // dampers of (the reported standard error / the deviations' spread across drives) lies
+    // in [0.35, 0.70]: 0.55 on the seeds looked at (springs 0.32–0.39, dampers 0.64–0.93),
+    // 0.46 on these; with the tracked part as `P·(1+λ)` (four times the variance) 0.92 and
+    // 0.78.
+    let car = FullCar::<f64>::passenger();
+    let seeds = 62_500..62_524u64;
+    let n = seeds.clone().count() as f64;
+    let mut vals = std::vec::Vec::new();
+    let mut vars = [0.0f64; 8];
+    for seed in seeds {
+        let mut drive = FullDrive::new(car, FullDriveConfig::new(DriveConfig::new(0.005)), seed).unwrap();
+        let mut mon = FullHealthMonitor::new(HealthConfig::new(0.005, car)).unwrap();
+        for _ in 0..(60.0 / 0.005) as usize {
+            assert_eq!(mon.update(drive.next_sample().y()).unwrap(), None, "seed {seed}");
+        }
+        let fits = mon.fits(false).expect("a reference after 60 s");
+        vals.push(core::array::from_fn::<f64, 8, _>(|u| fits[u].value));
+        for (v, f) in vars.iter_mut().zip(&fits) {
+            *v += f.var / n;
+        }
+    }
+    let ratio = (0..8)
+        .map(|u| {
+            let mean = vals.iter().map(|v| v[u]).sum::<f64>() / n;
+            let spread = (vals.iter().map(|v| (v[u] - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+            vars[u].sqrt() / spread
+        })
+        .sum::<f64>()
+        / 8.0;
+    assert!((0.35..=0.70).contains(&ratio), "standard error / spread {ratio:.3}");
+}

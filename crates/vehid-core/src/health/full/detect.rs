@@ -65,7 +65,7 @@ impl<T: Real> FullHealthMonitor<T> {
 
     /// The fits of the named constants to the tracked (`post = false`) or the settling
     /// (`post = true`) estimate's deviations from the reference.
-    pub(super) fn fits(&self, post: bool) -> Option<Fits<T>> {
+    pub(crate) fn fits(&self, post: bool) -> Option<Fits<T>> {
         let (dtheta, q) = self.deviations(post);
         fit_kron_patterns(&dtheta, &self.patterns, &self.sigma_inv, &q)
     }
