@@ -184,10 +184,8 @@ impl<T: Real> FullHealthMonitor<T> {
         // gain error explains a change up to GAIN_LEVERAGE times its own size.
         let size = load.map(|(f, ..)| f.value).or(best.map(|(_, f)| f.value)).unwrap_or(T::zero());
         if self.sensors.vetoes(size) {
-            self.g = [[T::zero(); 2]; FULL_NAMED_COUNT];
-            self.phase = Phase::Monitoring;
             self.reason = Some(Reason::Sensors);
-            return None;
+            return self.drop_alarm();
         }
         let half = self.cfg.min_change * T::of(0.5);
         let (parameter, before, after, low, high, position) = match (load, best) {
