@@ -8,7 +8,7 @@
 #                 the Python API from the docstrings, rustdoc (cargo doc) under site/rustdoc/, the
 #                 thesis-equation index generated from the sources; --strict: any warning fails it
 #   make test     lint, every Rust test (unit, integration, bins, benches in test mode, examples,
-#                 doctests), the no_std build, the optimized-code SIMD bit check, pytest on the fresh
+#                 doctests), the no_std build, pytest on the fresh
 #                 extension, stub check (clippy -D warnings runs inside those builds: see `test:`)
 #                 (MATURIN_FLAGS=... and CARGO_TEST_FLAGS=... pass options to the extension's and the Rust
 #                 tests' builds, e.g. --timings for cargo's report of where the compile goes)
@@ -54,7 +54,7 @@ VENV   := .venv
 VBIN   := $(VENV)/bin
 CARGO  ?= cargo
 
-.PHONY: venv develop demo docs test lint lint-fast test-rust test-python install-check wheel-check bench-python bench-fit bench-peers bench-budgets bench-check bench-check-update soak fuzz mutants mutants-uncovered clean
+.PHONY: venv develop demo docs test lint lint-fast test-rust test-python python-checks install-check wheel-check bench-python bench-fit bench-peers bench-budgets bench-check bench-check-update soak fuzz mutants mutants-uncovered clean
 
 venv: $(VENV)/.installed
 
@@ -71,10 +71,11 @@ $(VENV)/.installed: Makefile
 	touch $@
 
 # The Cargo profile of the extension: release, but `make test` and `make demo` build the `ci`
-# profile (Cargo.toml: the release profile with vehid-runtime, the size table's crate, at
-# opt-level 1: the same results bit for bit, about half the CPU to compile, slower per sample).
-# The scripts that build Rust binaries for the tests (the golden θ, the callgrind gate's own
-# test) read it too, so that they reuse that build. What is timed uses release.
+# profile (Cargo.toml: the test profile, with the size table's crate at opt-level 1 and the
+# binding and the thesis reproduction at 3: the same results bit for bit, compiled once for the
+# Rust tests and the extension alike, slower per sample). The scripts that build Rust binaries
+# for the tests (the golden θ, the callgrind gate's own test) read it too, so that they reuse
+# that build. What is timed uses release.
 VEHID_CARGO_PROFILE ?= release
 export VEHID_CARGO_PROFILE
 
@@ -113,17 +114,15 @@ docs: develop
 # `make test` (or the other way round) builds the extension once. Without clippy-driver,
 # `develop` uses rustc alone (`make test` then needs clippy, and rebuilds the workspace crates).
 #
-# The two builds run side by side: the Rust tests' (test profile, target/debug) and the
-# extension's (the `ci` profile, target/ci), each followed by what uses it. Cargo locks each
-# profile's directory on its own, so they do not wait for each other. Each cargo runs as many
-# compilers as there are cores, so the serial stretches of one build (one large crate, a
-# link, single-threaded tests) leave no core idle while the other has work. (Sharing make's
-# jobserver instead, with `+` lines, was tried: the first cargo holds both job slots whenever
-# it has two crates to compile, and the extension's build did not start until the Rust tests'
-# build was nearly done.) The output lines of the two interleave; each failure is reported by
-# its own command.
+# One build, in one profile (`ci`) and one target directory, serves the extension and the Rust
+# tests: the extension first (pytest waits for it), then the Rust tests' build and runs beside
+# pytest and the lints. The Rust tests' build compiles only their own targets (the libraries
+# and the dependencies are the extension's, when the features resolve alike: see
+# `CARGO_SELECT`). Two cargos in one target directory take turns at its lock while they
+# compile (the callgrind gate's and the golden θ's tests wait for the Rust tests' build), not
+# while tests run.
 #
-# Incremental compilation is off for the test profile's builds here (cargo turns it on in dev):
+# Incremental compilation is off for these builds (cargo turns it on in dev):
 # on a clean build it writes a cache that only a later edit reads, and it costs a quarter more
 # CPU (vehid-core's unit-test target: 156 s of CPU without, 212 s with, on this machine). An
 # edit-test loop may want it back: `CARGO_INCREMENTAL=1 make test`.
@@ -134,12 +133,12 @@ test: export RUSTC_WORKSPACE_WRAPPER := clippy-driver
 test: export CLIPPY_ARGS := $(CLIPPY_ARGS_DENY)
 develop: export RUSTC_WORKSPACE_WRAPPER := $(shell command -v clippy-driver >/dev/null 2>&1 && echo clippy-driver)
 develop: export CLIPPY_ARGS := $(CLIPPY_ARGS_DENY)
+test: export VEHID_TEST_PROFILE := ci
 test:
-	@$(MAKE) --no-print-directory -j2 lint-fast test-rust test-python
+	@$(MAKE) --no-print-directory develop
+	@$(MAKE) --no-print-directory -j2 lint-fast test-rust python-checks
 
-# Every check compiles with one feature set per profile, so each dependency is built once per
-# profile: the test profile here, the extension's profile (`ci` in `make test`), shared with
-# the SIMD check below.
+# `make lint` on its own: clippy over every target (`make test` lints inside its builds).
 lint: lint-fast
 	$(CARGO) clippy --workspace --all-targets -- -D warnings
 
@@ -147,24 +146,26 @@ lint-fast: venv
 	$(CARGO) fmt --all --check
 	$(VBIN)/ruff check python tests benches
 
-# vehid-py and vehid-runtime are left out: pytest tests them through the extension, clippy
-# checks them and `develop` builds them; the runtime's 16 x 4 size table would only be compiled
-# once more, unoptimized, for a test harness.
+# The Rust tests' packages: the workspace but vehid-runtime (pytest tests it through the
+# extension; its 16 x 4 size table would only be compiled once more for a test harness).
+# vehid-py stays in the selection for the features alone (its lib has test, doctest and bench
+# off, so none of it is compiled here): the dependencies then resolve as in the extension's
+# build, and `make test` compiles them once. vehid-core's own default feature is off as in
+# that build (the feature set is part of a crate's fingerprint).
+CARGO_SELECT := --workspace --exclude vehid-runtime --no-default-features --features vehid-core/std
+# The Rust tests' profile: cargo's test profile (`make test-rust`), `ci` in `make test`.
+VEHID_TEST_PROFILE ?= test
 test-rust:
-	$(CARGO) test --workspace --exclude vehid-py --exclude vehid-runtime --tests --benches --examples $(CARGO_TEST_FLAGS)
-	$(CARGO) test --workspace --exclude vehid-py --exclude vehid-runtime --doc
+	$(CARGO) test --profile $(VEHID_TEST_PROFILE) $(CARGO_SELECT) --tests --benches --examples $(CARGO_TEST_FLAGS)
+	$(CARGO) test --profile $(VEHID_TEST_PROFILE) $(CARGO_SELECT) --doc
 	$(CARGO) check -p vehid-core --no-default-features
 	$(CARGO) check -p vehid-core --no-default-features --features persist
 
-# The AVX2 and portable updates must agree to the bit where it matters: optimized code (the
-# `ci` profile compiles vehid-core and this test at opt-level 3, as release does). Built
-# with vehid-py in the same selection, so that the dependencies resolve to the features of
-# the extension's build and are not compiled a second time. vehid-core's features
-# must be the extension's too (its default feature off: the extension does not ask for it, and
-# the crate's dev-dependency on itself says `default-features = false`): with `default` in the
-# set vehid-core itself was compiled a second time (48 s on the critical path of `make test`).
+# pytest on the extension `develop` built, the stub check, mypy.
 test-python: develop
-	$(CARGO) test --profile $(VEHID_CARGO_PROFILE) -p vehid-core -p vehid-py --no-default-features --features vehid-core/std --test simd_paths
+	@$(MAKE) --no-print-directory python-checks
+
+python-checks: venv
 	$(VBIN)/python -m pytest -q -n auto tests
 	$(VBIN)/python -m mypy.stubtest vehid._vehid
 	$(VBIN)/python -m mypy python/vehid

@@ -51,9 +51,9 @@ from typing import Dict, List, Mapping, Optional, Sequence
 
 ROOT = Path(__file__).resolve().parent.parent
 BASELINE = Path(__file__).resolve().parent / "callgrind_baseline.json"
-# The Cargo profile the binaries are built in: release, or the one `make test` builds the
-# extension with (VEHID_CARGO_PROFILE=ci: release but for vehid-runtime, which these binaries do
-# not use, so their counts are release's).
+# The Cargo profile the binaries are built in: release, or the one `make test` builds everything
+# with (VEHID_CARGO_PROFILE=ci: the test profile's settings, so its counts are not release's;
+# `make test` uses it only to check the gate itself and to build the golden-θ binary).
 PROFILE = os.environ.get("VEHID_CARGO_PROFILE", "release")
 BINARY = ROOT / "target" / PROFILE / "count_updates"
 TOLERANCE = 0.05

@@ -1,8 +1,11 @@
 """The regression gate's comparison (benches/callgrind_check.py), against doctored baselines.
 
 Unit tests of the pure comparison, plus one real callgrind count of one bench (skipped without
-valgrind or cargo) showing that `make bench-check` fails against a baseline 10 % lower — what
-a build slowed by 10 % would look like — and passes against the checked-in one.
+valgrind or cargo) showing that the gate fails against a baseline 10 % below what it measures —
+what a build slowed by 10 % would look like — and passes against the count itself. The counts
+are of the binary in the profile `make test` builds (unoptimized benches: the numbers are not
+release's); `make bench-check` compares release's with the checked-in baseline. Speed is not
+asserted here.
 """
 
 from __future__ import annotations
@@ -80,11 +83,16 @@ def test_checked_in_baseline_covers_every_key_bench():
 @pytest.mark.skipif(shutil.which("cargo") is None, reason="cargo is not installed")
 def test_real_count_against_doctored_baseline(tmp_path, capsys):
     base = json.loads((ROOT / "benches" / "callgrind_baseline.json").read_text())
-    one = {"quarter_rows": base["counts"]["quarter_rows"]}
-    doctored = dict(base, counts={"quarter_rows": one["quarter_rows"] * 0.90})
-    (tmp_path / "slowed.json").write_text(json.dumps(doctored))
-    (tmp_path / "same.json").write_text(json.dumps(dict(base, counts=one)))
-    argv = ["--bench", "quarter_rows"]
+    exe = cc.build_bins(["count_updates"], timeout=3600)["count_updates"]
+    n = 2_000
+    count = cc.per_update(exe, "quarter_rows", n)
+    assert count > 0
+    slowed = dict(base, n_updates=n, counts={"quarter_rows": count * 0.90})
+    same = dict(base, n_updates=n, counts={"quarter_rows": count})
+    (tmp_path / "slowed.json").write_text(json.dumps(slowed))
+    (tmp_path / "same.json").write_text(json.dumps(same))
+    argv = ["--bench", "quarter_rows", "--no-build", "--binary", str(exe)]
     assert cc.main(argv + ["--baseline", str(tmp_path / "slowed.json")]) == 1
     assert "REGRESSION" in capsys.readouterr().out
-    assert cc.main(argv + ["--baseline", str(tmp_path / "same.json"), "--no-build"]) == 0
+    assert cc.main(argv + ["--baseline", str(tmp_path / "same.json")]) == 0
+    assert "ok" in capsys.readouterr().out

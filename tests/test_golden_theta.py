@@ -30,9 +30,9 @@ def python_bits(seed: int, n: int) -> list[str]:
 @pytest.mark.skipif(shutil.which("cargo") is None, reason="cargo is not on PATH")
 def test_theta_matches_rust_bit_for_bit() -> None:
     # Built as benches/callgrind_check.py builds its binaries, in the extension's profile and with
-    # its dependencies' features, so the extension's build serves (`make test`: ci, whose
-    # vehid-runtime, through which Python's fit runs, is compiled at opt-level 1: the bits must
-    # not depend on it; this binary does not use it).
+    # its dependencies' features, so that `make test`'s one build serves (its `ci` profile
+    # compiles this binary at opt-level 0 and the extension's vehid-runtime, through which
+    # Python's fit runs, at 1: the bits must not depend on the optimization level).
     exe = load("callgrind_check").build_bins(["theta_golden"], timeout=3600)["theta_golden"]
     done = subprocess.run([exe, str(SEED), str(N)], capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr

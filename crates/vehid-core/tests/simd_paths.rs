@@ -1,10 +1,11 @@
 //! The AVX2 and the portable updates give the same bits (`crate::simd`'s promise), for every
 //! form that has an AVX2 copy.
 //!
-//! Run by `make test` in release only (`cargo test --release -p vehid-core -p vehid-py --test
-//! simd_paths`; `test = false` in `crates/vehid-core/Cargo.toml`, so the test profile does
-//! not build it), because the promise matters for optimized code. By hand in the test profile:
-//! `cargo test -p vehid-core --test simd_paths`.
+//! Run with the other tests (`cargo test -p vehid-core --test simd_paths`). The promise does
+//! not depend on the optimization level: Rust neither fuses a multiply and an add nor reorders
+//! floating-point sums at any level, so the two paths agree when they compute the same
+//! operations in the same order, which is what this test checks; `cargo test --release` runs it
+//! on optimized code.
 //!
 //! Which updates have an AVX2 copy (`avx2_step!` in `identify/kalman/avx2.rs`): the decoupled
 //! rows ([`KalmanRows`]) when a group of lanes fills a 256-bit register (`LANES ×
