@@ -8,8 +8,8 @@
 #                 the Python API from the docstrings, rustdoc (cargo doc) under site/rustdoc/, the
 #                 thesis-equation index generated from the sources; --strict: any warning fails it
 #   make test     lint, every Rust test (unit, integration, bins, benches in test mode, examples,
-#                 doctests), the no_std build, pytest on the fresh
-#                 extension, stub check (clippy -D warnings runs inside those builds: see `test:`)
+#                 doctests), the no_std build, pytest on the fresh extension, stub check
+#                 (clippy -D warnings runs inside those builds: see `test:`)
 #                 (MATURIN_FLAGS=... and CARGO_TEST_FLAGS=... pass options to the extension's and the Rust
 #                 tests' builds, e.g. --timings for cargo's report of where the compile goes)
 #   make lint     cargo fmt --check, clippy -D warnings, ruff (`make test` lints the same, in its builds)
@@ -133,7 +133,7 @@ test: export RUSTC_WORKSPACE_WRAPPER := clippy-driver
 test: export CLIPPY_ARGS := $(CLIPPY_ARGS_DENY)
 develop: export RUSTC_WORKSPACE_WRAPPER := $(shell command -v clippy-driver >/dev/null 2>&1 && echo clippy-driver)
 develop: export CLIPPY_ARGS := $(CLIPPY_ARGS_DENY)
-test: export VEHID_TEST_PROFILE := ci
+test: export VEHID_TEST_PROFILE = $(VEHID_CARGO_PROFILE)
 test:
 	@$(MAKE) --no-print-directory develop
 	@$(MAKE) --no-print-directory -j2 lint-fast test-rust python-checks

@@ -97,4 +97,4 @@ def test_real_count_against_doctored_baseline(tmp_path, capsys):
     assert cc.main(argv + ["--baseline", str(tmp_path / "slowed.json")]) == 1
     assert "REGRESSION" in capsys.readouterr().out
     assert cc.main(argv + ["--baseline", str(tmp_path / "same.json")]) == 0
-    assert "ok" in capsys.readouterr().out
+    assert "bench-check: ok" in capsys.readouterr().out
