@@ -9,7 +9,9 @@
 #                 thesis-equation index generated from the sources; --strict: any warning fails it
 #   make test     lint, every Rust test (unit, integration, bins, benches in test mode, examples,
 #                 doctests), the no_std build, pytest on the fresh extension, stub check
-#                 (clippy -D warnings runs inside those builds: see `test:`)
+#                 (clippy -D warnings runs inside those builds: see `test:`); the fleet report's
+#                 browser test in a headless Chromium (`make browser` installs Debian's as root)
+#   make browser  Chromium for that test, from apt-get when there is none (root only)
 #                 (MATURIN_FLAGS=... and CARGO_TEST_FLAGS=... pass options to the extension's and the Rust
 #                 tests' builds, e.g. --timings for cargo's report of where the compile goes)
 #   make lint     cargo fmt --check, clippy -D warnings, ruff (`make test` lints the same, in its builds)
@@ -54,7 +56,7 @@ VENV   := .venv
 VBIN   := $(VENV)/bin
 CARGO  ?= cargo
 
-.PHONY: venv develop demo docs test lint lint-fast test-rust test-python python-checks install-check wheel-check bench-python bench-fit bench-peers bench-budgets bench-check bench-check-update soak fuzz mutants mutants-uncovered clean
+.PHONY: venv browser develop demo docs test lint lint-fast test-rust test-python python-checks install-check wheel-check bench-python bench-fit bench-peers bench-budgets bench-check bench-check-update soak fuzz mutants mutants-uncovered clean
 
 venv: $(VENV)/.installed
 
@@ -65,10 +67,27 @@ venv: $(VENV)/.installed
 # vehid[fleet]: its tests start a real Dask cluster) come too: without them a
 # clean `make test` skipped the 13 tests of the plots and of Parquet input. statsmodels is the
 # independent reference of the residual diagnostics and the realistic sensors' intervals.
+# Playwright drives a headless Chromium for the fleet report's browser test (`make browser`).
 $(VENV)/.installed: Makefile
 	$(PYTHON) -m venv $(VENV)
-	$(VBIN)/python -m pip install --quiet maturin numpy pytest pytest-xdist mypy ruff scipy statsmodels matplotlib pyarrow "dask[distributed]" rosbags
+	$(VBIN)/python -m pip install --quiet maturin numpy pytest pytest-xdist mypy ruff scipy statsmodels matplotlib pyarrow "dask[distributed]" rosbags playwright
 	touch $@
+
+# The browser of `tests/test_fleet_browser.py` (the fleet report rendered by a real headless
+# Chromium): the system's, or Debian's `chromium` package when there is none and this runs as
+# root with apt-get (about 35 s here, once); Playwright drives it by its path, so Playwright's
+# own browser download is never needed. Otherwise it says so, and the test is skipped with the
+# same reason.
+browser:
+	@if command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1 || command -v google-chrome >/dev/null 2>&1; then \
+	  echo "browser: $$(command -v chromium || command -v chromium-browser || command -v google-chrome)"; \
+	elif [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	  echo "browser: installing Debian's chromium (apt-get) for the report's browser test"; \
+	  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends chromium >/dev/null \
+	    || { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends chromium >/dev/null; }; \
+	else \
+	  echo "browser: no Chromium on PATH and no root apt-get to install one: tests/test_fleet_browser.py will be skipped"; \
+	fi
 
 # The Cargo profile of the extension: release, but `make test` and `make demo` build the `ci`
 # profile (Cargo.toml: the test profile, with the size table's crate at opt-level 1 and the
@@ -135,7 +154,7 @@ develop: export RUSTC_WORKSPACE_WRAPPER := $(shell command -v clippy-driver >/de
 develop: export CLIPPY_ARGS := $(CLIPPY_ARGS_DENY)
 test: export VEHID_TEST_PROFILE = $(VEHID_CARGO_PROFILE)
 test:
-	@$(MAKE) --no-print-directory develop
+	@$(MAKE) --no-print-directory -j2 develop browser
 	@$(MAKE) --no-print-directory -j2 lint-fast test-rust python-checks
 
 # `make lint` on its own: clippy over every target (`make test` lints inside its builds).
