@@ -78,6 +78,7 @@ def _raw(data: List[Tuple[fleet.VehicleConfig, np.ndarray]], workers: int, cpu: 
 
 
 def throughput(args: argparse.Namespace) -> None:
+    import dask
     from distributed import Client, LocalCluster
 
     work = tempfile.mkdtemp(prefix="vehid-fleet-bench-")
@@ -93,8 +94,13 @@ def throughput(args: argparse.Namespace) -> None:
         hours = sum(len(y) for _, y in data) * 0.005 / 3600
         figures: Dict[str, List[float]] = {"raw 1 thread": [], f"raw {args.workers} threads": [],
                                            f"local {args.workers} threads": [], f"dask {args.workers} processes": []}
-        with LocalCluster(n_workers=args.workers, threads_per_worker=1, processes=True,
-                          dashboard_address=":0") as cluster, Client(cluster) as client:
+        # Dask's worker profiler samples every task's stack every 10 ms for the dashboard
+        # (`--dask-profile off`: `distributed.worker.profile.enabled: false`, as a cluster's Dask
+        # config may set it).
+        with dask.config.set({"distributed.worker.profile.enabled": args.dask_profile == "on"}), \
+                LocalCluster(n_workers=args.workers, threads_per_worker=1, processes=True,
+                             dashboard_address=":0") as cluster, Client(cluster) as client:
+            client.run(lambda: None)  # the workers' first task (their imports) not counted
             cpu: Dict[str, List[float]] = {k: [] for k in figures}
             for r in range(args.repeats):
                 figures["raw 1 thread"].append(hours / _raw(data, 1, cpu["raw 1 thread"]))
@@ -122,7 +128,8 @@ def throughput(args: argparse.Namespace) -> None:
         per_day = sum(len(s or b"") + len(j) for s, j in zip(state.column("state").to_pylist(),
                                                             state.column("summary").to_pylist())) / state.num_rows
         print(f"\nThroughput, {hours:.1f} vehicle-hours of 200 Hz logs ({args.vehicles} vehicles, a fifth half cars), "
-              f"{os.cpu_count()} CPUs, medians of {args.repeats} (vehid {vehid.__version__}, seed {args.seed}):")
+              f"{os.cpu_count()} CPUs, medians of {args.repeats} (vehid {vehid.__version__}, seed {args.seed}; "
+              f"Dask's worker profiler {args.dask_profile}):")
         for k, v in med.items():
             print(f"  {k:<22} {v:8.1f} vehicle-hours/s  ({v * 3600:8.0f} vehicles at 200 Hz in real time"
                   f"{', ' + format(1e9 / (v * 3600 * 200), '.0f') + ' ns/sample' if k.startswith('raw 1') else ''})")
@@ -262,6 +269,8 @@ def main() -> None:
     tp.add_argument("--seed", type=int, default=1)
     tp.add_argument("--paper-vehicles", type=int, default=100_000)
     tp.add_argument("--paper-hours", type=float, default=2.0, help="hours of driving per vehicle and day")
+    tp.add_argument("--dask-profile", choices=("on", "off"), default="on",
+                    help="Dask's worker profiler (distributed.worker.profile.enabled: on is Dask's default)")
     tp.set_defaults(func=throughput)
     dp = sub.add_parser("detect", help="recall, precision and false alarms on a simulated fleet")
     dp.add_argument("--vehicles", type=int, default=1000)

@@ -80,7 +80,15 @@ fn main() {
             let y = &y[..];
             check.update(y[2], y[0] - y[1], (5.0..25.0).contains(&t));
             if let Some(ev) = mon.update(y).unwrap() {
-                events.push(format!("{:?} {:+.1} % at {:.1} s", ev.parameter, 100.0 * ev.change, ev.t));
+                events.push(format!(
+                    "{:?} {:+.1} % at {:.1} s ({:.0} in {:.0}..{:.0})",
+                    ev.parameter,
+                    100.0 * ev.change,
+                    ev.t,
+                    ev.after,
+                    ev.low,
+                    ev.high
+                ));
                 if delay.is_none() && ev.t >= T_CHANGE {
                     delay = Some(ev.t - T_CHANGE);
                 }
