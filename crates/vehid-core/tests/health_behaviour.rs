@@ -602,3 +602,57 @@ fn forgetting_pauses_when_any_one_diagonal_exceeds_its_cap() {
     }
     assert!(rls.p()[(0, 0)] > cap[0], "the cap was reached");
 }
+
+/// A spring breaking under a heavy car's weight on a smooth road (the heavy quarter car of
+/// `benches/src/bin/check_gain.rs`: M 420 kg, m 40 kg, k2 30 kN/m, b 2.1 kN s/m; k2 × 0.78 at
+/// 60 s; ISO 8608 class B at 8 m/s; realistic sensors at 200 Hz). The spring's share of the
+/// body's weight goes to the tyre between two samples: both accelerations step (the wheel's
+/// by about 20 m/s²), which the kinematic check's two sampled sides and the deflection-rate
+/// filter do not follow alike. The check calls that a burst (`health::JUMP_SIGMAS`), and the
+/// monitor treats it as a jump in the data: restarts its rate filter and waits out
+/// `reacquire`. Over 8 drives the median delay is at most 12 s, every drive names the spring
+/// within 30 s, and at least 6 of the 8 intervals hold the new spring (95 % intervals: 5 or
+/// fewer with probability 0.6 %). Before, the check's gain dipped by 3–7 % for 10–20 s and
+/// held the change back as "sensors disagree" (`check_gain` seeds 62_400–62_407, the change at
+/// 120 s: 11–35 s, median 19 s; with the jump 7–19 s, median 8 s); a first version that only
+/// left the burst out of the check's statistics reported after 4 s with the new value 2–6 %
+/// off and outside its interval on 5 of 8 drives (the rate filter's transient). Developed on
+/// seeds 500–502, 600–607 and 62_400–62_407 at 120 s. Without the burst (its test `if false`)
+/// this fails: "delays [21.3, 24.1, inf, 23.2, 21.2, 11.8, 21.1, 14.3] (median 21.2 s)".
+#[test]
+fn a_spring_breaking_under_a_heavy_car_on_a_smooth_road_is_reported_within_12_s() {
+    use vehid_core::sim::{RoadClass, SensorSet};
+    let heavy = QuarterCar::new(420.0, 40.0, 200_000.0, 30_000.0, 2_100.0).unwrap();
+    let (at, after) = (60.0, 0.78 * heavy.k2());
+    let (mut delays, mut held) = (Vec::new(), 0);
+    for seed in 62_400..62_408 {
+        let cfg = DriveConfig::new(DT)
+            .sensors(SensorSet::Realistic)
+            .road(RoadClass::B)
+            .speed(8.0)
+            .with_change(Change::step(at, "k2", after).unwrap())
+            .unwrap();
+        let mut sim = QuarterDrive::new(heavy, cfg, seed).unwrap();
+        let mut mon = HealthMonitor::new(HealthConfig::new(DT, heavy)).unwrap();
+        let mut first = None;
+        for _ in 0..((at + 30.0) / DT) as usize {
+            let s = sim.next_sample();
+            if let Some(ev) = mon.update(s.y()).unwrap() {
+                first.get_or_insert(ev);
+            }
+        }
+        let Some(ev) = first else {
+            delays.push(f64::INFINITY);
+            continue;
+        };
+        assert!(ev.t > at, "seed {seed}: an event before the change at {:.1} s", ev.t);
+        assert_eq!(ev.parameter, Constant::Spring, "seed {seed}");
+        delays.push(ev.t - at);
+        held += usize::from(ev.low <= after && after <= ev.high);
+    }
+    let mut sorted = delays.clone();
+    sorted.sort_by(f64::total_cmp);
+    let median = 0.5 * (sorted[3] + sorted[4]);
+    assert!(median <= 12.0 && sorted[7].is_finite(), "delays {delays:.1?} (median {median:.1} s)");
+    assert!(held >= 6, "{held} of 8 intervals hold the new spring; delays {delays:.1?}");
+}

@@ -79,7 +79,9 @@ pub struct KinematicCheck<T> {
     raa: T,
     kappa: T,
     rn: u64,
-    // Samples since the filters restarted; the statistics wait until their transient is over.
+    // Steps since the filters restarted; the statistics wait until their transient is over
+    // (`settle` steps), and a burst is looked for from `settle + settle / 2` on (where it
+    // stops counting).
     fresh: u64,
     settle: u64,
     // Samples averaged into one step of the filters, and the running sums of the current group.
@@ -99,6 +101,22 @@ pub struct KinematicCheck<T> {
 /// error of 2 % (below the tolerance) was reported as a spring change of −2.9 % on 16 of 20
 /// drives.
 pub const GAIN_LEVERAGE: f64 = 3.0;
+
+/// A burst: the check's residual (the filtered acceleration less the filtered deflection's
+/// second derivative over the tracked gain) more than this many standard deviations of its
+/// exponentially weighted history (a Gaussian residual passes it with probability 2·10⁻⁹ per
+/// step). A spring breaking under the body's weight steps both accelerations between two
+/// samples (the wheel's by over 20 m/s² in a passenger car); the sampled filters of the two
+/// sides of `d̈ = a` do not follow a step alike, and neither does the monitor's deflection-rate
+/// filter (`DeflectionFilter`), whose rate and bias then carry the step's error for seconds.
+/// So a burst is a jump in the data: the check restarts (its statistics kept, its transient
+/// left out), and the monitors restart their rate filters and wait out `reacquire`, as after a
+/// deflection jump. Without it, a spring change of a heavy car on a smooth road dipped the
+/// tracked gain by 3-7 % for 10-20 s, and the monitor held the change back as "sensors
+/// disagree" (`benches/src/bin/check_gain.rs`). A bias step of an accelerometer makes one too;
+/// a gain change of a sensor moves the residual in proportion to the signal, a burst only
+/// for a large one (over about 10 %), which the tracked gain then follows as before.
+pub const JUMP_SIGMAS: f64 = 6.0;
 
 /// Rate the check's filters run at, Hz, at most (samples are averaged in pairs, fours, …
 /// down to it): the band ends at 5 Hz, and at 100 Hz the bilinear warping there is 0.8 %.
@@ -163,23 +181,25 @@ impl<T: Real> KinematicCheck<T> {
 
     /// One sample: measured deflection `d` (m) and relative acceleration `a` (m/s²);
     /// `warmup`: the sample also forms the reference. Every `every`-th call steps the filters
-    /// with the group's averages.
+    /// with the group's averages. Returns whether the step saw a burst ([`JUMP_SIGMAS`]): the
+    /// check then restarts ([`Self::restart`]), and the caller should treat the sample as a
+    /// jump in the data.
     #[inline]
-    pub fn update(&mut self, d: T, a: T, warmup: bool) {
+    pub fn update(&mut self, d: T, a: T, warmup: bool) -> bool {
         self.acc[0] += d;
         self.acc[1] += a;
         self.n_acc += 1;
         if self.n_acc < self.every {
-            return;
+            return false;
         }
         let (d, a) = (self.acc[0] * self.inv_every, self.acc[1] * self.inv_every);
         self.n_acc = 0;
         self.acc = [T::zero(); 2];
-        self.step(d, a, warmup);
+        self.step(d, a, warmup)
     }
 
-    /// One step of the filters and the statistics on averaged inputs.
-    fn step(&mut self, d: T, a: T, warmup: bool) {
+    /// One step of the filters and the statistics on averaged inputs; whether it saw a burst.
+    fn step(&mut self, d: T, a: T, warmup: bool) -> bool {
         if self.fresh == 0 {
             // Start in the steady state of constant inputs `d`, `a` (the high-passes hold
             // them as their last input, every output is 0): no step transient from zero.
@@ -199,7 +219,22 @@ impl<T: Real> KinematicCheck<T> {
         let x = self.a[4].step(x, &self.lp_l);
         if self.fresh < self.settle {
             self.fresh += 1;
-            return;
+            return false;
+        }
+        // A burst: the fit's residual over JUMP_SIGMAS standard deviations of its weighted
+        // history, once the statistics have run for `settle / 2` steps since the last restart.
+        let armed = self.settle + self.settle / 2;
+        if self.fresh >= armed && self.sdd > T::zero() {
+            // The residual `x − y Σxy/Σy²` against its weighted mean square
+            // `(Σx² − (Σxy)²/Σy²)(1 − λ)`.
+            let res = (self.saa - self.sda * self.sda / self.sdd).max(T::zero()) * (T::one() - self.lambda);
+            let r = x - y * self.sda / self.sdd;
+            if res > T::zero() && r * r > T::of(JUMP_SIGMAS * JUMP_SIGMAS) * res {
+                self.restart();
+                return true;
+            }
+        } else {
+            self.fresh += 1;
         }
         self.sdd = self.lambda * self.sdd + y * y;
         self.sda = self.lambda * self.sda + x * y;
@@ -210,6 +245,7 @@ impl<T: Real> KinematicCheck<T> {
             self.raa += x * x;
             self.rn += 1;
         }
+        false
     }
 
     /// The tracked gain and the reference gain, `None` before either has data or when the
@@ -318,15 +354,19 @@ impl<T: Real, const C: usize> SensorGuard<T, C> {
     }
 
     /// Sample `k`: each corner's measured deflection and relative acceleration; after the
-    /// warm-up, every [`CHECK_EVERY`] samples, a disagreeing corner starts the hold.
+    /// warm-up, every [`CHECK_EVERY`] samples, a disagreeing corner starts the hold. Returns
+    /// whether a corner's check saw a burst ([`KinematicCheck::update`]): the monitor treats
+    /// the sample as a jump in the data.
     #[inline]
-    pub(crate) fn observe(&mut self, k: u64, corners: [(T, T); C], warmup: bool) {
+    pub(crate) fn observe(&mut self, k: u64, corners: [(T, T); C], warmup: bool) -> bool {
+        let mut burst = false;
         for (check, (d, a)) in self.checks.iter_mut().zip(corners) {
-            check.update(d, a, warmup);
+            burst |= check.update(d, a, warmup);
         }
         if !warmup && k % CHECK_EVERY == 0 && self.checks.iter().any(|c| c.disagrees(self.tol)) {
             self.hold = self.n_flush;
         }
+        burst
     }
 
     /// Whether this sample is held (counted down).

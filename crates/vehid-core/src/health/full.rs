@@ -589,7 +589,11 @@ impl<T: Real> FullHealthMonitor<T> {
             }
         }
         self.kf = kf;
-        self.sensors.observe(k, core::array::from_fn(|i| (y[8 + i], rel[i])), self.phase == Phase::Warmup);
+        if self.sensors.observe(k, core::array::from_fn(|i| (y[8 + i], rel[i])), self.phase == Phase::Warmup) {
+            // A burst of a kinematic check (a step of the accelerations): a jump.
+            self.interrupt(Reason::Jump);
+            return None;
+        }
         if self.reacq_left > 0 {
             self.reacq_left -= 1;
             self.reason = Some(Reason::Reacquiring);

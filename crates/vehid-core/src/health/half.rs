@@ -391,7 +391,11 @@ impl<T: Real> HalfHealthMonitor<T> {
             self.interrupt(Reason::Jump);
             return Ok(None);
         };
-        self.sensors.observe(k, [(y[4], y[0] - y[2]), (y[5], y[1] - y[3])], self.phase == Phase::Warmup);
+        if self.sensors.observe(k, [(y[4], y[0] - y[2]), (y[5], y[1] - y[3])], self.phase == Phase::Warmup) {
+            // A burst of a kinematic check (a step of the accelerations): a jump.
+            self.interrupt(Reason::Jump);
+            return Ok(None);
+        }
         if self.reacq_left > 0 {
             self.reacq_left -= 1;
             self.reason = Some(Reason::Reacquiring);

@@ -27,10 +27,12 @@
 //!    missing sample; a channel repeating the same value `stuck_samples` times is stuck; a
 //!    deflection more than [`JUMP_GATE`] innovation standard deviations away from the
 //!    kinematic filter's prediction is a jump (a seam or glitch, or a sensor whose zero
-//!    stepped). All three restart the kinematic filter, drop the samples held back (step 3),
-//!    release the trackers' offset `c` (step 4) and wait `reacquire` seconds: status
-//!    [`Status::CannotJudge`]. The sensors' kinematic check ([`KinematicCheck`],
-//!    `consistency.rs`; section "Sensor faults") runs beside the filter.
+//!    stepped); so is a burst of the sensors' kinematic check ([`KinematicCheck`],
+//!    `consistency.rs`; section "Sensor faults"), which runs beside the filter: a step of the
+//!    accelerations between two samples, as when a spring breaks under the body's weight
+//!    ([`JUMP_SIGMAS`]). All of them restart the kinematic filter, drop the samples held back
+//!    (step 3), release the trackers' offset `c` (step 4) and wait `reacquire` seconds:
+//!    status [`Status::CannotJudge`].
 //! 2. **Kinematic filter** ([`DeflectionFilter`], `kinematic.rs`): `d̂` and `ḋ̂` from the
 //!    deflection and `a_body − a_wheel`, a steady-state Kalman filter with a bias state.
 //! 3. **Delay line**: a sample is used only after `stuck_samples` newer intact samples, so
@@ -392,7 +394,9 @@ mod rls;
 #[cfg(feature = "alloc")]
 pub use batch::fit_rows;
 pub use batch::Monitor;
-pub use consistency::{KinematicCheck, CHECK_HIGH_PASS_HZ, CHECK_LOW_PASS_HZ, CHECK_RATE_HZ, GAIN_LEVERAGE};
+pub use consistency::{
+    KinematicCheck, CHECK_HIGH_PASS_HZ, CHECK_LOW_PASS_HZ, CHECK_RATE_HZ, GAIN_LEVERAGE, JUMP_SIGMAS,
+};
 pub use event::{Constant, Estimate, Event, Reason, Status};
 pub use full::{
     full_alpha, full_bar_share, full_coefficients, full_load_pattern, full_relative_patterns, full_stiffness,

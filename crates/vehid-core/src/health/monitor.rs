@@ -342,7 +342,11 @@ impl<T: Real> HealthMonitor<T> {
             self.interrupt(Reason::Jump);
             return Ok(None);
         };
-        self.sensors.observe(k, [(y[2], y[0] - y[1])], self.phase == Phase::Warmup);
+        if self.sensors.observe(k, [(y[2], y[0] - y[1])], self.phase == Phase::Warmup) {
+            // A burst of the kinematic check (a step of the accelerations): a jump.
+            self.interrupt(Reason::Jump);
+            return Ok(None);
+        }
         if self.reacq_left > 0 {
             self.reacq_left -= 1;
             self.reason = Some(Reason::Reacquiring);
