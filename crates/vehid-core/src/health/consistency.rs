@@ -80,7 +80,7 @@ pub struct KinematicCheck<T> {
     kappa: T,
     rn: u64,
     // Steps since the filters restarted; the statistics wait until their transient is over
-    // (`settle` steps), and a burst is looked for from `settle + settle / 2` on (where it
+    // (`settle` steps), and a burst is looked for from `settle + 3 / (1 − λ)` on (where it
     // stops counting).
     fresh: u64,
     settle: u64,
@@ -222,8 +222,11 @@ impl<T: Real> KinematicCheck<T> {
             return false;
         }
         // A burst: the fit's residual over JUMP_SIGMAS standard deviations of its weighted
-        // history, once the statistics have run for `settle / 2` steps since the last restart.
-        let armed = self.settle + self.settle / 2;
+        // history, once the statistics have run for three of their time constants `1/(1 − λ)`
+        // since the last restart (their weighted sums then hold 95 % of their full weight; at
+        // `settle / 2` steps, as first written, a fifth, and the bound was 2.8 σ: a false
+        // burst in one of six logs of a 70 s drive).
+        let armed = self.settle + libm::ceil(3.0 / (1.0 - self.lambda.to_f64())) as u64;
         if self.fresh >= armed && self.sdd > T::zero() {
             // The residual `x − y Σxy/Σy²` against its weighted mean square
             // `(Σx² − (Σxy)²/Σy²)(1 − λ)`.
