@@ -11,9 +11,9 @@
 #                 doctests), the no_std build, pytest on the fresh extension, stub check
 #                 (clippy -D warnings runs inside those builds: see `test:`); the fleet report's
 #                 browser test in a headless Chromium (`make browser` installs Debian's as root)
-#   make browser  Chromium for that test, from apt-get when there is none (root only)
 #                 (MATURIN_FLAGS=... and CARGO_TEST_FLAGS=... pass options to the extension's and the Rust
 #                 tests' builds, e.g. --timings for cargo's report of where the compile goes)
+#   make browser  Chromium for that test, from apt-get when there is none (root only)
 #   make lint     cargo fmt --check, clippy -D warnings, ruff (`make test` lints the same, in its builds)
 #   make install-check  `pip install .` into a fresh venv in a temp dir (the pyproject backend
 #                 builds through maturin), then `vehid --help` and `vehid simulate | vehid
@@ -79,8 +79,9 @@ $(VENV)/.installed: Makefile
 # own browser download is never needed. Otherwise it says so, and the test is skipped with the
 # same reason.
 browser:
-	@if command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1 || command -v google-chrome >/dev/null 2>&1; then \
-	  echo "browser: $$(command -v chromium || command -v chromium-browser || command -v google-chrome)"; \
+	@found=$$(command -v chromium || command -v chromium-browser || command -v google-chrome); \
+	if [ -n "$$found" ]; then \
+	  echo "browser: $$found"; \
 	elif [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
 	  echo "browser: installing Debian's chromium (apt-get) for the report's browser test"; \
 	  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends chromium >/dev/null \

@@ -617,15 +617,17 @@ fn forgetting_pauses_when_any_one_diagonal_exceeds_its_cap() {
 /// 120 s: 11–35 s, median 19 s; with the jump 7–19 s, median 8 s); a first version that only
 /// left the burst out of the check's statistics reported after 4 s with the new value 2–6 %
 /// off and outside its interval on 5 of 8 drives (the rate filter's transient). Developed on
-/// seeds 500–502, 600–607 and 62_400–62_407 at 120 s. Without the burst (its test `if false`)
-/// this fails: "delays [21.3, 24.1, inf, 23.2, 21.2, 11.8, 21.1, 14.3] (median 21.2 s)".
+/// seeds 500–502, 600–607 and 62_400–62_407 (at 120 s) and first run here on 62_400–62_407;
+/// it runs on fresh seeds 63_100–63_107. Without the burst (its test `if false`) it fails:
+/// "delays [13.6, 12.2, 22.6, 14.2, 11.2, 14.2, 24.5, 11.0] (median 13.9 s)" (on 62_400–62_407:
+/// median 21.2 s, one drive without an event).
 #[test]
 fn a_spring_breaking_under_a_heavy_car_on_a_smooth_road_is_reported_within_12_s() {
     use vehid_core::sim::{RoadClass, SensorSet};
     let heavy = QuarterCar::new(420.0, 40.0, 200_000.0, 30_000.0, 2_100.0).unwrap();
     let (at, after) = (60.0, 0.78 * heavy.k2());
     let (mut delays, mut held) = (Vec::new(), 0);
-    for seed in 62_400..62_408 {
+    for seed in 63_100..63_108 {
         let cfg = DriveConfig::new(DT)
             .sensors(SensorSet::Realistic)
             .road(RoadClass::B)

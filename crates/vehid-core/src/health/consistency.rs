@@ -80,8 +80,7 @@ pub struct KinematicCheck<T> {
     kappa: T,
     rn: u64,
     // Steps since the filters restarted; the statistics wait until their transient is over
-    // (`settle` steps), and a burst is looked for from `settle + 3 / (1 − λ)` on (where it
-    // stops counting).
+    // (`settle` steps). From `settle + 3 / (1 − λ)` on it is `ARMED`: bursts are looked for.
     fresh: u64,
     settle: u64,
     // Samples averaged into one step of the filters, and the running sums of the current group.
@@ -118,6 +117,9 @@ pub const GAIN_LEVERAGE: f64 = 3.0;
 /// before it: the sensor-fault suite (`tests/sensor_faults.rs`: bias steps, gains ×0.9 and
 /// ×1.1, swapped and stuck channels) gives no event with it either.
 pub const JUMP_SIGMAS: f64 = 6.0;
+
+/// `KinematicCheck::fresh` once bursts are looked for.
+const ARMED: u64 = u64::MAX;
 
 /// Rate the check's filters run at, Hz, at most (samples are averaged in pairs, fours, …
 /// down to it): the band ends at 5 Hz, and at 100 Hz the bilinear warping there is 0.8 %.
@@ -227,18 +229,23 @@ impl<T: Real> KinematicCheck<T> {
         // since the last restart (their weighted sums then hold 95 % of their full weight; at
         // `settle / 2` steps, as first written, a fifth, and the bound was 2.8 σ: a false
         // burst in one of six logs of a 70 s drive).
-        let armed = self.settle + libm::ceil(3.0 / (1.0 - self.lambda.to_f64())) as u64;
-        if self.fresh >= armed && self.sdd > T::zero() {
-            // The residual `x − y Σxy/Σy²` against its weighted mean square
-            // `(Σx² − (Σxy)²/Σy²)(1 − λ)`.
-            let res = (self.saa - self.sda * self.sda / self.sdd).max(T::zero()) * (T::one() - self.lambda);
-            let r = x - y * self.sda / self.sdd;
-            if res > T::zero() && r * r > T::of(JUMP_SIGMAS * JUMP_SIGMAS) * res {
-                self.restart();
-                return true;
+        if self.fresh == ARMED {
+            if self.sdd > T::zero() {
+                // The residual `x − y Σxy/Σy²` against its weighted mean square
+                // `(Σx² − (Σxy)²/Σy²)(1 − λ)`.
+                let q = self.sda / self.sdd;
+                let res = (self.saa - self.sda * q).max(T::zero()) * (T::one() - self.lambda);
+                let r = x - y * q;
+                if res > T::zero() && r * r > T::of(JUMP_SIGMAS * JUMP_SIGMAS) * res {
+                    self.restart();
+                    return true;
+                }
             }
         } else {
             self.fresh += 1;
+            if (self.fresh - self.settle) as f64 * (1.0 - self.lambda.to_f64()) >= 3.0 {
+                self.fresh = ARMED;
+            }
         }
         self.sdd = self.lambda * self.sdd + y * y;
         self.sda = self.lambda * self.sda + x * y;
