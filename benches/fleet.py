@@ -18,8 +18,16 @@ event is right when it is such a first match (precision); false alarms per 10 h 
 events on fault-free driving (vehicles without a fault, the time before a fault, and the days
 after it: the car does not change again).
 
+``store``: what a commit costs as the store's history grows, without logs or the monitor: a
+store of ``--vehicles`` vehicles × ``--days`` days of rows the size of real ones (a 2.7 kB
+state, a 2.7 kB summary; random, seeded), committed, then ``--more`` further days, each
+committed as a daily run would (``--parts`` commits: those a long run makes every 60 s, in
+its middle, then its last one): the seconds of the commits and the bytes they wrote, then the
+seconds to open the store.
+
     .venv/bin/python benches/fleet.py throughput --vehicles 16 --hours 1 --workers 2 --seed 1
     .venv/bin/python benches/fleet.py detect --vehicles 1000 --hours 1 --faults 0.5 --seed 7100000
+    .venv/bin/python benches/fleet.py store --vehicles 1000 --days 90 --more 3 --parts 10 --seed 1
 """
 
 from __future__ import annotations
@@ -258,6 +266,68 @@ def detect(args: argparse.Namespace) -> None:
         shutil.rmtree(work, ignore_errors=True)
 
 
+def _files(root: str) -> Dict[str, Tuple[int, int, int]]:
+    out = {}
+    for d, _, names in os.walk(root):
+        for n in names:
+            st = os.stat(os.path.join(d, n))
+            out[os.path.join(d, n)] = (st.st_ino, st.st_mtime_ns, st.st_size)
+    return out
+
+
+def store_cost(args: argparse.Namespace) -> None:
+    import datetime
+
+    from vehid.fleet.store import Row, open_store
+
+    rng = np.random.default_rng(args.seed)
+    vehicles = [f"v{i:06d}" for i in range(args.vehicles)]
+    day0 = datetime.date(2026, 1, 5)
+
+    def rows_of(k: int) -> List[Tuple[str, str, Any]]:
+        day = (day0 + datetime.timedelta(days=k)).isoformat()
+        out = []
+        for v in vehicles:
+            summary = json.dumps({"trend": rng.standard_normal(120).round(6).tolist(), "events": []})
+            out.append((v, day, Row(vehid.__version__, rng.bytes(2700), summary)))
+        return out
+
+    work = tempfile.mkdtemp(prefix="vehid-store-")
+    try:
+        path = os.path.join(work, "store")
+        st = open_store(path)
+        for k in range(args.days):
+            for v, d, r in rows_of(k):
+                st.rows[(v, d)] = r
+            if (k + 1) % 10 == 0 or k + 1 == args.days:
+                _say(f"store: {k + 1}/{args.days} days of history built")
+        t = time.perf_counter()
+        st.commit()
+        _say(f"store: history committed ({len(st.rows)} rows) in {time.perf_counter() - t:.2f} s")
+        print(f"store: {args.vehicles} vehicles x {args.days} days of history; then one day at a time")
+        print(f"  history rows  {args.parts - 1} commits in the run's middle, s  its last commit, s  written MB")
+        for k in range(args.days, args.days + args.more):
+            rows = rows_of(k)
+            before = _files(path)
+            middle = 0.0
+            for j in range(args.parts):
+                for v, d, r in rows[j * len(rows) // args.parts:(j + 1) * len(rows) // args.parts]:
+                    st.rows[(v, d)] = r
+                t = time.perf_counter()
+                st.commit(final=j + 1 == args.parts)
+                dt = time.perf_counter() - t
+                middle += dt if j + 1 < args.parts else 0.0
+            after = _files(path)
+            written = sum(s[2] for f, s in after.items() if before.get(f) != s)
+            print(f"  {len(st.rows):12d}  {middle:34.3f}  {dt:17.3f}  {written / 1e6:10.1f}", flush=True)
+        t = time.perf_counter()
+        opened = open_store(path)
+        print(f"  open_store: {len(opened.rows)} rows in {time.perf_counter() - t:.2f} s; store on disk "
+              f"{sum(s[2] for s in _files(path).values()) / 1e6:.1f} MB")
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     sub = p.add_subparsers(dest="what", required=True)
@@ -282,9 +352,18 @@ def main() -> None:
     dp.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     dp.add_argument("--window", type=float, default=60.0, help="s after a fault in which its event counts")
     dp.set_defaults(func=detect)
+    sp = sub.add_parser("store", help="what a commit costs as the store's history grows")
+    sp.add_argument("--vehicles", type=int, default=1000)
+    sp.add_argument("--days", type=int, default=90, help="days of history before the timed commits")
+    sp.add_argument("--more", type=int, default=3, help="days committed one at a time, timed")
+    sp.add_argument("--parts", type=int, default=10, help="commits per day (the last one folds the others in)")
+    sp.add_argument("--seed", type=int, default=1)
+    sp.set_defaults(func=store_cost, workers=1, hours=1.0)
     args = p.parse_args()
     if min(args.vehicles, args.workers) < 1 or args.hours <= 0:
         p.error("--vehicles, --workers >= 1 and --hours > 0")
+    if args.what == "store" and min(args.days, args.more, args.parts) < 1:
+        p.error("--days, --more and --parts >= 1")
     args.func(args)
 
 

@@ -52,9 +52,20 @@ def store_tables(store: Path) -> Dict[str, Any]:
     return {name: pq.read_table(os.path.join(store, f"{name}.parquet")) for name in ("state", "events", "problems")}
 
 
+def state_files(store: Path) -> Dict[str, bytes]:
+    """The state's files (``state.parquet/*``) by name, but the manifest (which numbers the
+    commits), with their bytes."""
+    return {p.name: p.read_bytes() for p in sorted((store / "state.parquet").iterdir()) if p.name != "_commit.json"}
+
+
 def assert_same_store(a: Path, b: Path) -> None:
-    """The two stores hold the same tables, value for value and bit for bit."""
+    """The two stores hold the same tables, value for value, and the same state files, bit
+    for bit (so the same day files and no part or temporary file left)."""
     ta, tb = store_tables(a), store_tables(b)
     for name in ta:
         assert ta[name].equals(tb[name]), name
-    assert (a / "state.parquet").read_bytes() == (b / "state.parquet").read_bytes()
+    fa, fb = state_files(a), state_files(b)
+    assert sorted(fa) == sorted(fb)
+    assert all(n.endswith(".parquet") and n[0].isdigit() for n in fa), sorted(fa)
+    for name in fa:
+        assert fa[name] == fb[name], name

@@ -230,10 +230,132 @@ def test_a_run_killed_between_commits_resumes_to_the_same_store(src: Path, clean
     with pytest.raises(KeyboardInterrupt):
         fleet.run(str(src), str(store), workers=1, batch=1, commit_every=0.0)
     monkeypatch.undo()
-    partial = store_tables(store)["state"]
+    partial = fleet.read_table(str(store), "state")
     assert len(set(partial.column("vehicle").to_pylist())) == 2  # two vehicles committed
+    # ... as parts, which Parquet readers do not see until a run's last commit folds them in
+    assert store_tables(store)["state"].num_rows == 0
+    parts = sorted((store / "state.parquet").glob("_part-*.parquet"))
+    assert len(parts) == 2  # one commit after each vehicle: each part holds that vehicle's days alone
+    assert [len(set(pq.read_table(p).column("vehicle").to_pylist())) for p in parts] == [1, 1]
     res = fleet.run(str(src), str(store), workers=1)
     assert res.processed == (len(list(src.glob("vehicle=*"))) - 2) * len(days_of(src))
+    assert_same_store(clean, store)
+
+
+# --- the state's files: a commit writes what it changed -----------------------------------
+
+
+def _stamps(store: Path) -> Dict[str, Tuple[int, int]]:
+    return {p.name: (p.stat().st_ino, p.stat().st_mtime_ns) for p in (store / "state.parquet").iterdir()}
+
+
+def test_a_run_rewrites_the_days_it_touched_and_no_others(src: Path, clean: Path, tmp_path: Path) -> None:
+    days = days_of(src)
+    lake, store = tmp_path / "lake", tmp_path / "store"
+    fleet.run(str(subset(src, lake, days[:-1])), str(store), workers=1)
+    before = _stamps(store)
+    assert sorted(before) == [f"{d}.parquet" for d in days[:-1]] + ["_commit.json"]
+    fleet.run(str(subset(src, lake, days)), str(store), workers=1)  # the last day arrives
+    after = _stamps(store)
+    assert all(after[f"{d}.parquet"] == before[f"{d}.parquet"] for d in days[:-1])  # not rewritten
+    assert f"{days[-1]}.parquet" in after
+    assert_same_store(clean, store)
+    # --from a day rewrites that day's file and the later ones, no earlier one
+    before = _stamps(store)
+    fleet.run(str(src), str(store), workers=1, since=days[1])
+    after = _stamps(store)
+    assert after[f"{days[0]}.parquet"] == before[f"{days[0]}.parquet"]
+    assert all(after[f"{d}.parquet"] != before[f"{d}.parquet"] for d in days[1:])
+    assert_same_store(clean, store)
+
+
+def test_the_state_reads_as_one_table_one_file_per_day(clean: Path) -> None:
+    files = sorted(p.name for p in (clean / "state.parquet").glob("*.parquet"))
+    state = fleet.read_table(str(clean), "state")
+    assert files == [f"{d}.parquet" for d in sorted(set(state.column("day").to_pylist()))]
+    for name in files:
+        t = pq.read_table(clean / "state.parquet" / name)
+        assert set(t.column("day").to_pylist()) == {name[: -len(".parquet")]}
+        assert t.column("vehicle").to_pylist() == sorted(t.column("vehicle").to_pylist())
+    whole = pq.read_table(clean / "state.parquet")  # a Parquet reader sees the directory as one table
+    assert whole.sort_by([("vehicle", "ascending"), ("day", "ascending")]).equals(state)
+
+
+def test_a_crash_after_the_manifest_is_redone_on_open(src: Path, clean: Path, tmp_path: Path,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    store = tmp_path / "store"
+    fleet.run(str(subset(src, tmp_path / "d1", days_of(src)[:1])), str(store), workers=1)
+
+    real = store_mod._apply
+
+    def crash(sp: str, pending: Any, remove: Any) -> None:
+        if any(os.path.exists(os.path.join(sp, tmp)) for tmp, _ in pending):
+            raise KeyboardInterrupt  # the manifest is written, no file is in place yet
+        real(sp, pending, remove)  # (opening the store: the last commit's files are in place)
+
+    monkeypatch.setattr(store_mod, "_apply", crash)
+    with pytest.raises(KeyboardInterrupt):
+        fleet.run(str(src), str(store), workers=1)
+    monkeypatch.undo()
+    assert any(".tmp-" in n for n in os.listdir(store / "state.parquet"))  # committed, not yet renamed
+    assert fleet.read_table(str(store), "state").equals(fleet.read_table(str(clean), "state"))
+    assert_same_store(clean, store)  # opening the store put the files in place
+
+
+def test_a_damaged_state_is_refused_with_the_file_and_the_fix(clean: Path, tmp_path: Path) -> None:
+    days = sorted(p.name for p in (clean / "state.parquet").glob("*.parquet"))
+    store = tmp_path / "store"
+    shutil.copytree(clean, store)
+    shutil.copy(store / "state.parquet" / days[1], store / "state.parquet" / days[0])  # another day's file
+    with pytest.raises(fleet.StoreError, match=f"{days[0]}: not the file _commit.json lists.*remove the store"):
+        fleet.open_store(str(store))
+    (store / "state.parquet" / days[0]).write_bytes(b"not parquet")
+    with pytest.raises(fleet.StoreError, match=f"{days[0]}: not readable"):
+        fleet.open_store(str(store))
+    shutil.rmtree(store)
+    shutil.copytree(clean, store)
+    man = json.loads((store / "state.parquet" / "_commit.json").read_text())
+    (store / "state.parquet" / "_commit.json").write_text(json.dumps({**man, "format": 3}))
+    with pytest.raises(fleet.StoreError, match="store format 3; this vehid .* reads format 2"):
+        fleet.open_store(str(store))
+    (store / "state.parquet" / "_commit.json").unlink()
+    with pytest.raises(fleet.StoreError, match="no _commit.json beside its files"):
+        fleet.open_store(str(store))
+
+
+def _single_file_store(clean: Path, store: Path) -> None:
+    """``clean`` as the single-file store the previous version wrote (format 1)."""
+    store.mkdir()
+    for name in ("events.parquet", "problems.parquet"):
+        shutil.copy(clean / name, store / name)
+    state = fleet.read_table(str(clean), "state")
+    meta = {b"vehid.fleet.format": b"1", b"vehid.fleet.state_digest": b"0" * 64, b"vehid.fleet.run_problems": b"[]"}
+    pq.write_table(state.replace_schema_metadata(meta), store / "state.parquet", compression="zstd")
+
+
+def test_a_single_file_store_is_read_and_rewritten_as_day_files(src: Path, clean: Path, tmp_path: Path,
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    store = tmp_path / "store"
+    _single_file_store(clean, store)
+    assert fleet.read_table(str(store), "state").equals(fleet.read_table(str(clean), "state"))
+    assert (store / "state.parquet").is_file()  # reading changes nothing
+    real = os.rename
+
+    def dies(a: Any, b: Any) -> None:  # the old file is set aside, the new directory not yet in
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(store_mod.os, "rename", dies)
+    with pytest.raises(KeyboardInterrupt):
+        fleet.run(str(src), str(store), workers=1)
+    monkeypatch.setattr(store_mod.os, "rename", real)
+    assert not (store / "state.parquet").exists() and (store / ".state.parquet.v1").is_file()
+    assert fleet.read_table(str(store), "state").equals(fleet.read_table(str(clean), "state"))  # swap finished
+    assert (store / "state.parquet").is_dir() and not (store / ".state.parquet.v1").exists()
+    shutil.rmtree(store)
+    _single_file_store(clean, store)
+    res = fleet.run(str(src), str(store), workers=1)  # nothing new: the commit converts the store
+    assert res.processed == 0
+    assert sorted(os.listdir(store)) == ["events.parquet", "problems.parquet", "state.parquet"]
     assert_same_store(clean, store)
 
 
@@ -461,12 +583,13 @@ def test_a_process_killed_mid_write_leaves_a_store_that_reads(src: Path, clean: 
     proc = subprocess.run([sys.executable, "-c", script, str(src), str(store)], capture_output=True,
                           env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}, timeout=120)
     assert proc.returncode == -signal.SIGKILL, proc.stderr
-    assert any(".tmp-" in n for n in os.listdir(store))  # the half-written file is still there
+    left = [p.name for p in store.rglob("*")]
+    assert any(".tmp-" in n for n in left)  # the half-written file is still there
     after = store_tables(store)
     for name in before:
         assert after[name].equals(before[name]), name
     fleet.run(str(src), str(store), workers=1)
-    assert not any(".tmp-" in n or n == ".lock" for n in os.listdir(store))
+    assert not any(".tmp-" in p.name or p.name == ".lock" for p in store.rglob("*"))
     assert_same_store(clean, store)
 
 

@@ -241,7 +241,7 @@ def run(fleet: str, store: str, client: Any = None, workers: Optional[int] = Non
             if progress is not None:
                 progress(done_days, total)
             if time.monotonic() - last_commit > commit_every:
-                st.commit()
+                st.commit(final=False)
                 last_commit = time.monotonic()
 
         batches = _batches(tasks, size)

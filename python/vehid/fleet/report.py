@@ -111,7 +111,7 @@ def _vehicles(store: Any) -> Dict[str, Dict[str, Any]]:
 
 def render(store_path: str) -> str:
     """The report of the store at ``store_path`` as an HTML page (a string)."""
-    if not os.path.isfile(os.path.join(store_path, STATE)):
+    if not os.path.exists(os.path.join(store_path, STATE)):
         raise StoreError(f"{store_path}: not a fleet store (no {STATE}): run vehid fleet run DIR --store "
                          f"{store_path} first")
     store = open_store(store_path)

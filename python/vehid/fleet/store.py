@@ -3,17 +3,33 @@
 * ``state.parquet`` — one row per vehicle-day: ``vehicle``, ``day`` (YYYY-MM-DD),
   ``vehid_version``, ``state`` (the monitor after that day, :func:`vehid.fleet.fold.pack_state`;
   null when no day of that vehicle could be used yet) and ``summary`` (JSON: the fold's summary,
-  the day's ``events`` and, for a day that could not be used, its ``problem``). Its metadata
-  also holds the problems of the last run that belong to no stored day (a day out of order, a
-  vehicle without settings, a directory that does not fit the layout).
-  **It is the store**: the only table a run commits, by writing a new file and renaming it
-  over the old one (``os.replace``, atomic on POSIX and Windows), so a crash at any moment
-  leaves the last committed store.
+  the day's ``events`` and, for a day that could not be used, its ``problem``). It is a
+  directory, a Parquet dataset that ``pyarrow.parquet.read_table`` (and pandas, Dask, DuckDB)
+  read as one table: one file per day, ``<YYYY-MM-DD>.parquet``, sorted by vehicle, so that a
+  run rewrites the days it touched and no others.
+
+  Its manifest ``state.parquet/_commit.json`` (Parquet readers skip names that start with
+  ``_`` or ``.``) **is the store**: it lists the files that make the state with the digest of
+  each, and the problems of the last run that belong to no stored day (a day out of order, a
+  vehicle without settings, a directory that does not fit the layout). A commit writes its
+  files first under names nothing reads (``.<day>.parquet.tmp-<n>``), then a new manifest,
+  flushed and renamed over the old one (``os.replace``, atomic on POSIX and Windows), then
+  renames the files into place. A process killed before the manifest's rename leaves the last
+  committed store; one killed after it has its renames redone when the store is next opened.
+* A commit in the middle of a run (every 60 s of a long one) writes only the rows that changed
+  since the previous commit, as a part ``_part-<n>.parquet`` the manifest lists; the run's
+  last commit folds the parts into the day files. So a commit costs what it adds, not the
+  store's history, and what Parquet readers see is the state at the end of the last run.
 * ``events.parquet`` — ``vehicle, day, t, parameter, before, after, low, high, corner``
   (then ``t_change`` and ``change``), sorted; and ``problems.parquet`` — ``vehicle, day,
-  reason``. Both are written from ``state.parquet`` after it, and carry in their metadata the
-  digest of the state they were made from: :func:`open_store` rebuilds them when they are
-  stale (a crash between the two writes), so they never disagree with it.
+  reason``. Both are written from the state at a run's last commit and carry in their metadata
+  the digest of the state they were made from: :func:`open_store` rebuilds them when they are
+  stale (a crash between the writes, a run killed after a commit in its middle), so they never
+  disagree with it.
+
+A store written by vehid 0.x before the day files (``state.parquet`` as one file) is read as
+it is, and the first commit rewrites it as day files (the file is kept as
+``.state.parquet.v1`` until the new directory is in place).
 """
 
 from __future__ import annotations
@@ -21,15 +37,23 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import shutil
+from collections.abc import MutableMapping
 from dataclasses import dataclass, field
-from typing import Any, Dict, Iterable, List, Optional, Tuple
+from typing import Any, Dict, Iterable, Iterator, List, Optional, Set, Tuple
 
 from ._deps import module
 
 STATE, EVENTS, PROBLEMS = "state.parquet", "events.parquet", "problems.parquet"
+#: The manifest inside ``state.parquet``.
+MANIFEST = "_commit.json"
+#: The store's format (the manifest's ``format``): 2 is the directory of day files.
+FORMAT = 2
+_LEGACY, _SWAP = ".state.parquet.v1", ".state.parquet.new"
 _DIGEST = b"vehid.fleet.state_digest"
 _RUN_PROBLEMS = b"vehid.fleet.run_problems"
-_FORMAT = b"vehid.fleet.format"
+_FILE_DIGEST = b"vehid.fleet.file_digest"
+_STATE_COLUMNS = ("vehicle", "day", "vehid_version", "state", "summary")
 
 
 class StoreError(ValueError):
@@ -43,19 +67,93 @@ class Row:
     vehid_version: str
     state: Optional[bytes]
     summary: str
+    _info: Optional[Dict[str, Any]] = field(default=None, repr=False, compare=False)
+
+    def info(self) -> Dict[str, Any]:
+        """The summary, parsed (once)."""
+        if self._info is None:
+            self._info = json.loads(self.summary)
+        return self._info
+
+
+class Rows(MutableMapping):  # type: ignore[type-arg]
+    """The stored rows by ``(vehicle, day)``, indexed by vehicle and by day, remembering which
+    keys and days changed since the last commit (what the next one writes)."""
+
+    def __init__(self) -> None:
+        self._rows: Dict[Tuple[str, str], Row] = {}
+        self._by_vehicle: Dict[str, Set[str]] = {}
+        self._by_day: Dict[str, Set[str]] = {}
+        #: Keys set or deleted since the last commit (the next part's rows).
+        self.changed_keys: Set[Tuple[str, str]] = set()
+        #: Days with a key set or deleted since the last commit that wrote the day files.
+        self.changed_days: Set[str] = set()
+
+    def load(self, key: Tuple[str, str], row: Row) -> None:
+        """Puts a committed row in, not counted as a change."""
+        if key not in self._rows:
+            self._by_vehicle.setdefault(key[0], set()).add(key[1])
+            self._by_day.setdefault(key[1], set()).add(key[0])
+        self._rows[key] = row
+
+    def __getitem__(self, key: Tuple[str, str]) -> Row:
+        return self._rows[key]
+
+    def __setitem__(self, key: Tuple[str, str], row: Row) -> None:
+        self.load(key, row)
+        self.changed_keys.add(key)
+        self.changed_days.add(key[1])
+
+    def __delitem__(self, key: Tuple[str, str]) -> None:
+        self.unload(key)
+        self.changed_keys.add(key)
+
+    def unload(self, key: Tuple[str, str]) -> None:
+        """Takes a row out as a committed part does (its day counts as changed, the key not:
+        the part already holds the deletion)."""
+        if key in self._rows:
+            del self._rows[key]
+            for index, outer, inner in ((self._by_vehicle, key[0], key[1]), (self._by_day, key[1], key[0])):
+                index[outer].discard(inner)
+                if not index[outer]:
+                    del index[outer]
+        self.changed_days.add(key[1])
+
+    def __iter__(self) -> Iterator[Tuple[str, str]]:
+        return iter(self._rows)
+
+    def __len__(self) -> int:
+        return len(self._rows)
+
+    def days_of(self, vehicle: str) -> List[str]:
+        """The vehicle's days, sorted."""
+        return sorted(self._by_vehicle.get(vehicle, ()))
+
+    def vehicles_on(self, day: str) -> List[str]:
+        """The vehicles with a row on ``day``, sorted."""
+        return sorted(self._by_day.get(day, ()))
 
 
 @dataclass
 class Store:
-    """A store in memory: rows by ``(vehicle, day)`` and the last run's other problems."""
+    """A store in memory: rows by ``(vehicle, day)``, the last run's other problems, and the
+    manifest it was read from (what the next commit starts from)."""
 
     path: str
-    rows: Dict[Tuple[str, str], Row] = field(default_factory=dict)
+    rows: Rows = field(default_factory=Rows)
     run_problems: List[Tuple[str, str, str]] = field(default_factory=list)
+    #: The committed day files: day -> digest of its rows.
+    day_files: Dict[str, str] = field(default_factory=dict)
+    #: The committed parts (not yet folded into the day files): file, digest, deleted keys.
+    parts: List[Dict[str, Any]] = field(default_factory=list)
+    #: The last commit's number.
+    seq: int = 0
+    #: Read from a single-file ``state.parquet`` (the first commit rewrites it as day files).
+    legacy: bool = False
 
     def days(self, vehicle: str) -> List[str]:
         """The vehicle's stored days, sorted."""
-        return sorted(d for v, d in self.rows if v == vehicle)
+        return self.rows.days_of(vehicle)
 
     def by_vehicle(self) -> Dict[str, List[str]]:
         """Every stored vehicle's days, sorted."""
@@ -68,16 +166,7 @@ class Store:
 
     def state_table(self) -> Any:
         """``state.parquet`` as a pyarrow table (sorted by vehicle, day)."""
-        pa = module("pyarrow")
-
-        keys = sorted(self.rows)
-        return pa.table({
-            "vehicle": pa.array([k[0] for k in keys], pa.string()),
-            "day": pa.array([k[1] for k in keys], pa.string()),
-            "vehid_version": pa.array([self.rows[k].vehid_version for k in keys], pa.string()),
-            "state": pa.array([self.rows[k].state for k in keys], pa.binary()),
-            "summary": pa.array([self.rows[k].summary for k in keys], pa.string()),
-        })
+        return _state_table(self.rows, sorted(self.rows))
 
     def events_table(self) -> Any:
         """``events.parquet`` as a pyarrow table: every stored event, sorted by vehicle, day, t."""
@@ -85,7 +174,7 @@ class Store:
 
         cols: Dict[str, List[Any]] = {k: [] for k in EVENT_COLUMNS}
         for (v, d) in sorted(self.rows):
-            for ev in json.loads(self.rows[(v, d)].summary).get("events", []):
+            for ev in self.rows[(v, d)].info().get("events", []):
                 cols["vehicle"].append(v)
                 cols["day"].append(d)
                 for k in EVENT_COLUMNS[2:]:
@@ -97,35 +186,131 @@ class Store:
         then the last run's other problems."""
         pa = module("pyarrow")
 
-        rows = [(v, d, p) for (v, d), r in sorted(self.rows.items())
-                if (p := json.loads(r.summary).get("problem")) is not None]
+        rows = [(v, d, p) for (v, d) in sorted(self.rows)
+                if (p := self.rows[(v, d)].info().get("problem")) is not None]
         rows += sorted(self.run_problems)
         return pa.table({"vehicle": pa.array([r[0] for r in rows], pa.string()),
                          "day": pa.array([r[1] for r in rows], pa.string()),
                          "reason": pa.array([r[2] for r in rows], pa.string())})
 
     def digest(self) -> str:
-        """SHA-256 of the stored rows and run problems: what the derived tables were made from."""
-        h = hashlib.sha256()
-        for (v, d), r in sorted(self.rows.items()):
-            for part in (v, d, r.vehid_version, r.summary):
-                h.update(part.encode() + b"\0")
-            h.update(b"\1" + r.state if r.state is not None else b"\0")
-        h.update(json.dumps(sorted(self.run_problems)).encode())
-        return h.hexdigest()
+        """SHA-256 of the committed state (the day files' and parts' digests and the run's
+        problems): what the derived tables were made from."""
+        return _state_digest(self.day_files, self.parts, self.run_problems)
 
     # --- writing --------------------------------------------------------------------------
 
-    def commit(self) -> None:
-        """Writes ``state.parquet`` (the commit), then ``events.parquet`` and ``problems.parquet``."""
+    def commit(self, final: bool = True) -> None:
+        """Commits the rows changed since the last commit. ``final`` (a run's last commit):
+        the day files they fall on are rewritten (with the parts before them), then
+        ``events.parquet`` and ``problems.parquet``; otherwise they go into one new part."""
         try:
             os.makedirs(self.path, exist_ok=True)
         except OSError as e:
             raise StoreError(f"--store {self.path}: cannot create the directory ({e.strerror or e})") from None
-        digest = self.digest().encode()
-        meta = {_FORMAT: b"1", _DIGEST: digest, _RUN_PROBLEMS: json.dumps(sorted(self.run_problems)).encode()}
-        write_atomic(self.state_table(), os.path.join(self.path, STATE), meta)
-        self._write_derived(digest)
+        sp = os.path.join(self.path, STATE)
+        if self.legacy or os.path.isfile(sp):
+            self._convert(sp)
+        else:
+            os.makedirs(sp, exist_ok=True)
+            self._sweep(sp)
+            if final:
+                self._commit_days(sp)
+            else:
+                self._commit_part(sp)
+        if final:
+            self._write_derived(self.digest().encode())
+
+    def _manifest(self, pending: List[List[str]], remove: List[str]) -> Dict[str, Any]:
+        return {"format": FORMAT, "seq": self.seq, "days": dict(sorted(self.day_files.items())),
+                "parts": self.parts, "run_problems": sorted(list(p) for p in self.run_problems),
+                "pending": pending, "remove": remove}
+
+    def _commit_part(self, sp: str) -> None:
+        if not self.rows.changed_keys:
+            return
+        keys = sorted(k for k in self.rows.changed_keys if k in self.rows)
+        deleted = sorted(list(k) for k in self.rows.changed_keys if k not in self.rows)
+        seq = self.seq + 1
+        name = f"_part-{seq:06d}.parquet"
+        digest = _rows_digest(self.rows, keys)
+        if keys:
+            write_atomic(_state_table(self.rows, keys), os.path.join(sp, name), {_FILE_DIGEST: digest.encode()})
+        parts = self.parts + [{"file": name if keys else None, "digest": digest, "deleted": deleted}]
+        old = self.parts, self.seq
+        self.parts, self.seq = parts, seq
+        try:
+            _write_json(os.path.join(sp, MANIFEST), self._manifest([], []))
+        except BaseException:
+            self.parts, self.seq = old
+            raise
+        self.rows.changed_keys.clear()
+
+    def _commit_days(self, sp: str) -> None:
+        seq = self.seq + 1
+        days = dict(self.day_files)
+        pending: List[List[str]] = []
+        remove = [p["file"] for p in self.parts if p["file"] is not None]
+        try:
+            for day in sorted(self.rows.changed_days):
+                vehicles = self.rows.vehicles_on(day)
+                if vehicles:
+                    keys = [(v, day) for v in vehicles]
+                    tmp = f".{day}.parquet.tmp-{seq}"
+                    days[day] = _rows_digest(self.rows, keys)
+                    pending.append([tmp, f"{day}.parquet"])
+                    _write_file(_state_table(self.rows, keys), os.path.join(sp, tmp),
+                                {_FILE_DIGEST: days[day].encode()})
+                elif day in days:
+                    del days[day]
+                    remove.append(f"{day}.parquet")
+            old = self.day_files, self.parts, self.seq
+            self.day_files, self.parts, self.seq = days, [], seq
+            try:
+                _write_json(os.path.join(sp, MANIFEST), self._manifest(pending, remove))
+            except BaseException:
+                self.day_files, self.parts, self.seq = old
+                raise
+        except BaseException:
+            for tmp, _ in pending:
+                _remove(os.path.join(sp, tmp))
+            raise
+        _apply(sp, pending, remove)
+        self.rows.changed_keys.clear()
+        self.rows.changed_days.clear()
+
+    def _convert(self, sp: str) -> None:
+        """Rewrites a single-file ``state.parquet`` as the directory of day files: the whole
+        directory is made beside it, then swapped in (the file kept as ``.state.parquet.v1``
+        until the directory is in place; :func:`open_store` finishes a swap a crash cut)."""
+        new, old = os.path.join(self.path, _SWAP), os.path.join(self.path, _LEGACY)
+        shutil.rmtree(new, ignore_errors=True)
+        os.makedirs(new)
+        days: Dict[str, str] = {}
+        for day in sorted({d for _, d in self.rows}):
+            keys = [(v, day) for v in self.rows.vehicles_on(day)]
+            days[day] = _rows_digest(self.rows, keys)
+            _write_file(_state_table(self.rows, keys), os.path.join(new, f"{day}.parquet"),
+                        {_FILE_DIGEST: days[day].encode()})
+        self.day_files, self.parts, self.seq = days, [], self.seq + 1
+        _write_json(os.path.join(new, MANIFEST), self._manifest([], []))
+        _fsync_dir(new)
+        if os.path.isfile(sp):
+            os.replace(sp, old)
+        os.rename(new, sp)
+        _fsync_dir(self.path)
+        _remove(old)
+        self.legacy = False
+        self.rows.changed_keys.clear()
+        self.rows.changed_days.clear()
+
+    def _sweep(self, sp: str) -> None:
+        """Removes what a process killed while writing left in ``state.parquet``: temporary
+        files, and parts no manifest lists."""
+        listed = {p["file"] for p in self.parts}
+        for name in os.listdir(sp):
+            if (name.startswith(".") and ".tmp-" in name) or (name.startswith("_part-") and name not in listed):
+                _remove(os.path.join(sp, name))
 
     def _write_derived(self, digest: bytes) -> None:
         write_atomic(self.events_table(), os.path.join(self.path, EVENTS), {_DIGEST: digest})
@@ -144,63 +329,248 @@ def _event_types() -> Dict[str, Any]:
             "corner": s, "t_change": f, "change": f}
 
 
-def write_atomic(table: Any, path: str, metadata: Dict[bytes, bytes]) -> None:
-    """Writes ``table`` to ``path`` atomically: a temporary file in the same directory,
-    flushed to disk, then renamed over ``path``. On any failure ``path`` is as it was and the
-    temporary file is removed."""
+def _state_table(rows: Any, keys: List[Tuple[str, str]]) -> Any:
+    pa = module("pyarrow")
+
+    got = [rows[k] for k in keys]
+    return pa.table({
+        "vehicle": pa.array([k[0] for k in keys], pa.string()),
+        "day": pa.array([k[1] for k in keys], pa.string()),
+        "vehid_version": pa.array([r.vehid_version for r in got], pa.string()),
+        "state": pa.array([r.state for r in got], pa.binary()),
+        "summary": pa.array([r.summary for r in got], pa.string()),
+    })
+
+
+def _rows_digest(rows: Any, keys: List[Tuple[str, str]]) -> str:
+    """SHA-256 of the rows ``keys`` (in that order)."""
+    h = hashlib.sha256()
+    for v, d in keys:
+        r = rows[(v, d)]
+        for part in (v, d, r.vehid_version, r.summary):
+            h.update(part.encode() + b"\0")
+        h.update(b"\1" + r.state if r.state is not None else b"\0")
+    return h.hexdigest()
+
+
+def _state_digest(days: Dict[str, str], parts: List[Dict[str, Any]], run_problems: Iterable[Any]) -> str:
+    text = json.dumps({"days": sorted(days.items()), "parts": [[p["digest"], p["deleted"]] for p in parts],
+                       "run_problems": sorted(list(p) for p in run_problems)})
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _remove(path: str) -> None:
+    try:
+        os.remove(path)
+    except FileNotFoundError:
+        pass
+
+
+def _fsync_dir(path: str) -> None:
+    """Flushes a directory's entries (a rename's durability) where the system allows it."""
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def _write_file(table: Any, path: str, metadata: Dict[bytes, bytes]) -> None:
+    """Writes ``table`` to ``path`` with ``metadata`` and flushes it to disk; on failure no
+    file is left."""
     pq = module("pyarrow.parquet")
 
-    tmp = f"{path}.tmp-{os.getpid()}"
     table = table.replace_schema_metadata({**(table.schema.metadata or {}), **metadata})
     try:
-        pq.write_table(table, tmp, compression="zstd")
-        with open(tmp, "rb+") as f:
+        pq.write_table(table, path, compression="zstd")
+        with open(path, "rb+") as f:
             os.fsync(f.fileno())
-        os.replace(tmp, path)
     except BaseException as e:
-        try:
-            os.remove(tmp)
-        except OSError:
-            pass
+        _remove(path)
         if isinstance(e, OSError):
             raise StoreError(f"{path}: cannot write ({e.strerror or e})") from None
         raise
 
 
-def open_store(path: str) -> Store:
-    """Reads the store at ``path`` (an empty store if it has no ``state.parquet`` yet), and
-    rewrites its events and problems tables if they are not those of its state (a crash
-    between the writes). :class:`StoreError` for a directory that is not a store or a
-    damaged state table."""
+def write_atomic(table: Any, path: str, metadata: Dict[bytes, bytes]) -> None:
+    """Writes ``table`` to ``path`` atomically: a temporary file in the same directory,
+    flushed to disk, then renamed over ``path``. On any failure ``path`` is as it was and the
+    temporary file is removed."""
+    directory, name = os.path.split(path)
+    tmp = os.path.join(directory, f".{name}.tmp-{os.getpid()}")
+    _write_file(table, tmp, metadata)
+    try:
+        os.replace(tmp, path)
+    except OSError as e:
+        _remove(tmp)
+        raise StoreError(f"{path}: cannot write ({e.strerror or e})") from None
+
+
+def _write_json(path: str, obj: Any) -> None:
+    """Writes ``obj`` as JSON to ``path`` atomically (as :func:`write_atomic`)."""
+    directory, name = os.path.split(path)
+    tmp = os.path.join(directory, f".{name}.tmp-{os.getpid()}")
+    try:
+        with open(tmp, "w", encoding="utf-8") as f:
+            json.dump(obj, f, indent=1)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+        _fsync_dir(directory)
+    except BaseException as e:
+        _remove(tmp)
+        if isinstance(e, OSError):
+            raise StoreError(f"{path}: cannot write ({e.strerror or e})") from None
+        raise
+
+
+def _apply(sp: str, pending: List[List[str]], remove: List[str]) -> None:
+    """Puts a committed manifest's files in place: renames its new files (those not yet
+    renamed; another process opening the store may do the same at the same time) and removes
+    the files it no longer lists."""
+    for tmp, final in pending:
+        try:
+            os.replace(os.path.join(sp, tmp), os.path.join(sp, final))
+        except FileNotFoundError:
+            pass
+    for name in remove:
+        _remove(os.path.join(sp, name))
+    _fsync_dir(sp)
+
+
+def _finish_swap(path: str) -> None:
+    """Completes (or undoes) a conversion of a single-file state a crash cut short."""
+    sp, new, old = (os.path.join(path, n) for n in (STATE, _SWAP, _LEGACY))
+    if os.path.exists(old):
+        if not os.path.exists(sp):
+            if os.path.isfile(os.path.join(new, MANIFEST)):
+                os.rename(new, sp)
+            else:
+                os.replace(old, sp)
+        if os.path.isdir(sp):
+            _remove(old)
+    if os.path.isdir(new) and os.path.exists(sp):
+        shutil.rmtree(new, ignore_errors=True)
+
+
+def _damaged(where: str, why: str) -> StoreError:
+    return StoreError(f"{where}: {why}: the store is damaged; restore it from a backup, or remove the store to "
+                      "recompute it from the logs")
+
+
+def _read(path: str, digest: Optional[str]) -> Any:
     pq = module("pyarrow.parquet")
 
+    try:
+        table = pq.read_table(path)
+    except Exception as e:
+        raise _damaged(path, f"not readable ({str(e).splitlines()[0]})") from None
+    if not set(_STATE_COLUMNS) <= set(table.column_names):
+        raise StoreError(f"{path}: not a fleet state table (columns {', '.join(table.column_names)})")
+    if digest is not None and (table.schema.metadata or {}).get(_FILE_DIGEST) != digest.encode():
+        raise _Moved(path)
+    return table
+
+
+class _Moved(Exception):
+    """A file is not the one the manifest read names (a commit moved on meanwhile)."""
+
+
+def _load_table(store: Store, table: Any, changed: bool) -> None:
+    """Puts a file's rows into ``store``; ``changed``: their days count as changed (a part's
+    rows, which the next commit of the day files takes in)."""
+    d = table.to_pydict()
+    for v, day, ver, st, su in zip(d["vehicle"], d["day"], d["vehid_version"], d["state"], d["summary"]):
+        store.rows.load((v, day), Row(ver, st, su))
+        if changed:
+            store.rows.changed_days.add(day)
+
+
+def _load_dir(path: str) -> Store:
+    sp = os.path.join(path, STATE)
+    manifest = os.path.join(sp, MANIFEST)
+    for attempt in range(5):
+        store = Store(path=path)
+        if not os.path.exists(manifest):
+            if any(n.endswith(".parquet") and not n.startswith((".", "_")) for n in os.listdir(sp)):
+                raise _damaged(sp, f"no {MANIFEST} beside its files")
+            return store
+        try:
+            with open(manifest, encoding="utf-8") as f:
+                man = json.load(f)
+            if man.get("format") != FORMAT:
+                raise StoreError(f"{manifest}: store format {man.get('format')!r}; this vehid ({_version()}) "
+                                 f"reads format {FORMAT}: use the vehid that wrote it, or remove the store to "
+                                 "recompute it from the logs")
+            _apply(sp, man["pending"], man["remove"])
+            store.seq, store.day_files, store.parts = int(man["seq"]), dict(man["days"]), list(man["parts"])
+            store.run_problems = [(str(p[0]), str(p[1]), str(p[2])) for p in man["run_problems"]]
+            for day, digest in store.day_files.items():
+                _load_table(store, _read(os.path.join(sp, f"{day}.parquet"), digest), changed=False)
+            for part in store.parts:  # rows committed in the middle of a run: the next commit folds them
+                if part["file"] is not None:
+                    _load_table(store, _read(os.path.join(sp, part["file"]), part["digest"]), changed=True)
+                for v, day in part["deleted"]:
+                    store.rows.unload((v, day))
+            return store
+        except _Moved as e:
+            if attempt == 4:
+                raise _damaged(str(e), f"not the file {MANIFEST} lists (its digest differs)") from None
+        except (KeyError, TypeError, ValueError, AttributeError) as e:
+            if isinstance(e, StoreError):
+                raise
+            raise _damaged(manifest, f"not a manifest ({type(e).__name__}: {e})") from None
+    raise AssertionError("unreachable")
+
+
+def _version() -> str:
+    from .. import __version__
+
+    return __version__
+
+
+def _load_file(path: str) -> Store:
+    """A single-file ``state.parquet`` (before the day files): every row counts as changed,
+    so that the first commit writes the day files."""
+    sp = os.path.join(path, STATE)
+    store = Store(path=path, legacy=True)
+    table = _read(sp, None)
+    _load_table(store, table, changed=False)
+    meta = table.schema.metadata or {}
+    store.run_problems = [(str(p[0]), str(p[1]), str(p[2])) for p in json.loads(meta.get(_RUN_PROBLEMS, b"[]"))]
+    return store
+
+
+def open_store(path: str) -> Store:
+    """Reads the store at ``path`` (an empty store if it has no ``state.parquet`` yet),
+    finishing a commit a crash cut after its manifest, and rewrites its events and problems
+    tables if they are not those of its state. :class:`StoreError` for a directory that is not
+    a store or a damaged state."""
     if os.path.exists(path) and not os.path.isdir(path):
         raise StoreError(f"--store {path}: is a file; give a directory (created if missing)")
-    store = Store(path=path)
-    state_path = os.path.join(path, STATE)
-    if not os.path.exists(state_path):
+    if os.path.isdir(path):
+        _finish_swap(path)
+    sp = os.path.join(path, STATE)
+    if os.path.isfile(sp):
+        store = _load_file(path)
+    elif os.path.isdir(sp):
+        store = _load_dir(path)
+    else:
         if os.path.isdir(path) and any(not n.startswith(".") for n in os.listdir(path)):
             others = sorted(os.listdir(path))[:5]
             if not set(others) <= {EVENTS, PROBLEMS} and not all(".tmp-" in n for n in others):
                 raise StoreError(f"--store {path}: a directory that is not a fleet store (it holds "
                                  f"{', '.join(others)}, no {STATE}): give an empty or new directory")
-        return store
-    try:
-        table = pq.read_table(state_path)
-    except Exception as e:
-        raise StoreError(f"{state_path}: not readable ({str(e).splitlines()[0]}): the store is damaged; restore "
-                         "it from a backup, or remove the store to recompute it from the logs") from None
-    need = {"vehicle", "day", "vehid_version", "state", "summary"}
-    if not need <= set(table.column_names):
-        raise StoreError(f"{state_path}: not a fleet state table (columns {', '.join(table.column_names)})")
-    meta = table.schema.metadata or {}
-    d = table.to_pydict()
-    for v, day, ver, st, su in zip(d["vehicle"], d["day"], d["vehid_version"], d["state"], d["summary"]):
-        store.rows[(v, day)] = Row(ver, st, su)
-    store.run_problems = [(str(p[0]), str(p[1]), str(p[2])) for p in json.loads(meta.get(_RUN_PROBLEMS, b"[]"))]
-    digest = store.digest().encode()
-    if any(_digest_of(os.path.join(path, name)) != digest for name in (EVENTS, PROBLEMS)):
-        store._write_derived(digest)
+        return Store(path=path)
+    if not store.legacy:
+        digest = store.digest().encode()
+        if any(_digest_of(os.path.join(path, name)) != digest for name in (EVENTS, PROBLEMS)):
+            store._write_derived(digest)
     return store
 
 
