@@ -21,9 +21,11 @@ after it: the car does not change again).
 ``store``: what a commit costs as the store's history grows, without logs or the monitor: a
 store of ``--vehicles`` vehicles × ``--days`` days of rows the size of real ones (a 2.7 kB
 state, a 2.7 kB summary; random, seeded), committed, then ``--more`` further days, each
-committed as a daily run would (``--parts`` commits: those a long run makes every 60 s, in
-its middle, then its last one): the seconds of the commits and the bytes they wrote, then the
-seconds to open the store.
+committed as a daily run would (the store opened as a run opens it, reading the rows it
+asks for; ``--parts`` commits: those a long run makes every 60 s, in its middle, then its last
+one): the seconds to open it and read each vehicle's last state, of the commits, the bytes
+they wrote, and the stored rows read;
+then the seconds to open the store reading every row (as the report does).
 
     .venv/bin/python benches/fleet.py throughput --vehicles 16 --hours 1 --workers 2 --seed 1
     .venv/bin/python benches/fleet.py detect --vehicles 1000 --hours 1 --faults 0.5 --seed 7100000
@@ -305,10 +307,16 @@ def store_cost(args: argparse.Namespace) -> None:
         st.commit()
         _say(f"store: history committed ({len(st.rows)} rows) in {time.perf_counter() - t:.2f} s")
         print(f"store: {args.vehicles} vehicles x {args.days} days of history; then one day at a time")
-        print(f"  history rows  {args.parts - 1} commits in the run's middle, s  its last commit, s  written MB")
+        print(f"  history rows  open + last states, s  {args.parts - 1} commits in the run's middle, s  "
+              "its last commit, s  written MB  rows read")
         for k in range(args.days, args.days + args.more):
             rows = rows_of(k)
             before = _files(path)
+            t = time.perf_counter()
+            st = open_store(path, lazy=True)  # as a run opens it, then reads each vehicle's last state
+            last = [st.rows[(v, st.days(v)[-1])].state for v in vehicles]
+            opening = time.perf_counter() - t
+            read = st.rows.held()
             middle = 0.0
             for j in range(args.parts):
                 for v, d, r in rows[j * len(rows) // args.parts:(j + 1) * len(rows) // args.parts]:
@@ -319,10 +327,12 @@ def store_cost(args: argparse.Namespace) -> None:
                 middle += dt if j + 1 < args.parts else 0.0
             after = _files(path)
             written = sum(s[2] for f, s in after.items() if before.get(f) != s)
-            print(f"  {len(st.rows):12d}  {middle:34.3f}  {dt:17.3f}  {written / 1e6:10.1f}", flush=True)
+            print(f"  {len(st.rows):12d}  {opening:13.3f}  {middle:34.3f}  {dt:17.3f}  {written / 1e6:10.1f}  "
+                  f"{read:9d}", flush=True)
+            del last
         t = time.perf_counter()
         opened = open_store(path)
-        print(f"  open_store: {len(opened.rows)} rows in {time.perf_counter() - t:.2f} s; store on disk "
+        print(f"  open_store (every row): {len(opened.rows)} rows in {time.perf_counter() - t:.2f} s; store on disk "
               f"{sum(s[2] for s in _files(path).values()) / 1e6:.1f} MB")
     finally:
         shutil.rmtree(work, ignore_errors=True)

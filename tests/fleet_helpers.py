@@ -11,6 +11,7 @@ from typing import Any, Dict, Iterable, Optional
 import pyarrow.parquet as pq
 
 from vehid.fleet.simulate import simulate
+from vehid.fleet.store import open_store
 
 #: The test fleet: small enough for the whole fleet suite to stay quick on one core.
 VEHICLES, DAYS, HOURS, FAULTS, SEED = 5, 3, 0.05, 0.6, 11
@@ -64,6 +65,10 @@ def assert_same_store(a: Path, b: Path) -> None:
     ta, tb = store_tables(a), store_tables(b)
     for name in ta:
         assert ta[name].equals(tb[name]), name
+    for x in (a, b):  # the derived tables a commit updated are those made anew from every row
+        full = open_store(str(x))
+        assert full.events_table().equals(pq.read_table(x / "events.parquet")), x
+        assert full.problems_table().equals(pq.read_table(x / "problems.parquet")), x
     fa, fb = state_files(a), state_files(b)
     assert sorted(fa) == sorted(fb)
     assert all(n.endswith(".parquet") and n[0].isdigit() for n in fa), sorted(fa)

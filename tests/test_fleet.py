@@ -269,6 +269,72 @@ def test_a_run_rewrites_the_days_it_touched_and_no_others(src: Path, clean: Path
     assert_same_store(clean, store)
 
 
+def test_a_run_reads_the_days_it_needs_not_the_history(src: Path, clean: Path, tmp_path: Path,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    days = days_of(src)
+    lake, store = tmp_path / "lake", tmp_path / "store"
+    fleet.run(str(subset(src, lake, days[:-1])), str(store), workers=1)
+    real, read = store_mod._rows_of, []
+
+    def rows_of(table: Any, day: str) -> Any:
+        read.append(day)
+        return real(table, day)
+
+    monkeypatch.setattr(store_mod, "_rows_of", rows_of)
+    res = fleet.run(str(subset(src, lake, days)), str(store), workers=1)
+    assert read == [days[-2]]  # the last stored day's states, to go on from; no older day
+    monkeypatch.undo()
+    assert res.events.equals(fleet.read_table(str(clean), "events"))
+    assert res.states.equals(fleet.read_table(str(clean), "state"))
+    assert_same_store(clean, store)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_random_commits_keep_the_store_equal_to_a_model_and_its_tables_to_those_made_anew(tmp_path: Path,
+                                                                                          seed: int) -> None:
+    """Random rounds of changes (rows set on old and new days, rows deleted, run problems),
+    committed in a run's middle or at its end, each round on the store opened lazily as a run
+    opens it: the store reads back as a plain dict of the same rows, and its events and
+    problems tables (updated by each commit) equal those made anew from every row."""
+    rng = np.random.default_rng(seed)
+    path = str(tmp_path / "store")
+    days = [f"2026-01-{d:02d}" for d in range(3, 12)]
+    vehicles = [f"v{k}" for k in range(6)]
+    model: Dict[Tuple[str, str], store_mod.Row] = {}
+
+    def row() -> store_mod.Row:
+        events = [{"t": float(t), "parameter": str(rng.choice(["b", "k2", "M"])), "before": 1.0, "after": 1.2,
+                   "low": 1.1, "high": 1.3, "corner": None, "t_change": float(t) - 2.0, "change": 0.2}
+                  for t in sorted(rng.uniform(0, 100, rng.integers(0, 3)))]
+        summary = {"events": events, "n": int(rng.integers(1 << 30))}
+        if rng.random() < 0.2:
+            summary["problem"] = f"problem {rng.integers(100)}"
+        return store_mod.Row("0.x", rng.bytes(int(rng.integers(0, 40))) if rng.random() < 0.9 else None,
+                             json.dumps(summary))
+
+    for rnd in range(12):
+        st = store_mod.open_store(path, lazy=True)
+        for _ in range(int(rng.integers(1, 3))):  # commits of this "run"
+            for _ in range(int(rng.integers(1, 12))):
+                key = (str(rng.choice(vehicles)), str(rng.choice(days)))
+                if key in model and rng.random() < 0.25:
+                    del st.rows[key]
+                    del model[key]
+                else:
+                    st.rows[key] = model[key] = row()
+            st.run_problems = [(str(rng.choice(vehicles)), str(rng.choice(days + [""])), f"run {rnd}")
+                               for _ in range(int(rng.integers(0, 3)))]
+            st.commit(final=rng.random() < 0.5)
+        if rng.random() < 0.8:  # a run ends with its last commit; else it was killed after a middle one
+            st.commit()
+        full = store_mod.open_store(path)  # (rewrites the derived tables if the run was killed)
+        assert {k: (r.vehid_version, r.state, r.summary) for k, r in full.rows.items()} == \
+            {k: (r.vehid_version, r.state, r.summary) for k, r in model.items()}, rnd
+        for name, made in (("events", full.events_table()), ("problems", full.problems_table())):
+            assert pq.read_table(tmp_path / "store" / f"{name}.parquet").equals(made), (rnd, name)
+        assert full.run_problems == sorted(st.run_problems)
+
+
 def test_the_state_reads_as_one_table_one_file_per_day(clean: Path) -> None:
     files = sorted(p.name for p in (clean / "state.parquet").glob("*.parquet"))
     state = fleet.read_table(str(clean), "state")

@@ -10,6 +10,7 @@ engine, worker or retry runs it, and a task lost with its worker is simply run a
 from __future__ import annotations
 
 import datetime
+import functools
 import json
 import math
 import os
@@ -47,14 +48,18 @@ class FleetResult:
     events: Any
     #: ``problems.parquet``: vehicle, day, reason.
     problems: Any
-    #: ``state.parquet``: vehicle, day, vehid_version, state, summary.
-    states: Any
     #: Vehicle-days processed by this run.
     processed: int
     #: Seconds of logs read by this run (vehicle-hours × 3600).
     log_seconds: float
     #: Wall time of the run, s.
     elapsed: float
+
+    @functools.cached_property
+    def states(self) -> Any:
+        """``state.parquet``: vehicle, day, vehid_version, state, summary (sorted by vehicle,
+        day; read from the store when first asked for: it holds every stored day)."""
+        return open_store(self.store).state_table()
 
 
 def run_chain(task: Task) -> Done:
@@ -212,7 +217,7 @@ def run(fleet: str, store: str, client: Any = None, workers: Optional[int] = Non
         for name in os.listdir(store):  # what a process killed while writing left behind
             if ".parquet.tmp-" in name:
                 os.remove(os.path.join(store, name))
-        st = open_store(store)
+        st = open_store(store, lazy=True)
         tasks, problems = plan(fleet, st, since)
         if since is not None:  # the days recomputed are replaced; a vehicle left out keeps its rows
             chained = {t[0] for t in tasks}
@@ -250,8 +255,8 @@ def run(fleet: str, store: str, client: Any = None, workers: Optional[int] = Non
         else:
             _run_local(n_workers, batches, take)
         st.commit()
-    return FleetResult(store=store, events=st.events_table(), problems=st.problems_table(),
-                       states=st.state_table(), processed=done_days, log_seconds=seconds,
+    events, problems = st.derived_tables()
+    return FleetResult(store=store, events=events, problems=problems, processed=done_days, log_seconds=seconds,
                        elapsed=time.perf_counter() - t_start)
 
 

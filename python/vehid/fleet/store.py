@@ -40,7 +40,7 @@ import os
 import shutil
 from collections.abc import MutableMapping
 from dataclasses import dataclass, field
-from typing import Any, Dict, Iterable, Iterator, List, Optional, Set, Tuple
+from typing import Any, Callable, Dict, Iterable, Iterator, List, Optional, Set, Tuple
 
 from ._deps import module
 
@@ -78,51 +78,109 @@ class Row:
 
 class Rows(MutableMapping):  # type: ignore[type-arg]
     """The stored rows by ``(vehicle, day)``, indexed by vehicle and by day, remembering which
-    keys and days changed since the last commit (what the next one writes)."""
+    keys and days changed since the last commit (what the next one writes).
 
-    def __init__(self) -> None:
+    A row may be known by its key alone (``load_later``): its day file is read, whole, when
+    one of its rows is first asked for, so that a run holds the index of the store and the
+    days it reads or writes, not the history."""
+
+    def __init__(self, fetch: Optional[Callable[[str], Iterable[Tuple[str, Row]]]] = None) -> None:
         self._rows: Dict[Tuple[str, str], Row] = {}
+        #: day -> the vehicles whose rows of that day are in its file, not read yet.
+        self._later: Dict[str, Set[str]] = {}
+        self._fetch = fetch
         self._by_vehicle: Dict[str, Set[str]] = {}
         self._by_day: Dict[str, Set[str]] = {}
+        self._count = 0
         #: Keys set or deleted since the last commit (the next part's rows).
         self.changed_keys: Set[Tuple[str, str]] = set()
         #: Days with a key set or deleted since the last commit that wrote the day files.
         self.changed_days: Set[str] = set()
+        #: Days with a key set or deleted since the events and problems tables were written.
+        self.derived_days: Set[str] = set()
+
+    def _index(self, key: Tuple[str, str]) -> None:
+        if key not in self:
+            self._by_vehicle.setdefault(key[0], set()).add(key[1])
+            self._by_day.setdefault(key[1], set()).add(key[0])
+            self._count += 1
+
+    def _not_later(self, key: Tuple[str, str]) -> None:
+        later = self._later.get(key[1])
+        if later is not None:
+            later.discard(key[0])
+            if not later:
+                del self._later[key[1]]
 
     def load(self, key: Tuple[str, str], row: Row) -> None:
         """Puts a committed row in, not counted as a change."""
-        if key not in self._rows:
-            self._by_vehicle.setdefault(key[0], set()).add(key[1])
-            self._by_day.setdefault(key[1], set()).add(key[0])
+        self._index(key)
+        self._not_later(key)
         self._rows[key] = row
 
+    def load_later(self, key: Tuple[str, str]) -> None:
+        """Puts a committed row in by its key: its day file is read when it is asked for."""
+        self._index(key)
+        self._later.setdefault(key[1], set()).add(key[0])
+
+    def read_all(self) -> None:
+        """Reads every row still known by its key alone."""
+        for day in sorted(self._later):
+            self._read(day)
+
+    def _read(self, day: str) -> None:
+        want = self._later.pop(day)
+        assert self._fetch is not None, "a row known by its key alone needs a reader"
+        for v, row in self._fetch(day):
+            if v in want:
+                self._rows[(v, day)] = row
+
+    def __contains__(self, key: object) -> bool:
+        return isinstance(key, tuple) and len(key) == 2 and key[0] in self._by_day.get(key[1], ())
+
     def __getitem__(self, key: Tuple[str, str]) -> Row:
-        return self._rows[key]
+        row = self._rows.get(key)
+        if row is None:
+            if key[0] not in self._later.get(key[1], ()):
+                raise KeyError(key)
+            self._read(key[1])
+            row = self._rows[key]
+        return row
 
     def __setitem__(self, key: Tuple[str, str], row: Row) -> None:
         self.load(key, row)
         self.changed_keys.add(key)
         self.changed_days.add(key[1])
+        self.derived_days.add(key[1])
 
     def __delitem__(self, key: Tuple[str, str]) -> None:
+        if key not in self:
+            raise KeyError(key)
         self.unload(key)
         self.changed_keys.add(key)
 
     def unload(self, key: Tuple[str, str]) -> None:
         """Takes a row out as a committed part does (its day counts as changed, the key not:
         the part already holds the deletion)."""
-        if key in self._rows:
-            del self._rows[key]
+        if key in self:
+            self._rows.pop(key, None)
+            self._not_later(key)
             for index, outer, inner in ((self._by_vehicle, key[0], key[1]), (self._by_day, key[1], key[0])):
                 index[outer].discard(inner)
                 if not index[outer]:
                     del index[outer]
+            self._count -= 1
         self.changed_days.add(key[1])
+        self.derived_days.add(key[1])
 
     def __iter__(self) -> Iterator[Tuple[str, str]]:
-        return iter(self._rows)
+        return ((v, d) for d, vs in list(self._by_day.items()) for v in list(vs))
 
     def __len__(self) -> int:
+        return self._count
+
+    def held(self) -> int:
+        """How many rows are in memory (read from their day files, or set)."""
         return len(self._rows)
 
     def days_of(self, vehicle: str) -> List[str]:
@@ -150,6 +208,13 @@ class Store:
     seq: int = 0
     #: Read from a single-file ``state.parquet`` (the first commit rewrites it as day files).
     legacy: bool = False
+    #: The digest of the state ``events.parquet`` and ``problems.parquet`` were made from, when
+    #: they are this store's (the rows of ``rows.derived_days`` changed since), and the run
+    #: problems they hold: what lets a commit update them instead of making them anew.
+    derived_digest: Optional[str] = None
+    derived_run_problems: List[Tuple[str, str, str]] = field(default_factory=list)
+    #: The derived tables as the last commit wrote them.
+    written: Optional[Tuple[Any, Any]] = None
 
     def days(self, vehicle: str) -> List[str]:
         """The vehicle's stored days, sorted."""
@@ -170,10 +235,18 @@ class Store:
 
     def events_table(self) -> Any:
         """``events.parquet`` as a pyarrow table: every stored event, sorted by vehicle, day, t."""
+        return self._events_of(sorted(self.rows))
+
+    def problems_table(self) -> Any:
+        """``problems.parquet`` as a pyarrow table: the stored days that could not be used,
+        then the last run's other problems."""
+        return self._problems_of(sorted(self.rows), sorted(self.run_problems))
+
+    def _events_of(self, keys: Iterable[Tuple[str, str]]) -> Any:
         pa = module("pyarrow")
 
         cols: Dict[str, List[Any]] = {k: [] for k in EVENT_COLUMNS}
-        for (v, d) in sorted(self.rows):
+        for (v, d) in keys:
             for ev in self.rows[(v, d)].info().get("events", []):
                 cols["vehicle"].append(v)
                 cols["day"].append(d)
@@ -181,17 +254,18 @@ class Store:
                     cols[k].append(ev[k])
         return pa.table({k: pa.array(cols[k], t) for k, t in _event_types().items()})
 
-    def problems_table(self) -> Any:
-        """``problems.parquet`` as a pyarrow table: the stored days that could not be used,
-        then the last run's other problems."""
+    def _problems_of(self, keys: Iterable[Tuple[str, str]], others: List[Tuple[str, str, str]]) -> Any:
         pa = module("pyarrow")
 
-        rows = [(v, d, p) for (v, d) in sorted(self.rows)
-                if (p := self.rows[(v, d)].info().get("problem")) is not None]
-        rows += sorted(self.run_problems)
+        rows = [(v, d, p) for (v, d) in keys if (p := self.rows[(v, d)].info().get("problem")) is not None]
+        rows += others
         return pa.table({"vehicle": pa.array([r[0] for r in rows], pa.string()),
                          "day": pa.array([r[1] for r in rows], pa.string()),
                          "reason": pa.array([r[2] for r in rows], pa.string())})
+
+    def derived_tables(self) -> Tuple[Any, Any]:
+        """The events and problems tables: as the last commit wrote them, else made now."""
+        return self.written if self.written is not None else (self.events_table(), self.problems_table())
 
     def digest(self) -> str:
         """SHA-256 of the committed state (the day files' and parts' digests and the run's
@@ -313,8 +387,43 @@ class Store:
                 _remove(os.path.join(sp, name))
 
     def _write_derived(self, digest: bytes) -> None:
-        write_atomic(self.events_table(), os.path.join(self.path, EVENTS), {_DIGEST: digest})
-        write_atomic(self.problems_table(), os.path.join(self.path, PROBLEMS), {_DIGEST: digest})
+        tables = self._derived_update() if self.derived_digest is not None else None
+        if tables is None:
+            self.rows.read_all()
+            tables = self.events_table(), self.problems_table()
+        write_atomic(tables[0], os.path.join(self.path, EVENTS), {_DIGEST: digest})
+        write_atomic(tables[1], os.path.join(self.path, PROBLEMS), {_DIGEST: digest})
+        self.derived_digest, self.derived_run_problems = digest.decode(), sorted(self.run_problems)
+        self.rows.derived_days.clear()
+        self.written = tables
+
+    def _derived_update(self) -> Optional[Tuple[Any, Any]]:
+        """The events and problems tables from those on disk (when they are those of
+        ``derived_digest``): their rows of the days changed since replaced by those days' rows
+        now, the run problems by this run's. The same tables as made anew, row for row."""
+        pa, pc, pq = module("pyarrow"), module("pyarrow.compute"), module("pyarrow.parquet")
+
+        try:
+            old = [pq.read_table(os.path.join(self.path, name)) for name in (EVENTS, PROBLEMS)]
+        except Exception:
+            return None
+        if any((t.schema.metadata or {}).get(_DIGEST) != (self.derived_digest or "").encode() for t in old):
+            return None
+        days = sorted(self.rows.derived_days)
+        keys = [(v, d) for d in days for v in self.rows.vehicles_on(d)]
+        changed = pa.array(days, pa.string())
+        by_key = [("vehicle", "ascending"), ("day", "ascending")]  # a stable sort: t's order stays
+
+        def update(kept: Any, new: Any) -> Any:
+            kept = kept.replace_schema_metadata(None)
+            kept = kept.filter(pc.invert(pc.is_in(kept.column("day"), value_set=changed)))
+            return pa.concat_tables([kept, new]).sort_by(by_key).combine_chunks()
+
+        events = update(old[0], self._events_of(keys))
+        stored = old[1].slice(0, old[1].num_rows - len(self.derived_run_problems))
+        problems = pa.concat_tables([update(stored, self._problems_of(keys, [])),
+                                     self._problems_of([], sorted(self.run_problems))]).combine_chunks()
+        return events, problems
 
 
 #: The events table's columns, in order.
@@ -463,18 +572,21 @@ def _damaged(where: str, why: str) -> StoreError:
                       "recompute it from the logs")
 
 
-def _read(path: str, digest: Optional[str]) -> Any:
+def _read(path: str, digest: Optional[str], columns: Optional[List[str]] = None) -> Any:
+    """A state file (``columns`` of it), checked against the digest its manifest gives."""
     pq = module("pyarrow.parquet")
 
     try:
-        table = pq.read_table(path)
+        schema = pq.read_schema(path)
+        if not set(_STATE_COLUMNS) <= set(schema.names):
+            raise StoreError(f"{path}: not a fleet state table (columns {', '.join(schema.names)})")
+        if digest is not None and (schema.metadata or {}).get(_FILE_DIGEST) != digest.encode():
+            raise _Moved(path)
+        return pq.read_table(path, columns=columns)
+    except (StoreError, _Moved):
+        raise
     except Exception as e:
         raise _damaged(path, f"not readable ({str(e).splitlines()[0]})") from None
-    if not set(_STATE_COLUMNS) <= set(table.column_names):
-        raise StoreError(f"{path}: not a fleet state table (columns {', '.join(table.column_names)})")
-    if digest is not None and (table.schema.metadata or {}).get(_FILE_DIGEST) != digest.encode():
-        raise _Moved(path)
-    return table
 
 
 class _Moved(Exception):
@@ -491,11 +603,33 @@ def _load_table(store: Store, table: Any, changed: bool) -> None:
             store.rows.changed_days.add(day)
 
 
-def _load_dir(path: str) -> Store:
+def _rows_of(table: Any, day: str) -> List[Tuple[str, Row]]:
+    d = table.to_pydict()
+    return [(v, Row(ver, st, su)) for v, ver, st, su in zip(d["vehicle"], d["vehid_version"], d["state"], d["summary"])]
+
+
+def _fetcher(sp: str, opened: Dict[str, str]) -> Callable[[str], List[Tuple[str, Row]]]:
+    """Reads a day file's rows, checked against the digest ``opened`` (the manifest) gives."""
+
+    def fetch(day: str) -> List[Tuple[str, Row]]:
+        file = os.path.join(sp, f"{day}.parquet")
+        try:
+            return _rows_of(_read(file, opened[day]), day)
+        except _Moved:
+            raise _damaged(file, f"changed since the store was opened (its digest is not the one {MANIFEST} "
+                                 "gave): was another process writing it?") from None
+
+    return fetch
+
+
+def _load_dir(path: str, lazy: bool) -> Store:
     sp = os.path.join(path, STATE)
     manifest = os.path.join(sp, MANIFEST)
     for attempt in range(5):
         store = Store(path=path)
+        opened: Dict[str, str] = {}  # the day files as the manifest read lists them
+        if lazy:
+            store.rows = Rows(_fetcher(sp, opened))
         if not os.path.exists(manifest):
             if any(n.endswith(".parquet") and not n.startswith((".", "_")) for n in os.listdir(sp)):
                 raise _damaged(sp, f"no {MANIFEST} beside its files")
@@ -510,8 +644,14 @@ def _load_dir(path: str) -> Store:
             _apply(sp, man["pending"], man["remove"])
             store.seq, store.day_files, store.parts = int(man["seq"]), dict(man["days"]), list(man["parts"])
             store.run_problems = [(str(p[0]), str(p[1]), str(p[2])) for p in man["run_problems"]]
+            opened.update(store.day_files)
             for day, digest in store.day_files.items():
-                _load_table(store, _read(os.path.join(sp, f"{day}.parquet"), digest), changed=False)
+                file = os.path.join(sp, f"{day}.parquet")
+                if lazy:  # the keys now, the rows when asked for
+                    for v in _read(file, digest, ["vehicle"]).column("vehicle").to_pylist():
+                        store.rows.load_later((v, day))
+                else:
+                    _load_table(store, _read(file, digest), changed=False)
             for part in store.parts:  # rows committed in the middle of a run: the next commit folds them
                 if part["file"] is not None:
                     _load_table(store, _read(os.path.join(sp, part["file"]), part["digest"]), changed=True)
@@ -546,11 +686,13 @@ def _load_file(path: str) -> Store:
     return store
 
 
-def open_store(path: str) -> Store:
+def open_store(path: str, lazy: bool = False) -> Store:
     """Reads the store at ``path`` (an empty store if it has no ``state.parquet`` yet),
     finishing a commit a crash cut after its manifest, and rewrites its events and problems
-    tables if they are not those of its state. :class:`StoreError` for a directory that is not
-    a store or a damaged state."""
+    tables if they are not those of its state. ``lazy``: the day files' rows are read when
+    first asked for (their keys now), so that a run holds what it reads and writes, not the
+    whole history (a run holds the store's lock: nothing else writes it meanwhile).
+    :class:`StoreError` for a directory that is not a store or a damaged state."""
     if os.path.exists(path) and not os.path.isdir(path):
         raise StoreError(f"--store {path}: is a file; give a directory (created if missing)")
     if os.path.isdir(path):
@@ -559,7 +701,7 @@ def open_store(path: str) -> Store:
     if os.path.isfile(sp):
         store = _load_file(path)
     elif os.path.isdir(sp):
-        store = _load_dir(path)
+        store = _load_dir(path, lazy)
     else:
         if os.path.isdir(path) and any(not n.startswith(".") for n in os.listdir(path)):
             others = sorted(os.listdir(path))[:5]
@@ -568,9 +710,11 @@ def open_store(path: str) -> Store:
                                  f"{', '.join(others)}, no {STATE}): give an empty or new directory")
         return Store(path=path)
     if not store.legacy:
-        digest = store.digest().encode()
-        if any(_digest_of(os.path.join(path, name)) != digest for name in (EVENTS, PROBLEMS)):
-            store._write_derived(digest)
+        digest = store.digest()
+        if any(_digest_of(os.path.join(path, name)) != digest.encode() for name in (EVENTS, PROBLEMS)):
+            store._write_derived(digest.encode())
+        else:
+            store.derived_digest, store.derived_run_problems = digest, sorted(store.run_problems)
     return store
 
 
