@@ -58,7 +58,8 @@ class FleetResult:
     @functools.cached_property
     def states(self) -> Any:
         """``state.parquet``: vehicle, day, vehid_version, state, summary (sorted by vehicle,
-        day; read from the store when first asked for: it holds every stored day)."""
+        day), read from the store when first asked for (it holds every stored day, which the
+        run itself does not read)."""
         return open_store(self.store).state_table()
 
 

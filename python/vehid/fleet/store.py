@@ -27,9 +27,9 @@
   stale (a crash between the writes, a run killed after a commit in its middle), so they never
   disagree with it.
 
-A store written by vehid 0.x before the day files (``state.parquet`` as one file) is read as
-it is, and the first commit rewrites it as day files (the file is kept as
-``.state.parquet.v1`` until the new directory is in place).
+A store written before the day files (``state.parquet`` as one file, format 1) is read as it
+is, and the first commit rewrites it as day files (the file is kept as ``.state.parquet.v1``
+until the new directory is in place).
 """
 
 from __future__ import annotations
