@@ -33,6 +33,7 @@ from typing import Any, Callable, Dict, List
 import numpy as np
 import pytest
 from fuzz_harness import observable  # tests/ is on sys.path under pytest
+from numpy.typing import NDArray
 
 import vehid
 
@@ -486,12 +487,31 @@ def wait_until_busy(probe: Callable[[], Any], worker: threading.Thread) -> bool:
     return False
 
 
+def samples_for(seconds: float, make: Callable[[], Any], x: NDArray[np.float64], z: NDArray[np.float64],
+                most: int) -> int:
+    """How many samples a fresh ``make()``'s fit takes about ``seconds`` for on this build and
+    machine (timed on the first 2,000; at least 20,000, at most ``most``): long enough for a
+    second thread to try every call while it runs, not so long that the test costs more than
+    that. The test asserts the fit was still running at every try."""
+    n = 2_000
+    t = time.perf_counter()
+    make().fit(x[:n], z[:n])
+    per = (time.perf_counter() - t) / n
+    return int(min(most, max(20_000, seconds / per)))
+
+
 def test_one_identifier_used_from_two_threads_raises_vehid_error() -> None:
     # Used to raise pyo3's RuntimeError "Already borrowed" (and a deepcopy: PanicException).
     rng = np.random.default_rng(0)
     x = rng.standard_normal((400_000, 8))
     z = x @ H.a.T
-    kf = vehid.KalmanIdentifier(H, p0=1000.0, r=1.0, mode="full")  # 2-13 µs per sample: 0.8-5 s
+
+    def make() -> Any:
+        return vehid.KalmanIdentifier(H, p0=1000.0, r=1.0, mode="full")
+
+    n = samples_for(1.0, make, x, z, len(x))
+    x, z = x[:n], z[:n]
+    kf = make()
     t = threading.Thread(target=kf.fit, args=(x, z))
     t.start()
     try:
@@ -521,7 +541,13 @@ def test_the_noise_robust_identifiers_used_from_two_threads_raise_vehid_error(ki
     rng = np.random.default_rng(2)
     x = rng.standard_normal((1_000_000, 8))
     z = x @ H.a.T + 0.01 * rng.standard_normal((1_000_000, 8))
-    ident: Any = vehid.IVIdentifier(H) if kind == "iv" else vehid.BiasCompensated(H, state_noise_var=1e-4)
+
+    def make() -> Any:
+        return vehid.IVIdentifier(H) if kind == "iv" else vehid.BiasCompensated(H, state_noise_var=1e-4)
+
+    n = samples_for(1.0, make, x, z, len(x))
+    x, z = x[:n], z[:n]
+    ident = make()
     t = threading.Thread(target=ident.fit, args=(x, z))
     t.start()
     try:
