@@ -37,16 +37,9 @@ impl SimDyn for RoadSim {
         } else {
             SpeedProfile::PerSample { speeds: &self.speeds, next: self.next, stop: self.stop }
         };
-        // Check before reserving: a profile that cannot produce `n` samples is an error.
-        profile.validate()?;
-        if let Some(left) = profile.samples_left() {
-            if n > left {
-                return Err(vehid_core::Error::InvalidArgument {
-                    arg: "n",
-                    expected: "at most as many samples as the `speed` profile has non-zero entries left",
-                });
-            }
-        }
+        // Check before reserving: a profile that cannot produce `n` samples is an error (the
+        // entries the run uses; the whole profile was checked when the simulator was made).
+        profile.check_next(n)?;
         let mut out = reserve_run(n, 8, 2, true)?;
         // All or nothing: the road state (some 40 kB) is kept to undo a run that fails or is
         // interrupted part way.

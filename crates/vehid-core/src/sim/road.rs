@@ -53,6 +53,41 @@ impl<T: Real> SpeedProfile<'_, T> {
         }
     }
 
+    /// Checks what a run of `n` samples uses: a constant speed as [`SpeedProfile::validate`];
+    /// of a per-sample profile, the stop and the entries from `next` up to the `n`-th positive
+    /// one (finite and ≥ 0), so that the cost is that of the run, not of the whole profile
+    /// (a run in pieces would otherwise check a long profile once per piece).
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] (argument `n`) when fewer than `n` positive entries are
+    /// left; as [`SpeedProfile::validate`] for a bad entry among those used (the index is the
+    /// entry's in the whole profile).
+    pub fn check_next(&self, n: usize) -> Result<()> {
+        let SpeedProfile::PerSample { speeds, next, stop } = *self else {
+            return self.validate();
+        };
+        check_nonneg("stop", stop)?;
+        let mut found = 0;
+        let mut i = next;
+        while found < n {
+            let Some(&v) = speeds.get(i) else {
+                return Err(Error::InvalidArgument {
+                    arg: "n",
+                    expected: "at most as many samples as the `speed` profile has non-zero entries left",
+                });
+            };
+            if !v.finite() {
+                return Err(Error::NonFinite { arg: "speed", index: i });
+            }
+            if v < T::zero() {
+                return Err(Error::InvalidArgument { arg: "speed", expected: "speeds >= 0, m/s" });
+            }
+            found += usize::from(v > T::zero());
+            i += 1;
+        }
+        Ok(())
+    }
+
     /// Checks every speed: finite and > 0 for a constant, finite and ≥ 0 per sample.
     ///
     /// # Errors
@@ -518,20 +553,15 @@ impl<T: Real, const N: usize, const C: usize> RoadSimulator<T, N, C> {
     ///
     /// # Errors
     /// [`Error::InvalidArgument`] (argument `n`) when the profile has fewer than `n` samples
-    /// left, and the checks of [`SpeedProfile::validate`]; nothing is simulated then.
+    /// left, and the checks of [`SpeedProfile::check_next`] (the entries this run uses);
+    /// nothing is simulated then.
     pub fn run_profile(
         &mut self,
         n: usize,
         profile: &mut SpeedProfile<'_, T>,
         mut f: impl FnMut(&RoadSample<T, N>),
     ) -> Result<()> {
-        profile.validate()?;
-        if profile.samples_left().is_some_and(|left| n > left) {
-            return Err(Error::InvalidArgument {
-                arg: "n",
-                expected: "at most as many samples as the speed profile has non-zero entries left",
-            });
-        }
+        profile.check_next(n)?;
         let mut done = 0;
         while done < n {
             let v = match profile {

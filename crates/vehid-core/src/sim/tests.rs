@@ -267,3 +267,33 @@ fn the_sample_index_counts_the_samples_drawn() {
     let _ = sim.run(5);
     assert_eq!(sim.k(), 12);
 }
+
+#[test]
+fn a_profile_run_checks_the_entries_it_uses_and_refuses_without_simulating() {
+    // Entries 0..7 hold 5 moving samples and 2 stops; a NaN and a negative speed lie beyond.
+    let speeds = [6.0, 0.0, 5.0, 6.0, 0.0, 4.0, 6.0, 6.0, f64::NAN, -1.0];
+    let mut sim = half_road(RoadMode::White, 0.3, 7);
+    let mut profile = SpeedProfile::PerSample { speeds: &speeds, next: 0, stop: 0.5 };
+    let mut count = 0;
+    sim.run_profile(5, &mut profile, |_| count += 1).unwrap();
+    assert_eq!((count, sim.k()), (5, 5));
+    let SpeedProfile::PerSample { next, .. } = profile else { unreachable!() };
+    assert_eq!(next, 7);
+    // The next run would use the NaN: refused, naming its index in the whole profile, with
+    // nothing simulated and the cursor where it was.
+    let err = sim.run_profile(2, &mut profile, |_| count += 1).unwrap_err();
+    assert!(matches!(err, Error::NonFinite { arg: "speed", index: 8 }), "{err:?}");
+    assert_eq!((count, sim.k()), (5, 5));
+    assert!(matches!(profile, SpeedProfile::PerSample { next: 7, .. }));
+    // One more sample is there (entry 7); after it, a negative entry, then the end.
+    sim.run_profile(1, &mut profile, |_| count += 1).unwrap();
+    let tail = [6.0, 0.0, -1.0];
+    let mut other = SpeedProfile::PerSample { speeds: &tail, next: 0, stop: 0.5 };
+    assert!(matches!(sim.run_profile(2, &mut other, |_| ()), Err(Error::InvalidArgument { arg: "speed", .. })));
+    let short = [6.0, 0.0, 6.0];
+    let mut other = SpeedProfile::PerSample { speeds: &short, next: 0, stop: 0.5 };
+    assert!(matches!(sim.run_profile(3, &mut other, |_| ()), Err(Error::InvalidArgument { arg: "n", .. })));
+    assert_eq!(sim.k(), 6);
+    sim.run_profile(2, &mut other, |_| ()).unwrap(); // two moving entries: two samples
+    assert_eq!(sim.k(), 8);
+}
