@@ -389,6 +389,35 @@ def test_a_damaged_state_is_refused_with_the_file_and_the_fix(clean: Path, tmp_p
         fleet.open_store(str(store))
 
 
+def test_a_reader_meeting_a_commit_reads_the_new_store_whole(clean: Path, tmp_path: Path,
+                                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    """A commit between a reader's reading the manifest and its reading a day file (the file
+    no longer the one that manifest lists): the reader starts again from the new manifest and
+    returns the new store, not a mix."""
+    old, new = tmp_path / "old", tmp_path / "new"
+    shutil.copytree(clean, old)
+    shutil.copytree(clean, new)
+    st = store_mod.open_store(str(new))
+    first = sorted(st.rows)[0]
+    st.rows[first] = store_mod.Row("changed", st.rows[first].state, st.rows[first].summary)
+    st.commit()
+    real, calls = store_mod._read, []
+
+    def read(path: str, digest: Any, columns: Any = None) -> Any:
+        calls.append(path)
+        if len(calls) == 1:  # another process commits now
+            shutil.rmtree(old / "state.parquet")
+            shutil.copytree(new / "state.parquet", old / "state.parquet")
+        return real(path, digest, columns)
+
+    monkeypatch.setattr(store_mod, "_read", read)
+    got = store_mod.open_store(str(old))
+    monkeypatch.undo()
+    assert len(calls) > len(got.day_files)  # it started again
+    assert got.state_table().equals(fleet.read_table(str(new), "state"))
+    assert got.rows[first].vehid_version == "changed"
+
+
 def _single_file_store(clean: Path, store: Path) -> None:
     """``clean`` as the single-file store the previous version wrote (format 1)."""
     store.mkdir()

@@ -16,6 +16,8 @@
   flushed and renamed over the old one (``os.replace``, atomic on POSIX and Windows), then
   renames the files into place. A process killed before the manifest's rename leaves the last
   committed store; one killed after it has its renames redone when the store is next opened.
+  A reader that finds a day file other than the one the manifest it read lists (a commit came
+  between) starts again from the new manifest.
 * A commit in the middle of a run (every 60 s of a long one) writes only the rows that changed
   since the previous commit, as a part ``_part-<n>.parquet`` the manifest lists; the run's
   last commit folds the parts into the day files. So a commit costs what it adds, not the
