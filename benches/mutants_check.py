@@ -180,7 +180,9 @@ def main(argv: List[str] | None = None) -> int:
         elif (out_dir / "recheck").exists():
             shutil.rmtree(out_dir / "recheck")  # a fresh run of the shard: earlier rechecks are void
         if args.skip_baseline:
-            cmd.append("--baseline=skip")
+            # Without the baseline's time no timeout is derived from it: 20 minutes, well
+            # above a test run here (a mutant that runs that long is listed as a timeout).
+            cmd += ["--baseline=skip", "--timeout", "1200"]
         print("mutants:", " ".join(cmd)[:300], flush=True)
         env = dict(os.environ)
         if args.jobs == "1":
