@@ -330,6 +330,15 @@ def store_cost(args: argparse.Namespace) -> None:
             print(f"  {len(st.rows):12d}  {opening:13.3f}  {middle:34.3f}  {dt:17.3f}  {written / 1e6:10.1f}  "
                   f"{read:9d}", flush=True)
             del last
+        import tracemalloc
+
+        tracemalloc.start()
+        lazy = open_store(path, lazy=True)
+        index = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+        print(f"  open_store(lazy=True): the index of {len(lazy.rows)} rows holds {index / 1e6:.1f} MB "
+              f"({index / len(lazy.rows):.0f} bytes per row; tracemalloc's peak)")
+        del lazy
         t = time.perf_counter()
         opened = open_store(path)
         print(f"  open_store (every row): {len(opened.rows)} rows in {time.perf_counter() - t:.2f} s; store on disk "

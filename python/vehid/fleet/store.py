@@ -40,6 +40,7 @@ import hashlib
 import json
 import os
 import shutil
+import sys
 from collections.abc import MutableMapping
 from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, Iterable, Iterator, List, Optional, Set, Tuple
@@ -649,9 +650,9 @@ def _load_dir(path: str, lazy: bool) -> Store:
             opened.update(store.day_files)
             for day, digest in store.day_files.items():
                 file = os.path.join(sp, f"{day}.parquet")
-                if lazy:  # the keys now, the rows when asked for
+                if lazy:  # the keys now (each vehicle's name held once), the rows when asked for
                     for v in _read(file, digest, ["vehicle"]).column("vehicle").to_pylist():
-                        store.rows.load_later((v, day))
+                        store.rows.load_later((sys.intern(v), day))
                 else:
                     _load_table(store, _read(file, digest), changed=False)
             for part in store.parts:  # rows committed in the middle of a run: the next commit folds them
