@@ -327,6 +327,8 @@ def test_random_commits_keep_the_store_equal_to_a_model_and_its_tables_to_those_
             st.commit(final=rng.random() < 0.5)
         if rng.random() < 0.8:  # a run ends with its last commit; else it was killed after a middle one
             st.commit()
+        for key in ((v, d) for v in vehicles for d in days):  # the run's own view: no row it deleted
+            assert (st.rows.get(key) is None) == (key not in model) == (key not in st.rows), (rnd, key)
         full = store_mod.open_store(path)  # (rewrites the derived tables if the run was killed)
         assert {k: (r.vehid_version, r.state, r.summary) for k, r in full.rows.items()} == \
             {k: (r.vehid_version, r.state, r.summary) for k, r in model.items()}, rnd

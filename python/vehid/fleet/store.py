@@ -80,20 +80,22 @@ class Row:
 
 
 class Rows(MutableMapping):  # type: ignore[type-arg]
-    """The stored rows by ``(vehicle, day)``, indexed by vehicle and by day, remembering which
-    keys and days changed since the last commit (what the next one writes).
+    """The stored rows by ``(vehicle, day)``, indexed by vehicle, remembering which keys and
+    days changed since the last commit (what the next one writes).
 
     A row may be known by its key alone (``load_later``): its day file is read, whole, when
     one of its rows is first asked for, so that a run holds the index of the store and the
-    days it reads or writes, not the history."""
+    days it reads or writes, not the history. The index is one set of days per vehicle: a key
+    of a day not read yet is one whose row is not in memory."""
 
     def __init__(self, fetch: Optional[Callable[[str], Iterable[Tuple[str, Row]]]] = None) -> None:
         self._rows: Dict[Tuple[str, str], Row] = {}
-        #: day -> the vehicles whose rows of that day are in its file, not read yet.
-        self._later: Dict[str, Set[str]] = {}
+        #: The days whose file holds rows not read yet: every key of such a day that is in the
+        #: index and not in ``_rows`` (a key set since is in ``_rows``, one deleted is not in
+        #: the index).
+        self._later: Set[str] = set()
         self._fetch = fetch
         self._by_vehicle: Dict[str, Set[str]] = {}
-        self._by_day: Dict[str, Set[str]] = {}
         self._count = 0
         #: Keys set or deleted since the last commit (the next part's rows).
         self.changed_keys: Set[Tuple[str, str]] = set()
@@ -103,28 +105,20 @@ class Rows(MutableMapping):  # type: ignore[type-arg]
         self.derived_days: Set[str] = set()
 
     def _index(self, key: Tuple[str, str]) -> None:
-        if key not in self:
-            self._by_vehicle.setdefault(key[0], set()).add(key[1])
-            self._by_day.setdefault(key[1], set()).add(key[0])
+        days = self._by_vehicle.setdefault(key[0], set())
+        if key[1] not in days:
+            days.add(key[1])
             self._count += 1
-
-    def _not_later(self, key: Tuple[str, str]) -> None:
-        later = self._later.get(key[1])
-        if later is not None:
-            later.discard(key[0])
-            if not later:
-                del self._later[key[1]]
 
     def load(self, key: Tuple[str, str], row: Row) -> None:
         """Puts a committed row in, not counted as a change."""
         self._index(key)
-        self._not_later(key)
         self._rows[key] = row
 
     def load_later(self, key: Tuple[str, str]) -> None:
         """Puts a committed row in by its key: its day file is read when it is asked for."""
         self._index(key)
-        self._later.setdefault(key[1], set()).add(key[0])
+        self._later.add(key[1])
 
     def read_all(self) -> None:
         """Reads every row still known by its key alone."""
@@ -132,19 +126,20 @@ class Rows(MutableMapping):  # type: ignore[type-arg]
             self._read(day)
 
     def _read(self, day: str) -> None:
-        want = self._later.pop(day)
         assert self._fetch is not None, "a row known by its key alone needs a reader"
-        for v, row in self._fetch(day):
-            if v in want:
+        rows = self._fetch(day)
+        self._later.discard(day)
+        for v, row in rows:
+            if (v, day) in self and (v, day) not in self._rows:
                 self._rows[(v, day)] = row
 
     def __contains__(self, key: object) -> bool:
-        return isinstance(key, tuple) and len(key) == 2 and key[0] in self._by_day.get(key[1], ())
+        return isinstance(key, tuple) and len(key) == 2 and key[1] in self._by_vehicle.get(key[0], ())
 
     def __getitem__(self, key: Tuple[str, str]) -> Row:
         row = self._rows.get(key)
         if row is None:
-            if key[0] not in self._later.get(key[1], ()):
+            if key[1] not in self._later or key not in self:
                 raise KeyError(key)
             self._read(key[1])
             row = self._rows[key]
@@ -167,17 +162,16 @@ class Rows(MutableMapping):  # type: ignore[type-arg]
         the part already holds the deletion)."""
         if key in self:
             self._rows.pop(key, None)
-            self._not_later(key)
-            for index, outer, inner in ((self._by_vehicle, key[0], key[1]), (self._by_day, key[1], key[0])):
-                index[outer].discard(inner)
-                if not index[outer]:
-                    del index[outer]
+            days = self._by_vehicle[key[0]]
+            days.discard(key[1])
+            if not days:
+                del self._by_vehicle[key[0]]
             self._count -= 1
         self.changed_days.add(key[1])
         self.derived_days.add(key[1])
 
     def __iter__(self) -> Iterator[Tuple[str, str]]:
-        return ((v, d) for d, vs in list(self._by_day.items()) for v in list(vs))
+        return ((v, d) for v, ds in list(self._by_vehicle.items()) for d in list(ds))
 
     def __len__(self) -> int:
         return self._count
@@ -191,8 +185,8 @@ class Rows(MutableMapping):  # type: ignore[type-arg]
         return sorted(self._by_vehicle.get(vehicle, ()))
 
     def vehicles_on(self, day: str) -> List[str]:
-        """The vehicles with a row on ``day``, sorted."""
-        return sorted(self._by_day.get(day, ()))
+        """The vehicles with a row on ``day``, sorted (a pass over the vehicles)."""
+        return sorted(v for v, ds in self._by_vehicle.items() if day in ds)
 
 
 @dataclass
