@@ -420,6 +420,29 @@ def test_a_reader_meeting_a_commit_reads_the_new_store_whole(clean: Path, tmp_pa
     assert got.rows[first].vehid_version == "changed"
 
 
+def test_the_report_reads_no_monitor_state(clean: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The report reads the summaries alone (the states are half the store): the same rows
+    otherwise, and a store read so refuses a commit."""
+    full, bare = store_mod.open_store(str(clean)), store_mod.open_store(str(clean), states=False)
+    assert sorted(full.rows) == sorted(bare.rows)
+    assert all(bare.rows[k].state is None and bare.rows[k].summary == full.rows[k].summary for k in full.rows)
+    with pytest.raises(fleet.StoreError, match="opened without its states"):
+        bare.commit()
+    real, asked = store_mod._read, []
+
+    def read(path: str, digest: Any, columns: Any = None) -> Any:
+        asked.append(columns)
+        return real(path, digest, columns)
+
+    monkeypatch.setattr(store_mod, "_read", read)
+    from vehid.fleet.report import render
+
+    page = render(str(clean))
+    assert asked and all(c is not None and "state" not in c for c in asked), asked
+    monkeypatch.undo()
+    assert page == render(str(clean))
+
+
 def _single_file_store(clean: Path, store: Path) -> None:
     """``clean`` as the single-file store the previous version wrote (format 1)."""
     store.mkdir()

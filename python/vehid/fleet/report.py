@@ -114,7 +114,7 @@ def render(store_path: str) -> str:
     if not os.path.exists(os.path.join(store_path, STATE)):
         raise StoreError(f"{store_path}: not a fleet store (no {STATE}): run vehid fleet run DIR --store "
                          f"{store_path} first")
-    store = open_store(store_path)
+    store = open_store(store_path, states=False)  # the summaries are what the page shows
     vehicles = _vehicles(store)
     with_events = sorted((v for v in vehicles if vehicles[v]["events"]),
                          key=lambda v: (vehicles[v]["events"][-1][0], v), reverse=True)

@@ -212,6 +212,8 @@ class Store:
     derived_run_problems: List[Tuple[str, str, str]] = field(default_factory=list)
     #: The derived tables as the last commit wrote them.
     written: Optional[Tuple[Any, Any]] = None
+    #: Read without the monitor states (``open_store(states=False)``): not to be committed.
+    without_states: bool = False
 
     def days(self, vehicle: str) -> List[str]:
         """The vehicle's stored days, sorted."""
@@ -275,6 +277,9 @@ class Store:
         """Commits the rows changed since the last commit. ``final`` (a run's last commit):
         the day files they fall on are rewritten (with the parts before them), then
         ``events.parquet`` and ``problems.parquet``; otherwise they go into one new part."""
+        if self.without_states:
+            raise StoreError(f"{self.path}: opened without its states (open_store(states=False)), so it cannot be "
+                             "committed: open it with its states")
         try:
             os.makedirs(self.path, exist_ok=True)
         except OSError as e:
@@ -594,7 +599,8 @@ def _load_table(store: Store, table: Any, changed: bool) -> None:
     """Puts a file's rows into ``store``; ``changed``: their days count as changed (a part's
     rows, which the next commit of the day files takes in)."""
     d = table.to_pydict()
-    for v, day, ver, st, su in zip(d["vehicle"], d["day"], d["vehid_version"], d["state"], d["summary"]):
+    states = d["state"] if "state" in d else [None] * table.num_rows
+    for v, day, ver, st, su in zip(d["vehicle"], d["day"], d["vehid_version"], states, d["summary"]):
         store.rows.load((v, day), Row(ver, st, su))
         if changed:
             store.rows.changed_days.add(day)
@@ -619,11 +625,12 @@ def _fetcher(sp: str, opened: Dict[str, str]) -> Callable[[str], List[Tuple[str,
     return fetch
 
 
-def _load_dir(path: str, lazy: bool) -> Store:
+def _load_dir(path: str, lazy: bool, states: bool) -> Store:
     sp = os.path.join(path, STATE)
     manifest = os.path.join(sp, MANIFEST)
+    columns = None if states else [c for c in _STATE_COLUMNS if c != "state"]
     for attempt in range(5):
-        store = Store(path=path)
+        store = Store(path=path, without_states=not states)
         opened: Dict[str, str] = {}  # the day files as the manifest read lists them
         if lazy:
             store.rows = Rows(_fetcher(sp, opened))
@@ -648,10 +655,10 @@ def _load_dir(path: str, lazy: bool) -> Store:
                     for v in _read(file, digest, ["vehicle"]).column("vehicle").to_pylist():
                         store.rows.load_later((sys.intern(v), day))
                 else:
-                    _load_table(store, _read(file, digest), changed=False)
+                    _load_table(store, _read(file, digest, columns), changed=False)
             for part in store.parts:  # rows committed in the middle of a run: the next commit folds them
                 if part["file"] is not None:
-                    _load_table(store, _read(os.path.join(sp, part["file"]), part["digest"]), changed=True)
+                    _load_table(store, _read(os.path.join(sp, part["file"]), part["digest"], columns), changed=True)
                 for v, day in part["deleted"]:
                     store.rows.unload((v, day))
             return store
@@ -683,12 +690,14 @@ def _load_file(path: str) -> Store:
     return store
 
 
-def open_store(path: str, lazy: bool = False) -> Store:
+def open_store(path: str, lazy: bool = False, states: bool = True) -> Store:
     """Reads the store at ``path`` (an empty store if it has no ``state.parquet`` yet),
     finishing a commit a crash cut after its manifest, and rewrites its events and problems
     tables if they are not those of its state. ``lazy``: the day files' rows are read when
     first asked for (their keys now), so that a run holds what it reads and writes, not the
     whole history (a run holds the store's lock: nothing else writes it meanwhile).
+    ``states=False``: every row without its monitor state (``state`` None), for what reads the
+    summaries alone (the report); such a store cannot be committed.
     :class:`StoreError` for a directory that is not a store or a damaged state."""
     if os.path.exists(path) and not os.path.isdir(path):
         raise StoreError(f"--store {path}: is a file; give a directory (created if missing)")
@@ -698,7 +707,7 @@ def open_store(path: str, lazy: bool = False) -> Store:
     if os.path.isfile(sp):
         store = _load_file(path)
     elif os.path.isdir(sp):
-        store = _load_dir(path, lazy)
+        store = _load_dir(path, lazy, states)
     else:
         if os.path.isdir(path) and any(not n.startswith(".") for n in os.listdir(path)):
             others = sorted(os.listdir(path))[:5]
