@@ -443,6 +443,39 @@ def test_the_report_reads_no_monitor_state(clean: Path, monkeypatch: pytest.Monk
     assert page == render(str(clean))
 
 
+def test_a_reader_during_a_run_leaves_the_tables_to_the_run(clean: Path, tmp_path: Path,
+                                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    """Between a run's commits the events and problems files are stale (made before its
+    parts). A reader then (the report, read_table) reads the tables from the rows and leaves
+    the files to the run, which updates them at its last commit from the files as they were
+    (not made anew from every row); with no run, the reader rewrites them."""
+    store = tmp_path / "store"
+    shutil.copytree(clean, store)
+    run = store_mod.open_store(str(store), lazy=True)
+    key = sorted(run.rows)[-1]
+    run.rows[key] = store_mod.Row("changed", run.rows[key].state, run.rows[key].summary.replace("{", '{"x": 1, ', 1))
+    run.commit(final=False)
+    files = {n: (store / n).read_bytes() for n in ("events.parquet", "problems.parquet")}
+    (store / ".lock").write_text(str(os.getppid()))  # a live process other than this one
+    assert fleet.read_table(str(store), "events").equals(fleet.read_table(str(clean), "events"))
+    assert {n: (store / n).read_bytes() for n in files} == files  # left to the run
+    anew = []
+    monkeypatch.setattr(store_mod.Store, "events_table", lambda self: anew.append(1) or store_mod.Store._events_of(
+        self, sorted(self.rows)))
+    run.commit()  # the run's last commit: an update of the files
+    monkeypatch.undo()
+    assert anew == []
+    full = store_mod.open_store(str(store))
+    assert pq.read_table(store / "events.parquet").equals(full.events_table())
+    (store / ".lock").unlink()
+    run = store_mod.open_store(str(store), lazy=True)
+    run.rows[key] = store_mod.Row("again", run.rows[key].state, run.rows[key].summary)
+    run.commit(final=False)
+    store_mod.open_store(str(store))  # no run holds the store: the reader rewrites the files
+    assert pq.read_schema(store / "events.parquet").metadata[b"vehid.fleet.state_digest"] == \
+        store_mod.open_store(str(store)).digest().encode()
+
+
 def _single_file_store(clean: Path, store: Path) -> None:
     """``clean`` as the single-file store the previous version wrote (format 1)."""
     store.mkdir()

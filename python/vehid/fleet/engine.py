@@ -24,7 +24,7 @@ from ._deps import module
 from .config import ConfigError, VehicleConfig, load_config
 from .fold import DayError, fold, summary_json
 from .layout import CONFIG, read_day, scan
-from .store import Row, Store, StoreError, open_store
+from .store import LOCK, Row, Store, StoreError, open_store
 
 #: Seconds between two commits of a long run (a crash loses at most this much work).
 COMMIT_EVERY = 60.0
@@ -140,7 +140,7 @@ class _Lock:
     """``STORE/.lock``: one run at a time per store (a lock left by a dead process is taken over)."""
 
     def __init__(self, path: str) -> None:
-        self.path = os.path.join(path, ".lock")
+        self.path = os.path.join(path, LOCK)
 
     def __enter__(self) -> _Lock:
         for _ in range(2):

@@ -48,6 +48,8 @@ from typing import Any, Callable, Dict, Iterable, Iterator, List, Optional, Set,
 from ._deps import module
 
 STATE, EVENTS, PROBLEMS = "state.parquet", "events.parquet", "problems.parquet"
+#: The lock file a run holds (``vehid.fleet.engine``): the pid of the process running.
+LOCK = ".lock"
 #: The manifest inside ``state.parquet``.
 MANIFEST = "_commit.json"
 #: The store's format (the manifest's ``format``): 2 is the directory of day files.
@@ -693,7 +695,8 @@ def _load_file(path: str) -> Store:
 def open_store(path: str, lazy: bool = False, states: bool = True) -> Store:
     """Reads the store at ``path`` (an empty store if it has no ``state.parquet`` yet),
     finishing a commit a crash cut after its manifest, and rewrites its events and problems
-    tables if they are not those of its state. ``lazy``: the day files' rows are read when
+    tables if they are not those of its state (unless a run in another process holds the
+    store: it updates them at its last commit). ``lazy``: the day files' rows are read when
     first asked for (their keys now), so that a run holds what it reads and writes, not the
     whole history (a run holds the store's lock: nothing else writes it meanwhile).
     ``states=False``: every row without its monitor state (``state`` None), for what reads the
@@ -717,11 +720,31 @@ def open_store(path: str, lazy: bool = False, states: bool = True) -> Store:
         return Store(path=path)
     if not store.legacy:
         digest = store.digest()
-        if any(_digest_of(os.path.join(path, name)) != digest.encode() for name in (EVENTS, PROBLEMS)):
-            store._write_derived(digest.encode())
-        else:
+        if all(_digest_of(os.path.join(path, name)) == digest.encode() for name in (EVENTS, PROBLEMS)):
             store.derived_digest, store.derived_run_problems = digest, sorted(store.run_problems)
+        elif not _run_elsewhere(path):
+            store._write_derived(digest.encode())
+        # else a run in another process is between its commits: it updates the tables at its
+        # last commit from the files as they are (the tables of this store are its rows').
     return store
+
+
+def _run_elsewhere(path: str) -> bool:
+    """Whether another live process holds the store's lock (a run between its commits)."""
+    try:
+        with open(os.path.join(path, LOCK)) as f:
+            pid = int(f.read().strip() or 0)
+    except (OSError, ValueError):
+        return False
+    if pid <= 0 or pid == os.getpid():
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # alive, another user's
+        return True
+    return True
 
 
 def _digest_of(path: str) -> Optional[bytes]:
