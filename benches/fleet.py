@@ -314,7 +314,8 @@ def store_cost(args: argparse.Namespace) -> None:
             before = _files(path)
             t = time.perf_counter()
             st = open_store(path, lazy=True)  # as a run opens it, then reads each vehicle's last state
-            last = [st.rows[(v, st.days(v)[-1])].state for v in vehicles]
+            for v in vehicles:
+                st.rows[(v, st.days(v)[-1])]
             opening = time.perf_counter() - t
             read = st.rows.held()
             middle = 0.0
@@ -329,7 +330,6 @@ def store_cost(args: argparse.Namespace) -> None:
             written = sum(s[2] for f, s in after.items() if before.get(f) != s)
             print(f"  {len(st.rows):12d}  {opening:13.3f}  {middle:34.3f}  {dt:17.3f}  {written / 1e6:10.1f}  "
                   f"{read:9d}", flush=True)
-            del last
         import tracemalloc
 
         tracemalloc.start()

@@ -738,6 +738,7 @@ def test_a_process_killed_mid_write_leaves_a_store_that_reads(src: Path, clean: 
     assert proc.returncode == -signal.SIGKILL, proc.stderr
     left = [p.name for p in store.rglob("*")]
     assert any(".tmp-" in n for n in left)  # the half-written file is still there
+    (store / ".events.parquet.tmp-99999").write_bytes(b"half")  # as a kill while writing the events leaves
     after = store_tables(store)
     for name in before:
         assert after[name].equals(before[name]), name

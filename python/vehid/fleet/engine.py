@@ -214,10 +214,7 @@ def run(fleet: str, store: str, client: Any = None, workers: Optional[int] = Non
         os.makedirs(store, exist_ok=True)
     except OSError as e:
         raise StoreError(f"--store {store}: cannot create the directory ({e.strerror or e})") from None
-    with _Lock(store):
-        for name in os.listdir(store):  # what a process killed while writing left behind
-            if ".parquet.tmp-" in name:
-                os.remove(os.path.join(store, name))
+    with _Lock(store):  # (what a process killed while writing left behind goes at the commit)
         st = open_store(store, lazy=True)
         tasks, problems = plan(fleet, st, since)
         if since is not None:  # the days recomputed are replaced; a vehicle left out keeps its rows

@@ -221,13 +221,6 @@ class Store:
         """The vehicle's stored days, sorted."""
         return self.rows.days_of(vehicle)
 
-    def by_vehicle(self) -> Dict[str, List[str]]:
-        """Every stored vehicle's days, sorted."""
-        out: Dict[str, List[str]] = {}
-        for v, d in sorted(self.rows):
-            out.setdefault(v, []).append(d)
-        return out
-
     # --- tables ---------------------------------------------------------------------------
 
     def state_table(self) -> Any:
@@ -304,28 +297,42 @@ class Store:
                 "parts": self.parts, "run_problems": sorted(list(p) for p in self.run_problems),
                 "pending": pending, "remove": remove}
 
+    def _write_rows(self, path: str, keys: List[Tuple[str, str]]) -> str:
+        """Writes the rows ``keys`` as a state file at ``path`` (flushed, not renamed) and
+        returns their digest, which the file's metadata holds too."""
+        digest = _rows_digest(self.rows, keys)
+        _write_file(path, _parquet(_state_table(self.rows, keys), {_FILE_DIGEST: digest.encode()}))
+        return digest
+
+    def _publish(self, sp: str, day_files: Dict[str, str], parts: List[Dict[str, Any]],
+                 pending: List[List[str]], remove: List[str]) -> None:
+        """Commits: the next manifest, with these day files and parts (and the renames and
+        removals that put its files in place), written over the last one; the store in memory
+        is as it was if that fails."""
+        old = self.day_files, self.parts, self.seq
+        self.day_files, self.parts, self.seq = day_files, parts, self.seq + 1
+        try:
+            _write_json(os.path.join(sp, MANIFEST), self._manifest(pending, remove))
+        except BaseException:
+            self.day_files, self.parts, self.seq = old
+            raise
+
     def _commit_part(self, sp: str) -> None:
         if not self.rows.changed_keys:
             return
         keys = sorted(k for k in self.rows.changed_keys if k in self.rows)
         deleted = sorted(list(k) for k in self.rows.changed_keys if k not in self.rows)
-        seq = self.seq + 1
-        name = f"_part-{seq:06d}.parquet"
-        digest = _rows_digest(self.rows, keys)
-        if keys:
-            write_atomic(_state_table(self.rows, keys), os.path.join(sp, name), {_FILE_DIGEST: digest.encode()})
-        parts = self.parts + [{"file": name if keys else None, "digest": digest, "deleted": deleted}]
-        old = self.parts, self.seq
-        self.parts, self.seq = parts, seq
+        name = f"_part-{self.seq + 1:06d}.parquet"  # no manifest lists it until it is published
         try:
-            _write_json(os.path.join(sp, MANIFEST), self._manifest([], []))
+            digest = self._write_rows(os.path.join(sp, name), keys) if keys else _rows_digest(self.rows, [])
+            self._publish(sp, self.day_files, self.parts + [{"file": name if keys else None, "digest": digest,
+                                                              "deleted": deleted}], [], [])
         except BaseException:
-            self.parts, self.seq = old
+            _remove(os.path.join(sp, name))
             raise
         self.rows.changed_keys.clear()
 
     def _commit_days(self, sp: str) -> None:
-        seq = self.seq + 1
         days = dict(self.day_files)
         pending: List[List[str]] = []
         remove = [p["file"] for p in self.parts if p["file"] is not None]
@@ -333,22 +340,12 @@ class Store:
             for day in sorted(self.rows.changed_days):
                 vehicles = self.rows.vehicles_on(day)
                 if vehicles:
-                    keys = [(v, day) for v in vehicles]
-                    tmp = f".{day}.parquet.tmp-{seq}"
-                    days[day] = _rows_digest(self.rows, keys)
-                    pending.append([tmp, f"{day}.parquet"])
-                    _write_file(_state_table(self.rows, keys), os.path.join(sp, tmp),
-                                {_FILE_DIGEST: days[day].encode()})
+                    pending.append([f".{day}.parquet.tmp-{self.seq + 1}", f"{day}.parquet"])
+                    days[day] = self._write_rows(os.path.join(sp, pending[-1][0]), [(v, day) for v in vehicles])
                 elif day in days:
                     del days[day]
                     remove.append(f"{day}.parquet")
-            old = self.day_files, self.parts, self.seq
-            self.day_files, self.parts, self.seq = days, [], seq
-            try:
-                _write_json(os.path.join(sp, MANIFEST), self._manifest(pending, remove))
-            except BaseException:
-                self.day_files, self.parts, self.seq = old
-                raise
+            self._publish(sp, days, [], pending, remove)
         except BaseException:
             for tmp, _ in pending:
                 _remove(os.path.join(sp, tmp))
@@ -364,15 +361,10 @@ class Store:
         new, old = os.path.join(self.path, _SWAP), os.path.join(self.path, _LEGACY)
         shutil.rmtree(new, ignore_errors=True)
         os.makedirs(new)
-        days: Dict[str, str] = {}
-        for day in sorted({d for _, d in self.rows}):
-            keys = [(v, day) for v in self.rows.vehicles_on(day)]
-            days[day] = _rows_digest(self.rows, keys)
-            _write_file(_state_table(self.rows, keys), os.path.join(new, f"{day}.parquet"),
-                        {_FILE_DIGEST: days[day].encode()})
-        self.day_files, self.parts, self.seq = days, [], self.seq + 1
-        _write_json(os.path.join(new, MANIFEST), self._manifest([], []))
-        _fsync_dir(new)
+        days = {day: self._write_rows(os.path.join(new, f"{day}.parquet"),
+                                      [(v, day) for v in self.rows.vehicles_on(day)])
+                for day in sorted({d for _, d in self.rows})}
+        self._publish(new, days, [], [], [])
         if os.path.isfile(sp):
             os.replace(sp, old)
         os.rename(new, sp)
@@ -383,12 +375,13 @@ class Store:
         self.rows.changed_days.clear()
 
     def _sweep(self, sp: str) -> None:
-        """Removes what a process killed while writing left in ``state.parquet``: temporary
-        files, and parts no manifest lists."""
+        """Removes what a process killed while writing left: temporary files (in the store
+        and in ``state.parquet``), and parts no manifest lists."""
         listed = {p["file"] for p in self.parts}
-        for name in os.listdir(sp):
-            if (name.startswith(".") and ".tmp-" in name) or (name.startswith("_part-") and name not in listed):
-                _remove(os.path.join(sp, name))
+        for directory in (self.path, sp):
+            for name in os.listdir(directory):
+                if (name.startswith(".") and ".tmp-" in name) or (name.startswith("_part-") and name not in listed):
+                    _remove(os.path.join(directory, name))
 
     def _write_derived(self, digest: bytes) -> None:
         tables = self._derived_update() if self.derived_digest is not None else None
@@ -493,53 +486,54 @@ def _fsync_dir(path: str) -> None:
         os.close(fd)
 
 
-def _write_file(table: Any, path: str, metadata: Dict[bytes, bytes]) -> None:
-    """Writes ``table`` to ``path`` with ``metadata`` and flushes it to disk; on failure no
-    file is left."""
-    pq = module("pyarrow.parquet")
-
-    table = table.replace_schema_metadata({**(table.schema.metadata or {}), **metadata})
+def _write_file(path: str, write: Callable[[str], None], final: Optional[str] = None) -> None:
+    """Writes a file with ``write(path)`` and flushes it to disk; with ``final``, renames it
+    there (atomic: ``final`` is as it was until then). On any failure no file of this write
+    is left."""
     try:
-        pq.write_table(table, path, compression="zstd")
+        write(path)
         with open(path, "rb+") as f:
             os.fsync(f.fileno())
+        if final is not None:
+            os.replace(path, final)
+            _fsync_dir(os.path.dirname(final))
     except BaseException as e:
         _remove(path)
         if isinstance(e, OSError):
-            raise StoreError(f"{path}: cannot write ({e.strerror or e})") from None
+            raise StoreError(f"{final or path}: cannot write ({e.strerror or e})") from None
         raise
+
+
+def _parquet(table: Any, metadata: Dict[bytes, bytes]) -> Callable[[str], None]:
+    """Writes ``table`` with ``metadata`` added to its own, as a Parquet file."""
+    pq = module("pyarrow.parquet")
+
+    table = table.replace_schema_metadata({**(table.schema.metadata or {}), **metadata})
+    return lambda path: pq.write_table(table, path, compression="zstd")
+
+
+def _temporary(path: str) -> str:
+    """The temporary name of an atomic write of ``path`` (readers skip names starting with
+    ``.``; the pid keeps two processes' apart)."""
+    directory, name = os.path.split(path)
+    return os.path.join(directory, f".{name}.tmp-{os.getpid()}")
 
 
 def write_atomic(table: Any, path: str, metadata: Dict[bytes, bytes]) -> None:
     """Writes ``table`` to ``path`` atomically: a temporary file in the same directory,
     flushed to disk, then renamed over ``path``. On any failure ``path`` is as it was and the
     temporary file is removed."""
-    directory, name = os.path.split(path)
-    tmp = os.path.join(directory, f".{name}.tmp-{os.getpid()}")
-    _write_file(table, tmp, metadata)
-    try:
-        os.replace(tmp, path)
-    except OSError as e:
-        _remove(tmp)
-        raise StoreError(f"{path}: cannot write ({e.strerror or e})") from None
+    _write_file(_temporary(path), _parquet(table, metadata), final=path)
 
 
 def _write_json(path: str, obj: Any) -> None:
     """Writes ``obj`` as JSON to ``path`` atomically (as :func:`write_atomic`)."""
-    directory, name = os.path.split(path)
-    tmp = os.path.join(directory, f".{name}.tmp-{os.getpid()}")
-    try:
+
+    def write(tmp: str) -> None:
         with open(tmp, "w", encoding="utf-8") as f:
             json.dump(obj, f, indent=1)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-        _fsync_dir(directory)
-    except BaseException as e:
-        _remove(tmp)
-        if isinstance(e, OSError):
-            raise StoreError(f"{path}: cannot write ({e.strerror or e})") from None
-        raise
+
+    _write_file(_temporary(path), write, final=path)
 
 
 def _apply(sp: str, pending: List[List[str]], remove: List[str]) -> None:
@@ -667,9 +661,9 @@ def _load_dir(path: str, lazy: bool, states: bool) -> Store:
         except _Moved as e:
             if attempt == 4:
                 raise _damaged(str(e), f"not the file {MANIFEST} lists (its digest differs)") from None
+        except StoreError:
+            raise
         except (KeyError, TypeError, ValueError, AttributeError) as e:
-            if isinstance(e, StoreError):
-                raise
             raise _damaged(manifest, f"not a manifest ({type(e).__name__}: {e})") from None
     raise AssertionError("unreachable")
 
@@ -765,9 +759,3 @@ def read_table(path: str, name: str) -> Any:
     if name not in tables:
         raise ValueError(f"name={name!r}: choose events, state or problems")
     return tables[name]()
-
-
-def merge(store: Store, rows: Iterable[Tuple[str, str, Row]]) -> None:
-    """Puts ``rows`` (vehicle, day, row) into ``store``, replacing those days."""
-    for v, d, r in rows:
-        store.rows[(v, d)] = r
